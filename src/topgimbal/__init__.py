@@ -1,0 +1,40 @@
+"""topgimbal: both ends of the TOP gimbal-camera protocol (TOPOTEK SIP, SkyDroid C10..C20)."""
+
+from __future__ import annotations
+
+from .errors import (
+    CatalogError,
+    ChecksumError,
+    DeviceError,
+    FieldValueError,
+    FrameError,
+    LengthError,
+    RequestTimeoutError,
+    TopGimbalError,
+    TransportError,
+    UnknownCommandError,
+    UnsupportedError,
+)
+from .protocol import (
+    Diagnostic,
+    Dialect,
+    DeviceModel,
+    Frame,
+    FrameParser,
+    Message,
+    decode,
+    encode,
+    get_dialect,
+    get_model,
+    parse_frame,
+)
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "__version__",
+    "CatalogError", "ChecksumError", "DeviceError", "FieldValueError", "FrameError", "LengthError",
+    "RequestTimeoutError", "TopGimbalError", "TransportError", "UnknownCommandError", "UnsupportedError",
+    "Diagnostic", "Dialect", "DeviceModel", "Frame", "FrameParser", "Message", "decode", "encode", "get_dialect",
+    "get_model", "parse_frame",
+]

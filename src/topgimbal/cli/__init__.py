@@ -1,0 +1,1 @@
+"""The `topgimbal` command line. Each subcommand lives in its own module with `register()`."""

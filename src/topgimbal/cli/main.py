@@ -1,0 +1,51 @@
+"""Entry point: builds the parser from the subcommand modules and runs the chosen one.
+
+Each module in COMMAND_MODULES has `register(subparsers)`; each subparser sets `func(args) -> int`.
+Errors from topgimbal end as one line on stderr and a non-zero exit code."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import sys
+from collections.abc import Sequence
+
+from ..errors import TopGimbalError
+from . import args as common
+
+COMMAND_MODULES = ("protocol_cmds", "sim_cmd", "device_cmds", "console_cmd")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="topgimbal",
+        description="Control and simulate TOP-protocol gimbal cameras (TOPOTEK SIP, SkyDroid C10..C20).",
+    )
+    common.add_connection_arguments(parser)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        modname = f"{__package__}.{name}"
+        if importlib.util.find_spec(modname) is None:
+            continue  # subcommand not shipped in this build
+        importlib.import_module(modname).register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        return 130
+    except (TopGimbalError, ValueError, OSError) as exc:
+        print(f"topgimbal: error: {exc}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,259 @@
+"""Streaming frame parser: bytes in any chunking -> frames and diagnostics.
+
+Contract: `feed()` never raises, never waits on bytes that cannot come (a good frame already in the
+buffer is never held back by garbage before it), keeps at most one maximum-size frame buffered,
+resynchronises at the next `#`, and drops only the frame whose checksum is wrong.
+
+Length recovery: when an ASCII-header frame fails its checksum at the declared length, the parser
+tries every other length 0..15 that ends before the next `#`, CR or LF; one whose checksum matches
+is accepted and reported as a `length_mismatch` diagnostic (real C12: `#tpDU3rVER0105025A`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .frame import Frame, checksum_text
+
+_HEXVAL = [-1] * 256
+for _i, _c in enumerate(b"0123456789ABCDEF"):
+    _HEXVAL[_c] = _i
+for _i, _c in enumerate(b"abcdef"):
+    _HEXVAL[_c] = 10 + _i
+_ADDR = frozenset(b"UMDEPG")
+_RW = frozenset(b"rw")
+_HDR = {b"TP": "#TP", b"tp": "#tp", b"tP": "#tP", b"Tp": "#Tp"}
+_SEPARATORS = frozenset(b"\r\n")
+_HEX2 = [b"%02X" % i for i in range(256)]
+_HEX2_LOWER = [b"%02x" % i for i in range(256)]
+_ASCII_MAX_TOTAL = 12 + 15
+
+
+@dataclass(frozen=True)
+class Diagnostic:
+    """Something the parser noticed: `kind` is one of KINDS, `raw` the bytes concerned."""
+
+    kind: str
+    detail: str
+    raw: bytes = b""
+
+    KINDS = ("garbage", "bad_header", "bad_length", "oversize", "bad_checksum", "length_mismatch")
+
+
+@dataclass
+class ParserStats:
+    frames: int = 0
+    bytes: int = 0
+    bad_checksums: int = 0
+    resyncs: int = 0
+    bytes_discarded: int = 0
+    length_recoveries: int = 0
+    oversize: int = 0
+
+    def as_dict(self) -> dict[str, int]:
+        return dict(self.__dict__)
+
+
+@dataclass
+class FrameParser:
+    """Incremental parser. `max_data_length` bounds what the extended headers may claim."""
+
+    max_data_length: int = 1024
+    recover_length: bool = True
+    stats: ParserStats = field(default_factory=ParserStats)
+    _buf: bytes = b""
+
+    def reset(self) -> None:
+        self._buf = b""
+
+    @property
+    def buffered(self) -> int:
+        return len(self._buf)
+
+    def feed(self, data: bytes) -> list[Frame | Diagnostic]:
+        """Add bytes; return the frames (and diagnostics) they complete, in wire order."""
+        self.stats.bytes += len(data)
+        buf = self._buf + data if self._buf else bytes(data)
+        out: list[Frame | Diagnostic] = []
+        pos = self._scan(buf, 0, out, final=False)
+        self._buf = buf[pos:]
+        return out
+
+    def flush(self) -> list[Frame | Diagnostic]:
+        """Resolve whatever is buffered as if the stream ended here (end of a datagram or file)."""
+        buf, self._buf = self._buf, b""
+        out: list[Frame | Diagnostic] = []
+        pos = self._scan(buf, 0, out, final=True)
+        if pos < len(buf):
+            self._discard(buf[pos:], out, "incomplete frame at end of stream")
+        return out
+
+    # -- internals -------------------------------------------------------------------------
+
+    def _discard(self, raw: bytes, out: list[Frame | Diagnostic], why: str, kind: str = "garbage") -> None:
+        junk = bytes(b for b in raw if b not in _SEPARATORS)
+        if not junk:
+            return
+        self.stats.bytes_discarded += len(junk)
+        self.stats.resyncs += 1
+        out.append(Diagnostic(kind, why, raw))
+
+    def _frame_end(self, buf: bytes, i: int) -> int:
+        """End offset of a frame starting at `i` (by its declared length), -1 if it cannot be a
+        frame, -2 if more bytes are needed to tell."""
+        n_buf = len(buf)
+        if n_buf < i + 7:
+            # judge what is there already so garbage is not held waiting
+            if n_buf > i + 2 and buf[i + 1 : i + 3] not in _HDR:
+                return -1
+            for k in (3, 4):
+                if n_buf > i + k and buf[i + k] not in _ADDR:
+                    return -1
+            return -2
+        hdr = buf[i + 1 : i + 3]
+        if hdr not in _HDR or buf[i + 3] not in _ADDR or buf[i + 4] not in _ADDR:
+            return -1
+        if hdr == b"TP" or hdr == b"tp":
+            n = _HEXVAL[buf[i + 5]]
+            if n < 0 or buf[i + 6] not in _RW:
+                return -1
+        elif hdr == b"tP":
+            n = buf[i + 5]
+            if buf[i + 6] not in _RW:
+                return -1
+        else:
+            n = (buf[i + 5] << 8) | buf[i + 6]
+        if n > self.max_data_length:
+            return -3
+        return i + 12 + n
+
+    def _valid_complete_at(self, buf: bytes, j: int) -> bool:
+        end = self._frame_end(buf, j)
+        if end < 0 or end > len(buf):
+            return False
+        return buf[end - 2 : end].upper() == _HEX2[sum(buf[j : end - 2]) & 0xFF]
+
+    def _scan(self, buf: bytes, pos: int, out: list[Frame | Diagnostic], final: bool) -> int:
+        n_buf = len(buf)
+        stats = self.stats
+        while pos < n_buf:
+            i = buf.find(b"#", pos)
+            if i < 0:
+                self._discard(buf[pos:], out, "bytes outside a frame")
+                return n_buf
+            if i > pos:
+                self._discard(buf[pos:i], out, "bytes outside a frame")
+                pos = i
+            end = self._frame_end(buf, i)
+            if end == -2:
+                return i if not final else i
+            if end == -1:
+                self._discard(buf[i : i + 1], out, "'#' not followed by a valid header/address/length", "bad_header")
+                pos = i + 1
+                continue
+            if end == -3:
+                stats.oversize += 1
+                self._discard(buf[i : i + 1], out, f"declared length above the {self.max_data_length}-byte bound", "oversize")
+                pos = i + 1
+                continue
+            if end > n_buf:
+                # Incomplete: wait, unless a complete good frame already follows (then this '#'
+                # was garbage and waiting would hold that frame back).
+                j = buf.find(b"#", i + 1)
+                while j >= 0:
+                    if self._valid_complete_at(buf, j):
+                        self._discard(buf[i:j], out, "incomplete frame followed by a good one")
+                        pos = j
+                        break
+                    j = buf.find(b"#", j + 1)
+                else:
+                    if final:
+                        return i
+                    return i
+                continue
+            crc = buf[end - 2 : end]
+            s = sum(buf[i : end - 2]) & 0xFF
+            if crc == _HEX2[s] or crc == _HEX2_LOWER[s]:
+                hdr = buf[i + 1 : i + 3]
+                if hdr == b"Tp":
+                    frame = Frame("#Tp", chr(buf[i + 3]), chr(buf[i + 4]), "", buf[i + 7 : i + 10].decode("latin-1"), buf[i + 10 : end - 2])
+                else:
+                    frame = Frame(
+                        _HDR[hdr], chr(buf[i + 3]), chr(buf[i + 4]), chr(buf[i + 6]),
+                        buf[i + 7 : i + 10].decode("latin-1"), buf[i + 10 : end - 2],
+                    )
+                stats.frames += 1
+                out.append(frame)
+                pos = end
+                continue
+            # Bad checksum at the declared length.
+            hdr = buf[i + 1 : i + 3]
+            if self.recover_length and (hdr == b"TP" or hdr == b"tp"):
+                rec = self._recover(buf, i, final)
+                if rec is None:
+                    return i  # a longer candidate may still complete: wait for bytes
+                if rec is not False:
+                    frame, rec_end = rec
+                    stats.frames += 1
+                    stats.length_recoveries += 1
+                    out.append(
+                        Diagnostic(
+                            "length_mismatch",
+                            f"length character says {frame.declared_length}, data has {len(frame.data)}; "
+                            "checksum proves the real length",
+                            buf[i:rec_end],
+                        )
+                    )
+                    out.append(frame)
+                    pos = rec_end
+                    continue
+            # Drop this frame only: resume at the next '#' (a frame may start inside this one).
+            nxt = buf.find(b"#", i + 1, end)
+            if nxt < 0:
+                nxt = end
+            stats.bad_checksums += 1
+            stats.bytes_discarded += nxt - i
+            stats.resyncs += 1
+            expected = checksum_text(buf[i : end - 2]).decode()
+            out.append(
+                Diagnostic("bad_checksum", f"checksum {crc.decode('latin-1')!r}, expected {expected!r}", buf[i:end])
+            )
+            pos = nxt
+        return pos
+
+    def _recover(self, buf: bytes, i: int, final: bool) -> tuple[Frame, int] | bool | None:
+        """A frame at `i` with the right checksum at another length; False if none can be, None if
+        bytes still to come might complete one."""
+        n_buf = len(buf)
+        limit = min(n_buf, i + _ASCII_MAX_TOTAL)
+        boundary = None
+        for k in range(i + 10, limit):
+            b = buf[k]
+            if b == 0x23 or b == 0x0D or b == 0x0A:
+                boundary = k
+                break
+        declared = _HEXVAL[buf[i + 5]]
+        best: tuple[Frame, int] | None = None
+        for n in range(16):
+            if n == declared:
+                continue
+            end = i + 12 + n
+            if end > n_buf or (boundary is not None and end > boundary):
+                break
+            data = buf[i + 10 : end - 2]
+            if buf[end - 2 : end].upper() != _HEX2[sum(buf[i : end - 2]) & 0xFF]:
+                continue
+            if not all(0x20 <= b < 0x7F for b in data):
+                continue
+            frame = Frame(
+                _HDR[buf[i + 1 : i + 3]], chr(buf[i + 3]), chr(buf[i + 4]), chr(buf[i + 6]),
+                buf[i + 7 : i + 10].decode("latin-1"), data, declared,
+            )
+            best = (frame, end)
+            if end == boundary or end == n_buf:
+                break
+        if best is not None:
+            return best
+        if boundary is None and n_buf < i + _ASCII_MAX_TOTAL and not final:
+            return None
+        return False
