@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 from ..errors import FieldValueError, UnknownCommandError, UnsupportedError
 from .fields import Codec, Field
@@ -46,21 +46,24 @@ class Form:
         object.__setattr__(self, "_fixed", fixed)
         object.__setattr__(self, "_variable", variable)
         object.__setattr__(self, "_slices", tuple(slices))
+        if self.const is not None:
+            lo = hi = len(self.const)
+        else:
+            lo = fixed + (variable.min_width if variable else 0)
+            hi = fixed + (variable.max_width if variable else 0)
+        object.__setattr__(self, "_min_len", lo)
+        object.__setattr__(self, "_max_len", hi)
 
     @property
     def min_length(self) -> int:
-        if self.const is not None:
-            return len(self.const)
-        return self._fixed + (self._variable.min_width if self._variable else 0)  # type: ignore[attr-defined]
+        return self._min_len  # type: ignore[attr-defined,no-any-return]
 
     @property
     def max_length(self) -> int:
-        if self.const is not None:
-            return len(self.const)
-        return self._fixed + (self._variable.max_width if self._variable else 0)  # type: ignore[attr-defined]
+        return self._max_len  # type: ignore[attr-defined,no-any-return]
 
     def accepts_length(self, n: int) -> bool:
-        return self.min_length <= n <= self.max_length
+        return self._min_len <= n <= self._max_len  # type: ignore[attr-defined,no-any-return]
 
     def field(self, name: str) -> Field:
         for f in self.fields:
@@ -98,7 +101,7 @@ class Form:
                 raise ValueError(f"expected {self.const!r}")
             return {}
         n = len(data)
-        if not self.min_length <= n <= self.max_length:
+        if not self._min_len <= n <= self._max_len:  # type: ignore[attr-defined]
             raise ValueError(f"{n} data bytes, this form takes {self.min_length}..{self.max_length}")
         out = {name: codec.decode(data[a:b]) for name, codec, a, b in self._slices}  # type: ignore[attr-defined]
         if self._variable is not None:  # type: ignore[attr-defined]
@@ -213,11 +216,11 @@ class DeviceModel:
     notes: str = ""
 
 
-@dataclass(frozen=True)
-class Message:
+class Message(NamedTuple):
     """A decoded frame: the spec and form it matched and its fields in user units.
 
-    `fields` is None (and `error` says why) when the identifier is unknown or the data fit no form."""
+    `fields` is None (and `error` says why) when the identifier is unknown or the data fit no form.
+    A tuple, because the parser and decoder build one per frame on the hot path."""
 
     frame: Frame
     spec: CommandSpec | None
@@ -282,6 +285,14 @@ class Dialect:
             cmds[c.ident] = c
         self.commands: Mapping[str, CommandSpec] = cmds
         self.models: Mapping[str, DeviceModel] = {m.name: m for m in models}
+        # (ident, rw, direction) -> forms to try, with the other direction's as a fallback for
+        # frames whose addresses are not swapped (several document examples): built once.
+        index: dict[tuple[str, str, str], tuple[Form, ...]] = {}
+        for c in cmds.values():
+            for rw in ("r", "w"):
+                for direction, other in ((REQUEST, RESPONSE), (RESPONSE, REQUEST)):
+                    index[(c.ident, rw, direction)] = tuple(c.forms_for(rw, direction) or c.forms_for(rw, other))
+        self._decode_index = index
 
     def __repr__(self) -> str:
         return f"<Dialect {self.name}: {len(self.commands)} commands, models {', '.join(self.models)}>"
@@ -389,10 +400,10 @@ class Dialect:
         spec = self.commands.get(frame.ident)
         if spec is None:
             return Message(frame, None, None, None, f"{frame.ident!r} is not in the {self.name} catalog")
-        direction = direction_of(frame)
+        direction = RESPONSE if frame.src in DEVICE_ADDRESSES and frame.dst in HOST_ADDRESSES else REQUEST
         rw = frame.rw or "w"
         data = frame.data
-        forms = spec.forms_for(rw, direction) or spec.forms_for(rw, RESPONSE if direction == REQUEST else REQUEST)
+        forms = self._decode_index[(frame.ident, rw, direction)]
         last_error = f"{spec.ident} has no {rw!r} form for a {direction}"
         for form in forms:
             if not form.accepts_length(len(data)):

@@ -101,6 +101,12 @@ class HexInt(Codec):
         lo_raw, hi_raw = (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if self.signed else (0, (1 << bits) - 1)
         object.__setattr__(self, "_bits", bits)
         object.__setattr__(self, "_dec", _decimals(self.scale))
+        # Dividing by an exact integer (100 for 0.01) gives the correctly rounded float directly,
+        # which is both exact and cheaper than round(v * scale, n) on the decode hot path.
+        inv = 1 / self.scale
+        object.__setattr__(self, "_div", round(inv) if self.scale < 1 and abs(inv - round(inv)) < 1e-9 else 0)
+        object.__setattr__(self, "_half", 1 << (bits - 1))
+        object.__setattr__(self, "_full", 1 << bits)
         if self.min is None:
             object.__setattr__(self, "min", round(lo_raw * self.scale, _decimals(self.scale)))
         if self.max is None:
@@ -133,8 +139,10 @@ class HexInt(Codec):
         if len(raw) != self.width or raw.translate(None, b"0123456789ABCDEFabcdef"):
             raise ValueError(f"{raw!r} is not {self.width} hex digits")
         v = int(raw, 16)
-        if self.signed and v >= 1 << (self._bits - 1):  # type: ignore[attr-defined]
-            v -= 1 << self._bits  # type: ignore[attr-defined]
+        if self.signed and v >= self._half:  # type: ignore[attr-defined]
+            v -= self._full  # type: ignore[attr-defined]
+        if self._div:  # type: ignore[attr-defined]
+            return v / self._div  # type: ignore[attr-defined]
         if self.scale == 1:
             return v
         return round(v * self.scale, self._dec)  # type: ignore[attr-defined]
@@ -310,7 +318,7 @@ class Enum(Codec):
             if len(v.raw) != self.width:
                 raise ValueError(f"enum spelling {v.raw!r} is not {self.width} characters")
             by_raw[v.raw.encode("latin-1")] = v
-            by_raw.setdefault(v.raw.upper().encode("latin-1"), v)
+            by_raw.setdefault(v.raw.lower().encode("latin-1"), v)  # some firmware spells hex in lower case
             by_name[v.name] = v
         object.__setattr__(self, "_by_raw", by_raw)
         object.__setattr__(self, "_by_name", by_name)
@@ -572,6 +580,8 @@ class GeoDM(Codec):
         if hemi not in signs or "." not in body:
             raise ValueError(f"{raw!r} is not {'N/S ddmm.mmmm' if self.axis == 'lat' else 'E/W dddmm.mmmm'}")
         dot = body.index(".")
+        if dot != (4 if self.axis == "lat" else 5) or not body.replace(".", "", 1).isdigit():
+            raise ValueError(f"{raw!r} is not {'N/S ddmm.mmmm' if self.axis == 'lat' else 'E/W dddmm.mmmm'}")
         deg, minutes = int(body[: dot - 2]), float(body[dot - 2 :])
         if minutes >= 60:
             raise ValueError(f"{raw!r}: minutes {minutes} >= 60")
@@ -605,8 +615,9 @@ class GeoDeg(Codec):
     def decode(self, raw: bytes) -> Any:
         text = raw.decode("ascii").replace(" ", "")
         signs = {"N": 1, "S": -1} if self.axis == "lat" else {"E": 1, "W": -1}
-        if text[:1].upper() not in signs:
-            raise ValueError(f"{raw!r} does not start with a hemisphere letter")
+        body = text[1:]
+        if text[:1].upper() not in signs or "." not in body or body.index(".") != (2 if self.axis == "lat" else 3):
+            raise ValueError(f"{raw!r} is not {'N/S dd.dddddd' if self.axis == 'lat' else 'E/W ddd.dddddd'}")
         return round(signs[text[:1].upper()] * float(text[1:]), 7)
 
 
@@ -647,8 +658,12 @@ class Timestamp(Codec):
             pre = len(datetime(2000, 1, 1).strftime(self.layout[:at]))
             hundredths = int(text[pre : pre + 2])
             dt = datetime.strptime(text[:pre] + text[pre + 2 :], self.layout.replace("%f2", ""))
-            return dt.replace(microsecond=hundredths * 10000)
-        return datetime.strptime(text, self.layout)
+            dt = dt.replace(microsecond=hundredths * 10000)
+        else:
+            dt = datetime.strptime(text, self.layout)
+        if "%y" in self.layout and dt.year < 2000:
+            dt = dt.replace(year=dt.year + 100)  # two-digit years: a camera clock lives in 2000..2099
+        return dt
 
     def parse_text(self, text: str) -> Any:
         return datetime.now() if text == "now" else datetime.fromisoformat(text)

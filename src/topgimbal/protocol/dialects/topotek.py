@@ -79,7 +79,7 @@ def _speed(axis: str, unit: float) -> object:
              f"{axis} rate, -99..99 steps" + ("; pitch down-positive on the wire (§四.2)" if axis == "pitch" else ""))
 
 
-def _angle_cmds(prefix: str, frame: str, section: str) -> list[CommandSpec]:
+def _angle_cmds(prefix: str, frame: str, section: str, name_prefix: str) -> list[CommandSpec]:
     sp = F("speed_deg_s", HexInt(2, scale=0.1, unit="deg/s", max=9.9), "slew speed 0..99 x 0.1 deg/s", default=9.9)
     yaw = angle("yaw_deg", -150, 150, f"yaw ({frame}), right-positive")
     pitch = angle("pitch_deg", -90, 90, f"pitch ({frame}); the document says up-positive, ArduPilot finds down-positive")
@@ -88,10 +88,10 @@ def _angle_cmds(prefix: str, frame: str, section: str) -> list[CommandSpec]:
     ps = F("pitch_speed_deg_s", sp.codec, sp.description, default=9.9)
     kw = dict(section=section)
     return [
-        spec(f"{prefix}Y", f"{frame}_yaw", f"Yaw angle, {frame}", "G", write=[yaw, sp], **kw),  # type: ignore[arg-type]
-        spec(f"{prefix}P", f"{frame}_pitch", f"Pitch angle, {frame}", "G", write=[pitch, sp], **kw),  # type: ignore[arg-type]
-        spec(f"{prefix}R", f"{frame}_roll", f"Roll angle, {frame}", "G", write=[roll, sp], **kw),  # type: ignore[arg-type]
-        spec(f"{prefix}M", f"{frame}_yaw_pitch", f"Yaw and pitch angles, {frame}", "G",
+        spec(f"{prefix}Y", f"{name_prefix}yaw_angle", f"Yaw angle, {frame}", "G", write=[yaw, sp], **kw),  # type: ignore[arg-type]
+        spec(f"{prefix}P", f"{name_prefix}pitch_angle", f"Pitch angle, {frame}", "G", write=[pitch, sp], **kw),  # type: ignore[arg-type]
+        spec(f"{prefix}R", f"{name_prefix}roll_angle", f"Roll angle, {frame}", "G", write=[roll, sp], **kw),  # type: ignore[arg-type]
+        spec(f"{prefix}M", f"{name_prefix}yaw_pitch_angle", f"Yaw and pitch angles, {frame}", "G",
              write=[yaw, ys, pitch, ps], **kw),  # type: ignore[arg-type]
     ]
 
@@ -153,8 +153,8 @@ def topotek(*, speed_unit_deg_s: float = 1.0, binary_byteorder: str = "little") 
         spec("YPR", "yaw_pitch_roll_rate", "Yaw, pitch and roll speed", "G", f"{DOC} §四.2",
              write=[_speed("yaw", u), _speed("pitch", u), _speed("roll", u)], header="#tp"),  # type: ignore[list-item]
     ]
-    cmds += _angle_cmds("GA", "body frame", f"{DOC} §四.3.1 (magnetic encoder)")
-    cmds += _angle_cmds("GI", "earth frame", f"{DOC} §四.3.2 (gyro)")
+    cmds += _angle_cmds("GA", "body frame", f"{DOC} §四.3.1 (magnetic encoder)", "")
+    cmds += _angle_cmds("GI", "earth frame", f"{DOC} §四.3.2 (gyro)", "earth_")
     att = attitude_fields()
     cmds += [
         spec("GAC", "attitude", "Read the attitude (magnetic encoder, body frame)", "G", f"{DOC} §四.3.3", read=att),

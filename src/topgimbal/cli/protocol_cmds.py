@@ -1,0 +1,265 @@
+"""Offline protocol subcommands: `decode`, `encode`, `catalog`. No device needed."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Iterable
+from typing import Any
+
+from ..errors import FieldValueError, UnknownCommandError
+from ..protocol import DIALECT_NAMES, Dialect, Message, dissect, get_dialect, get_model
+from ..protocol.catalog import REQUEST
+from ..protocol.frame import Frame
+from .args import add_dialect_argument, add_json_argument
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("decode", help="decode frames given as arguments or one per line on stdin")
+    p.add_argument("frames", nargs="*", metavar="FRAME", help="frame text, e.g. '#TPUG2wPTZ006A'")
+    p.add_argument("--hex", action="store_true", help="frames are given as hex (binary data: GPS, UAV, LOC)")
+    add_dialect_argument(p)
+    add_json_argument(p)
+    p.set_defaults(func=cmd_decode)
+
+    p = sub.add_parser("encode", help="print the frame for a command: encode GAY yaw_deg=-50 --dialect skydroid")
+    p.add_argument("ident", metavar="ID", help="3-character identifier (or the command's name)")
+    p.add_argument("values", nargs="*", metavar="NAME=VALUE", help="field values in user units")
+    add_dialect_argument(p, auto=True)
+    p.add_argument("--read", action="store_true", help="the query (r) form instead of the write (w) form")
+    p.add_argument("--src", help="source address (default: the dialect's host address)")
+    p.add_argument("--dst", help="destination address (default: the command's)")
+    p.add_argument("--header", choices=["#TP", "#tp", "#tP", "#Tp"], help="force a header")
+    add_json_argument(p)
+    p.set_defaults(func=cmd_encode)
+
+    p = sub.add_parser("catalog", help="list the commands of a dialect, or show one command's fields")
+    p.add_argument("ident", nargs="?", metavar="ID")
+    add_dialect_argument(p, auto=True)
+    add_json_argument(p)
+    p.set_defaults(func=cmd_catalog)
+
+
+# -- dialect choice -------------------------------------------------------------------------------
+
+
+def _dialect_from_args(args: argparse.Namespace) -> Dialect | None:
+    if getattr(args, "dialect", "auto") not in (None, "auto"):
+        return get_dialect(args.dialect)
+    if getattr(args, "model", None):
+        return get_model(args.model)[0]
+    return None
+
+
+def _auto_candidates(frame: Frame) -> list[Dialect]:
+    """TOPOTEK-only traits first (network host address P, extended headers), else SkyDroid first."""
+    order = list(DIALECT_NAMES)
+    if "P" in (frame.src, frame.dst) or frame.header in ("#tP", "#Tp"):
+        order = ["topotek", "skydroid"]
+    return [get_dialect(n) for n in order]
+
+
+def decode_with(frame: Frame, dialect: Dialect | None) -> tuple[Dialect, Message]:
+    if dialect is not None:
+        return dialect, dialect.decode(frame)
+    first: tuple[Dialect, Message] | None = None
+    for d in _auto_candidates(frame):
+        msg = d.decode(frame)
+        first = first or (d, msg)
+        if msg.fields is not None:
+            return d, msg
+    assert first is not None
+    return first
+
+
+# -- decode ---------------------------------------------------------------------------------------
+
+
+def _show_data(data: bytes | None) -> str | None:
+    if data is None:
+        return None
+    return data.decode("latin-1").encode("ascii", "backslashreplace").decode("ascii")
+
+
+def decode_line(line: str, *, as_hex: bool, dialect: Dialect | None) -> dict[str, Any]:
+    """Everything `decode --json` prints for one input line."""
+    text = line.strip()
+    try:
+        raw = bytes.fromhex(text) if as_hex else text.encode("latin-1")
+    except ValueError as exc:
+        raw = b""
+        return {"frame": text, "ok": False, "error": f"not valid hex: {exc}", "header": None, "src": None,
+                "dst": None, "length": None, "rw": None, "id": None, "data": None, "checksum": None,
+                "expected_checksum": None, "fields": None}
+    except UnicodeEncodeError:
+        return {"frame": text, "ok": False, "error": "frames are ASCII; give binary frames with --hex",
+                "header": None, "src": None, "dst": None, "length": None, "rw": None, "id": None, "data": None,
+                "checksum": None, "expected_checksum": None, "fields": None}
+    d = dissect(raw)
+    out: dict[str, Any] = {
+        "frame": _show_data(d.raw),
+        "ok": d.ok,
+        "error": d.error,
+        "header": d.header,
+        "src": d.src,
+        "dst": d.dst,
+        "length": d.length,
+        "rw": d.rw,
+        "id": d.ident,
+        "data": _show_data(d.data),
+        "data_hex": d.data.hex() if d.data is not None else None,
+        "checksum": d.checksum,
+        "expected_checksum": d.expected_checksum,
+        "anomaly": d.anomaly,
+        "dialect": None,
+        "name": None,
+        "fields": None,
+        "fields_error": None,
+    }
+    frame = d.frame
+    if frame is None and d.header and d.ident and d.data is not None and d.rw is not None and d.src and d.dst:
+        # Still name the fields of a frame that is only wrong in its checksum or length: useful when
+        # debugging by hand (ok stays false).
+        frame = Frame(d.header, d.src, d.dst, d.rw, d.ident, d.data)
+    if frame is not None:
+        dia, msg = decode_with(frame, dialect)
+        out["dialect"] = dia.name
+        out["name"] = msg.spec.name if msg.spec else None
+        out["fields"] = msg.to_dict()["fields"]
+        out["units"] = {f.name: f.unit for f in msg.form.fields if f.unit} if msg.form else {}
+        out["fields_error"] = msg.error
+    return out
+
+
+def _human(rec: dict[str, Any]) -> str:
+    head = rec["frame"]
+    if not rec["ok"]:
+        lines = [f"{head}  BAD: {rec['error']}"]
+    else:
+        lines = [f"{head}  ok"]
+    if rec.get("anomaly"):
+        lines.append(f"    note: {rec['anomaly']}")
+    if rec["id"]:
+        lines.append(
+            f"    {rec['dialect'] or '?'} {rec['id']} {rec['name'] or '(unknown)'}  {rec['src']}->{rec['dst']} "
+            f"{rec['rw'] or '-'}  length {rec['length']}  data {rec['data']!r}"
+        )
+    if rec["fields"]:
+        width = max(len(k) for k in rec["fields"])
+        units = rec.get("units") or {}
+        for k, v in rec["fields"].items():
+            unit = f" {units[k]}" if k in units and v is not None else ""
+            lines.append(f"    {k:<{width}} = {v}{unit}")
+    elif rec.get("fields_error"):
+        lines.append(f"    fields: {rec['fields_error']}")
+    return "\n".join(lines)
+
+
+def _inputs(frames: list[str]) -> Iterable[str]:
+    if frames:
+        yield from frames
+        return
+    for line in sys.stdin:
+        if line.strip():
+            yield line
+
+
+def cmd_decode(args: argparse.Namespace) -> int:
+    dialect = _dialect_from_args(args)
+    bad = 0
+    for line in _inputs(args.frames):
+        rec = decode_line(line, as_hex=args.hex, dialect=dialect)
+        bad += not rec["ok"]
+        print(json.dumps(rec, ensure_ascii=False) if args.json else _human(rec))
+    return 1 if bad else 0
+
+
+# -- encode ---------------------------------------------------------------------------------------
+
+
+def _parse_values(dialect: Dialect, ident: str, read: bool, pairs: list[str]) -> dict[str, Any]:
+    spec = dialect.command(ident)
+    keys = []
+    for p in pairs:
+        if "=" not in p:
+            raise FieldValueError(p, p, "NAME=VALUE")
+        keys.append(p.split("=", 1)[0])
+    form = spec.request_form("r" if read else "w", keys)
+    codecs = {f.name: f.codec for f in form.fields}
+    values: dict[str, Any] = {}
+    for p in pairs:
+        k, v = p.split("=", 1)
+        if k not in codecs:
+            raise FieldValueError(k, v, f"a field of {spec.ident}: {', '.join(codecs) or 'no fields'}")
+        try:
+            values[k] = codecs[k].parse_text(v)
+        except ValueError:
+            raise FieldValueError(k, v, codecs[k].allowed()) from None
+    return values
+
+
+def cmd_encode(args: argparse.Namespace) -> int:
+    dialect = _dialect_from_args(args)
+    if dialect is None:
+        raise UnknownCommandError("encode needs --dialect skydroid|topotek (or --model)")
+    values = _parse_values(dialect, args.ident, args.read, args.values)
+    if args.model:
+        _, model = get_model(args.model)
+        dialect.check_values(model, dialect.command(args.ident).ident, values)
+    frame = dialect.encode(args.ident, read=args.read, src=args.src, dst=args.dst, header=args.header, **values)
+    if args.json:
+        print(json.dumps({"frame": frame.text(), "hex": frame.to_bytes().hex(), "dialect": dialect.name}))
+    else:
+        print(frame.text())
+    return 0
+
+
+# -- catalog --------------------------------------------------------------------------------------
+
+
+def cmd_catalog(args: argparse.Namespace) -> int:
+    dialects = [_dialect_from_args(args)] if _dialect_from_args(args) else [get_dialect(n) for n in DIALECT_NAMES]
+    if args.ident:
+        out = []
+        for d in dialects:
+            assert d is not None
+            if args.ident.upper() not in d.commands:
+                continue
+            spec = d.command(args.ident)
+            entry = {
+                "dialect": d.name, "id": spec.ident, "name": spec.name, "title": spec.title, "address": spec.address,
+                "section": spec.section, "models": sorted(spec.models) if spec.models else sorted(d.models),
+                "documented": spec.documented, "notes": spec.notes,
+                "forms": [{"rw": f.rw, "direction": f.direction, "title": f.title,
+                           "const": f.const.decode() if f.const else None,
+                           "fields": [x.describe() for x in f.fields]} for f in spec.forms],
+            }
+            out.append(entry)
+        if not out:
+            raise UnknownCommandError(f"{args.ident!r} is in no catalog")
+        if args.json:
+            print(json.dumps(out, ensure_ascii=False, indent=2))
+        else:
+            for e in out:
+                print(f"{e['dialect']} {e['id']} ({e['name']}): {e['title']}  -> {e['address']}  [{e['section']}]")
+                print(f"    models: {', '.join(e['models'])}")
+                for f in e["forms"]:
+                    arrow = "host->device" if f["direction"] == REQUEST else "device->host"
+                    body = f"data {f['const']!r}" if f["const"] else ", ".join(
+                        f"{x['name']} ({x['allowed']})" for x in f["fields"]) or "no data"
+                    print(f"    {f['rw']} {arrow} {f['title']}: {body}")
+        return 0
+    rows = []
+    for d in dialects:
+        assert d is not None
+        for spec in d.commands.values():
+            rw = ("r" if spec.readable else "") + ("w" if spec.writable else "")
+            rows.append({"dialect": d.name, "id": spec.ident, "name": spec.name, "rw": rw or "-",
+                         "address": spec.address, "title": spec.title})
+    if args.json:
+        print(json.dumps(rows, ensure_ascii=False))
+    else:
+        for r in rows:
+            print(f"{r['dialect']:<9} {r['id']}  {r['rw']:<2} {r['address']}  {r['name']:<26} {r['title']}")
+    return 0

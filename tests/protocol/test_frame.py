@@ -1,0 +1,123 @@
+"""The frame envelope and the streaming parser's specific behaviours (properties are in
+test_parser_properties.py)."""
+
+from __future__ import annotations
+
+import pytest
+
+from topgimbal.errors import ChecksumError, FrameError, LengthError
+from topgimbal.protocol import Diagnostic, Frame, FrameParser, checksum, dissect, make_frame, parse_frame
+
+
+def test_checksum_is_sum_mod_256_upper_hex() -> None:
+    assert checksum(b"#TPUD2wAWB01") == 0x44
+    assert make_frame("AWB", "01", dst="D").to_bytes() == b"#TPUD2wAWB0144"
+
+
+def test_frame_is_immutable_and_swaps_for_replies() -> None:
+    f = parse_frame("#TPUG2wPTZ006A")
+    with pytest.raises(AttributeError):
+        f.src = "P"  # type: ignore[misc]
+    r = f.swapped()
+    assert (r.src, r.dst, r.ident, r.data) == ("G", "U", "PTZ", b"00")
+    assert r.swapped() == f
+
+
+def test_extended_headers_round_trip() -> None:
+    data = bytes(range(200))
+    f = make_frame("TMP", data, src="D", dst="P", header="#tP")
+    raw = f.to_bytes()
+    assert raw[5] == 200 and raw[6:7] == b"w"
+    assert parse_frame(raw) == f
+    big = make_frame("XXX", b"A" * 300, src="D", dst="P", header="#Tp")
+    raw = big.to_bytes()
+    assert raw[5:7] == (300).to_bytes(2, "big") and raw[7:10] == b"XXX"
+    assert parse_frame(raw) == big and big.rw == ""
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        (dict(ident="AB"), "3 ASCII"),
+        (dict(ident="ABC", src="X"), "src address"),
+        (dict(ident="ABC", rw="x"), "control"),
+        (dict(ident="ABC", data="0123456789ABCDEF", header="#tp"), "at most 15"),
+        (dict(ident="ABC", header="#XX"), "header"),
+    ],
+)
+def test_make_frame_rejects_bad_parts(kwargs: dict, match: str) -> None:  # type: ignore[type-arg]
+    with pytest.raises(FrameError, match=match):
+        make_frame(**kwargs)
+
+
+def test_parse_frame_errors_say_what_is_wrong() -> None:
+    with pytest.raises(ChecksumError) as exc:
+        parse_frame("#TPUG2wPTZ006B")
+    assert exc.value.expected == "6A" and exc.value.found == "6B"
+    with pytest.raises(FrameError, match="header"):
+        parse_frame("#XPUG2wPTZ006A")
+    with pytest.raises(FrameError, match="address 'Q'"):
+        parse_frame("#TPQG2wPTZ006A")
+    with pytest.raises(LengthError, match="length character"):
+        parse_frame("#TPUGZwPTZ006A")
+    with pytest.raises(FrameError, match="shorter"):
+        parse_frame("#TPUG2w")
+    assert parse_frame("#tpUM2wZMC009C\r\n").ident == "ZMC"  # CR LF ending accepted
+    assert parse_frame("#TPUG2wPTZ006a").data == b"00"  # lower-case checksum accepted
+
+
+def test_dissect_reports_parts_of_a_bad_frame() -> None:
+    d = dissect(b"#TPUG6wGAYEF073288")
+    assert not d.ok and d.frame is None
+    assert (d.header, d.src, d.dst, d.length, d.rw, d.ident, d.data) == ("#TP", "U", "G", 6, "w", "GAY", b"EF0732")
+    assert d.checksum == "88" and d.expected_checksum == "48"
+
+
+def test_parser_several_frames_per_datagram_and_crlf() -> None:
+    p = FrameParser()
+    out = p.feed(b"#TPUG2wPTZ006A\r\n#tpGUCrGACFF36ED5A0048E3\r\n")
+    assert [e.ident for e in out if isinstance(e, Frame)] == ["PTZ", "GAC"]
+    assert not [e for e in out if isinstance(e, Diagnostic)]
+    assert p.stats.frames == 2 and p.stats.bytes_discarded == 0 and p.buffered == 0
+
+
+def test_parser_garbage_then_good_frame_is_not_held_back() -> None:
+    """A garbage '#' claiming a long frame must not delay a complete good frame behind it."""
+    p = FrameParser()
+    out = p.feed(b"#TPUGFw" + b"#TPUG2wPTZ006A")
+    frames = [e for e in out if isinstance(e, Frame)]
+    assert frames == [parse_frame("#TPUG2wPTZ006A")]
+    assert p.stats.resyncs >= 1 and p.buffered == 0
+
+
+def test_parser_extended_length_bound() -> None:
+    p = FrameParser(max_data_length=64)
+    out = p.feed(b"#TpPD\xff\xffABC" + b"#TPUG2wPTZ006A")
+    assert any(isinstance(e, Diagnostic) and e.kind == "oversize" for e in out)
+    assert [e for e in out if isinstance(e, Frame)] == [parse_frame("#TPUG2wPTZ006A")]
+    assert p.stats.oversize == 1
+
+
+def test_parser_bad_checksum_drops_only_that_frame() -> None:
+    p = FrameParser()
+    out = p.feed(b"#TPUG2wPTZ006B#TPUG2wPTZ016B")
+    kinds = [e.kind if isinstance(e, Diagnostic) else e.ident for e in out]
+    assert kinds == ["bad_checksum", "PTZ"]
+    assert p.stats.bad_checksums == 1 and p.stats.frames == 1
+
+
+def test_parser_waits_for_a_split_frame_and_flush_reports_leftovers() -> None:
+    p = FrameParser()
+    assert p.feed(b"#TPUG2wPT") == []
+    assert p.buffered == 9
+    assert p.feed(b"Z006A") == [parse_frame("#TPUG2wPTZ006A")]
+    assert p.feed(b"#TPUG2") == []
+    left = p.flush()
+    assert len(left) == 1 and isinstance(left[0], Diagnostic) and p.buffered == 0
+
+
+def test_length_recovery_can_be_switched_off() -> None:
+    p = FrameParser(recover_length=False)
+    out = p.feed(b"#tpDU3rVER0105025A")
+    assert not [e for e in out if isinstance(e, Frame)]
+    assert p.stats.bad_checksums == 1
