@@ -21,8 +21,18 @@ def mixed_stream(n: int, seed: int = 1) -> tuple[list[bytes], list[tuple[str, st
     req = sky.encode("GAC", read=True)
     makers = [
         (6, lambda: sky.response(req, yaw_deg=rnd.uniform(-90, 90), pitch_deg=rnd.uniform(-90, 90), roll_deg=0)),
-        (3, lambda: top.notification("GIA", src="G", dst="U", rw="r", yaw_deg=rnd.uniform(-150, 150),
-                                     pitch_deg=rnd.uniform(-90, 90), roll_deg=rnd.uniform(-5, 5))),
+        (
+            3,
+            lambda: top.notification(
+                "GIA",
+                src="G",
+                dst="U",
+                rw="r",
+                yaw_deg=rnd.uniform(-150, 150),
+                pitch_deg=rnd.uniform(-90, 90),
+                roll_deg=rnd.uniform(-5, 5),
+            ),
+        ),
         (2, lambda: sky.encode("GAY", yaw_deg=rnd.uniform(-90, 90), speed_deg_s=5).swapped()),
         (1, lambda: top.notification("ZMP", src="M", dst="P", magnification_x=12.3, zoom_pos=rnd.randint(-500, 500))),
         (1, lambda: top.notification("LRF", src="E", dst="P", distance_m=rnd.uniform(5, 1500))),
@@ -91,7 +101,9 @@ def main() -> None:
             assert n == args.frames, (n, args.frames)
             best[label] = max(best.get(label, 0.0), n / dt)
         dt = bench_encode(jobs, args.frames // 2)
-        best["encode (typed fields -> bytes)"] = max(best.get("encode (typed fields -> bytes)", 0.0), (args.frames // 2) / dt)
+        best["encode (typed fields -> bytes)"] = max(
+            best.get("encode (typed fields -> bytes)", 0.0), (args.frames // 2) / dt
+        )
     for label, fps in best.items():
         print(f"{label:<32} {fps:>12,.0f} frames/s  = {fps / link_fps:6.0f}x the link")
     ratio = best["decode (parse + fields)"] / link_fps

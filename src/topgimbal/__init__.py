@@ -16,9 +16,9 @@ from .errors import (
     UnsupportedError,
 )
 from .protocol import (
+    DeviceModel,
     Diagnostic,
     Dialect,
-    DeviceModel,
     Frame,
     FrameParser,
     Message,
@@ -32,9 +32,27 @@ from .protocol import (
 __version__ = "0.1.0"
 
 __all__ = [
+    "CatalogError",
+    "ChecksumError",
+    "DeviceError",
+    "DeviceModel",
+    "Diagnostic",
+    "Dialect",
+    "FieldValueError",
+    "Frame",
+    "FrameError",
+    "FrameParser",
+    "LengthError",
+    "Message",
+    "RequestTimeoutError",
+    "TopGimbalError",
+    "TransportError",
+    "UnknownCommandError",
+    "UnsupportedError",
     "__version__",
-    "CatalogError", "ChecksumError", "DeviceError", "FieldValueError", "FrameError", "LengthError",
-    "RequestTimeoutError", "TopGimbalError", "TransportError", "UnknownCommandError", "UnsupportedError",
-    "Diagnostic", "Dialect", "DeviceModel", "Frame", "FrameParser", "Message", "decode", "encode", "get_dialect",
-    "get_model", "parse_frame",
+    "decode",
+    "encode",
+    "get_dialect",
+    "get_model",
+    "parse_frame",
 ]

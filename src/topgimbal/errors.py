@@ -1,16 +1,16 @@
 """The exception tree of topgimbal.
 
-    TopGimbalError
-    ├── FrameError            a byte string is not a well-formed frame
-    │   ├── ChecksumError     the checksum does not match the bytes before it
-    │   └── LengthError       the length character disagrees with the data
-    ├── CatalogError          a catalog lookup or a value failed
-    │   ├── UnknownCommandError   identifier not in the dialect's catalog
-    │   ├── UnsupportedError      the device model does not support the command
-    │   └── FieldValueError       a value is out of range / of the wrong kind (also ValueError)
-    ├── TransportError        the byte pipe failed or is closed
-    ├── DeviceError           the device answered with the error frame (ERE)
-    └── RequestTimeoutError   no matching reply in time (also builtin TimeoutError)
+TopGimbalError
+├── FrameError            a byte string is not a well-formed frame
+│   ├── ChecksumError     the checksum does not match the bytes before it
+│   └── LengthError       the length character disagrees with the data
+├── CatalogError          a catalog lookup or a value failed
+│   ├── UnknownCommandError   identifier not in the dialect's catalog
+│   ├── UnsupportedError      the device model does not support the command
+│   └── FieldValueError       a value is out of range / of the wrong kind (also ValueError)
+├── TransportError        the byte pipe failed or is closed
+├── DeviceError           the device answered with the error frame (ERE)
+└── RequestTimeoutError   no matching reply in time (also builtin TimeoutError)
 """
 
 from __future__ import annotations

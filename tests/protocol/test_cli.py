@@ -12,8 +12,12 @@ import pytest
 from topgimbal.cli.main import main
 
 
-def run(argv: list[str], capsys: pytest.CaptureFixture[str], stdin: str | None = None,
-        monkeypatch: pytest.MonkeyPatch | None = None) -> tuple[int, str, str]:
+def run(
+    argv: list[str],
+    capsys: pytest.CaptureFixture[str],
+    stdin: str | None = None,
+    monkeypatch: pytest.MonkeyPatch | None = None,
+) -> tuple[int, str, str]:
     if stdin is not None:
         assert monkeypatch is not None
         monkeypatch.setattr(sys, "stdin", io.StringIO(stdin))
@@ -26,8 +30,21 @@ def test_decode_json_has_the_documented_keys(capsys: pytest.CaptureFixture[str])
     rc, out, _ = run(["decode", "--json", "#tpGPCrGACFF36ED5A0048DE"], capsys)
     rec = json.loads(out)
     assert rc == 0
-    for key in ("frame", "ok", "error", "header", "src", "dst", "length", "rw", "id", "data", "checksum",
-                "expected_checksum", "fields"):
+    for key in (
+        "frame",
+        "ok",
+        "error",
+        "header",
+        "src",
+        "dst",
+        "length",
+        "rw",
+        "id",
+        "data",
+        "checksum",
+        "expected_checksum",
+        "fields",
+    ):
         assert key in rec
     assert rec["ok"] is True and rec["error"] is None and rec["dialect"] == "topotek"
     assert rec["fields"] == {"yaw_deg": -2.02, "pitch_deg": -47.74, "roll_deg": 0.72}
@@ -41,7 +58,9 @@ def test_decode_bad_checksum_names_expected(capsys: pytest.CaptureFixture[str]) 
     assert rec["fields"] == {"yaw_deg": -43.45, "speed_deg_s": 5.0}  # still named, for debugging
 
 
-def test_decode_stdin_one_json_object_per_line(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+def test_decode_stdin_one_json_object_per_line(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     lines = "#TPUG2wPTZ006A\n\n#tpDU3rVER0105025A\ngarbage\n"
     rc, out, _ = run(["decode", "--json", "--dialect", "skydroid"], capsys, lines, monkeypatch)
     recs = [json.loads(x) for x in out.splitlines()]
@@ -95,7 +114,9 @@ def test_encode(capsys: pytest.CaptureFixture[str]) -> None:
         (["encode", "PTZ", "action=spin", "--dialect", "topotek"], "action='spin'"),
     ],
 )
-def test_encode_errors_are_one_line_and_non_zero(argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
+def test_encode_errors_are_one_line_and_non_zero(
+    argv: list[str], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
     rc, out, err = run(argv, capsys)
     assert rc == 1 and out == ""
     assert err.startswith("topgimbal: error: ") and message in err and err.count("\n") == 1
@@ -111,8 +132,12 @@ def test_catalog_lists_and_shows(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_console_script_is_installed() -> None:
-    res = subprocess.run([sys.executable, "-m", "topgimbal.cli.main", "decode", "#TPUG2wPTZ006A"], capture_output=True,
-                         text=True, check=False)
+    res = subprocess.run(
+        [sys.executable, "-m", "topgimbal.cli.main", "decode", "#TPUG2wPTZ006A"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert res.returncode == 0 and "gimbal_control" in res.stdout
 
 

@@ -66,7 +66,7 @@ def test_one_of_tokens_or_number() -> None:
     c = OneOf(enum(2, {"0A": "step_in", "0E": "stop"}, toggles="0A"), DecInt(2, scale=0.1, max=8.0))
     assert c.encode("step_in") == b"0A" and c.encode(2.5) == b"25" and c.encode("2.5") == b"25"
     assert c.decode(b"0E") == "stop" and c.decode(b"80") == 8.0
-    with pytest.raises(FieldValueError, match="0..8"):
+    with pytest.raises(FieldValueError, match=r"0\.\.8"):
         c.encode(9)
 
 
@@ -105,7 +105,7 @@ def test_timestamps() -> None:
     assert Timestamp("%Y%m%d%H%M%S").encode("2024-01-02T03:04:05") == b"20240102030405"
     with pytest.raises(FieldValueError):
         sky.encode("yesterday")
-    with pytest.raises(FieldValueError, match="2000..2099"):
+    with pytest.raises(FieldValueError, match=r"2000\.\.2099"):
         Timestamp("%H%M%S%d%m%y").encode(datetime(1999, 1, 1))
 
 

@@ -89,13 +89,37 @@ def decode_line(line: str, *, as_hex: bool, dialect: Dialect | None) -> dict[str
         raw = bytes.fromhex(text) if as_hex else text.encode("latin-1")
     except ValueError as exc:
         raw = b""
-        return {"frame": text, "ok": False, "error": f"not valid hex: {exc}", "header": None, "src": None,
-                "dst": None, "length": None, "rw": None, "id": None, "data": None, "checksum": None,
-                "expected_checksum": None, "fields": None}
+        return {
+            "frame": text,
+            "ok": False,
+            "error": f"not valid hex: {exc}",
+            "header": None,
+            "src": None,
+            "dst": None,
+            "length": None,
+            "rw": None,
+            "id": None,
+            "data": None,
+            "checksum": None,
+            "expected_checksum": None,
+            "fields": None,
+        }
     except UnicodeEncodeError:
-        return {"frame": text, "ok": False, "error": "frames are ASCII; give binary frames with --hex",
-                "header": None, "src": None, "dst": None, "length": None, "rw": None, "id": None, "data": None,
-                "checksum": None, "expected_checksum": None, "fields": None}
+        return {
+            "frame": text,
+            "ok": False,
+            "error": "frames are ASCII; give binary frames with --hex",
+            "header": None,
+            "src": None,
+            "dst": None,
+            "length": None,
+            "rw": None,
+            "id": None,
+            "data": None,
+            "checksum": None,
+            "expected_checksum": None,
+            "fields": None,
+        }
     d = dissect(raw)
     out: dict[str, Any] = {
         "frame": _show_data(d.raw),
@@ -134,10 +158,7 @@ def decode_line(line: str, *, as_hex: bool, dialect: Dialect | None) -> dict[str
 
 def _human(rec: dict[str, Any]) -> str:
     head = rec["frame"]
-    if not rec["ok"]:
-        lines = [f"{head}  BAD: {rec['error']}"]
-    else:
-        lines = [f"{head}  ok"]
+    lines = [f"{head}  BAD: {rec['error']}"] if not rec["ok"] else [f"{head}  ok"]
     if rec.get("anomaly"):
         lines.append(f"    note: {rec['anomaly']}")
     if rec["id"]:
@@ -221,19 +242,32 @@ def cmd_encode(args: argparse.Namespace) -> int:
 def cmd_catalog(args: argparse.Namespace) -> int:
     dialects = [_dialect_from_args(args)] if _dialect_from_args(args) else [get_dialect(n) for n in DIALECT_NAMES]
     if args.ident:
-        out = []
+        out: list[dict[str, Any]] = []
         for d in dialects:
             assert d is not None
             if args.ident.upper() not in d.commands:
                 continue
             spec = d.command(args.ident)
-            entry = {
-                "dialect": d.name, "id": spec.ident, "name": spec.name, "title": spec.title, "address": spec.address,
-                "section": spec.section, "models": sorted(spec.models) if spec.models else sorted(d.models),
-                "documented": spec.documented, "notes": spec.notes,
-                "forms": [{"rw": f.rw, "direction": f.direction, "title": f.title,
-                           "const": f.const.decode() if f.const else None,
-                           "fields": [x.describe() for x in f.fields]} for f in spec.forms],
+            entry: dict[str, Any] = {
+                "dialect": d.name,
+                "id": spec.ident,
+                "name": spec.name,
+                "title": spec.title,
+                "address": spec.address,
+                "section": spec.section,
+                "models": sorted(spec.models) if spec.models else sorted(d.models),
+                "documented": spec.documented,
+                "notes": spec.notes,
+                "forms": [
+                    {
+                        "rw": f.rw,
+                        "direction": f.direction,
+                        "title": f.title,
+                        "const": f.const.decode() if f.const else None,
+                        "fields": [x.describe() for x in f.fields],
+                    }
+                    for f in spec.forms
+                ],
             }
             out.append(entry)
         if not out:
@@ -246,8 +280,11 @@ def cmd_catalog(args: argparse.Namespace) -> int:
                 print(f"    models: {', '.join(e['models'])}")
                 for f in e["forms"]:
                     arrow = "host->device" if f["direction"] == REQUEST else "device->host"
-                    body = f"data {f['const']!r}" if f["const"] else ", ".join(
-                        f"{x['name']} ({x['allowed']})" for x in f["fields"]) or "no data"
+                    body = (
+                        f"data {f['const']!r}"
+                        if f["const"]
+                        else ", ".join(f"{x['name']} ({x['allowed']})" for x in f["fields"]) or "no data"
+                    )
                     print(f"    {f['rw']} {arrow} {f['title']}: {body}")
         return 0
     rows = []
@@ -255,8 +292,16 @@ def cmd_catalog(args: argparse.Namespace) -> int:
         assert d is not None
         for spec in d.commands.values():
             rw = ("r" if spec.readable else "") + ("w" if spec.writable else "")
-            rows.append({"dialect": d.name, "id": spec.ident, "name": spec.name, "rw": rw or "-",
-                         "address": spec.address, "title": spec.title})
+            rows.append(
+                {
+                    "dialect": d.name,
+                    "id": spec.ident,
+                    "name": spec.name,
+                    "rw": rw or "-",
+                    "address": spec.address,
+                    "title": spec.title,
+                }
+            )
     if args.json:
         print(json.dumps(rows, ensure_ascii=False))
     else:

@@ -378,12 +378,24 @@ class Dialect:
         form = next((f for f in forms if set(values) <= {x.name for x in f.fields}), forms[0])
         data = form.encode(values, f"{spec.ident} response")
         return make_frame(
-            spec.ident, data, src=request.dst, dst=request.src, rw=rw,
+            spec.ident,
+            data,
+            src=request.dst,
+            dst=request.src,
+            rw=rw,
             header=header or self.header_for(spec, len(data), request.dst),
         )
 
-    def notification(self, ident: str, *, src: str | None = None, dst: str = "U", rw: str | None = None,
-                     header: str | None = None, **values: Any) -> Frame:
+    def notification(
+        self,
+        ident: str,
+        *,
+        src: str | None = None,
+        dst: str = "U",
+        rw: str | None = None,
+        header: str | None = None,
+        **values: Any,
+    ) -> Frame:
         """An unsolicited device -> host frame (attitude stream, ZMP, LRF result...)."""
         spec = self.command(ident)
         forms = [f for f in spec.forms if f.direction == RESPONSE and (rw is None or f.rw == rw)]
@@ -392,8 +404,9 @@ class Dialect:
             raise UnsupportedError(f"{spec.ident} has no matching device -> host form in the {self.name} dialect")
         data = form.encode(values, f"{spec.ident} report")
         src = src or spec.address
-        return make_frame(spec.ident, data, src=src, dst=dst, rw=form.rw,
-                          header=header or self.header_for(spec, len(data), src))
+        return make_frame(
+            spec.ident, data, src=src, dst=dst, rw=form.rw, header=header or self.header_for(spec, len(data), src)
+        )
 
     def decode(self, frame: Frame) -> Message:
         """Name the fields of `frame` in user units (never raises)."""
@@ -422,6 +435,6 @@ class Dialect:
         if not self.supports(model, ident):
             raise UnsupportedError(f"the {model.name} does not support {ident} ({self.command(ident).title})")
         for (lim_ident, fname), (lo, hi) in model.limits.items():
-            if lim_ident == ident and fname in values and isinstance(values[fname], (int, float)):
-                if not lo <= values[fname] <= hi:
-                    raise FieldValueError(fname, values[fname], f"{lo:g}..{hi:g} on the {model.name}")
+            value = values.get(fname)
+            if lim_ident == ident and isinstance(value, (int, float)) and not lo <= value <= hi:
+                raise FieldValueError(fname, value, f"{lo:g}..{hi:g} on the {model.name}")

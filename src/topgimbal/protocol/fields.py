@@ -358,7 +358,9 @@ class Enum(Codec):
 
     def describe(self) -> dict[str, Any]:
         d = super().describe()
-        d["values"] = [{"raw": v.raw, "name": v.name, "label": v.label, "idempotent": v.idempotent} for v in self.values]
+        d["values"] = [
+            {"raw": v.raw, "name": v.name, "label": v.label, "idempotent": v.idempotent} for v in self.values
+        ]
         return d
 
 

@@ -92,7 +92,8 @@ class Frame(NamedTuple):
         body = self.body()
         return body + _HEX_UPPER[sum(body) & 0xFF]
 
-    __bytes__ = to_bytes
+    def __bytes__(self) -> bytes:
+        return self.to_bytes()
 
     def swapped(self, *, data: bytes | None = None, rw: str | None = None, header: str | None = None) -> Frame:
         """The reply to this frame: addresses swapped, optionally new data / control / header."""
@@ -216,7 +217,11 @@ def dissect(raw: bytes, *, recover_length: bool = True) -> Dissection:
         return Dissection(raw, None, f"control {rw!r} is not 'r' or 'w'", expected_checksum=expected, **parts)  # type: ignore[arg-type]
     if crc.upper() != expected:
         return Dissection(
-            raw, None, f"bad checksum: {crc!r} on the wire, expected {expected!r}", expected_checksum=expected, **parts  # type: ignore[arg-type]
+            raw,
+            None,
+            f"bad checksum: {crc!r} on the wire, expected {expected!r}",
+            expected_checksum=expected,
+            **parts,  # type: ignore[arg-type]
         )
     anomaly = None
     declared: int | None = None

@@ -146,14 +146,16 @@ class FrameParser:
                 pos = i
             end = self._frame_end(buf, i)
             if end == -2:
-                return i if not final else i
+                return i  # too few bytes to judge the header yet (flush() discards them)
             if end == -1:
                 self._discard(buf[i : i + 1], out, "'#' not followed by a valid header/address/length", "bad_header")
                 pos = i + 1
                 continue
             if end == -3:
                 stats.oversize += 1
-                self._discard(buf[i : i + 1], out, f"declared length above the {self.max_data_length}-byte bound", "oversize")
+                self._discard(
+                    buf[i : i + 1], out, f"declared length above the {self.max_data_length}-byte bound", "oversize"
+                )
                 pos = i + 1
                 continue
             if end > n_buf:
@@ -167,20 +169,29 @@ class FrameParser:
                         break
                     j = buf.find(b"#", j + 1)
                 else:
-                    if final:
-                        return i
-                    return i
+                    return i  # wait for the rest (flush() discards it)
                 continue
             crc = buf[end - 2 : end]
             s = sum(buf[i : end - 2]) & 0xFF
             if crc == _HEX2[s] or crc == _HEX2_LOWER[s]:
                 hdr = buf[i + 1 : i + 3]
                 if hdr == b"Tp":
-                    frame = Frame("#Tp", chr(buf[i + 3]), chr(buf[i + 4]), "", buf[i + 7 : i + 10].decode("latin-1"), buf[i + 10 : end - 2])
+                    frame = Frame(
+                        "#Tp",
+                        chr(buf[i + 3]),
+                        chr(buf[i + 4]),
+                        "",
+                        buf[i + 7 : i + 10].decode("latin-1"),
+                        buf[i + 10 : end - 2],
+                    )
                 else:
                     frame = Frame(
-                        _HDR[hdr], chr(buf[i + 3]), chr(buf[i + 4]), chr(buf[i + 6]),
-                        buf[i + 7 : i + 10].decode("latin-1"), buf[i + 10 : end - 2],
+                        _HDR[hdr],
+                        chr(buf[i + 3]),
+                        chr(buf[i + 4]),
+                        chr(buf[i + 6]),
+                        buf[i + 7 : i + 10].decode("latin-1"),
+                        buf[i + 10 : end - 2],
                     )
                 stats.frames += 1
                 out.append(frame)
@@ -192,7 +203,7 @@ class FrameParser:
                 rec = self._recover(buf, i, final)
                 if rec is None:
                     return i  # a longer candidate may still complete: wait for bytes
-                if rec is not False:
+                if isinstance(rec, tuple):
                     frame, rec_end = rec
                     stats.frames += 1
                     stats.length_recoveries += 1
@@ -246,11 +257,16 @@ class FrameParser:
             if not all(0x20 <= b < 0x7F for b in data):
                 continue
             frame = Frame(
-                _HDR[buf[i + 1 : i + 3]], chr(buf[i + 3]), chr(buf[i + 4]), chr(buf[i + 6]),
-                buf[i + 7 : i + 10].decode("latin-1"), data, declared,
+                _HDR[buf[i + 1 : i + 3]],
+                chr(buf[i + 3]),
+                chr(buf[i + 4]),
+                chr(buf[i + 6]),
+                buf[i + 7 : i + 10].decode("latin-1"),
+                data,
+                declared,
             )
             best = (frame, end)
-            if end == boundary or end == n_buf:
+            if end in (boundary, n_buf):
                 break
         if best is not None:
             return best

@@ -93,10 +93,12 @@ def render() -> str:
                 query = _forms(spec, "r", REQUEST)
                 answer = _forms(spec, "r", "response")
                 qa = f"{query} → {answer}" if query else (answer and f"(unsolicited) {answer}")
-                echo = [f for f in spec.forms_for("w", "response") if write == "" or f.fields != spec.forms_for("w", REQUEST)[0].fields]
-                other = "<br>".join(
-                    (f"*{_cell(f.title)}:* " if f.title else "") + _form_text(f) for f in echo
-                )
+                echo = [
+                    f
+                    for f in spec.forms_for("w", "response")
+                    if write == "" or f.fields != spec.forms_for("w", REQUEST)[0].fields
+                ]
+                other = "<br>".join((f"*{_cell(f.title)}:* " if f.title else "") + _form_text(f) for f in echo)
                 title = _cell(spec.title) + ("" if spec.documented else " *(beyond the documents)*")
                 out.append(
                     f"| `{spec.ident}` | {spec.name}<br>{title} | {write} | {qa} | {other} | {_models(d, spec)} | "

@@ -3,11 +3,11 @@ options the built object is memoised (dialects are immutable, so sharing one is 
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from typing import Any
 
-from ..catalog import DeviceModel, Dialect
 from ...errors import UnknownCommandError
+from ..catalog import DeviceModel, Dialect
 from .skydroid import skydroid
 from .topotek import topotek
 
@@ -15,7 +15,7 @@ BUILDERS = {"skydroid": skydroid, "topotek": topotek}
 DIALECT_NAMES = tuple(BUILDERS)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _default(name: str) -> Dialect:
     return BUILDERS[name]()
 
