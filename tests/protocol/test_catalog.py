@@ -376,3 +376,13 @@ def test_all_forms_have_consistent_lengths() -> None:
                 assert 0 <= f.min_length <= f.max_length, (spec.ident, f)
                 if f.direction == RESPONSE and spec.header in ("#TP", "#tp"):
                     assert f.min_length <= 15, spec.ident
+
+
+def test_notification_never_picks_an_echo_form() -> None:
+    """LAT has an echo (ddmm.mmmm) and a target-solution report (dd.dddddd) with the same field."""
+    top = get_dialect("topotek")
+    note = top.notification("LAT", src="D", dst="P", lat_deg=22.123456)
+    assert note.data == b"N22.123456"
+    assert top.decode(note).form.title == "target solution"  # type: ignore[union-attr]
+    echo = top.encode("LAT", lat_deg=22.5).swapped()
+    assert top.decode(echo).fields == {"lat_deg": 22.5} and top.decode(echo).form.role == "echo"  # type: ignore[union-attr]

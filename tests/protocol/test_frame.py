@@ -121,3 +121,46 @@ def test_length_recovery_can_be_switched_off() -> None:
     out = p.feed(b"#tpDU3rVER0105025A")
     assert not [e for e in out if isinstance(e, Frame)]
     assert p.stats.bad_checksums == 1
+
+
+def test_recovered_frame_waits_for_a_boundary_on_a_stream() -> None:
+    """On a byte stream the real C12 VER answer is delivered once the next frame shows where it
+    ends; as a datagram it is delivered at once."""
+    p = FrameParser()
+    out: list[Frame | Diagnostic] = []
+    for b in b"#tpDU3rVER0105025A":
+        out += p.feed(bytes([b]))
+    assert not [e for e in out if isinstance(e, Frame)]
+    out += p.feed(b"#TPUG2wPTZ006A")
+    frames = [e for e in out if isinstance(e, Frame)]
+    assert [f.ident for f in frames] == ["VER", "PTZ"] and frames[0].data == b"010502"
+    assert frames[0].declared_length == 3 and frames[0].to_bytes() == b"#tpDU3rVER0105025A"
+    d = FrameParser().feed_datagram(b"#tpDU3rVER0105025A")
+    assert [e.kind if isinstance(e, Diagnostic) else e.ident for e in d] == ["length_mismatch", "VER"]
+
+
+def test_recovery_needs_an_exact_fit_not_a_chance_checksum() -> None:
+    """`#tpUD8wVER87ABBC9EA72` (9 data characters, length 8): at 14 bytes the 2-character reading
+    happens to have a right checksum; it must not be taken."""
+    raw = b"#tpUD8wVER87ABBC9EA72"
+    assert raw[12:14] == b"AB" and sum(raw[:12]) & 0xFF == 0xAB  # the chance match
+    p = FrameParser()
+    out: list[Frame | Diagnostic] = []
+    for b in raw + b"\r\n":
+        out += p.feed(bytes([b]))
+    frames = [e for e in out if isinstance(e, Frame)]
+    assert len(frames) == 1 and frames[0].data == b"87ABBC9EA"
+
+
+def test_truncated_frame_before_a_good_one_is_not_held() -> None:
+    p = FrameParser()
+    out = p.feed(b"#TPUD2w#TPUD2wAWB0144")
+    assert [e for e in out if isinstance(e, Frame)] == [parse_frame("#TPUD2wAWB0144")]
+    assert p.buffered == 0
+
+
+def test_overlong_length_character_is_recovered_when_a_frame_follows() -> None:
+    p = FrameParser()
+    out = p.feed(b"#TPUGFwPTZ1E#TPUD2wAWB0144")
+    kinds = [e.kind if isinstance(e, Diagnostic) else e.ident for e in out]
+    assert kinds == ["length_mismatch", "PTZ", "AWB"]

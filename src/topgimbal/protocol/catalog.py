@@ -29,6 +29,7 @@ class Form:
     fields: tuple[Field, ...] = ()
     const: bytes | None = None
     title: str = ""
+    role: str = ""  # "echo" for the device's copy of a write; reports and answers leave it empty
 
     def __post_init__(self) -> None:
         fixed = 0
@@ -396,9 +397,10 @@ class Dialect:
         header: str | None = None,
         **values: Any,
     ) -> Frame:
-        """An unsolicited device -> host frame (attitude stream, ZMP, LRF result...)."""
+        """An unsolicited device -> host frame (attitude stream, ZMP, LRF result, target solution).
+        Echo forms are passed over: an echo answers a write, it is never sent on its own."""
         spec = self.command(ident)
-        forms = [f for f in spec.forms if f.direction == RESPONSE and (rw is None or f.rw == rw)]
+        forms = [f for f in spec.forms if f.direction == RESPONSE and f.role != "echo" and (rw is None or f.rw == rw)]
         form = next((f for f in forms if set(values) <= {x.name for x in f.fields} and f.fields), None)
         if form is None:
             raise UnsupportedError(f"{spec.ident} has no matching device -> host form in the {self.name} dialect")

@@ -4,9 +4,11 @@ Contract: `feed()` never raises, never waits on bytes that cannot come (a good f
 buffer is never held back by garbage before it), keeps at most one maximum-size frame buffered,
 resynchronises at the next `#`, and drops only the frame whose checksum is wrong.
 
-Length recovery: when an ASCII-header frame fails its checksum at the declared length, the parser
-tries every other length 0..15 that ends before the next `#`, CR or LF; one whose checksum matches
-is accepted and reported as a `length_mismatch` diagnostic (real C12: `#tpDU3rVER0105025A`).
+Length recovery: when an ASCII-header frame fails its checksum at its declared length, the parser
+takes the length that ends exactly where the next thing starts (the next `#`, CR, LF, or the end of
+a datagram given to `feed_datagram()`); if that frame's checksum is right it is accepted and
+reported as a `length_mismatch` diagnostic (real C12: `#tpDU3rVER0105025A`). On a byte stream a
+recovered frame is therefore delivered when the next frame or line end arrives.
 """
 
 from __future__ import annotations
@@ -78,6 +80,11 @@ class FrameParser:
         pos = self._scan(buf, 0, out, final=False)
         self._buf = buf[pos:]
         return out
+
+    def feed_datagram(self, data: bytes) -> list[Frame | Diagnostic]:
+        """Feed one whole datagram (UDP): its end is a frame boundary, so nothing is kept for the
+        next one and a frame with a wrong length character that ends the datagram is recovered."""
+        return self.feed(data) + self.flush()
 
     def flush(self) -> list[Frame | Diagnostic]:
         """Resolve whatever is buffered as if the stream ended here (end of a datagram or file)."""
@@ -159,17 +166,22 @@ class FrameParser:
                 pos = i + 1
                 continue
             if end > n_buf:
-                # Incomplete: wait, unless a complete good frame already follows (then this '#'
-                # was garbage and waiting would hold that frame back).
+                # Incomplete: wait, unless a complete good frame already follows (then this frame
+                # is either one whose length character claims too much, or garbage; waiting would
+                # hold the good frame back).
                 j = buf.find(b"#", i + 1)
-                while j >= 0:
-                    if self._valid_complete_at(buf, j):
-                        self._discard(buf[i:j], out, "incomplete frame followed by a good one")
-                        pos = j
-                        break
+                while j >= 0 and not self._valid_complete_at(buf, j):
                     j = buf.find(b"#", j + 1)
-                else:
+                if j < 0:
                     return i  # wait for the rest (flush() discards it)
+                hdr = buf[i + 1 : i + 3]
+                if self.recover_length and (hdr == b"TP" or hdr == b"tp"):
+                    rec = self._recover(buf, i, final=True)
+                    if isinstance(rec, tuple):
+                        pos = self._emit_recovered(rec, buf, i, out)
+                        continue
+                self._discard(buf[i:j], out, "incomplete frame followed by a good one")
+                pos = j
                 continue
             crc = buf[end - 2 : end]
             s = sum(buf[i : end - 2]) & 0xFF
@@ -204,19 +216,7 @@ class FrameParser:
                 if rec is None:
                     return i  # a longer candidate may still complete: wait for bytes
                 if isinstance(rec, tuple):
-                    frame, rec_end = rec
-                    stats.frames += 1
-                    stats.length_recoveries += 1
-                    out.append(
-                        Diagnostic(
-                            "length_mismatch",
-                            f"length character says {frame.declared_length}, data has {len(frame.data)}; "
-                            "checksum proves the real length",
-                            buf[i:rec_end],
-                        )
-                    )
-                    out.append(frame)
-                    pos = rec_end
+                    pos = self._emit_recovered(rec, buf, i, out)
                     continue
             # Drop this frame only: resume at the next '#' (a frame may start inside this one).
             nxt = buf.find(b"#", i + 1, end)
@@ -232,44 +232,59 @@ class FrameParser:
             pos = nxt
         return pos
 
+    def _emit_recovered(self, rec: tuple[Frame, int], buf: bytes, i: int, out: list[Frame | Diagnostic]) -> int:
+        frame, rec_end = rec
+        self.stats.frames += 1
+        self.stats.length_recoveries += 1
+        out.append(
+            Diagnostic(
+                "length_mismatch",
+                f"length character says {frame.declared_length}, data has {len(frame.data)}; "
+                "checksum proves the real length",
+                buf[i:rec_end],
+            )
+        )
+        out.append(frame)
+        return rec_end
+
     def _recover(self, buf: bytes, i: int, final: bool) -> tuple[Frame, int] | bool | None:
-        """A frame at `i` with the right checksum at another length; False if none can be, None if
-        bytes still to come might complete one."""
+        """The frame at `i` at another length whose checksum is right and which ends exactly where
+        the next thing starts (`#`, CR, LF, or the end of a datagram when `final`). False if there
+        is none, None if bytes still to come decide it.
+
+        Requiring the exact fit is what makes recovery safe when bytes trickle in one at a time: a
+        shorter length whose checksum matches by chance (1 in 256 per length) is not taken just
+        because the buffer happens to end there."""
         n_buf = len(buf)
         limit = min(n_buf, i + _ASCII_MAX_TOTAL)
         boundary = None
-        for k in range(i + 10, limit):
+        # A '#' even inside the header or identifier bounds the frame (then no length fits).
+        for k in range(i + 1, limit):
             b = buf[k]
             if b == 0x23 or b == 0x0D or b == 0x0A:
                 boundary = k
                 break
+        if boundary is None:
+            if not final and n_buf < i + _ASCII_MAX_TOTAL:
+                return None
+            boundary = limit
+        n = boundary - i - 12
         declared = _HEXVAL[buf[i + 5]]
-        best: tuple[Frame, int] | None = None
-        for n in range(16):
-            if n == declared:
-                continue
-            end = i + 12 + n
-            if end > n_buf or (boundary is not None and end > boundary):
-                break
-            data = buf[i + 10 : end - 2]
-            if buf[end - 2 : end].upper() != _HEX2[sum(buf[i : end - 2]) & 0xFF]:
-                continue
-            if not all(0x20 <= b < 0x7F for b in data):
-                continue
-            frame = Frame(
-                _HDR[buf[i + 1 : i + 3]],
-                chr(buf[i + 3]),
-                chr(buf[i + 4]),
-                chr(buf[i + 6]),
-                buf[i + 7 : i + 10].decode("latin-1"),
-                data,
-                declared,
-            )
-            best = (frame, end)
-            if end in (boundary, n_buf):
-                break
-        if best is not None:
-            return best
-        if boundary is None and n_buf < i + _ASCII_MAX_TOTAL and not final:
-            return None
-        return False
+        if n < 0 or n > 15 or n == declared:
+            return False
+        end = boundary
+        data = buf[i + 10 : end - 2]
+        if buf[end - 2 : end].upper() != _HEX2[sum(buf[i : end - 2]) & 0xFF]:
+            return False
+        if not all(0x20 <= b < 0x7F for b in data):
+            return False
+        frame = Frame(
+            _HDR[buf[i + 1 : i + 3]],
+            chr(buf[i + 3]),
+            chr(buf[i + 4]),
+            chr(buf[i + 6]),
+            buf[i + 7 : i + 10].decode("latin-1"),
+            data,
+            declared,
+        )
+        return frame, end

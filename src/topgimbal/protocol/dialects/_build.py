@@ -52,7 +52,9 @@ def spec(
     if write is not None:
         w = tuple(write)
         forms.append(Form("w", REQUEST, w, title="set / control"))
-        forms.append(Form("w", RESPONSE, tuple(echo_fields) if echo_fields is not None else w, title="echo"))
+        forms.append(
+            Form("w", RESPONSE, tuple(echo_fields) if echo_fields is not None else w, title="echo", role="echo")
+        )
     if read is not None:
         forms.append(read_request or QUERY)
         forms.append(Form("r", RESPONSE, tuple(read), title="answer"))

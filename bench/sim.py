@@ -1,0 +1,124 @@
+"""How many simulated cameras one process serves at 100 Hz attitude output with < 1 % rate error.
+
+Each step starts N C12 simulators (UDP, 127.0.0.1, ephemeral ports) in this process; a separate
+receiver process asks every one for `GAA` at 100 Hz and counts the GAC frames each sends during a
+measuring window. A step passes when every camera's rate is within 1 % of 100 Hz. The search
+doubles N until a step fails, then bisects, within a fixed time budget. Figures are printed, not
+asserted.
+
+    .venv/bin/python bench/sim.py [--budget 110] [--window 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import multiprocessing as mp
+import socket
+import time
+from typing import Any
+
+from topgimbal.protocol import get_dialect
+from topgimbal.sim import Simulator
+
+RATE_HZ = 100
+TOLERANCE = 0.01
+LOOP = "127.0.0.1"
+
+
+def receiver(ports: list[int], warmup: float, window: float, out: Any) -> None:
+    d = get_dialect("skydroid")
+    start = d.encode("GAA", rate_hz=RATE_HZ).to_bytes()
+    stop = d.encode("GAA", rate_hz=0).to_bytes()
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 8 << 20)
+    s.bind((LOOP, 0))
+    for p in ports:
+        s.sendto(start, (LOOP, p))
+    counts = dict.fromkeys(ports, 0)
+    t_begin = time.monotonic() + warmup
+    t_end = t_begin + window
+    s.settimeout(0.05)
+    while True:
+        now = time.monotonic()
+        if now >= t_end:
+            break
+        try:
+            data, addr = s.recvfrom(2048)
+        except TimeoutError:
+            continue
+        if now >= t_begin:
+            counts[addr[1]] = counts.get(addr[1], 0) + data.count(b"GAC")
+    for p in ports:
+        s.sendto(stop, (LOOP, p))
+    out.put(counts)
+
+
+async def step(n: int, warmup: float, window: float) -> dict[str, float]:
+    sims = [Simulator("C12", seed=i) for i in range(n)]
+    for sim in sims:
+        await sim.start(udp=[(LOOP, 0)])
+    ports = [sim.addresses["udp"][0][1] for sim in sims]
+    q: Any = mp.Queue()
+    proc = mp.Process(target=receiver, args=(ports, warmup, window, q))
+    cpu0 = time.process_time()
+    proc.start()
+    while proc.is_alive() and q.empty():
+        await asyncio.sleep(0.05)
+    counts = q.get()
+    cpu = time.process_time() - cpu0
+    proc.join()
+    for sim in sims:
+        await sim.stop()
+    rates = [counts.get(p, 0) / window for p in ports]
+    errors = [abs(r - RATE_HZ) / RATE_HZ for r in rates]
+    return {
+        "n": n,
+        "mean_hz": sum(rates) / n,
+        "min_hz": min(rates),
+        "max_hz": max(rates),
+        "worst_error": max(errors),
+        "cpu_share": cpu / (warmup + window),
+    }
+
+
+def show(r: dict[str, float]) -> None:
+    ok = "pass" if r["worst_error"] < TOLERANCE else "FAIL"
+    print(
+        f"  {int(r['n']):5d} cameras: mean {r['mean_hz']:7.2f} Hz, min {r['min_hz']:7.2f}, max {r['max_hz']:7.2f}, "
+        f"worst error {100 * r['worst_error']:5.2f} %, simulator CPU {100 * r['cpu_share']:5.1f} %  {ok}",
+        flush=True,
+    )
+
+
+async def main(budget: float, window: float, warmup: float) -> None:
+    print(f"bench/sim.py: C12 simulators on UDP, GAA {RATE_HZ} Hz, pass = every camera within {100 * TOLERANCE:g} %")
+    t0 = time.monotonic()
+    best, worst_fail, n = 0, None, 50
+    per_step = window + warmup + 1.0
+    while time.monotonic() - t0 + per_step * (1 + n / 400) < budget:
+        r = await step(n, warmup, window)
+        show(r)
+        if r["worst_error"] < TOLERANCE:
+            best = n
+            n = n * 2 if worst_fail is None else (n + worst_fail) // 2
+        else:
+            worst_fail = n
+            n = (best + n) // 2 if best else n // 2
+        if worst_fail is not None and (worst_fail - best) <= max(10, best // 10):
+            break
+        if n <= 0:
+            break
+    print(
+        f"result: {best} cameras served at {RATE_HZ} Hz with < 1 % rate error (target: 100 or more)"
+        f"{'' if worst_fail is None else f'; {worst_fail} failed'}; search took {time.monotonic() - t0:.0f} s"
+    )
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--budget", type=float, default=110.0, help="total seconds for the search (default 110)")
+    ap.add_argument("--window", type=float, default=10.0, help="measuring window per step, s (default 10)")
+    ap.add_argument("--warmup", type=float, default=1.0, help="seconds before measuring (default 1)")
+    a = ap.parse_args()
+    asyncio.run(main(a.budget, a.window, a.warmup))

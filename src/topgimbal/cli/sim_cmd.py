@@ -1,0 +1,127 @@
+"""`topgimbal sim`: run a virtual camera until Ctrl-C / SIGTERM.
+
+    topgimbal sim --model C12                 # the model's documented endpoints on 127.0.0.1
+    topgimbal sim --model SIP --udp 127.0.0.1:0 --serial pty --faults drop=0.1 --seed 3
+
+Prints one line per bound endpoint (its URL), then serves; state is flushed on exit.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import signal
+import sys
+from typing import Any
+
+from ..protocol import all_models
+from ..sim import FaultPlan, Simulator
+from ..sim import quirks as quirk_table
+
+
+def _hostport(text: str) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    if not sep or not port.isdigit() or not 0 <= int(port) <= 65535:
+        raise argparse.ArgumentTypeError(f"{text!r} is not HOST:PORT (port 0..65535; 0 picks a free port)")
+    return host or "127.0.0.1", int(port)
+
+
+def _faults(text: str) -> FaultPlan:
+    try:
+        return FaultPlan.parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _quirks(text: str) -> dict[str, bool]:
+    try:
+        return quirk_table.parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _model(text: str) -> str:
+    for name in all_models():
+        if name.lower() == text.lower():
+            return name
+    raise argparse.ArgumentTypeError(f"{text!r} is not a model; known: {', '.join(all_models())}")
+
+
+def register(subparsers: Any) -> None:
+    p = subparsers.add_parser(
+        "sim",
+        help="run a virtual camera (simulator)",
+        description="Run a virtual camera on 127.0.0.1 until Ctrl-C. Without --udp/--tcp/--serial it listens "
+        "on the model's documented transport and ports (C12: UDP 5000; C10: UDP 5000, TCP 5000, UDP 9002; "
+        "C20: TCP 5000; SIP: UDP 9003 and a pty serial line).",
+    )
+    p.add_argument(
+        "--model", dest="sim_model", type=_model, help="device model (default: the global --model, else C12)"
+    )
+    p.add_argument("--udp", action="append", type=_hostport, metavar="HOST:PORT", help="listen on UDP (repeatable)")
+    p.add_argument("--tcp", action="append", type=_hostport, metavar="HOST:PORT", help="listen on TCP (repeatable)")
+    p.add_argument(
+        "--serial",
+        action="append",
+        metavar="DEVICE",
+        help="serve a serial device at 115200 8N1, or 'pty' for a new pseudo-terminal whose path is printed",
+    )
+    p.add_argument("--state", metavar="FILE", help="keep persistent settings in FILE (atomic writes)")
+    p.add_argument(
+        "--faults",
+        type=_faults,
+        metavar="PLAN",
+        help=f"fault plan: KEY=VALUE,... (keys: {', '.join(FaultPlan.keys())}) or a .json file",
+    )
+    p.add_argument(
+        "--quirks",
+        type=_quirks,
+        metavar="LIST",
+        help=f"turn quirks on (NAME) or off (-NAME): {', '.join(quirk_table.QUIRKS)}",
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed for every random choice (default 0)")
+    p.add_argument("--stream-hz", type=float, default=10.0, help="TOPOTEK GAA/GIA stream rate (default 10)")
+    p.add_argument("--allow-any-address", action="store_true", help=argparse.SUPPRESS)
+    p.set_defaults(func=run)
+
+
+def _check_loopback(args: argparse.Namespace) -> None:
+    for host, _ in (args.udp or []) + (args.tcp or []):
+        if host not in ("127.0.0.1", "localhost", "::1") and not args.allow_any_address:
+            raise ValueError(f"the simulator listens on loopback only (got {host!r}; use 127.0.0.1)")
+
+
+def run(args: argparse.Namespace) -> int:
+    _check_loopback(args)
+    model = args.sim_model or getattr(args, "model", None) or "C12"
+    sim = Simulator(
+        model,
+        seed=args.seed,
+        faults=args.faults,
+        state_file=args.state,
+        quirks=args.quirks,
+        topotek_stream_hz=args.stream_hz,
+    )
+    listen: dict[str, Any] = {}
+    if args.udp or args.tcp or args.serial:
+        listen = {"udp": args.udp or [], "tcp": args.tcp or [], "serial": args.serial or []}
+    return asyncio.run(_serve(sim, listen))
+
+
+async def _serve(sim: Simulator, listen: dict[str, Any]) -> int:
+    await sim.start(**listen)
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            loop.add_signal_handler(sig, stop.set)
+        except (NotImplementedError, RuntimeError):  # pragma: no cover - not on the main thread
+            pass
+    print(f"topgimbal sim: {sim.model} ({sim.dialect.name}), seed {sim.seed}", file=sys.stderr)
+    for _kind, url in sim.endpoints:
+        print(url, flush=True)
+    try:
+        await stop.wait()
+    finally:
+        await sim.stop()
+    return 0

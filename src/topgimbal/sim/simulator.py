@@ -1,0 +1,309 @@
+"""The simulator: the device core, its servers, the fault plan, persistence and timing.
+
+    sim = Simulator("C12", seed=0)
+    await sim.start(udp=[("127.0.0.1", 0)])      # or no arguments: the model's documented ports
+    print(sim.url)                                  # udp://127.0.0.1:40123
+    ...
+    await sim.stop()
+
+`async with Simulator("C12", listen={"udp": [("127.0.0.1", 0)]}) as sim:` starts it with the
+`listen` arguments (none: the documented endpoints) and stops it at the end.
+
+With `clock=FakeClock()` nothing happens by itself: `sim.advance(dt)` moves time and sends what
+falls due (attitude streams, delayed packets), deterministically.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import random
+from collections.abc import Hashable, Iterable, Mapping
+from pathlib import Path
+from typing import Any, cast
+
+from ..protocol import Frame
+from . import persist
+from .clock import Clock, FakeClock, MonotonicClock
+from .device import TOPOTEK_STREAM_HZ, Device, Outgoing
+from .faults import FaultInjector, FaultPlan
+from .servers import LOOPBACK, SerialPeer, TcpServer, UdpServer
+
+Address = tuple[str, int]
+
+
+def _addresses(items: Iterable[Any] | None) -> list[Address]:
+    out = []
+    for item in items or ():
+        if isinstance(item, str):
+            host, _, port = item.rpartition(":")
+            out.append((host or LOOPBACK, int(port)))
+        else:
+            host, port = item
+            out.append((str(host), int(port)))
+    return out
+
+
+class Simulator:
+    def __init__(
+        self,
+        model: str = "C12",
+        *,
+        seed: int = 0,
+        faults: FaultPlan | None = None,
+        state_file: str | Path | None = None,
+        quirks: Mapping[str, bool] | None = None,
+        clock: Clock | None = None,
+        listen: Mapping[str, Any] | None = None,
+        topotek_stream_hz: float = TOPOTEK_STREAM_HZ,
+    ) -> None:
+        self.clock: Clock = clock if clock is not None else MonotonicClock()
+        self.device = Device(
+            model, seed=seed, clock=self.clock, quirk_overrides=quirks, topotek_stream_hz=topotek_stream_hz
+        )
+        self.seed = seed
+        self.faults = faults or FaultPlan()
+        self.state_file = Path(state_file) if state_file is not None else None
+        self.listen = dict(listen or {})
+        self.endpoints: list[tuple[str, str]] = []
+        self.addresses: dict[str, list[Address]] = {"udp": [], "tcp": []}
+        self._udp: list[UdpServer] = []
+        self._tcp: list[TcpServer] = []
+        self._serial: list[SerialPeer] = []
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._timer: asyncio.TimerHandle | None = None
+        self._timer_at: float | None = None
+        self._fault_in: FaultInjector | None = None
+        self._fault_out: FaultInjector | None = None
+        self.started = False
+        if self.state_file is not None:
+            saved = persist.load(self.state_file)
+            if saved is not None:
+                self.device.restore(saved)
+
+    # -- state the tests read ----------------------------------------------------------------------
+
+    @property
+    def model(self) -> str:
+        return self.device.model.name
+
+    @property
+    def dialect(self) -> Any:
+        return self.device.dialect
+
+    @property
+    def gimbal(self) -> Any:
+        return self.device.gimbal
+
+    @property
+    def camera(self) -> Any:
+        return self.device.camera
+
+    @property
+    def network(self) -> Any:
+        return self.device.network
+
+    @property
+    def settings(self) -> dict[str, dict[str, Any]]:
+        return self.device.settings
+
+    @property
+    def thermal(self) -> dict[str, Any]:
+        """The thermal settings this model has, by identifier (IMG palette, TSM scene, ...)."""
+        return {
+            k: v
+            for k, v in self.device.settings.items()
+            if k in ("IMG", "TSM", "TAS", "TDI", "TIB", "TIC", "TAR", "TTR", "TGM", "TMR")
+        }
+
+    @property
+    def quirks(self) -> dict[str, bool]:
+        return self.device.quirks
+
+    @property
+    def received(self) -> list[Frame]:
+        return self.device.received
+
+    @property
+    def url(self) -> str:
+        if not self.endpoints:
+            raise RuntimeError("the simulator is not listening yet: await sim.start() first")
+        return self.endpoints[0][1]
+
+    @property
+    def fault_counts(self) -> dict[str, dict[str, int]]:
+        return {d: dict(i.counts) for d, i in (("in", self._fault_in), ("out", self._fault_out)) if i is not None}
+
+    # -- life cycle --------------------------------------------------------------------------------
+
+    async def start(
+        self,
+        udp: Iterable[Any] | None = None,
+        tcp: Iterable[Any] | None = None,
+        serial: Iterable[str] | str | None = None,
+    ) -> Simulator:
+        """Listen. With no arguments at all: the model's documented endpoints on 127.0.0.1 (a pty
+        for a documented serial line)."""
+        if self.started:
+            raise RuntimeError("the simulator is already started")
+        self._loop = asyncio.get_running_loop()
+        if udp is None and tcp is None and serial is None:
+            documented = self.documented_listen()
+            udp, tcp, serial = documented["udp"], documented["tcp"], documented["serial"]
+        if isinstance(serial, str):
+            serial = [serial]
+        now = self.clock.now()
+        self._fault_in = FaultInjector(self.faults, "in", random.Random(f"{self.seed}/in"), now)
+        self._fault_out = FaultInjector(self.faults, "out", random.Random(f"{self.seed}/out"), now)
+        try:
+            for host, port in _addresses(udp):
+                proto = UdpServer(self._input)
+                await self._loop.create_datagram_endpoint(lambda p=proto: p, local_addr=(host, port))  # type: ignore[misc]
+                self._udp.append(proto)
+                h, p = proto.address
+                self.addresses["udp"].append((h, p))
+                self.endpoints.append(("udp", f"udp://{h}:{p}"))
+            for host, port in _addresses(tcp):
+                server = TcpServer(self._input, self._forget)
+                await server.start(host, port)
+                self._tcp.append(server)
+                h, p = server.address
+                self.addresses["tcp"].append((h, p))
+                self.endpoints.append(("tcp", f"tcp://{h}:{p}"))
+            for dev in serial or ():
+                line = SerialPeer(self._input, dev)
+                line.start()
+                self._serial.append(line)
+                self.endpoints.append(("serial", line.url))
+        except BaseException:
+            await self.stop()
+            raise
+        self.started = True
+        return self
+
+    def documented_listen(self) -> dict[str, list[Any]]:
+        """The model's documented endpoints, on loopback (a pty stands in for a UART)."""
+        eps = self.device.model.endpoints
+        return {
+            "udp": [(LOOPBACK, e.port) for e in eps if e.kind == "udp"],
+            "tcp": [(LOOPBACK, e.port) for e in eps if e.kind == "tcp"],
+            "serial": ["pty" for e in eps if e.kind == "serial"],
+        }
+
+    async def stop(self) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+        for u in self._udp:
+            u.close()
+        for t in self._tcp:
+            await t.close()
+        for s in self._serial:
+            s.close()
+        self._udp, self._tcp, self._serial = [], [], []
+        self.flush(force=True)
+        self.started = False
+
+    async def __aenter__(self) -> Simulator:
+        if not self.started:
+            await self.start(**self.listen)
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.stop()
+
+    def flush(self, force: bool = False) -> None:
+        """Write the persistent state if it changed (always with `force`)."""
+        if self.state_file is not None and (self.device.dirty or force):
+            persist.save(self.state_file, self.device.snapshot())
+            self.device.dirty = False
+
+    # -- traffic -----------------------------------------------------------------------------------
+
+    def _input(self, peer: Hashable, data: bytes, datagram: bool) -> None:
+        assert self._fault_in is not None
+        for p, d in self._fault_in.submit((peer, datagram), data, self.clock.now()):
+            self._deliver(p, d)
+        self._schedule()
+
+    def _forget(self, peer: Hashable) -> None:
+        """A TCP connection closed: its streams, parser state and queued packets go with it."""
+        self.device.forget(peer)
+        if self._fault_out is not None:
+            self._fault_out.forget(peer)
+        if self._fault_in is not None:
+            self._fault_in.forget((peer, False))
+
+    def _deliver(self, key: Hashable, data: bytes) -> None:
+        peer, datagram = cast("tuple[Hashable, bool]", key)
+        self._send(self.device.receive(peer, data, datagram=datagram))
+        if self.device.dirty:
+            self.flush()
+
+    def _send(self, outs: list[Outgoing]) -> None:
+        fo = self._fault_out
+        now = self.clock.now()
+        for o in outs:
+            if fo is None or not fo.enabled:
+                o.peer.send(o.data)  # type: ignore[attr-defined]
+                continue
+            for peer, data in fo.submit(o.peer, o.data, now, reply=o.reply):
+                peer.send(data)  # type: ignore[attr-defined]
+
+    def pump(self) -> None:
+        """Send everything due by now: delayed inbound packets, streams, delayed outbound packets."""
+        now = self.clock.now()
+        if self._fault_in is not None:
+            for p, d in self._fault_in.due(now):
+                self._deliver(p, d)
+        self._send(self.device.tick())
+        if self._fault_out is not None:
+            for peer, data in self._fault_out.due(now):
+                peer.send(data)  # type: ignore[attr-defined]
+        if self.device.dirty:
+            self.flush()
+
+    def advance(self, dt: float) -> None:
+        """Fake clock only: move time by `dt` seconds, sending what falls due on the way, in order."""
+        if not isinstance(self.clock, FakeClock):
+            raise RuntimeError("advance() needs a simulator built with clock=FakeClock()")
+        end = self.clock.now() + dt
+        while True:
+            nxt = self._next_due()
+            if nxt is None or nxt > end:
+                break
+            self.clock.set(max(self.clock.now(), nxt))
+            self.pump()
+        self.clock.set(end)
+        self.pump()
+
+    def _next_due(self) -> float | None:
+        times = [
+            t
+            for t in (
+                self.device.next_due(),
+                self._fault_in.next_due() if self._fault_in else None,
+                self._fault_out.next_due() if self._fault_out else None,
+            )
+            if t is not None
+        ]
+        return min(times) if times else None
+
+    def _schedule(self) -> None:
+        """Real time: one timer for the earliest thing due (re-armed only when that changes)."""
+        if self._loop is None or isinstance(self.clock, FakeClock) or not self.started:
+            return
+        due = self._next_due()
+        if due is None:
+            return
+        if self._timer is not None and self._timer_at is not None and self._timer_at <= due:
+            return
+        if self._timer is not None:
+            self._timer.cancel()
+        self._timer_at = due
+        self._timer = self._loop.call_at(self._loop.time() + (due - self.clock.now()), self._on_timer)
+
+    def _on_timer(self) -> None:
+        self._timer = None
+        self._timer_at = None
+        self.pump()
+        self._schedule()
