@@ -6,8 +6,10 @@ Commands the document names only in Appendix I take TOPOTEK's layout (errata E12
 
 from __future__ import annotations
 
+from typing import Any
+
 from ..catalog import CommandSpec, DeviceModel, Dialect, Endpoint
-from ..fields import HexInt, RawData, Text, Timestamp, enum
+from ..fields import Field, HexInt, RawData, Text, Timestamp, enum
 from ._build import F, angle, attitude_fields, level, report, spec
 from ._shared import error_frame, lens_commands, network_commands, on_off_codec, position_commands
 
@@ -96,7 +98,7 @@ SCENES = enum(
 BIT1 = enum(1, {"0": "off", "1": "on"})
 
 
-def _speed(axis: str, unit: float) -> object:
+def _speed(axis: str, unit: float) -> Field:
     return F(
         f"{axis}_rate_deg_s",
         HexInt(2, signed=True, scale=unit, unit="deg/s", min=-127 * unit, max=127 * unit),
@@ -122,9 +124,9 @@ def skydroid(*, speed_unit_deg_s: float = 0.1) -> Dialect:
         spec(
             "PTZ", "gimbal_control", "Gimbal control codes", "G", f"{DOC} §3.1", write=[F("action", PTZ)], models=GIMBAL
         ),
-        spec("GSY", "yaw_rate", "Yaw speed", "G", f"{DOC} §3.2", write=[_speed("yaw", u)], models=GIMBAL),  # type: ignore[list-item]
-        spec("GSP", "pitch_rate", "Pitch speed", "G", f"{DOC} §3.2", write=[_speed("pitch", u)], models=GIMBAL),  # type: ignore[list-item]
-        spec("GSR", "roll_rate", "Roll speed", "G", f"{DOC} §3.2", write=[_speed("roll", u)], models=GIMBAL),  # type: ignore[list-item]
+        spec("GSY", "yaw_rate", "Yaw speed", "G", f"{DOC} §3.2", write=[_speed("yaw", u)], models=GIMBAL),
+        spec("GSP", "pitch_rate", "Pitch speed", "G", f"{DOC} §3.2", write=[_speed("pitch", u)], models=GIMBAL),
+        spec("GSR", "roll_rate", "Roll speed", "G", f"{DOC} §3.2", write=[_speed("roll", u)], models=GIMBAL),
         spec(
             "GSM",
             "yaw_pitch_rate",
@@ -133,7 +135,7 @@ def skydroid(*, speed_unit_deg_s: float = 0.1) -> Dialect:
             f"{DOC} §3.2",
             write=[_speed("yaw", u), _speed("pitch", u)],
             models=GIMBAL,
-        ),  # type: ignore[list-item]
+        ),
         spec("GAY", "yaw_angle", "Yaw angle", "G", s33, write=[yaw, sp], models=GIMBAL),
         spec("GAP", "pitch_angle", "Pitch angle", "G", s33, write=[pitch, sp], models=GIMBAL),
         spec("GAR", "roll_angle", "Roll angle", "G", s33, write=[roll, sp], models=GIMBAL),
@@ -488,7 +490,7 @@ def skydroid(*, speed_unit_deg_s: float = 0.1) -> Dialect:
         ),
     ]
 
-    def m(name: str, title: str, endpoints: tuple[Endpoint, ...], **kw: object) -> DeviceModel:
+    def m(name: str, title: str, endpoints: tuple[Endpoint, ...], **kw: Any) -> DeviceModel:
         return DeviceModel(
             name,
             "skydroid",
@@ -499,7 +501,7 @@ def skydroid(*, speed_unit_deg_s: float = 0.1) -> Dialect:
             roll_range_deg=(-90.0, 90.0),
             max_rate_deg_s=12.7 if u <= 0.1 else 127 * u,
             **kw,
-        )  # type: ignore[arg-type]
+        )
 
     udp = (Endpoint("udp", 5000),)
     models = [

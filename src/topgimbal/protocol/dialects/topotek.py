@@ -12,6 +12,7 @@ from ..fields import (
     Bitrate,
     DecFloat,
     DecInt,
+    Field,
     HexInt,
     OneOf,
     RawData,
@@ -80,7 +81,7 @@ REC_FEEDBACK = enum(2, {"00": ("stopped", "Recording stopped"), "11": ("started"
 FILE_INDEX = HexInt(8)
 
 
-def _speed(axis: str, unit: float) -> object:
+def _speed(axis: str, unit: float) -> Field:
     return F(
         f"{axis}_rate_deg_s",
         HexInt(2, signed=True, scale=unit, unit="deg/s", min=-99 * unit, max=99 * unit),
@@ -97,19 +98,20 @@ def _angle_cmds(prefix: str, frame: str, section: str, name_prefix: str) -> list
     roll = angle("roll_deg", -90, 90, f"roll ({frame})")
     ys = F("yaw_speed_deg_s", sp.codec, sp.description, default=9.9)
     ps = F("pitch_speed_deg_s", sp.codec, sp.description, default=9.9)
-    kw = dict(section=section)
     return [
-        spec(f"{prefix}Y", f"{name_prefix}yaw_angle", f"Yaw angle, {frame}", "G", write=[yaw, sp], **kw),  # type: ignore[arg-type]
-        spec(f"{prefix}P", f"{name_prefix}pitch_angle", f"Pitch angle, {frame}", "G", write=[pitch, sp], **kw),  # type: ignore[arg-type]
-        spec(f"{prefix}R", f"{name_prefix}roll_angle", f"Roll angle, {frame}", "G", write=[roll, sp], **kw),  # type: ignore[arg-type]
+        spec(f"{prefix}Y", f"{name_prefix}yaw_angle", f"Yaw angle, {frame}", "G", write=[yaw, sp], section=section),
+        spec(
+            f"{prefix}P", f"{name_prefix}pitch_angle", f"Pitch angle, {frame}", "G", write=[pitch, sp], section=section
+        ),
+        spec(f"{prefix}R", f"{name_prefix}roll_angle", f"Roll angle, {frame}", "G", write=[roll, sp], section=section),
         spec(
             f"{prefix}M",
             f"{name_prefix}yaw_pitch_angle",
             f"Yaw and pitch angles, {frame}",
             "G",
             write=[yaw, ys, pitch, ps],
-            **kw,
-        ),  # type: ignore[arg-type]
+            section=section,
+        ),
     ]
 
 
@@ -238,9 +240,9 @@ def topotek(*, speed_unit_deg_s: float = 1.0, binary_byteorder: str = "little") 
     # -- G class: gimbal -----------------------------------------------------------------------
     cmds += [
         spec("PTZ", "gimbal_control", "Gimbal control codes", "G", f"{DOC} §四.1", write=[F("action", PTZ)]),
-        spec("GSY", "yaw_rate", "Yaw speed", "G", f"{DOC} §四.2", write=[_speed("yaw", u)]),  # type: ignore[list-item]
-        spec("GSP", "pitch_rate", "Pitch speed", "G", f"{DOC} §四.2", write=[_speed("pitch", u)]),  # type: ignore[list-item]
-        spec("GSR", "roll_rate", "Roll speed", "G", f"{DOC} §四.2", write=[_speed("roll", u)]),  # type: ignore[list-item]
+        spec("GSY", "yaw_rate", "Yaw speed", "G", f"{DOC} §四.2", write=[_speed("yaw", u)]),
+        spec("GSP", "pitch_rate", "Pitch speed", "G", f"{DOC} §四.2", write=[_speed("pitch", u)]),
+        spec("GSR", "roll_rate", "Roll speed", "G", f"{DOC} §四.2", write=[_speed("roll", u)]),
         spec(
             "GSM",
             "yaw_pitch_rate",
@@ -249,7 +251,7 @@ def topotek(*, speed_unit_deg_s: float = 1.0, binary_byteorder: str = "little") 
             f"{DOC} §四.2",
             write=[_speed("yaw", u), _speed("pitch", u)],
             header="#tp",
-        ),  # type: ignore[list-item]
+        ),
         spec(
             "RPS",
             "roll_pitch_rate",
@@ -258,7 +260,7 @@ def topotek(*, speed_unit_deg_s: float = 1.0, binary_byteorder: str = "little") 
             f"{DOC} §四.2",
             write=[_speed("roll", u), _speed("pitch", u)],
             header="#tp",
-        ),  # type: ignore[list-item]
+        ),
         spec(
             "YPR",
             "yaw_pitch_roll_rate",
@@ -267,7 +269,7 @@ def topotek(*, speed_unit_deg_s: float = 1.0, binary_byteorder: str = "little") 
             f"{DOC} §四.2",
             write=[_speed("yaw", u), _speed("pitch", u), _speed("roll", u)],
             header="#tp",
-        ),  # type: ignore[list-item]
+        ),
     ]
     cmds += _angle_cmds("GA", "body frame", f"{DOC} §四.3.1 (magnetic encoder)", "")
     cmds += _angle_cmds("GI", "earth frame", f"{DOC} §四.3.2 (gyro)", "earth_")

@@ -39,7 +39,8 @@ def target_frames(dev: Device, distance: float, host: str) -> list[Frame]:
     out = []
     for ident, name, value in (("LAT", "lat_deg", lat), ("LON", "lon_deg", lon)):
         # notification() skips the echo form (ddmm.mmmm) and picks the §8.7 report (dd.dddddd).
-        out.append(dev.dialect.notification(ident, src="D", dst=host, header="#tp", **{name: value}))
+        values: dict[str, Any] = {name: value}
+        out.append(dev.dialect.notification(ident, src="D", dst=host, header="#tp", **values))
     return out
 
 
