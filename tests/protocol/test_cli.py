@@ -148,3 +148,15 @@ def test_docs_protocol_md_is_generated_from_the_catalog() -> None:
 
     path = Path(__file__).resolve().parents[2] / "docs" / "protocol.md"
     assert path.read_text(encoding="utf-8") == render(), "run `make docs`"
+
+
+def test_every_decode_record_has_the_same_keys(capsys: pytest.CaptureFixture[str]) -> None:
+    from topgimbal.cli.protocol_cmds import RECORD_KEYS
+
+    for argv in (
+        ["decode", "--json", "#TPUG2wPTZ006A"],
+        ["decode", "--json", "--hex", "zz"],
+        ["decode", "--json", "é"],
+    ):
+        _, out, _ = run(argv, capsys)
+        assert tuple(json.loads(out)) == RECORD_KEYS, argv

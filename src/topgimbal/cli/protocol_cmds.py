@@ -82,44 +82,28 @@ def _show_data(data: bytes | None) -> str | None:
     return data.decode("latin-1").encode("ascii", "backslashreplace").decode("ascii")
 
 
+RECORD_KEYS = (
+    "frame", "ok", "error", "header", "src", "dst", "length", "rw", "id", "data", "data_hex", "checksum",
+    "expected_checksum", "anomaly", "dialect", "name", "fields", "units", "fields_error",
+)  # fmt: skip
+
+
+def _failed(text: str, error: str) -> dict[str, Any]:
+    """The record of an input line that is not even a candidate frame (same keys as any other)."""
+    rec: dict[str, Any] = dict.fromkeys(RECORD_KEYS)
+    rec.update(frame=text, ok=False, error=error)
+    return rec
+
+
 def decode_line(line: str, *, as_hex: bool, dialect: Dialect | None) -> dict[str, Any]:
-    """Everything `decode --json` prints for one input line."""
+    """Everything `decode --json` prints for one input line (always the keys of RECORD_KEYS)."""
     text = line.strip()
     try:
         raw = bytes.fromhex(text) if as_hex else text.encode("latin-1")
     except ValueError as exc:
-        raw = b""
-        return {
-            "frame": text,
-            "ok": False,
-            "error": f"not valid hex: {exc}",
-            "header": None,
-            "src": None,
-            "dst": None,
-            "length": None,
-            "rw": None,
-            "id": None,
-            "data": None,
-            "checksum": None,
-            "expected_checksum": None,
-            "fields": None,
-        }
+        return _failed(text, f"not valid hex: {exc}")
     except UnicodeEncodeError:
-        return {
-            "frame": text,
-            "ok": False,
-            "error": "frames are ASCII; give binary frames with --hex",
-            "header": None,
-            "src": None,
-            "dst": None,
-            "length": None,
-            "rw": None,
-            "id": None,
-            "data": None,
-            "checksum": None,
-            "expected_checksum": None,
-            "fields": None,
-        }
+        return _failed(text, "frames are ASCII; give binary frames with --hex")
     d = dissect(raw)
     out: dict[str, Any] = {
         "frame": _show_data(d.raw),
@@ -139,6 +123,7 @@ def decode_line(line: str, *, as_hex: bool, dialect: Dialect | None) -> dict[str
         "dialect": None,
         "name": None,
         "fields": None,
+        "units": None,
         "fields_error": None,
     }
     frame = d.frame
