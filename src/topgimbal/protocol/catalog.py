@@ -286,13 +286,14 @@ class Dialect:
             cmds[c.ident] = c
         self.commands: Mapping[str, CommandSpec] = cmds
         self.models: Mapping[str, DeviceModel] = {m.name: m for m in models}
-        # (ident, rw, direction) -> forms to try, with the other direction's as a fallback for
-        # frames whose addresses are not swapped (several document examples): built once.
+        # (ident, rw, direction) -> forms to try: the direction's own first, then the other
+        # direction's, for frames whose addresses are not swapped (several document examples,
+        # errata E5). Built once: decode is on the hot path.
         index: dict[tuple[str, str, str], tuple[Form, ...]] = {}
         for c in cmds.values():
             for rw in ("r", "w"):
                 for direction, other in ((REQUEST, RESPONSE), (RESPONSE, REQUEST)):
-                    index[(c.ident, rw, direction)] = tuple(c.forms_for(rw, direction) or c.forms_for(rw, other))
+                    index[(c.ident, rw, direction)] = tuple(c.forms_for(rw, direction)) + tuple(c.forms_for(rw, other))
         self._decode_index = index
 
     def __repr__(self) -> str:
@@ -422,7 +423,7 @@ class Dialect:
         last_error = f"{spec.ident} has no {rw!r} form for a {direction}"
         for form in forms:
             if not form.accepts_length(len(data)):
-                last_error = f"{len(data)} data bytes; {spec.ident} {rw} {direction} takes " + " or ".join(
+                last_error = f"{len(data)} data bytes; {spec.ident} ({rw}) takes " + " or ".join(
                     f"{f.min_length}" + (f"..{f.max_length}" if f.max_length != f.min_length else "") for f in forms
                 )
                 continue
