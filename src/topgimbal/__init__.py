@@ -56,3 +56,8 @@ __all__ = [
     "get_model",
     "parse_frame",
 ]
+
+# The client SDK (appended: connect / AsyncClient / Gimbal).
+from .client import AsyncClient, Gimbal, connect
+
+__all__ += ["AsyncClient", "Gimbal", "connect"]

@@ -386,3 +386,31 @@ def test_notification_never_picks_an_echo_form() -> None:
     assert top.decode(note).form.title == "target solution"  # type: ignore[union-attr]
     echo = top.encode("LAT", lat_deg=22.5).swapped()
     assert top.decode(echo).fields == {"lat_deg": 22.5} and top.decode(echo).form.role == "echo"  # type: ignore[union-attr]
+
+
+def test_sign_metadata_is_in_the_catalog() -> None:
+    """Which fields carry a gimbal axis (model wire signs apply) or a fixed documented sign."""
+    from topgimbal.protocol.signs import flip, resolve_signs
+
+    top, sip = get_model("SIP")
+    signs = resolve_signs(sip)
+    assert flip(top.command("GIP"), {"pitch_deg": 30, "speed_deg_s": 5}, signs) == {"pitch_deg": -30, "speed_deg_s": 5}
+    assert flip(top.command("GAM"), {"yaw_speed_deg_s": 5, "pitch_speed_deg_s": 5}, signs)["pitch_speed_deg_s"] == 5
+    assert flip(top.command("GIA"), {"yaw_deg": 1, "pitch_deg": 2, "roll_deg": 3}, signs) == {
+        "yaw_deg": 1, "pitch_deg": -2, "roll_deg": 3,
+    }  # fmt: skip
+    # UAV pitch is down-positive by its own document, whatever the model's gimbal convention
+    for override in ({}, {"pitch": 1}):
+        s = resolve_signs(sip, override)
+        assert flip(top.command("UAV"), {"pitch_deg": 5, "roll_deg": 2}, s) == {"pitch_deg": -5, "roll_deg": 2}
+    sky, c12 = get_model("C12")
+    assert flip(sky.command("FAI"), {"pitch_deg": 5}, resolve_signs(c12, {"pitch": -1})) == {"pitch_deg": 5}
+    assert flip(sky.command("GSP"), {"pitch_rate_deg_s": 5}, resolve_signs(c12, {"pitch": -1})) == {
+        "pitch_rate_deg_s": -5
+    }
+    with pytest.raises(FieldValueError, match="an axis name"):
+        resolve_signs(c12, {"tilt": -1})
+    motion = {c.ident for c in top.commands.values() if c.motion}
+    assert motion == set(
+        ["PTZ", "GSY", "GSP", "GSR", "GSM", "RPS", "YPR", "GAY", "GAP", "GAR", "GAM", "GIY", "GIP", "GIR", "GIM"]
+    )

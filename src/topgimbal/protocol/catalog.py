@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any, NamedTuple
 
 from ..errors import FieldValueError, UnknownCommandError, UnsupportedError
@@ -134,7 +135,19 @@ class CommandSpec:
     documented: bool = True  # False for commands real clients use beyond the documents
     echo: bool = True  # writes are echoed by the device (the protocol's rule)
     repeatable: bool = True  # False: each write acts again (a photo), never retried
+    motion: bool = False  # moves the gimbal (some firmware does not echo these)
     notes: str = ""
+
+    @cached_property
+    def signed_fields(self) -> tuple[tuple[str, str | None, int], ...]:
+        """(name, axis, fixed sign) of every field with sign metadata; same-named fields of one
+        command share it across forms. Computed once (read on the client's telemetry path)."""
+        seen: dict[str, tuple[str, str | None, int]] = {}
+        for form in self.forms:
+            for f in form.fields:
+                if (f.axis or f.sign != 1) and f.name not in seen:
+                    seen[f.name] = (f.name, f.axis, f.sign)
+        return tuple(seen.values())
 
     def forms_for(self, rw: str, direction: str) -> list[Form]:
         return [f for f in self.forms if f.rw == rw and f.direction == direction]

@@ -717,18 +717,25 @@ class Bitrate(Codec):
 @dataclass(frozen=True)
 class Field:
     """A named field of a form: the codec plus its description. `default` is used when a caller
-    omits it (None means required)."""
+    omits it (None means required).
+
+    Sign metadata (read by the client and the simulator through `protocol.signs`, nowhere else):
+    `axis` names the gimbal axis an angle or rate field measures, so the device model's
+    `wire_signs` apply to it; `sign` is a fixed wire sign for fields whose document states their
+    own convention (TOPOTEK UAV pitch is down-positive: -1)."""
 
     name: str
     codec: Codec
     description: str = ""
     default: Any = None
+    axis: str | None = None
+    sign: int = 1
 
     @property
     def unit(self) -> str:
         return self.codec.unit
 
     def describe(self) -> dict[str, Any]:
-        d = {"name": self.name, "description": self.description, "default": self.default}
+        d = {"name": self.name, "description": self.description, "default": self.default, "axis": self.axis}
         d.update(self.codec.describe())
         return d

@@ -21,6 +21,7 @@ from ..errors import CatalogError, TopGimbalError
 from ..protocol import Diagnostic, Frame, FrameParser, Message, get_model, make_frame
 from ..protocol.catalog import RESPONSE
 from ..protocol.frame import DEVICE_ADDRESSES
+from ..protocol.signs import flip, resolve_signs
 from . import handlers as _handlers
 from . import quirks as quirk_table
 from .clock import Clock, MonotonicClock
@@ -77,7 +78,7 @@ class Device:
         self.quirks = quirk_table.resolve(self.model.name, self.quirk_overrides)
         self.rng = random.Random(self.seed)
         m = self.model
-        self.signs = dict(m.wire_signs)
+        self.signs = resolve_signs(m)
         self.gimbal = Gimbal.for_limits(
             m.yaw_range_deg, m.pitch_range_deg, m.roll_range_deg, m.max_rate_deg_s, m.max_accel_deg_s2
         )
@@ -113,9 +114,10 @@ class Device:
             out["UID"]["uid"] = self.uid
         return out
 
-    def wire(self, axis: str, value: float) -> float:
-        """API convention <-> wire, for angles and rates of this model (the map is its own inverse)."""
-        return value * self.signs.get(axis, 1)
+    def report(self, ident: str, *, src: str, dst: str, rw: str | None = None, **values: Any) -> Frame:
+        """An unsolicited frame from API-convention values (wire signs applied here)."""
+        spec = self.dialect.command(ident)
+        return self.dialect.notification(ident, src=src, dst=dst, rw=rw, **flip(spec, values, self.signs))
 
     # -- time ------------------------------------------------------------------------------------
 
@@ -172,10 +174,13 @@ class Device:
         if not d.supports(self.model, frame.ident) or frame.ident == "ERE":
             return self.error_frame(frame)
         msg = d.decode(frame)
-        if msg.fields is None or msg.form is None or msg.form.direction != "request":
+        if msg.fields is None or msg.form is None or msg.spec is None or msg.form.direction != "request":
             return self.error_frame(frame)
+        spec = msg.spec
         try:
             d.check_values(self.model, frame.ident, msg.fields)
+            # Handlers work in the API convention; wire signs are applied here, once, both ways.
+            msg = msg._replace(fields=flip(spec, msg.fields, self.signs))
             handler = HANDLERS.get(frame.ident, _generic)
             result = handler(self, msg, ctx)
             if isinstance(result, Reply):
@@ -183,14 +188,14 @@ class Device:
                     return None
                 if result.values is None:
                     return self._echo(frame)
-                return d.response(frame, rw=result.rw, **result.values)
+                return d.response(frame, rw=result.rw, **flip(spec, result.values, self.signs))
             if result is None:
                 if frame.rw == "r":
                     raise Refuse(f"{frame.ident} query has no answer")
-                if self.quirks["no_motion_echo"] and _is_motion(frame.ident):
+                if self.quirks["no_motion_echo"] and spec.motion:
                     return None
                 return self._echo(frame)
-            return d.response(frame, **result)
+            return d.response(frame, **flip(spec, result, self.signs))
         except (Refuse, CatalogError, TopGimbalError, ValueError):
             ctx.notes.clear()
             return self.error_frame(frame)
@@ -296,15 +301,6 @@ class Device:
         self.gimbal.mode, self.gimbal.mount = "follow", "hanging"
         self.gimbal.trims = {"x": 0.0, "y": 0.0, "z": 0.0}
         self.dirty = True
-
-
-MOTION = frozenset(
-    {"PTZ", "GSY", "GSP", "GSR", "GSM", "RPS", "YPR", "GAY", "GAP", "GAR", "GAM", "GIY", "GIP", "GIR", "GIM"}
-)
-
-
-def _is_motion(ident: str) -> bool:
-    return ident in MOTION
 
 
 def _generic(dev: Device, msg: Message, ctx: Ctx) -> Any:

@@ -1,7 +1,8 @@
 """The handler table: identifier -> function of the decoded request.
 
-A handler receives the device, the decoded `Message` (fields in user units, wire signs not yet
-applied) and a `Ctx`; it changes the device state and returns what to answer:
+A handler receives the device, the decoded `Message` (fields in user units and in the API sign
+convention: the device maps wire signs both ways) and a `Ctx`; it changes the device state and
+returns what to answer (values in the API convention too):
 
 - `None`: echo the request with swapped addresses (the protocol's rule for control commands);
 - a dict: field values for `dialect.response(request, **values)` (a query's answer, or a write

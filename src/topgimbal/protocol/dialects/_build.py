@@ -11,20 +11,25 @@ from ..fields import Codec, Field, HexInt
 QUERY = Form("r", REQUEST, const=b"00", title="query")
 
 
-def F(name: str, codec: Codec, description: str = "", default: Any = None) -> Field:  # noqa: N802
-    return Field(name, codec, description, default)
+def F(name: str, codec: Codec, description: str = "", default: Any = None, **kw: Any) -> Field:  # noqa: N802
+    return Field(name, codec, description, default, **kw)
 
 
-def angle(name: str, lo: float, hi: float, description: str = "") -> Field:
-    return Field(name, HexInt(4, signed=True, scale=0.01, unit="deg", min=lo, max=hi), description)
+def angle(name: str, lo: float, hi: float, description: str = "", *, gimbal: bool = True) -> Field:
+    """A signed 16-bit hex angle in 0.01 deg. A gimbal angle (`yaw_deg`...) carries its axis, so
+    the model's wire signs apply to it."""
+    axis = name.split("_", 1)[0] if gimbal else None
+    return Field(name, HexInt(4, signed=True, scale=0.01, unit="deg", min=lo, max=hi), description, axis=axis)
 
 
 def attitude_fields(what: str = "gimbal") -> tuple[Field, ...]:
-    """Yaw, pitch, roll as signed 16-bit hex in 0.01 deg, as on the wire (no sign changes)."""
+    """Yaw, pitch, roll as signed 16-bit hex in 0.01 deg, as on the wire (no sign changes here).
+    Vehicle attitude (FAI) is not a gimbal axis: model wire signs do not apply to it."""
+    g = what == "gimbal"
     return (
-        angle("yaw_deg", -327.68, 327.67, f"{what} yaw"),
-        angle("pitch_deg", -327.68, 327.67, f"{what} pitch"),
-        angle("roll_deg", -327.68, 327.67, f"{what} roll"),
+        angle("yaw_deg", -327.68, 327.67, f"{what} yaw", gimbal=g),
+        angle("pitch_deg", -327.68, 327.67, f"{what} pitch", gimbal=g),
+        angle("roll_deg", -327.68, 327.67, f"{what} roll", gimbal=g),
     )
 
 

@@ -6,6 +6,7 @@ Commands the document names only in Appendix I take TOPOTEK's layout (errata E12
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 from ..catalog import CommandSpec, DeviceModel, Dialect, Endpoint
@@ -14,6 +15,8 @@ from ._build import F, angle, attitude_fields, level, report, spec
 from ._shared import error_frame, lens_commands, network_commands, on_off_codec, position_commands
 
 DOC = "SkyDroid"
+# Commands that move the gimbal (some firmware obeys them without an echo).
+MOTION = frozenset(["PTZ", "GSY", "GSP", "GSR", "GSM", "GAY", "GAP", "GAR", "GAM"])
 APPENDIX = f"{DOC} Appendix I (layout not given; TOPOTEK's assumed)"
 
 GIMBAL = frozenset({"C10", "C10Pro", "C12", "C20"})
@@ -103,6 +106,7 @@ def _speed(axis: str, unit: float) -> Field:
         f"{axis}_rate_deg_s",
         HexInt(2, signed=True, scale=unit, unit="deg/s", min=-127 * unit, max=127 * unit),
         f"{axis} rate, -127..127 steps; right / up positive",
+        axis=axis,
     )
 
 
@@ -530,6 +534,7 @@ def skydroid(*, speed_unit_deg_s: float = 0.1) -> Dialect:
         ),
         m("C20", "SkyDroid C20", (Endpoint("tcp", 5000),)),
     ]
+    cmds = [replace(c, motion=True) if c.ident in MOTION else c for c in cmds]
     return Dialect(
         "skydroid",
         'SkyDroid "TOP 协议" V1.1.5',

@@ -6,6 +6,8 @@ on the wire: no sign changes here (the client maps its one convention to each di
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from ..catalog import REQUEST, CommandSpec, DeviceModel, Dialect, Endpoint, Form
 from ..fields import (
     BinInt,
@@ -24,6 +26,10 @@ from ._build import F, angle, attitude_fields, report, request, spec
 from ._shared import error_frame, lens_commands, network_commands, on_off_codec, position_commands
 
 DOC = "TOPOTEK"
+# Commands that move the gimbal (some firmware obeys them without an echo).
+MOTION = frozenset(
+    ["PTZ", "GSY", "GSP", "GSR", "GSM", "RPS", "YPR", "GAY", "GAP", "GAR", "GAM", "GIY", "GIP", "GIR", "GIM"]
+)
 BEYOND = "beyond the documents (real clients)"
 
 PTZ = enum(
@@ -86,6 +92,7 @@ def _speed(axis: str, unit: float) -> Field:
         f"{axis}_rate_deg_s",
         HexInt(2, signed=True, scale=unit, unit="deg/s", min=-99 * unit, max=99 * unit),
         f"{axis} rate, -99..99 steps" + ("; pitch down-positive on the wire (§四.2)" if axis == "pitch" else ""),
+        axis=axis,
     )
 
 
@@ -455,7 +462,7 @@ def topotek(*, speed_unit_deg_s: float = 1.0, binary_byteorder: str = "little") 
             header="#tp",
             write=[
                 F("yaw_deg", BinInt(2, False, bo, 0.01, "deg", 0, 360), "declared int16 but 0..36000: sent unsigned"),
-                F("pitch_deg", BinInt(2, True, bo, 0.01, "deg", -90, 90), "down-positive"),
+                F("pitch_deg", BinInt(2, True, bo, 0.01, "deg", -90, 90), "down-positive (struct comment)", sign=-1),
                 F("roll_deg", BinInt(2, True, bo, 0.01, "deg", -90, 90), "right-positive"),
                 F("speed_m_s", BinInt(2, False, bo, 0.01, "m/s", 0, 200)),
                 F("path_angle_deg", BinInt(2, False, bo, 0.01, "deg", 0, 360)),
@@ -653,6 +660,7 @@ def topotek(*, speed_unit_deg_s: float = 1.0, binary_byteorder: str = "little") 
         wire_signs={"yaw": 1, "pitch": -1, "roll": 1},
         notes="RTSP rtsp://<ip>:554/stream=0 and stream=1.",
     )
+    cmds = [replace(c, motion=True) if c.ident in MOTION else c for c in cmds]
     return Dialect(
         "topotek",
         'TOPOTEK "Udp&uart-Protocol" V1.1.3',

@@ -1,5 +1,5 @@
 """G class: PTZ codes, speed and angle commands, attitude queries and streams, motors, vehicle
-attitude input, tracking. Wire signs are applied here, once, in both directions."""
+attitude input, tracking. Values are in the API sign convention (the device maps wire signs)."""
 
 from __future__ import annotations
 
@@ -69,7 +69,7 @@ def ptz(dev: Device, msg: Message, ctx: Ctx) -> None:
 def rates(dev: Device, msg: Message, ctx: Ctx) -> None:
     f = fields(msg)
     for axis in RATE_AXES[msg.frame.ident]:
-        dev.gimbal.rate(axis, dev.wire(axis, float(f[f"{axis}_rate_deg_s"])))
+        dev.gimbal.rate(axis, float(f[f"{axis}_rate_deg_s"]))
 
 
 @handles("GAY", "GAP", "GAR", "GAM", "GIY", "GIP", "GIR", "GIM")
@@ -80,16 +80,16 @@ def angles(dev: Device, msg: Message, ctx: Ctx) -> None:
     axes = ANGLE_AXES[ident[2]]
     for axis in axes:
         speed = f.get("speed_deg_s", f.get(f"{axis}_speed_deg_s"))
-        deg = dev.wire(axis, float(f[f"{axis}_deg"]))
+        deg = float(f[f"{axis}_deg"])
         dev.gimbal.angle(axis, deg, None if speed is None else float(speed), frame)
 
 
 def attitude(dev: Device, earth: bool) -> dict[str, Any]:
     y, p, r = dev.gimbal.earth() if earth else dev.gimbal.body()
     return {
-        "yaw_deg": round(dev.wire("yaw", y), 2),
-        "pitch_deg": round(dev.wire("pitch", p), 2),
-        "roll_deg": round(dev.wire("roll", r), 2),
+        "yaw_deg": round(y, 2),
+        "pitch_deg": round(p, 2),
+        "roll_deg": round(r, 2),
     }
 
 
@@ -139,22 +139,23 @@ def fae(dev: Device, msg: Message, ctx: Ctx) -> None:
 
 @handles("FAI")
 def fai(dev: Device, msg: Message, ctx: Ctx) -> None:
-    """SkyDroid C12 vehicle attitude; same sign convention as its GAC (all +1)."""
+    """SkyDroid C12 vehicle attitude (the document gives GAC's convention: yaw right, pitch up)."""
     f = fields(msg)
     if dev.vehicle_input:
         v = dev.gimbal.vehicle
-        v.yaw = wrap180(dev.wire("yaw", f["yaw_deg"]))
-        v.pitch = dev.wire("pitch", f["pitch_deg"])
-        v.roll = dev.wire("roll", f["roll_deg"])
+        v.yaw = wrap180(f["yaw_deg"])
+        v.pitch = float(f["pitch_deg"])
+        v.roll = float(f["roll_deg"])
 
 
 @handles("UAV")
 def uav(dev: Device, msg: Message, ctx: Ctx) -> None:
-    """TOPOTEK vehicle attitude struct: yaw 0..360, pitch down-positive (the struct says so)."""
+    """TOPOTEK vehicle attitude struct: yaw 0..360; its pitch is down-positive on the wire, which
+    the field's sign metadata already undid (fields arrive in the API convention)."""
     f = fields(msg)
     v = dev.gimbal.vehicle
     v.yaw = wrap180(f["yaw_deg"])
-    v.pitch = -float(f["pitch_deg"])
+    v.pitch = float(f["pitch_deg"])
     v.roll = float(f["roll_deg"])
     dev.position.speed_m_s = float(f["speed_m_s"])
 

@@ -20,10 +20,10 @@ if TYPE_CHECKING:
 def stream_frame(dev: Device, s: Stream) -> Frame | None:
     if s.ident == "GAC":
         # SkyDroid §3.3.2.2 and TOPOTEK §四.3.4: GAC answers, sent unasked (#TPGUCrGAC...)
-        return dev.dialect.notification("GAC", src="G", dst=s.host, rw="r", **attitude(dev, earth=False))
+        return dev.report("GAC", src="G", dst=s.host, rw="r", **attitude(dev, earth=False))
     if s.ident == "GIA":
         # What ArduPilot reads: GIA frames whose first 12 data characters are yaw, pitch, roll.
-        return dev.dialect.notification("GIA", src="G", dst=s.host, rw="r", **attitude(dev, earth=True))
+        return dev.report("GIA", src="G", dst=s.host, rw="r", **attitude(dev, earth=True))
     if s.ident == "TMP":
         return tmp_report(dev, s.host)  # type: ignore[no-any-return]
     if s.ident == "LRF":

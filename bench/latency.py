@@ -1,0 +1,181 @@
+"""Client latency and telemetry figures against the simulator on loopback UDP.
+
+Prints: request round-trip p50/p99 (AsyncClient.request to the simulator) next to a bare UDP
+echo measured in the same run (target: p99 within 3x of the echo), then the attitude stream at
+100 Hz for --seconds (rate error, p99 jitter, loss; targets < 0.5 %, < 2 ms, 0).
+
+    python bench/latency.py [--requests 2000] [--seconds 60] [--model C12]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import itertools
+import re
+import statistics
+import subprocess
+import sys
+import time
+
+import topgimbal
+
+
+def pct(values: list[float], p: float) -> float:
+    s = sorted(values)
+    return s[min(len(s) - 1, round(p / 100 * (len(s) - 1)))]
+
+
+ECHO_CODE = """
+import socket, sys
+s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+s.bind(("127.0.0.1", 0))
+print("udp://127.0.0.1:%d" % s.getsockname()[1], flush=True)
+while True:
+    data, addr = s.recvfrom(2048)
+    s.sendto(data, addr)
+"""
+
+
+class Peer:
+    """A process printing its udp:// URL (the device is another process, as in real life: no GIL
+    shared with the client being measured)."""
+
+    def __init__(self, argv: list[str]) -> None:
+        self.proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        assert self.proc.stdout is not None
+        for _ in range(10):
+            line = self.proc.stdout.readline()
+            m = re.search(r"udp://[0-9.]+:[0-9]+", line)
+            if m:
+                self.url = m.group(0)
+                self.port = int(self.url.rsplit(":", 1)[1])
+                return
+        self.stop()
+        raise RuntimeError(f"{argv[:4]} did not print a udp:// URL")
+
+    def stop(self) -> None:
+        self.proc.terminate()
+        self.proc.wait(5)
+
+
+async def echo_rtts(port: int, n: int, payload: bytes) -> list[float]:
+    loop = asyncio.get_running_loop()
+    waiter: list[asyncio.Future[bytes]] = []
+
+    class Client(asyncio.DatagramProtocol):
+        def datagram_received(self, data: bytes, addr: tuple) -> None:  # type: ignore[type-arg]
+            if waiter and not waiter[0].done():
+                waiter[0].set_result(data)
+
+    t, _ = await loop.create_datagram_endpoint(Client, remote_addr=("127.0.0.1", port))
+    out = []
+    for _ in range(n):
+        fut = loop.create_future()
+        waiter[:] = [fut]
+        t0 = time.perf_counter()
+        t.sendto(payload)
+        await asyncio.wait_for(fut, 1.0)
+        out.append(time.perf_counter() - t0)
+    t.close()
+    return out
+
+
+async def client_rtts(url: str, model: str, n: int) -> tuple[list[float], int]:
+    out = []
+    async with topgimbal.connect(url, model=model, timeout_s=1.0) as cam:
+        for _ in range(50):  # warm-up
+            await cam.request("GAC", read=True)
+        for _ in range(n):
+            t0 = time.perf_counter()
+            await cam.request("GAC", read=True)
+            out.append(time.perf_counter() - t0)
+        return out, cam.stats.timeouts
+
+
+async def attitude_run(url: str, model: str, seconds: float, rate_hz: float) -> dict[str, float]:
+    arrivals: list[float] = []
+    async with topgimbal.connect(url, model=model, timeout_s=1.0) as cam:
+        cam.subscribe(lambda m: arrivals.append(time.perf_counter()), "GAC")
+        await cam.attitude_stream(rate_hz)
+        await asyncio.sleep(0.5)  # settle
+        arrivals.clear()
+        t0 = time.perf_counter()
+        await asyncio.sleep(seconds)
+        t1 = time.perf_counter()
+        await cam.stop_attitude_stream()
+    inside = [t for t in arrivals if t0 <= t <= t1]
+    period = 1.0 / rate_hz
+    gaps = [b - a for a, b in itertools.pairwise(inside)]
+    rate = (len(inside) - 1) / (inside[-1] - inside[0]) if len(inside) > 1 else 0.0
+    jitter = [abs(g - period) for g in gaps]
+    # GAC frames carry no sequence number: loss is counted against the expected number of samples;
+    # "bunched" counts samples that came less than half a period after the previous one.
+    lost = max(0, round((inside[-1] - inside[0]) * rate_hz) + 1 - len(inside)) if inside else 0
+    bunched = sum(1 for g in gaps if g < period / 2)
+    return {
+        "samples": len(inside),
+        "expected": seconds * rate_hz,
+        "rate_hz": rate,
+        "rate_error_pct": abs(rate - rate_hz) / rate_hz * 100,
+        "jitter_p50_ms": pct(jitter, 50) * 1000 if jitter else 0.0,
+        "jitter_p99_ms": pct(jitter, 99) * 1000 if jitter else 0.0,
+        "lost": lost,
+        "bunched": bunched,
+    }
+
+
+async def raw_rtts(port: int, n: int, payload: bytes) -> list[float]:
+    """Bare UDP to the simulator, no client: what the simulator itself costs."""
+    return await echo_rtts(port, n, payload)
+
+
+async def main_async(args: argparse.Namespace) -> None:
+    echo = Peer([sys.executable, "-c", ECHO_CODE])
+    sim = Peer([sys.executable, "-m", "topgimbal.cli.main", "sim", "--model", args.model, "--udp", "127.0.0.1:0"])
+    try:
+        query = b"#TPUG2rGAC0032"
+        await echo_rtts(echo.port, 50, query)  # warm-up
+        e = await echo_rtts(echo.port, args.requests, query)
+        await raw_rtts(sim.port, 50, query)
+        raw = await raw_rtts(sim.port, args.requests, query)
+        c, timeouts = await client_rtts(sim.url, args.model, args.requests)
+        ms = 1000.0
+        print(f"round trip over loopback UDP, {args.requests} requests each ({args.model} simulator, own process)")
+        print(f"  {'':34s} {'p50 ms':>8s} {'p99 ms':>8s} {'mean ms':>8s}")
+        for name, xs in (
+            ("bare UDP echo", e),
+            ("bare UDP GAC query -> sim", raw),
+            ("client.request(GAC) -> sim", c),
+        ):
+            print(f"  {name:34s} {pct(xs, 50) * ms:8.3f} {pct(xs, 99) * ms:8.3f} {statistics.fmean(xs) * ms:8.3f}")
+        print(f"  p99 ratio client/echo: {pct(c, 99) / pct(e, 99):.2f}x (target <= 3x)")
+        print(
+            f"  p99 ratio client/bare-sim (client overhead only): {pct(c, 99) / pct(raw, 99):.2f}x  timeouts: {timeouts}"
+        )
+        r = await attitude_run(sim.url, args.model, args.seconds, args.rate)
+        print(f"attitude stream at {args.rate:g} Hz for {args.seconds:g} s")
+        print(
+            f"  samples {r['samples']} (expected {r['expected']:.0f}), rate {r['rate_hz']:.3f} Hz, "
+            f"rate error {r['rate_error_pct']:.3f} % (target < 0.5 %)"
+        )
+        print(
+            f"  jitter p50 {r['jitter_p50_ms']:.3f} ms, p99 {r['jitter_p99_ms']:.3f} ms (target < 2 ms), "
+            f"lost {r['lost']} (target 0), bunched {r['bunched']}"
+        )
+    finally:
+        sim.stop()
+        echo.stop()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--requests", type=int, default=2000)
+    ap.add_argument("--seconds", type=float, default=60.0, help="attitude stream duration (default 60)")
+    ap.add_argument("--rate", type=float, default=100.0)
+    ap.add_argument("--model", default="C12", help="a SkyDroid model (rate-controlled stream)")
+    asyncio.run(main_async(ap.parse_args()))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,426 @@
+"""Device commands: talk to a camera (or the simulator) at `--url` as `--model`.
+
+Every command takes `--json` and `--timeout`; errors end as one line on stderr with exit code 1
+(main.py). Stable forms scripts rely on: `attitude --json` (one object with yaw_deg, pitch_deg,
+roll_deg), `point YAW PITCH`, `photo`, `record start|stop|status`."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import json
+import sys
+import time
+from collections.abc import Awaitable, Callable
+from typing import Any
+
+from ..client import AsyncClient, connect, read_log
+from ..errors import TopGimbalError, TransportError
+from ..protocol import Frame, Message
+from .args import add_json_argument
+
+Runner = Callable[[AsyncClient, argparse.Namespace], Awaitable[Any]]
+
+
+# -- plumbing ------------------------------------------------------------------------------------
+
+
+def _options(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    add_json_argument(p)
+    p.add_argument("--timeout", type=float, default=1.0, metavar="S", help="reply timeout per request (default 1.0 s)")
+    p.add_argument("--retries", type=int, default=2, help="retries for idempotent requests (default 2)")
+    p.add_argument("--log", metavar="FILE", help="append the traffic to a JSONL log")
+    return p
+
+
+def _command(sub: argparse._SubParsersAction, name: str, runner: Runner, help: str) -> argparse.ArgumentParser:  # type: ignore[type-arg]
+    p = _options(sub.add_parser(name, help=help, description=help))
+    p.set_defaults(func=lambda args: _run(args, runner))
+    return p
+
+
+def _run(args: argparse.Namespace, runner: Runner) -> int:
+    if not args.url:
+        raise TransportError("no device URL: pass --url URL (before the command) or set TOPGIMBAL_URL")
+
+    async def main() -> Any:
+        model = args.model
+        if model is None:
+            model = await _detect(args)
+        async with connect(
+            args.url, model=model, timeout_s=args.timeout, retries=args.retries, log_path=args.log
+        ) as cam:
+            return await runner(cam, args)
+
+    result = asyncio.run(main())
+    if isinstance(result, int):
+        return result
+    _print(args, result)
+    return 0
+
+
+async def _detect(args: argparse.Namespace) -> str:
+    """No --model: ask the device which dialect it speaks (TOPOTEK PA2, SkyDroid VER)."""
+    async with connect(args.url, model="C12", timeout_s=min(args.timeout, 0.5), retries=1) as cam:
+        found = await cam.detect_model()
+    if found is None:
+        raise TopGimbalError("no --model given and the device did not identify itself; pass --model")
+    return found
+
+
+def _plain(value: Any) -> Any:
+    if hasattr(value, "as_dict"):
+        return value.as_dict()
+    if isinstance(value, Message):
+        return value.to_dict()
+    if isinstance(value, Frame):
+        return value.text()
+    return value
+
+
+def _print(args: argparse.Namespace, result: Any) -> None:
+    result = _plain(result)
+    if args.json:
+        print(json.dumps(result, default=str))
+        return
+    if isinstance(result, dict):
+        for k, v in result.items():
+            print(f"{k}: {v}")
+    elif result is not None:
+        print(result)
+
+
+def _attitude_dict(att: Any) -> dict[str, Any]:
+    return {"yaw_deg": att.yaw_deg, "pitch_deg": att.pitch_deg, "roll_deg": att.roll_deg, "t": att.wall}
+
+
+def _ok(action: str, **extra: Any) -> dict[str, Any]:
+    return {"ok": True, "action": action, **extra}
+
+
+# -- commands ------------------------------------------------------------------------------------
+
+
+async def _info(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    ident = await cam.identify()
+    return {**ident, "url": cam.url, "title": cam.model.title, "link": cam.stats.as_dict()}
+
+
+async def _attitude(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    if not args.watch:
+        return _attitude_dict(await cam.get_attitude())
+    n = 0
+    async for att in cam.attitude(rate_hz=args.rate):
+        d = _attitude_dict(att)
+        if args.json:
+            print(json.dumps(d), flush=True)
+        else:
+            print(f"yaw {d['yaw_deg']:8.2f}  pitch {d['pitch_deg']:8.2f}  roll {d['roll_deg']:8.2f}", flush=True)
+        n += 1
+        if args.count and n >= args.count:
+            break
+    return 0
+
+
+async def _point(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    att = await cam.point(
+        args.yaw, args.pitch, tolerance_deg=args.tolerance, timeout_s=args.wait, speed_deg_s=args.speed
+    )
+    return _attitude_dict(att)
+
+
+async def _rate(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    if args.duration:
+        async with cam.rate_control(interval_s=0.1) as joy:
+            joy.set(args.yaw_rate, args.pitch_rate, args.roll_rate)
+            await asyncio.sleep(args.duration)
+        return _ok("rate", stopped=True)
+    await cam.rates(args.yaw_rate, args.pitch_rate, args.roll_rate)
+    return _ok("rate")
+
+
+async def _stop(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    await cam.stop()
+    return _ok("stop")
+
+
+async def _center(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    await cam.center()
+    return _ok("center")
+
+
+async def _mode(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    await cam.set_mode(args.mode)
+    return _ok("mode", mode=args.mode)
+
+
+async def _zoom(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    if args.digital:
+        await cam.digital_zoom(args.value)
+    else:
+        await cam.zoom(args.value)
+    return _ok("zoom", value=args.value)
+
+
+async def _focus(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    await cam.focus(args.action)
+    return _ok("focus", value=args.action)
+
+
+async def _photo(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    m = await cam.photo()
+    out = _ok("photo")
+    if m.fields and "file_index" in m.fields:
+        out["file_index"] = m.fields["file_index"]
+    return out
+
+
+async def _record(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    if args.action == "start":
+        await cam.start_recording()
+    elif args.action == "stop":
+        await cam.stop_recording()
+    elif args.action == "toggle":
+        await cam.toggle_recording()
+    return {"recording": await cam.recording()}
+
+
+async def _sd(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    return await cam.sd_card()
+
+
+async def _thermal(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    value = args.value
+    if value is not None:
+        with contextlib.suppress(ValueError):
+            value = int(value)
+    result = await cam.thermal(args.setting, value)
+    return {args.setting: result}
+
+
+async def _range(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    return {"range_m": await cam.range()}
+
+
+async def _net(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    if args.action == "show":
+        return await cam.network()
+    changes = {k: v for k, v in (("ip", args.ip), ("gateway", args.gateway), ("dns", args.dns)) if v is not None}
+    if args.backup_dns is not None:
+        changes["backup_dns"] = args.backup_dns
+    if not changes:
+        raise TopGimbalError("net set: nothing to change (give --ip, --gateway, --dns or --backup-dns)")
+    if not args.yes:
+        summary = ", ".join(f"{k}={v}" for k, v in changes.items())
+        if not sys.stdin.isatty():
+            raise TopGimbalError(f"net set {summary}: refusing without confirmation (pass --yes)")
+        answer = input(f"Change the camera's network settings ({summary})? The camera may move. [y/N] ")
+        if answer.strip().lower() not in ("y", "yes"):
+            raise TopGimbalError("net set: not confirmed")
+    for ident_name in changes:
+        cam.build(
+            {"ip": "IPV", "gateway": "GTW", "dns": "DNS", "backup_dns": "BNS"}[ident_name], address=changes[ident_name]
+        )
+    await cam.set_network(**changes)
+    return _ok("net set", **changes)
+
+
+async def _raw(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    reply = await cam.send_raw(args.frame, wait_reply=not args.no_wait)
+    if reply is None:
+        return _ok("raw")
+    return {"reply": reply.frame.text(), **reply.to_dict()}
+
+
+async def _command_generic(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    spec = cam.dialect.command(args.ident)
+    values: dict[str, Any] = {}
+    forms = spec.forms_for("r" if args.read else "w", "request")
+    codecs = {f.name: f.codec for form in forms for f in form.fields}
+    for item in args.values:
+        if "=" not in item:
+            raise TopGimbalError(f"{item!r}: give values as name=value ({', '.join(codecs) or 'no fields'})")
+        k, v = item.split("=", 1)
+        codec = codecs.get(k)
+        values[k] = codec.parse_text(v) if codec is not None and hasattr(codec, "parse_text") else v
+    m = await cam.request(spec.ident, read=args.read, **values)
+    return {"reply": m.frame.text(), **m.to_dict()}
+
+
+def _monitor_table(cam: AsyncClient) -> Any:
+    from rich.table import Table
+
+    table = Table(title=f"{cam.model.name} at {cam.url}", show_header=True, expand=False)
+    table.add_column("what")
+    table.add_column("value")
+    att = cam.state.attitude
+    if att is not None:
+        table.add_row("yaw / pitch / roll", f"{att.yaw_deg:8.2f}  {att.pitch_deg:8.2f}  {att.roll_deg:8.2f}")
+        table.add_row("attitude age", f"{(time.monotonic() - att.t) * 1000:.0f} ms")
+    else:
+        table.add_row("attitude", "-")
+    for name in ("zoom", "recording", "sd", "range_m", "mode", "version"):
+        s = getattr(cam.state, name)
+        table.add_row(name, "-" if s is None else str(_plain(s.value)))
+    st = cam.stats
+    table.add_row("frames in / out", f"{st.frames_in} / {st.frames_out}")
+    table.add_row("timeouts / retries / late", f"{st.timeouts} / {st.retries} / {st.late_replies}")
+    table.add_row("rtt last / avg", f"{st.rtt_ms_last or 0:.2f} / {st.rtt_ms_avg or 0:.2f} ms")
+    table.add_row("connected", str(st.connected))
+    return table
+
+
+async def _monitor(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    """A live view; `--count N` renders N frames and exits (for scripts and tests)."""
+    from rich.console import Console
+    from rich.live import Live
+
+    await cam.attitude_stream(args.rate)
+    with contextlib.suppress(TopGimbalError):
+        await cam.recording()
+    with contextlib.suppress(TopGimbalError):
+        await cam.sd_card()
+    console = Console(force_terminal=None if not args.json else False)
+    frames = 0
+    interval = 1.0 / max(args.fps, 0.1)
+    if args.json:
+        while not args.count or frames < args.count:
+            await asyncio.sleep(interval)
+            print(json.dumps({"state": cam.state.as_dict(), "link": cam.stats.as_dict()}, default=str), flush=True)
+            frames += 1
+        return 0
+    with Live(_monitor_table(cam), console=console, refresh_per_second=args.fps, transient=False) as live:
+        while not args.count or frames < args.count:
+            await asyncio.sleep(interval)
+            live.update(_monitor_table(cam))
+            frames += 1
+    return 0
+
+
+async def _log(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    """Record the traffic (with the attitude stream on, if asked) to a JSONL file."""
+    from ..client import TrafficLog
+
+    log = TrafficLog(args.file, url=cam.url, model=cam.model.name, dialect=cam.dialect.name)
+    count = 0
+
+    def record(direction: str, frame: Frame, message: Message | None) -> None:
+        nonlocal count
+        log.record(direction, frame, message)
+        count += 1
+
+    cam.on_traffic(record)
+    try:
+        if args.stream:
+            await cam.attitude_stream(args.stream)
+        await asyncio.sleep(args.seconds)
+        if args.stream:
+            await cam.stop_attitude_stream()
+    finally:
+        log.close()
+    return {"file": args.file, "frames": count}
+
+
+async def _replay(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    """Send the host -> device frames of a log again, with their original spacing."""
+    records = [r for r in read_log(args.file) if r.direction == "out"]
+    sent = replies = 0
+    start = time.monotonic()
+    t0 = records[0].mono if records else 0.0
+    for r in records:
+        if not args.fast:
+            delay = (r.mono - t0) / args.speed - (time.monotonic() - start)
+            if delay > 0:
+                await asyncio.sleep(delay)
+        try:
+            reply = await cam.send_raw(r.frame, wait_reply=not args.no_wait)
+        except TopGimbalError as exc:
+            if not args.json:
+                print(f"{r.frame.text()} -> {exc}")
+            sent += 1
+            continue
+        sent += 1
+        if reply is not None:
+            replies += 1
+            if not args.json:
+                print(f"{r.frame.text()} -> {reply.frame.text()}")
+    return {"file": args.file, "sent": sent, "replies": replies}
+
+
+# -- registration --------------------------------------------------------------------------------
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    _command(sub, "info", _info, "identify the device: dialect, model, version, link statistics")
+
+    p = _command(sub, "attitude", _attitude, "print the gimbal attitude (degrees; yaw right-, pitch up-positive)")
+    p.add_argument("--watch", action="store_true", help="stream samples until interrupted (or --count)")
+    p.add_argument("--rate", type=float, default=10.0, help="--watch sample rate in Hz (default 10)")
+    p.add_argument("--count", type=int, default=0, help="--watch: stop after N samples")
+
+    p = _command(sub, "point", _point, "move to YAW PITCH (degrees) and return once reached")
+    p.add_argument("yaw", type=float)
+    p.add_argument("pitch", type=float)
+    p.add_argument("--tolerance", type=float, default=0.5, help="degrees (default 0.5)")
+    p.add_argument("--speed", type=float, default=None, help="slew speed in deg/s")
+    p.add_argument("--wait", type=float, default=None, metavar="S", help="give up after S seconds")
+
+    p = _command(sub, "rate", _rate, "turn at constant rates in deg/s (stop with `stop`)")
+    p.add_argument("yaw_rate", type=float)
+    p.add_argument("pitch_rate", type=float, nargs="?", default=0.0)
+    p.add_argument("--roll-rate", dest="roll_rate", type=float, default=0.0)
+    p.add_argument("--duration", type=float, default=0.0, help="keep the rates alive for S seconds, then stop")
+
+    _command(sub, "stop", _stop, "stop all gimbal motion")
+    _command(sub, "center", _center, "centre the gimbal")
+    p = _command(sub, "mode", _mode, "gimbal mode: follow or lock")
+    p.add_argument("mode", choices=["follow", "lock"])
+
+    p = _command(sub, "zoom", _zoom, "zoom: in | out | stop | a magnification")
+    p.add_argument("value", help="in, out, stop or a magnification such as 2")
+    p.add_argument("--digital", action="store_true", help="digital zoom (DZM)")
+    p = _command(sub, "focus", _focus, "focus: plus | minus | stop | auto | manual")
+    p.add_argument("action")
+
+    _command(sub, "photo", _photo, "take a photo")
+    p = _command(sub, "record", _record, "recording: start | stop | status | toggle")
+    p.add_argument("action", choices=["start", "stop", "status", "toggle"])
+    _command(sub, "sd", _sd, "SD card presence and capacity")
+    p = _command(sub, "thermal", _thermal, "read or set a thermal setting: thermal palette [ironbow]")
+    p.add_argument("setting", help="palette, scene, shutter, detail, brightness, contrast, gamma, ...")
+    p.add_argument("value", nargs="?", default=None)
+    _command(sub, "range", _range, "one laser range measurement (metres)")
+
+    p = _command(sub, "net", _net, "network settings: show | set (asks for confirmation)")
+    p.add_argument("action", choices=["show", "set"])
+    p.add_argument("--ip")
+    p.add_argument("--gateway")
+    p.add_argument("--dns")
+    p.add_argument("--backup-dns", dest="backup_dns")
+    p.add_argument("--yes", action="store_true", help="do not ask for confirmation")
+
+    p = _command(sub, "raw", _raw, "send one frame as given and print the decoded reply")
+    p.add_argument("frame", help="e.g. '#TPUD2rREC0064' (quote the #)")
+    p.add_argument("--no-wait", action="store_true", help="do not wait for a reply")
+
+    p = _command(sub, "command", _command_generic, "send any catalog command: command GAY yaw_deg=10")
+    p.add_argument("ident", help="identifier or catalog name")
+    p.add_argument("values", nargs="*", help="name=value (user units)")
+    p.add_argument("--read", action="store_true", help="send the query form")
+
+    p = _command(sub, "monitor", _monitor, "live view of attitude, camera state and link statistics")
+    p.add_argument("--rate", type=float, default=20.0, help="attitude stream rate in Hz (default 20)")
+    p.add_argument("--fps", type=float, default=5.0, help="screen refreshes per second (default 5)")
+    p.add_argument("--count", type=int, default=0, help="render N frames and exit")
+
+    p = _command(sub, "log", _log, "record the traffic to a JSONL file")
+    p.add_argument("file")
+    p.add_argument("--seconds", type=float, default=10.0)
+    p.add_argument("--stream", type=float, default=0.0, metavar="HZ", help="turn the attitude stream on while logging")
+
+    p = _command(sub, "replay", _replay, "send the host -> device frames of a JSONL log again")
+    p.add_argument("file")
+    p.add_argument("--speed", type=float, default=1.0, help="time scale (2 = twice as fast)")
+    p.add_argument("--fast", action="store_true", help="ignore the original timing")
+    p.add_argument("--no-wait", action="store_true", help="do not wait for replies")

@@ -1,0 +1,63 @@
+"""UDP: one connected datagram socket to the device (the kernel filters other senders)."""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+
+from ..errors import TransportError
+from .base import Transport
+
+
+class _Protocol(asyncio.DatagramProtocol):
+    def __init__(self, owner: UdpTransport) -> None:
+        self.owner = owner
+
+    def datagram_received(self, data: bytes, addr: object) -> None:
+        self.owner._on_bytes(data)
+
+    def error_received(self, exc: Exception) -> None:
+        # ICMP port unreachable while the device boots is not the end of a UDP "link": count, go on.
+        self.owner.errors += 1
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self.owner._lost(exc)
+
+
+class UdpTransport(Transport):
+    """`udp://HOST:PORT[?local_port=N]`; TOPOTEK devices answer to the sender's port, some firmware
+    to 9004 only: `local_port` binds the local side for those."""
+
+    kind = "udp"
+    is_datagram = True
+
+    errors = 0
+    _transport: asyncio.DatagramTransport | None = None
+
+    async def open(self) -> None:
+        loop = asyncio.get_running_loop()
+        local = None
+        if "local_port" in self.url.params:
+            family_any = "::" if ":" in self.url.host else "0.0.0.0"
+            local = (family_any, int(self.url.params["local_port"]))
+        try:
+            transport, _ = await loop.create_datagram_endpoint(
+                lambda: _Protocol(self),
+                remote_addr=(self.url.host, self.url.port or 0),
+                local_addr=local,
+                family=socket.AF_INET6 if ":" in self.url.host else socket.AF_INET,
+            )
+        except OSError as exc:
+            raise TransportError(f"{self.url}: {exc}") from exc
+        self._transport = transport
+
+    def send(self, data: bytes) -> None:
+        self._check_open()
+        assert self._transport is not None
+        self._transport.sendto(data)
+
+    async def close(self) -> None:
+        self._closed = True
+        if self._transport is not None:
+            self._transport.close()
+            self._transport = None

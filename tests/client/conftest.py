@@ -1,0 +1,110 @@
+"""Fixtures for the client tests: a scriptable fake device on loopback (for transport and
+matching edge cases) and the real simulator (for end-to-end tests). Ports are always 0."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import AsyncIterator, Callable
+
+import pytest
+
+from topgimbal.protocol import Frame, FrameParser, get_model
+
+Handler = Callable[[Frame], "list[bytes] | None"]
+
+
+class FakeDevice:
+    """Answers each frame with `handler(frame)` (a list of raw byte strings to send back, each
+    one datagram / write). Default: the protocol's rule, echo writes, answer reads from `answers`."""
+
+    def __init__(self, model: str = "C12") -> None:
+        self.dialect, self.model = get_model(model)
+        self.received: list[Frame] = []
+        self.answers: dict[str, dict] = {}
+        self.handler: Handler = self.default
+        self.udp: asyncio.DatagramTransport | None = None
+        self.tcp: asyncio.base_events.Server | None = None
+        self.tcp_peers: list[asyncio.Transport] = []
+        self.url = ""
+
+    def default(self, frame: Frame) -> list[bytes] | None:
+        if frame.rw == "w":
+            return [frame.swapped().to_bytes()]
+        values = self.answers.get(frame.ident)
+        if values is None:
+            return None
+        return [self.dialect.response(frame, **values).to_bytes()]
+
+    def _handle(self, data: bytes, parser: FrameParser, send: Callable[[bytes], None]) -> None:
+        for item in parser.feed(data):
+            if isinstance(item, Frame):
+                self.received.append(item)
+                for out in self.handler(item) or []:
+                    send(out)
+
+    async def start_udp(self) -> str:
+        loop = asyncio.get_running_loop()
+        dev = self
+
+        class P(asyncio.DatagramProtocol):
+            def connection_made(self, t: asyncio.BaseTransport) -> None:
+                self.t = t
+
+            def datagram_received(self, data: bytes, addr: tuple) -> None:
+                dev._handle(data, FrameParser(), lambda b: self.t.sendto(b, addr))  # type: ignore[attr-defined]
+
+        self.udp, _ = await loop.create_datagram_endpoint(P, local_addr=("127.0.0.1", 0))
+        port = self.udp.get_extra_info("sockname")[1]
+        self.url = f"udp://127.0.0.1:{port}"
+        return self.url
+
+    async def start_tcp(self) -> str:
+        dev = self
+
+        class P(asyncio.Protocol):
+            def connection_made(self, t: asyncio.BaseTransport) -> None:
+                self.t = t
+                self.parser = FrameParser()
+                dev.tcp_peers.append(t)  # type: ignore[arg-type]
+
+            def data_received(self, data: bytes) -> None:
+                dev._handle(data, self.parser, self.t.write)  # type: ignore[attr-defined]
+
+        self.tcp = await asyncio.get_running_loop().create_server(P, "127.0.0.1", 0)
+        port = self.tcp.sockets[0].getsockname()[1]
+        self.url = f"tcp://127.0.0.1:{port}"
+        return self.url
+
+    async def stop(self) -> None:
+        if self.udp is not None:
+            self.udp.close()
+        for t in self.tcp_peers:
+            t.close()
+        if self.tcp is not None:
+            self.tcp.close()
+            await self.tcp.wait_closed()
+
+
+@pytest.fixture
+async def fake() -> AsyncIterator[FakeDevice]:
+    dev = FakeDevice()
+    yield dev
+    await dev.stop()
+
+
+@pytest.fixture
+async def sim_factory():
+    """Start simulators listening on loopback UDP and TCP (port 0) and a pty serial line."""
+    from topgimbal.sim import Simulator
+
+    started = []
+
+    async def make(model: str = "C12", **kw):
+        sim = Simulator(model=model, **kw)
+        await sim.start(udp=[("127.0.0.1", 0)], tcp=[("127.0.0.1", 0)], serial=["pty"])
+        started.append(sim)
+        return sim
+
+    yield make
+    for sim in started:
+        await sim.stop()
