@@ -126,3 +126,28 @@ def test_motors_off_ignores_motion() -> None:
     g.angle("yaw", 45.0)
     g.advance(10.0)
     assert g.yaw_deg == pytest.approx(45.0)
+
+
+def test_idle_time_costs_no_integration_steps(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A gimbal at rest on its targets is not walked through an idle hour in 2 ms slices (the first
+    request after a long pause used to do that: 186 ms of work per idle minute)."""
+    from topgimbal.sim import physics
+
+    g = gimbal_for("C12")
+    g.angle("yaw", 10.0, None, "body")
+    g.advance(5.0)  # reaches the target
+    assert math.isclose(g.yaw_deg, 10.0, abs_tol=1e-6)
+    checks = 0
+    real = physics.Axis.body_target
+
+    def counting(self, *a, **kw):  # type: ignore[no-untyped-def]
+        nonlocal checks
+        checks += 1
+        return real(self, *a, **kw)
+
+    monkeypatch.setattr(physics.Axis, "body_target", counting)
+    g.advance(3600.0)
+    assert checks <= 3 and math.isclose(g.yaw_deg, 10.0, abs_tol=1e-6)
+    g.angle("yaw", 20.0, None, "body")
+    g.advance(1.0)
+    assert checks > 3 and g.yaw_deg > 10.0  # motion is still integrated

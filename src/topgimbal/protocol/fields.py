@@ -24,16 +24,17 @@ def _decimals(scale: float) -> int:
     return max(0, -math.floor(math.log10(scale) + 1e-9)) if scale < 1 else 0
 
 
-def _num(value: Any, name: str, allowed: str) -> float:
+def _num(value: Any, name: str, codec: Codec) -> float:
+    """`value` as a float, or FieldValueError naming what `codec` allows (built only on error)."""
     if isinstance(value, bool):
-        raise FieldValueError(name, value, allowed)
+        raise FieldValueError(name, value, codec.allowed())
     if isinstance(value, str):
         try:
             value = float(value)
         except ValueError:
-            raise FieldValueError(name, value, allowed) from None
+            raise FieldValueError(name, value, codec.allowed()) from None
     if not isinstance(value, (int, float)) or math.isnan(value) or math.isinf(value):
-        raise FieldValueError(name, value, allowed)
+        raise FieldValueError(name, value, codec.allowed())
     return float(value)
 
 
@@ -125,7 +126,7 @@ class HexInt(Codec):
     def encode(self, value: Any, name: str = "value") -> bytes:
         if value is None and self.none_tokens:
             return self.none_tokens[0]
-        v = _num(value, name, self.allowed())
+        v = _num(value, name, self)
         if not (self.min - 1e-9 <= v <= self.max + 1e-9):  # type: ignore[operator]
             raise FieldValueError(name, value, self.allowed())
         raw = round(v / self.scale)
@@ -177,7 +178,7 @@ class DecInt(Codec):
         return s
 
     def encode(self, value: Any, name: str = "value") -> bytes:
-        v = _num(value, name, self.allowed())
+        v = _num(value, name, self)
         if not (self.min - 1e-9 <= v <= self.max + 1e-9):  # type: ignore[operator]
             raise FieldValueError(name, value, self.allowed())
         return b"%0*d" % (self.width, round(v / self.scale))
@@ -226,7 +227,7 @@ class DecFloat(Codec):
     def encode(self, value: Any, name: str = "value") -> bytes:
         if value is None and self.none_tokens:
             return self.none_tokens[0]
-        v = _num(value, name, self.allowed())
+        v = _num(value, name, self)
         if not (self.min - 1e-9 <= v <= self.max + 1e-9):
             raise FieldValueError(name, value, self.allowed())
         if self.width is None:
@@ -275,7 +276,7 @@ class BinInt(Codec):
         return s + (f" {self.unit}" if self.unit else "")
 
     def encode(self, value: Any, name: str = "value") -> bytes:
-        v = _num(value, name, self.allowed())
+        v = _num(value, name, self)
         if not (self.min - 1e-9 <= v <= self.max + 1e-9):  # type: ignore[operator]
             raise FieldValueError(name, value, self.allowed())
         return round(v / self.scale).to_bytes(self.width, self.byteorder, signed=self.signed)  # type: ignore[arg-type]
@@ -563,7 +564,7 @@ class GeoDM(Codec):
 
     def encode(self, value: Any, name: str = "value") -> bytes:
         lim = 90 if self.axis == "lat" else 180
-        v = _num(value, name, self.allowed())
+        v = _num(value, name, self)
         if not -lim <= v <= lim:
             raise FieldValueError(name, value, self.allowed())
         hemi = ("N" if v >= 0 else "S") if self.axis == "lat" else ("E" if v >= 0 else "W")
@@ -608,7 +609,7 @@ class GeoDeg(Codec):
 
     def encode(self, value: Any, name: str = "value") -> bytes:
         lim = 90 if self.axis == "lat" else 180
-        v = _num(value, name, self.allowed())
+        v = _num(value, name, self)
         if not -lim <= v <= lim:
             raise FieldValueError(name, value, self.allowed())
         hemi = ("N" if v >= 0 else "S") if self.axis == "lat" else ("E" if v >= 0 else "W")
@@ -686,7 +687,7 @@ class Bitrate(Codec):
         return "50..99999 kbps (1000..8000 in whole Mbps use the Mbps form)"
 
     def encode(self, value: Any, name: str = "value") -> bytes:
-        v = _num(value, name, self.allowed())
+        v = _num(value, name, self)
         if not v.is_integer() or not 50 <= v <= 99999:
             raise FieldValueError(name, value, self.allowed())
         kbps = int(v)

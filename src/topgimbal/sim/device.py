@@ -239,12 +239,15 @@ class Device:
             times.append(self._last + 0.05)  # keep motors integrating so ZMP goes out on time
         return min(times) if times else None
 
-    def tick(self) -> list[Outgoing]:
-        """Everything due up to now, in time order, each sampled at its own due time."""
+    def tick(self, early_s: float = 0.0) -> list[Outgoing]:
+        """Everything due up to now (stream frames up to `early_s` ahead), in time order, each
+        sampled at its own due time. A real-time caller whose timers fire late by up to a
+        millisecond (epoll rounds timeouts up to whole ms) wakes that much early and passes it
+        here, so frames leave within [due - early_s, due] instead of up to 2 ms late."""
         now = self.clock.now()
         out: list[Outgoing] = []
         while True:
-            due = [s for s in self.streams.values() if s.next_due <= now + 1e-9]
+            due = [s for s in self.streams.values() if s.next_due <= now + early_s + 1e-9]
             if not due:
                 break
             s = min(due, key=lambda s: s.next_due)

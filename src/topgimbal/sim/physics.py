@@ -222,9 +222,11 @@ class Gimbal:
     def advance(self, dt: float) -> None:
         if dt <= 0 or not self.motors_on:
             return
+        axes = [(self.axis(name), self.vehicle.get(name), self.hold_frame(name)) for name in AXES]
+        if all(ax.mode == "angle" and ax.vel == 0.0 and ax.pos == ax.body_target(veh) for ax, veh, _ in axes):
+            return  # at rest on every target: nothing to integrate, however long it has been idle
         n = max(1, math.ceil(dt / MAX_STEP_S - 1e-9))
         h = dt / n
-        axes = [(self.axis(name), self.vehicle.get(name), self.hold_frame(name)) for name in AXES]
         for _ in range(n):
             for ax, veh, hold in axes:
                 if ax.mode == "angle" and ax.vel == 0.0 and ax.pos == ax.body_target(veh):

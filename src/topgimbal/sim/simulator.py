@@ -43,6 +43,10 @@ def _addresses(items: Iterable[Any] | None) -> list[Address]:
     return out
 
 
+# How far ahead of its due time a real-time stream frame may leave (see Device.tick).
+TIMER_EARLY_S = 0.001
+
+
 class Simulator:
     def __init__(
         self,
@@ -255,7 +259,8 @@ class Simulator:
         if self._fault_in is not None:
             for p, d in self._fault_in.due(now):
                 self._deliver(p, d)
-        self._send(self.device.tick())
+        real_time = not isinstance(self.clock, FakeClock)
+        self._send(self.device.tick(early_s=TIMER_EARLY_S if real_time else 0.0))
         if self._fault_out is not None:
             for peer, data in self._fault_out.due(now):
                 peer.send(data)  # type: ignore[attr-defined]
@@ -300,7 +305,9 @@ class Simulator:
         if self._timer is not None:
             self._timer.cancel()
         self._timer_at = due
-        self._timer = self._loop.call_at(self._loop.time() + (due - self.clock.now()), self._on_timer)
+        # Wake TIMER_EARLY_S ahead: the selector rounds timeouts up to whole milliseconds.
+        delay = max(0.0, due - self.clock.now() - TIMER_EARLY_S)
+        self._timer = self._loop.call_at(self._loop.time() + delay, self._on_timer)
 
     def _on_timer(self) -> None:
         self._timer = None
