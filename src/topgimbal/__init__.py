@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .client import AsyncClient, Gimbal, connect
 from .errors import (
     CatalogError,
     ChecksumError,
@@ -32,6 +33,7 @@ from .protocol import (
 __version__ = "0.1.0"
 
 __all__ = [
+    "AsyncClient",
     "CatalogError",
     "ChecksumError",
     "DeviceError",
@@ -42,6 +44,7 @@ __all__ = [
     "Frame",
     "FrameError",
     "FrameParser",
+    "Gimbal",
     "LengthError",
     "Message",
     "RequestTimeoutError",
@@ -50,14 +53,10 @@ __all__ = [
     "UnknownCommandError",
     "UnsupportedError",
     "__version__",
+    "connect",
     "decode",
     "encode",
     "get_dialect",
     "get_model",
     "parse_frame",
 ]
-
-# The client SDK (appended: connect / AsyncClient / Gimbal).
-from .client import AsyncClient, Gimbal, connect
-
-__all__ += ["AsyncClient", "Gimbal", "connect"]

@@ -1,0 +1,90 @@
+"""`topgimbal console`: the web console for one camera (or an in-process simulator)."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import sys
+
+from ..protocol import all_models
+from .args import _model_name
+
+
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = subparsers.add_parser(
+        "console",
+        help="web console: live attitude, pointing, camera, thermal, traffic (aiohttp)",
+        description="Serve the web console for a camera (--url and --model) or for a simulator started "
+        "in this process (--sim MODEL). Listens on 127.0.0.1 by default; any other --host requires a "
+        "token (given with --token, or generated and printed in the URL).",
+    )
+    # --url/--model also exist on the main parser; SUPPRESS keeps a value given there.
+    p.add_argument("--url", default=argparse.SUPPRESS, help="camera address, e.g. udp://HOST:5000")
+    p.add_argument(
+        "--model",
+        default=argparse.SUPPRESS,
+        type=_model_name,
+        choices=sorted(all_models(), key=str.lower),
+        help="device model (picks the dialect)",
+    )
+    p.add_argument(
+        "--sim",
+        metavar="MODEL",
+        type=_model_name,
+        choices=sorted(all_models(), key=str.lower),
+        help="run a simulated MODEL in this process on an ephemeral loopback port",
+    )
+    p.add_argument("--seed", type=int, default=0, help="simulator seed (with --sim)")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
+    p.add_argument("--port", type=int, default=8080, help="port to listen on (default 8080; 0 = any free port)")
+    p.add_argument("--token", help="access token; required (else generated) when --host is not a loopback address")
+    p.add_argument("--attitude-hz", type=float, default=50.0, help="attitude push rate to the page, at most 50")
+    p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
+    p.set_defaults(func=run)
+
+
+def build_server(args: argparse.Namespace) -> object:
+    """The ConsoleServer the arguments describe (raises ValueError on a bad combination)."""
+    from ..console import ConsoleServer
+
+    url = getattr(args, "url", None)
+    model = getattr(args, "model", None)
+    if args.sim is None and url and not model:
+        raise ValueError("give --model with --url (it picks the dialect), e.g. --model SIP")
+    if args.sim is not None and url:
+        raise ValueError("--sim runs its own simulator: give either --url or --sim")
+    return ConsoleServer(
+        url=None if args.sim else url,
+        model=model if not args.sim else args.sim,
+        sim_model=args.sim,
+        sim_seed=args.seed,
+        host=args.host,
+        port=args.port,
+        token=args.token,
+        attitude_hz=args.attitude_hz,
+    )
+
+
+async def _serve(server: object, seconds: float | None) -> None:
+    from ..console import ConsoleServer
+
+    assert isinstance(server, ConsoleServer)
+    await server.start()
+    try:
+        print(server.banner(), flush=True)
+        await server.serve_forever(seconds)
+    finally:
+        await server.stop()
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        import aiohttp  # noqa: F401
+    except ImportError:
+        print("topgimbal: error: the console needs aiohttp: pip install 'topgimbal[console]'", file=sys.stderr)
+        return 1
+    server = build_server(args)
+    with contextlib.suppress(KeyboardInterrupt):
+        asyncio.run(_serve(server, args.seconds))
+    return 0

@@ -1,0 +1,213 @@
+"""What the page can ask for over the WebSocket, mapped onto the client SDK.
+
+Every op gets exactly one answer: `ack` (with a result) or `error` (with a readable message).
+The console never talks to the camera except through the client (`AsyncClient`)."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from collections.abc import Awaitable, Callable, Mapping
+from typing import Any
+
+from ..errors import (
+    DeviceError,
+    FieldValueError,
+    FrameError,
+    RequestTimeoutError,
+    TopGimbalError,
+    TransportError,
+    UnknownCommandError,
+    UnsupportedError,
+)
+
+OpHandler = Callable[[Any, Mapping[str, Any]], Awaitable[Any]]
+
+
+class OpError(Exception):
+    """A malformed op from the page (missing or wrong argument)."""
+
+
+def jsonable(value: Any) -> Any:
+    """Client results (messages, dataclasses, tuples, datetimes) as JSON values."""
+    if value is None or isinstance(value, (bool, int, str)):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    to_dict = getattr(value, "to_dict", None) or getattr(value, "as_dict", None)
+    if callable(to_dict):
+        return jsonable(to_dict())
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, set, frozenset)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, bytes):
+        return value.decode("latin-1")
+    if hasattr(value, "__dataclass_fields__"):
+        return {k: jsonable(getattr(value, k)) for k in value.__dataclass_fields__}
+    if hasattr(value, "_asdict"):
+        return jsonable(value._asdict())
+    return str(value)
+
+
+def describe_error(exc: BaseException, what: str = "") -> tuple[str, str]:
+    """(kind, readable message) for an exception raised while carrying out an op on `what`."""
+    what = what or "the command"
+    if isinstance(exc, DeviceError):
+        return "device", f"The camera refused {what}: {exc or 'it answered with its error frame (ERE)'}"
+    if isinstance(exc, (RequestTimeoutError, asyncio.TimeoutError)):
+        return "timeout", f"No answer from the camera to {what}: {exc or 'timed out'}"
+    if isinstance(exc, FieldValueError):
+        return "value", f"Invalid value for {what}: {exc}"
+    if isinstance(exc, UnsupportedError):
+        return "unsupported", f"Not supported ({what}): {exc}"
+    if isinstance(exc, UnknownCommandError):
+        return "unknown", str(exc)
+    if isinstance(exc, FrameError):
+        return "frame", f"Not a valid frame: {exc}"
+    if isinstance(exc, TransportError):
+        return "link", f"Link error during {what}: {exc}"
+    if isinstance(exc, OpError):
+        return "op", str(exc)
+    if isinstance(exc, TopGimbalError):
+        return "error", f"{what}: {exc}"
+    if isinstance(exc, (TypeError, ValueError)):
+        return "value", f"Invalid arguments for {what}: {exc}"
+    return "internal", f"{what} failed: {type(exc).__name__}: {exc}"
+
+
+def _num(args: Mapping[str, Any], name: str, *, required: bool = True) -> float | None:
+    if name not in args or args[name] in (None, ""):
+        if required:
+            raise OpError(f"missing number {name!r}")
+        return None
+    try:
+        v = float(args[name])
+    except (TypeError, ValueError):
+        raise OpError(f"{name}={args[name]!r} is not a number") from None
+    if not math.isfinite(v):
+        raise OpError(f"{name}={args[name]!r} is not a finite number")
+    return v
+
+
+def _text(args: Mapping[str, Any], name: str) -> str:
+    v = args.get(name)
+    if not isinstance(v, str) or not v:
+        raise OpError(f"missing text {name!r}")
+    return v
+
+
+async def op_request(cam: Any, args: Mapping[str, Any]) -> Any:
+    ident = _text(args, "id")
+    values = args.get("values") or {}
+    if not isinstance(values, Mapping):
+        raise OpError("values must be an object of field names to values")
+    return await cam.request(ident, read=bool(args.get("read", False)), **dict(values))
+
+
+async def op_raw(cam: Any, args: Mapping[str, Any]) -> Any:
+    frame = _text(args, "frame").strip()
+    return await cam.send_raw(frame)
+
+
+async def op_point(cam: Any, args: Mapping[str, Any]) -> Any:
+    yaw = _num(args, "yaw", required=False)
+    pitch = _num(args, "pitch", required=False)
+    if yaw is None and pitch is None:
+        raise OpError("give a yaw and/or a pitch angle")
+    kw: dict[str, float] = {}
+    if yaw is not None:
+        kw["yaw_deg"] = yaw
+    if pitch is not None:
+        kw["pitch_deg"] = pitch
+    return await cam.set_angles(**kw)
+
+
+async def op_rates(cam: Any, args: Mapping[str, Any]) -> Any:
+    return await cam.rates(yaw_deg_s=_num(args, "yaw"), pitch_deg_s=_num(args, "pitch"))
+
+
+async def op_stop(cam: Any, args: Mapping[str, Any]) -> Any:
+    return await cam.stop()
+
+
+async def op_center(cam: Any, args: Mapping[str, Any]) -> Any:
+    return await cam.center()
+
+
+async def op_mode(cam: Any, args: Mapping[str, Any]) -> Any:
+    mode = _text(args, "mode")
+    if mode not in ("follow", "lock"):
+        raise OpError(f"mode={mode!r}: expected follow or lock")
+    return await cam.set_mode(mode)
+
+
+async def op_ptz(cam: Any, args: Mapping[str, Any]) -> Any:
+    return await cam.request("PTZ", action=_text(args, "action"))
+
+
+async def op_photo(cam: Any, args: Mapping[str, Any]) -> Any:
+    return await cam.photo()
+
+
+async def op_record(cam: Any, args: Mapping[str, Any]) -> Any:
+    action = _text(args, "action")
+    if action == "start":
+        return await cam.start_recording()
+    if action == "stop":
+        return await cam.stop_recording()
+    raise OpError(f"action={action!r}: expected start or stop")
+
+
+async def op_recording(cam: Any, args: Mapping[str, Any]) -> Any:
+    return await cam.recording()
+
+
+async def op_sd(cam: Any, args: Mapping[str, Any]) -> Any:
+    sd = await cam.sd_card()
+    if isinstance(sd, tuple) and not hasattr(sd, "present"):
+        present, remaining, total = sd
+    else:
+        present, remaining, total = sd.present, sd.remaining_mb, sd.total_mb
+    return {"present": bool(present), "remaining_mb": remaining, "total_mb": total}
+
+
+async def op_version(cam: Any, args: Mapping[str, Any]) -> Any:
+    return await cam.version()
+
+
+async def op_range(cam: Any, args: Mapping[str, Any]) -> Any:
+    return await cam.range()
+
+
+async def op_network(cam: Any, args: Mapping[str, Any]) -> Any:
+    return await cam.network()
+
+
+async def op_set_network(cam: Any, args: Mapping[str, Any]) -> Any:
+    values = args.get("values") or {}
+    if not isinstance(values, Mapping) or not values:
+        raise OpError("values must name the settings to write (address, gateway, ...)")
+    if not args.get("confirmed"):
+        raise OpError("writing network settings changes the camera's address: confirm first (confirmed: true)")
+    return await cam.set_network(**{k: v for k, v in values.items() if v not in (None, "")})
+
+
+OPS: dict[str, OpHandler] = {
+    "request": op_request,
+    "raw": op_raw,
+    "point": op_point,
+    "rates": op_rates,
+    "stop": op_stop,
+    "center": op_center,
+    "mode": op_mode,
+    "ptz": op_ptz,
+    "photo": op_photo,
+    "record": op_record,
+    "recording": op_recording,
+    "sd": op_sd,
+    "version": op_version,
+    "range": op_range,
+    "network": op_network,
+    "set_network": op_set_network,
+}

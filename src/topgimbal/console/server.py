@@ -1,0 +1,184 @@
+"""The console's aiohttp application and a server object that owns the camera link.
+
+`ConsoleServer(sim_model="C12")` (or `url="udp://...", model="SIP"`): `await server.start()` starts
+the simulator (if any), the client and the HTTP server; `server.page_url` is the URL to open;
+`await server.stop()` undoes it all.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import importlib.resources
+import logging
+from pathlib import Path
+from typing import Any
+
+from aiohttp import web
+
+from .auth import origin_allowed, resolve_token, token_middleware
+from .catalog_api import catalog_json
+from .hub import Hub
+
+log = logging.getLogger(__name__)
+
+DEFAULT_HOST = "127.0.0.1"
+DEFAULT_PORT = 8080
+HUB_KEY = web.AppKey("hub", Hub)
+
+
+def static_dir() -> Path:
+    return Path(str(importlib.resources.files("topgimbal.console") / "static"))
+
+
+def create_app(hub: Hub, *, token: str | None = None) -> web.Application:
+    """The aiohttp app: `/` the page, `/static/*` its files, `/api/*` JSON, `/ws` the socket."""
+    app = web.Application(middlewares=[token_middleware(token)])  # type: ignore[list-item]
+    app[HUB_KEY] = hub
+    root = static_dir()
+
+    async def index(request: web.Request) -> web.StreamResponse:
+        return web.FileResponse(root / "index.html", headers={"Cache-Control": "no-store"})
+
+    async def catalog(request: web.Request) -> web.Response:
+        return web.json_response(catalog_json(hub.dialect, hub.model))
+
+    async def status(request: web.Request) -> web.Response:
+        return web.json_response(hub.status(), dumps=_dumps)
+
+    async def ws(request: web.Request) -> web.StreamResponse:
+        if not origin_allowed(request):
+            return web.json_response({"error": "forbidden", "message": "cross-origin WebSocket refused"}, status=403)
+        return await hub.handle_ws(request)
+
+    app.router.add_get("/", index)
+    app.router.add_get("/api/catalog", catalog)
+    app.router.add_get("/api/status", status)
+    app.router.add_get("/ws", ws)
+    app.router.add_static("/static/", root, show_index=False)
+    return app
+
+
+def _dumps(obj: Any) -> str:
+    import json
+
+    return json.dumps(obj, default=str)
+
+
+class ConsoleServer:
+    """Simulator (optional) + client + HTTP server, started and stopped together."""
+
+    def __init__(
+        self,
+        *,
+        url: str | None = None,
+        model: str | None = None,
+        sim_model: str | None = None,
+        sim_seed: int = 0,
+        host: str = DEFAULT_HOST,
+        port: int = DEFAULT_PORT,
+        token: str | None = None,
+        attitude_hz: float = 50.0,
+        timeout_s: float = 1.0,
+        retries: int = 2,
+    ) -> None:
+        if sim_model is None and not url:
+            raise ValueError("give the camera's --url (and --model), or --sim MODEL to run a simulator")
+        if sim_model is not None and url:
+            raise ValueError("--sim runs its own simulator: give either --url or --sim, not both")
+        self.url = url
+        self.model = model or sim_model
+        self.sim_model = sim_model
+        self.sim_seed = sim_seed
+        self.host = host
+        self.port = port
+        self.token, self.token_generated = resolve_token(host, token)
+        self.attitude_hz = attitude_hz
+        self.timeout_s = timeout_s
+        self.retries = retries
+        self.sim: Any = None
+        self.cam: Any = None
+        self.hub: Hub | None = None
+        self.app: web.Application | None = None
+        self._runner: web.AppRunner | None = None
+        self.bound_port: int | None = None
+
+    @property
+    def base_url(self) -> str:
+        host = self.host if ":" not in self.host else f"[{self.host}]"
+        return f"http://{host}:{self.bound_port or self.port}/"
+
+    @property
+    def page_url(self) -> str:
+        """The URL to open (with the token when one is enforced)."""
+        return self.base_url + (f"?token={self.token}" if self.token else "")
+
+    async def start(self) -> None:
+        from .. import client as client_mod
+
+        try:
+            if self.sim_model is not None:
+                from ..sim import Simulator
+
+                self.sim = Simulator(model=self.sim_model, seed=self.sim_seed)
+                await self.sim.start(udp=[("127.0.0.1", 0)])
+                self.url = self.sim.url
+            assert self.url is not None
+            self.cam = await client_mod.connect(
+                self.url, model=self.model or "C12", timeout_s=self.timeout_s, retries=self.retries
+            )
+            self.hub = Hub(self.cam, url=self.url, attitude_hz=self.attitude_hz)
+            await self.hub.start()
+            self.app = create_app(self.hub, token=self.token)
+            self._runner = web.AppRunner(self.app, access_log=None, handle_signals=False)
+            await self._runner.setup()
+            site = web.TCPSite(self._runner, self.host, self.port)
+            await site.start()
+            server = getattr(site, "_server", None)
+            sockets = getattr(server, "sockets", None) or []
+            self.bound_port = sockets[0].getsockname()[1] if sockets else self.port
+        except BaseException:
+            await self.stop()
+            raise
+
+    async def stop(self) -> None:
+        if self._runner is not None:
+            with contextlib.suppress(Exception):
+                await self._runner.cleanup()
+            self._runner = None
+        if self.hub is not None:
+            await self.hub.stop()
+            self.hub = None
+        if self.cam is not None:
+            with contextlib.suppress(Exception):
+                await self.cam.close()
+            self.cam = None
+        if self.sim is not None:
+            with contextlib.suppress(Exception):
+                await self.sim.stop()
+            self.sim = None
+
+    async def __aenter__(self) -> ConsoleServer:
+        await self.start()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.stop()
+
+    def banner(self) -> str:
+        lines = [f"topgimbal console for {self.model} at {self.url}", f"open {self.page_url}"]
+        if self.token_generated:
+            lines.append(
+                "(a token was generated because the console listens beyond this machine; keep the URL private)"
+            )
+        return "\n".join(lines)
+
+    async def serve_forever(self, seconds: float | None = None) -> None:
+        """Run until cancelled (Ctrl-C), or for `seconds`."""
+        if seconds is None:
+            await asyncio.Event().wait()
+        else:
+            await asyncio.sleep(seconds)
+
+
+__all__ = ["DEFAULT_HOST", "DEFAULT_PORT", "ConsoleServer", "create_app", "static_dir"]

@@ -1,0 +1,725 @@
+// topgimbal console page. Plain ES modules, no build step.
+// Data flow: /api/catalog (what the model supports, with field metadata) + /ws pushes
+// (hello, attitude, status, traffic, error) -> DOM; user actions -> ops over /ws, each acked.
+
+import { Conn, fetchJSON } from "./lib/conn.js";
+import { drawHeading, drawHorizon } from "./lib/gauges.js";
+import { commandRow, el, fieldInputs, formatFields, requestForm } from "./lib/fields.js";
+
+const $ = (id) => document.getElementById(id);
+
+const S = {
+  catalog: null,
+  model: null,
+  attitude: null,
+  attitudeDirty: false,
+  attCount: 0,
+  attRate: 0,
+  target: null,
+  traffic: [],
+  trafficDirty: false,
+  clockOffset: 0,
+  recordingSince: null,
+  recording: false,
+  photos: 0,
+  netValues: {},
+  initialReads: [],
+};
+
+// ---------------------------------------------------------------- messages and errors
+
+function toast(text, kind = "info", ms = 7000) {
+  const t = el("div", { class: `toast ${kind}`, role: kind === "error" ? "alert" : "status" },
+    el("span", { class: "x", text: "×", onclick: () => t.remove() }), text);
+  $("toasts").append(t);
+  while ($("toasts").children.length > 5) $("toasts").firstChild.remove();
+  setTimeout(() => t.remove(), ms);
+}
+
+function logError(text) {
+  const log = $("error-log");
+  if (log.firstElementChild?.classList.contains("muted")) log.innerHTML = "";
+  log.prepend(el("li", { text: `${new Date().toLocaleTimeString()} ${text}` }));
+  while (log.children.length > 20) log.lastChild.remove();
+}
+
+function showError(text) {
+  toast(text, "error", 10000);
+  logError(text);
+}
+
+// Run an op; an error always becomes a visible message. Resolves with the result (or undefined).
+function run(op, args = {}, okText = null) {
+  return conn.op(op, args).then(
+    (result) => {
+      if (okText) toast(okText, "ok", 2500);
+      return result;
+    },
+    (err) => {
+      showError(err.message || String(err));
+      return undefined;
+    },
+  );
+}
+
+// ---------------------------------------------------------------- connection
+
+const conn = new Conn({
+  onState(state) {
+    if (state !== "open") setLink(state === "closed" ? "disconnected" : "connecting");
+  },
+  onMessage(msg) {
+    switch (msg.type) {
+      case "hello": return onHello(msg);
+      case "attitude":
+        S.attitude = msg;
+        S.attitudeDirty = true;
+        S.attCount++;
+        return;
+      case "status": return onStatus(msg);
+      case "traffic": return onTraffic(msg.items || []);
+      case "error": return showError(msg.message);
+      case "recovered": return toast(`${msg.source}: working again`, "ok", 3000);
+    }
+  },
+});
+
+function setLink(state, title = "") {
+  const l = $("link");
+  l.dataset.state = state;
+  l.textContent = state;
+  l.title = title;
+  $("conn-link").textContent = state + (title ? ` (${title})` : "");
+}
+
+function onHello(msg) {
+  $("camera-url").textContent = msg.url || "";
+  $("conn-dialect").textContent = msg.dialect;
+  S.traffic = [];
+  renderedKey = null;
+  onTraffic(msg.traffic || []);
+  S.trafficDirty = true;
+  if (msg.status) onStatus(msg.status);
+}
+
+const num = (v, d = 0) => (typeof v === "number" && Number.isFinite(v) ? v.toFixed(d) : "–");
+
+function pick(obj, ...keys) {
+  for (const k of keys) if (obj && obj[k] != null) return obj[k];
+  return undefined;
+}
+
+function onStatus(st) {
+  S.clockOffset = Date.now() / 1000 - st.now;
+  const age = st.last_in_age_s;
+  setLink(st.link, age == null ? "no frame yet" : `last frame ${age.toFixed(1)} s ago`);
+  const stats = st.stats || {};
+  $("frames-in").textContent = pick(stats, "frames_in", "rx_frames") ?? 0;
+  $("frames-out").textContent = pick(stats, "frames_out", "tx_frames") ?? 0;
+  $("conn-errors").textContent = `${pick(stats, "errors", "device_errors") ?? 0} from the camera · ${st.errors} in the console`;
+  $("conn-timeouts").textContent = pick(stats, "timeouts") ?? 0;
+  const rtt = pick(stats, "rtt_ms_last", "rtt_ms");
+  const avg = pick(stats, "rtt_ms_avg", "rtt_ms_mean");
+  $("conn-rtt").textContent = rtt == null ? "–" : `${num(rtt, 1)} ms` + (avg != null ? ` (avg ${num(avg, 1)} ms)` : "");
+  const dl = $("conn-stats");
+  dl.innerHTML = "";
+  for (const [k, v] of Object.entries(stats)) {
+    dl.append(el("dt", { text: k }), el("dd", { text: typeof v === "object" ? JSON.stringify(v) : String(v) }));
+  }
+  if (st.version != null) $("conn-version").textContent = formatVersion(st.version);
+  // recording
+  const rec = st.recording;
+  if (rec != null) setRecording(!!rec, st.recording_since != null ? st.recording_since + S.clockOffset : null);
+  if (st.sd !== undefined) showSD(st.sd);
+}
+
+function formatVersion(v) {
+  if (v == null) return "–";
+  if (typeof v === "string") return v;
+  if (v.fields) return Object.values(v.fields).join(" ");
+  if (typeof v === "object") return Object.entries(v).map(([k, x]) => `${k} ${x}`).join(", ");
+  return String(v);
+}
+
+// ---------------------------------------------------------------- attitude (rAF rendering)
+
+function frame() {
+  if (S.attitudeDirty && S.attitude) {
+    S.attitudeDirty = false;
+    const a = S.attitude;
+    $("yaw").textContent = a.yaw.toFixed(2);
+    $("pitch").textContent = a.pitch.toFixed(2);
+    $("roll").textContent = a.roll.toFixed(2);
+    drawHorizon($("horizon"), a.pitch, a.roll);
+    drawHeading($("heading"), a.yaw, S.target);
+  }
+  if (S.trafficDirty) renderTraffic();
+  if (S.recording && S.recordingSince != null) {
+    $("rec-elapsed").textContent = clock(Date.now() / 1000 - S.recordingSince);
+  }
+  requestAnimationFrame(frame);
+}
+
+setInterval(() => {
+  S.attRate = S.attCount;
+  S.attCount = 0;
+  $("conn-att-rate").textContent = `${S.attRate} Hz`;
+}, 1000);
+
+function clock(s) {
+  s = Math.max(0, Math.floor(s));
+  const h = Math.floor(s / 3600), m = Math.floor((s % 3600) / 60), sec = s % 60;
+  const mm = String(m).padStart(2, "0"), ss = String(sec).padStart(2, "0");
+  return h ? `${h}:${mm}:${ss}` : `${mm}:${ss}`;
+}
+
+// ---------------------------------------------------------------- traffic
+
+const ATTITUDE_IDS = new Set(["GAC", "GIA", "GIC"]);
+
+function onTraffic(items) {
+  for (const it of items) {
+    it.seq = ++trafficSeq;
+    S.traffic.push(it);
+    if (it.dir === "in" && it.fields) onReport(it);
+  }
+  if (S.traffic.length > 3000) S.traffic.splice(0, S.traffic.length - 3000);
+  if (!$("traffic-pause").checked) S.trafficDirty = true;
+}
+
+function trafficMatches(it, q, dir, hideAtt) {
+  if (dir !== "all" && it.dir !== dir) return false;
+  if (hideAtt && ATTITUDE_IDS.has(it.id)) return false;
+  if (!q) return true;
+  const hay = `${it.id || ""} ${it.name || ""} ${it.frame} ${formatFields(it.fields)} ${it.error || ""}`.toLowerCase();
+  return q.split(/\s+/).every((w) => hay.includes(w));
+}
+
+const MAX_ROWS = 300;
+let trafficSeq = 0;      // sequence number of the newest item received
+let renderedSeq = 0;     // ... and of the newest item considered for the pane
+let renderedKey = null;  // the filter the pane was built with
+
+function trafficRow(it) {
+  const cls = `tr ${it.dir}${it.error ? " err" : ""}${it.id === "ERE" ? " ere" : ""}`;
+  const t = new Date(it.t * 1000);
+  const ts = t.toLocaleTimeString([], { hour12: false }) + "." + String(t.getMilliseconds()).padStart(3, "0");
+  const meaning = it.error ? `⚠ ${it.error}` : `${it.name || it.id || ""} ${formatFields(it.fields)}`;
+  return el("div", { class: cls, "data-id": it.id || "", "data-dir": it.dir },
+    el("span", { class: "t", text: ts }),
+    el("span", { class: "d", text: it.dir === "in" ? "◀" : "▶", title: it.dir === "in" ? "from the camera" : "to the camera" }),
+    el("span", { class: "f", text: it.frame, title: it.frame }),
+    el("span", { class: "m", text: meaning, title: meaning }));
+}
+
+// Appends only what is new (a 50 Hz attitude stream shown in the pane stays cheap); rebuilds
+// when the filter changes or the history was cleared.
+function renderTraffic() {
+  S.trafficDirty = false;
+  const box = $("traffic");
+  const atBottom = box.scrollTop + box.clientHeight >= box.scrollHeight - 20;
+  const q = $("traffic-filter").value.trim().toLowerCase();
+  const dir = $("traffic-dir").value;
+  const hideAtt = $("traffic-hide-att").checked;
+  const key = `${q}\u0000${dir}\u0000${hideAtt}`;
+  const rows = [];
+  const full = key !== renderedKey;
+  for (let i = S.traffic.length - 1; i >= 0 && rows.length < MAX_ROWS; i--) {
+    const it = S.traffic[i];
+    if (!full && it.seq <= renderedSeq) break;
+    if (trafficMatches(it, q, dir, hideAtt)) rows.push(it);
+  }
+  rows.reverse();
+  const frag = document.createDocumentFragment();
+  for (const it of rows) frag.append(trafficRow(it));
+  if (full) box.replaceChildren(frag);
+  else box.append(frag);
+  while (box.childElementCount > MAX_ROWS) box.firstElementChild.remove();
+  renderedKey = key;
+  renderedSeq = trafficSeq;
+  if (atBottom) box.scrollTop = box.scrollHeight;
+}
+
+for (const id of ["traffic-filter", "traffic-dir", "traffic-hide-att"]) {
+  $(id).addEventListener("input", () => { S.trafficDirty = true; });
+}
+$("traffic-pause").addEventListener("change", () => { S.trafficDirty = true; });
+$("traffic-clear").addEventListener("click", () => { S.traffic = []; renderedKey = null; S.trafficDirty = true; });
+
+// Device -> host reports the page shows elsewhere (range, target position).
+function onReport(it) {
+  const f = it.fields;
+  if ((it.id === "LRF" || it.id === "SLR") && "distance_m" in f) {
+    $("range-distance").textContent = f.distance_m == null ? "no echo (out of range)" : `${f.distance_m.toFixed(1)} m`;
+  } else if (it.id === "LAT" && "lat_deg" in f) {
+    $("target-lat").textContent = `${f.lat_deg.toFixed(6)}°`;
+  } else if (it.id === "LON" && "lon_deg" in f) {
+    $("target-lon").textContent = `${f.lon_deg.toFixed(6)}°`;
+  }
+}
+
+// Raw frame: the checksum is appended when the text does not already end with the right one.
+function withChecksum(text) {
+  const sum = (s) => [...s].reduce((a, c) => (a + c.charCodeAt(0)) & 0xff, 0).toString(16).toUpperCase().padStart(2, "0");
+  if (text.length > 2 && sum(text.slice(0, -2)) === text.slice(-2).toUpperCase()) return text;
+  return text + sum(text);
+}
+
+$("btn-raw").addEventListener("click", async () => {
+  const text = $("raw-input").value.trim();
+  if (!text) return showError("type a frame first, e.g. #TPUD2rVER00");
+  const frame = withChecksum(text);
+  const reply = await run("raw", { frame });
+  if (reply !== undefined) {
+    const r = reply ? `${reply.id} ${formatFields(reply.fields) || reply.error || ""}` : "no reply (none expected)";
+    $("cmd-result").textContent = `sent ${frame} → ${r}`;
+  }
+});
+$("raw-input").addEventListener("keydown", (e) => { if (e.key === "Enter") $("btn-raw").click(); });
+
+// ---------------------------------------------------------------- building the panels from the catalog
+
+const supported = (id) => !!S.catalog.commands[id];
+const reasonFor = (id) => S.catalog.unsupported[id]?.reason || `the ${S.catalog.dialect_title} protocol has no ${id} command`;
+const ctx = { get catalog() { return S.catalog; }, run };
+
+function disable(node, reason) {
+  node.disabled = true;
+  node.title = reason;
+  node.dataset.reason = reason;
+}
+
+function buildPointing() {
+  const m = S.model;
+  const haveAngles = supported("GAY") || supported("GAM");
+  const haveRates = supported("GSM") || supported("GSY");
+  if (!haveAngles && !haveRates && !supported("PTZ")) {
+    $("pointing-reason").hidden = false;
+    $("pointing-reason").textContent = `The ${m.name} has no gimbal: ${reasonFor("PTZ")}`;
+    $("panel-pointing").classList.add("disabled");
+    $("pad").dataset.reason = reasonFor("PTZ");
+    for (const b of $("panel-pointing").querySelectorAll("button, input, select")) disable(b, reasonFor("PTZ"));
+    return;
+  }
+  const [ylo, yhi] = m.yaw_range_deg, [plo, phi] = m.pitch_range_deg;
+  Object.assign($("angle-yaw"), { min: ylo, max: yhi, title: `${ylo}..${yhi}°` });
+  Object.assign($("angle-pitch"), { min: plo, max: phi, title: `${plo}..${phi}° (up positive)` });
+  if (!haveAngles) for (const id of ["btn-point", "angle-yaw", "angle-pitch"]) disable($(id), reasonFor("GAY"));
+  if (!supported("PTZ")) for (const id of ["btn-center", "btn-follow", "btn-lock", "btn-calib"]) disable($(id), reasonFor("PTZ"));
+  // calibrations / mount orientation / trims: the PTZ codes of this dialect, from its enum table
+  const ptz = requestForm(S.catalog.commands.PTZ, "w");
+  const codes = (ptz?.fields?.[0]?.values || []).filter((v) => /^(calibrate|mount_|trim_|look_down)/.test(v.name));
+  const sel = $("calib-select");
+  for (const v of codes) sel.append(el("option", { value: v.name, text: v.label || v.name }));
+  if (!codes.length) disable($("btn-calib"), `no calibration codes in the ${S.catalog.dialect_title} protocol`);
+  S.maxRate = maxRate();
+  if (!haveRates) $("pad").dataset.reason = reasonFor("GSY");
+}
+
+function maxRate() {
+  const spec = S.catalog.commands.GSY || S.catalog.commands.GSM;
+  const f = requestForm(spec, "w")?.fields?.[0];
+  const fieldMax = f?.max ?? Infinity;
+  return Math.min(S.model.max_rate_deg_s || 30, fieldMax);
+}
+
+function buildAttitude() {
+  if (!supported("GAA") && !supported("GAC")) {
+    $("attitude-reason").hidden = false;
+    $("attitude-reason").textContent = `No attitude on the ${S.model.name}: ${reasonFor("GAC")}`;
+  }
+  if (!supported("VER") && !supported("VSN")) {
+    $("conn-version").textContent = "not available";
+    $("conn-version").title = reasonFor(S.catalog.dialect === "topotek" ? "VSN" : "VER");
+  }
+}
+
+function buildCamera() {
+  const missing = ["CAP", "REC"].filter((id) => !supported(id));
+  if (missing.length) {
+    $("camera-reason").hidden = false;
+    $("camera-reason").textContent = missing.map(reasonFor).join("; ");
+  }
+  if (!supported("CAP")) disable($("btn-photo"), reasonFor("CAP"));
+  if (!supported("REC")) disable($("btn-record"), reasonFor("REC"));
+  for (const b of document.querySelectorAll("[data-hold], [data-once]")) {
+    const id = b.dataset.hold || b.dataset.once;
+    if (!supported(id)) disable(b, reasonFor(id));
+  }
+  const box = $("camera-settings");
+  for (const [id, title] of [["DZM", "Digital zoom"], ["PIP", "Picture in picture"], ["VID", "Resolution"]]) {
+    box.append(commandRow(ctx, id, title));
+  }
+  if (!supported("SDC")) {
+    $("sd").textContent = "not available";
+    $("sd").title = reasonFor("SDC");
+  }
+}
+
+const THERMAL = ["IMG", "TSM", "TMR", "TAS", "TDI", "TIB", "TIC", "TAR", "TTR", "TGM"];
+
+function buildThermal() {
+  const box = $("thermal-settings");
+  const missing = $("thermal-unsupported");
+  if (!S.model.thermal) {
+    $("thermal-reason").hidden = false;
+    $("thermal-reason").textContent = `The ${S.model.name} (${S.model.title}) has no thermal camera.`;
+  }
+  let n = 0;
+  for (const id of THERMAL) {
+    // commands the dialect does not have at all are left out; the others show why they are off
+    if (supported(id)) {
+      const row = commandRow(ctx, id);
+      box.append(row);
+      if (row.read) S.initialReads.push(row.read);
+    }
+    else if (S.catalog.unsupported[id]) {
+      missing.append(commandRow(ctx, id));
+      n++;
+    }
+  }
+  if (n) {
+    $("thermal-missing").hidden = false;
+    $("thermal-missing-summary").textContent = `${n} thermal setting${n > 1 ? "s" : ""} not available on the ${S.model.name} (why)`;
+  }
+}
+
+function buildRange() {
+  const box = $("range-buttons");
+  if (supported("LRF")) {
+    for (const [action, text] of [["single", "Measure"], ["continuous", "Continuous"], ["stop", "Stop"]]) {
+      box.append(el("button", { "data-testid": `btn-range-${action}`, text,
+        onclick: () => run("request", { id: "LRF", values: { action } }) }));
+    }
+  } else if (supported("SLR")) {
+    box.append(el("button", { "data-testid": "btn-range-single", text: "Measure",
+      onclick: async () => {
+        const m = await run("request", { id: "SLR", read: true });
+        if (m?.fields) onReport({ id: "SLR", fields: m.fields });
+      } }));
+  } else {
+    $("range-reason").hidden = false;
+    const why = S.catalog.unsupported.SLR ? reasonFor("SLR") : reasonFor("LRF");
+    $("range-reason").textContent = `The ${S.model.name} has no laser rangefinder: ${why}.`;
+    $("range-distance").textContent = "not available";
+  }
+  for (const id of ["ALT", "LAT", "LON", "AZI"]) {
+    if (supported(id)) $("vehicle-settings").append(commandRow(ctx, id));
+  }
+  if (!$("vehicle-settings").children.length) $("vehicle-box").hidden = true;
+  const lat = S.catalog.commands.LAT;
+  const hasTarget = lat?.forms?.some((f) => f.direction === "response" && f.title === "target solution");
+  if (!hasTarget) {
+    $("target-lat").textContent = $("target-lon").textContent = "not reported by this model";
+  }
+}
+
+const NET = [["IPV", "IP address"], ["GTW", "Gateway"], ["DNS", "DNS"], ["BNS", "Backup DNS"]];
+
+function buildNetwork() {
+  const box = $("network-fields");
+  const have = NET.filter(([id]) => supported(id));
+  if (!have.length) {
+    $("network-reason").hidden = false;
+    $("network-reason").textContent = reasonFor("IPV");
+    disable($("btn-net-read"), reasonFor("IPV"));
+    disable($("btn-net-write"), reasonFor("IPV"));
+    return;
+  }
+  for (const [id, label] of have) {
+    box.append(el("label", { for: `net-${id}`, text: label }),
+      el("input", { id: `net-${id}`, "data-testid": `net-${id}`, type: "text", placeholder: "read first", spellcheck: "false" }));
+  }
+}
+
+async function readNetwork() {
+  for (const [id] of NET.filter(([i]) => supported(i))) {
+    const m = await run("request", { id, read: true });
+    const v = m?.fields?.address;
+    if (v != null) {
+      S.netValues[id] = v;
+      $(`net-${id}`).value = v;
+    }
+  }
+}
+
+async function writeNetwork() {
+  const changes = NET.filter(([id]) => supported(id))
+    .map(([id, label]) => [id, label, $(`net-${id}`).value.trim()])
+    .filter(([id, , v]) => v && v !== S.netValues[id]);
+  if (!changes.length) return toast("Nothing to write: read the settings and change a value first.");
+  const list = changes.map(([, label, v]) => `${label}: ${v}`).join("\n");
+  const ip = changes.find(([id]) => id === "IPV");
+  const warning = ip
+    ? `The camera's address will change to ${ip[2]}. This console will lose contact with the camera; restart it with the new address.`
+    : "The camera's network configuration (and so its address) will change; this console may lose contact with it.";
+  if (!window.confirm(`Write these network settings?\n\n${list}\n\n${warning}`)) return toast("Network settings not written.");
+  for (const [id, label, v] of changes) {
+    const r = await run("request", { id, values: { address: v } }, `${label} written`);
+    if (r !== undefined) S.netValues[id] = v;
+  }
+}
+
+function buildBuilder() {
+  const sel = $("cmd-select");
+  const ids = Object.keys(S.catalog.commands).sort();
+  for (const id of ids) {
+    const c = S.catalog.commands[id];
+    if (!requestForm(c, "w") && !requestForm(c, "r")) continue;
+    sel.append(el("option", { value: id, text: `${id} — ${c.title}` }));
+  }
+  let inputs = null;
+  const refresh = () => {
+    const spec = S.catalog.commands[sel.value];
+    const rwSel = $("cmd-rw");
+    for (const o of rwSel.options) o.disabled = !requestForm(spec, o.value);
+    if (!requestForm(spec, rwSel.value)) rwSel.value = requestForm(spec, "w") ? "w" : "r";
+    const form = requestForm(spec, rwSel.value);
+    inputs = fieldInputs(form?.fields || [], { prefix: "cmd-" });
+    $("cmd-fields").replaceChildren(inputs.node);
+  };
+  sel.addEventListener("change", refresh);
+  $("cmd-rw").addEventListener("change", refresh);
+  $("btn-cmd-send").addEventListener("click", async () => {
+    const read = $("cmd-rw").value === "r";
+    const m = await run("request", { id: sel.value, read, values: inputs.get() });
+    if (m !== undefined) $("cmd-result").textContent = m ? `${m.id}: ${formatFields(m.fields) || m.error || "ok"}` : "sent (no reply expected)";
+  });
+  if (ids.includes("VER")) sel.value = "VER";
+  refresh();
+}
+
+// ---------------------------------------------------------------- camera actions
+
+function setRecording(on, sinceLocal) {
+  S.recording = on;
+  const b = $("btn-record");
+  b.dataset.state = on ? "recording" : "idle";
+  b.querySelector(".label").textContent = on ? "Stop recording" : "Record";
+  const e = $("rec-elapsed");
+  e.classList.toggle("on", on);
+  if (on) {
+    if (S.recordingSince == null) S.recordingSince = sinceLocal ?? Date.now() / 1000;
+    else if (sinceLocal != null) S.recordingSince = sinceLocal;
+  } else {
+    S.recordingSince = null;
+  }
+}
+
+$("btn-photo").addEventListener("click", async () => {
+  const r = await run("photo");
+  if (r !== undefined) {
+    S.photos++;
+    const idx = r?.fields?.file_index != null ? ` (file ${r.fields.file_index})` : "";
+    $("photo-status").textContent = `photo taken at ${new Date().toLocaleTimeString()}${idx} — ${S.photos} this session`;
+    $("photo-status").dataset.count = String(S.photos);
+    toast("Photo taken", "ok", 2500);
+  }
+});
+
+$("btn-record").addEventListener("click", async () => {
+  const start = !S.recording;
+  const r = await run("record", { action: start ? "start" : "stop" });
+  if (r !== undefined) {
+    S.recordingSince = null;
+    setRecording(start, null);
+    if (!start) $("rec-elapsed").textContent = "00:00";
+    toast(start ? "Recording started" : "Recording stopped", "ok", 2500);
+  }
+});
+
+// hold-to-move buttons (zoom, focus): action while pressed, stop on release
+for (const b of document.querySelectorAll("[data-hold]")) {
+  let held = false;
+  const release = () => {
+    if (!held) return;
+    held = false;
+    b.classList.remove("held");
+    run("request", { id: b.dataset.hold, values: { action: "stop" } });
+  };
+  b.addEventListener("pointerdown", (e) => {
+    if (b.disabled) return;
+    held = true;
+    b.setPointerCapture?.(e.pointerId);
+    b.classList.add("held");
+    run("request", { id: b.dataset.hold, values: { action: b.dataset.action } });
+  });
+  b.addEventListener("pointerup", release);
+  b.addEventListener("pointercancel", release);
+  b.addEventListener("lostpointercapture", release);
+}
+for (const b of document.querySelectorAll("[data-once]")) {
+  b.addEventListener("click", () => run("request", { id: b.dataset.once, values: { action: b.dataset.action } }, `${b.textContent} sent`));
+}
+
+function showSD(sd) {
+  const fill = $("sd-fill");
+  if (!sd) return;
+  if (!sd.present) {
+    $("sd").textContent = "no card";
+    fill.style.width = "0";
+    return;
+  }
+  const rem = sd.remaining_mb, tot = sd.total_mb;
+  $("sd").textContent = `${rem} / ${tot} MB free`;
+  const pct = tot ? Math.max(0, Math.min(100, (100 * rem) / tot)) : 0;
+  fill.style.width = `${pct}%`;
+  fill.style.background = pct < 10 ? "var(--bad)" : pct < 25 ? "var(--warn)" : "var(--ok)";
+}
+
+// ---------------------------------------------------------------- pointing actions
+
+function pointFromInputs() {
+  const yaw = $("angle-yaw").value, pitch = $("angle-pitch").value;
+  const args = {};
+  if (yaw !== "") args.yaw = Number(yaw);
+  if (pitch !== "") args.pitch = Number(pitch);
+  if (args.yaw != null) S.target = args.yaw;
+  S.attitudeDirty = true;
+  return run("point", args);
+}
+$("btn-point").addEventListener("click", pointFromInputs);
+for (const id of ["angle-yaw", "angle-pitch"]) {
+  $(id).addEventListener("keydown", (e) => { if (e.key === "Enter") pointFromInputs(); });
+}
+$("btn-center").addEventListener("click", () => { S.target = 0; return run("center", {}, "Centering"); });
+$("btn-stop").addEventListener("click", () => run("stop", {}, "Stopped"));
+$("btn-follow").addEventListener("click", () => run("mode", { mode: "follow" }, "Follow mode"));
+$("btn-lock").addEventListener("click", () => run("mode", { mode: "lock" }, "Lock mode"));
+$("btn-calib").addEventListener("click", () => {
+  const sel = $("calib-select");
+  const label = sel.selectedOptions[0]?.textContent || sel.value;
+  const mount = sel.value.startsWith("mount_");
+  const text = mount
+    ? `Change the mount orientation: "${label}"?\n\nThe gimbal re-orients its axes; only do this to match how the camera is mounted.`
+    : `Run "${label}" on the ${S.model.name}?\n\nThe gimbal may move on its own; keep it level and still until it finishes.`;
+  if (!window.confirm(text)) return toast(`${label}: cancelled`);
+  return run("ptz", { action: sel.value }, `${label} sent`);
+});
+
+// rates: drag pad and arrow keys
+let rateSent = { yaw: 0, pitch: 0 };
+let rateWanted = { yaw: 0, pitch: 0 };
+let rateTimer = null;
+
+function wantRates(yaw, pitch) {
+  rateWanted = { yaw: Math.round(yaw * 10) / 10, pitch: Math.round(pitch * 10) / 10 };
+  $("rate-readout").textContent = `rate ${rateWanted.yaw} / ${rateWanted.pitch} °/s`;
+  if (!rateTimer) {
+    flushRates();
+    rateTimer = setInterval(flushRates, 120);
+  }
+}
+
+function flushRates() {
+  if (rateWanted.yaw === rateSent.yaw && rateWanted.pitch === rateSent.pitch) return;
+  rateSent = { ...rateWanted };
+  run("rates", rateSent);
+}
+
+function stopRates() {
+  clearInterval(rateTimer);
+  rateTimer = null;
+  rateWanted = rateSent = { yaw: 0, pitch: 0 };
+  $("rate-readout").textContent = "rate 0 / 0 °/s";
+  run("stop");
+}
+
+const pad = $("pad"), knob = $("pad-knob");
+let padActive = false;
+
+function padMove(e) {
+  const r = pad.getBoundingClientRect();
+  let x = ((e.clientX - r.left) / r.width) * 2 - 1;
+  let y = ((e.clientY - r.top) / r.height) * 2 - 1;
+  x = Math.max(-1, Math.min(1, x));
+  y = Math.max(-1, Math.min(1, y));
+  knob.style.left = `${((x + 1) / 2) * 100}%`;
+  knob.style.top = `${((y + 1) / 2) * 100}%`;
+  const dead = (v) => (Math.abs(v) < 0.08 ? 0 : v);
+  wantRates(dead(x) * S.maxRate, -dead(y) * S.maxRate); // up on the pad = pitch up
+}
+
+pad.addEventListener("pointerdown", (e) => {
+  if (pad.dataset.reason) return showError(pad.dataset.reason);
+  padActive = true;
+  pad.setPointerCapture(e.pointerId);
+  pad.classList.add("active");
+  padMove(e);
+});
+pad.addEventListener("pointermove", (e) => { if (padActive) padMove(e); });
+const padEnd = () => {
+  if (!padActive) return;
+  padActive = false;
+  pad.classList.remove("active");
+  knob.style.left = knob.style.top = "50%";
+  stopRates();
+};
+pad.addEventListener("pointerup", padEnd);
+pad.addEventListener("pointercancel", padEnd);
+
+const keys = new Set();
+const KEYDIR = { ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, 1], ArrowDown: [0, -1] };
+
+function keyRates() {
+  let x = 0, y = 0;
+  for (const k of keys) { x += KEYDIR[k][0]; y += KEYDIR[k][1]; }
+  return [x * S.maxRate * 0.5, y * S.maxRate * 0.5];
+}
+
+document.addEventListener("keydown", (e) => {
+  if (!(e.key in KEYDIR) || !S.catalog || pad.dataset.reason) return;
+  if (e.target.closest && e.target.closest("input, select, textarea")) return;
+  e.preventDefault();
+  if (keys.has(e.key)) return;
+  keys.add(e.key);
+  wantRates(...keyRates());
+});
+document.addEventListener("keyup", (e) => {
+  if (!keys.delete(e.key)) return;
+  if (keys.size) wantRates(...keyRates());
+  else stopRates();
+});
+window.addEventListener("blur", () => { if (keys.size) { keys.clear(); stopRates(); } });
+
+// ---------------------------------------------------------------- start
+
+$("btn-net-read").addEventListener("click", readNetwork);
+$("btn-net-write").addEventListener("click", writeNetwork);
+
+function waitOpen() {
+  return new Promise((resolve) => {
+    const check = () => (conn.ws && conn.ws.readyState === WebSocket.OPEN ? resolve() : setTimeout(check, 50));
+    check();
+  });
+}
+
+async function main() {
+  try {
+    S.catalog = await fetchJSON("api/catalog");
+  } catch (err) {
+    showError(`Could not load the command catalog: ${err.message}`);
+    return;
+  }
+  S.model = S.catalog.model;
+  document.title = `${S.model.name} · topgimbal console`;
+  $("model-name").textContent = `${S.model.name} · ${S.catalog.dialect}`;
+  $("conn-model").textContent = S.model.title;
+  $("conn-dialect").textContent = S.catalog.dialect_title;
+  buildAttitude();
+  buildPointing();
+  buildCamera();
+  buildThermal();
+  buildRange();
+  buildNetwork();
+  buildBuilder();
+  // show the camera's current settings (once the socket is up); ready for automation afterwards
+  await waitOpen();
+  await Promise.all(S.initialReads.map((read) => read()));
+  document.body.dataset.ready = "1";
+  drawHorizon($("horizon"), 0, 0);
+  drawHeading($("heading"), 0, null);
+  requestAnimationFrame(frame);
+}
+
+main();

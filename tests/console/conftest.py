@@ -1,0 +1,153 @@
+"""Fixtures for the console tests: a simulator + console running in a background event loop
+(so the synchronous Playwright API can drive Debian's chromium from the test thread)."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import shutil
+import threading
+import time
+from collections.abc import Callable, Coroutine, Iterator
+from concurrent.futures import Future
+from pathlib import Path
+from typing import Any, TypeVar
+
+import pytest
+
+from topgimbal.console import ConsoleServer
+
+T = TypeVar("T")
+
+ARTIFACTS = Path(__file__).resolve().parents[2] / "test-artifacts"
+CHROMIUM = "/usr/bin/chromium"
+LAUNCH_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+
+
+class BackgroundConsole:
+    """ConsoleServer(sim_model=...) on 127.0.0.1, port 0, in its own thread and event loop."""
+
+    def __init__(self, model: str, *, token: str | None = None, seed: int = 0) -> None:
+        self.model = model
+        self.token = token
+        self.seed = seed
+        self.loop = asyncio.new_event_loop()
+        self.thread = threading.Thread(target=self.loop.run_forever, name=f"console-{model}", daemon=True)
+        self.server: ConsoleServer | None = None
+
+    def __enter__(self) -> BackgroundConsole:
+        self.thread.start()
+        self.server = ConsoleServer(
+            sim_model=self.model, sim_seed=self.seed, host="127.0.0.1", port=0, token=self.token
+        )
+        self.run(self.server.start())
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.server is not None:
+            self.run(self.server.stop())
+        self.loop.call_soon_threadsafe(self.loop.stop)
+        self.thread.join(5)
+        self.loop.close()
+
+    def run(self, coro: Coroutine[Any, Any, T], timeout: float = 20.0) -> T:
+        fut: Future[T] = asyncio.run_coroutine_threadsafe(coro, self.loop)
+        return fut.result(timeout)
+
+    def call(self, fn: Callable[[], T]) -> T:
+        """Run `fn()` in the server's loop thread (to read simulator state consistently)."""
+
+        async def wrap() -> T:
+            return fn()
+
+        return self.run(wrap())
+
+    @property
+    def sim(self) -> Any:
+        assert self.server is not None
+        return self.server.sim
+
+    @property
+    def url(self) -> str:
+        assert self.server is not None
+        return self.server.page_url
+
+    @property
+    def base(self) -> str:
+        assert self.server is not None
+        return self.server.base_url
+
+
+def wait_for(predicate: Callable[[], Any], timeout: float = 10.0, interval: float = 0.05, what: str = "") -> Any:
+    """Poll `predicate` until it returns something truthy; fail with `what` after `timeout`."""
+    deadline = time.monotonic() + timeout
+    last: Any = None
+    while time.monotonic() < deadline:
+        last = predicate()
+        if last:
+            return last
+        time.sleep(interval)
+    raise AssertionError(f"timed out after {timeout:g} s waiting for {what or predicate} (last: {last!r})")
+
+
+@pytest.fixture(scope="module")
+def c12() -> Iterator[BackgroundConsole]:
+    with BackgroundConsole("C12") as bg:
+        yield bg
+
+
+@pytest.fixture(scope="module")
+def c10() -> Iterator[BackgroundConsole]:
+    with BackgroundConsole("C10") as bg:
+        yield bg
+
+
+@pytest.fixture(scope="session")
+def artifacts() -> Path:
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    return ARTIFACTS
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Any]:
+    """Module scope: Playwright's sync API keeps an event loop running in this thread while it is
+    open, which the asyncio tests of other modules must not see."""
+    if not (os.path.exists(CHROMIUM) or shutil.which("chromium")):
+        pytest.fail(f"{CHROMIUM} is missing: `make test` installs Debian's chromium (apt-get install chromium)")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=LAUNCH_ARGS)
+        yield b
+        b.close()
+
+
+@pytest.fixture
+def page_errors() -> list[str]:
+    return []
+
+
+def open_console(browser: Any, bg: BackgroundConsole, errors: list[str]) -> Any:
+    """A fresh page on the console, loaded and with its WebSocket up."""
+    context = browser.new_context(viewport={"width": 1400, "height": 1100})
+    page = context.new_page()
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
+    page.goto(bg.url)
+    page.wait_for_selector("body[data-ready='1']", timeout=10_000)
+    page.wait_for_function("document.querySelector('[data-testid=link]').dataset.state === 'up'", timeout=10_000)
+    return page
+
+
+@pytest.fixture(scope="module")
+def sip() -> Iterator[BackgroundConsole]:
+    with BackgroundConsole("SIP") as bg:
+        yield bg
