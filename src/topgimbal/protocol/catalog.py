@@ -55,6 +55,7 @@ class Form:
             hi = fixed + (variable.max_width if variable else 0)
         object.__setattr__(self, "_min_len", lo)
         object.__setattr__(self, "_max_len", hi)
+        object.__setattr__(self, "names", frozenset(f.name for f in self.fields))
 
     @property
     def min_length(self) -> int:
@@ -79,8 +80,7 @@ class Form:
             if extra:
                 raise FieldValueError(", ".join(sorted(extra)), values, f"no fields ({where} sends {self.const!r})")
             return self.const
-        names = {f.name for f in self.fields}
-        unknown = set(values) - names
+        unknown = values.keys() - self.names  # type: ignore[attr-defined]
         if unknown:
             allowed = ", ".join(f.name for f in self.fields) or "no fields"
             bad = sorted(unknown)[0]
@@ -149,8 +149,15 @@ class CommandSpec:
                     seen[f.name] = (f.name, f.axis, f.sign)
         return tuple(seen.values())
 
+    @cached_property
+    def _by_rw_direction(self) -> dict[tuple[str, str], tuple[Form, ...]]:
+        out: dict[tuple[str, str], tuple[Form, ...]] = {}
+        for f in self.forms:
+            out[(f.rw, f.direction)] = (*out.get((f.rw, f.direction), ()), f)
+        return out
+
     def forms_for(self, rw: str, direction: str) -> list[Form]:
-        return [f for f in self.forms if f.rw == rw and f.direction == direction]
+        return list(self._by_rw_direction.get((rw, direction), ()))
 
     @property
     def readable(self) -> bool:
@@ -161,13 +168,15 @@ class CommandSpec:
         return bool(self.forms_for("w", REQUEST))
 
     def request_form(self, rw: str, keys: Iterable[str] = ()) -> Form:
-        forms = self.forms_for(rw, REQUEST)
+        forms = self._by_rw_direction.get((rw, REQUEST), ())
         if not forms:
             what = "read (r)" if rw == "r" else "written (w)"
             raise UnsupportedError(f"{self.ident} cannot be {what} by a host in this dialect")
+        if len(forms) == 1:
+            return forms[0]
         keys = set(keys)
         for f in forms:
-            if keys <= {x.name for x in f.fields}:
+            if keys <= f.names:  # type: ignore[attr-defined]
                 return f
         return forms[0]
 
@@ -390,7 +399,8 @@ class Dialect:
         forms = spec.forms_for(rw, RESPONSE)
         if not forms:
             raise UnsupportedError(f"{spec.ident} has no {rw!r} response form in the {self.name} dialect")
-        form = next((f for f in forms if set(values) <= {x.name for x in f.fields}), forms[0])
+        keys = values.keys()
+        form = next((f for f in forms if keys <= f.names), forms[0])  # type: ignore[attr-defined]
         data = form.encode(values, f"{spec.ident} response")
         return make_frame(
             spec.ident,
@@ -415,7 +425,8 @@ class Dialect:
         Echo forms are passed over: an echo answers a write, it is never sent on its own."""
         spec = self.command(ident)
         forms = [f for f in spec.forms if f.direction == RESPONSE and f.role != "echo" and (rw is None or f.rw == rw)]
-        form = next((f for f in forms if set(values) <= {x.name for x in f.fields} and f.fields), None)
+        keys = values.keys()
+        form = next((f for f in forms if keys <= f.names and f.fields), None)  # type: ignore[attr-defined]
         if form is None:
             raise UnsupportedError(f"{spec.ident} has no matching device -> host form in the {self.name} dialect")
         data = form.encode(values, f"{spec.ident} report")
