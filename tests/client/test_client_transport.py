@@ -172,6 +172,11 @@ async def test_sign_mapping_topotek_pitch_and_override(fake):
     async with topgimbal.connect(url, model="SIP", timeout_s=0.5, signs={"pitch": 1, "yaw": -1}) as cam:
         att = await cam.get_attitude()
         assert (att.yaw_deg, att.pitch_deg) == (-10.0, 20.0)
+    async with topgimbal.connect(url, model="SIP", timeout_s=0.5) as cam:
+        api = await cam.request("GAC", read=True)  # the API convention
+        raw = await cam.send_raw(make_frame("GAC", "00", src="P", dst="G", rw="r"))  # the wire's values
+        assert api.fields is not None and raw is not None and raw.fields is not None
+        assert (api.fields["pitch_deg"], raw.fields["pitch_deg"]) == (-20.0, 20.0)
 
 
 def test_sync_facade_blocks_and_refuses_calls_from_its_loop(fake):

@@ -165,12 +165,14 @@ class AsyncClient:
         if frame.src not in DEVICE_ADDRESSES:
             return  # our own frames echoed by a loopback or a half-duplex line
         assert self._session is not None
-        result = self._session.receive(message)
+        # Signs are mapped once, here: the session matches on the frame, never on field values,
+        # so it can hold (and a request return) the message already in the API convention.
+        api = map_message(message, self.signs)
+        result = self._session.receive(api)
         if result.matched is not None:
             self._resolve(result.matched)
         if result.duplicate:
             return
-        api = map_message(message, self.signs)
         self._update_state(api)
         self._dispatch(api)
         self._arm_timer()
@@ -296,7 +298,7 @@ class AsyncClient:
         )
         if reply is None:
             return Message(frame, spec, None, None, "sent without waiting for a reply")
-        return map_message(reply, self.signs)
+        return reply  # already in the API convention (mapped on arrival)
 
     async def send_raw(
         self, frame: Frame | str | bytes, *, wait_reply: bool = True, timeout_s: float | None = None
@@ -308,7 +310,9 @@ class AsyncClient:
         reply = await self._transact(
             frame, timeout_s=self.timeout_s if timeout_s is None else timeout_s, retries=0, expect_reply=wait_reply
         )
-        return reply
+        # Replies are held in the API convention; a raw exchange shows the wire's values (the
+        # sign map is its own inverse).
+        return None if reply is None else map_message(reply, self.signs)
 
     # -- subscriptions -------------------------------------------------------------------------
 
