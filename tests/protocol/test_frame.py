@@ -164,3 +164,16 @@ def test_overlong_length_character_is_recovered_when_a_frame_follows() -> None:
     out = p.feed(b"#TPUGFwPTZ1E#TPUD2wAWB0144")
     kinds = [e.kind if isinstance(e, Diagnostic) else e.ident for e in out]
     assert kinds == ["length_mismatch", "PTZ", "AWB"]
+
+
+def test_complete_frame_appends_only_a_missing_checksum() -> None:
+    from topgimbal.protocol.frame import complete_frame
+
+    assert complete_frame("#TPUD2rVER00") == b"#TPUD2rVER0051"
+    assert complete_frame(" #TPUD2rVER0051\r\n") == b"#TPUD2rVER0051"
+    with pytest.raises(ChecksumError, match="expected '51'"):
+        complete_frame("#TPUD2rVER00ZZ")  # a wrong checksum is reported, never replaced
+    with pytest.raises(FrameError):
+        complete_frame("#TPUD3rVER00")  # length 3 with 2 data characters: not completed
+    with pytest.raises(FrameError, match="header"):
+        complete_frame("#hello world")

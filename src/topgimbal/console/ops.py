@@ -20,6 +20,7 @@ from ..errors import (
     UnknownCommandError,
     UnsupportedError,
 )
+from ..protocol.frame import complete_frame
 
 OpHandler = Callable[[Any, Mapping[str, Any]], Awaitable[Any]]
 
@@ -106,8 +107,12 @@ async def op_request(cam: Any, args: Mapping[str, Any]) -> Any:
 
 
 async def op_raw(cam: Any, args: Mapping[str, Any]) -> Any:
-    frame = _text(args, "frame").strip()
-    return await cam.send_raw(frame)
+    """Send a hand-typed frame (its checksum appended when missing); answer with the reply's
+    fields and the frame actually sent."""
+    sent = complete_frame(_text(args, "frame"))
+    reply = await cam.send_raw(sent)
+    out = jsonable(reply) if reply is not None else {"id": None, "fields": None}
+    return {**out, "sent": sent.decode("latin-1")}
 
 
 async def op_point(cam: Any, args: Mapping[str, Any]) -> Any:

@@ -241,10 +241,38 @@ def parse_frame(raw: bytes | str) -> Frame:
         raw = raw.encode("latin-1")
     d = dissect(raw)
     if d.frame is None:
-        err = d.error or "not a frame"
-        if err.startswith("bad checksum"):
-            raise ChecksumError(err, expected=d.expected_checksum or "", found=d.checksum or "")
-        if "length" in err:
-            raise LengthError(err)
-        raise FrameError(err)
+        _raise_for(d)
+    assert d.frame is not None
     return d.frame
+
+
+def _raise_for(d: Dissection) -> None:
+    """The specific FrameError for a dissection that failed."""
+    err = d.error or "not a frame"
+    if err.startswith("bad checksum"):
+        raise ChecksumError(err, expected=d.expected_checksum or "", found=d.checksum or "")
+    if "length" in err:
+        raise LengthError(err)
+    raise FrameError(err)
+
+
+def complete_frame(text: str | bytes) -> bytes:
+    """A frame typed by hand: returned as is when complete and right; with its checksum appended
+    when the text is exactly header..data (length character matching the data); otherwise
+    FrameError saying what is wrong (a wrong checksum is never silently replaced)."""
+    raw = (text.encode("latin-1") if isinstance(text, str) else bytes(text)).strip()
+    d = dissect(raw, recover_length=False)
+    if d.ok:
+        return raw
+    h = raw[:3].decode("latin-1")
+    if h in ASCII_HEADERS and len(raw) >= 10:
+        try:
+            n = int(raw[5:6], 16)
+        except ValueError:
+            n = -1
+        if len(raw) == 10 + n:
+            full = raw + checksum_text(raw)
+            if dissect(full, recover_length=False).ok:
+                return full
+    _raise_for(d)
+    raise AssertionError("unreachable")

@@ -258,21 +258,14 @@ function onReport(it) {
   }
 }
 
-// Raw frame: the checksum is appended when the text does not already end with the right one.
-function withChecksum(text) {
-  const sum = (s) => [...s].reduce((a, c) => (a + c.charCodeAt(0)) & 0xff, 0).toString(16).toUpperCase().padStart(2, "0");
-  if (text.length > 2 && sum(text.slice(0, -2)) === text.slice(-2).toUpperCase()) return text;
-  return text + sum(text);
-}
-
+// Raw frame: the server appends the checksum when it is missing (protocol code lives there).
 $("btn-raw").addEventListener("click", async () => {
   const text = $("raw-input").value.trim();
   if (!text) return showError("type a frame first, e.g. #TPUD2rVER00");
-  const frame = withChecksum(text);
-  const reply = await run("raw", { frame });
+  const reply = await run("raw", { frame: text });
   if (reply !== undefined) {
-    const r = reply ? `${reply.id} ${formatFields(reply.fields) || reply.error || ""}` : "no reply (none expected)";
-    $("cmd-result").textContent = `sent ${frame} → ${r}`;
+    const r = reply.id ? `${reply.id} ${formatFields(reply.fields) || reply.error || ""}` : "no reply (none expected)";
+    $("cmd-result").textContent = `sent ${reply.sent} → ${r}`;
   }
 });
 $("raw-input").addEventListener("keydown", (e) => { if (e.key === "Enter") $("btn-raw").click(); });
