@@ -15,15 +15,12 @@ if TYPE_CHECKING:
 
 NUDGE_FRACTION = 0.5  # PTZ up/down/left/right move at this fraction of the model's rate limit
 TRIM_STEP_DEG = 0.1
-RATE_AXES = {
-    "GSY": ("yaw",),
-    "GSP": ("pitch",),
-    "GSR": ("roll",),
-    "GSM": ("yaw", "pitch"),
-    "RPS": ("roll", "pitch"),
-    "YPR": ("yaw", "pitch", "roll"),
-}
-ANGLE_AXES = {"Y": ("yaw",), "P": ("pitch",), "R": ("roll",), "M": ("yaw", "pitch")}
+
+
+def axis_fields(msg: Message) -> list[tuple[str, str]]:
+    """(axis, field name) of the request's gimbal-axis fields, from the catalog's metadata."""
+    assert msg.form is not None
+    return [(f.axis, f.name) for f in msg.form.fields if f.axis]
 
 
 @handles("PTZ")
@@ -65,11 +62,11 @@ def ptz(dev: Device, msg: Message, ctx: Ctx) -> None:
         raise Refuse(f"PTZ {action}")
 
 
-@handles(*RATE_AXES)
+@handles("GSY", "GSP", "GSR", "GSM", "RPS", "YPR")
 def rates(dev: Device, msg: Message, ctx: Ctx) -> None:
     f = fields(msg)
-    for axis in RATE_AXES[msg.frame.ident]:
-        dev.gimbal.rate(axis, float(f[f"{axis}_rate_deg_s"]))
+    for axis, name in axis_fields(msg):
+        dev.gimbal.rate(axis, float(f[name]))
 
 
 @handles("GAY", "GAP", "GAR", "GAM", "GIY", "GIP", "GIR", "GIM")
@@ -77,11 +74,9 @@ def angles(dev: Device, msg: Message, ctx: Ctx) -> None:
     f = fields(msg)
     ident = msg.frame.ident
     frame = "earth" if ident.startswith("GI") else "body"
-    axes = ANGLE_AXES[ident[2]]
-    for axis in axes:
+    for axis, name in axis_fields(msg):
         speed = f.get("speed_deg_s", f.get(f"{axis}_speed_deg_s"))
-        deg = float(f[f"{axis}_deg"])
-        dev.gimbal.angle(axis, deg, None if speed is None else float(speed), frame)
+        dev.gimbal.angle(axis, float(f[name]), None if speed is None else float(speed), frame)
 
 
 def attitude(dev: Device, earth: bool) -> dict[str, Any]:
