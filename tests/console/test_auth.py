@@ -18,7 +18,7 @@ def test_loopback_hosts_need_no_token(host: str) -> None:
     assert resolve_token(host, None) == (None, False)
 
 
-@pytest.mark.parametrize("host", ["0.0.0.0", "::", "192.0.2.7", "10.1.2.3", "camera-bench.example"])
+@pytest.mark.parametrize("host", ["0.0.0.0", "::", "192.0.2.7", "198.51.100.7", "camera-bench.example"])
 def test_other_hosts_need_a_token(host: str) -> None:
     assert not is_loopback(host)
     assert needs_token(host)

@@ -7,6 +7,7 @@ import pytest
 
 from topgimbal.protocol import Frame, get_dialect, make_frame, parse_frame
 from topgimbal.sim.device import Device
+from topgimbal.sim.state import NetworkState
 
 from .conftest import DeviceHarness, raw, req
 
@@ -347,11 +348,11 @@ def test_c13_slr() -> None:
 
 def test_network_settings_stored_answered_and_reset() -> None:
     h = DeviceHarness("SIP")
-    h.ask("IPV", address="10.1.2.3")
-    assert h.decode(only(h.ask("IPV", read=True)))["address"] == "10.1.2.3"
-    assert h.dev.network.ip == "10.1.2.3" and h.dev.dirty
+    h.ask("IPV", address="127.1.2.3")
+    assert h.decode(only(h.ask("IPV", read=True)))["address"] == "127.1.2.3"
+    assert h.dev.network.ip == "127.1.2.3" and h.dev.dirty
     h.ask("RST", action="reset")
-    assert h.dev.network.ip == "192.168.144.108"
+    assert h.dev.network.ip == NetworkState().ip  # the factory default
 
 
 def test_arducopter_identity_queries() -> None:

@@ -10,6 +10,7 @@ import pytest
 
 from topgimbal.sim import Simulator, persist
 from topgimbal.sim.persist import StateFileError
+from topgimbal.sim.state import NetworkState
 
 from .conftest import LOOP, UdpClient, req
 
@@ -20,7 +21,7 @@ async def test_settings_survive_a_restart(tmp_path: Path) -> None:
         c = UdpClient(sim.addresses["udp"][0])
         try:
             for msg in (
-                req("SIP", "IPV", address="10.9.8.7"),
+                req("SIP", "IPV", address="127.9.8.7"),
                 req("SIP", "IMG", palette="ironbow"),
                 req("SIP", "PTZ", action="lock"),
                 req("SIP", "CAP", mode="visible"),
@@ -30,9 +31,9 @@ async def test_settings_survive_a_restart(tmp_path: Path) -> None:
                 assert await c.request(msg)
         finally:
             c.close()
-        assert json.loads(state.read_text())["state"]["network"]["ip"] == "10.9.8.7"  # written before stop
+        assert json.loads(state.read_text())["state"]["network"]["ip"] == "127.9.8.7"  # written before stop
     again = Simulator("SIP", state_file=state)
-    assert again.network.ip == "10.9.8.7"
+    assert again.network.ip == "127.9.8.7"
     assert again.settings["IMG"]["palette"] == "ironbow"
     assert again.gimbal.mode == "lock"
     assert (again.camera.photo_index, again.camera.record_index) == (1, 1)
@@ -42,15 +43,15 @@ async def test_settings_survive_a_restart(tmp_path: Path) -> None:
 def test_factory_reset_restores_defaults_and_persists(tmp_path: Path) -> None:
     state = tmp_path / "cam.json"
     sim = Simulator("C12", state_file=state)
-    sim.device.receive("p", req("C12", "IPV", address="10.0.0.1"))
+    sim.device.receive("p", req("C12", "IPV", address="127.0.0.11"))
     sim.device.receive("p", req("C12", "RTF", action="factory_reset"))
     sim.flush()
-    assert Simulator("C12", state_file=state).network.ip == "192.168.144.108"
+    assert Simulator("C12", state_file=state).network.ip == NetworkState().ip  # the factory default
 
 
 def test_a_crash_mid_write_leaves_the_old_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     state = tmp_path / "cam.json"
-    persist.save(state, {"network": {"ip": "10.0.0.1"}})
+    persist.save(state, {"network": {"ip": "127.0.0.11"}})
     before = state.read_bytes()
 
     def crash(src: str, dst: str) -> None:
@@ -58,7 +59,7 @@ def test_a_crash_mid_write_leaves_the_old_file(tmp_path: Path, monkeypatch: pyte
 
     monkeypatch.setattr(os, "replace", crash)
     with pytest.raises(OSError):
-        persist.save(state, {"network": {"ip": "10.0.0.2"}})
+        persist.save(state, {"network": {"ip": "127.0.0.12"}})
     assert state.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["cam.json"]  # no temporary left behind
 
