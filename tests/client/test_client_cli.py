@@ -46,8 +46,9 @@ def test_stable_forms(bg, capsys, kind):
     assert json.loads(out) == {"recording": False} and not bg.call(lambda s: s.camera.recording)
 
 
-def test_every_command(bg, capsys, tmp_path):
-    url, model = bg.url, bg.sim.model
+@pytest.mark.parametrize("kind", ["udp", "tcp", "serial"])
+def test_every_command(bg, capsys, tmp_path, kind):
+    url, model = dict(bg.endpoints)[kind], bg.sim.model
     base = ["--url", url, "--model", model]
 
     def ok(*argv: str) -> dict | list:
@@ -71,7 +72,8 @@ def test_every_command(bg, capsys, tmp_path):
     assert ok("net", "set", "--gateway", gw, "--yes")["ok"]
     code, _, err = run(capsys, *base, "net", "set", "--gateway", gw)  # stdin is not a tty: no silent change
     assert code == 1 and "confirmation" in err
-    frame = "#TPUD2rREC003E" if model == "C12" else "#TPPD2rREC0039"
+    # TOPOTEK hosts are P on the network and U on a UART; SkyDroid hosts are always U
+    frame = "#TPPD2rREC0039" if model == "SIP" and kind != "serial" else "#TPUD2rREC003E"
     assert ok("raw", frame)["fields"] == {"state": "stopped"}
     assert ok("command", "REC", "--read")["fields"] == {"state": "stopped"}
     if model == "SIP":

@@ -60,10 +60,11 @@ async def test_core_api(sim_factory, kind, model):
 
 
 @pytest.mark.integration
+@pytest.mark.parametrize("kind", KINDS)
 @pytest.mark.parametrize("model", MODELS)
-async def test_rest_of_api_over_udp(sim_factory, model):
+async def test_rest_of_api(sim_factory, model, kind):
     sim = await sim_factory(model, seed=2)
-    async with topgimbal.connect(endpoint(sim, "udp"), model=model, timeout_s=0.5) as cam:
+    async with topgimbal.connect(endpoint(sim, kind), model=model, timeout_s=0.5) as cam:
         await cam.rates(yaw_deg_s=5)
         await asyncio.sleep(0.2)
         await cam.stop()
