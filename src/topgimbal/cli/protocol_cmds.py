@@ -233,27 +233,8 @@ def cmd_catalog(args: argparse.Namespace) -> int:
             if args.ident.upper() not in d.commands:
                 continue
             spec = d.command(args.ident)
-            entry: dict[str, Any] = {
-                "dialect": d.name,
-                "id": spec.ident,
-                "name": spec.name,
-                "title": spec.title,
-                "address": spec.address,
-                "section": spec.section,
-                "models": sorted(spec.models) if spec.models else sorted(d.models),
-                "documented": spec.documented,
-                "notes": spec.notes,
-                "forms": [
-                    {
-                        "rw": f.rw,
-                        "direction": f.direction,
-                        "title": f.title,
-                        "const": f.const.decode() if f.const else None,
-                        "fields": [x.describe() for x in f.fields],
-                    }
-                    for f in spec.forms
-                ],
-            }
+            entry: dict[str, Any] = {"dialect": d.name, **spec.describe()}
+            entry["models"] = entry["models"] or sorted(d.models)
             out.append(entry)
         if not out:
             raise UnknownCommandError(f"{args.ident!r} is in no catalog")

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..protocol import CommandSpec, DeviceModel, Dialect, Field, Form
+from ..protocol import CommandSpec, DeviceModel, Dialect
 
 
 def _jsonable(value: Any) -> Any:
@@ -22,48 +22,9 @@ def _jsonable(value: Any) -> Any:
     return str(value)
 
 
-def field_json(f: Field) -> dict[str, Any]:
-    """`field.describe()` plus the numeric range and step the codec holds (for input limits)."""
-    d = dict(f.describe())
-    codec = f.codec
-    for src, dst in (("min", "min"), ("max", "max")):
-        v = getattr(codec, src, None)
-        if isinstance(v, (int, float)) and not isinstance(v, bool) and d.get("kind") == "number":
-            d[dst] = v
-    if d.get("kind") == "number":
-        scale = getattr(codec, "scale", None)
-        decimals = getattr(codec, "decimals", None)
-        if isinstance(scale, (int, float)) and scale:
-            d["step"] = scale
-        elif isinstance(decimals, int):
-            d["step"] = 10.0**-decimals
-    return _jsonable(d)  # type: ignore[no-any-return]
-
-
-def form_json(form: Form) -> dict[str, Any]:
-    return {
-        "rw": form.rw,
-        "direction": form.direction,
-        "title": form.title,
-        "const": form.const.decode("latin-1") if form.const is not None else None,
-        "fields": [field_json(f) for f in form.fields],
-    }
-
-
 def command_json(spec: CommandSpec) -> dict[str, Any]:
-    return {
-        "id": spec.ident,
-        "name": spec.name,
-        "title": spec.title,
-        "address": spec.address,
-        "section": spec.section,
-        "readable": spec.readable,
-        "writable": spec.writable,
-        "documented": spec.documented,
-        "repeatable": spec.repeatable,
-        "notes": spec.notes,
-        "forms": [form_json(f) for f in spec.forms],
-    }
+    """The catalog's own description of the command (codecs give kinds, ranges, steps, tables)."""
+    return _jsonable(spec.describe())  # type: ignore[no-any-return]
 
 
 def model_json(model: DeviceModel) -> dict[str, Any]:

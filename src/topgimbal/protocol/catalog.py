@@ -68,6 +68,17 @@ class Form:
     def accepts_length(self, n: int) -> bool:
         return self._min_len <= n <= self._max_len  # type: ignore[attr-defined,no-any-return]
 
+    def describe(self) -> dict[str, Any]:
+        """The form's metadata as JSON-able data (CLI `catalog --json`, the console's page)."""
+        return {
+            "rw": self.rw,
+            "direction": self.direction,
+            "title": self.title,
+            "role": self.role,
+            "const": self.const.decode("latin-1") if self.const is not None else None,
+            "fields": [f.describe() for f in self.fields],
+        }
+
     def field(self, name: str) -> Field:
         for f in self.fields:
             if f.name == name:
@@ -137,6 +148,24 @@ class CommandSpec:
     repeatable: bool = True  # False: each write acts again (a photo), never retried
     motion: bool = False  # moves the gimbal (some firmware does not echo these)
     notes: str = ""
+
+    def describe(self) -> dict[str, Any]:
+        """The command's metadata as JSON-able data; `models` is None when every model has it."""
+        return {
+            "id": self.ident,
+            "name": self.name,
+            "title": self.title,
+            "address": self.address,
+            "section": self.section,
+            "models": sorted(self.models) if self.models is not None else None,
+            "readable": self.readable,
+            "writable": self.writable,
+            "documented": self.documented,
+            "repeatable": self.repeatable,
+            "motion": self.motion,
+            "notes": self.notes,
+            "forms": [f.describe() for f in self.forms],
+        }
 
     @cached_property
     def signed_fields(self) -> tuple[tuple[str, str | None, int], ...]:

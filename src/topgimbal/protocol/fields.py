@@ -76,7 +76,19 @@ class Codec:
         return value
 
     def describe(self) -> dict[str, Any]:
-        return {"kind": self.kind, "width": self.width, "unit": self.unit, "allowed": self.allowed()}
+        """Metadata as JSON-able data; number codecs add `min`, `max` and `step` (user units)."""
+        d: dict[str, Any] = {"kind": self.kind, "width": self.width, "unit": self.unit, "allowed": self.allowed()}
+        if self.kind == "number":
+            for key in ("min", "max"):
+                v = getattr(self, key, None)
+                if isinstance(v, (int, float)) and not isinstance(v, bool):
+                    d[key] = v
+            scale, decimals = getattr(self, "scale", None), getattr(self, "decimals", None)
+            if isinstance(scale, (int, float)) and scale:
+                d["step"] = scale
+            elif isinstance(decimals, int):
+                d["step"] = 10.0**-decimals
+        return d
 
 
 # -- numbers ---------------------------------------------------------------------------------------
