@@ -161,7 +161,7 @@ def test_errors_are_shown(page: Any, c12: BackgroundConsole) -> None:
 
 
 def test_traffic_filter_and_raw_frame(page: Any, c12: BackgroundConsole, artifacts: Path) -> None:
-    page.get_by_test_id("raw-input").fill("#TPUD2rVER00")  # checksum appended by the page
+    page.get_by_test_id("raw-input").fill("#TPUD2rVER00")  # the server appends the checksum
     page.get_by_test_id("btn-raw").click()
     result = page.get_by_test_id("cmd-result")
     wait_for(lambda: "version=" in result.inner_text(), what="the raw frame's reply")
@@ -169,7 +169,11 @@ def test_traffic_filter_and_raw_frame(page: Any, c12: BackgroundConsole, artifac
     traffic = page.get_by_test_id("traffic")
     page.get_by_test_id("traffic-filter").fill("VER")
     wait_for(lambda: traffic.locator(".tr.in[data-id=VER]").count() >= 1, what="the VER answer in the pane")
-    assert all(r.get_attribute("data-id") == "VER" for r in traffic.locator(".tr").all())
+    # Checked in one evaluation inside the page: live traffic keeps arriving while the filter applies.
+    wait_for(
+        lambda: traffic.evaluate("n => [...n.querySelectorAll('.tr')].every(r => r.dataset.id === 'VER')"),
+        what="only VER rows under the VER filter",
+    )
     page.get_by_test_id("traffic-dir").select_option("out")
     wait_for(lambda: traffic.locator(".tr.in").count() == 0, what="only outgoing frames")
     assert traffic.locator(".tr.out").count() >= 1
