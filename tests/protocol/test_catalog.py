@@ -414,3 +414,18 @@ def test_sign_metadata_is_in_the_catalog() -> None:
     assert motion == set(
         ["PTZ", "GSY", "GSP", "GSR", "GSM", "RPS", "YPR", "GAY", "GAP", "GAR", "GAM", "GIY", "GIP", "GIR", "GIM"]
     )
+
+
+def test_commands_describe_themselves_as_json() -> None:
+    import json
+
+    d = get_dialect("skydroid").command("GAY").describe()
+    json.dumps(d)  # JSON-able as is
+    assert d["id"] == "GAY" and d["motion"] is True and d["models"] == ["C10", "C10Pro", "C12", "C20"]
+    yaw = d["forms"][0]["fields"][0]
+    assert (yaw["name"], yaw["min"], yaw["max"], yaw["step"], yaw["unit"], yaw["axis"]) == (
+        "yaw_deg", -90, 90, 0.01, "deg", "yaw",
+    )  # fmt: skip
+    assert get_dialect("skydroid").command("AWB").describe()["models"] is None  # every model
+    q = get_dialect("topotek").command("SDC").describe()["forms"]
+    assert [f["const"] for f in q if f["rw"] == "r" and f["direction"] == "request"] == [None]
