@@ -177,3 +177,47 @@ def test_complete_frame_appends_only_a_missing_checksum() -> None:
         complete_frame("#TPUD3rVER00")  # length 3 with 2 data characters: not completed
     with pytest.raises(FrameError, match="header"):
         complete_frame("#hello world")
+
+
+# -- issue 9: identifiers, header/control agreement, text() ---------------------------------------
+
+
+@pytest.mark.parametrize("ident", ["G#C", "GA\xe9", "G C", "ga-", "GA", "GACX", "\x00AB"])
+def test_identifier_must_be_three_ascii_letters_or_digits(ident: str) -> None:
+    with pytest.raises(FrameError, match="3 ASCII letters or digits"):
+        make_frame(ident, "01", dst="D")
+    if len(ident) != 3:
+        return  # on the wire another length is just other bytes in the identifier's place
+    body = b"#TPUD2w" + ident.encode("latin-1") + b"01"
+    raw = body + b"%02X" % (sum(body) & 0xFF)
+    assert not dissect(raw).ok
+    parser = FrameParser()
+    assert [o for o in parser.feed_datagram(raw) if isinstance(o, Frame)] == []
+
+
+def test_identifiers_with_digits_and_lower_case_are_frames() -> None:
+    for ident in ("PA2", "gac", "H2O"):
+        frame = make_frame(ident, "01", dst="D")
+        assert FrameParser().feed_datagram(frame.to_bytes()) == [frame]
+
+
+def test_a_read_cannot_be_spelled_with_the_16_bit_length_header() -> None:
+    with pytest.raises(FrameError, match="#Tp frame has no control character"):
+        make_frame("GPS", b"\x00" * 20, dst="D", rw="r", header="#Tp")
+    assert make_frame("GPS", b"\x00" * 20, dst="D", rw="w", header="#Tp").rw == ""
+
+
+def test_text_escapes_what_is_not_printable_and_never_raises() -> None:
+    binary = Frame("#tP", "U", "D", "w", "GPS", b"\x00#\\ab\r\n\xff")
+    text = binary.text()
+    assert text.isascii() and text.isprintable()
+    assert "\\x00#\\\\ab\\x0d\\x0a\\xff" in text
+    # Frames built by hand with parts no wire can carry still render (logs and consoles show them).
+    for bad in (
+        Frame("#TP", "U", "D", "w", "G\u00e9S", b""),
+        Frame("#XX", "U", "D", "w", "GAC", b""),
+        Frame("#TP", "U", "D", "w", "GAC", b"x" * 40),
+        Frame("#TP", "\u4e2d", "D", "?", "GAC", b""),
+    ):
+        t = bad.text()
+        assert t.isascii() and t.isprintable()

@@ -36,6 +36,16 @@ ADDRESS_NAMES = {
 MAX_LENGTH = {"#TP": 0x0F, "#tp": 0x0F, "#tP": 0xFF, "#Tp": 0xFFFF}
 
 _HEX_UPPER = [b"%02X" % i for i in range(256)]
+# Frame.text(): printable ASCII stays, every other byte becomes \xNN (the backslash too, as \\,
+# so the text maps back to exactly one byte string).
+_ESCAPES = {i: f"\\x{i:02x}" for i in range(256) if not 0x20 <= i < 0x7F}
+_ESCAPES[0x5C] = "\\\\"
+_IDENT_CHARS = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789")
+
+
+def is_identifier(ident: str) -> bool:
+    """Three ASCII letters or digits: every identifier the documents and real clients use."""
+    return len(ident) == 3 and all(c in _IDENT_CHARS for c in ident)
 
 
 def checksum(data: bytes) -> int:
@@ -107,8 +117,15 @@ class Frame(NamedTuple):
         )
 
     def text(self) -> str:
-        """The frame as text (binary data bytes shown as \\xNN escapes)."""
-        return self.to_bytes().decode("latin-1").encode("ascii", "backslashreplace").decode("ascii")
+        """The frame as printable text: bytes outside printable ASCII (binary data, control
+        characters) shown as \\xNN escapes. Never raises, even for a frame whose parts are not
+        valid (built by hand): logs and consoles show whatever they are given."""
+        try:
+            raw = self.to_bytes()
+        except (FrameError, UnicodeError, TypeError, ValueError, AttributeError):
+            parts = (self.header, self.src, self.dst, str(self.length), self.rw, self.ident)
+            raw = "".join(str(p) for p in parts).encode("latin-1", "backslashreplace") + bytes(self.data or b"") + b"??"
+        return raw.decode("latin-1").translate(_ESCAPES)
 
     def __str__(self) -> str:
         return self.text()
@@ -126,8 +143,8 @@ def make_frame(
     """Build a frame, validating every part and choosing the header when not given."""
     if isinstance(data, str):
         data = data.encode("latin-1")
-    if len(ident) != 3 or not ident.isascii():
-        raise FrameError(f"identifier must be 3 ASCII characters, got {ident!r}")
+    if not isinstance(ident, str) or not is_identifier(ident):
+        raise FrameError(f"identifier must be 3 ASCII letters or digits, got {ident!r}")
     for role, addr in (("src", src), ("dst", dst)):
         if len(addr) != 1 or addr not in ADDRESSES:
             raise FrameError(f"{role} address must be one of {', '.join(ADDRESSES)}, got {addr!r}")
@@ -136,6 +153,10 @@ def make_frame(
     if header not in HEADERS:
         raise FrameError(f"header must be one of {', '.join(HEADERS)}, got {header!r}")
     if header == "#Tp":
+        # #Tp frames carry their 16-bit length where the control character would be: they are
+        # writes (reports) by construction, so a read cannot be spelled with this header.
+        if rw not in ("", "w"):
+            raise FrameError(f"a #Tp frame has no control character and is always a write; cannot send {rw!r}")
         rw = ""
     elif rw not in ("r", "w"):
         raise FrameError(f"control must be 'r' (query) or 'w' (set/control), got {rw!r}")
@@ -209,6 +230,11 @@ def dissect(raw: bytes, *, recover_length: bool = True) -> Dissection:
         return Dissection(raw, None, str(exc), header=h, src=src, dst=dst)
     rw = "" if h == "#Tp" else chr(raw[6])
     ident = raw[id_at : id_at + 3].decode("latin-1")
+    if not is_identifier(ident):
+        return Dissection(
+            raw, None, f"identifier {ident!r} is not 3 ASCII letters or digits", header=h, src=src, dst=dst
+        )
+
     data = raw[data_at:-2]
     crc = raw[-2:].decode("latin-1")
     expected = checksum_text(raw[:-2]).decode("ascii")

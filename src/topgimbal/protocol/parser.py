@@ -1,8 +1,12 @@
 """Streaming frame parser: bytes in any chunking -> frames and diagnostics.
 
 Contract: `feed()` never raises, never waits on bytes that cannot come (a good frame already in the
-buffer is never held back by garbage before it), keeps at most one maximum-size frame buffered,
+buffer is never held back by garbage before it), keeps at most two maximum-size frames buffered,
 resynchronises at the next `#`, and drops only the frame whose checksum is wrong.
+
+No valid frame is lost after garbage: an identifier is three ASCII letters or digits, and a
+candidate whose checksum is right yields to a valid frame that starts inside it (it matched by
+chance: garbage that happened to check out would otherwise swallow the real frame after it).
 
 Length recovery: when an ASCII-header frame fails its checksum at its declared length, the parser
 takes the length that ends exactly where the next thing starts (the next `#`, CR, LF, or the end of
@@ -24,7 +28,11 @@ for _i, _c in enumerate(b"abcdef"):
     _HEXVAL[_c] = 10 + _i
 _ADDR = frozenset(b"UMDEPG")
 _RW = frozenset(b"rw")
+# An identifier is three ASCII letters or digits (every command in both documents, and every one
+# real clients send); anything else after a header means the '#' did not start a frame.
+_IDENT = frozenset(b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789")
 _HDR = {b"TP": "#TP", b"tp": "#tp", b"tP": "#tP", b"Tp": "#Tp"}
+_ASCII_HDR = frozenset((b"TP", b"tp"))
 _SEPARATORS = frozenset(b"\r\n")
 _HEX2 = [b"%02X" % i for i in range(256)]
 _HEX2_LOWER = [b"%02x" % i for i in range(256)]
@@ -107,18 +115,13 @@ class FrameParser:
 
     def _frame_end(self, buf: bytes, i: int) -> int:
         """End offset of a frame starting at `i` (by its declared length), -1 if it cannot be a
-        frame, -2 if more bytes are needed to tell."""
+        frame, -2 if more bytes are needed to tell, -3 if it claims more than the bound."""
         n_buf = len(buf)
-        if n_buf < i + 7:
-            # judge what is there already so garbage is not held waiting
-            if n_buf > i + 2 and buf[i + 1 : i + 3] not in _HDR:
-                return -1
-            for k in (3, 4):
-                if n_buf > i + k and buf[i + k] not in _ADDR:
-                    return -1
-            return -2
+        if n_buf < i + 10:
+            return -1 if _bad_prefix(buf, i, n_buf) else -2
         hdr = buf[i + 1 : i + 3]
-        if hdr not in _HDR or buf[i + 3] not in _ADDR or buf[i + 4] not in _ADDR:
+        # bytes.isalnum() is ASCII-only: exactly the identifier rule, in one call
+        if hdr not in _HDR or buf[i + 3] not in _ADDR or buf[i + 4] not in _ADDR or not buf[i + 7 : i + 10].isalnum():
             return -1
         if hdr == b"TP" or hdr == b"tp":
             n = _HEXVAL[buf[i + 5]]
@@ -139,6 +142,26 @@ class FrameParser:
         if end < 0 or end > len(buf):
             return False
         return buf[end - 2 : end].upper() == _HEX2[sum(buf[j : end - 2]) & 0xFF]
+
+    def _inner_frame(self, buf: bytes, i: int, end: int, final: bool) -> int | None:
+        """For a frame at `i` whose checksum is right: the start of the first valid frame that begins
+        inside it (-1 if there is none, None if bytes still to come decide).
+
+        Such a frame wins. The one at `i` then matched its checksum by chance (1 in 256 per
+        candidate end) and came out of garbage: taking it would swallow the real frame inside it.
+        A real frame holding a whole valid frame in its data is far less likely still: ASCII data
+        never contain '#', and only TOPOTEK's 10- and 14-byte binary GPS/UAV payloads could."""
+        n_buf = len(buf)
+        j = buf.find(b"#", i + 1, end)
+        while j >= 0:
+            e = self._frame_end(buf, j)
+            if e == -2 or e > n_buf:
+                if not final:
+                    return None
+            elif e > 0 and self._valid_complete_at(buf, j):
+                return j
+            j = buf.find(b"#", j + 1, end)
+        return -1
 
     def _scan(self, buf: bytes, pos: int, out: list[Frame | Diagnostic], final: bool) -> int:
         n_buf = len(buf)
@@ -167,15 +190,14 @@ class FrameParser:
                 continue
             if end > n_buf:
                 # Incomplete: wait, unless a complete good frame already follows (then this frame
-                # is either one whose length character claims too much, or garbage; waiting would
+                # is either one whose length field claims too much, or garbage; waiting would
                 # hold the good frame back).
                 j = buf.find(b"#", i + 1)
                 while j >= 0 and not self._valid_complete_at(buf, j):
                     j = buf.find(b"#", j + 1)
                 if j < 0:
                     return i  # wait for the rest (flush() discards it)
-                hdr = buf[i + 1 : i + 3]
-                if self.recover_length and (hdr == b"TP" or hdr == b"tp"):
+                if self.recover_length and buf[i + 1 : i + 3] in _ASCII_HDR:
                     rec = self._recover(buf, i, final=True)
                     if isinstance(rec, tuple):
                         pos = self._emit_recovered(rec, buf, i, out)
@@ -186,32 +208,27 @@ class FrameParser:
             crc = buf[end - 2 : end]
             s = sum(buf[i : end - 2]) & 0xFF
             if crc == _HEX2[s] or crc == _HEX2_LOWER[s]:
+                inner = -1 if buf.find(b"#", i + 1, end) < 0 else self._inner_frame(buf, i, end, final)
+                if inner is None:
+                    return i  # a frame that starts inside this one is still arriving
+                if inner >= 0:
+                    self._discard(buf[i:inner], out, "checksum matched by chance: a frame starts inside")
+                    pos = inner
+                    continue
+                ident = buf[i + 7 : i + 10].decode("ascii")
                 hdr = buf[i + 1 : i + 3]
                 if hdr == b"Tp":
-                    frame = Frame(
-                        "#Tp",
-                        chr(buf[i + 3]),
-                        chr(buf[i + 4]),
-                        "",
-                        buf[i + 7 : i + 10].decode("latin-1"),
-                        buf[i + 10 : end - 2],
-                    )
+                    frame = Frame("#Tp", chr(buf[i + 3]), chr(buf[i + 4]), "", ident, buf[i + 10 : end - 2])
                 else:
                     frame = Frame(
-                        _HDR[hdr],
-                        chr(buf[i + 3]),
-                        chr(buf[i + 4]),
-                        chr(buf[i + 6]),
-                        buf[i + 7 : i + 10].decode("latin-1"),
-                        buf[i + 10 : end - 2],
+                        _HDR[hdr], chr(buf[i + 3]), chr(buf[i + 4]), chr(buf[i + 6]), ident, buf[i + 10 : end - 2]
                     )
                 stats.frames += 1
                 out.append(frame)
                 pos = end
                 continue
             # Bad checksum at the declared length.
-            hdr = buf[i + 1 : i + 3]
-            if self.recover_length and (hdr == b"TP" or hdr == b"tp"):
+            if self.recover_length and buf[i + 1 : i + 3] in _ASCII_HDR:
                 rec = self._recover(buf, i, final)
                 if rec is None:
                     return i  # a longer candidate may still complete: wait for bytes
@@ -288,3 +305,21 @@ class FrameParser:
             declared,
         )
         return frame, end
+
+
+def _bad_prefix(buf: bytes, i: int, n_buf: int) -> bool:
+    """True if the bytes already after the '#' at `i` rule out a frame (so garbage is dropped at
+    once instead of being held waiting for bytes that cannot make it a frame)."""
+    if n_buf <= i + 2:
+        return n_buf > i + 1 and buf[i + 1] not in b"Tt"
+    hdr = buf[i + 1 : i + 3]
+    if hdr not in _HDR:
+        return True
+    for k in (3, 4):
+        if n_buf > i + k and buf[i + k] not in _ADDR:
+            return True
+    if n_buf > i + 5 and (hdr == b"TP" or hdr == b"tp") and _HEXVAL[buf[i + 5]] < 0:
+        return True
+    if n_buf > i + 6 and hdr != b"Tp" and buf[i + 6] not in _RW:
+        return True
+    return any(n_buf > i + k and buf[i + k] not in _IDENT for k in (7, 8, 9))
