@@ -75,7 +75,9 @@ class Pointer:
         """Send one set-point and return once the camera confirmed it (raises otherwise)."""
         if sp.lock is not None and (self.profile.has_lock and self.profile.has_follow):
             want = "lock" if sp.lock else "follow"
-            if want != self.mode:
+            # Cameras power up following the vehicle: an unknown mode counts as follow, so plain
+            # angle commands (no YAW_LOCK flag) send no mode frame at all.
+            if want != (self.mode or "follow"):
                 await self.cam.call(lambda c: c.set_mode(want))
                 self.mode = want
         if sp.is_rate:
