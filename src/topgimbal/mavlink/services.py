@@ -29,7 +29,6 @@ MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_CMD_GET_MESSAGE_INTERVAL = 510
 # Legacy request commands -> (message id, which parameter carries the message's index).
 LEGACY_REQUESTS: dict[int, tuple[int, int | None]] = {
-    519: (300, None),  # REQUEST_PROTOCOL_VERSION -> PROTOCOL_VERSION
     521: (259, None),  # REQUEST_CAMERA_INFORMATION
     522: (260, None),  # REQUEST_CAMERA_SETTINGS
     525: (261, None),  # REQUEST_STORAGE_INFORMATION
@@ -69,7 +68,6 @@ class Services:
         dispatcher.register(comp, MAV_CMD_GET_MESSAGE_INTERVAL, self._get_interval)
         for cmd in LEGACY_REQUESTS:
             dispatcher.register(comp, cmd, self._legacy_request)
-        self.provide(300, self._protocol_version)
 
     def provide(self, msgid: int, provider: Provider) -> None:
         self.providers[msgid] = provider
@@ -161,6 +159,3 @@ class Services:
         else:
             interval = -1 if s.hz <= 0 else int(1e6 / s.hz)
         return Outcome(after=[mavlink().MAVLink_message_interval_message(msgid, interval)])
-
-    async def _protocol_version(self, cmd: Command) -> list[Any]:
-        return [mavlink().MAVLink_protocol_version_message(200, 100, 200, bytes(8), bytes(8))]
