@@ -76,8 +76,11 @@ class Peer:
     async def ack(self, compid: int, command: int, *params: float, timeout: float = 8.0, **kw: Any) -> Any:
         """Send a command and return its final (not in-progress) COMMAND_ACK from `compid`."""
         fut = asyncio.ensure_future(
-            self.wait("COMMAND_ACK", lambda m: m.command == command and m.result != 5 and m.get_srcComponent() == compid,
-                      timeout)  # fmt: skip
+            self.wait(
+                "COMMAND_ACK",
+                lambda m: m.command == command and m.result != 5 and m.get_srcComponent() == compid,
+                timeout,
+            )
         )
         await asyncio.sleep(0)
         if kw.pop("as_int", False):

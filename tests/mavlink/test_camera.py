@@ -99,12 +99,16 @@ async def test_zoom_range_continuous_and_focus(rig) -> None:
     assert zmc == ["zoom_in"]  # the C12 has no optical zoom motor to move, but it got the command
     assert (await p.ack(CAMERA, ml.MAV_CMD_SET_CAMERA_ZOOM, ml.ZOOM_TYPE_CONTINUOUS, 0)).result == 0
     assert [s.dialect.decode(f).fields["action"] for f in s.received if f.ident == "ZMC"] == ["zoom_in", "stop"]
-    assert (await p.ack(CAMERA, ml.MAV_CMD_SET_CAMERA_ZOOM, ml.ZOOM_TYPE_FOCAL_LENGTH, 20)).result == ml.MAV_RESULT_UNSUPPORTED
+    assert (
+        await p.ack(CAMERA, ml.MAV_CMD_SET_CAMERA_ZOOM, ml.ZOOM_TYPE_FOCAL_LENGTH, 20)
+    ).result == ml.MAV_RESULT_UNSUPPORTED
     assert (await p.ack(CAMERA, ml.MAV_CMD_SET_CAMERA_FOCUS, ml.FOCUS_TYPE_CONTINUOUS, 1)).result == 0
     assert s.camera.focus_dir == 1
     assert (await p.ack(CAMERA, ml.MAV_CMD_SET_CAMERA_FOCUS, ml.FOCUS_TYPE_AUTO)).result == 0
     assert s.camera.autofocus
-    assert (await p.ack(CAMERA, ml.MAV_CMD_SET_CAMERA_FOCUS, ml.FOCUS_TYPE_METERS, 3)).result == ml.MAV_RESULT_UNSUPPORTED
+    assert (
+        await p.ack(CAMERA, ml.MAV_CMD_SET_CAMERA_FOCUS, ml.FOCUS_TYPE_METERS, 3)
+    ).result == ml.MAV_RESULT_UNSUPPORTED
 
 
 async def test_tracking_point_and_stop(rig) -> None:
@@ -118,7 +122,9 @@ async def test_tracking_point_and_stop(rig) -> None:
     assert (await p.ack(CAMERA, ml.MAV_CMD_CAMERA_STOP_TRACKING)).result == 0
     assert s.camera.tracking == "stopped"
     # the C12 has no rectangle tracking: unsupported, nothing sent
-    assert (await p.ack(CAMERA, ml.MAV_CMD_CAMERA_TRACK_RECTANGLE, 0.1, 0.1, 0.2, 0.2)).result == ml.MAV_RESULT_UNSUPPORTED
+    assert (
+        await p.ack(CAMERA, ml.MAV_CMD_CAMERA_TRACK_RECTANGLE, 0.1, 0.1, 0.2, 0.2)
+    ).result == ml.MAV_RESULT_UNSUPPORTED
 
 
 async def test_legacy_requests_message_interval_and_unknown_commands(rig) -> None:
@@ -172,7 +178,9 @@ async def test_fov_status_and_photo_position_with_a_vehicle(rig) -> None:
     try:
         rig.sim.gimbal.angle("pitch", -45.0)
         await eventually(lambda: abs(rig.sim.gimbal.pitch_deg + 45) < 0.01)
-        await eventually(lambda: rig.bridge.cam.attitude is not None and abs(rig.bridge.cam.attitude.pitch_deg + 45) < 0.01)
+        await eventually(
+            lambda: rig.bridge.cam.attitude is not None and abs(rig.bridge.cam.attitude.pitch_deg + 45) < 0.01
+        )
         autopilot.send(ml.MAVLink_attitude_message(0, 0.0, 0.0, 0.0, 0, 0, 0))
         autopilot.send(ml.MAVLink_global_position_int_message(0, 470000000, 80000000, 600000, 100000, 0, 0, 0, 0))
         fov = await p.request(CAMERA, 271, "CAMERA_FOV_STATUS")

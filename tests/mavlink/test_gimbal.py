@@ -57,14 +57,20 @@ async def test_attitude_status_is_the_simulators_attitude(rig) -> None:
 
 async def test_angular_velocity_while_turning(rig) -> None:
     rig.sim.gimbal.rate("yaw", 8.0)
-    st = await rig.peer.wait("GIMBAL_DEVICE_ATTITUDE_STATUS", lambda m: abs(math.degrees(m.angular_velocity_z) - 8) < 1.5)
+    st = await rig.peer.wait(
+        "GIMBAL_DEVICE_ATTITUDE_STATUS", lambda m: abs(math.degrees(m.angular_velocity_z) - 8) < 1.5
+    )
     assert abs(math.degrees(st.angular_velocity_y)) < 1.5
 
 
 async def test_device_set_attitude_angle_and_rate_forms(rig) -> None:
     s, p = rig.sim, rig.peer
     q = from_euler_deg(0, -20, 15)
-    flags = ml.GIMBAL_DEVICE_FLAGS_ROLL_LOCK | ml.GIMBAL_DEVICE_FLAGS_PITCH_LOCK | ml.GIMBAL_DEVICE_FLAGS_YAW_IN_VEHICLE_FRAME
+    flags = (
+        ml.GIMBAL_DEVICE_FLAGS_ROLL_LOCK
+        | ml.GIMBAL_DEVICE_FLAGS_PITCH_LOCK
+        | ml.GIMBAL_DEVICE_FLAGS_YAW_IN_VEHICLE_FRAME
+    )
     for _ in range(5):  # autopilots stream set-points; repeats are dropped, not queued
         p.send(ml.MAVLink_gimbal_device_set_attitude_message(1, GIMBAL, flags, list(q), NAN, NAN, NAN))
     await eventually(lambda: abs(s.gimbal.yaw_deg - 15) < 0.05 and abs(s.gimbal.pitch_deg + 20) < 0.05, 10)
@@ -77,7 +83,9 @@ async def test_device_set_attitude_angle_and_rate_forms(rig) -> None:
 async def test_yaw_lock_flag_sets_the_cameras_lock_mode(rig) -> None:
     s, p = rig.sim, rig.peer
     flags = ml.GIMBAL_DEVICE_FLAGS_YAW_LOCK | ml.GIMBAL_DEVICE_FLAGS_YAW_IN_VEHICLE_FRAME
-    p.send(ml.MAVLink_gimbal_device_set_attitude_message(1, GIMBAL, flags, list(from_euler_deg(0, 0, 5)), NAN, NAN, NAN))
+    p.send(
+        ml.MAVLink_gimbal_device_set_attitude_message(1, GIMBAL, flags, list(from_euler_deg(0, 0, 5)), NAN, NAN, NAN)
+    )
     await eventually(lambda: s.gimbal.mode == "lock")
     st = await p.wait("GIMBAL_DEVICE_ATTITUDE_STATUS", lambda m: m.flags & ml.GIMBAL_DEVICE_FLAGS_YAW_LOCK)
     assert st.flags & ml.GIMBAL_DEVICE_FLAGS_YAW_IN_VEHICLE_FRAME
@@ -92,7 +100,11 @@ async def test_earth_frame_yaw_uses_the_vehicle_heading(rig) -> None:
     try:
         autopilot.send(ml.MAVLink_attitude_message(0, 0.0, 0.0, math.radians(40), 0, 0, 0))
         flags = ml.GIMBAL_DEVICE_FLAGS_YAW_IN_EARTH_FRAME
-        p.send(ml.MAVLink_gimbal_device_set_attitude_message(1, GIMBAL, flags, list(from_euler_deg(0, 0, 60)), NAN, NAN, NAN))
+        p.send(
+            ml.MAVLink_gimbal_device_set_attitude_message(
+                1, GIMBAL, flags, list(from_euler_deg(0, 0, 60)), NAN, NAN, NAN
+            )
+        )
         await eventually(lambda: abs(s.gimbal.yaw_deg - 20) < 0.05, 10, "body yaw 60 - 40 = 20")
     finally:
         autopilot.close()
@@ -110,7 +122,9 @@ async def test_manager_information_status_and_pitchyaw(rig) -> None:
     ack = await p.ack(GIMBAL, ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, NAN, NAN, 0, 6, 0, 0, 0, as_int=True)
     assert ack.result == ml.MAV_RESULT_ACCEPTED
     await eventually(lambda: s.gimbal.yaw_deg > 21, what="yaw rate 6 deg/s")
-    assert (await p.ack(GIMBAL, ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, NAN, NAN, NAN, NAN)).result == ml.MAV_RESULT_DENIED
+    assert (
+        await p.ack(GIMBAL, ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, NAN, NAN, NAN, NAN)
+    ).result == ml.MAV_RESULT_DENIED
     # out of the C12's range: denied before anything is sent
     assert (await p.ack(GIMBAL, ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, 0, 120)).result == ml.MAV_RESULT_DENIED
     st = await p.wait("GIMBAL_MANAGER_STATUS")
@@ -137,9 +151,13 @@ async def test_manager_configure_gives_control_to_one_sender(rig) -> None:
 
 async def test_manager_set_attitude_and_set_pitchyaw_streams(rig) -> None:
     s, p = rig.sim, rig.peer
-    p.send(ml.MAVLink_gimbal_manager_set_attitude_message(1, GIMBAL, 0, 0, list(from_euler_deg(0, 10, -25)), NAN, NAN, NAN))
+    p.send(
+        ml.MAVLink_gimbal_manager_set_attitude_message(1, GIMBAL, 0, 0, list(from_euler_deg(0, 10, -25)), NAN, NAN, NAN)
+    )
     await eventually(lambda: abs(s.gimbal.yaw_deg + 25) < 0.05 and abs(s.gimbal.pitch_deg - 10) < 0.05, 10)
-    p.send(ml.MAVLink_gimbal_manager_set_pitchyaw_message(1, GIMBAL, 0, 0, math.radians(-15), math.radians(5), NAN, NAN))
+    p.send(
+        ml.MAVLink_gimbal_manager_set_pitchyaw_message(1, GIMBAL, 0, 0, math.radians(-15), math.radians(5), NAN, NAN)
+    )
     await eventually(lambda: abs(s.gimbal.yaw_deg - 5) < 0.05 and abs(s.gimbal.pitch_deg + 15) < 0.05, 10)
 
 
@@ -171,7 +189,9 @@ async def test_roi_location_needs_and_uses_the_vehicle_position(rig) -> None:
     try:
         # 111 m north, 100 m below the vehicle, vehicle heading 0: yaw 0, pitch ~ -42 deg
         autopilot.send(ml.MAVLink_attitude_message(0, 0.0, 0.0, 0.0, 0, 0, 0))
-        autopilot.send(ml.MAVLink_global_position_int_message(0, int(lat * 1e7), int(lon * 1e7), 500000, 100000, 0, 0, 0, 0))
+        autopilot.send(
+            ml.MAVLink_global_position_int_message(0, int(lat * 1e7), int(lon * 1e7), 500000, 100000, 0, 0, 0, 0)
+        )
         ack = await p.ack(GIMBAL, ml.MAV_CMD_DO_SET_ROI_LOCATION, 0, 0, 0, 0, lat + 0.001, lon, 400.0)
         assert ack.result == ml.MAV_RESULT_ACCEPTED
         expected_pitch = -math.degrees(math.atan2(100.0, math.radians(0.001) * 6371008.8))
@@ -179,7 +199,9 @@ async def test_roi_location_needs_and_uses_the_vehicle_position(rig) -> None:
         # the vehicle turns right by 30 deg: the gimbal turns left to keep the place in view
         for _ in range(3):
             autopilot.send(ml.MAVLink_attitude_message(0, 0.0, 0.0, math.radians(30), 0, 0, 0))
-            autopilot.send(ml.MAVLink_global_position_int_message(0, int(lat * 1e7), int(lon * 1e7), 500000, 100000, 0, 0, 0, 3000))
+            autopilot.send(
+                ml.MAVLink_global_position_int_message(0, int(lat * 1e7), int(lon * 1e7), 500000, 100000, 0, 0, 0, 3000)
+            )
         await eventually(lambda: abs(s.gimbal.yaw_deg + 30) < 0.2, 15)
         assert (await p.ack(GIMBAL, ml.MAV_CMD_DO_SET_ROI_NONE)).result == ml.MAV_RESULT_ACCEPTED
         assert rig.bridge.manager.roi is None
@@ -194,7 +216,9 @@ async def test_camera_that_stops_answering_and_comes_back(rig_factory) -> None:
     p = r.peer
     port = r.sim.addresses["udp"][0][1]
     await r.sim.stop()
-    st = await p.wait("GIMBAL_DEVICE_ATTITUDE_STATUS", lambda m: m.failure_flags & ml.GIMBAL_DEVICE_ERROR_FLAGS_COMMS_ERROR)
+    st = await p.wait(
+        "GIMBAL_DEVICE_ATTITUDE_STATUS", lambda m: m.failure_flags & ml.GIMBAL_DEVICE_ERROR_FLAGS_COMMS_ERROR
+    )
     assert st.get_srcComponent() == GIMBAL
     ack = await p.ack(GIMBAL, ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, -10, 0)
     assert ack.result == ml.MAV_RESULT_FAILED and ack.result_param2 == 2  # the camera did not answer

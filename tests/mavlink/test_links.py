@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+from typing import Any
 
 import pytest
 from pymavlink.dialects.v20 import common as ml
@@ -44,7 +45,7 @@ def test_quaternion_round_trip() -> None:
         e = to_euler_deg(from_euler_deg(r, p, y))
         assert math.isclose(e.roll_deg, r, abs_tol=1e-6) and math.isclose(e.pitch_deg, p, abs_tol=1e-6)
         assert math.isclose(e.yaw_deg, y, abs_tol=1e-6)
-    w, x, y, z = from_euler_deg(0, 0, 90)  # yaw right 90 deg: rotation about +z (down)
+    w, _x, _y, z = from_euler_deg(0, 0, 90)  # yaw right 90 deg: rotation about +z (down)
     assert math.isclose(w, math.sqrt(0.5)) and math.isclose(z, math.sqrt(0.5))
 
 
@@ -94,12 +95,14 @@ async def test_tcpin_and_garbage(rig_factory) -> None:
         writer.write(ml.MAVLink_command_long_message(1, 154, 512, 0, 283, 0, 0, 0, 0, 0, 0).pack(mav))
         parser = ml.MAVLink(None)
         got = None
-        async def read() -> None:
+
+        async def read(parser: Any = parser, reader: Any = reader) -> None:
             nonlocal got
             while got is None:
                 for m in parser.parse_buffer(await reader.read(4096)) or []:
                     if m.get_type() == "GIMBAL_DEVICE_INFORMATION":
                         got = m
+
         await asyncio.wait_for(read(), 5)
         assert got is not None and got.model_name == "C12"
         writer.close()
@@ -113,7 +116,7 @@ async def test_tcp_link_reconnects_to_a_ground_station_that_starts_late(rig_fact
     s.bind(("127.0.0.1", 0))
     port = s.getsockname()[1]
     s.close()
-    r = await rig_factory("C12", endpoints=["udpin:127.0.0.1:0", f"tcp:127.0.0.1:{port}"])
+    await rig_factory("C12", endpoints=["udpin:127.0.0.1:0", f"tcp:127.0.0.1:{port}"])
     seen = asyncio.get_running_loop().create_future()
 
     async def gcs(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:

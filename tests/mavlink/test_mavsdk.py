@@ -50,7 +50,9 @@ async def test_mavsdk_ground_station(rig_factory) -> None:
             await gimbal.set_angles(gid, 0.0, -30.0, 20.0, GimbalMode.YAW_FOLLOW, SendMode.ONCE)
             att = await _until(
                 gimbal.subscribe_attitude(),
-                lambda a: abs(a.euler_angle_forward.pitch_deg + 30) <= 0.5 and abs(a.euler_angle_forward.yaw_deg - 20) <= 0.5,
+                lambda a: (
+                    abs(a.euler_angle_forward.pitch_deg + 30) <= 0.5 and abs(a.euler_angle_forward.yaw_deg - 20) <= 0.5
+                ),
                 30,
             )
             assert att is not None, "MAVSDK never saw the target attitude"
@@ -61,7 +63,9 @@ async def test_mavsdk_ground_station(rig_factory) -> None:
             assert abs(e.pitch_deg - sim.gimbal.pitch_deg) < 0.1 and abs(e.yaw_deg - sim.gimbal.yaw_deg) < 0.1
             assert abs(e.roll_deg - sim.gimbal.roll_deg) < 0.1
 
-            clist = await _until(camera.subscribe_camera_list(), lambda c: any(i.component_id == CAMERA for i in c.cameras), 20)
+            clist = await _until(
+                camera.subscribe_camera_list(), lambda c: any(i.component_id == CAMERA for i in c.cameras), 20
+            )
             assert clist is not None, "camera not discovered"
             await camera.take_photo(CAMERA)
             await eventually(lambda: sim.camera.photos_taken >= 1, 5)

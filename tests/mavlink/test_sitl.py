@@ -26,7 +26,9 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-@pytest.mark.skipif(not SITL, reason="ARDUPILOT_SITL is not set to an arducopter SITL binary: the MNT1_TYPE=6 test cannot run")
+@pytest.mark.skipif(
+    not SITL, reason="ARDUPILOT_SITL is not set to an arducopter SITL binary: the MNT1_TYPE=6 test cannot run"
+)
 async def test_ardupilot_drives_the_gimbal_device(rig_factory) -> None:
     assert SITL is not None and Path(SITL).is_file(), f"ARDUPILOT_SITL={SITL!r} is not a file"
     base = _free_port()

@@ -56,7 +56,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--range-hz", type=float, default=1.0, help="rangefinder polling for DISTANCE_SENSOR (0: off)")
     p.add_argument("--video-url", action="append", help="RTSP URL to announce (repeatable; default: the model's)")
     p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds")
-    p.add_argument("--silence", type=float, default=3.0, help="seconds without a frame before the camera counts as down")
+    p.add_argument(
+        "--silence", type=float, default=3.0, help="seconds without a frame before the camera counts as down"
+    )
     p.add_argument("--max-peers", type=int, default=16, help="peers per listening link (default 16)")
     p.add_argument("-v", "--verbose", action="store_true", help="log every link and camera change")
     p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
@@ -99,7 +101,10 @@ def run(args: argparse.Namespace) -> int:
     async def main() -> None:
         bridge = Bridge(config)  # type: ignore[arg-type]
         await bridge.start()
-        addrs = ", ".join(f"{link} ({a[0]}:{a[1]})" if a else str(link) for link, a in zip(bridge.node.links, bridge.addresses))
+        addrs = ", ".join(
+            f"{link} ({a[0]}:{a[1]})" if a else str(link)
+            for link, a in zip(bridge.node.links, bridge.addresses, strict=True)
+        )
         print(f"mavlink bridge: {config.url} ({config.model}) <-> {addrs}, system {config.sysid}, "  # type: ignore[attr-defined]
               f"role {config.role}", flush=True)  # type: ignore[attr-defined]  # fmt: skip
         stop = asyncio.Event()

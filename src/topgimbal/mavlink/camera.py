@@ -191,7 +191,8 @@ class CameraComponent:
 
     def _settings_message(self) -> Any:
         return mavlink().MAVLink_camera_settings_message(
-            self.comp.node.time_boot_ms(), self.mode_id, self.zoom_pct, float("nan"))
+            self.comp.node.time_boot_ms(), self.mode_id, self.zoom_pct, float("nan")
+        )
 
     async def _storage(self, cmd: Command) -> list[Any]:
         if not self.profile.has_sd:
@@ -457,7 +458,7 @@ class CameraComponent:
             "width_px": max(1, round((x1 - x0) * w)), "height_px": max(1, round((y1 - y0) * h)),
         }  # fmt: skip
         await self.cam.call(lambda c: c.request("TRC", action="start"))
-        await self.cam.call(lambda c: c.request("LOC", **box, reserved="0000"))
+        await self.cam.call(lambda c: c.request("LOC", reserved="0000", **box))  # type: ignore[arg-type]
 
     async def _track_stop(self, cmd: Command) -> Outcome:
         if self.profile.has("SUM"):
@@ -503,7 +504,8 @@ class CameraComponent:
         vfov = lens.vfov_deg / zoom if lens else nan
         q = self._earth_quaternion() if vyaw is not None else (nan, nan, nan, nan)
         return mavlink().MAVLink_camera_fov_status_message(
-            self.comp.node.time_boot_ms(), lat_c, lon_c, alt_c, lat_i, lon_i, alt_i, list(q), hfov, vfov, 0)
+            self.comp.node.time_boot_ms(), lat_c, lon_c, alt_c, lat_i, lon_i, alt_i, list(q), hfov, vfov, 0
+        )
 
     async def _distance_now(self, cmd: Command) -> list[Any]:
         d = await self.cam.call(lambda c: c.range())

@@ -195,7 +195,7 @@ class Dispatcher:
             return
         task = asyncio.ensure_future(self._run(comp, cmd, handler))
         self._inflight[key] = task
-        task.add_done_callback(lambda _t, k=key: self._inflight.pop(k, None))
+        task.add_done_callback(lambda _t: self._inflight.pop(key, None))
 
     async def _run(self, comp: Component, cmd: Command, handler: Handler) -> None:
         work = asyncio.ensure_future(handler(cmd))

@@ -295,7 +295,9 @@ class StreamLink(Link):
         try:
             import serial_asyncio_fast
         except ImportError:  # pragma: no cover - depends on the installation
-            raise EndpointError("serial MAVLink links need pyserial-asyncio-fast: pip install 'topgimbal[serial]'") from None
+            raise EndpointError(
+                "serial MAVLink links need pyserial-asyncio-fast: pip install 'topgimbal[serial]'"
+            ) from None
         await serial_asyncio_fast.create_serial_connection(
             loop, lambda: _StreamProtocol(self, peer), self.spec.device, baudrate=self.spec.baud
         )

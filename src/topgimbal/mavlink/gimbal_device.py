@@ -96,6 +96,7 @@ class GimbalDevice:
         self.status_sent = 0
         self.set_attitude_received = 0
         self._task: asyncio.Task[None] | None = None
+        self._bg: asyncio.Future[None] | None = None
         cam.on_attitude(self._on_attitude)
         cam.on_health(self._on_health)
 
@@ -199,7 +200,7 @@ class GimbalDevice:
             self.pointer.stream(sp)
         elif msg.flags & F_NEUTRAL and self.profile.has_neutral:
             self.pointer.cancel_stream()
-            asyncio.ensure_future(_quietly(self.cam.call(lambda c: c.center())))
+            self._bg = asyncio.ensure_future(_quietly(self.cam.call(lambda c: c.center())))
 
 
 def setpoint_from(flags: int, q: Any, rates_rad_s: tuple[float, float, float]) -> Setpoint | None:

@@ -47,6 +47,7 @@ class GimbalManager:
         self.secondary: tuple[int, int] = (0, 0)
         self.roi: Position | int | None = None  # a place, or a system id to follow
         self._roi_task: asyncio.Task[None] | None = None
+        self._stopping: asyncio.Future[None] | None = None
         services.provide(MSG_MANAGER_INFORMATION, self._information)
         services.provide(MSG_MANAGER_STATUS, self._status_now)
         services.add_stream(MSG_MANAGER_STATUS, self.status_message, 5.0, 20.0)
@@ -148,10 +149,15 @@ class GimbalManager:
             return
         if not self._for_us(float(msg.gimbal_device_id)):
             return
-        if self.primary != (0, 0) and (msg.get_srcSystem(), msg.get_srcComponent()) not in (self.primary, self.secondary):
+        if self.primary != (0, 0) and (msg.get_srcSystem(), msg.get_srcComponent()) not in (
+            self.primary,
+            self.secondary,
+        ):
             return  # not in control: ignored, as the protocol says
         if kind == "GIMBAL_MANAGER_SET_ATTITUDE":
-            sp = setpoint_from(msg.flags, msg.q, (msg.angular_velocity_x, msg.angular_velocity_y, msg.angular_velocity_z))
+            sp = setpoint_from(
+                msg.flags, msg.q, (msg.angular_velocity_x, msg.angular_velocity_y, msg.angular_velocity_z)
+            )
         else:
             sp = _pitchyaw_setpoint(msg)
         if sp is not None:
@@ -177,9 +183,10 @@ class GimbalManager:
             await self._stop_roi()
             return Outcome()
         if c == CMD_ROI_SYSID:
-            target: Position | int = int(cmd.p(1))
-            if self.vehicles.fix(target) is None:
-                raise rejected(f"no position heard from system {target}")
+            sysid = int(cmd.p(1))
+            if self.vehicles.fix(sysid) is None:
+                raise rejected(f"no position heard from system {sysid}")
+            target: Position | int = sysid
         else:
             alt = cmd.p(7)
             if cmd.frame in (3, 6):  # relative to home
@@ -202,7 +209,7 @@ class GimbalManager:
         if fix is None or yaw is None:
             raise rejected("the vehicle's position and heading are not known yet")
         if isinstance(target, int):
-            other = self.vehicles.fix(target)
+            other = self.vehicles.fix(int(target))
             if other is None:
                 raise rejected(f"no position heard from system {target}")
             place = other.position
@@ -229,7 +236,7 @@ class GimbalManager:
 
     def _cancel_roi_soon(self) -> None:
         if self.roi is not None:
-            asyncio.ensure_future(self._stop_roi())
+            self._stopping = asyncio.ensure_future(self._stop_roi())
 
 
 def _control(current: tuple[int, int], sysid: float, compid: float, me: tuple[int, int]) -> tuple[int, int]:

@@ -128,4 +128,6 @@ class Node:
                 try:
                     cb(m)
                 except Exception:
-                    log.exception("handling %s from %d/%d failed", m.get_type(), m.get_srcSystem(), m.get_srcComponent())
+                    log.exception(
+                        "handling %s from %d/%d failed", m.get_type(), m.get_srcSystem(), m.get_srcComponent()
+                    )

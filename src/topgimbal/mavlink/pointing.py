@@ -89,7 +89,9 @@ class Pointer:
             yaw, frame = self._body_yaw(sp)
             yaw = self._angle("yaw", yaw, clamp)
             pitch = self._angle("pitch", sp.pitch_deg, clamp)
-            roll = sp.roll_deg if self.profile.has_roll and sp.roll_deg is not None and abs(sp.roll_deg) > 0.05 else None
+            roll = (
+                sp.roll_deg if self.profile.has_roll and sp.roll_deg is not None and abs(sp.roll_deg) > 0.05 else None
+            )
             roll = self._angle("roll", roll, clamp)
             if yaw is None and pitch is None and roll is None:
                 return
@@ -133,7 +135,7 @@ class Pointer:
         if self._last_sent is None:
             return False
         last, t = self._last_sent
-        if last.lock != sp.lock and sp.lock is not None or last.earth_yaw != sp.earth_yaw:
+        if (last.lock != sp.lock and sp.lock is not None) or last.earth_yaw != sp.earth_yaw:
             return False
         refresh = RATE_REFRESH_S if sp.is_rate else ANGLE_REFRESH_S
         if now - t >= refresh:
@@ -141,7 +143,14 @@ class Pointer:
         band = RATE_DEADBAND_DEG_S if sp.is_rate else ANGLE_DEADBAND_DEG
         pairs = zip(
             (sp.yaw_deg, sp.pitch_deg, sp.roll_deg, sp.yaw_rate_deg_s, sp.pitch_rate_deg_s, sp.roll_rate_deg_s),
-            (last.yaw_deg, last.pitch_deg, last.roll_deg, last.yaw_rate_deg_s, last.pitch_rate_deg_s, last.roll_rate_deg_s),
+            (
+                last.yaw_deg,
+                last.pitch_deg,
+                last.roll_deg,
+                last.yaw_rate_deg_s,
+                last.pitch_rate_deg_s,
+                last.roll_rate_deg_s,
+            ),
         )
         for a, b in pairs:
             if (a is None) != (b is None):

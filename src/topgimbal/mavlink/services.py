@@ -154,8 +154,5 @@ class Services:
     async def _get_interval(self, cmd: Command) -> Outcome:
         msgid = int(cmd.p(1))
         s = self.streams.get(msgid)
-        if s is None:
-            interval = 0
-        else:
-            interval = -1 if s.hz <= 0 else int(1e6 / s.hz)
+        interval = 0 if s is None else -1 if s.hz <= 0 else int(1e6 / s.hz)
         return Outcome(after=[mavlink().MAVLink_message_interval_message(msgid, interval)])

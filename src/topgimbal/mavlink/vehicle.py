@@ -40,13 +40,17 @@ class Vehicles:
         src = m.get_srcSystem()
         if kind == "GLOBAL_POSITION_INT":
             hdg = None if m.hdg == 65535 else m.hdg / 100.0
-            fix = Fix(Position(m.lat / 1e7, m.lon / 1e7, m.alt / 1000.0), m.relative_alt / 1000.0, hdg, time.monotonic())
+            fix = Fix(
+                Position(m.lat / 1e7, m.lon / 1e7, m.alt / 1000.0), m.relative_alt / 1000.0, hdg, time.monotonic()
+            )
             self._fixes[src] = fix
             self._fixes.move_to_end(src)
             while len(self._fixes) > MAX_SYSTEMS:
                 self._fixes.popitem(last=False)
-        elif kind == "ATTITUDE" and src == self.sysid and m.get_srcComponent() not in self.own:
-            if not math.isnan(m.yaw):
+        elif (
+            kind == "ATTITUDE" and src == self.sysid and m.get_srcComponent() not in self.own and not math.isnan(m.yaw)
+        ):
+            if True:
                 self._yaw = (math.degrees(m.yaw), time.monotonic())
 
     def fix(self, sysid: int | None = None) -> Fix | None:
