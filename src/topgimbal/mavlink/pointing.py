@@ -151,6 +151,7 @@ class Pointer:
                 last.pitch_rate_deg_s,
                 last.roll_rate_deg_s,
             ),
+            strict=True,
         )
         for a, b in pairs:
             if (a is None) != (b is None):

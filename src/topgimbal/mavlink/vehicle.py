@@ -50,8 +50,7 @@ class Vehicles:
         elif (
             kind == "ATTITUDE" and src == self.sysid and m.get_srcComponent() not in self.own and not math.isnan(m.yaw)
         ):
-            if True:
-                self._yaw = (math.degrees(m.yaw), time.monotonic())
+            self._yaw = (math.degrees(m.yaw), time.monotonic())
 
     def fix(self, sysid: int | None = None) -> Fix | None:
         f = self._fixes.get(self.sysid if sysid is None else sysid)
