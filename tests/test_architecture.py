@@ -17,7 +17,8 @@ ALLOWED = {
     "sim": {"protocol"},
     "console": {"protocol", "client", "sim"},  # sim only for `--sim` (in-process camera)
     "tools": {"protocol", "client", "sim", "console"},
-    "cli": {"protocol", "client", "transport", "sim", "console", "tools"},
+    "mavlink": {"protocol", "client"},
+    "cli": {"protocol", "client", "transport", "sim", "console", "tools", "mavlink"},
 }
 
 

@@ -1,0 +1,128 @@
+"""`topgimbal mavlink`: present a camera as MAVLink gimbal and camera components."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import logging
+import signal
+import sys
+
+from ..protocol import all_models
+from .args import _model_name
+
+GIMBAL_COMPIDS = (154, 171, 172, 173, 174, 175)
+CAMERA_COMPIDS = (100, 101, 102, 103, 104)
+
+
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = subparsers.add_parser(
+        "mavlink",
+        help="MAVLink bridge: the camera as a gimbal (protocol v2) and camera for QGC, MAVSDK, PX4, ArduPilot",
+        description="Bridge a camera to MAVLink (pymavlink, MAVLink 2, common dialect). Endpoints use "
+        "pymavlink's connection strings: udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, tcpin:HOST:PORT, "
+        "or a serial DEVICE[,BAUD]; give --mavlink several times for several links. See docs/mavlink.md.",
+    )
+    p.add_argument("--url", default=argparse.SUPPRESS, help="camera address, e.g. udp://HOST:5000")
+    p.add_argument(
+        "--model",
+        default=argparse.SUPPRESS,
+        type=_model_name,
+        choices=sorted(all_models(), key=str.lower),
+        help="device model (picks the dialect, limits and capabilities)",
+    )
+    p.add_argument("--mavlink", action="append", required=True, metavar="ENDPOINT", help="MAVLink link (repeatable)")
+    p.add_argument("--sysid", type=int, default=1, help="MAVLink system id (default 1: the vehicle's)")
+    p.add_argument("--compid", type=int, default=154, choices=GIMBAL_COMPIDS, help="gimbal component id (default 154)")
+    p.add_argument(
+        "--camera-compid",
+        type=int,
+        default=100,
+        choices=CAMERA_COMPIDS,
+        help="camera component id (default 100; the thermal lens takes the next one)",
+    )
+    p.add_argument("--no-camera", action="store_true", help="no camera components, the gimbal only")
+    p.add_argument("--no-thermal", action="store_true", help="no second camera component for a thermal lens")
+    p.add_argument(
+        "--role",
+        choices=("device", "manager", "both"),
+        default="both",
+        help="gimbal role: device (an autopilot manages it: ArduPilot MNT1_TYPE=6, PX4), manager (a non-MAVLink "
+        "gimbal behind its own manager), both (default: ground stations drive it directly)",
+    )
+    p.add_argument("--attitude-hz", type=float, default=20.0, help="GIMBAL_DEVICE_ATTITUDE_STATUS rate (default 20)")
+    p.add_argument("--stream-hz", type=float, default=50.0, help="attitude stream asked of the camera (default 50)")
+    p.add_argument("--range-hz", type=float, default=1.0, help="rangefinder polling for DISTANCE_SENSOR (0: off)")
+    p.add_argument("--video-url", action="append", help="RTSP URL to announce (repeatable; default: the model's)")
+    p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds")
+    p.add_argument(
+        "--silence", type=float, default=3.0, help="seconds without a frame before the camera counts as down"
+    )
+    p.add_argument("--max-peers", type=int, default=16, help="peers per listening link (default 16)")
+    p.add_argument("-v", "--verbose", action="store_true", help="log every link and camera change")
+    p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
+    p.set_defaults(func=run)
+
+
+def build_config(args: argparse.Namespace) -> object:
+    from ..mavlink import BridgeConfig
+
+    url, model = getattr(args, "url", None), getattr(args, "model", None)
+    if not url or not model:
+        raise ValueError("give the camera's --url and --model, e.g. --url udp://127.0.0.1:5000 --model C12")
+    config = BridgeConfig(
+        url=url,
+        model=model,
+        endpoints=list(args.mavlink),
+        sysid=args.sysid,
+        compid=args.compid,
+        camera_compid=None if args.no_camera else args.camera_compid,
+        thermal=not args.no_thermal,
+        role=args.role,
+        attitude_hz=args.attitude_hz,
+        stream_hz=args.stream_hz,
+        range_hz=args.range_hz,
+        video_urls=args.video_url,
+        timeout_s=args.timeout,
+        silence_s=args.silence,
+        max_peers=args.max_peers,
+    )
+    config.check()
+    return config
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..mavlink import Bridge
+
+    config = build_config(args)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
+
+    async def main() -> None:
+        bridge = Bridge(config)  # type: ignore[arg-type]
+        await bridge.start()
+        addrs = ", ".join(
+            f"{link} ({a[0]}:{a[1]})" if a else str(link)
+            for link, a in zip(bridge.node.links, bridge.addresses, strict=True)
+        )
+        print(f"mavlink bridge: {config.url} ({config.model}) <-> {addrs}, system {config.sysid}, "  # type: ignore[attr-defined]
+              f"role {config.role}", flush=True)  # type: ignore[attr-defined]  # fmt: skip
+        stop = asyncio.Event()
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            with contextlib.suppress(NotImplementedError, RuntimeError):
+                loop.add_signal_handler(sig, stop.set)
+        try:
+            if args.seconds is not None:
+                with contextlib.suppress(asyncio.TimeoutError):
+                    await asyncio.wait_for(stop.wait(), args.seconds)
+            else:
+                await stop.wait()
+        finally:
+            await bridge.close()
+
+    try:
+        asyncio.run(main())
+    except KeyboardInterrupt:
+        print("stopped", file=sys.stderr)
+    return 0

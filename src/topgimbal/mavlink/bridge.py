@@ -1,0 +1,211 @@
+"""The bridge's lifecycle: the camera link, the MAVLink node, and the components for the chosen
+role, started and stopped together.
+
+    async with Bridge(BridgeConfig(url="udp://127.0.0.1:5000", model="C12",
+                                   endpoints=["udpout:127.0.0.1:14550"])) as bridge:
+        await bridge.wait_closed()
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..errors import TopGimbalError
+from .camera import CameraComponent
+from .camera_link import CameraLink
+from .commands import Dispatcher
+from .endpoints import MAX_PEERS, parse_endpoint
+from .gimbal_device import GimbalDevice
+from .gimbal_manager import GimbalManager
+from .node import Node
+from .pointing import Pointer
+from .services import Services
+from .vehicle import Vehicles
+
+log = logging.getLogger("topgimbal.mavlink")
+
+ROLES = ("device", "manager", "both")
+GIMBAL_COMPIDS = (154, 171, 172, 173, 174, 175)  # MAV_COMP_ID_GIMBAL, GIMBAL2..6
+CAMERA_COMPIDS = (100, 101, 102, 103, 104, 105)  # MAV_COMP_ID_CAMERA..CAMERA6
+MAV_TYPE_GIMBAL, MAV_TYPE_CAMERA = 26, 30
+NON_MAVLINK_GIMBAL_ID = 1
+
+
+class BridgeConfigError(TopGimbalError, ValueError):
+    pass
+
+
+@dataclass
+class BridgeConfig:
+    url: str
+    model: str
+    endpoints: list[str]
+    sysid: int = 1
+    compid: int = 154
+    camera_compid: int | None = 100  # None: no camera components
+    thermal: bool = True  # a second camera component for the thermal lens, where the model has one
+    role: str = "both"
+    attitude_hz: float = 20.0
+    stream_hz: float = 50.0
+    heartbeat_hz: float = 1.0
+    range_hz: float = 1.0
+    video_urls: list[str] | None = None
+    timeout_s: float = 1.0
+    retries: int = 2
+    silence_s: float = 3.0
+    max_peers: int = MAX_PEERS
+    client_options: dict[str, Any] = field(default_factory=dict)
+
+    def check(self) -> None:
+        if not self.endpoints:
+            raise BridgeConfigError("at least one MAVLink endpoint is needed (--mavlink udpout:HOST:PORT)")
+        for e in self.endpoints:
+            parse_endpoint(e)
+        if self.role not in ROLES:
+            raise BridgeConfigError(f"role {self.role!r}: expected one of {', '.join(ROLES)}")
+        if not 1 <= self.sysid <= 255:
+            raise BridgeConfigError(f"system id {self.sysid}: expected 1..255")
+        if self.compid not in GIMBAL_COMPIDS:
+            raise BridgeConfigError(f"gimbal component id {self.compid}: expected one of {GIMBAL_COMPIDS}")
+        if self.camera_compid is not None and self.camera_compid not in CAMERA_COMPIDS[:-1]:
+            raise BridgeConfigError(f"camera component id {self.camera_compid}: expected one of {CAMERA_COMPIDS[:-1]}")
+        for name, lo, hi in (("attitude_hz", 0.0, 100.0), ("stream_hz", 1.0, 100.0), ("heartbeat_hz", 0.1, 10.0),
+                             ("range_hz", 0.0, 10.0), ("silence_s", 0.2, 60.0), ("timeout_s", 0.05, 30.0)):  # fmt: skip
+            v = getattr(self, name)
+            if not lo <= v <= hi:
+                raise BridgeConfigError(f"{name}={v:g}: expected {lo:g}..{hi:g}")
+        if not 1 <= self.max_peers <= 256:
+            raise BridgeConfigError(f"max_peers={self.max_peers}: expected 1..256")
+
+
+class Bridge:
+    def __init__(self, config: BridgeConfig) -> None:
+        config.check()
+        self.config = config
+        c = config
+        self.cam = CameraLink(
+            c.url, c.model, stream_hz=c.stream_hz, silence_s=c.silence_s, timeout_s=c.timeout_s,
+            retries=c.retries, client_options=c.client_options,
+        )  # fmt: skip
+        self.node = Node(c.sysid, list(c.endpoints), max_peers=c.max_peers)
+        self.dispatcher = Dispatcher()
+        self.identity: dict[str, Any] = {}
+        own = {c.compid} | ({c.camera_compid, c.camera_compid + 1} if c.camera_compid is not None else set())
+        self.vehicles = Vehicles(c.sysid, own)
+        self.pointer = Pointer(self.cam, self.vehicles)
+        self.services: list[Services] = []
+        gcomp = self.node.component(c.compid, "gimbal")
+        gsvc = Services(gcomp, self.dispatcher, MAV_TYPE_GIMBAL)
+        self.services.append(gsvc)
+        device_id = 0 if c.role in ("device", "both") else NON_MAVLINK_GIMBAL_ID
+        self.device = GimbalDevice(
+            gsvc, self.cam, self.pointer, attitude_hz=c.attitude_hz, gimbal_device_id=device_id,
+            accept_set_attitude=c.role != "manager", identity=self.identity,
+        )  # fmt: skip
+        self.manager: GimbalManager | None = None
+        if c.role in ("manager", "both"):
+            managed = c.compid if c.role == "both" else NON_MAVLINK_GIMBAL_ID
+            self.manager = GimbalManager(gsvc, self.cam, self.pointer, self.vehicles, gimbal_device_id=managed)
+        self.cameras: list[CameraComponent] = []
+        if c.camera_compid is not None:
+            gimbal_ref = c.compid if c.role in ("device", "both") else NON_MAVLINK_GIMBAL_ID
+            urls = c.video_urls if c.video_urls is not None else self.cam.profile.rtsp_urls(self.cam.camera_host)
+            lenses = ["visible"] + (["thermal"] if c.thermal and self.cam.profile.thermal else [])
+            for i, lens in enumerate(lenses):
+                comp = self.node.component(c.camera_compid + i, f"camera-{lens}")
+                svc = Services(comp, self.dispatcher, MAV_TYPE_CAMERA)
+                self.services.append(svc)
+                mine = urls if len(lenses) == 1 else urls[i : i + 1] if i < len(urls) else []
+                self.cameras.append(CameraComponent(
+                    svc, self.cam, self.vehicles, lens=lens, gimbal_device_id=gimbal_ref, video_urls=mine,
+                    identity=self.identity, range_hz=c.range_hz))  # fmt: skip
+        self.node.subscribe(self.vehicles.on_message)
+        self.node.subscribe(self.dispatcher.on_message)
+        self.node.subscribe(self.device.on_message)
+        if self.manager is not None:
+            self.node.subscribe(self.manager.on_message)
+        self.cam.on_health(self._on_health)
+        self._tasks: list[asyncio.Task[None]] = []
+        self._closed = asyncio.Event()
+        self.started = False
+
+    @property
+    def addresses(self) -> list[tuple[str, int] | None]:
+        """Local addresses of the links (listening links bound to port 0 resolved)."""
+        return [link.address for link in self.node.links]
+
+    async def start(self, camera_wait_s: float = 2.0) -> Bridge:
+        await self.node.start()
+        await self.cam.start(wait_s=camera_wait_s)
+        self.pointer.start()
+        self.device.start()
+        for cam in self.cameras:
+            cam.start()
+        for svc in self.services:
+            svc.start()
+        self._tasks.append(asyncio.ensure_future(self._heartbeats()))
+        self._tasks.append(asyncio.ensure_future(self._identify()))
+        self.started = True
+        links = ", ".join(str(link) for link in self.node.links)
+        log.info("MAVLink bridge for %s (%s) on %s as system %d, role %s", self.config.url, self.config.model, links,
+                 self.config.sysid, self.config.role)  # fmt: skip
+        return self
+
+    async def close(self) -> None:
+        for t in self._tasks:
+            t.cancel()
+        for t in self._tasks:
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await t
+        await self.dispatcher.close()
+        if self.manager is not None:
+            await self.manager.close()
+        for cam in self.cameras:
+            await cam.close()
+        for svc in self.services:
+            await svc.close()
+        await self.device.close()
+        await self.pointer.close()
+        await self.cam.close()
+        await self.node.close()
+        self._closed.set()
+
+    async def __aenter__(self) -> Bridge:
+        return await self.start()
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()
+
+    async def wait_closed(self) -> None:
+        await self._closed.wait()
+
+    def _on_health(self, answering: bool) -> None:
+        for svc in self.services:
+            svc.system_status = 4 if answering else 5  # MAV_STATE_ACTIVE / MAV_STATE_CRITICAL
+        if answering:
+            self._tasks.append(asyncio.ensure_future(self._identify()))
+            self._tasks = [t for t in self._tasks if not t.done()]
+
+    async def _heartbeats(self) -> None:
+        while True:
+            for svc in self.services:
+                svc.comp.send(svc.heartbeat())
+            await asyncio.sleep(1.0 / self.config.heartbeat_hz)
+
+    async def _identify(self) -> None:
+        """Version and model name for the information messages (asked again after a reconnect)."""
+        for _ in range(5):
+            client = self.cam.client
+            if client is not None and self.cam.answering:
+                with contextlib.suppress(TopGimbalError, OSError, asyncio.TimeoutError):
+                    info = await client.identify(timeout_s=self.config.timeout_s)
+                    if info.get("version"):
+                        self.identity["version"] = info["version"]
+                    if info.get("model_name"):
+                        self.identity["model_name"] = info["model_name"]
+                    return
+            await asyncio.sleep(1.0)

@@ -1,0 +1,543 @@
+"""Camera protocol v2: the camera (and its thermal lens, as a second camera) as MAVLink camera
+components.
+
+Every answer that describes the camera's state asks the camera first (storage, recording);
+every command is acked only once the camera confirmed it. Photo and video bookkeeping that the
+camera does not keep (image count, capture interval, mode) is the bridge's own and says so in
+docs/mavlink.md."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import time
+from collections import OrderedDict
+from typing import Any
+
+from ._mav import mavlink
+from .camera_link import CameraLink
+from .commands import Command, Outcome, denied, rejected, unsupported
+from .geo import ground_point
+from .gimbal_device import _text, firmware_code
+from .quaternion import from_euler_deg
+from .services import Services
+from .vehicle import Vehicles
+
+log = logging.getLogger("topgimbal.mavlink")
+
+(MSG_DISTANCE_SENSOR, MSG_INFO, MSG_SETTINGS, MSG_STORAGE, MSG_CAPTURE_STATUS, MSG_IMAGE_CAPTURED,
+ MSG_VIDEO_INFO, MSG_VIDEO_STATUS, MSG_FOV, MSG_TRACKING) = (132, 259, 260, 261, 262, 263, 269, 270, 271, 275)  # fmt: skip
+(CMD_IMAGE_START, CMD_IMAGE_STOP, CMD_VIDEO_START, CMD_VIDEO_STOP, CMD_SET_MODE, CMD_ZOOM, CMD_FOCUS,
+ CMD_TRACK_POINT, CMD_TRACK_RECT, CMD_TRACK_STOP) = (2000, 2001, 2500, 2501, 530, 531, 532, 2004, 2005, 2010)  # fmt: skip
+MAX_REMEMBERED_IMAGES = 64
+MAX_INTERVAL_S = 3600.0
+INT32_MAX = 2**31 - 1
+# Tracking picture size the TOPOTEK LOC box is given in (not documented; ArduPilot-style 1920x1080).
+TRACK_FRAME_PX = (1920, 1080)
+
+
+class CameraComponent:
+    def __init__(
+        self,
+        services: Services,
+        cam: CameraLink,
+        vehicles: Vehicles,
+        *,
+        lens: str = "visible",
+        gimbal_device_id: int = 0,
+        video_urls: list[str] | None = None,
+        identity: dict[str, Any] | None = None,
+        range_hz: float = 0.0,
+    ) -> None:
+        self.services = services
+        self.comp = services.comp
+        self.cam = cam
+        self.profile = cam.profile
+        self.vehicles = vehicles
+        self.lens = lens
+        self.gimbal_device_id = gimbal_device_id
+        self.video_urls = list(video_urls or [])
+        self.identity = identity if identity is not None else {}
+        self.range_hz = range_hz if lens == "visible" and self.profile.rangefinder else 0.0
+        self.mode_id = 0  # CAMERA_MODE_IMAGE; the camera has no modes: the bridge's own bookkeeping
+        self.image_count = 0
+        self.images: OrderedDict[int, Any] = OrderedDict()
+        self.interval_s = 0.0
+        self.image_status = 0
+        self.recording: bool | None = None
+        self.record_started = 0.0
+        self.zoom_pct: float = float("nan")
+        self.available_mib: float = float("nan")
+        self.tracking: tuple[int, tuple[float, ...]] = (0, ())
+        self.last_range_m: float | None = None
+        self._interval_task: asyncio.Task[None] | None = None
+        self._range_task: asyncio.Task[None] | None = None
+        self._last_sequence: dict[tuple[int, int], float] = {}
+        p = self.profile
+        provide = services.provide
+        provide(MSG_INFO, self._information)
+        provide(MSG_SETTINGS, self._settings)
+        provide(MSG_STORAGE, self._storage)
+        provide(MSG_CAPTURE_STATUS, self._capture_status)
+        provide(MSG_IMAGE_CAPTURED, self._image_captured)
+        provide(MSG_FOV, self._fov_status)
+        if self.video_urls:
+            provide(MSG_VIDEO_INFO, self._video_info)
+            provide(MSG_VIDEO_STATUS, self._video_status)
+        if self.tracks_point or self.tracks_rect:
+            provide(MSG_TRACKING, self._tracking_status)
+        if self.range_hz or (lens == "visible" and p.rangefinder):
+            provide(MSG_DISTANCE_SENSOR, self._distance_now)
+        d = services.dispatcher
+        reg = d.register
+        reg(self.comp, CMD_SET_MODE, self._set_mode)
+        if self.photo_values is not None:
+            reg(self.comp, CMD_IMAGE_START, self._image_start)
+            reg(self.comp, CMD_IMAGE_STOP, self._image_stop)
+        if self.can_record:
+            reg(self.comp, CMD_VIDEO_START, self._video_start)
+            reg(self.comp, CMD_VIDEO_STOP, self._video_stop)
+        if self.zoom_any:
+            reg(self.comp, CMD_ZOOM, self._zoom)
+        if lens == "visible" and p.can_focus:
+            reg(self.comp, CMD_FOCUS, self._focus)
+        if self.tracks_point:
+            reg(self.comp, CMD_TRACK_POINT, self._track_point)
+        if self.tracks_rect:
+            reg(self.comp, CMD_TRACK_RECT, self._track_rect)
+        if self.tracks_point or self.tracks_rect:
+            reg(self.comp, CMD_TRACK_STOP, self._track_stop)
+
+    # -- what this lens can do (from the catalog) ------------------------------------------------
+
+    @property
+    def photo_values(self) -> dict[str, Any] | None:
+        p = self.profile
+        if not p.can_photo:
+            return None
+        if self.lens == "thermal":
+            mode = p.thermal_photo_mode()
+            return {"mode": mode} if mode else None
+        return {"mode": "visible"} if "visible" in p.photo_modes and p.thermal else {}
+
+    @property
+    def can_record(self) -> bool:
+        return self.lens == "visible" and self.profile.can_record
+
+    @property
+    def zoom_any(self) -> bool:
+        p = self.profile
+        if self.lens == "thermal":
+            return p.has("DZM") and p.digital_zoom_has_lens
+        return p.zoom_continuous or p.zoom_absolute
+
+    @property
+    def tracks_point(self) -> bool:
+        return self.lens == "visible" and self.profile.track_point
+
+    @property
+    def tracks_rect(self) -> bool:
+        return self.lens == "visible" and self.profile.track_rectangle
+
+    def cap_flags(self) -> int:
+        f = 0
+        if self.can_record:
+            f |= 1 | 16  # capture video, also in image mode
+        if self.photo_values is not None:
+            f |= 2 | 8  # capture images, also in video mode
+        if self.zoom_any:
+            f |= 64
+        if self.lens == "visible" and self.profile.can_focus:
+            f |= 128
+        if self.video_urls:
+            f |= 256
+        if self.tracks_point:
+            f |= 512
+        if self.tracks_rect:
+            f |= 1024
+        return f
+
+    # -- lifecycle ------------------------------------------------------------------------------
+
+    def start(self) -> None:
+        if self.range_hz > 0:
+            self._range_task = asyncio.ensure_future(self._range_loop())
+
+    async def close(self) -> None:
+        for t in (self._interval_task, self._range_task):
+            if t is not None:
+                t.cancel()
+                with contextlib.suppress(asyncio.CancelledError, Exception):
+                    await t
+
+    # -- information ----------------------------------------------------------------------------
+
+    async def _information(self, cmd: Command) -> list[Any]:
+        m = self.profile.model
+        name = self.identity.get("model_name") or m.name
+        if self.lens == "thermal":
+            name = f"{name} thermal"
+        lens = self.profile.lens()
+        return [mavlink().MAVLink_camera_information_message(
+            self.comp.node.time_boot_ms(), list(_text(self.profile.vendor, 32).ljust(32, b"\0")),
+            list(_text(name, 32).ljust(32, b"\0")), firmware_code(self.identity.get("version")),
+            lens.focal_length_mm if lens and self.lens == "visible" else 0.0, 0.0, 0.0, 0, 0,
+            0 if self.lens == "visible" else 1, self.cap_flags(), 0, b"", self.gimbal_device_id, 0)]  # fmt: skip
+
+    async def _settings(self, cmd: Command) -> list[Any]:
+        return [self._settings_message()]
+
+    def _settings_message(self) -> Any:
+        return mavlink().MAVLink_camera_settings_message(
+            self.comp.node.time_boot_ms(), self.mode_id, self.zoom_pct, float("nan")
+        )
+
+    async def _storage(self, cmd: Command) -> list[Any]:
+        if not self.profile.has_sd:
+            msg = mavlink().MAVLink_storage_information_message(
+                self.comp.node.time_boot_ms(), 0, 0, 3, 0.0, 0.0, 0.0, float("nan"), float("nan"), 0)  # fmt: skip
+            return [msg]
+        sd = await self.cam.call(lambda c: c.sd_card())
+        if not sd.present or not sd.total_mb:
+            status, total, free = 0, 0.0, 0.0  # STORAGE_STATUS_EMPTY: no card
+        else:
+            status, total, free = 2, float(sd.total_mb), float(sd.remaining_mb or 0)
+        self.available_mib = free
+        return [mavlink().MAVLink_storage_information_message(
+            self.comp.node.time_boot_ms(), 1, 1, status, total, total - free, free,
+            float("nan"), float("nan"), 2)]  # fmt: skip
+
+    async def _capture_status(self, cmd: Command) -> list[Any]:
+        if self.can_record and self.profile.dialect.commands["REC"].readable:
+            rec = await self.cam.call(lambda c: c.recording())
+            self._recording_now(rec)
+        return [self._capture_status_message()]
+
+    def _capture_status_message(self) -> Any:
+        rec_ms = int((time.monotonic() - self.record_started) * 1000) if self.recording else 0
+        return mavlink().MAVLink_camera_capture_status_message(
+            self.comp.node.time_boot_ms(), self.image_status, 1 if self.recording else 0, self.interval_s,
+            rec_ms, self.available_mib, self.image_count, 0)  # fmt: skip
+
+    def _recording_now(self, rec: bool) -> None:
+        if rec and not self.recording:
+            self.record_started = time.monotonic()
+        self.recording = rec
+
+    async def _image_captured(self, cmd: Command) -> list[Any]:
+        index = int(cmd.p(2)) if cmd.has(2) else -1
+        if index < 0 and self.images:
+            index = next(reversed(self.images))
+        msg = self.images.get(index)
+        if msg is None:
+            raise denied(f"no image {index} taken through this bridge (it knows {len(self.images)})")
+        return [msg]
+
+    # -- video streams ---------------------------------------------------------------------------
+
+    def _stream_flags(self) -> int:
+        return (1 if self.cam.answering else 0) | (2 if self.lens == "thermal" else 0)
+
+    async def _video_info(self, cmd: Command) -> list[Any]:
+        sid = int(cmd.p(2)) if cmd.has(2) else 0
+        out = []
+        for i, url in enumerate(self.video_urls, start=1):
+            if sid not in (0, i):
+                continue
+            out.append(mavlink().MAVLink_video_stream_information_message(
+                i, len(self.video_urls), 0, self._stream_flags(), 0.0, 0, 0, 0, 0, 0,
+                _text(f"{self.lens} {i}", 32), _text(url, 160), 0, 0))  # fmt: skip
+        if not out:
+            raise denied(f"no stream {sid} (streams 1..{len(self.video_urls)})")
+        return out
+
+    async def _video_status(self, cmd: Command) -> list[Any]:
+        sid = int(cmd.p(2)) if cmd.has(2) else 0
+        ids = [i for i in range(1, len(self.video_urls) + 1) if sid in (0, i)]
+        if not ids:
+            raise denied(f"no stream {sid} (streams 1..{len(self.video_urls)})")
+        return [mavlink().MAVLink_video_stream_status_message(i, self._stream_flags(), 0.0, 0, 0, 0, 0, 0, 0)
+                for i in ids]  # fmt: skip
+
+    # -- photos ----------------------------------------------------------------------------------
+
+    async def _take_photo(self) -> Any:
+        values = self.photo_values or {}
+        await self.cam.call(lambda c: c.photo(**values))
+        return self._record_image(True)
+
+    def _record_image(self, ok: bool) -> Any:
+        index = self.image_count
+        self.image_count += 1
+        fix = self.vehicles.fix()
+        lat = lon = alt = rel = 0
+        if fix is not None:
+            lat, lon = int(fix.position.lat_deg * 1e7), int(fix.position.lon_deg * 1e7)
+            alt, rel = int(fix.position.alt_m * 1000), int(fix.relative_alt_m * 1000)
+        msg = mavlink().MAVLink_camera_image_captured_message(
+            self.comp.node.time_boot_ms(), int(time.time() * 1e6), 0, lat, lon, alt, rel,
+            list(self._earth_quaternion()), index, 1 if ok else 0, b"")  # fmt: skip
+        self.images[index] = msg
+        while len(self.images) > MAX_REMEMBERED_IMAGES:
+            self.images.popitem(last=False)
+        return msg
+
+    def _earth_quaternion(self) -> tuple[float, float, float, float]:
+        att = self.cam.attitude
+        if att is None:
+            return (float("nan"),) * 4  # type: ignore[return-value]
+        yaw = att.yaw_deg + (self.vehicles.yaw_deg or 0.0)
+        return from_euler_deg(att.roll_deg, att.pitch_deg, yaw)
+
+    async def _image_start(self, cmd: Command) -> Outcome:
+        interval = cmd.p(2) if cmd.has(2) else 0.0
+        total = int(cmd.p(3)) if cmd.has(3) else 1
+        if total < 0 or interval < 0 or interval > MAX_INTERVAL_S:
+            raise denied(f"interval {interval:g} s, {total} images: expected 0..{MAX_INTERVAL_S:g} s and >= 0 images")
+        if total != 1 and interval <= 0:
+            raise denied("several images need an interval (param2 > 0)")
+        if total == 1:
+            seq_key = (cmd.src_system, cmd.src_component)
+            seq = cmd.p(4) if cmd.has(4) else 0.0
+            if seq and self._last_sequence.get(seq_key) == seq:
+                return Outcome()  # the same capture sequence number: already taken, not again
+            await self._stop_interval()
+            self.image_status = 1
+            try:
+                msg = await self._take_photo()
+            finally:
+                self.image_status = 0
+            if seq:
+                self._last_sequence[seq_key] = seq
+                if len(self._last_sequence) > 64:
+                    self._last_sequence.pop(next(iter(self._last_sequence)))
+            return Outcome(after=[msg])
+        await self._stop_interval()
+        first = await self._take_photo()  # acked once the camera confirmed the first image
+        self.interval_s = interval
+        self.image_status = 2
+        self._interval_task = asyncio.ensure_future(self._interval_loop(interval, total - 1 if total else -1))
+        return Outcome(after=[first])
+
+    async def _interval_loop(self, interval: float, remaining: int) -> None:
+        try:
+            while remaining != 0:  # -1: until MAV_CMD_IMAGE_STOP_CAPTURE
+                await asyncio.sleep(interval)
+                self.image_status = 3
+                try:
+                    msg = await self._take_photo()
+                except Exception as exc:
+                    log.warning("interval photo failed: %s", exc)
+                    msg = self._record_image(False)
+                self.image_status = 2
+                self.comp.send(msg)
+                remaining -= 1
+        finally:
+            self.image_status = 0
+            self.interval_s = 0.0
+
+    async def _stop_interval(self) -> None:
+        task, self._interval_task = self._interval_task, None
+        if task is not None:
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await task
+        self.image_status = 0
+        self.interval_s = 0.0
+
+    async def _image_stop(self, cmd: Command) -> Outcome:
+        await self._stop_interval()
+        return Outcome()
+
+    async def _set_mode(self, cmd: Command) -> Outcome:
+        mode = int(cmd.p(2))
+        if mode not in (0, 1):
+            raise denied(f"camera mode {mode}: expected 0 (image) or 1 (video)")
+        self.mode_id = mode
+        return Outcome(after=[self._settings_message()])
+
+    # -- video -----------------------------------------------------------------------------------
+
+    async def _video_start(self, cmd: Command) -> Outcome:
+        await self.cam.call(lambda c: c.start_recording())
+        self._recording_now(True)
+        return Outcome(after=[self._capture_status_message()])
+
+    async def _video_stop(self, cmd: Command) -> Outcome:
+        await self.cam.call(lambda c: c.stop_recording())
+        self._recording_now(False)
+        return Outcome(after=[self._capture_status_message()])
+
+    # -- zoom and focus --------------------------------------------------------------------------
+
+    async def _zoom(self, cmd: Command) -> Outcome:
+        kind, value = int(cmd.p(1)), cmd.p(2)
+        p = self.profile
+        if self.lens == "thermal":
+            if kind == 0:
+                await self.cam.call(lambda c: c.digital_zoom("in" if value > 0 else "out", lens="thermal"))
+                return Outcome()
+            if kind == 2:
+                level = self._level(value, p.model.digital_zoom_max)
+                await self.cam.call(lambda c: c.digital_zoom(level, lens="thermal"))
+                self.zoom_pct = value
+                return Outcome()
+            raise unsupported(f"zoom type {kind} on the thermal lens (supported: 0 step, 2 range)")
+        if kind == 1:  # continuous: -1 out, 0 stop, 1 in
+            if not p.zoom_continuous:
+                raise unsupported(f"the {p.model.name} has no continuous zoom")
+            action = "in" if value > 0 else "out" if value < 0 else "stop"
+            await self.cam.call(lambda c: c.zoom(action))
+            return Outcome()
+        if kind == 2:
+            if not p.zoom_absolute:
+                raise unsupported(f"the {p.model.name} cannot be set to a zoom level")
+            if not 0 <= value <= 100:
+                raise denied(f"zoom range {value:g} %: expected 0..100")
+            level = self._level(value, p.zoom_max_x)
+            await self.cam.call(lambda c: c.zoom(level))
+            self.zoom_pct = value
+            return Outcome(after=[self._settings_message()])
+        if kind == 0:
+            if not p.has("DZM"):
+                raise unsupported(f"the {p.model.name} has no zoom steps")
+            await self.cam.call(lambda c: c.digital_zoom("in" if value > 0 else "out"))
+            return Outcome()
+        raise unsupported(f"zoom type {kind} (supported: 0 step, 1 continuous, 2 range)")
+
+    def _level(self, pct: float, top: float) -> float:
+        if not 0 <= pct <= 100:
+            raise denied(f"zoom range {pct:g} %: expected 0..100")
+        level = 1.0 + (top - 1.0) * pct / 100.0
+        if not self.profile.has("MUL") and not self.profile.digital_zoom_has_lens:
+            level = float(round(level))  # whole steps only (SkyDroid DZM 1x..4x)
+        return round(level, 1)
+
+    async def _focus(self, cmd: Command) -> Outcome:
+        kind, value = int(cmd.p(1)), cmd.p(2)
+        acts = self.profile.focus_actions
+        if kind == 1:
+            action = "plus" if value > 0 else "minus" if value < 0 else "stop"
+        elif kind in (4, 5, 6) and "auto" in acts:
+            action = "auto"
+        else:
+            raise unsupported(f"focus type {kind} (supported: 1 continuous, 4/5/6 auto)")
+        await self.cam.call(lambda c: c.focus(action))
+        return Outcome()
+
+    # -- tracking ------------------------------------------------------------------------------
+
+    async def _track_point(self, cmd: Command) -> Outcome:
+        x, y = cmd.p(1), cmd.p(2)
+        radius = cmd.p(3) if cmd.has(3) else 0.05
+        if not (0 <= x <= 1 and 0 <= y <= 1):
+            raise denied(f"point ({x:g}, {y:g}): expected 0..1 each")
+        if self.profile.has("GOT"):
+            w, h = _got_frame(self.profile)
+            await self.cam.call(lambda c: c.request("GOT", x_px=round(x * w), y_px=round(y * h)))
+        else:
+            await self._loc_box(x - radius, y - radius, x + radius, y + radius)
+        self.tracking = (1, (x, y, radius))
+        return Outcome()
+
+    async def _track_rect(self, cmd: Command) -> Outcome:
+        x0, y0, x1, y1 = cmd.p(1), cmd.p(2), cmd.p(3), cmd.p(4)
+        if not all(0 <= v <= 1 for v in (x0, y0, x1, y1)) or x1 <= x0 or y1 <= y0:
+            raise denied("rectangle: expected 0 <= top-left < bottom-right <= 1")
+        await self._loc_box(x0, y0, x1, y1)
+        self.tracking = (2, (x0, y0, x1, y1))
+        return Outcome()
+
+    async def _loc_box(self, x0: float, y0: float, x1: float, y1: float) -> None:
+        w, h = TRACK_FRAME_PX
+        x0, y0, x1, y1 = (max(0.0, min(1.0, v)) for v in (x0, y0, x1, y1))
+        box = {
+            "x_px": round((x0 + x1) / 2 * w), "y_px": round((y0 + y1) / 2 * h),
+            "width_px": max(1, round((x1 - x0) * w)), "height_px": max(1, round((y1 - y0) * h)),
+        }  # fmt: skip
+        await self.cam.call(lambda c: c.request("TRC", action="start"))
+        await self.cam.call(lambda c: c.request("LOC", reserved="0000", **box))  # type: ignore[arg-type]
+
+    async def _track_stop(self, cmd: Command) -> Outcome:
+        if self.profile.has("SUM"):
+            await self.cam.call(lambda c: c.request("SUM", action="stop"))
+        elif self.profile.has("TRC"):
+            await self.cam.call(lambda c: c.request("TRC", action="stop"))
+        else:
+            raise unsupported(f"the {self.profile.model.name} cannot stop tracking")
+        self.tracking = (0, ())
+        return Outcome()
+
+    async def _tracking_status(self, cmd: Command) -> list[Any]:
+        mode, v = self.tracking
+        nan = float("nan")
+        pt = (v[0], v[1], v[2]) if mode == 1 else (nan, nan, nan)
+        rect = tuple(v) if mode == 2 else (nan, nan, nan, nan)
+        return [mavlink().MAVLink_camera_tracking_image_status_message(
+            1 if mode else 0, mode, 1 if mode == 1 else 2 if mode == 2 else 0, *pt, *rect, 0)]  # fmt: skip
+
+    # -- field of view and range ---------------------------------------------------------------
+
+    async def _fov_status(self, cmd: Command) -> list[Any]:
+        return [self.fov_message()]
+
+    def fov_message(self) -> Any:
+        nan = float("nan")
+        fix = self.vehicles.fix()
+        att = self.cam.attitude
+        vyaw = self.vehicles.yaw_deg
+        lat_c = lon_c = lat_i = lon_i = INT32_MAX
+        alt_c = alt_i = INT32_MAX
+        if fix is not None:
+            lat_c, lon_c = int(fix.position.lat_deg * 1e7), int(fix.position.lon_deg * 1e7)
+            alt_c = int(fix.position.alt_m * 1000)
+            if att is not None and vyaw is not None:
+                hit = ground_point(fix.position, att.yaw_deg + vyaw, att.pitch_deg, fix.home_alt_m)
+                if hit is not None:
+                    lat_i, lon_i, alt_i = int(hit.lat_deg * 1e7), int(hit.lon_deg * 1e7), int(hit.alt_m * 1000)
+        lens = self.profile.lens()
+        zoom = self.cam.client.state.zoom.value if self.cam.client and self.cam.client.state.zoom else 1.0
+        zoom = zoom if isinstance(zoom, (int, float)) and zoom >= 1 else 1.0
+        hfov = lens.hfov_deg / zoom if lens else nan
+        vfov = lens.vfov_deg / zoom if lens else nan
+        q = self._earth_quaternion() if vyaw is not None else (nan, nan, nan, nan)
+        return mavlink().MAVLink_camera_fov_status_message(
+            self.comp.node.time_boot_ms(), lat_c, lon_c, alt_c, lat_i, lon_i, alt_i, list(q), hfov, vfov, 0
+        )
+
+    async def _distance_now(self, cmd: Command) -> list[Any]:
+        d = await self.cam.call(lambda c: c.range())
+        if d is None:
+            raise rejected("the rangefinder reported no distance (no target in range)")
+        return [self._distance_message(d)]
+
+    def _distance_message(self, d: float) -> Any:
+        lo, hi = self.profile.rangefinder or (0.0, 0.0)
+        att = self.cam.attitude
+        q = from_euler_deg(att.roll_deg, att.pitch_deg, att.yaw_deg) if att else (0.0, 0.0, 0.0, 0.0)
+        self.last_range_m = d
+        return mavlink().MAVLink_distance_sensor_message(
+            self.comp.node.time_boot_ms(), int(lo * 100), min(65535, int(hi * 100)), min(65535, int(d * 100)),
+            0, 0, 100 if att else 25, 255, 0.0, 0.0, list(q), 0)  # fmt: skip
+
+    async def _range_loop(self) -> None:
+        while True:
+            await asyncio.sleep(1.0 / self.range_hz)
+            if not self.cam.answering:
+                continue
+            try:
+                d = await self.cam.call(lambda c: c.range())
+            except Exception as exc:
+                log.debug("range measurement failed: %s", exc)
+                continue
+            if d is not None and not math.isnan(d):
+                self.comp.send(self._distance_message(d))
+
+
+def _got_frame(profile: Any) -> tuple[int, int]:
+    """The picture size GOT coordinates are given in: the fields' maxima in the catalog."""
+    spec = profile.dialect.commands["GOT"]
+    sizes = {f["name"]: f.get("max") for form in spec.describe()["forms"] for f in form["fields"]}
+    return int(sizes.get("x_px") or 1280), int(sizes.get("y_px") or 720)

@@ -1,0 +1,278 @@
+"""COMMAND_LONG / COMMAND_INT in, exactly one true COMMAND_ACK out.
+
+A handler is a coroutine that does the work through the camera client and returns only when
+the camera confirmed it (the client raises otherwise). The dispatcher turns what happened into
+the MAVLink result: returned -> ACCEPTED; the handler's own refusal -> DENIED / UNSUPPORTED /
+TEMPORARILY_REJECTED; the camera's error frame, a timeout or a lost link -> FAILED, with
+`result_param2` saying which (and a STATUSTEXT with the camera's words). A handler still running
+after `progress_after_s` gets MAV_RESULT_IN_PROGRESS acks (every second) until it ends.
+
+Retransmissions (same sender, command and parameters; COMMAND_LONG `confirmation` > 0) never
+act twice: one in progress is answered IN_PROGRESS, one just finished gets its final ack again.
+Work in flight and remembered results are bounded."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import time
+from collections import OrderedDict
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..errors import DeviceError, FieldValueError, RequestTimeoutError, TopGimbalError, TransportError, UnsupportedError
+from ._mav import mavlink
+from .node import Component
+
+log = logging.getLogger("topgimbal.mavlink")
+
+ACCEPTED, TEMPORARILY_REJECTED, DENIED, UNSUPPORTED, FAILED, IN_PROGRESS, CANCELLED = 0, 1, 2, 3, 4, 5, 6
+RESULT_NAMES = {
+    0: "accepted",
+    1: "temporarily rejected",
+    2: "denied",
+    3: "unsupported",
+    4: "failed",
+    5: "in progress",
+    6: "cancelled",
+}
+# result_param2 on FAILED: why the camera did not confirm (documented in docs/mavlink.md).
+CAMERA_ERROR, CAMERA_TIMEOUT, CAMERA_LINK_DOWN, BRIDGE_ERROR = 1, 2, 3, 4
+
+MAX_INFLIGHT = 32
+REMEMBER_RESULTS = 128
+RETRANSMIT_WINDOW_S = 3.0
+
+
+class CommandRefusedError(TopGimbalError):
+    """A handler's own refusal, with the MAVLink result to send."""
+
+    def __init__(self, result: int, text: str) -> None:
+        super().__init__(text)
+        self.result = result
+
+
+def denied(text: str) -> CommandRefusedError:
+    return CommandRefusedError(DENIED, text)
+
+
+def unsupported(text: str) -> CommandRefusedError:
+    return CommandRefusedError(UNSUPPORTED, text)
+
+
+def rejected(text: str) -> CommandRefusedError:
+    return CommandRefusedError(TEMPORARILY_REJECTED, text)
+
+
+@dataclass(frozen=True)
+class Command:
+    command: int
+    params: tuple[float, float, float, float, float, float, float]
+    src_system: int
+    src_component: int
+    target_system: int
+    target_component: int
+    confirmation: int = 0
+    is_int: bool = False
+    frame: int = 0
+
+    def p(self, n: int) -> float:
+        return self.params[n - 1]
+
+    def has(self, n: int) -> bool:
+        return not math.isnan(self.params[n - 1])
+
+    @property
+    def lat_deg(self) -> float:
+        return self.params[4] / 1e7 if self.is_int else self.params[4]
+
+    @property
+    def lon_deg(self) -> float:
+        return self.params[5] / 1e7 if self.is_int else self.params[5]
+
+    def key(self) -> tuple[Any, ...]:
+        return (self.src_system, self.src_component, self.target_component, self.command, self.params)
+
+    @classmethod
+    def from_message(cls, m: Any) -> Command:
+        if m.get_type() == "COMMAND_INT":
+            params = (m.param1, m.param2, m.param3, m.param4, float(m.x), float(m.y), m.z)
+            return cls(m.command, params, m.get_srcSystem(), m.get_srcComponent(), m.target_system,
+                       m.target_component, 0, True, m.frame)  # fmt: skip
+        params = (m.param1, m.param2, m.param3, m.param4, m.param5, m.param6, m.param7)
+        return cls(m.command, params, m.get_srcSystem(), m.get_srcComponent(), m.target_system,
+                   m.target_component, m.confirmation)  # fmt: skip
+
+
+@dataclass
+class Outcome:
+    """What a handler may return besides None (= ACCEPTED): a result and messages to send after
+    the ack (the answer to MAV_CMD_REQUEST_MESSAGE follows its ack)."""
+
+    result: int = ACCEPTED
+    param2: int = 0
+    after: list[Any] = field(default_factory=list)
+    text: str = ""
+
+
+Handler = Callable[[Command], Awaitable["Outcome | None"]]
+
+
+@dataclass
+class _Done:
+    t: float
+    result: int
+    param2: int
+
+
+class Dispatcher:
+    def __init__(
+        self,
+        *,
+        progress_after_s: float = 0.25,
+        progress_every_s: float = 1.0,
+        timeout_s: float = 30.0,
+        max_inflight: int = MAX_INFLIGHT,
+    ) -> None:
+        self.progress_after_s = progress_after_s
+        self.progress_every_s = progress_every_s
+        self.timeout_s = timeout_s
+        self.max_inflight = max_inflight
+        self._handlers: dict[tuple[int, int], Handler] = {}
+        self._components: dict[int, Component] = {}
+        self._inflight: dict[tuple[Any, ...], asyncio.Task[None]] = {}
+        self._done: OrderedDict[tuple[Any, ...], _Done] = OrderedDict()
+        self.counts: dict[str, int] = {}
+
+    def register(self, component: Component, command: int, handler: Handler) -> None:
+        self._components[component.compid] = component
+        self._handlers[(component.compid, command)] = handler
+
+    def add_component(self, component: Component) -> None:
+        self._components[component.compid] = component
+
+    def handles(self, compid: int, command: int) -> bool:
+        return (compid, command) in self._handlers
+
+    def on_message(self, m: Any) -> None:
+        if m.get_type() not in ("COMMAND_LONG", "COMMAND_INT"):
+            return
+        cmd = Command.from_message(m)
+        comp_any = next(iter(self._components.values()), None)
+        if comp_any is None or cmd.target_system not in (0, comp_any.sysid):
+            return
+        if cmd.target_component == 0:
+            # Broadcast: only components that handle the command answer (no chorus of UNSUPPORTED).
+            targets = [c for c in self._components.values() if self.handles(c.compid, cmd.command)]
+        else:
+            c = self._components.get(cmd.target_component)
+            targets = [c] if c is not None else []
+        for comp in targets:
+            self._accept(comp, Command(**{**cmd.__dict__, "target_component": comp.compid}))
+
+    def _accept(self, comp: Component, cmd: Command) -> None:
+        key = cmd.key()
+        if key in self._inflight:
+            self._ack(comp, cmd, IN_PROGRESS, progress=255)
+            return
+        now = time.monotonic()
+        self._forget_old(now)
+        done = self._done.get(key)
+        if done is not None and (cmd.confirmation > 0 or cmd.is_int):
+            self._ack(comp, cmd, done.result, param2=done.param2)  # a retransmission: the same answer
+            return
+        handler = self._handlers.get((comp.compid, cmd.command))
+        if handler is None:
+            self._finish(comp, cmd, Outcome(UNSUPPORTED))
+            return
+        if len(self._inflight) >= self.max_inflight:
+            log.warning("%d commands in progress (the limit): %d from %d/%d rejected",
+                        self.max_inflight, cmd.command, cmd.src_system, cmd.src_component)  # fmt: skip
+            self._ack(comp, cmd, TEMPORARILY_REJECTED)
+            return
+        task = asyncio.ensure_future(self._run(comp, cmd, handler))
+        self._inflight[key] = task
+        task.add_done_callback(lambda _t: self._inflight.pop(key, None))
+
+    async def _run(self, comp: Component, cmd: Command, handler: Handler) -> None:
+        work = asyncio.ensure_future(handler(cmd))
+        progress_at = self.progress_after_s
+        deadline = time.monotonic() + self.timeout_s
+        try:
+            while True:
+                done, _ = await asyncio.wait({work}, timeout=progress_at)
+                if done:
+                    break
+                if time.monotonic() >= deadline:
+                    work.cancel()
+                    break
+                self._ack(comp, cmd, IN_PROGRESS, progress=255)
+                progress_at = self.progress_every_s
+            outcome = self._outcome(cmd, work)
+        except asyncio.CancelledError:
+            work.cancel()
+            raise
+        self._finish(comp, cmd, outcome)
+
+    def _outcome(self, cmd: Command, work: asyncio.Future[Outcome | None]) -> Outcome:
+        if work.cancelled():
+            return Outcome(FAILED, BRIDGE_ERROR, text=f"command {cmd.command} took longer than {self.timeout_s:g} s")
+        exc = work.exception()
+        if exc is None:
+            return work.result() or Outcome()
+        if isinstance(exc, CommandRefusedError):
+            return Outcome(exc.result, text=str(exc))
+        if isinstance(exc, UnsupportedError):
+            return Outcome(UNSUPPORTED, text=str(exc))
+        if isinstance(exc, FieldValueError):
+            return Outcome(DENIED, text=str(exc))
+        if isinstance(exc, DeviceError):
+            return Outcome(FAILED, CAMERA_ERROR, text=f"camera refused: {exc}")
+        if isinstance(exc, RequestTimeoutError):
+            return Outcome(FAILED, CAMERA_TIMEOUT, text=f"camera did not answer: {exc}")
+        if isinstance(exc, TransportError):
+            return Outcome(FAILED, CAMERA_LINK_DOWN, text=f"camera link down: {exc}")
+        log.error("command %d failed in the bridge", cmd.command, exc_info=exc)
+        return Outcome(FAILED, BRIDGE_ERROR, text=f"bridge error: {type(exc).__name__}: {exc}")
+
+    def _finish(self, comp: Component, cmd: Command, outcome: Outcome) -> None:
+        self._ack(comp, cmd, outcome.result, param2=outcome.param2)
+        name = RESULT_NAMES.get(outcome.result, str(outcome.result))
+        self.counts[name] = self.counts.get(name, 0) + 1
+        if outcome.text and outcome.result != ACCEPTED:
+            log.info("command %d from %d/%d to %s: %s (%s)", cmd.command, cmd.src_system, cmd.src_component,
+                     comp.name, name, outcome.text)  # fmt: skip
+            if outcome.result == FAILED:
+                statustext(comp, outcome.text, severity=3)
+        self._done[cmd.key()] = _Done(time.monotonic(), outcome.result, outcome.param2)
+        while len(self._done) > REMEMBER_RESULTS:
+            self._done.popitem(last=False)
+        for msg in outcome.after:
+            comp.send(msg)
+
+    def _forget_old(self, now: float) -> None:
+        while self._done:
+            k, d = next(iter(self._done.items()))
+            if now - d.t <= RETRANSMIT_WINDOW_S:
+                break
+            del self._done[k]
+
+    def _ack(self, comp: Component, cmd: Command, result: int, *, progress: int = 0, param2: int = 0) -> None:
+        comp.send(mavlink().MAVLink_command_ack_message(
+            cmd.command, result, progress, param2, cmd.src_system, cmd.src_component))  # fmt: skip
+
+    async def close(self) -> None:
+        for t in list(self._inflight.values()):
+            t.cancel()
+        for t in list(self._inflight.values()):
+            with contextlib.suppress(BaseException):
+                await t
+
+
+def statustext(comp: Component, text: str, severity: int = 6) -> None:
+    """A STATUSTEXT from `comp` (severity: 3 error, 4 warning, 6 info); long text is cut at 50."""
+    data = text.encode("utf-8", "replace")[:50]
+    comp.send(mavlink().MAVLink_statustext_message(severity, data))

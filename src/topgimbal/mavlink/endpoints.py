@@ -1,0 +1,377 @@
+"""MAVLink links in pymavlink's connection-string syntax, on asyncio.
+
+    udpin:HOST:PORT    listen; answer every peer heard in the last PEER_TIMEOUT_S (at most max_peers)
+    udp:HOST:PORT      the same as udpin (as in pymavlink)
+    udpout:HOST:PORT   send to HOST:PORT, take what comes back
+    tcp:HOST:PORT      connect; reconnect with back-off when the peer goes away
+    tcpin:HOST:PORT    listen; at most max_peers connections at once
+    DEVICE[,BAUD]      a serial port (/dev/ttyUSB0,57600; default 115200); reopened when it fails
+
+Links carry bytes only; the node parses MAVLink per (link, peer) so a stream split anywhere is
+reassembled. Every buffer is bounded: peers per link, bytes queued per connection."""
+
+from __future__ import annotations
+
+import abc
+import asyncio
+import contextlib
+import logging
+import time
+from collections.abc import Callable, Hashable
+from dataclasses import dataclass
+from typing import Any
+
+from ..errors import TopGimbalError
+
+log = logging.getLogger("topgimbal.mavlink")
+
+MAX_PEERS = 16
+PEER_TIMEOUT_S = 30.0
+MAX_WRITE_BUFFER = 256 * 1024
+RECONNECT_MIN_S = 0.5
+RECONNECT_MAX_S = 5.0
+DEFAULT_BAUD = 115200
+
+DataCallback = Callable[["Link", Hashable, bytes], None]
+GoneCallback = Callable[["Link", Hashable], None]
+
+
+class EndpointError(TopGimbalError, ValueError):
+    """A MAVLink connection string that cannot be used."""
+
+
+@dataclass(frozen=True)
+class EndpointSpec:
+    kind: str  # udpin, udpout, tcp, tcpin, serial
+    host: str = ""
+    port: int = 0
+    device: str = ""
+    baud: int = DEFAULT_BAUD
+    text: str = ""
+
+    def __str__(self) -> str:
+        return self.text
+
+
+FORMS = "udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, tcpin:HOST:PORT or a serial DEVICE[,BAUD]"
+
+
+def parse_endpoint(text: str) -> EndpointSpec:
+    """Parse one pymavlink-style connection string; EndpointError says what is allowed."""
+    if not isinstance(text, str) or not text.strip():
+        raise EndpointError(f"empty MAVLink endpoint: expected {FORMS}")
+    s = text.strip()
+    scheme, sep, rest = s.partition(":")
+    scheme = scheme.lower()
+    if sep and scheme in ("udp", "udpin", "udpout", "tcp", "tcpin"):
+        host, _, port_text = rest.rpartition(":")
+        host = host.strip("[]")
+        if not host or not port_text.isdigit() or not 0 <= int(port_text) <= 65535:
+            raise EndpointError(f"{text!r}: expected {scheme}:HOST:PORT (port 0..65535)")
+        port = int(port_text)
+        kind = "udpin" if scheme == "udp" else scheme
+        if kind in ("udpout", "tcp") and port == 0:
+            raise EndpointError(f"{text!r}: {kind} needs the peer's port, not 0")
+        return EndpointSpec(kind, host, port, text=s)
+    if scheme in ("udpbcast", "mcast", "wsserver", "ws", "wss"):
+        raise EndpointError(f"{text!r}: {scheme}: links are not supported; use {FORMS}")
+    device, baud = s, DEFAULT_BAUD
+    for sep_char in (",", "@"):
+        if sep_char in s:
+            device, _, baud_text = s.rpartition(sep_char)
+            if not baud_text.isdigit():
+                raise EndpointError(f"{text!r}: baud {baud_text!r} is not a number")
+            baud = int(baud_text)
+            break
+    if not (device.startswith("/") or device.upper().startswith("COM")):
+        raise EndpointError(f"{text!r}: not a MAVLink endpoint; expected {FORMS}")
+    return EndpointSpec("serial", device=device, baud=baud, text=s)
+
+
+class Link(abc.ABC):
+    """One MAVLink link: bytes in through `on_data(link, peer, data)`, `send()` to every peer."""
+
+    def __init__(self, spec: EndpointSpec, on_data: DataCallback, on_gone: GoneCallback, max_peers: int) -> None:
+        self.spec = spec
+        self._on_data = on_data
+        self._on_gone = on_gone
+        self.max_peers = max_peers
+        self.bytes_in = 0
+        self.bytes_out = 0
+        self.dropped_out = 0
+        self.refused_peers = 0
+        self._closed = False
+        self._refusal_logged = 0.0
+
+    def __str__(self) -> str:
+        return self.spec.text
+
+    @property
+    def address(self) -> tuple[str, int] | None:
+        """The local (host, port) a listening link is bound to (port 0 resolved)."""
+        return None
+
+    @property
+    @abc.abstractmethod
+    def peer_count(self) -> int: ...
+
+    @abc.abstractmethod
+    async def start(self) -> None: ...
+
+    @abc.abstractmethod
+    def send(self, data: bytes) -> None: ...
+
+    @abc.abstractmethod
+    async def close(self) -> None: ...
+
+    def _deliver(self, peer: Hashable, data: bytes) -> None:
+        self.bytes_in += len(data)
+        try:
+            self._on_data(self, peer, data)
+        except Exception:  # one bad packet must not end the link
+            log.exception("%s: handling %d bytes from %s failed", self, len(data), peer)
+
+    def _refuse(self, peer: object) -> None:
+        self.refused_peers += 1
+        now = time.monotonic()
+        if now - self._refusal_logged > 10.0:
+            self._refusal_logged = now
+            log.warning("%s: already %d peers (the limit); ignoring %s", self, self.max_peers, peer)
+
+
+# -- UDP ---------------------------------------------------------------------------------------------
+
+
+class _UdpProtocol(asyncio.DatagramProtocol):
+    def __init__(self, owner: UdpLink) -> None:
+        self.owner = owner
+
+    def datagram_received(self, data: bytes, addr: Any) -> None:
+        self.owner._received(data, addr)
+
+    def error_received(self, exc: Exception) -> None:
+        # ICMP "port unreachable" from a ground station that is not running yet: not fatal.
+        log.debug("%s: %s", self.owner, exc)
+
+
+class UdpLink(Link):
+    """udpin (listen) or udpout (send to a fixed address)."""
+
+    def __init__(self, *a: Any, **kw: Any) -> None:
+        super().__init__(*a, **kw)
+        self._transport: asyncio.DatagramTransport | None = None
+        self._peers: dict[Any, float] = {}  # address -> last heard (monotonic)
+
+    @property
+    def address(self) -> tuple[str, int] | None:
+        if self._transport is None:
+            return None
+        name = self._transport.get_extra_info("sockname")
+        return (str(name[0]), int(name[1])) if name else None
+
+    @property
+    def peer_count(self) -> int:
+        return len(self._peers) if self.spec.kind == "udpin" else 1
+
+    async def start(self) -> None:
+        loop = asyncio.get_running_loop()
+        try:
+            if self.spec.kind == "udpin":
+                self._transport, _ = await loop.create_datagram_endpoint(
+                    lambda: _UdpProtocol(self), local_addr=(self.spec.host, self.spec.port)
+                )
+            else:
+                self._transport, _ = await loop.create_datagram_endpoint(
+                    lambda: _UdpProtocol(self), remote_addr=(self.spec.host, self.spec.port)
+                )
+        except OSError as exc:
+            raise EndpointError(f"{self.spec}: {exc}") from exc
+
+    def _received(self, data: bytes, addr: Any) -> None:
+        if self.spec.kind == "udpin":
+            now = time.monotonic()
+            if addr not in self._peers:
+                self._expire(now)
+                if len(self._peers) >= self.max_peers:
+                    self._refuse(addr)
+                    return
+                log.info("%s: new peer %s", self, addr)
+            self._peers[addr] = now
+        self._deliver(addr if self.spec.kind == "udpin" else "out", data)
+
+    def _expire(self, now: float) -> None:
+        for addr, seen in list(self._peers.items()):
+            if now - seen > PEER_TIMEOUT_S:
+                del self._peers[addr]
+                log.info("%s: peer %s silent for %.0f s, forgotten", self, addr, PEER_TIMEOUT_S)
+                self._on_gone(self, addr)
+
+    def send(self, data: bytes) -> None:
+        t = self._transport
+        if t is None or t.is_closing():
+            self.dropped_out += 1
+            return
+        if self.spec.kind == "udpout":
+            t.sendto(data)
+            self.bytes_out += len(data)
+            return
+        self._expire(time.monotonic())
+        for addr in self._peers:
+            t.sendto(data, addr)
+            self.bytes_out += len(data)
+
+    async def close(self) -> None:
+        self._closed = True
+        if self._transport is not None:
+            self._transport.close()
+            self._transport = None
+
+
+# -- streams (TCP, serial) ---------------------------------------------------------------------------
+
+
+class _StreamProtocol(asyncio.Protocol):
+    def __init__(self, owner: StreamLink, peer: Hashable) -> None:
+        self.owner = owner
+        self.peer = peer
+        self.transport: asyncio.Transport | None = None
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        self.transport = transport  # type: ignore[assignment]
+        self.owner._connected(self)
+
+    def data_received(self, data: bytes) -> None:
+        self.owner._deliver(self.peer, data)
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self.owner._disconnected(self, exc)
+
+
+class StreamLink(Link):
+    """tcp (connect out, reconnect), tcpin (listen) and serial (reopen): one byte stream per peer."""
+
+    def __init__(self, *a: Any, **kw: Any) -> None:
+        super().__init__(*a, **kw)
+        self._conns: dict[Hashable, _StreamProtocol] = {}
+        self._server: asyncio.base_events.Server | None = None
+        self._task: asyncio.Task[None] | None = None
+        self._lost = asyncio.Event()
+        self._serial_n = 0
+
+    @property
+    def address(self) -> tuple[str, int] | None:
+        if self._server is None or not self._server.sockets:
+            return None
+        name = self._server.sockets[0].getsockname()
+        return (str(name[0]), int(name[1]))
+
+    @property
+    def peer_count(self) -> int:
+        return len(self._conns)
+
+    async def start(self) -> None:
+        loop = asyncio.get_running_loop()
+        if self.spec.kind == "tcpin":
+            try:
+                self._server = await loop.create_server(self._accept, self.spec.host, self.spec.port)
+            except OSError as exc:
+                raise EndpointError(f"{self.spec}: {exc}") from exc
+            return
+        self._task = asyncio.ensure_future(self._keep_open())
+
+    def _accept(self) -> asyncio.Protocol:
+        self._serial_n += 1
+        return _StreamProtocol(self, ("tcpin", self._serial_n))
+
+    async def _open_once(self) -> None:
+        loop = asyncio.get_running_loop()
+        self._serial_n += 1
+        peer = (self.spec.kind, self._serial_n)
+        if self.spec.kind == "tcp":
+            await asyncio.wait_for(
+                loop.create_connection(lambda: _StreamProtocol(self, peer), self.spec.host, self.spec.port), 5.0
+            )
+            return
+        try:
+            import serial_asyncio_fast
+        except ImportError:  # pragma: no cover - depends on the installation
+            raise EndpointError(
+                "serial MAVLink links need pyserial-asyncio-fast: pip install 'topgimbal[serial]'"
+            ) from None
+        await serial_asyncio_fast.create_serial_connection(
+            loop, lambda: _StreamProtocol(self, peer), self.spec.device, baudrate=self.spec.baud
+        )
+
+    async def _keep_open(self) -> None:
+        delay = RECONNECT_MIN_S
+        while not self._closed:
+            self._lost.clear()
+            try:
+                await self._open_once()
+            except EndpointError as exc:
+                log.error("%s", exc)
+                return
+            except (OSError, asyncio.TimeoutError, ValueError) as exc:
+                log.info("%s: cannot open (%s); retrying in %.1f s", self, exc or "timed out", delay)
+                await asyncio.sleep(delay)
+                delay = min(RECONNECT_MAX_S, delay * 2)
+                continue
+            delay = RECONNECT_MIN_S
+            await self._lost.wait()
+            if not self._closed:
+                await asyncio.sleep(RECONNECT_MIN_S)
+
+    def _connected(self, proto: _StreamProtocol) -> None:
+        if len(self._conns) >= self.max_peers:
+            self._refuse(proto.peer)
+            if proto.transport is not None:
+                proto.transport.close()
+            return
+        self._conns[proto.peer] = proto
+        log.info("%s: connected (%s)", self, proto.peer)
+
+    def _disconnected(self, proto: _StreamProtocol, exc: Exception | None) -> None:
+        if self._conns.pop(proto.peer, None) is not None:
+            log.info("%s: %s closed%s", self, proto.peer, f" ({exc})" if exc else "")
+            self._on_gone(self, proto.peer)
+        if self.spec.kind != "tcpin":
+            self._lost.set()
+
+    def send(self, data: bytes) -> None:
+        if not self._conns:
+            self.dropped_out += 1
+            return
+        for proto in list(self._conns.values()):
+            t = proto.transport
+            if t is None or t.is_closing():
+                continue
+            if t.get_write_buffer_size() > MAX_WRITE_BUFFER:
+                self.dropped_out += 1  # a peer that does not read loses messages, not our memory
+                continue
+            t.write(data)
+            self.bytes_out += len(data)
+
+    async def close(self) -> None:
+        self._closed = True
+        self._lost.set()
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await self._task
+        for proto in list(self._conns.values()):
+            if proto.transport is not None:
+                proto.transport.close()
+        self._conns.clear()
+        if self._server is not None:
+            self._server.close()
+            with contextlib.suppress(Exception):
+                await self._server.wait_closed()
+            self._server = None
+
+
+def make_link(
+    spec: EndpointSpec | str, on_data: DataCallback, on_gone: GoneCallback, max_peers: int = MAX_PEERS
+) -> Link:
+    spec = parse_endpoint(spec) if isinstance(spec, str) else spec
+    cls: type[Link] = UdpLink if spec.kind in ("udpin", "udpout") else StreamLink
+    return cls(spec, on_data, on_gone, max_peers)

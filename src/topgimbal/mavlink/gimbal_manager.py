@@ -1,0 +1,271 @@
+"""Gimbal protocol v2, gimbal manager role: direct control from a ground station.
+
+GIMBAL_MANAGER_INFORMATION / GIMBAL_MANAGER_STATUS, MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW (acked
+when the camera confirmed), MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE (who is in control),
+GIMBAL_MANAGER_SET_ATTITUDE / SET_PITCHYAW (streams, latest wins) and the ROI commands, which
+point at a place while the vehicle's position and heading are heard on the network."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+from typing import Any
+
+from ._mav import mavlink
+from .camera_link import CameraLink
+from .commands import Command, Outcome, denied, rejected, unsupported
+from .geo import Position, look_at
+from .gimbal_device import F_NEUTRAL, F_RETRACT, F_YAW_IN_EARTH_FRAME, F_YAW_LOCK, device_cap_flags, setpoint_from
+from .pointing import Pointer, Setpoint
+from .services import Services
+from .vehicle import Vehicles
+
+log = logging.getLogger("topgimbal.mavlink")
+
+MSG_MANAGER_INFORMATION = 280
+MSG_MANAGER_STATUS = 281
+CMD_PITCHYAW = 1000
+CMD_CONFIGURE = 1001
+CMD_ROI_LOCATION, CMD_ROI_WPNEXT_OFFSET, CMD_ROI_NONE, CMD_ROI_SYSID, CMD_ROI = 195, 196, 197, 198, 201
+CAN_POINT_LOCATION_GLOBAL = 131072
+ROI_PERIOD_S = 0.2
+
+
+class GimbalManager:
+    def __init__(
+        self, services: Services, cam: CameraLink, pointer: Pointer, vehicles: Vehicles, *, gimbal_device_id: int
+    ) -> None:
+        self.services = services
+        self.comp = services.comp
+        self.cam = cam
+        self.pointer = pointer
+        self.vehicles = vehicles
+        self.gimbal_device_id = gimbal_device_id
+        self.primary: tuple[int, int] = (0, 0)
+        self.secondary: tuple[int, int] = (0, 0)
+        self.roi: Position | int | None = None  # a place, or a system id to follow
+        self._roi_task: asyncio.Task[None] | None = None
+        self._stopping: asyncio.Future[None] | None = None
+        services.provide(MSG_MANAGER_INFORMATION, self._information)
+        services.provide(MSG_MANAGER_STATUS, self._status_now)
+        services.add_stream(MSG_MANAGER_STATUS, self.status_message, 5.0, 20.0)
+        d = services.dispatcher
+        d.register(self.comp, CMD_PITCHYAW, self._pitchyaw)
+        d.register(self.comp, CMD_CONFIGURE, self._configure)
+        for c in (CMD_ROI_LOCATION, CMD_ROI_NONE, CMD_ROI_SYSID, CMD_ROI):
+            d.register(self.comp, c, self._roi_command)
+
+    async def close(self) -> None:
+        await self._stop_roi()
+
+    # -- information and status ----------------------------------------------------------------
+
+    def information_message(self) -> Any:
+        m = self.cam.profile.model
+        rad = math.radians
+        return mavlink().MAVLink_gimbal_manager_information_message(
+            self.comp.node.time_boot_ms(), device_cap_flags(self.pointer) | CAN_POINT_LOCATION_GLOBAL,
+            self.gimbal_device_id, rad(m.roll_range_deg[0]), rad(m.roll_range_deg[1]),
+            rad(m.pitch_range_deg[0]), rad(m.pitch_range_deg[1]), rad(m.yaw_range_deg[0]), rad(m.yaw_range_deg[1]),
+        )  # fmt: skip
+
+    async def _information(self, cmd: Command) -> list[Any]:
+        return [self.information_message()]
+
+    def status_message(self) -> Any:
+        flags = 4 | 8 | 32  # roll and pitch lock, yaw in the vehicle frame
+        if self.pointer.mode == "lock":
+            flags |= F_YAW_LOCK
+        return mavlink().MAVLink_gimbal_manager_status_message(
+            self.comp.node.time_boot_ms(), flags, self.gimbal_device_id, *self.primary, *self.secondary)  # fmt: skip
+
+    async def _status_now(self, cmd: Command) -> list[Any]:
+        return [self.status_message()]
+
+    # -- control -------------------------------------------------------------------------------
+
+    def _check_control(self, sysid: int, compid: int) -> None:
+        if self.primary == (0, 0):
+            return  # nobody took control: everyone may steer
+        if (sysid, compid) in (self.primary, self.secondary):
+            return
+        raise denied(f"{sysid}/{compid} is not in control (primary {self.primary[0]}/{self.primary[1]})")
+
+    def _for_us(self, gimbal_device_id: float) -> bool:
+        return int(gimbal_device_id) in (0, self.gimbal_device_id) if not math.isnan(gimbal_device_id) else True
+
+    async def _configure(self, cmd: Command) -> Outcome:
+        if not self._for_us(cmd.p(7)):
+            raise denied(f"gimbal device {cmd.p(7):g} is not managed here (ours: {self.gimbal_device_id})")
+        me = (cmd.src_system, cmd.src_component)
+        self.primary = _control(self.primary, cmd.p(1), cmd.p(2), me)
+        self.secondary = _control(self.secondary, cmd.p(3), cmd.p(4), me)
+        self.comp.send(self.status_message())
+        return Outcome()
+
+    # -- pointing ------------------------------------------------------------------------------
+
+    async def _pitchyaw(self, cmd: Command) -> Outcome:
+        if not self._for_us(cmd.p(7)):
+            raise denied(f"gimbal device {cmd.p(7):g} is not managed here (ours: {self.gimbal_device_id})")
+        self._check_control(cmd.src_system, cmd.src_component)
+        flags = int(cmd.p(5)) if cmd.has(5) else 0
+        if flags & F_RETRACT:
+            raise unsupported("the gimbal cannot retract")
+        await self._stop_roi()
+        self.pointer.cancel_stream()
+        if flags & F_NEUTRAL:
+            if not self.cam.profile.has_neutral:
+                raise unsupported("the gimbal has no neutral position command")
+            await self.cam.call(lambda c: c.center())
+            return Outcome()
+        lock = bool(flags & F_YAW_LOCK)
+        earth = bool(flags & F_YAW_IN_EARTH_FRAME)
+        if cmd.has(1) or cmd.has(2):
+            sp = Setpoint(
+                yaw_deg=cmd.p(2) if cmd.has(2) else None,
+                pitch_deg=cmd.p(1) if cmd.has(1) else None,
+                earth_yaw=earth,
+                lock=lock,
+            )
+        elif cmd.has(3) or cmd.has(4):
+            sp = Setpoint(
+                yaw_rate_deg_s=cmd.p(4) if cmd.has(4) else 0.0,
+                pitch_rate_deg_s=cmd.p(3) if cmd.has(3) else 0.0,
+                lock=lock,
+            )
+        else:
+            raise denied("neither angles (param1, param2) nor rates (param3, param4) given")
+        await self.pointer.apply(sp)
+        return Outcome()
+
+    def on_message(self, msg: Any) -> None:
+        kind = msg.get_type()
+        if kind not in ("GIMBAL_MANAGER_SET_ATTITUDE", "GIMBAL_MANAGER_SET_PITCHYAW"):
+            return
+        if msg.target_system not in (0, self.comp.sysid) or msg.target_component not in (0, self.comp.compid):
+            return
+        if not self._for_us(float(msg.gimbal_device_id)):
+            return
+        if self.primary != (0, 0) and (msg.get_srcSystem(), msg.get_srcComponent()) not in (
+            self.primary,
+            self.secondary,
+        ):
+            return  # not in control: ignored, as the protocol says
+        if kind == "GIMBAL_MANAGER_SET_ATTITUDE":
+            sp = setpoint_from(
+                msg.flags, msg.q, (msg.angular_velocity_x, msg.angular_velocity_y, msg.angular_velocity_z)
+            )
+        else:
+            sp = _pitchyaw_setpoint(msg)
+        if sp is not None:
+            self._cancel_roi_soon()
+            self.pointer.stream(sp)
+
+    # -- region of interest --------------------------------------------------------------------
+
+    async def _roi_command(self, cmd: Command) -> Outcome:
+        self._check_control(cmd.src_system, cmd.src_component)
+        c = cmd.command
+        if c == CMD_ROI:  # deprecated form: param1 = MAV_ROI mode
+            mode = int(cmd.p(1))
+            if mode == 0:
+                c = CMD_ROI_NONE
+            elif mode == 3:
+                c = CMD_ROI_LOCATION
+            else:
+                raise unsupported(f"MAV_CMD_DO_SET_ROI mode {mode} (supported: 0 none, 3 location)")
+        elif not self._for_us(cmd.p(1)):
+            raise denied(f"gimbal device {cmd.p(1):g} is not managed here (ours: {self.gimbal_device_id})")
+        if c == CMD_ROI_NONE:
+            await self._stop_roi()
+            return Outcome()
+        if c == CMD_ROI_SYSID:
+            sysid = int(cmd.p(1))
+            if self.vehicles.fix(sysid) is None:
+                raise rejected(f"no position heard from system {sysid}")
+            target: Position | int = sysid
+        else:
+            alt = cmd.p(7)
+            if cmd.frame in (3, 6):  # relative to home
+                fix = self.vehicles.fix()
+                if fix is None:
+                    raise rejected("the vehicle's position is not known yet (no GLOBAL_POSITION_INT)")
+                alt += fix.home_alt_m
+            target = Position(cmd.lat_deg, cmd.lon_deg, alt)
+        yaw, pitch = self._aim(target)
+        await self._stop_roi()
+        self.pointer.cancel_stream()
+        await self.pointer.apply(Setpoint(yaw_deg=yaw, pitch_deg=pitch), clamp=True)
+        self.roi = target
+        self._roi_task = asyncio.ensure_future(self._follow_roi())
+        return Outcome()
+
+    def _aim(self, target: Position | int) -> tuple[float, float]:
+        fix = self.vehicles.fix()
+        yaw = self.vehicles.yaw_deg
+        if fix is None or yaw is None:
+            raise rejected("the vehicle's position and heading are not known yet")
+        if isinstance(target, int):
+            other = self.vehicles.fix(int(target))
+            if other is None:
+                raise rejected(f"no position heard from system {target}")
+            place = other.position
+        else:
+            place = target
+        return look_at(fix.position, yaw, place)
+
+    async def _follow_roi(self) -> None:
+        while self.roi is not None:
+            await asyncio.sleep(ROI_PERIOD_S)
+            try:
+                yaw, pitch = self._aim(self.roi)
+            except Exception:
+                continue  # position not heard for a moment: hold the last direction
+            self.pointer.stream(Setpoint(yaw_deg=yaw, pitch_deg=pitch))
+
+    async def _stop_roi(self) -> None:
+        self.roi = None
+        task, self._roi_task = self._roi_task, None
+        if task is not None:
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await task
+
+    def _cancel_roi_soon(self) -> None:
+        if self.roi is not None:
+            self._stopping = asyncio.ensure_future(self._stop_roi())
+
+
+def _control(current: tuple[int, int], sysid: float, compid: float, me: tuple[int, int]) -> tuple[int, int]:
+    """MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE's rules: -1 leave, -2 take for the sender, -3 release
+    if the sender holds it, >= 0 set (0 = nobody)."""
+    if math.isnan(sysid) or sysid == -1:
+        return current
+    if sysid == -2:
+        return me
+    if sysid == -3:
+        return (0, 0) if current == me else current
+    return (int(sysid), int(compid) if not math.isnan(compid) else 0)
+
+
+def _pitchyaw_setpoint(msg: Any) -> Setpoint | None:
+    deg = math.degrees
+    lock = bool(msg.flags & F_YAW_LOCK)
+    earth = bool(msg.flags & F_YAW_IN_EARTH_FRAME)
+    if not (math.isnan(msg.pitch) and math.isnan(msg.yaw)):
+        return Setpoint(
+            yaw_deg=None if math.isnan(msg.yaw) else deg(msg.yaw),
+            pitch_deg=None if math.isnan(msg.pitch) else deg(msg.pitch),
+            earth_yaw=earth,
+            lock=lock,
+        )
+    if math.isnan(msg.pitch_rate) and math.isnan(msg.yaw_rate):
+        return None
+    return Setpoint(
+        yaw_rate_deg_s=0.0 if math.isnan(msg.yaw_rate) else deg(msg.yaw_rate),
+        pitch_rate_deg_s=0.0 if math.isnan(msg.pitch_rate) else deg(msg.pitch_rate),
+        lock=lock,
+    )

@@ -1,0 +1,133 @@
+"""The bridge's place on the MAVLink network: its links, one parser per (link, peer), and the
+components it speaks as (each a pymavlink encoder with its own sequence numbers).
+
+Everything a component sends goes out on every link (a MAVLink node broadcasts; routers and
+ground stations sort it out). Messages our own components sent, echoed back by a router, are
+dropped on arrival."""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Hashable
+from typing import Any
+
+from ._mav import mavlink
+from .endpoints import MAX_PEERS, Link, make_link
+
+log = logging.getLogger("topgimbal.mavlink")
+
+MessageCallback = Callable[[Any], None]
+
+
+class _Writer:
+    """The file pymavlink's encoder writes to: every link of the node."""
+
+    def __init__(self, node: Node) -> None:
+        self.node = node
+
+    def write(self, data: bytes) -> None:
+        self.node.broadcast(data)
+
+
+class Component:
+    """One MAVLink identity (system id, component id) of the bridge."""
+
+    def __init__(self, node: Node, compid: int, name: str) -> None:
+        self.node = node
+        self.sysid = node.sysid
+        self.compid = compid
+        self.name = name
+        self.mav = mavlink().MAVLink(_Writer(node), srcSystem=node.sysid, srcComponent=compid)
+        self.mav.robust_parsing = True
+        self.sent = 0
+
+    def send(self, msg: Any) -> None:
+        self.mav.send(msg)
+        self.sent += 1
+
+    def __repr__(self) -> str:
+        return f"<{self.name} {self.sysid}/{self.compid}>"
+
+
+class Node:
+    def __init__(self, sysid: int, endpoints: list[str], *, max_peers: int = MAX_PEERS) -> None:
+        self.sysid = sysid
+        self.links: list[Link] = [make_link(e, self._on_data, self._on_gone, max_peers) for e in endpoints]
+        self.components: dict[int, Component] = {}
+        self._parsers: dict[tuple[int, Hashable], Any] = {}
+        self._subscribers: list[MessageCallback] = []
+        self.messages_in = 0
+        self.bad_in = 0
+        self.started = time.monotonic()
+
+    def component(self, compid: int, name: str) -> Component:
+        if compid in self.components:
+            raise ValueError(f"component id {compid} is used twice")
+        c = self.components[compid] = Component(self, compid, name)
+        return c
+
+    def subscribe(self, callback: MessageCallback) -> None:
+        self._subscribers.append(callback)
+
+    def time_boot_ms(self) -> int:
+        return int((time.monotonic() - self.started) * 1000) & 0xFFFFFFFF
+
+    async def start(self) -> None:
+        started: list[Link] = []
+        try:
+            for link in self.links:
+                await link.start()
+                started.append(link)
+        except BaseException:
+            for link in started:
+                await link.close()
+            raise
+
+    async def close(self) -> None:
+        for link in self.links:
+            await link.close()
+        self._parsers.clear()
+
+    def broadcast(self, data: bytes) -> None:
+        for link in self.links:
+            try:
+                link.send(data)
+            except OSError as exc:  # a link in trouble must not stop the others
+                link.dropped_out += 1
+                log.debug("%s: send failed: %s", link, exc)
+
+    def _parser(self, link: Link, peer: Hashable) -> Any:
+        key = (id(link), peer)
+        p = self._parsers.get(key)
+        if p is None:
+            p = mavlink().MAVLink(None)
+            p.robust_parsing = True
+            self._parsers[key] = p
+        return p
+
+    def _on_gone(self, link: Link, peer: Hashable) -> None:
+        self._parsers.pop((id(link), peer), None)
+
+    def _on_data(self, link: Link, peer: Hashable, data: bytes) -> None:
+        parser = self._parser(link, peer)
+        try:
+            msgs = parser.parse_buffer(data) or []
+        except Exception as exc:  # robust_parsing turns most garbage into BAD_DATA; be sure
+            self.bad_in += 1
+            log.debug("%s: unparsable bytes from %s: %s", link, peer, exc)
+            return
+        for m in msgs:
+            if m.get_type() == "BAD_DATA":
+                self.bad_in += 1
+                continue
+            if m.get_srcSystem() == self.sysid and m.get_srcComponent() in self.components:
+                continue  # our own message, echoed by a router
+            self.messages_in += 1
+            for cb in list(self._subscribers):
+                try:
+                    cb(m)
+                except Exception:
+                    log.exception(
+                        "handling %s from %d/%d failed", m.get_type(), m.get_srcSystem(), m.get_srcComponent()
+                    )

@@ -1,0 +1,177 @@
+"""Gimbal set-points from MAVLink to the camera, shared by the device and manager roles.
+
+Commands (MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW) await the camera's confirmation for their ack.
+Streamed set-points (GIMBAL_DEVICE_SET_ATTITUDE, GIMBAL_MANAGER_SET_ATTITUDE / SET_PITCHYAW,
+sent at 10-50 Hz by autopilots and ground stations) cannot be acked: the latest one wins, one
+request to the camera at a time, an unchanged set-point is re-sent only as a keep-alive; nothing
+queues up behind a slow camera."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import time
+from dataclasses import dataclass
+
+from ..errors import TopGimbalError
+from .camera_link import CameraLink
+from .commands import rejected
+from .quaternion import wrap180
+from .vehicle import Vehicles
+
+log = logging.getLogger("topgimbal.mavlink")
+
+ANGLE_DEADBAND_DEG = 0.05
+RATE_DEADBAND_DEG_S = 0.05
+ANGLE_REFRESH_S = 1.0
+RATE_REFRESH_S = 0.5  # some firmware stops a rate command after a silence
+
+
+@dataclass(frozen=True)
+class Setpoint:
+    """Angles (body frame unless earth_yaw) or rates, degrees; None = leave that axis alone."""
+
+    yaw_deg: float | None = None
+    pitch_deg: float | None = None
+    roll_deg: float | None = None
+    yaw_rate_deg_s: float | None = None
+    pitch_rate_deg_s: float | None = None
+    roll_rate_deg_s: float | None = None
+    earth_yaw: bool = False
+    lock: bool | None = None  # True: yaw lock, False: follow, None: no change
+
+    @property
+    def is_rate(self) -> bool:
+        return self.yaw_deg is None and self.pitch_deg is None and self.roll_deg is None
+
+
+class Pointer:
+    def __init__(self, cam: CameraLink, vehicles: Vehicles) -> None:
+        self.cam = cam
+        self.vehicles = vehicles
+        self.profile = cam.profile
+        self.mode: str | None = None  # "lock" / "follow" as last confirmed by the camera
+        self._latest: Setpoint | None = None
+        self._wake = asyncio.Event()
+        self._task: asyncio.Task[None] | None = None
+        self._last_sent: tuple[Setpoint, float] | None = None
+        self.stream_errors = 0
+        self._error_logged = 0.0
+
+    def start(self) -> None:
+        self._task = asyncio.ensure_future(self._worker())
+
+    async def close(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await self._task
+
+    # -- commands (awaited, acked with the camera's answer) -------------------------------------
+
+    async def apply(self, sp: Setpoint, *, clamp: bool = False) -> None:
+        """Send one set-point and return once the camera confirmed it (raises otherwise)."""
+        if sp.lock is not None and (self.profile.has_lock and self.profile.has_follow):
+            want = "lock" if sp.lock else "follow"
+            # Cameras power up following the vehicle: an unknown mode counts as follow, so plain
+            # angle commands (no YAW_LOCK flag) send no mode frame at all.
+            if want != (self.mode or "follow"):
+                await self.cam.call(lambda c: c.set_mode(want))
+                self.mode = want
+        if sp.is_rate:
+            yr, pr, rr = (self._rate(v, clamp) for v in (sp.yaw_rate_deg_s, sp.pitch_rate_deg_s, sp.roll_rate_deg_s))
+            if not self.profile.has("GSM") and not self.profile.has("GSY"):
+                raise rejected(f"the {self.profile.model.name} takes no rate commands")
+            await self.cam.call(lambda c: c.rates(yr, pr, rr if self.profile.has("GSR") else 0.0))
+        else:
+            yaw, frame = self._body_yaw(sp)
+            yaw = self._angle("yaw", yaw, clamp)
+            pitch = self._angle("pitch", sp.pitch_deg, clamp)
+            roll = (
+                sp.roll_deg if self.profile.has_roll and sp.roll_deg is not None and abs(sp.roll_deg) > 0.05 else None
+            )
+            roll = self._angle("roll", roll, clamp)
+            if yaw is None and pitch is None and roll is None:
+                return
+            await self.cam.call(lambda c: c.set_angles(yaw, pitch, roll, frame=frame))
+        self._last_sent = (sp, time.monotonic())
+
+    def _body_yaw(self, sp: Setpoint) -> tuple[float | None, str]:
+        if sp.yaw_deg is None or not sp.earth_yaw:
+            return sp.yaw_deg, "body"
+        vehicle_yaw = self.vehicles.yaw_deg
+        if vehicle_yaw is not None:
+            return wrap180(sp.yaw_deg - vehicle_yaw), "body"
+        if self.profile.earth_frame:
+            return wrap180(sp.yaw_deg), "earth"
+        raise rejected("yaw in the earth frame needs the vehicle's heading (ATTITUDE); none heard")
+
+    def _angle(self, axis: str, value: float | None, clamp: bool) -> float | None:
+        if value is None or math.isnan(value):
+            return None
+        if not clamp:
+            return value
+        lo, hi = getattr(self.profile.model, f"{axis}_range_deg")
+        return max(lo, min(hi, value))
+
+    def _rate(self, value: float | None, clamp: bool) -> float:
+        if value is None or math.isnan(value):
+            return 0.0
+        top = self.profile.model.max_rate_deg_s
+        return max(-top, min(top, value)) if clamp else value
+
+    # -- streams (latest wins) ----------------------------------------------------------------
+
+    def stream(self, sp: Setpoint) -> None:
+        self._latest = sp
+        self._wake.set()
+
+    def cancel_stream(self) -> None:
+        self._latest = None
+
+    def _is_repeat(self, sp: Setpoint, now: float) -> bool:
+        if self._last_sent is None:
+            return False
+        last, t = self._last_sent
+        if (last.lock != sp.lock and sp.lock is not None) or last.earth_yaw != sp.earth_yaw:
+            return False
+        refresh = RATE_REFRESH_S if sp.is_rate else ANGLE_REFRESH_S
+        if now - t >= refresh:
+            return False
+        band = RATE_DEADBAND_DEG_S if sp.is_rate else ANGLE_DEADBAND_DEG
+        pairs = zip(
+            (sp.yaw_deg, sp.pitch_deg, sp.roll_deg, sp.yaw_rate_deg_s, sp.pitch_rate_deg_s, sp.roll_rate_deg_s),
+            (
+                last.yaw_deg,
+                last.pitch_deg,
+                last.roll_deg,
+                last.yaw_rate_deg_s,
+                last.pitch_rate_deg_s,
+                last.roll_rate_deg_s,
+            ),
+            strict=True,
+        )
+        for a, b in pairs:
+            if (a is None) != (b is None):
+                return False
+            if a is not None and b is not None and not (math.isnan(a) and math.isnan(b)) and abs(a - b) > band:
+                return False
+        return True
+
+    async def _worker(self) -> None:
+        while True:
+            await self._wake.wait()
+            self._wake.clear()
+            sp = self._latest
+            if sp is None or self._is_repeat(sp, time.monotonic()):
+                continue
+            try:
+                await self.apply(sp, clamp=True)
+            except (TopGimbalError, OSError) as exc:
+                self.stream_errors += 1
+                now = time.monotonic()
+                if now - self._error_logged > 5.0:
+                    self._error_logged = now
+                    log.warning("streamed gimbal set-point not applied: %s", exc)

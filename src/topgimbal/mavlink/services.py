@@ -1,0 +1,158 @@
+"""What every component of the bridge answers, whatever its role: its heartbeat,
+MAV_CMD_REQUEST_MESSAGE (and the legacy request commands), and message intervals
+(MAV_CMD_SET_MESSAGE_INTERVAL / GET_MESSAGE_INTERVAL) for the messages it streams.
+
+Roles add *providers* (message id -> coroutine returning the messages to send after the ack;
+it may ask the camera first) and *streams* (periodic messages with a default and a maximum rate).
+Several roles may share one component (gimbal device + gimbal manager)."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass
+from typing import Any
+
+from ._mav import mavlink
+from .commands import Command, Dispatcher, Outcome, denied, unsupported
+from .node import Component
+
+log = logging.getLogger("topgimbal.mavlink")
+
+Provider = Callable[[Command], Awaitable[list[Any]]]
+Producer = Callable[[], "Any | None"]
+
+MAV_CMD_REQUEST_MESSAGE = 512
+MAV_CMD_SET_MESSAGE_INTERVAL = 511
+MAV_CMD_GET_MESSAGE_INTERVAL = 510
+# Legacy request commands -> (message id, which parameter carries the message's index).
+LEGACY_REQUESTS: dict[int, tuple[int, int | None]] = {
+    521: (259, None),  # REQUEST_CAMERA_INFORMATION
+    522: (260, None),  # REQUEST_CAMERA_SETTINGS
+    525: (261, None),  # REQUEST_STORAGE_INFORMATION
+    527: (262, None),  # REQUEST_CAMERA_CAPTURE_STATUS
+    2002: (263, 1),  # REQUEST_CAMERA_IMAGE_CAPTURE (param1: image index)
+    2504: (269, 1),  # REQUEST_VIDEO_STREAM_INFORMATION (param1: stream id)
+    2505: (270, 1),  # REQUEST_VIDEO_STREAM_STATUS
+}
+
+
+@dataclass
+class Stream:
+    msgid: int
+    producer: Producer | None
+    default_hz: float
+    max_hz: float
+    hz: float = 0.0
+    task: asyncio.Task[None] | None = None
+
+    @property
+    def period_s(self) -> float:
+        return 1.0 / self.hz if self.hz > 0 else 0.0
+
+
+class Services:
+    def __init__(self, comp: Component, dispatcher: Dispatcher, mav_type: int) -> None:
+        self.comp = comp
+        self.dispatcher = dispatcher
+        self.mav_type = mav_type
+        self.providers: dict[int, Provider] = {}
+        self.streams: dict[int, Stream] = {}
+        self.system_status = 4  # MAV_STATE_ACTIVE
+        self._started = False
+        dispatcher.add_component(comp)
+        dispatcher.register(comp, MAV_CMD_REQUEST_MESSAGE, self._request_message)
+        dispatcher.register(comp, MAV_CMD_SET_MESSAGE_INTERVAL, self._set_interval)
+        dispatcher.register(comp, MAV_CMD_GET_MESSAGE_INTERVAL, self._get_interval)
+        for cmd in LEGACY_REQUESTS:
+            dispatcher.register(comp, cmd, self._legacy_request)
+
+    def provide(self, msgid: int, provider: Provider) -> None:
+        self.providers[msgid] = provider
+
+    def add_stream(self, msgid: int, producer: Producer | None, default_hz: float, max_hz: float) -> Stream:
+        s = self.streams[msgid] = Stream(msgid, producer, default_hz, max_hz, default_hz)
+        return s
+
+    def heartbeat(self) -> Any:
+        return mavlink().MAVLink_heartbeat_message(self.mav_type, 8, 0, 0, self.system_status, 3)
+
+    def start(self) -> None:
+        self._started = True
+        for s in self.streams.values():
+            self._restart(s)
+
+    async def close(self) -> None:
+        self._started = False
+        for s in self.streams.values():
+            if s.task is not None:
+                s.task.cancel()
+                with contextlib.suppress(asyncio.CancelledError, Exception):
+                    await s.task
+                s.task = None
+
+    def _restart(self, s: Stream) -> None:
+        if s.task is not None:
+            s.task.cancel()
+            s.task = None
+        if self._started and s.producer is not None and s.hz > 0:
+            s.task = asyncio.ensure_future(self._run_stream(s))
+
+    async def _run_stream(self, s: Stream) -> None:
+        while True:
+            await asyncio.sleep(s.period_s)
+            try:
+                msg = s.producer() if s.producer is not None else None
+            except Exception:
+                log.exception("%s: stream %d failed", self.comp, s.msgid)
+                continue
+            if msg is not None:
+                self.comp.send(msg)
+
+    # -- command handlers ------------------------------------------------------------------------
+
+    async def _request_message(self, cmd: Command) -> Outcome:
+        return await self._answer(int(cmd.p(1)), cmd)
+
+    async def _legacy_request(self, cmd: Command) -> Outcome:
+        msgid, index_param = LEGACY_REQUESTS[cmd.command]
+        if cmd.command in (521, 522, 525, 527) and cmd.p(1) == 0:
+            return Outcome()  # param1 = 0: "do not send" (the legacy commands' way to stop)
+        # Re-express as REQUEST_MESSAGE, whose param2 is the index.
+        params = list(cmd.params)
+        params[1] = cmd.p(index_param) if index_param is not None else 0.0
+        return await self._answer(msgid, Command(**{**cmd.__dict__, "params": tuple(params)}))
+
+    async def _answer(self, msgid: int, cmd: Command) -> Outcome:
+        provider = self.providers.get(msgid)
+        if provider is None:
+            raise unsupported(f"{self.comp.name} does not provide message {msgid}")
+        msgs = await provider(cmd)
+        return Outcome(after=list(msgs))
+
+    async def _set_interval(self, cmd: Command) -> Outcome:
+        msgid, interval_us = int(cmd.p(1)), cmd.p(2)
+        s = self.streams.get(msgid)
+        if s is None:
+            raise unsupported(f"{self.comp.name} does not stream message {msgid}")
+        if interval_us == -1:
+            s.hz = 0.0
+        elif interval_us == 0:
+            s.hz = s.default_hz
+        elif interval_us > 0:
+            hz = 1e6 / interval_us
+            if hz > s.max_hz:
+                raise denied(f"message {msgid} at most {s.max_hz:g} Hz from {self.comp.name}")
+            s.hz = hz
+        else:
+            raise denied(f"interval {interval_us:g} us: expected -1, 0 or a positive number")
+        self._restart(s)
+        return Outcome()
+
+    async def _get_interval(self, cmd: Command) -> Outcome:
+        msgid = int(cmd.p(1))
+        s = self.streams.get(msgid)
+        interval = 0 if s is None else -1 if s.hz <= 0 else int(1e6 / s.hz)
+        return Outcome(after=[mavlink().MAVLink_message_interval_message(msgid, interval)])

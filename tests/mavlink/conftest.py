@@ -1,0 +1,148 @@
+"""A pymavlink peer on loopback UDP and a rig: simulator + bridge + peer, all on ephemeral ports."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from collections.abc import AsyncIterator, Callable
+from typing import Any
+
+import pytest
+from pymavlink.dialects.v20 import common as ml
+
+from topgimbal.mavlink import Bridge, BridgeConfig
+from topgimbal.sim import Simulator
+
+NAN = float("nan")
+
+
+class Peer:
+    """A ground station (or autopilot) made of pymavlink's codec and a UDP socket."""
+
+    def __init__(self, sysid: int = 255, compid: int = 190) -> None:
+        self.mav = ml.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+        self.parser = ml.MAVLink(None)
+        self.messages: list[Any] = []
+        self._waiters: list[tuple[Callable[[Any], bool], asyncio.Future[Any]]] = []
+        self.transport: asyncio.DatagramTransport | None = None
+
+    async def connect(self, port: int) -> Peer:
+        peer = self
+
+        class P(asyncio.DatagramProtocol):
+            def datagram_received(self, data: bytes, addr: Any) -> None:
+                for m in peer.parser.parse_buffer(data) or []:
+                    peer._got(m)
+
+        loop = asyncio.get_running_loop()
+        self.transport, _ = await loop.create_datagram_endpoint(P, remote_addr=("127.0.0.1", port))
+        self.send(ml.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3))
+        return self
+
+    def close(self) -> None:
+        if self.transport is not None:
+            self.transport.close()
+
+    def _got(self, m: Any) -> None:
+        self.messages.append(m)
+        del self.messages[:-5000]
+        for pred, fut in list(self._waiters):
+            if not fut.done() and pred(m):
+                fut.set_result(m)
+
+    def send(self, msg: Any) -> None:
+        assert self.transport is not None
+        self.transport.sendto(msg.pack(self.mav))
+        self.mav.seq = (self.mav.seq + 1) % 256
+
+    async def wait(self, kind: str, pred: Callable[[Any], bool] = lambda m: True, timeout: float = 5.0) -> Any:
+        fut: asyncio.Future[Any] = asyncio.get_running_loop().create_future()
+        entry = (lambda m: m.get_type() == kind and pred(m), fut)
+        self._waiters.append(entry)
+        try:
+            return await asyncio.wait_for(fut, timeout)
+        finally:
+            self._waiters.remove(entry)
+
+    def command(self, compid: int, command: int, *params: float, confirmation: int = 0) -> None:
+        p = list(params) + [0.0] * (7 - len(params))
+        self.send(ml.MAVLink_command_long_message(1, compid, command, confirmation, *p))
+
+    def command_int(self, compid: int, command: int, *params: float, frame: int = 0) -> None:
+        p = list(params) + [0.0] * (7 - len(params))
+        self.send(ml.MAVLink_command_int_message(1, compid, frame, command, 0, 0, p[0], p[1], p[2], p[3],
+                                                 int(p[4]), int(p[5]), p[6]))  # fmt: skip
+
+    async def ack(self, compid: int, command: int, *params: float, timeout: float = 8.0, **kw: Any) -> Any:
+        """Send a command and return its final (not in-progress) COMMAND_ACK from `compid`."""
+        fut = asyncio.ensure_future(
+            self.wait(
+                "COMMAND_ACK",
+                lambda m: m.command == command and m.result != 5 and m.get_srcComponent() == compid,
+                timeout,
+            )
+        )
+        await asyncio.sleep(0)
+        if kw.pop("as_int", False):
+            self.command_int(compid, command, *params, **kw)
+        else:
+            self.command(compid, command, *params, **kw)
+        return await fut
+
+    async def request(self, compid: int, msgid: int, kind: str, param2: float = 0.0, timeout: float = 5.0) -> Any:
+        fut = asyncio.ensure_future(self.wait(kind, lambda m: m.get_srcComponent() == compid, timeout))
+        await asyncio.sleep(0)
+        ack = await self.ack(compid, 512, msgid, param2)
+        assert ack.result == 0, f"REQUEST_MESSAGE {msgid}: result {ack.result}"
+        return await fut
+
+
+class Rig:
+    def __init__(self, sim: Simulator, bridge: Bridge, peer: Peer) -> None:
+        self.sim, self.bridge, self.peer = sim, bridge, peer
+
+
+async def eventually(check: Callable[[], bool], timeout: float = 8.0, what: str = "condition") -> None:
+    loop = asyncio.get_running_loop()
+    end = loop.time() + timeout
+    while not check():
+        if loop.time() > end:
+            raise AssertionError(f"{what} did not hold within {timeout} s")
+        await asyncio.sleep(0.02)
+
+
+def nan_free(values: Any) -> bool:
+    return all(not math.isnan(v) for v in values)
+
+
+@pytest.fixture
+async def rig_factory() -> AsyncIterator[Callable[..., Any]]:
+    made: list[Rig] = []
+
+    async def make(model: str = "C12", **config: Any) -> Rig:
+        sim = Simulator(model)
+        await sim.start(udp=[("127.0.0.1", 0)])
+        config.setdefault("endpoints", ["udpin:127.0.0.1:0"])
+        config.setdefault("silence_s", 0.6)
+        config.setdefault("timeout_s", 0.3)
+        config.setdefault("retries", 1)
+        bridge = Bridge(BridgeConfig(url=sim.url, model=model, **config))
+        await bridge.start()
+        peer = Peer()
+        await peer.connect(bridge.addresses[0][1])  # type: ignore[index]
+        await peer.wait("HEARTBEAT")
+        rig = Rig(sim, bridge, peer)
+        made.append(rig)
+        return rig
+
+    yield make
+    for r in made:
+        r.peer.close()
+        await r.bridge.close()
+        await r.sim.stop()
+
+
+@pytest.fixture
+async def rig(rig_factory: Callable[..., Any]) -> Rig:
+    r: Rig = await rig_factory("C12")
+    return r
