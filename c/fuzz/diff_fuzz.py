@@ -19,7 +19,8 @@ from typing import Any
 
 from topgimbal.protocol import Frame, FrameParser, get_dialect, make_frame
 from topgimbal.tools.cgen import limits
-from topgimbal.tools.cvectors import DIAG, _frame_tokens, scan_flags
+from topgimbal._speedups import scan_flags
+from topgimbal.tools.cvectors import DIAG, _frame_tokens
 
 TOKENS = [
     b"#", b"#", b"#TP", b"#tp", b"#tP", b"#Tp", b"#T", b"#t", b"U", b"G", b"D", b"P", b"0", b"2", b"F",
@@ -127,7 +128,7 @@ def chunks(rnd: random.Random, stream: bytes) -> list[tuple[bytes, bool, bool]]:
 
 def run(lib_path: str, seconds: float, seed: int, iterations: int | None = None) -> int:
     lib = load(lib_path)
-    flags = scan_flags()
+    flags = scan_flags(FrameParser)
     max_data = limits([get_dialect("skydroid"), get_dialect("topotek")])[0]
     rnd = random.Random(seed)
     frames = sample_frames(rnd)

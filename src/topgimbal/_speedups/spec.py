@@ -284,3 +284,73 @@ def codec_spec(codec: Any, where: str = "") -> CodecSpec:
             "the C core; add a handler to topgimbal/_speedups/spec.py and a case to c/src/tg_codec.c"
         )
     return handler(codec, where)
+
+
+def decode_order(forms: Any, rw: str, direction: str) -> list[int]:
+    """Dialect.decode's form order for (rw, direction): that direction's forms, then the other's
+    (frames whose addresses are not swapped, errata E5). `forms` is a CommandSpec's forms."""
+    own = [i for i, f in enumerate(forms) if f.rw == rw and f.direction == direction]
+    rest = [i for i, f in enumerate(forms) if f.rw == rw and f.direction != direction]
+    return own + rest
+
+
+def codec_tuple(spec: CodecSpec) -> tuple[Any, ...]:
+    """The descriptor as the extension's Decoder reads it (see build_codec in _ctop.c)."""
+    return (
+        spec.code,
+        spec.width or 0,
+        spec.min_width,
+        spec.max_width,
+        int(spec.signed),
+        int(spec.little),
+        int(spec.lat),
+        int(spec.pyfloat),
+        spec.exp10,
+        spec.decimals,
+        spec.pad,
+        spec.mul,
+        spec.lo,
+        spec.hi,
+        spec.raws,
+        spec.spellings,
+        spec.none_tokens,
+        spec.text,
+        codec_tuple(spec.sub) if spec.sub is not None else None,
+    )
+
+
+def decoder_tables(commands: Any) -> tuple[Any, ...]:
+    """A dialect's commands (Dialect.commands.values()) as the extension's Decoder takes them.
+    Fields whose codec the C core does not decode natively carry only their Python codec."""
+    out = []
+    for cmd in commands:
+        forms = []
+        for form in cmd.forms:
+            fields = []
+            offset = 0
+            for f in form.fields:
+                try:
+                    cs: CodecSpec | None = codec_spec(f.codec, f"{cmd.ident}.{f.name}")
+                except CodecSpecError:
+                    cs = None  # a codec kind the C core does not know yet: Python decodes it
+                native = cs is not None and cs.kind not in DELEGATED
+                width = f.codec.width or 0
+                fields.append(
+                    (
+                        f.name,
+                        offset,
+                        width,
+                        codec_tuple(cs) if native and cs is not None else None,
+                        f.codec,
+                        cs.names if native and cs is not None and cs.names else None,
+                        f.codec.text if native and cs is not None and cs.kind == "literal" else None,
+                    )
+                )
+                offset += width
+            forms.append((form, form.const, form.min_length, form.max_length, tuple(fields)))
+        orders = tuple(
+            tuple(tuple(decode_order(cmd.forms, rw, direction)) for direction in ("request", "response"))
+            for rw in ("r", "w")
+        )
+        out.append((cmd.ident.encode("latin-1"), cmd, tuple(forms), orders))
+    return tuple(out)

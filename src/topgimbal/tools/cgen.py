@@ -18,7 +18,7 @@ import sys
 from collections.abc import Iterable
 from pathlib import Path
 
-from .._speedups.spec import CodecSpec, CodecSpecError, codec_spec
+from .._speedups.spec import CodecSpec, CodecSpecError, codec_spec, decode_order
 from ..protocol import DIALECT_NAMES, get_dialect
 from ..protocol.catalog import REQUEST, RESPONSE, CommandSpec, Dialect, Form
 from . import cvectors
@@ -69,14 +69,6 @@ def form_names(spec: CommandSpec) -> list[str]:
         seen[base] = seen.get(base, 0) + 1
         names.append(base if seen[base] == 1 else f"{base}{seen[base]}")
     return names
-
-
-def decode_order(spec: CommandSpec, rw: str, direction: str) -> list[int]:
-    """Dialect.decode's form order: the direction's own forms, then the other direction's."""
-    other = RESPONSE if direction == REQUEST else REQUEST
-    own = [i for i, f in enumerate(spec.forms) if f.rw == rw and f.direction == direction]
-    rest = [i for i, f in enumerate(spec.forms) if f.rw == rw and f.direction == other]
-    return own + rest
 
 
 class Emitter:
@@ -169,7 +161,7 @@ class Emitter:
         for rw in ("r", "w"):
             row, crow = [], []
             for direction in (REQUEST, RESPONSE):
-                order = decode_order(spec, rw, direction)
+                order = decode_order(spec.forms, rw, direction)
                 if order:
                     oname = f"{prefix}_o{rw}{direction[:3]}"
                     self.lines.append(f"static const uint8_t {oname}[] = {{{', '.join(map(str, order))}}};")
