@@ -17,9 +17,9 @@ import sys
 import time
 from typing import Any
 
+from topgimbal._speedups import scan_flags
 from topgimbal.protocol import Frame, FrameParser, get_dialect, make_frame
 from topgimbal.tools.cgen import limits
-from topgimbal._speedups import scan_flags
 from topgimbal.tools.cvectors import DIAG, _frame_tokens
 
 TOKENS = [

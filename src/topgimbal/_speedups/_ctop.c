@@ -79,7 +79,7 @@ static PyObject *ctop_scan(PyObject *self, PyObject *args) {
     tg_step st;
     Py_ssize_t nframes = 0;
     (void)self;
-    if (!PyArg_ParseTuple(args, "y*nppniO", &view, &pos, &final, &max_data, &recover, &flags, &frame_cls)) return NULL;
+    if (!PyArg_ParseTuple(args, "y*npnpiO", &view, &pos, &final, &max_data, &recover, &flags, &frame_cls)) return NULL;
     if (!PyType_Check(frame_cls) || !PyType_IsSubtype((PyTypeObject *)frame_cls, &PyTuple_Type)) {
         PyBuffer_Release(&view);
         PyErr_SetString(PyExc_TypeError, "frame_cls must be a tuple subclass (Frame)");

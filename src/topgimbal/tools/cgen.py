@@ -86,24 +86,24 @@ class Emitter:
         n = len(self.codecs)
         name = f"tg_codec_{n}"
         self.codecs[spec] = name
-        L = self.lines
+        out = self.lines
         names = raws = idem = spell = nones = "NULL"
         if spec.names:
             names, raws, idem, spell = f"{name}_names", f"{name}_raws", f"{name}_idem", f"{name}_spell"
-            L.append(f"static const char *const {names}[] = {{{', '.join(c_str(x) for x in spec.names)}}};")
-            L.append(f"static const char *const {raws}[] = {{{', '.join(c_str(x) for x in spec.raws)}}};")
-            L.append(f"static const uint8_t {idem}[] = {{{', '.join(str(int(x)) for x in spec.idempotent)}}};")
+            out.append(f"static const char *const {names}[] = {{{', '.join(c_str(x) for x in spec.names)}}};")
+            out.append(f"static const char *const {raws}[] = {{{', '.join(c_str(x) for x in spec.raws)}}};")
+            out.append(f"static const uint8_t {idem}[] = {{{', '.join(str(int(x)) for x in spec.idempotent)}}};")
             items = ", ".join(f"{{{c_str(raw)}, {i}}}" for raw, i in spec.spellings)
-            L.append(f"static const tg_spelling {spell}[] = {{{items}}};")
+            out.append(f"static const tg_spelling {spell}[] = {{{items}}};")
         if spec.none_tokens:
             nones = f"{name}_none"
-            L.append(f"static const char *const {nones}[] = {{{', '.join(c_str(t) for t in spec.none_tokens)}}};")
+            out.append(f"static const char *const {nones}[] = {{{', '.join(c_str(t) for t in spec.none_tokens)}}};")
         text = c_str(spec.text) if spec.text else "NULL"
         kind = "TG_K_" + spec.kind.upper()
         width = spec.width or 0
         if max(spec.min_width, spec.max_width, width) > 255 or len(spec.names) > 255:
             raise CGenError(f"codec {spec.kind} too wide for the C tables")
-        L.append(
+        out.append(
             f"static const tg_codec {name} = {{{kind}, {width}, {spec.min_width}, {spec.max_width}, "
             f"{int(spec.signed)}, {int(spec.little)}, {int(spec.lat)}, {int(spec.pyfloat)}, {spec.exp10}, "
             f"{spec.decimals}, {spec.pad}, {len(spec.names)}, {len(spec.spellings)}, {len(spec.none_tokens)}, "
@@ -144,12 +144,9 @@ class Emitter:
 
     def command(self, prefix: str, d: Dialect, spec: CommandSpec) -> str:
         forms = []
-        for k, (form, fname) in enumerate(zip(spec.forms, form_names(spec))):
+        for k, (form, fname) in enumerate(zip(spec.forms, form_names(spec), strict=True)):
             arr, fixed, lo, hi = self.form(f"{prefix}_{k}", f"{d.name} {spec.ident} {fname}", form)
-            if form.const is not None:
-                const = f"(const uint8_t *){c_str(form.const)}, {len(form.const)}"
-            else:
-                const = "NULL, 0"
+            const = f"(const uint8_t *){c_str(form.const)}, {len(form.const)}" if form.const is not None else "NULL, 0"
             direction = "TG_REQUEST" if form.direction == REQUEST else "TG_RESPONSE"
             forms.append(
                 f"{{'{form.rw}', {direction}, {int(form.role == 'echo')}, {len(form.fields)}, {lo}, {hi}, {fixed}, "
@@ -241,12 +238,12 @@ def render() -> dict[str, str]:
         + "#endif\n"
     )
     hdr = [BANNER, "#ifndef TG_CATALOG_H", "#define TG_CATALOG_H", '#include "topgimbal.h"', ""]
-    for d, short in zip(dialects, shorts):
+    for d, short in zip(dialects, shorts, strict=True):
         hdr.append(f"extern const tg_dialect tg_{short};")
         for ci, c in enumerate(d.commands.values()):
             cmd = f"TG_{c_name(short)}_{c_name(c.ident)}"
             hdr.append(f"#define {cmd} {ci}")
-            for fi, (form, fname) in enumerate(zip(c.forms, form_names(c))):
+            for fi, (form, fname) in enumerate(zip(c.forms, form_names(c), strict=True)):
                 hdr.append(f"#define {cmd}_{fname} {fi}")
                 for k, field in enumerate(form.fields):
                     hdr.append(f"#define {cmd}_{fname}_{c_name(field.name)} {k}")

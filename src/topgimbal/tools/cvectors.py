@@ -178,7 +178,7 @@ def render(dialects: list[Dialect], max_data: int) -> str:
                         break
                     values: dict[str, Any] = {}
                     tokens = []
-                    for f, cs in zip(form.fields, specs):
+                    for f, cs in zip(form.fields, specs, strict=True):
                         if k == 1 and f.default is not None:
                             tokens.append("a")
                             continue
