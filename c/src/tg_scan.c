@@ -50,9 +50,15 @@ static uint8_t sum8(const uint8_t *p, size_t n) {
 
 static long find_hash(const uint8_t *buf, size_t from, size_t to) {
     const void *q;
+    size_t k;
     if (from >= to) return -1;
-    q = memchr(buf + from, '#', to - from);
-    return q ? (long)((const uint8_t *)q - buf) : -1;
+    if (to - from > 64) {
+        q = memchr(buf + from, '#', to - from);
+        return q ? (long)((const uint8_t *)q - buf) : -1;
+    }
+    for (k = from; k < to; k++) /* spans of a frame or two: a loop beats a library call */
+        if (buf[k] == '#') return (long)k;
+    return -1;
 }
 
 /* The Python parser's _bad_prefix: bytes already after '#' that rule a frame out. */

@@ -493,11 +493,59 @@ static Py_UCS4 one_char(PyObject *s) {
     return PyUnicode_READ_CHAR(s, 0);
 }
 
+static PyObject *message(Decoder *self, PyObject *frame, PyObject *spec, PyObject *form, PyObject *fields,
+                         PyObject *error) {
+    PyObject *msg = new_tuple_of((PyTypeObject *)self->message_cls, 5);
+    if (!msg) {
+        Py_XDECREF(fields);
+        Py_XDECREF(error);
+        return NULL;
+    }
+    Py_INCREF(frame);
+    Py_INCREF(spec);
+    Py_INCREF(form);
+    if (!fields) fields = (Py_INCREF(Py_None), Py_None);
+    if (!error) error = (Py_INCREF(Py_None), Py_None);
+    PyTuple_SET_ITEM(msg, 0, frame);
+    PyTuple_SET_ITEM(msg, 1, spec);
+    PyTuple_SET_ITEM(msg, 2, form);
+    PyTuple_SET_ITEM(msg, 3, fields);
+    PyTuple_SET_ITEM(msg, 4, error);
+    return msg;
+}
+
+/* Dialect.decode's words when no form takes the data's length (the common failure: a frame
+ * given to the other dialect); NULL with no exception set when another wording applies. */
+static PyObject *length_error(const dcommand *c, int w, int dir, Py_ssize_t len, const char *ident) {
+    PyObject *parts = PyList_New(0), *sep, *joined, *err;
+    Py_ssize_t k;
+    if (!parts) return NULL;
+    for (k = 0; k < c->n_order[w][dir]; k++) {
+        const dform *f = &c->forms[c->order[w][dir][k]];
+        PyObject *t = f->max_len != f->min_len ? PyUnicode_FromFormat("%zd..%zd", f->min_len, f->max_len)
+                                               : PyUnicode_FromFormat("%zd", f->min_len);
+        if (!t || PyList_Append(parts, t) < 0) {
+            Py_XDECREF(t);
+            Py_DECREF(parts);
+            return NULL;
+        }
+        Py_DECREF(t);
+    }
+    sep = PyUnicode_FromString(" or ");
+    joined = sep ? PyUnicode_Join(sep, parts) : NULL;
+    Py_XDECREF(sep);
+    Py_DECREF(parts);
+    if (!joined) return NULL;
+    err = PyUnicode_FromFormat("%zd data bytes; %.3s (%c) takes %U", len, ident, w ? 'w' : 'r', joined);
+    Py_DECREF(joined);
+    return err;
+}
+
 static PyObject *decode_one(Decoder *self, PyObject *frame) {
-    PyObject *ident, *data, *rw, *fields = NULL, *msg;
+    PyObject *ident, *data, *rw, *fields = NULL;
     const dcommand *c;
     const uint8_t *ip;
-    int w, dir;
+    int w, dir, last_was_length = 0;
     Py_ssize_t k, len;
     if (!PyTuple_Check(frame) || PyTuple_GET_SIZE(frame) < 6) goto fallback;
     ident = PyTuple_GET_ITEM(frame, 4);
@@ -515,27 +563,20 @@ static PyObject *decode_one(Decoder *self, PyObject *frame) {
     for (k = 0; k < c->n_order[w][dir]; k++) {
         const dform *form = &c->forms[c->order[w][dir][k]];
         int r;
-        if (len < form->min_len || len > form->max_len) continue;
+        if (len < form->min_len || len > form->max_len) {
+            last_was_length = 1;
+            continue;
+        }
+        last_was_length = 0;
         r = decode_form(form, (const uint8_t *)PyBytes_AS_STRING(data), len, data, &fields);
         if (r == FORM_ERROR) return NULL;
         if (r == FORM_UNSURE) goto fallback;
-        if (r == FORM_OK) {
-            msg = new_tuple_of((PyTypeObject *)self->message_cls, 5);
-            if (!msg) {
-                Py_DECREF(fields);
-                return NULL;
-            }
-            Py_INCREF(frame);
-            Py_INCREF(c->spec);
-            Py_INCREF(form->form);
-            Py_INCREF(Py_None);
-            PyTuple_SET_ITEM(msg, 0, frame);
-            PyTuple_SET_ITEM(msg, 1, c->spec);
-            PyTuple_SET_ITEM(msg, 2, form->form);
-            PyTuple_SET_ITEM(msg, 3, fields);
-            PyTuple_SET_ITEM(msg, 4, Py_None);
-            return msg;
-        }
+        if (r == FORM_OK) return message(self, frame, c->spec, form->form, fields, NULL);
+    }
+    if (last_was_length) {
+        PyObject *err = length_error(c, w, dir, len, (const char *)ip);
+        if (!err) return NULL;
+        return message(self, frame, c->spec, Py_None, NULL, err);
     }
 fallback:
     /* Unknown identifier, no form fits (the pure decoder words the error), or a spelling only
