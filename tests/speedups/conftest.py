@@ -12,7 +12,15 @@ from topgimbal import _speedups
 from topgimbal.protocol import Diagnostic, Dialect, Frame, FrameParser, Message
 
 FAST_WANTED = os.environ.get("TOPGIMBAL_PURE", "") in ("", "0")
-SCAN_FLAGS = _speedups.scan_flags(FrameParser)
+
+
+class PureFrameParser(FrameParser):
+    """The pure Python parser, also once protocol/parser.py has adopted the fast scan (it then
+    keeps the pure one as `_scan_py`)."""
+
+
+PureFrameParser._scan = getattr(FrameParser, "_scan_py", FrameParser._scan)  # type: ignore[method-assign]
+SCAN_FLAGS = _speedups.scan_flags(PureFrameParser)
 
 
 class FastFrameParser(FrameParser):
@@ -24,8 +32,13 @@ if _fast_scan is not None:
     FastFrameParser._scan = _fast_scan  # type: ignore[method-assign]
 
 
+def pure_decode(dialect: Dialect) -> Callable[[Frame], Message]:
+    """Dialect.decode on the pure path (`_decode_py` once catalog.py has adopted the fast one)."""
+    return getattr(dialect, "_decode_py", dialect.decode)  # type: ignore[no-any-return]
+
+
 def fast_decoder(dialect: Dialect) -> Callable[[Frame], Message]:
-    dec = _speedups.make_decoder(dialect, Message, dialect.decode)
+    dec = _speedups.make_decoder(dialect, Message, pure_decode(dialect))
     assert dec is not None, _speedups.status()
     return dec  # type: ignore[no-any-return]
 

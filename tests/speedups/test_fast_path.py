@@ -17,7 +17,7 @@ from topgimbal._speedups.spec import codec_spec
 from topgimbal.protocol import DIALECT_NAMES, Frame, FrameParser, get_dialect, make_frame
 from topgimbal.tools.cvectors import sample
 
-from .conftest import FAST_WANTED, FastFrameParser, fast_decoder
+from .conftest import FAST_WANTED, FastFrameParser, PureFrameParser, fast_decoder, pure_decode
 
 SETTINGS = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 TOKENS = [
@@ -81,7 +81,7 @@ def _run(cls: type[FrameParser], stream: bytes, plan: list[int], datagrams: bool
 def test_scan_matches_pure_parser(stream: bytes, plan: list[int], datagrams: bool) -> None:
     if not _speedups.enabled():
         return  # test_fast_path_is_in_use_where_built says why
-    assert _run(FastFrameParser, stream, plan, datagrams) == _run(FrameParser, stream, plan, datagrams)
+    assert _run(FastFrameParser, stream, plan, datagrams) == _run(PureFrameParser, stream, plan, datagrams)
 
 
 def test_scan_matches_pure_parser_on_a_long_random_stream() -> None:
@@ -92,7 +92,10 @@ def test_scan_matches_pure_parser_on_a_long_random_stream() -> None:
     good += [make_frame("GPS", bytes(rnd.randrange(256) for _ in range(14)), header="#tp").to_bytes()]
     parts = [rnd.choice(good + TOKENS) for _ in range(5000)]
     stream = b"".join(p if rnd.random() > 0.05 else p[: rnd.randrange(len(p) + 1)] for p in parts)
-    fast, pure = _run(FastFrameParser, stream, [7, 1, 64, 3], False), _run(FrameParser, stream, [7, 1, 64, 3], False)
+    fast, pure = (
+        _run(FastFrameParser, stream, [7, 1, 64, 3], False),
+        _run(PureFrameParser, stream, [7, 1, 64, 3], False),
+    )
     assert fast == pure
     assert sum(isinstance(e, Frame) for e in fast[0]) > 300
 
@@ -143,7 +146,7 @@ def test_decoder_matches_pure_decoder_on_every_form() -> None:
     decoders = {name: fast_decoder(get_dialect(name)) for name in DIALECT_NAMES}
     decoded = 0
     for name, frame in frames:
-        fast, pure = decoders[name](frame), get_dialect(name).decode(frame)
+        fast, pure = decoders[name](frame), pure_decode(get_dialect(name))(frame)
         _same_message(fast, pure)
         decoded += fast.fields is not None
     assert len(frames) > 3000 and decoded > 1500
@@ -155,7 +158,7 @@ def test_decode_many_matches_one_by_one() -> None:
     d = get_dialect("skydroid")
     frames = [f for name, f in _sample_frames(random.Random(3)) if name == "skydroid"][:500]
     dec = fast_decoder(d)
-    assert dec.decode_many(frames) == [d.decode(f) for f in frames]  # type: ignore[attr-defined]
+    assert dec.decode_many(frames) == [pure_decode(d)(f) for f in frames]  # type: ignore[attr-defined]
 
 
 @SETTINGS
@@ -170,4 +173,13 @@ def test_decoder_matches_pure_decoder_on_random_data(name: str, data: st.DataObj
     )
     src, dst = data.draw(st.sampled_from([("U", "G"), ("G", "U"), ("D", "P"), ("P", "D")]))
     frame = make_frame(ident, payload, src=src, dst=dst, rw=data.draw(st.sampled_from("rw")), header="#tP")
-    _same_message(fast_decoder(d)(frame), d.decode(frame))
+    _same_message(fast_decoder(d)(frame), pure_decode(d)(frame))
+
+
+def test_recovered_c12_version_reply_on_both_paths(parser_cls: type[FrameParser]) -> None:
+    """The `parser_cls` fixture runs a parser test on each path (pure, and fast where built)."""
+    p = parser_cls()
+    out = p.feed(b"junk#tpDU3rVER0105025A\r\n#TPUD2wAWB0144")
+    frames = [e for e in out if isinstance(e, Frame)]
+    assert [(f.ident, f.data, f.declared_length) for f in frames] == [("VER", b"010502", 3), ("AWB", b"01", None)]
+    assert p.stats.length_recoveries == 1 and p.stats.bytes_discarded == 4
