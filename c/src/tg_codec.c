@@ -302,19 +302,27 @@ static int hemisphere(const tg_codec *c, uint8_t h) {
     return h == 'E' ? 1 : (h == 'W' ? -1 : 0);
 }
 
-static int dec_geodm(const tg_codec *c, const uint8_t *raw, size_t len, tg_value *out) {
-    uint8_t t[MAX_TEXT];
-    int n = squeeze(raw, len, t), sign, dot = -1, k, want = c->lat ? 4 : 5, f;
-    int64_t deg, minutes, num, q, r;
-    if (n < 0) return TG_E_INVALID;
-    sign = n ? hemisphere(c, t[0]) : 0;
-    if (!sign) return TG_E_INVALID;
+/* Hemisphere letter, then a body with its first '.' at `want` (the geo codecs' checks):
+ * returns the text's length (spaces removed into t), -1 when Python rejects it; *sign, *dot set. */
+static int geo_text(const tg_codec *c, const uint8_t *raw, size_t len, int want, uint8_t *t, int *sign, int *dot) {
+    int n = squeeze(raw, len, t), k;
+    *dot = -1;
+    if (n < 0) return -1;
+    *sign = n ? hemisphere(c, t[0]) : 0;
+    if (!*sign) return -1;
     for (k = 1; k < n; k++)
         if (t[k] == '.') {
-            dot = k - 1;
+            *dot = k - 1;
             break;
         }
-    if (dot != want) return TG_E_INVALID;
+    return *dot == want ? n : -1;
+}
+
+static int dec_geodm(const tg_codec *c, const uint8_t *raw, size_t len, tg_value *out) {
+    uint8_t t[MAX_TEXT];
+    int sign, dot, k, f, n = geo_text(c, raw, len, c->lat ? 4 : 5, t, &sign, &dot);
+    int64_t deg, minutes, num, q, r;
+    if (n < 0) return TG_E_INVALID;
     for (k = 1; k < n; k++)
         if (k - 1 != dot && !is_digit(t[k])) return TG_E_INVALID;
     deg = digits_value(t + 1, (size_t)(dot - 2));
@@ -334,18 +342,9 @@ static int dec_geodm(const tg_codec *c, const uint8_t *raw, size_t len, tg_value
 
 static int dec_geodeg(const tg_codec *c, const uint8_t *raw, size_t len, tg_value *out) {
     uint8_t t[MAX_TEXT];
-    int n = squeeze(raw, len, t), sign, dot = -1, k, want = c->lat ? 2 : 3;
+    int sign, dot, k, r, n = geo_text(c, raw, len, c->lat ? 2 : 3, t, &sign, &dot);
     int64_t m;
-    int r;
     if (n < 0) return TG_E_INVALID;
-    sign = n ? hemisphere(c, t[0]) : 0;
-    if (!sign) return TG_E_INVALID;
-    for (k = 1; k < n; k++)
-        if (t[k] == '.') {
-            dot = k - 1;
-            break;
-        }
-    if (dot != want) return TG_E_INVALID;
     for (k = 1; k < n; k++)
         if (k - 1 != dot && !is_digit(t[k])) return TG_E_UNSURE; /* float() may still read it */
     r = parse_decimal(t + 1, (size_t)(n - 1), 7, &m);
