@@ -4,9 +4,10 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps
+.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps c-deps c-test
 
-$(STAMP): pyproject.toml
+# The C fast path is compiled by `pip install`: rebuild it when its sources change.
+$(STAMP): pyproject.toml setup.py src/topgimbal/_speedups/_ctop.c $(wildcard c/src/*.c c/include/*.h c/generated/*)
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[dev]'
@@ -36,7 +37,16 @@ docs-check: $(STAMP)
 pytest: $(STAMP) browser-deps
 	$(BIN)/python -m pytest -q
 
-test: $(STAMP) browser-deps lint typecheck pytest
+# libtopgimbal (c/): clang with libFuzzer and sanitizer runtimes, installed only when missing.
+c-deps:
+	$(MAKE) -C c deps
+
+# Warnings (gcc, clang), libc symbols, vectors under ASan/UBSan, libFuzzer and differential fuzzing
+# for a bounded time (FUZZ_SECONDS, DIFF_SECONDS; 10 s each by default).
+c-test: $(STAMP) c-deps
+	$(MAKE) -C c test PYTHON=$(CURDIR)/$(BIN)/python
+
+test: $(STAMP) browser-deps c-deps lint typecheck pytest c-test
 
 demo: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.demo

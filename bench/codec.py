@@ -7,9 +7,13 @@ from __future__ import annotations
 
 import argparse
 import random
+import subprocess
+import tempfile
 import time
+from pathlib import Path
 
-from topgimbal.protocol import Frame, FrameParser, get_dialect
+from topgimbal import _speedups
+from topgimbal.protocol import Diagnostic, Frame, FrameParser, Message, get_dialect
 
 LINK_BYTES_S = 115200 / 10  # 8N1: 10 bits per byte
 
@@ -60,9 +64,17 @@ def mixed_stream(n: int, seed: int = 1) -> tuple[list[bytes], list[tuple[str, st
     return datagrams, encode_jobs
 
 
-def bench_parse(datagrams: list[bytes], decode: bool) -> tuple[float, int]:
+class FastFrameParser(FrameParser):
+    """FrameParser with the C scan dropped in (as protocol/parser.py will adopt it)."""
+
+
+def bench_parse(datagrams: list[bytes], decode: bool, fast: bool = False) -> tuple[float, int]:
     sky, top = get_dialect("skydroid"), get_dialect("topotek")
-    parser = FrameParser()
+    parser = FastFrameParser() if fast else FrameParser()
+    dec_sky, dec_top = sky.decode, top.decode
+    if fast:  # the C decoders, with the pure ones as their fallback
+        dec_sky = _speedups.make_decoder(sky, Message, sky.decode)
+        dec_top = _speedups.make_decoder(top, Message, top.decode)
     n = 0
     t0 = time.perf_counter()
     for dg in datagrams:
@@ -70,7 +82,7 @@ def bench_parse(datagrams: list[bytes], decode: bool) -> tuple[float, int]:
             if type(ev) is Frame:
                 n += 1
                 if decode:
-                    (top if ev.src == "D" or ev.dst == "P" or ev.ident in ("GIA", "GPS") else sky).decode(ev)
+                    (dec_top if ev.src == "D" or ev.dst == "P" or ev.ident in ("GIA", "GPS") else dec_sky)(ev)
     return time.perf_counter() - t0, n
 
 
@@ -84,6 +96,20 @@ def bench_encode(jobs: list[tuple[str, str, dict]], n: int) -> float:  # type: i
     return time.perf_counter() - t0
 
 
+def bench_c(datagrams: list[bytes]) -> list[str]:
+    """libtopgimbal's own figures (c/tests/bench.c, gcc -O2) on the same stream."""
+    root = Path(__file__).resolve().parents[1]
+    exe = root / "c" / "build" / "bench"
+    r = subprocess.run(["make", "-s", "-C", str(root / "c"), "build/bench"], capture_output=True, text=True)
+    if r.returncode != 0:
+        return [f"C benchmark not built: {r.stderr.strip()[:200]}"]
+    with tempfile.NamedTemporaryFile(suffix=".stream") as f:
+        f.write(b"".join(len(d).to_bytes(2, "big") + d for d in datagrams))
+        f.flush()
+        out = subprocess.run([str(exe), f.name], capture_output=True, text=True, check=True).stdout
+    return out.strip().splitlines()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--frames", type=int, default=200_000)
@@ -95,17 +121,29 @@ def main() -> None:
     print(f"mixed stream: {args.frames} frames in {len(datagrams)} datagrams, {avg:.1f} bytes/frame on average")
     print(f"saturated 115200-baud link: {link_fps:,.0f} frames/s")
     best: dict[str, float] = {}
+    fast_scan = _speedups.make_scan(Frame, Diagnostic, _speedups.scan_flags(FrameParser))
+    if fast_scan is not None:
+        FastFrameParser._scan = fast_scan  # type: ignore[method-assign]
+    else:
+        print(f"Python fast path not in use: {_speedups.status()}")
     for _ in range(3):  # best of three: the machine is shared
         for label, decode in (("parse only", False), ("decode (parse + fields)", True)):
             dt, n = bench_parse(datagrams, decode)
             assert n == args.frames, (n, args.frames)
             best[label] = max(best.get(label, 0.0), n / dt)
+        if fast_scan is not None:
+            for label, decode in (("fast path: parse only", False), ("fast path: decode (parse + fields)", True)):
+                dt, n = bench_parse(datagrams, decode, fast=True)
+                assert n == args.frames, (n, args.frames)
+                best[label] = max(best.get(label, 0.0), n / dt)
         dt = bench_encode(jobs, args.frames // 2)
         best["encode (typed fields -> bytes)"] = max(
             best.get("encode (typed fields -> bytes)", 0.0), (args.frames // 2) / dt
         )
     for label, fps in best.items():
-        print(f"{label:<32} {fps:>12,.0f} frames/s  = {fps / link_fps:6.0f}x the link")
+        print(f"{label:<36} {fps:>12,.0f} frames/s  = {fps / link_fps:6.0f}x the link")
+    for line in bench_c(datagrams):
+        print(line)
     ratio = best["decode (parse + fields)"] / link_fps
     print(f"decode target >= 300x the link: {'met' if ratio >= 300 else 'NOT met'} ({ratio:.0f}x)")
 

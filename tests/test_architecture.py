@@ -11,12 +11,13 @@ PKG = Path(__file__).resolve().parents[1] / "src" / "topgimbal"
 
 # What each layer may import from inside topgimbal (besides itself and errors).
 ALLOWED = {
+    "_speedups": set(),  # the optional C fast path: a leaf the protocol core may use
     "protocol": set(),
     "transport": {"protocol"},
     "client": {"protocol", "transport"},
     "sim": {"protocol"},
     "console": {"protocol", "client", "sim"},  # sim only for `--sim` (in-process camera)
-    "tools": {"protocol", "client", "sim", "console"},
+    "tools": {"protocol", "client", "sim", "console", "_speedups"},
     "mavlink": {"protocol", "client"},
     "cli": {"protocol", "client", "transport", "sim", "console", "tools", "mavlink"},
 }

@@ -9,6 +9,7 @@ PUBLIC = {
     "FieldValueError", "Frame", "FrameError", "FrameParser", "Gimbal", "LengthError", "Message",
     "RequestTimeoutError", "TopGimbalError", "TransportError", "UnknownCommandError", "UnsupportedError",
     "__version__", "connect", "decode", "encode", "get_dialect", "get_model", "parse_frame",
+    "speedups_enabled",
 }  # fmt: skip
 
 

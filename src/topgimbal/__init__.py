@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ._speedups import enabled as speedups_enabled
 from .client import AsyncClient, Gimbal, connect
 from .errors import (
     CatalogError,
@@ -59,4 +60,5 @@ __all__ = [
     "get_dialect",
     "get_model",
     "parse_frame",
+    "speedups_enabled",
 ]

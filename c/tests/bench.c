@@ -1,0 +1,100 @@
+/*
+ * Throughput of parse + decode on a recorded stream (bench/codec.py writes it: datagrams, each a
+ * 2-byte big-endian length and the bytes). Prints frames/s for whole datagrams and byte at a time,
+ * best of three. A benchmark prints; it asserts nothing.
+ */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "tg_catalog.h"
+
+static double now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static tg_parser parser;
+
+static const tg_dialect *pick(const tg_frame *f) {
+    /* as bench/codec.py: TOPOTEK for its addresses and streams, SkyDroid otherwise */
+    if (f->src == 'D' || f->dst == 'P' || memcmp(f->ident, "GIA", 3) == 0 || memcmp(f->ident, "GPS", 3) == 0)
+        return &tg_topotek;
+    return &tg_skydroid;
+}
+
+static unsigned long run(const uint8_t *buf, size_t size, int bytewise, int decode, unsigned long *ok) {
+    size_t i = 0;
+    unsigned long frames = 0;
+    tg_event ev;
+    tg_message m;
+    tg_parser_init(&parser, NULL);
+    while (i + 2 <= size) {
+        size_t n = ((size_t)buf[i] << 8) | buf[i + 1], k;
+        const uint8_t *dg = buf + i + 2;
+        i += 2 + n;
+        if (bytewise) {
+            for (k = 0; k < n; k++) {
+                tg_parser_push(&parser, dg[k]);
+                while (tg_parser_next(&parser, &ev))
+                    if (ev.type == TG_EV_FRAME) {
+                        frames++;
+                        if (decode && tg_decode(pick(&ev.frame), &ev.frame, &m) == TG_OK) (*ok)++;
+                    }
+            }
+        } else {
+            k = 0;
+            while (k < n) {
+                k += tg_parser_feed(&parser, dg + k, n - k);
+                while (tg_parser_next(&parser, &ev))
+                    if (ev.type == TG_EV_FRAME) {
+                        frames++;
+                        if (decode && tg_decode(pick(&ev.frame), &ev.frame, &m) == TG_OK) (*ok)++;
+                    }
+            }
+        }
+        tg_parser_flush(&parser);
+        while (tg_parser_next(&parser, &ev))
+            if (ev.type == TG_EV_FRAME) {
+                frames++;
+                if (decode && tg_decode(pick(&ev.frame), &ev.frame, &m) == TG_OK) (*ok)++;
+            }
+    }
+    return frames;
+}
+
+int main(int argc, char **argv) {
+    FILE *fp;
+    uint8_t *buf;
+    long size;
+    int mode;
+    static const char *labels[3] = {"C parse only (datagrams)", "C parse + decode (datagrams)",
+                                    "C parse + decode (byte at a time)"};
+    if (argc != 2 || !(fp = fopen(argv[1], "rb"))) {
+        fprintf(stderr, "usage: %s STREAM\n", argv[0]);
+        return 2;
+    }
+    fseek(fp, 0, SEEK_END);
+    size = ftell(fp);
+    fseek(fp, 0, SEEK_SET);
+    buf = malloc((size_t)size);
+    if (!buf || fread(buf, 1, (size_t)size, fp) != (size_t)size) return 2;
+    fclose(fp);
+    for (mode = 0; mode < 3; mode++) {
+        double best = 0;
+        unsigned long frames = 0, ok = 0;
+        int rep;
+        for (rep = 0; rep < 5; rep++) {
+            double t0 = now(), dt;
+            ok = 0;
+            frames = run(buf, (size_t)size, mode == 2, mode > 0, &ok);
+            dt = now() - t0;
+            if ((double)frames / dt > best) best = (double)frames / dt;
+        }
+        printf("%-36s %12.0f frames/s  (%lu frames, %lu decoded)\n", labels[mode], best, frames, ok);
+    }
+    free(buf);
+    return 0;
+}

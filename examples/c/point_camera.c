@@ -1,0 +1,143 @@
+/*
+ * Point a SkyDroid camera (C10..C20) with libtopgimbal, over UDP or a POSIX serial port:
+ *
+ *     point_camera udp 127.0.0.1 5000 YAW PITCH          (a camera, or `topgimbal sim --model C12`)
+ *     point_camera serial /dev/ttyUSB0 115200 YAW PITCH
+ *
+ * Sends GAM (yaw and pitch angles, degrees as on the wire), then asks GAC (attitude) ten times a
+ * second until both axes are within 0.5 degrees, and prints the attitude. Exit 0 when reached,
+ * 1 on timeout (15 s), 2 on a usage or I/O error.
+ *
+ * What the library needs from this host program is what an RTOS port supplies (docs/c.md): a way
+ * to send bytes (send_bytes), bytes received (fed to the parser) and a clock (now_ms).
+ */
+#define _DEFAULT_SOURCE /* cfmakeraw */
+#include <arpa/inet.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <poll.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <termios.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "tg_catalog.h"
+
+static int fd = -1;
+static struct sockaddr_in peer;
+static int is_udp;
+
+static long now_ms(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec * 1000L + ts.tv_nsec / 1000000L;
+}
+
+static int send_bytes(const uint8_t *p, size_t n) {
+    ssize_t w = is_udp ? sendto(fd, p, n, 0, (const struct sockaddr *)&peer, sizeof peer) : write(fd, p, n);
+    return w == (ssize_t)n ? 0 : -1;
+}
+
+static int open_udp(const char *host, const char *port) {
+    struct sockaddr_in local;
+    fd = socket(AF_INET, SOCK_DGRAM, 0);
+    memset(&peer, 0, sizeof peer);
+    peer.sin_family = AF_INET;
+    peer.sin_port = htons((uint16_t)atoi(port));
+    if (fd < 0 || inet_pton(AF_INET, host, &peer.sin_addr) != 1) return -1;
+    memset(&local, 0, sizeof local);
+    local.sin_family = AF_INET; /* any port: the camera answers whoever asked */
+    is_udp = 1;
+    return bind(fd, (const struct sockaddr *)&local, sizeof local);
+}
+
+static int open_serial(const char *dev, const char *baud) {
+    struct termios t;
+    speed_t speed = atoi(baud) == 115200 ? B115200 : (atoi(baud) == 57600 ? B57600 : B9600);
+    fd = open(dev, O_RDWR | O_NOCTTY);
+    if (fd < 0 || tcgetattr(fd, &t) != 0) return -1;
+    cfmakeraw(&t);
+    cfsetispeed(&t, speed);
+    cfsetospeed(&t, speed);
+    return tcsetattr(fd, TCSANOW, &t);
+}
+
+/* Encode a request of the SkyDroid dialect and send it. */
+static int request(unsigned cmd, unsigned form, const tg_value *values) {
+    uint8_t frame[TG_FRAME_MAX];
+    const tg_command *c = &tg_skydroid.commands[cmd];
+    int n = tg_encode(&tg_skydroid, c, &c->forms[form], 'U', c->address, 0, values, frame, sizeof frame);
+    if (n < 0) {
+        fprintf(stderr, "cannot encode %.3s: error %d\n", c->ident, n);
+        return -1;
+    }
+    return send_bytes(frame, (size_t)n);
+}
+
+static tg_value degrees(const char *text) {
+    double v = strtod(text, NULL);
+    return tg_num((int64_t)(v * 100.0 + (v < 0 ? -0.5 : 0.5)), -2); /* hundredths of a degree */
+}
+
+int main(int argc, char **argv) {
+    static tg_parser parser;
+    tg_value gam[4], none[1];
+    int64_t want_yaw, want_pitch;
+    long deadline, next_query = 0;
+    int opened;
+    if (argc != 6) {
+        fprintf(stderr, "usage: %s udp HOST PORT YAW PITCH | serial DEVICE BAUD YAW PITCH\n", argv[0]);
+        return 2;
+    }
+    opened = strcmp(argv[1], "udp") == 0 ? open_udp(argv[2], argv[3]) : open_serial(argv[2], argv[3]);
+    if (opened != 0) {
+        perror(argv[2]);
+        return 2;
+    }
+    memset(gam, 0, sizeof gam); /* TG_V_ABSENT: the speeds take the catalog's defaults */
+    gam[TG_SKYDROID_GAM_W_REQ_YAW_DEG] = degrees(argv[4]);
+    gam[TG_SKYDROID_GAM_W_REQ_PITCH_DEG] = degrees(argv[5]);
+    want_yaw = gam[TG_SKYDROID_GAM_W_REQ_YAW_DEG].num;
+    want_pitch = gam[TG_SKYDROID_GAM_W_REQ_PITCH_DEG].num;
+    memset(none, 0, sizeof none);
+    tg_parser_init(&parser, NULL);
+    if (request(TG_SKYDROID_GAM, TG_SKYDROID_GAM_W_REQ, gam) != 0) return 2;
+    deadline = now_ms() + 15000;
+    while (now_ms() < deadline) {
+        struct pollfd pfd = {0, POLLIN, 0};
+        uint8_t buf[512];
+        ssize_t n;
+        tg_event ev;
+        pfd.fd = fd;
+        if (now_ms() >= next_query) {
+            if (request(TG_SKYDROID_GAC, TG_SKYDROID_GAC_R_REQ, none) != 0) return 2;
+            next_query = now_ms() + 100;
+        }
+        if (poll(&pfd, 1, 20) <= 0) continue;
+        n = read(fd, buf, sizeof buf);
+        if (n <= 0) {
+            if (n < 0 && errno == EINTR) continue;
+            return 2;
+        }
+        tg_parser_feed(&parser, buf, (size_t)n);
+        if (is_udp) tg_parser_flush(&parser); /* a datagram ends its frames */
+        while (tg_parser_next(&parser, &ev)) {
+            tg_message m;
+            int64_t yaw, pitch;
+            if (ev.type != TG_EV_FRAME || tg_decode(&tg_skydroid, &ev.frame, &m) != TG_OK) continue;
+            if (m.cmd != &tg_skydroid.commands[TG_SKYDROID_GAC] || m.form->direction != TG_RESPONSE) continue;
+            tg_value_rescale(&m.values[TG_SKYDROID_GAC_R_RSP_YAW_DEG], -2, &yaw);
+            tg_value_rescale(&m.values[TG_SKYDROID_GAC_R_RSP_PITCH_DEG], -2, &pitch);
+            printf("attitude yaw %.2f pitch %.2f\n", (double)yaw / 100, (double)pitch / 100);
+            if (llabs(yaw - want_yaw) <= 50 && llabs(pitch - want_pitch) <= 50) {
+                printf("reached yaw %.2f pitch %.2f\n", (double)yaw / 100, (double)pitch / 100);
+                return 0;
+            }
+        }
+    }
+    fprintf(stderr, "timeout: the camera did not reach the target\n");
+    return 1;
+}

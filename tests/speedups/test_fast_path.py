@@ -1,0 +1,185 @@
+"""The C fast path gives exactly what the pure Python parser and decoder give (differential and
+property tests), and is in use wherever it was built."""
+
+from __future__ import annotations
+
+import random
+import subprocess
+import sys
+from typing import Any
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import topgimbal
+from topgimbal import _speedups
+from topgimbal._speedups.spec import codec_spec
+from topgimbal.protocol import DIALECT_NAMES, Frame, FrameParser, get_dialect, make_frame
+from topgimbal.tools.cvectors import sample
+
+from .conftest import FAST_WANTED, FastFrameParser, PureFrameParser, fast_decoder, pure_decode
+
+SETTINGS = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+TOKENS = [
+    b"#", b"#TP", b"#tp", b"#tP", b"#Tp", b"UG", b"GU", b"DU", b"2w", b"3r", b"Fw", b"\r\n", b"\n", b"\x00",
+    b"\xff", b"GAC", b"G!C", b"0011", b"#TPUD2wAWB0144", b"#tpDU3rVER0105025A", b"#tpGUCwGIAFF36ED5A0048AE",
+    b"#tPUD\x05wLOC12345", b"#TpUD\x00\x03GPS123",
+]  # fmt: skip
+streams = st.lists(st.one_of(st.sampled_from(TOKENS), st.binary(max_size=8)), max_size=30).map(b"".join)
+plans = st.lists(st.integers(1, 30), min_size=1, max_size=8)
+
+
+def test_fast_path_is_in_use_where_built() -> None:
+    assert topgimbal.speedups_enabled() is _speedups.enabled()
+    if FAST_WANTED:  # the test machine has a compiler: `pip install -e .` built the extension
+        assert _speedups.enabled(), _speedups.status()
+
+
+def test_env_var_selects_the_pure_path() -> None:
+    code = "import topgimbal, topgimbal._speedups as s; print(topgimbal.speedups_enabled(), s.status())"
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        env={"TOPGIMBAL_PURE": "1", "PATH": ""},
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    assert out.strip() == "False disabled by TOPGIMBAL_PURE"
+
+
+def test_missing_extension_falls_back_to_pure_python() -> None:
+    """As on a machine without a compiler: the extension cannot be imported, everything works."""
+    code = (
+        "import sys\n"
+        "class Block:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name.endswith('_ctop'): raise ImportError('no extension here')\n"
+        "sys.meta_path.insert(0, Block())\n"
+        "import topgimbal\n"
+        "from topgimbal import decode\n"
+        "print(topgimbal.speedups_enabled(), decode('topotek', '#tpGPCrGACFF36ED5A0048DE').fields)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False {'yaw_deg': -2.02, 'pitch_deg': -47.74, 'roll_deg': 0.72}"
+
+
+def _run(cls: type[FrameParser], stream: bytes, plan: list[int], datagrams: bool) -> tuple[list[Any], dict[str, int]]:
+    p = cls(max_data_length=64)
+    out: list[Any] = []
+    i = k = 0
+    while i < len(stream):
+        n = plan[k % len(plan)]
+        out += p.feed_datagram(stream[i : i + n]) if datagrams else p.feed(stream[i : i + n])
+        i += n
+        k += 1
+    out += p.flush()
+    return out, p.stats.as_dict()
+
+
+@SETTINGS
+@given(streams, plans, st.booleans())
+def test_scan_matches_pure_parser(stream: bytes, plan: list[int], datagrams: bool) -> None:
+    if not _speedups.enabled():
+        return  # test_fast_path_is_in_use_where_built says why
+    assert _run(FastFrameParser, stream, plan, datagrams) == _run(PureFrameParser, stream, plan, datagrams)
+
+
+def test_scan_matches_pure_parser_on_a_long_random_stream() -> None:
+    if not _speedups.enabled():
+        return
+    rnd = random.Random(7)
+    good = [make_frame("GAC", bytes(rnd.randrange(48, 58) for _ in range(12)), src="G", dst="U").to_bytes()]
+    good += [make_frame("GPS", bytes(rnd.randrange(256) for _ in range(14)), header="#tp").to_bytes()]
+    parts = [rnd.choice(good + TOKENS) for _ in range(5000)]
+    stream = b"".join(p if rnd.random() > 0.05 else p[: rnd.randrange(len(p) + 1)] for p in parts)
+    fast, pure = (
+        _run(FastFrameParser, stream, [7, 1, 64, 3], False),
+        _run(PureFrameParser, stream, [7, 1, 64, 3], False),
+    )
+    assert fast == pure
+    assert sum(isinstance(e, Frame) for e in fast[0]) > 300
+
+
+def _same_message(a: Any, b: Any) -> None:
+    assert a == b
+    if a.fields is not None:
+        for k, v in a.fields.items():
+            assert type(v) is type(b.fields[k]), (k, v, b.fields[k])
+
+
+def _sample_frames(rnd: random.Random) -> list[tuple[str, Frame]]:
+    """A frame of every form of both dialects with sample values, plus mutations of its data."""
+    out = []
+    for name in DIALECT_NAMES:
+        d = get_dialect(name)
+        for spec in d.commands.values():
+            for form in spec.forms:
+                for k in range(3):
+                    try:
+                        values = {f.name: sample(codec_spec(f.codec), k, rnd) for f in form.fields}
+                        data = form.encode(values, spec.ident)
+                    except (ValueError, topgimbal.TopGimbalError):
+                        continue
+                    for src, dst in (("U", spec.address), (spec.address, "U"), ("U", "U")):
+                        for mutated in (data, _mutate(data, rnd), data[:-1], data.lower(), data.replace(b"0", b" ")):
+                            try:
+                                frame = make_frame(spec.ident, mutated, src=src, dst=dst, rw=form.rw, header="#tP")
+                            except topgimbal.TopGimbalError:
+                                continue
+                            out.append((name, frame))
+    return out
+
+
+def _mutate(data: bytes, rnd: random.Random) -> bytes:
+    if not data:
+        return b"0"
+    b = bytearray(data)
+    b[rnd.randrange(len(b))] = rnd.choice(b"0123456789ABCDEFabcdef-+. #NKkERz\x00\xff")
+    return bytes(b)
+
+
+def test_decoder_matches_pure_decoder_on_every_form() -> None:
+    if not _speedups.enabled():
+        return
+    rnd = random.Random(11)
+    frames = _sample_frames(rnd)
+    decoders = {name: fast_decoder(get_dialect(name)) for name in DIALECT_NAMES}
+    decoded = 0
+    for name, frame in frames:
+        fast, pure = decoders[name](frame), pure_decode(get_dialect(name))(frame)
+        _same_message(fast, pure)
+        decoded += fast.fields is not None
+    assert len(frames) > 3000 and decoded > 1500
+
+
+def test_decode_many_matches_one_by_one() -> None:
+    if not _speedups.enabled():
+        return
+    d = get_dialect("skydroid")
+    frames = [f for name, f in _sample_frames(random.Random(3)) if name == "skydroid"][:500]
+    dec = fast_decoder(d)
+    assert dec.decode_many(frames) == [pure_decode(d)(f) for f in frames]  # type: ignore[attr-defined]
+
+
+@SETTINGS
+@given(st.sampled_from(DIALECT_NAMES), st.data())
+def test_decoder_matches_pure_decoder_on_random_data(name: str, data: st.DataObject) -> None:
+    if not _speedups.enabled():
+        return
+    d = get_dialect(name)
+    ident = data.draw(st.sampled_from(sorted(d.commands)))
+    payload = data.draw(
+        st.one_of(st.binary(max_size=20), st.text("0123456789ABCDEFNSEW. -+abcK", max_size=20).map(str.encode))
+    )
+    src, dst = data.draw(st.sampled_from([("U", "G"), ("G", "U"), ("D", "P"), ("P", "D")]))
+    frame = make_frame(ident, payload, src=src, dst=dst, rw=data.draw(st.sampled_from("rw")), header="#tP")
+    _same_message(fast_decoder(d)(frame), pure_decode(d)(frame))
+
+
+def test_recovered_c12_version_reply_on_both_paths(parser_cls: type[FrameParser]) -> None:
+    """The `parser_cls` fixture runs a parser test on each path (pure, and fast where built)."""
+    p = parser_cls()
+    out = p.feed(b"junk#tpDU3rVER0105025A\r\n#TPUD2wAWB0144")
+    frames = [e for e in out if isinstance(e, Frame)]
+    assert [(f.ident, f.data, f.declared_length) for f in frames] == [("VER", b"010502", 3), ("AWB", b"01", None)]
+    assert p.stats.length_recoveries == 1 and p.stats.bytes_discarded == 4
