@@ -362,3 +362,72 @@ def test_fuzzed_messages_get_one_clear_answer_each(
         if a["type"] == "error":
             assert isinstance(a["message"], str) and a["message"]
     assert log_trap.problems() == []
+
+
+# -- malformed HTTP and WebSocket frames: refused by aiohttp, one line each, no traceback -----------
+
+
+def _masked(opcode: int, payload: bytes, *, fin: bool = True) -> bytes:
+    mask = os.urandom(4)
+    return (
+        bytes([(0x80 if fin else 0) | opcode, 0x80 | len(payload)])
+        + mask
+        + bytes(b ^ mask[i % 4] for i, b in enumerate(payload))
+    )
+
+
+async def _raw_exchange(port: int, data: bytes, *, upgrade: bool) -> bytes:
+    reader, writer = await asyncio.open_connection("127.0.0.1", port)
+    try:
+        if upgrade:
+            key = base64.b64encode(os.urandom(16)).decode()
+            writer.write(
+                f"GET /ws HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n".encode()
+            )
+        writer.write(data)
+        await writer.drain()
+        try:
+            return await asyncio.wait_for(reader.read(1 << 20), 5)
+        except asyncio.TimeoutError:
+            return b""
+    finally:
+        writer.close()
+
+
+WS_GARBAGE = [
+    _masked(0x1, b"\xff\xfe{"),  # text that is not UTF-8
+    _masked(0x3, b"x"),  # reserved opcode
+    _masked(0x1, b"abc", fin=False) + _masked(0x2, b"x"),  # a new message inside a fragmented one
+    bytes([0x81, 0x05]) + b"hello",  # an unmasked client frame
+    _masked(0x9, b"x" * 125) + _masked(0x8, b"\x03"),  # a ping, then a close with a broken payload
+]
+HTTP_GARBAGE = [
+    b"GARBAGE\r\n\r\n",
+    b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: -1\r\n\r\n",
+    b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nTransfer-Encoding: chunked\r\n\r\nzz\r\n",
+    b"GET /static/../../etc/passwd HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n",
+    b"GET /%ff%fe HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n",
+    b"GET / HTTP/1.1\r\nHost: \xff\xfe:{port}\r\n\r\n",
+    b"GET /ws HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+    b"Sec-WebSocket-Version: 99\r\n\r\n",
+]
+
+
+async def test_malformed_http_and_frames_leave_no_traceback(console: ConsoleServer, log_trap: LogTrap) -> None:
+    port = _port_of(console)
+    for data in WS_GARBAGE:
+        answer = await _raw_exchange(port, data, upgrade=True)
+        assert answer.startswith(b"HTTP/1.1 101")
+    for template in HTTP_GARBAGE:
+        answer = await _raw_exchange(port, template.replace(b"{port}", str(port).encode()), upgrade=False)
+        assert answer.startswith((b"HTTP/1.1 4", b"HTTP/1.0 4")), (template, answer[:80])
+    async with aiohttp.ClientSession() as http, http.ws_connect(console.base_url + "ws") as ws:
+        await _still_usable(ws, "after-garbage")
+    assert log_trap.problems() == []
+    assert any("malformed HTTP request" in r.getMessage() for r in log_trap.records)
+
+
+def _port_of(srv: ConsoleServer) -> int:
+    assert srv.bound_port
+    return srv.bound_port

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from aiohttp import web
+from aiohttp.http_exceptions import HttpProcessingError
 
 from .auth import needs_token, resolve_token, token_middleware
 from .catalog_api import catalog_json
@@ -61,6 +62,19 @@ def create_app(hub: Hub, *, token: str | None = None, allowed_hosts: Iterable[st
     app.router.add_get("/ws", ws)
     app.router.add_static("/static/", root, show_index=False)
     return app
+
+
+class HttpLog(logging.LoggerAdapter):  # type: ignore[type-arg]
+    """aiohttp's server log, minus the tracebacks of requests that are malformed: a client's bad
+    HTTP (a broken Content-Length, a non-HTTP byte stream) is one info line, not an error."""
+
+    def log(self, level: int, msg: object, *args: Any, **kwargs: Any) -> None:
+        exc = kwargs.get("exc_info")
+        if isinstance(exc, HttpProcessingError):
+            first = (str(exc.message) or type(exc).__name__).splitlines()[0]
+            self.logger.info("refused a malformed HTTP request (%d): %s", exc.code, first)
+            return
+        super().log(level, msg, *args, **kwargs)
 
 
 def _dumps(obj: Any) -> str:
@@ -136,7 +150,9 @@ class ConsoleServer:
             self.hub = Hub(self.cam, url=self.url, attitude_hz=self.attitude_hz)
             await self.hub.start()
             self.app = create_app(self.hub, token=self.token, allowed_hosts=self.allowed_hosts)
-            self._runner = web.AppRunner(self.app, access_log=None, handle_signals=False)
+            self._runner = web.AppRunner(
+                self.app, access_log=None, handle_signals=False, logger=HttpLog(logging.getLogger("aiohttp.server"))
+            )
             await self._runner.setup()
             site = web.TCPSite(self._runner, self.host, self.port)
             await site.start()
