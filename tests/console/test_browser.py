@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import re
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -18,14 +17,6 @@ from .conftest import BackgroundConsole, open_console, wait_for
 pytestmark = [pytest.mark.browser, pytest.mark.integration]
 
 TOL = 0.5  # degrees
-
-
-@pytest.fixture
-def page(browser: Any, c12: BackgroundConsole, page_errors: list[str]) -> Iterator[Any]:
-    p = open_console(browser, c12, page_errors)
-    yield p
-    p.context.close()
-    assert page_errors == [], page_errors
 
 
 def shot(page: Any, artifacts: Path, panel: str, suffix: str = "") -> None:

@@ -34,14 +34,6 @@ def c13() -> Iterator[BackgroundConsole]:
         yield bg
 
 
-@pytest.fixture
-def page(browser: Any, c12: BackgroundConsole, page_errors: list[str]) -> Iterator[Any]:
-    p = open_console(browser, c12, page_errors)
-    yield p
-    p.context.close()
-    assert page_errors == [], page_errors
-
-
 def target(page: Any) -> str:
     return str(page.get_by_test_id("heading").get_attribute("data-target"))
 

@@ -102,15 +102,21 @@ export function drawHorizon(canvas, pitch, roll) {
   ctx.fill();
 }
 
-export function drawHeading(canvas, yaw, target) {
+// A cleared canvas with a filled disc (its path left current, for the rim's stroke).
+function disc(canvas, fill) {
   const { ctx, w, h } = setup(canvas);
   const r = Math.min(w, h) / 2 - 2;
   const cx = w / 2, cy = h / 2;
   ctx.clearRect(0, 0, w, h);
-  ctx.fillStyle = "#111a23";
+  ctx.fillStyle = fill;
   ctx.beginPath();
   ctx.arc(cx, cy, r, 0, 2 * Math.PI);
   ctx.fill();
+  return { ctx, r, cx, cy };
+}
+
+export function drawHeading(canvas, yaw, target) {
+  const { ctx, r, cx, cy } = disc(canvas, "#111a23");
   ctx.strokeStyle = "#ffffff55";
   ctx.lineWidth = 2;
   ctx.stroke();
@@ -154,14 +160,7 @@ export function drawHeading(canvas, yaw, target) {
 // A dial without data: grey, with the reason in the middle (never a level horizon or a heading
 // of 0 that looks live). A commanded yaw, if any, is still marked.
 export function drawNoAttitude(canvas, text, target = null) {
-  const { ctx, w, h } = setup(canvas);
-  const r = Math.min(w, h) / 2 - 2;
-  const cx = w / 2, cy = h / 2;
-  ctx.clearRect(0, 0, w, h);
-  ctx.fillStyle = "#151b22";
-  ctx.beginPath();
-  ctx.arc(cx, cy, r, 0, 2 * Math.PI);
-  ctx.fill();
+  const { ctx, r, cx, cy } = disc(canvas, "#151b22");
   ctx.setLineDash([4, 6]);
   ctx.strokeStyle = "#ffffff33";
   ctx.lineWidth = 2;
