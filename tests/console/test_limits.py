@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 from topgimbal.console.limits import (
     MAX_DEPTH,
+    OpRate,
     MAX_MESSAGE_BYTES,
     MAX_NUMBER_ABS,
     MessageError,
@@ -204,3 +205,20 @@ async def test_a_page_that_keeps_up_gets_everything_in_order() -> None:
     peer.close()
     await asyncio.wait_for(writer, 5)
     assert [m["i"] for m in ws.got] == list(range(100)) and peer.dropped == 0
+
+
+def test_op_rate_lets_bursts_through_and_spaces_out_a_flood() -> None:
+    rate = OpRate(rate_per_s=100, burst=50)
+    now = 1000.0
+    assert [rate.delay_s(now) for _ in range(50)] == [0.0] * 50  # a burst of 50 at once
+    assert rate.delay_s(now) == pytest.approx(0.01)  # the 51st waits one period
+    assert rate.delay_s(now) == pytest.approx(0.02)
+    now += 10.0  # after a quiet spell the burst is back (and no more than the burst)
+    assert [rate.delay_s(now) for _ in range(50)] == [0.0] * 50
+    assert rate.delay_s(now) > 0
+    # a steady 100 a second never waits
+    steady = OpRate(rate_per_s=100, burst=50)
+    assert all(steady.delay_s(2000.0 + i / 100) == 0.0 for i in range(1000))
+    # a flood of 1000 at once is spread over (1000 - 50) / 100 s
+    flood = OpRate(rate_per_s=100, burst=50)
+    assert max(flood.delay_s(3000.0) for _ in range(1000)) == pytest.approx(9.5)

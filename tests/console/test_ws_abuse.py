@@ -194,6 +194,35 @@ async def test_ops_in_flight_are_capped(
     assert log_trap.problems() == []
 
 
+async def test_a_flooding_page_is_paced_and_does_not_starve_another(
+    console: ConsoleServer, monkeypatch: pytest.MonkeyPatch, log_trap: LogTrap
+) -> None:
+    """1000 ops sent at once are handled at the page's rate (100 a second after a burst of 50),
+    so another page's op is answered while most of the flood still waits, unread, in TCP."""
+    handled = 0
+
+    async def count(cam: Any, args: Mapping[str, Any]) -> int:
+        nonlocal handled
+        handled += 1
+        return handled
+
+    monkeypatch.setitem(OPS, "count", count)
+    async with aiohttp.ClientSession() as http:
+        flooder = aiohttp.ClientSession()
+        flood = await flooder.ws_connect(console.base_url + "ws")
+        good = await http.ws_connect(console.base_url + "ws")
+        for i in range(1000):
+            await flood.send_json({"op": "count", "ref": i})
+        await _still_usable(good, "good")
+        assert 0 < handled < 1000
+        await flooder.connector.close()  # gone without a goodbye: the rest is never handled
+        await wait_for_async(lambda: len(console.hub.peers) == 1 if console.hub else False)
+        assert handled < 1000
+        await flooder.close()
+        await good.close()
+    assert log_trap.problems() == []
+
+
 # -- a page that never reads, over a raw socket ----------------------------------------------------
 
 
@@ -232,6 +261,7 @@ def test_a_page_that_stops_reading_is_disconnected(log_trap: LogTrap) -> None:
         hub = bg.server.hub if bg.server else None
         assert hub is not None
         hub.peer_limits = limits
+        hub.op_rate = (1e6, 1e6)  # this page floods on purpose: fill its queue fast
         port = bg.server.bound_port if bg.server else 0
         assert port
         stuck = _open_raw_ws(port)

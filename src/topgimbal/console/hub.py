@@ -20,7 +20,7 @@ from typing import Any
 from aiohttp import WSMsgType, web
 
 from .catalog_api import model_json
-from .limits import MAX_FRAME_BYTES, MessageError, parse_message
+from .limits import MAX_FRAME_BYTES, MAX_OPS_PER_S, OPS_BURST, MessageError, OpRate, parse_message
 from .ops import OPS, OpError, describe_error, jsonable, short
 from .peer import Peer
 
@@ -58,6 +58,7 @@ class Hub:
         self.sd_interval_s = sd_interval_s
         self.max_pages = max_pages
         self.peer_limits = dict(peer_limits or {})  # Peer keyword arguments (tests use small ones)
+        self.op_rate = (MAX_OPS_PER_S, OPS_BURST)  # messages a second per page, burst
         self.peers: set[Peer] = set()
         self._polls: Counter[str] = Counter()  # identifiers of the console's own periodic queries
         # Motion ops from every page, one at a time and in arrival order: a drag's rates, the pad
@@ -401,10 +402,15 @@ class Hub:
         sender = asyncio.create_task(peer.run())
         peer.send(self.hello())
         running: set[asyncio.Task[None]] = set()
+        rate = OpRate(*self.op_rate)
+        loop = asyncio.get_running_loop()
         try:
             async for raw in ws:
-                if peer.closed:
-                    break
+                if peer.closed or request.transport is None or request.transport.is_closing():
+                    break  # the page is gone: its buffered messages need no answer
+                # One message per turn of the loop, and at most the page's rate: buffered
+                # messages of a flooding page would otherwise be handled without yielding.
+                await asyncio.sleep(rate.delay_s(loop.time()))
                 if raw.type not in (WSMsgType.TEXT, WSMsgType.BINARY):
                     continue
                 try:

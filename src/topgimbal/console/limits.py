@@ -10,6 +10,9 @@ with an error that says what was wrong and what is allowed, and the socket stays
 - a number beyond `MAX_NUMBER_ABS` (1e15) in magnitude, `NaN` or `Infinity` (no op needs more,
   and `float()` of a 400-digit integer overflows);
 - a binary message, invalid JSON, or JSON that is not an object.
+
+A page may send `MAX_OPS_PER_S` (100) messages a second, in bursts of `OPS_BURST` (50); beyond
+that its messages are read later (`OpRate`), so one flooding page cannot starve the others.
 """
 
 from __future__ import annotations
@@ -24,6 +27,8 @@ MAX_MESSAGE_BYTES = 64 * 1024
 MAX_FRAME_BYTES = 1024 * 1024
 MAX_DEPTH = 32
 MAX_NUMBER_ABS = 1e15
+MAX_OPS_PER_S = 100.0  # per page (a page sends ~10 a second while the pad is dragged)
+OPS_BURST = 50.0
 _MAX_INT_DIGITS = 16  # 1e15 has 16 digits; longer integer text is refused before it is converted
 
 
@@ -112,4 +117,35 @@ def parse_message(data: str | bytes) -> dict[str, Any]:
     return msg
 
 
-__all__ = ["MAX_DEPTH", "MAX_FRAME_BYTES", "MAX_MESSAGE_BYTES", "MAX_NUMBER_ABS", "MessageError", "parse_message"]
+class OpRate:
+    """At most `rate_per_s` messages a second from one page, in bursts of up to `burst`.
+
+    A page over its rate is not answered with errors (which would cost the server as much as
+    the ops): its next message is simply read later, so TCP pushes back on the page and the
+    other pages keep their turn. `delay_s(now)` says how long to wait before reading on."""
+
+    def __init__(self, rate_per_s: float = MAX_OPS_PER_S, burst: float = OPS_BURST) -> None:
+        self.rate_per_s = rate_per_s
+        self.burst = burst
+        self._tokens = burst
+        self._last: float | None = None
+
+    def delay_s(self, now: float) -> float:
+        """Take one message; the wait (0 when within the rate) before handling it."""
+        if self._last is not None:
+            self._tokens = min(self.burst, self._tokens + (now - self._last) * self.rate_per_s)
+        self._last = now
+        self._tokens -= 1.0
+        return 0.0 if self._tokens >= 0 else -self._tokens / self.rate_per_s
+
+
+__all__ = [
+    "MAX_DEPTH",
+    "MAX_FRAME_BYTES",
+    "MAX_MESSAGE_BYTES",
+    "MAX_NUMBER_ABS",
+    "MAX_OPS_PER_S",
+    "MessageError",
+    "OpRate",
+    "parse_message",
+]
