@@ -13,10 +13,10 @@ from hypothesis import strategies as st
 
 from topgimbal.console.limits import (
     MAX_DEPTH,
-    OpRate,
     MAX_MESSAGE_BYTES,
     MAX_NUMBER_ABS,
     MessageError,
+    OpRate,
     parse_message,
     too_deep,
 )
