@@ -155,6 +155,22 @@ async def test_pages_are_capped(console: ConsoleServer, log_trap: LogTrap) -> No
     assert log_trap.problems() == []
 
 
+async def test_concurrent_handshakes_respect_the_page_cap(console: ConsoleServer, log_trap: LogTrap) -> None:
+    assert console.hub is not None
+    console.hub.max_pages = 3
+    async with aiohttp.ClientSession() as http:
+        results = await asyncio.gather(
+            *(http.ws_connect(console.base_url + "ws") for _ in range(8)), return_exceptions=True
+        )
+        opened = [r for r in results if isinstance(r, aiohttp.ClientWebSocketResponse)]
+        refused = [r for r in results if isinstance(r, aiohttp.WSServerHandshakeError)]
+        assert (len(opened), len(refused)) == (3, 5)
+        assert all(r.status == 503 for r in refused)
+        for ws in opened:
+            await ws.close()
+    assert log_trap.problems() == []
+
+
 async def wait_for_async(pred: Any, timeout: float = 10.0) -> None:
     loop = asyncio.get_running_loop()
     deadline = loop.time() + timeout

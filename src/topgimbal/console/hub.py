@@ -60,6 +60,7 @@ class Hub:
         self.peer_limits = dict(peer_limits or {})  # Peer keyword arguments (tests use small ones)
         self.op_rate = (MAX_OPS_PER_S, OPS_BURST)  # messages a second per page, burst
         self.peers: set[Peer] = set()
+        self._handshakes = 0
         self._polls: Counter[str] = Counter()  # identifiers of the console's own periodic queries
         # Motion ops from every page, one at a time and in arrival order: a drag's rates, the pad
         # release's stop and another page's stop share the client's GSM/PTZ requests.
@@ -384,8 +385,9 @@ class Hub:
     # -- the WebSocket -----------------------------------------------------------------------
 
     async def handle_ws(self, request: web.Request) -> web.StreamResponse:
-        name = f"{request.remote or '?'}#{id(request) % 10000:04d}"
-        if len(self.peers) >= self.max_pages:
+        peername = request.transport.get_extra_info("peername") if request.transport is not None else None
+        name = f"{peername[0]}:{peername[1]}" if isinstance(peername, tuple) else (request.remote or "?")
+        if len(self.peers) + self._handshakes >= self.max_pages:
             log.warning("refused page %s: %d pages are open (the limit)", name, len(self.peers))
             return web.json_response(
                 {
@@ -396,7 +398,11 @@ class Hub:
                 status=503,
             )
         ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=MAX_FRAME_BYTES)
-        await ws.prepare(request)
+        self._handshakes += 1  # counted against the limit while the handshake awaits
+        try:
+            await ws.prepare(request)
+        finally:
+            self._handshakes -= 1
         peer = Peer(ws, name, transport=request.transport, **self.peer_limits)
         self.peers.add(peer)
         sender = asyncio.create_task(peer.run())
