@@ -151,3 +151,12 @@ def open_console(browser: Any, bg: BackgroundConsole, errors: list[str]) -> Any:
 def sip() -> Iterator[BackgroundConsole]:
     with BackgroundConsole("SIP") as bg:
         yield bg
+
+
+@pytest.fixture
+def page(browser: Any, c12: BackgroundConsole, page_errors: list[str]) -> Iterator[Any]:
+    """A fresh page on the shared C12 console; no script error may happen on it."""
+    p = open_console(browser, c12, page_errors)
+    yield p
+    p.context.close()
+    assert page_errors == [], page_errors

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import re
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -18,14 +17,6 @@ from .conftest import BackgroundConsole, open_console, wait_for
 pytestmark = [pytest.mark.browser, pytest.mark.integration]
 
 TOL = 0.5  # degrees
-
-
-@pytest.fixture
-def page(browser: Any, c12: BackgroundConsole, page_errors: list[str]) -> Iterator[Any]:
-    p = open_console(browser, c12, page_errors)
-    yield p
-    p.context.close()
-    assert page_errors == [], page_errors
 
 
 def shot(page: Any, artifacts: Path, panel: str, suffix: str = "") -> None:
@@ -164,8 +155,9 @@ def test_traffic_filter_and_raw_frame(page: Any, c12: BackgroundConsole, artifac
     page.get_by_test_id("raw-input").fill("#TPUD2rVER00")  # the server appends the checksum
     page.get_by_test_id("btn-raw").click()
     result = page.get_by_test_id("cmd-result")
-    wait_for(lambda: "version=" in result.inner_text(), what="the raw frame's reply")
+    wait_for(lambda: "version=" in (result.get_attribute("data-raw") or ""), what="the raw frame's reply")
     assert "#TPUD2rVER0051" in result.inner_text()
+    assert "Software version: " in result.inner_text() and "version=" not in result.inner_text()
     traffic = page.get_by_test_id("traffic")
     page.get_by_test_id("traffic-filter").fill("VER")
     wait_for(lambda: traffic.locator(".tr.in[data-id=VER]").count() >= 1, what="the VER answer in the pane")
@@ -183,7 +175,8 @@ def test_traffic_filter_and_raw_frame(page: Any, c12: BackgroundConsole, artifac
     page.get_by_test_id("cmd-select").select_option("SDC")
     page.get_by_test_id("cmd-rw").select_option("r")
     page.get_by_test_id("btn-cmd-send").click()
-    wait_for(lambda: "total_mb=" in result.inner_text(), what="the SDC answer")
+    wait_for(lambda: re.search(r"Total: \d+ MB", result.inner_text()), what="the SDC answer, labelled")
+    assert "total_mb=" in (result.get_attribute("title") or "")
     # a frame the camera rejects is reported, not dropped
     page.get_by_test_id("raw-input").fill("#TPUD2wXYZ00")
     page.get_by_test_id("btn-raw").click()
@@ -198,8 +191,10 @@ def test_thermal_palette(page: Any, c12: BackgroundConsole, artifacts: Path) -> 
         lambda: c12.call(lambda: c12.sim.thermal["IMG"]["palette"]) == "black_hot", what="the palette in the simulator"
     )
     page.get_by_test_id("read-IMG").click()
-    wait_for(
-        lambda: "palette=black_hot" in page.get_by_test_id("result-IMG").inner_text(), what="the palette read back"
+    result = page.get_by_test_id("result-IMG")
+    wait_for(lambda: result.inner_text() == "Black hot", what="the palette read back, in English")
+    assert "palette=black_hot" in (result.get_attribute("title") or "") and "黑热" in (
+        result.get_attribute("title") or ""
     )
     # C13-only settings are listed with their reason
     assert "C12 does not support TSM" in page.get_by_test_id("reason-TSM").text_content()

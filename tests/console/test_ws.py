@@ -111,6 +111,11 @@ async def test_ops_are_acked_and_act_on_the_camera(console: ConsoleServer) -> No
         raw = await page.op("raw", frame="#TPUD2rVER0051")
         assert raw["type"] == "ack", raw
         assert raw["result"]["id"] == "VER" and raw["result"]["fields"]["version"]
+        # without its checksum the frame is completed (as the CLI's raw does), never corrected
+        raw = await page.op("raw", frame="#TPUD2rVER00")
+        assert raw["type"] == "ack" and raw["result"]["sent"] == "#TPUD2rVER0051", raw
+        raw = await page.op("raw", frame="#TPUD2rVER0052")
+        assert raw["type"] == "error" and raw["kind"] == "frame" and "51" in raw["message"], raw
         await page.ws.close()
 
 

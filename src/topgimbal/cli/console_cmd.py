@@ -39,6 +39,14 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     p.add_argument("--port", type=int, default=8080, help="port to listen on (default 8080; 0 = any free port)")
     p.add_argument("--token", help="access token; required (else generated) when --host is not a loopback address")
+    p.add_argument(
+        "--allow-host",
+        metavar="NAME",
+        action="append",
+        default=[],
+        help="also answer requests for this host name or address (repeatable; loopback names and "
+        "the --host address are always allowed, any other Host is refused as DNS rebinding)",
+    )
     p.add_argument("--attitude-hz", type=float, default=50.0, help="attitude push rate to the page, at most 50")
     p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=run)
@@ -62,6 +70,7 @@ def build_server(args: argparse.Namespace) -> object:
         host=args.host,
         port=args.port,
         token=args.token,
+        allow_hosts=args.allow_host,
         attitude_hz=args.attitude_hz,
     )
 

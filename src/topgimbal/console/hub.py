@@ -3,54 +3,33 @@ errors to the WebSockets, and carries out the pages' ops through the client.
 
 Rates are bounded here, not in the browser: attitude goes out at most `attitude_hz` times a second
 (only the latest sample), traffic in batches every `traffic_interval_s`, status every
-`status_interval_s`. A page that cannot keep up loses attitude samples, never acks."""
+`status_interval_s`. A page that cannot keep up loses periodic pushes, never acks; one that stops
+reading is disconnected (`peer.py`). At most `max_pages` pages and `MAX_OPS_IN_FLIGHT` ops per
+page; every message from a page is checked against `limits.py` first."""
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
 import logging
 import time
-from collections import deque
+from collections import Counter, deque
 from collections.abc import Mapping
 from typing import Any
 
 from aiohttp import WSMsgType, web
 
 from .catalog_api import model_json
-from .ops import OPS, OpError, describe_error, jsonable
+from .limits import MAX_FRAME_BYTES, MAX_OPS_PER_S, OPS_BURST, MessageError, OpRate, parse_message
+from .ops import OPS, OpError, describe_error, jsonable, short
+from .peer import Peer
 
 log = logging.getLogger(__name__)
 
-MAX_QUEUE = 2000  # per page; beyond it non-essential pushes are dropped
 TRAFFIC_HISTORY = 400
-
-
-class Peer:
-    """One open WebSocket and its outgoing queue (sent by its own task, so one slow page does
-    not hold up the others)."""
-
-    def __init__(self, ws: web.WebSocketResponse) -> None:
-        self.ws = ws
-        self.queue: asyncio.Queue[str | None] = asyncio.Queue()
-        self.dropped = 0
-
-    def send(self, obj: Mapping[str, Any], *, essential: bool = True) -> None:
-        if not essential and self.queue.qsize() >= MAX_QUEUE:
-            self.dropped += 1
-            return
-        self.queue.put_nowait(json.dumps(obj, separators=(",", ":"), default=str))
-
-    async def run(self) -> None:
-        while True:
-            text = await self.queue.get()
-            if text is None or self.ws.closed:
-                return
-            try:
-                await self.ws.send_str(text)
-            except (ConnectionError, RuntimeError):
-                return
+MAX_PAGES = 16  # open WebSockets; one more is refused with 503 and a log line
+MAX_OPS_IN_FLIGHT = 32  # per page; one more is answered with an error
+MOTION_OPS = frozenset({"point", "rates", "stop", "center", "mode", "ptz"})
 
 
 def _direction(direction: Any) -> str:
@@ -68,6 +47,8 @@ class Hub:
         status_interval_s: float = 0.5,
         traffic_interval_s: float = 0.1,
         sd_interval_s: float = 5.0,
+        max_pages: int = MAX_PAGES,
+        peer_limits: Mapping[str, int] | None = None,
     ) -> None:
         self.cam = cam
         self.url = url
@@ -75,7 +56,15 @@ class Hub:
         self.status_interval_s = status_interval_s
         self.traffic_interval_s = traffic_interval_s
         self.sd_interval_s = sd_interval_s
+        self.max_pages = max_pages
+        self.peer_limits = dict(peer_limits or {})  # Peer keyword arguments (tests use small ones)
+        self.op_rate = (MAX_OPS_PER_S, OPS_BURST)  # messages a second per page, burst
         self.peers: set[Peer] = set()
+        self._handshakes = 0
+        self._polls: Counter[str] = Counter()  # identifiers of the console's own periodic queries
+        # Motion ops from every page, one at a time and in arrival order: a drag's rates, the pad
+        # release's stop and another page's stop share the client's GSM/PTZ requests.
+        self._motion = asyncio.Lock()
         self.attitude: dict[str, float] | None = None
         self._attitude_seq = 0
         self.traffic: deque[dict[str, Any]] = deque(maxlen=TRAFFIC_HISTORY)
@@ -126,9 +115,9 @@ class Hub:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await t
         for p in list(self.peers):
-            p.queue.put_nowait(None)
+            p.close()
             with contextlib.suppress(Exception):
-                await p.ws.close()
+                await asyncio.wait_for(p.ws.close(), 2.0)
 
     # -- pushing -----------------------------------------------------------------------------
 
@@ -159,12 +148,7 @@ class Hub:
         d = _direction(direction)
         if d == "in":
             self.last_in = now
-        text = (
-            frame.text()
-            if hasattr(frame, "text")
-            else (frame.decode("latin-1") if isinstance(frame, (bytes, bytearray)) else str(frame))
-        )
-        item: dict[str, Any] = {"t": now, "dir": d, "frame": text.rstrip("\r\n")}
+        item: dict[str, Any] = {"t": now, "dir": d, "frame": _frame_text(frame)}
         if message is not None:
             try:
                 m = jsonable(message)
@@ -176,6 +160,8 @@ class Hub:
                 )
         if "id" not in item or item.get("id") is None:
             item["id"] = getattr(frame, "ident", None)
+        if item["id"] in self._polls:
+            item["poll"] = True  # the page hides the console's own periodic queries by default
         self.traffic.append(item)
         self._pending.append(item)
         if len(self._pending) > 500:
@@ -261,14 +247,26 @@ class Hub:
             await asyncio.sleep(self.status_interval_s)
             if self.peers:
                 try:
-                    self.broadcast(self.status())
+                    self.broadcast(self.status(), essential=False)
                 except Exception as exc:  # never let a status oddity kill the loop
                     log.exception("status failed")
                     self.report_error(f"status: {exc}", kind="internal", source="console", once="status")
 
-    async def refresh_sd(self) -> dict[str, Any] | None:
+    @contextlib.contextmanager
+    def _polling(self, ident: str) -> Any:
+        """Mark the frames of a periodic query (and its answer) as the console's own polls."""
+        self._polls[ident] += 1
         try:
-            self.sd = await OPS["sd"](self.cam, {})
+            yield
+        finally:
+            self._polls[ident] -= 1
+            if self._polls[ident] <= 0:
+                del self._polls[ident]
+
+    async def refresh_sd(self, *, poll: bool = False) -> dict[str, Any] | None:
+        try:
+            with self._polling("SDC") if poll else contextlib.nullcontext():
+                self.sd = await OPS["sd"](self.cam, {})
             self.clear_error("sd")
         except asyncio.CancelledError:
             raise
@@ -279,7 +277,7 @@ class Hub:
 
     async def _sd_loop(self) -> None:
         while True:
-            await self.refresh_sd()
+            await self.refresh_sd(poll=True)
             await asyncio.sleep(self.sd_interval_s)
 
     def _ping_ident(self) -> str | None:
@@ -299,7 +297,8 @@ class Hub:
             if self.last_in is not None and time.time() - self.last_in < idle_s:
                 continue
             try:
-                await self.cam.request(ident, read=True)
+                with self._polling(ident):
+                    await self.cam.request(ident, read=True)
                 self.clear_error("link")
             except asyncio.CancelledError:
                 raise
@@ -343,10 +342,11 @@ class Hub:
                 "ref": ref,
                 "op": op,
                 "kind": "op",
-                "message": f"unknown op {op!r}; known: {known}",
+                "message": f"unknown op {short(op)}; known: {known}",
             }
         try:
-            result = await handler(self.cam, msg)
+            async with self._motion if self._is_motion(msg) else contextlib.nullcontext():
+                result = await handler(self.cam, msg)
         except asyncio.CancelledError:
             raise
         except Exception as exc:
@@ -356,6 +356,16 @@ class Hub:
             return {"type": "error", "ref": ref, "op": op, "kind": kind, "message": text}
         self._after(str(op), msg, result)
         return {"type": "ack", "ref": ref, "op": op, "result": jsonable(result)}
+
+    def _is_motion(self, msg: Mapping[str, Any]) -> bool:
+        op = msg.get("op")
+        if op in MOTION_OPS:
+            return True
+        ident = msg.get("id")
+        if op != "request" or not isinstance(ident, str):
+            return False
+        spec = self.dialect.commands.get(ident)
+        return bool(spec is not None and (spec.motion or ident == "PTZ"))
 
     def _after(self, op: str, msg: Mapping[str, Any], result: Any) -> None:
         if op == "record":
@@ -374,25 +384,56 @@ class Hub:
 
     # -- the WebSocket -----------------------------------------------------------------------
 
-    async def handle_ws(self, request: web.Request) -> web.WebSocketResponse:
-        ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=1 << 20)
-        await ws.prepare(request)
-        peer = Peer(ws)
+    async def handle_ws(self, request: web.Request) -> web.StreamResponse:
+        peername = request.transport.get_extra_info("peername") if request.transport is not None else None
+        name = f"{peername[0]}:{peername[1]}" if isinstance(peername, tuple) else (request.remote or "?")
+        if len(self.peers) + self._handshakes >= self.max_pages:
+            log.warning("refused page %s: %d pages are open (the limit)", name, len(self.peers))
+            return web.json_response(
+                {
+                    "error": "busy",
+                    "message": f"{len(self.peers)} pages are already open on this console (at most "
+                    f"{self.max_pages}); close one and reload",
+                },
+                status=503,
+            )
+        ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=MAX_FRAME_BYTES)
+        self._handshakes += 1  # counted against the limit while the handshake awaits
+        try:
+            await ws.prepare(request)
+        finally:
+            self._handshakes -= 1
+        peer = Peer(ws, name, transport=request.transport, **self.peer_limits)
         self.peers.add(peer)
         sender = asyncio.create_task(peer.run())
         peer.send(self.hello())
         running: set[asyncio.Task[None]] = set()
+        rate = OpRate(*self.op_rate)
+        loop = asyncio.get_running_loop()
         try:
             async for raw in ws:
-                if raw.type != WSMsgType.TEXT:
+                if peer.closed or request.transport is None or request.transport.is_closing():
+                    break  # the page is gone: its buffered messages need no answer
+                # One message per turn of the loop, and at most the page's rate: buffered
+                # messages of a flooding page would otherwise be handled without yielding.
+                await asyncio.sleep(rate.delay_s(loop.time()))
+                if raw.type not in (WSMsgType.TEXT, WSMsgType.BINARY):
                     continue
                 try:
-                    msg = json.loads(raw.data)
-                    if not isinstance(msg, dict):
-                        raise ValueError("not an object")
-                except ValueError as exc:
+                    msg = parse_message(raw.data)
+                except MessageError as exc:
+                    peer.send({"type": "error", "ref": None, "op": None, "kind": "op", "message": str(exc)})
+                    continue
+                if len(running) >= MAX_OPS_IN_FLIGHT:
                     peer.send(
-                        {"type": "error", "ref": None, "op": None, "kind": "op", "message": f"not a JSON object: {exc}"}
+                        {
+                            "type": "error",
+                            "ref": msg.get("ref"),
+                            "op": msg.get("op"),
+                            "kind": "op",
+                            "message": f"too many ops in flight ({len(running)}, at most {MAX_OPS_IN_FLIGHT} "
+                            "per page): wait for their replies",
+                        }
                     )
                     continue
                 # Ops run concurrently (a slow query must not hold up stop), each acked.
@@ -403,16 +444,18 @@ class Hub:
             self.peers.discard(peer)
             for t in list(running):
                 t.cancel()
-            peer.queue.put_nowait(None)
+            peer.close()
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await sender
+            if peer.dropped:
+                log.info("page %s closed; %d periodic pushes were dropped for it", name, peer.dropped)
         return ws
 
     async def _run_op(self, peer: Peer, msg: Mapping[str, Any]) -> None:
         reply = await self.execute(msg)
         peer.send(reply)
         if reply["type"] == "error" and reply.get("kind") != "op":
-            log.info("op %s failed: %s", msg.get("op"), reply["message"])
+            log.info("op %s failed: %s", short(msg.get("op")), reply["message"])
 
 
 OP_NAMES = {
@@ -436,10 +479,25 @@ OP_NAMES = {
 def _what(msg: Mapping[str, Any]) -> str:
     op = msg.get("op")
     if op == "request":
-        return f"{msg.get('id')} ({'read' if msg.get('read') else 'write'})"
+        return f"{short(msg.get('id'), quote=False)} ({'read' if msg.get('read') else 'write'})"
     if op == "raw":
-        return f"the raw frame {msg.get('frame')!r}"
-    return OP_NAMES.get(str(op), str(op))
+        return f"the raw frame {short(msg.get('frame'))}"
+    return OP_NAMES.get(str(op), short(op, quote=False))
+
+
+def _frame_text(frame: Any) -> str:
+    """The frame as printable text for the traffic pane (never raises: a frame the parser let
+    through must not break the link)."""
+    try:
+        if hasattr(frame, "text"):
+            text = str(frame.text())
+        elif isinstance(frame, (bytes, bytearray)):
+            text = bytes(frame).decode("latin-1")
+        else:
+            text = str(frame)
+    except Exception:
+        text = repr(getattr(frame, "raw", frame))
+    return text.rstrip("\r\n")
 
 
 __all__ = ["Hub", "OpError", "Peer"]

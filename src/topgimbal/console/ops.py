@@ -25,8 +25,14 @@ from ..protocol.frame import complete_frame
 OpHandler = Callable[[Any, Mapping[str, Any]], Awaitable[Any]]
 
 
-class OpError(Exception):
+class OpError(TopGimbalError, ValueError):
     """A malformed op from the page (missing or wrong argument)."""
+
+
+def short(value: Any, limit: int = 40, *, quote: bool = True) -> str:
+    """`value` for an error message, cut to `limit` characters (a page may send anything)."""
+    text = repr(value) if quote else str(value)
+    return text if len(text) <= limit else f"{text[: limit - 1]}…"
 
 
 def jsonable(value: Any) -> Any:
@@ -85,9 +91,9 @@ def _num(args: Mapping[str, Any], name: str, *, required: bool = True) -> float 
     try:
         v = float(args[name])
     except (TypeError, ValueError):
-        raise OpError(f"{name}={args[name]!r} is not a number") from None
+        raise OpError(f"{name}={short(args[name])} is not a number") from None
     if not math.isfinite(v):
-        raise OpError(f"{name}={args[name]!r} is not a finite number")
+        raise OpError(f"{name}={short(args[name])} is not a finite number")
     return v
 
 
@@ -98,12 +104,21 @@ def _text(args: Mapping[str, Any], name: str) -> str:
     return v
 
 
+def _flag(args: Mapping[str, Any], name: str) -> bool:
+    v = args.get(name, False)
+    if v is None:
+        return False
+    if not isinstance(v, bool):
+        raise OpError(f"{name}={short(v)}: expected true or false")
+    return v
+
+
 async def op_request(cam: Any, args: Mapping[str, Any]) -> Any:
     ident = _text(args, "id")
     values = args.get("values") or {}
     if not isinstance(values, Mapping):
         raise OpError("values must be an object of field names to values")
-    return await cam.request(ident, read=bool(args.get("read", False)), **dict(values))
+    return await cam.request(ident, read=_flag(args, "read"), **dict(values))
 
 
 async def op_raw(cam: Any, args: Mapping[str, Any]) -> Any:
@@ -143,7 +158,7 @@ async def op_center(cam: Any, args: Mapping[str, Any]) -> Any:
 async def op_mode(cam: Any, args: Mapping[str, Any]) -> Any:
     mode = _text(args, "mode")
     if mode not in ("follow", "lock"):
-        raise OpError(f"mode={mode!r}: expected follow or lock")
+        raise OpError(f"mode={short(mode)}: expected follow or lock")
     return await cam.set_mode(mode)
 
 
@@ -161,7 +176,7 @@ async def op_record(cam: Any, args: Mapping[str, Any]) -> Any:
         return await cam.start_recording()
     if action == "stop":
         return await cam.stop_recording()
-    raise OpError(f"action={action!r}: expected start or stop")
+    raise OpError(f"action={short(action)}: expected start or stop")
 
 
 async def op_recording(cam: Any, args: Mapping[str, Any]) -> Any:
@@ -193,7 +208,7 @@ async def op_set_network(cam: Any, args: Mapping[str, Any]) -> Any:
     values = args.get("values") or {}
     if not isinstance(values, Mapping) or not values:
         raise OpError("values must name the settings to write (address, gateway, ...)")
-    if not args.get("confirmed"):
+    if not _flag(args, "confirmed"):
         raise OpError("writing network settings changes the camera's address: confirm first (confirmed: true)")
     return await cam.set_network(**{k: v for k, v in values.items() if v not in (None, "")})
 

@@ -11,13 +11,16 @@ import asyncio
 import contextlib
 import importlib.resources
 import logging
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
 from aiohttp import web
+from aiohttp.http_exceptions import HttpProcessingError
 
-from .auth import origin_allowed, resolve_token, token_middleware
+from .auth import needs_token, resolve_token, token_middleware
 from .catalog_api import catalog_json
+from .guard import HostGuard, default_allowed_hosts
 from .hub import Hub
 
 log = logging.getLogger(__name__)
@@ -31,9 +34,13 @@ def static_dir() -> Path:
     return Path(str(importlib.resources.files("topgimbal.console") / "static"))
 
 
-def create_app(hub: Hub, *, token: str | None = None) -> web.Application:
-    """The aiohttp app: `/` the page, `/static/*` its files, `/api/*` JSON, `/ws` the socket."""
-    app = web.Application(middlewares=[token_middleware(token)])  # type: ignore[list-item]
+def create_app(hub: Hub, *, token: str | None = None, allowed_hosts: Iterable[str] | None = None) -> web.Application:
+    """The aiohttp app: `/` the page, `/static/*` its files, `/api/*` JSON, `/ws` the socket.
+
+    Every request passes the Host/Origin allow-list first (`guard.py`; default: the loopback
+    names), then the token rule (`auth.py`)."""
+    guard = HostGuard(default_allowed_hosts(DEFAULT_HOST) if allowed_hosts is None else allowed_hosts)
+    app = web.Application(middlewares=[guard.middleware(), token_middleware(token)])  # type: ignore[list-item]
     app[HUB_KEY] = hub
     root = static_dir()
 
@@ -47,8 +54,6 @@ def create_app(hub: Hub, *, token: str | None = None) -> web.Application:
         return web.json_response(hub.status(), dumps=_dumps)
 
     async def ws(request: web.Request) -> web.StreamResponse:
-        if not origin_allowed(request):
-            return web.json_response({"error": "forbidden", "message": "cross-origin WebSocket refused"}, status=403)
         return await hub.handle_ws(request)
 
     app.router.add_get("/", index)
@@ -57,6 +62,19 @@ def create_app(hub: Hub, *, token: str | None = None) -> web.Application:
     app.router.add_get("/ws", ws)
     app.router.add_static("/static/", root, show_index=False)
     return app
+
+
+class HttpLog(logging.LoggerAdapter):  # type: ignore[type-arg]
+    """aiohttp's server log, minus the tracebacks of requests that are malformed: a client's bad
+    HTTP (a broken Content-Length, a non-HTTP byte stream) is one info line, not an error."""
+
+    def log(self, level: int, msg: object, *args: Any, **kwargs: Any) -> None:
+        exc = kwargs.get("exc_info")
+        if isinstance(exc, HttpProcessingError):
+            first = (str(exc.message) or type(exc).__name__).splitlines()[0]
+            self.logger.info("refused a malformed HTTP request (%d): %s", exc.code, first)
+            return
+        super().log(level, msg, *args, **kwargs)
 
 
 def _dumps(obj: Any) -> str:
@@ -78,6 +96,7 @@ class ConsoleServer:
         host: str = DEFAULT_HOST,
         port: int = DEFAULT_PORT,
         token: str | None = None,
+        allow_hosts: Sequence[str] = (),
         attitude_hz: float = 50.0,
         timeout_s: float = 1.0,
         retries: int = 2,
@@ -93,6 +112,7 @@ class ConsoleServer:
         self.host = host
         self.port = port
         self.token, self.token_generated = resolve_token(host, token)
+        self.allowed_hosts = default_allowed_hosts(host, allow_hosts)  # HostNameError on a bad name
         self.attitude_hz = attitude_hz
         self.timeout_s = timeout_s
         self.retries = retries
@@ -129,8 +149,10 @@ class ConsoleServer:
             )
             self.hub = Hub(self.cam, url=self.url, attitude_hz=self.attitude_hz)
             await self.hub.start()
-            self.app = create_app(self.hub, token=self.token)
-            self._runner = web.AppRunner(self.app, access_log=None, handle_signals=False)
+            self.app = create_app(self.hub, token=self.token, allowed_hosts=self.allowed_hosts)
+            self._runner = web.AppRunner(
+                self.app, access_log=None, handle_signals=False, logger=HttpLog(logging.getLogger("aiohttp.server"))
+            )
             await self._runner.setup()
             site = web.TCPSite(self._runner, self.host, self.port)
             await site.start()
@@ -167,6 +189,11 @@ class ConsoleServer:
 
     def banner(self) -> str:
         lines = [f"topgimbal console for {self.model} at {self.url}", f"open {self.page_url}"]
+        if needs_token(self.host):
+            lines.append(
+                f"(answers to the names {', '.join(sorted(self.allowed_hosts))} and to the address a "
+                "browser connects to; add others with --allow-host NAME)"
+            )
         if self.token_generated:
             lines.append(
                 "(a token was generated because the console listens beyond this machine; keep the URL private)"

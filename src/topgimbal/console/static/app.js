@@ -3,8 +3,8 @@
 // (hello, attitude, status, traffic, error) -> DOM; user actions -> ops over /ws, each acked.
 
 import { Conn, fetchJSON } from "./lib/conn.js";
-import { drawHeading, drawHorizon } from "./lib/gauges.js";
-import { commandRow, el, fieldInputs, formatFields, requestForm } from "./lib/fields.js";
+import { drawHeading, drawHorizon, drawNoAttitude } from "./lib/gauges.js";
+import { commandRow, describeFields, el, fieldInputs, formatFields, reasonFor as reasonOf, requestForm } from "./lib/fields.js";
 
 const $ = (id) => document.getElementById(id);
 
@@ -15,7 +15,9 @@ const S = {
   attitudeDirty: false,
   attCount: 0,
   attRate: 0,
-  target: null,
+  target: null,        // commanded yaw (degrees) the camera acknowledged; null: none
+  motionSeq: 0,        // bumped by every motion action, so a late ack cannot bring back a marker
+  hasAttitude: false,
   traffic: [],
   trafficDirty: false,
   clockOffset: 0,
@@ -84,6 +86,8 @@ const conn = new Conn({
   },
 });
 
+// The link badge: the only place that decides its state and text (status pushes and the page's
+// own socket both come through here).
 function setLink(state, title = "") {
   const l = $("link");
   l.dataset.state = state;
@@ -94,7 +98,6 @@ function setLink(state, title = "") {
 
 function onHello(msg) {
   $("camera-url").textContent = msg.url || "";
-  $("conn-dialect").textContent = msg.dialect;
   S.traffic = [];
   renderedKey = null;
   onTraffic(msg.traffic || []);
@@ -152,6 +155,7 @@ function frame() {
     $("roll").textContent = a.roll.toFixed(2);
     drawHorizon($("horizon"), a.pitch, a.roll);
     drawHeading($("heading"), a.yaw, S.target);
+    $("horizon").dataset.state = $("heading").dataset.state = "live";
   }
   if (S.trafficDirty) renderTraffic();
   if (S.recording && S.recordingSince != null) {
@@ -189,10 +193,20 @@ function onTraffic(items) {
 
 function trafficMatches(it, q, dir, hideAtt) {
   if (dir !== "all" && it.dir !== dir) return false;
-  if (hideAtt && ATTITUDE_IDS.has(it.id)) return false;
+  if (hideAtt && (ATTITUDE_IDS.has(it.id) || it.poll)) return false;
   if (!q) return true;
-  const hay = `${it.id || ""} ${it.name || ""} ${it.frame} ${formatFields(it.fields)} ${it.error || ""}`.toLowerCase();
+  it.hay ??= `${it.id || ""} ${it.name || ""} ${it.frame} ${formatFields(it.fields)} ${meaningOf(it)}`.toLowerCase();
+  const hay = it.hay;
   return q.split(/\s+/).every((w) => hay.includes(w));
+}
+
+// What a frame means, in English: "Thermal palette: White hot" (its raw fields are the tooltip).
+function meaningOf(it) {
+  if (it.error) return `⚠ ${it.error}`;
+  const spec = S.catalog?.commands[it.id];
+  if (!spec) return `${it.name || it.id || ""} ${formatFields(it.fields)}`.trim();
+  const fields = it.fields && Object.keys(it.fields).length ? describeFields(spec, it.fields, { single: true }) : "";
+  return fields ? `${spec.title}: ${fields}` : spec.title;
 }
 
 const MAX_ROWS = 300;
@@ -201,15 +215,16 @@ let renderedSeq = 0;     // ... and of the newest item considered for the pane
 let renderedKey = null;  // the filter the pane was built with
 
 function trafficRow(it) {
-  const cls = `tr ${it.dir}${it.error ? " err" : ""}${it.id === "ERE" ? " ere" : ""}`;
+  const cls = `tr ${it.dir}${it.error ? " err" : ""}${it.id === "ERE" ? " ere" : ""}${it.poll ? " poll" : ""}`;
   const t = new Date(it.t * 1000);
   const ts = t.toLocaleTimeString([], { hour12: false }) + "." + String(t.getMilliseconds()).padStart(3, "0");
-  const meaning = it.error ? `⚠ ${it.error}` : `${it.name || it.id || ""} ${formatFields(it.fields)}`;
+  const meaning = meaningOf(it);
+  const raw = `${it.id || ""} ${it.name || ""} ${formatFields(it.fields)}`.trim();
   return el("div", { class: cls, "data-id": it.id || "", "data-dir": it.dir },
     el("span", { class: "t", text: ts }),
     el("span", { class: "d", text: it.dir === "in" ? "◀" : "▶", title: it.dir === "in" ? "from the camera" : "to the camera" }),
     el("span", { class: "f", text: it.frame, title: it.frame }),
-    el("span", { class: "m", text: meaning, title: meaning }));
+    el("span", { class: "m", text: meaning, title: `${meaning}\n${raw}`, "data-raw": raw }));
 }
 
 // Appends only what is new (a 50 Hz attitude stream shown in the pane stays cheap); rebuilds
@@ -258,22 +273,42 @@ function onReport(it) {
   }
 }
 
+// A command's answer in the builder's result line: English labels, raw fields as tooltip.
+function showAnswer(prefix, m) {
+  const node = $("cmd-result");
+  if (!m || !m.id) {
+    node.textContent = `${prefix}no reply (none expected)`;
+    node.title = "";
+    return;
+  }
+  const spec = S.catalog.commands[m.id];
+  const text = m.fields ? describeFields(spec, m.fields, { single: true }) : m.error || "ok";
+  node.textContent = `${prefix}${spec?.title || m.id}: ${text || "ok"}`;
+  node.title = `${m.id} ${formatFields(m.fields)}`;
+  node.dataset.raw = formatFields(m.fields);
+}
+
 // Raw frame: the server appends the checksum when it is missing (protocol code lives there).
 $("btn-raw").addEventListener("click", async () => {
   const text = $("raw-input").value.trim();
   if (!text) return showError("type a frame first, e.g. #TPUD2rVER00");
   const reply = await run("raw", { frame: text });
-  if (reply !== undefined) {
-    const r = reply.id ? `${reply.id} ${formatFields(reply.fields) || reply.error || ""}` : "no reply (none expected)";
-    $("cmd-result").textContent = `sent ${reply.sent} → ${r}`;
-  }
+  if (reply !== undefined) showAnswer(`sent ${reply.sent} → `, reply);
 });
 $("raw-input").addEventListener("keydown", (e) => { if (e.key === "Enter") $("btn-raw").click(); });
 
 // ---------------------------------------------------------------- building the panels from the catalog
 
 const supported = (id) => !!S.catalog.commands[id];
-const reasonFor = (id) => S.catalog.unsupported[id]?.reason || `the ${S.catalog.dialect_title} protocol has no ${id} command`;
+const reasonFor = (id) => reasonOf(S.catalog, id);
+const sectionOf = (...ids) => ids.map((id) => S.catalog.unsupported[id]?.section).filter(Boolean).join("; ");
+
+// A visible reason (no vendor section numbers in the text: they are in its tooltip).
+function showReason(node, text, ...ids) {
+  node.hidden = false;
+  node.textContent = text;
+  node.title = sectionOf(...ids);
+}
 const ctx = { get catalog() { return S.catalog; }, run };
 
 function disable(node, reason) {
@@ -287,16 +322,19 @@ function buildPointing() {
   const haveAngles = supported("GAY") || supported("GAM");
   const haveRates = supported("GSM") || supported("GSY");
   if (!haveAngles && !haveRates && !supported("PTZ")) {
-    $("pointing-reason").hidden = false;
-    $("pointing-reason").textContent = `The ${m.name} has no gimbal: ${reasonFor("PTZ")}`;
+    showReason($("pointing-reason"), `The ${m.name} has no gimbal: ${reasonFor("PTZ")}`, "PTZ");
     $("panel-pointing").classList.add("disabled");
     $("pad").dataset.reason = reasonFor("PTZ");
     for (const b of $("panel-pointing").querySelectorAll("button, input, select")) disable(b, reasonFor("PTZ"));
     return;
   }
-  const [ylo, yhi] = m.yaw_range_deg, [plo, phi] = m.pitch_range_deg;
-  Object.assign($("angle-yaw"), { min: ylo, max: yhi, title: `${ylo}..${yhi}°` });
-  Object.assign($("angle-pitch"), { min: plo, max: phi, title: `${plo}..${phi}° (up positive)` });
+  S.range = { yaw: angleRange("yaw"), pitch: angleRange("pitch") };
+  for (const axis of ["yaw", "pitch"]) {
+    const [lo, hi] = S.range[axis];
+    const input = $(`angle-${axis}`);
+    Object.assign(input, { min: lo, max: hi, title: `${lo}..${hi}° on the ${m.name}` + (axis === "pitch" ? " (up positive)" : "") });
+    input.addEventListener("input", () => checkAngle(axis));
+  }
   if (!haveAngles) for (const id of ["btn-point", "angle-yaw", "angle-pitch"]) disable($(id), reasonFor("GAY"));
   if (!supported("PTZ")) for (const id of ["btn-center", "btn-follow", "btn-lock", "btn-calib"]) disable($(id), reasonFor("PTZ"));
   // calibrations / mount orientation / trims: the PTZ codes of this dialect, from its enum table
@@ -304,9 +342,36 @@ function buildPointing() {
   const codes = (ptz?.fields?.[0]?.values || []).filter((v) => /^(calibrate|mount_|trim_|look_down)/.test(v.name));
   const sel = $("calib-select");
   for (const v of codes) sel.append(el("option", { value: v.name, text: v.label || v.name }));
-  if (!codes.length) disable($("btn-calib"), `no calibration codes in the ${S.catalog.dialect_title} protocol`);
+  if (!codes.length) disable($("btn-calib"), `no calibration codes in the ${S.catalog.dialect_label}`);
   S.maxRate = maxRate();
   if (!haveRates) $("pad").dataset.reason = reasonFor("GSY");
+}
+
+// The range an angle input accepts: the model's range, narrowed by the angle command's field range.
+function angleRange(axis) {
+  let [lo, hi] = S.model[`${axis}_range_deg`];
+  for (const id of ["GAM", axis === "yaw" ? "GAY" : "GAP"]) {
+    const f = requestForm(S.catalog.commands[id], "w")?.fields?.find((x) => x.name === `${axis}_deg`);
+    if (f?.min != null) lo = Math.max(lo, f.min);
+    if (f?.max != null) hi = Math.min(hi, f.max);
+  }
+  return [lo, hi];
+}
+
+// The problem with an angle input's value (null when fine); marks the input.
+function checkAngle(axis) {
+  const input = $(`angle-${axis}`);
+  const text = input.value.trim();
+  const [lo, hi] = S.range[axis];
+  let problem = null;
+  if (text !== "") {
+    const v = Number(text);
+    if (!Number.isFinite(v)) problem = `${axis} ${JSON.stringify(text)} is not a number`;
+    else if (v < lo || v > hi) problem = `${axis} ${v}° is outside the ${S.model.name}'s range ${lo}..${hi}°`;
+  }
+  input.setAttribute("aria-invalid", problem ? "true" : "false");
+  input.title = problem || `${lo}..${hi}° on the ${S.model.name}`;
+  return problem;
 }
 
 function maxRate() {
@@ -317,9 +382,10 @@ function maxRate() {
 }
 
 function buildAttitude() {
-  if (!supported("GAA") && !supported("GAC")) {
-    $("attitude-reason").hidden = false;
-    $("attitude-reason").textContent = `No attitude on the ${S.model.name}: ${reasonFor("GAC")}`;
+  S.hasAttitude = supported("GAA") || supported("GAC");
+  if (!S.hasAttitude) {
+    showReason($("attitude-reason"), `No attitude on the ${S.model.name}: ${reasonFor("GAC")}`, "GAC", "GAA");
+    for (const id of ["yaw", "pitch", "roll"]) $(id).title = "this model reports no attitude";
   }
   if (!supported("VER") && !supported("VSN")) {
     $("conn-version").textContent = "not available";
@@ -329,10 +395,7 @@ function buildAttitude() {
 
 function buildCamera() {
   const missing = ["CAP", "REC"].filter((id) => !supported(id));
-  if (missing.length) {
-    $("camera-reason").hidden = false;
-    $("camera-reason").textContent = missing.map(reasonFor).join("; ");
-  }
+  if (missing.length) showReason($("camera-reason"), missing.map(reasonFor).join("; "), ...missing);
   if (!supported("CAP")) disable($("btn-photo"), reasonFor("CAP"));
   if (!supported("REC")) disable($("btn-record"), reasonFor("REC"));
   for (const b of document.querySelectorAll("[data-hold], [data-once]")) {
@@ -354,10 +417,7 @@ const THERMAL = ["IMG", "TSM", "TMR", "TAS", "TDI", "TIB", "TIC", "TAR", "TTR", 
 function buildThermal() {
   const box = $("thermal-settings");
   const missing = $("thermal-unsupported");
-  if (!S.model.thermal) {
-    $("thermal-reason").hidden = false;
-    $("thermal-reason").textContent = `The ${S.model.name} (${S.model.title}) has no thermal camera.`;
-  }
+  if (!S.model.thermal) showReason($("thermal-reason"), `The ${S.model.name} (${S.model.title}) has no thermal camera.`);
   let n = 0;
   for (const id of THERMAL) {
     // commands the dialect does not have at all are left out; the others show why they are off
@@ -391,9 +451,8 @@ function buildRange() {
         if (m?.fields) onReport({ id: "SLR", fields: m.fields });
       } }));
   } else {
-    $("range-reason").hidden = false;
-    const why = S.catalog.unsupported.SLR ? reasonFor("SLR") : reasonFor("LRF");
-    $("range-reason").textContent = `The ${S.model.name} has no laser rangefinder: ${why}.`;
+    const id = S.catalog.unsupported.SLR ? "SLR" : "LRF";
+    showReason($("range-reason"), `The ${S.model.name} has no laser rangefinder: ${reasonFor(id)}.`, id);
     $("range-distance").textContent = "not available";
   }
   for (const id of ["ALT", "LAT", "LON", "AZI"]) {
@@ -413,8 +472,7 @@ function buildNetwork() {
   const box = $("network-fields");
   const have = NET.filter(([id]) => supported(id));
   if (!have.length) {
-    $("network-reason").hidden = false;
-    $("network-reason").textContent = reasonFor("IPV");
+    showReason($("network-reason"), reasonFor("IPV"), "IPV");
     disable($("btn-net-read"), reasonFor("IPV"));
     disable($("btn-net-write"), reasonFor("IPV"));
     return;
@@ -476,7 +534,7 @@ function buildBuilder() {
   $("btn-cmd-send").addEventListener("click", async () => {
     const read = $("cmd-rw").value === "r";
     const m = await run("request", { id: sel.value, read, values: inputs.get() });
-    if (m !== undefined) $("cmd-result").textContent = m ? `${m.id}: ${formatFields(m.fields) || m.error || "ok"}` : "sent (no reply expected)";
+    if (m !== undefined) showAnswer("", m);
   });
   if (ids.includes("VER")) sel.value = "VER";
   refresh();
@@ -562,21 +620,54 @@ function showSD(sd) {
 
 // ---------------------------------------------------------------- pointing actions
 
+// The commanded-yaw marker on the heading dial shows only what the camera acknowledged: set on
+// the ack of Point (or Center), cleared by Stop, rates (pad, keys) and any failed motion op.
+function setTarget(yaw) {
+  S.target = yaw;
+  $("heading").dataset.target = yaw == null ? "" : String(yaw);
+  S.attitudeDirty = true;
+  if (!S.attitude && S.hasAttitude) drawNoAttitude($("heading"), "waiting for attitude", S.target);
+}
+
+// A motion op: the marker follows its outcome, unless another motion action came since.
+function motion(op, args, okText, targetOnAck) {
+  const seq = ++S.motionSeq;
+  if (targetOnAck === undefined) setTarget(null);
+  return conn.op(op, args).then(
+    (result) => {
+      if (seq === S.motionSeq && targetOnAck !== undefined) setTarget(targetOnAck);
+      if (okText) toast(okText, "ok", 2500);
+      return result;
+    },
+    (err) => {
+      if (seq === S.motionSeq) setTarget(null);
+      showError(err.message || String(err));
+      return undefined;
+    },
+  );
+}
+
 function pointFromInputs() {
-  const yaw = $("angle-yaw").value, pitch = $("angle-pitch").value;
+  const problems = ["yaw", "pitch"].map(checkAngle).filter(Boolean);
+  if (problems.length) {
+    ++S.motionSeq;
+    setTarget(null);
+    return showError(`${problems.join("; ")}: not sent`);
+  }
+  const yaw = $("angle-yaw").value.trim(), pitch = $("angle-pitch").value.trim();
   const args = {};
   if (yaw !== "") args.yaw = Number(yaw);
   if (pitch !== "") args.pitch = Number(pitch);
-  if (args.yaw != null) S.target = args.yaw;
-  S.attitudeDirty = true;
-  return run("point", args);
+  if (args.yaw == null && args.pitch == null) return showError("type a yaw and/or a pitch angle first");
+  // a pitch-only command keeps the acknowledged yaw marker as it is
+  return motion("point", args, null, args.yaw ?? S.target);
 }
 $("btn-point").addEventListener("click", pointFromInputs);
 for (const id of ["angle-yaw", "angle-pitch"]) {
   $(id).addEventListener("keydown", (e) => { if (e.key === "Enter") pointFromInputs(); });
 }
-$("btn-center").addEventListener("click", () => { S.target = 0; return run("center", {}, "Centering"); });
-$("btn-stop").addEventListener("click", () => run("stop", {}, "Stopped"));
+$("btn-center").addEventListener("click", () => motion("center", {}, "Centering", 0));
+$("btn-stop").addEventListener("click", () => motion("stop", {}, "Stopped"));
 $("btn-follow").addEventListener("click", () => run("mode", { mode: "follow" }, "Follow mode"));
 $("btn-lock").addEventListener("click", () => run("mode", { mode: "lock" }, "Lock mode"));
 $("btn-calib").addEventListener("click", () => {
@@ -607,7 +698,7 @@ function wantRates(yaw, pitch) {
 function flushRates() {
   if (rateWanted.yaw === rateSent.yaw && rateWanted.pitch === rateSent.pitch) return;
   rateSent = { ...rateWanted };
-  run("rates", rateSent);
+  motion("rates", rateSent);
 }
 
 function stopRates() {
@@ -615,7 +706,7 @@ function stopRates() {
   rateTimer = null;
   rateWanted = rateSent = { yaw: 0, pitch: 0 };
   $("rate-readout").textContent = "rate 0 / 0 °/s";
-  run("stop");
+  motion("stop", {});
 }
 
 const pad = $("pad"), knob = $("pad-knob");
@@ -638,6 +729,8 @@ pad.addEventListener("pointerdown", (e) => {
   padActive = true;
   pad.setPointerCapture(e.pointerId);
   pad.classList.add("active");
+  ++S.motionSeq;
+  setTarget(null);
   padMove(e);
 });
 pad.addEventListener("pointermove", (e) => { if (padActive) padMove(e); });
@@ -698,7 +791,8 @@ async function main() {
   document.title = `${S.model.name} · topgimbal console`;
   $("model-name").textContent = `${S.model.name} · ${S.catalog.dialect}`;
   $("conn-model").textContent = S.model.title;
-  $("conn-dialect").textContent = S.catalog.dialect_title;
+  $("conn-dialect").textContent = S.catalog.dialect_label;
+  $("conn-dialect").title = S.catalog.dialect_title;
   buildAttitude();
   buildPointing();
   buildCamera();
@@ -710,8 +804,12 @@ async function main() {
   await waitOpen();
   await Promise.all(S.initialReads.map((read) => read()));
   document.body.dataset.ready = "1";
-  drawHorizon($("horizon"), 0, 0);
-  drawHeading($("heading"), 0, null);
+  // never a level horizon and a heading of 0 as if live: say what is missing until samples come
+  const text = S.hasAttitude ? "waiting for attitude" : "no attitude";
+  const state = S.hasAttitude ? "waiting" : "none";
+  drawNoAttitude($("horizon"), text);
+  drawNoAttitude($("heading"), text);
+  $("horizon").dataset.state = $("heading").dataset.state = state;
   requestAnimationFrame(frame);
 }
 

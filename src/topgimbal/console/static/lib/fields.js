@@ -1,5 +1,7 @@
 // Controls generated from the catalog's field metadata (kind, unit, range, enum table).
 // Nothing about a command is hand-coded here: a field's description decides its input.
+// What the operator reads is English (`label` of fields and enum values); the catalog's names
+// (`palette=white_hot`), the vendor's own term (白热) and section numbers go in tooltips.
 
 export function el(tag, attrs = {}, ...children) {
   const e = document.createElement(tag);
@@ -19,6 +21,30 @@ export function requestForm(spec, rw) {
   return (spec?.forms || []).find((f) => f.rw === rw && f.direction === "request") || null;
 }
 
+const UNIT_TEXT = { deg: "°", degC: "°C", "deg/s": "°/s" };
+
+export const unitText = (unit) => (unit ? UNIT_TEXT[unit] ?? unit : "");
+
+// The English label of an enum value (the catalog's name when it has no label).
+function valueLabel(v) {
+  return v.label || v.name;
+}
+
+// A tooltip for an enum value: its vendor term, then the catalog's name and code.
+function valueTip(v) {
+  return [v.vendor_term, `${v.name} (${v.raw})`].filter(Boolean).join(" — ");
+}
+
+// A placeholder short enough to show whole (the full `allowed` text is in the tooltip).
+function shortAllowed(allowed) {
+  return (allowed || "").split(/ \(|; /)[0];
+}
+
+// Wide enough for its placeholder, never narrower than the stylesheet's text inputs.
+function fitWidth(placeholder) {
+  return `width: max(130px, ${placeholder.length + 4}ch)`;
+}
+
 function numberDefault(f) {
   if (f.default != null) return f.default;
   const lo = f.min ?? 0, hi = f.max ?? 0;
@@ -33,13 +59,21 @@ export function fieldInputs(fields, { prefix = "" } = {}) {
   for (const f of fields || []) {
     if (f.kind === "literal") continue;
     const id = `${prefix}${f.name}`;
-    const tip = [f.description, f.allowed].filter(Boolean).join(" — ");
+    const tip = [f.name, f.description, f.allowed].filter(Boolean).join(" — ");
     let input;
     let read;
     if (f.kind === "enum") {
       input = el("select", { "data-field": f.name, "data-testid": `field-${id}`, title: tip });
-      for (const v of f.values) input.append(el("option", { value: v.name, text: v.label || v.name }));
+      for (const v of f.values) {
+        input.append(el("option", { value: v.name, text: valueLabel(v), title: valueTip(v),
+                                     "data-vendor-term": v.vendor_term }));
+      }
       if (f.default != null) input.value = f.default;
+      // the select's own tooltip names the chosen value's vendor term too
+      const sel = input;
+      const retitle = () => { sel.title = [sel.selectedOptions[0]?.title, tip].filter(Boolean).join(" — "); };
+      input.addEventListener("change", retitle);
+      retitle();
       read = () => input.value;
     } else if (f.kind === "number") {
       input = el("input", {
@@ -51,9 +85,11 @@ export function fieldInputs(fields, { prefix = "" } = {}) {
     } else if (f.kind === "enum_or_number") {
       const listId = `dl-${id}-${Math.random().toString(36).slice(2, 7)}`;
       const dl = el("datalist", { id: listId });
-      for (const v of f.tokens || []) dl.append(el("option", { value: v.name, label: v.label }));
+      for (const v of f.tokens || []) dl.append(el("option", { value: v.name, label: valueLabel(v) }));
+      const n = f.number;
+      const placeholder = n && n.min != null ? `${n.min}..${n.max}${unitText(n.unit) ? " " + unitText(n.unit) : ""} or an action` : "number or action";
       input = el("input", { type: "text", list: listId, "data-field": f.name, "data-testid": `field-${id}`, title: tip,
-                            placeholder: f.number?.allowed || "" });
+                            placeholder, style: fitWidth(placeholder) });
       input.value = f.default ?? "";
       wrap.append(dl);
       read = () => {
@@ -61,13 +97,14 @@ export function fieldInputs(fields, { prefix = "" } = {}) {
         return t !== "" && !Number.isNaN(Number(t)) ? Number(t) : t;
       };
     } else {
+      const placeholder = f.kind === "ipv4" ? "a.b.c.d" : shortAllowed(f.allowed);
       input = el("input", { type: "text", "data-field": f.name, "data-testid": `field-${id}`, title: tip,
-                            placeholder: f.kind === "ipv4" ? "a.b.c.d" : f.allowed || "" });
+                            placeholder, style: fitWidth(placeholder) });
       if (f.default != null) input.value = f.default;
       read = () => input.value.trim();
     }
-    const unit = f.unit ? ` (${f.unit})` : "";
-    wrap.append(el("label", { class: "field" }, el("span", { text: f.name + unit }), input));
+    const unit = f.unit ? ` (${unitText(f.unit)})` : "";
+    wrap.append(el("label", { class: "field", title: tip }, el("span", { text: (f.label || f.name) + unit }), input));
     getters.push([f.name, read]);
     setters[f.name] = (v) => { if (v != null) input.value = v; };
   }
@@ -87,11 +124,64 @@ export function fieldInputs(fields, { prefix = "" } = {}) {
   };
 }
 
+// Field metadata by name, over every form of a command (request and response forms share names).
+export function fieldMeta(spec) {
+  const out = {};
+  for (const form of spec?.forms || []) for (const f of form.fields || []) out[f.name] ??= f;
+  return out;
+}
+
+function valueText(meta, v) {
+  if (v === null || v === undefined) return "–";
+  const table = meta?.values || meta?.tokens;
+  const entry = table?.find((x) => x.name === v);
+  if (entry) return valueLabel(entry);
+  if (typeof v === "number") {
+    const unit = unitText(meta?.unit || meta?.number?.unit);
+    const n = +v.toFixed(4);
+    return unit ? (unit.startsWith("°") ? `${n}${unit}` : `${n} ${unit}`) : String(n);
+  }
+  return String(v);
+}
+
+// "Palette: White hot · Interval: 10 s" for the operator, from a command's answer; the raw
+// `name=value` text (formatFields) is what tooltips and the traffic pane show.
+// With `single`, an answer of one field is just its value ("White hot" next to "Thermal palette").
+export function describeFields(spec, fields, { single = false } = {}) {
+  if (!fields) return "";
+  const meta = fieldMeta(spec);
+  const entries = Object.entries(fields).filter(([k]) => meta[k]?.kind !== "literal");
+  if (single && entries.length === 1) return valueText(meta[entries[0][0]], entries[0][1]);
+  return entries.map(([k, v]) => `${meta[k]?.label || k}: ${valueText(meta[k], v)}`).join(" · ");
+}
+
+// The vendor terms of the enum values in `fields` (for a tooltip), e.g. "palette: 白热".
+export function vendorTerms(spec, fields) {
+  const meta = fieldMeta(spec);
+  return Object.entries(fields || {})
+    .map(([k, v]) => [k, (meta[k]?.values || meta[k]?.tokens)?.find((x) => x.name === v)?.vendor_term])
+    .filter(([, t]) => t)
+    .map(([k, t]) => `${k}: ${t}`)
+    .join(", ");
+}
+
 export function formatFields(fields) {
   if (!fields) return "";
   return Object.entries(fields)
     .map(([k, v]) => `${k}=${typeof v === "number" ? +v.toFixed(4) : v === null ? "null" : v}`)
     .join(" ");
+}
+
+// Why the model cannot use command `ident` (the catalog's reason, without section numbers).
+export function reasonFor(catalog, ident) {
+  return catalog.unsupported[ident]?.reason || `the ${catalog.dialect_label} has no ${ident} command`;
+}
+
+// An answer shown to the operator: English labels, the raw fields and vendor terms as tooltip.
+export function showResult(node, spec, fields) {
+  node.textContent = describeFields(spec, fields, { single: true });
+  node.title = [formatFields(fields), vendorTerms(spec, fields)].filter(Boolean).join(" — ");
+  node.dataset.raw = formatFields(fields);
 }
 
 // A row "title | inputs | Set / Read" for one command, or its reason when unsupported.
@@ -100,11 +190,12 @@ export function commandRow(ctx, ident, title) {
   const spec = ctx.catalog.commands[ident];
   const row = el("div", { class: "cmdrow", "data-testid": `cmd-${ident}`, "data-cmd": ident });
   const name = title || spec?.title || ctx.catalog.unsupported[ident]?.title || ident;
-  row.append(el("span", { class: "title", text: name, title: spec ? `${ident} — ${spec.section}` : ident }));
+  const section = spec?.section || ctx.catalog.unsupported[ident]?.section;
+  row.append(el("span", { class: "title", text: name, title: section ? `${ident} — ${section}` : ident }));
   if (!spec) {
-    const reason = ctx.catalog.unsupported[ident]?.reason || `the ${ctx.catalog.dialect_title} protocol has no ${ident} command`;
+    const reason = reasonFor(ctx.catalog, ident);
     row.classList.add("unsupported");
-    row.append(el("span", { class: "inputs", "data-testid": `reason-${ident}`, text: reason }), el("span"));
+    row.append(el("span", { class: "inputs", "data-testid": `reason-${ident}`, text: reason, title: section || "" }), el("span"));
     return row;
   }
   const wForm = requestForm(spec, "w");
@@ -123,7 +214,7 @@ export function commandRow(ctx, ident, title) {
     row.read = () => ctx.run("request", { id: ident, read: true, values: readArgs }).then((m) => {
       if (m?.fields) {
         inputs.set(m.fields);
-        result.textContent = formatFields(m.fields);
+        showResult(result, spec, m.fields);
       }
     });
     acts.append(el("button", { "data-testid": `read-${ident}`, text: "Read", onclick: () => row.read() }));

@@ -15,6 +15,16 @@ function setup(canvas) {
 
 const rad = (d) => (d * Math.PI) / 180;
 
+// The commanded yaw: a green dot on the rim of the heading dial.
+function drawTarget(ctx, cx, cy, r, target) {
+  if (target == null || !Number.isFinite(target)) return;
+  const tt = rad(target - 90);
+  ctx.fillStyle = "#3ccf7a";
+  ctx.beginPath();
+  ctx.arc(cx + (r - 8) * Math.cos(tt), cy + (r - 8) * Math.sin(tt), 4, 0, 2 * Math.PI);
+  ctx.fill();
+}
+
 export function drawHorizon(canvas, pitch, roll) {
   const { ctx, w, h } = setup(canvas);
   const r = Math.min(w, h) / 2 - 2;
@@ -92,15 +102,21 @@ export function drawHorizon(canvas, pitch, roll) {
   ctx.fill();
 }
 
-export function drawHeading(canvas, yaw, target) {
+// A cleared canvas with a filled disc (its path left current, for the rim's stroke).
+function disc(canvas, fill) {
   const { ctx, w, h } = setup(canvas);
   const r = Math.min(w, h) / 2 - 2;
   const cx = w / 2, cy = h / 2;
   ctx.clearRect(0, 0, w, h);
-  ctx.fillStyle = "#111a23";
+  ctx.fillStyle = fill;
   ctx.beginPath();
   ctx.arc(cx, cy, r, 0, 2 * Math.PI);
   ctx.fill();
+  return { ctx, r, cx, cy };
+}
+
+export function drawHeading(canvas, yaw, target) {
+  const { ctx, r, cx, cy } = disc(canvas, "#111a23");
   ctx.strokeStyle = "#ffffff55";
   ctx.lineWidth = 2;
   ctx.stroke();
@@ -123,13 +139,7 @@ export function drawHeading(canvas, yaw, target) {
       ctx.fillText(label, cx + (r - 26) * Math.cos(t), cy + (r - 26) * Math.sin(t));
     }
   }
-  if (target != null && Number.isFinite(target)) {
-    const tt = rad(target - 90);
-    ctx.fillStyle = "#3ccf7a";
-    ctx.beginPath();
-    ctx.arc(cx + (r - 8) * Math.cos(tt), cy + (r - 8) * Math.sin(tt), 4, 0, 2 * Math.PI);
-    ctx.fill();
-  }
+  drawTarget(ctx, cx, cy, r, target);
   const t = rad((yaw || 0) - 90);
   ctx.strokeStyle = "#3fa7ff";
   ctx.lineWidth = 4;
@@ -145,4 +155,21 @@ export function drawHeading(canvas, yaw, target) {
   ctx.fillStyle = "#dde6ee";
   ctx.font = "600 15px system-ui, sans-serif";
   ctx.fillText(`${(yaw || 0).toFixed(1)}°`, cx, cy + r * 0.45);
+}
+
+// A dial without data: grey, with the reason in the middle (never a level horizon or a heading
+// of 0 that looks live). A commanded yaw, if any, is still marked.
+export function drawNoAttitude(canvas, text, target = null) {
+  const { ctx, r, cx, cy } = disc(canvas, "#151b22");
+  ctx.setLineDash([4, 6]);
+  ctx.strokeStyle = "#ffffff33";
+  ctx.lineWidth = 2;
+  ctx.stroke();
+  ctx.setLineDash([]);
+  drawTarget(ctx, cx, cy, r, target);
+  ctx.fillStyle = "#8697a8";
+  ctx.font = "600 14px system-ui, sans-serif";
+  ctx.textAlign = "center";
+  ctx.textBaseline = "middle";
+  ctx.fillText(text, cx, cy);
 }
