@@ -12,8 +12,7 @@ from topgimbal.protocol.fields import (
     DecFloat,
     DecInt,
     Enum,
-    GeoDeg,
-    GeoDM,
+    Geo,
     HexInt,
     IPv4Text,
     Literal,
@@ -48,10 +47,9 @@ def samples(codec: Codec) -> list[Any]:
         return ["V" + "1" * (max(codec.min_len, 1) - 1), "x" * codec.max_len]
     if isinstance(codec, IPv4Text):
         return ["127.0.0.5", "0.0.0.0", "255.255.255.255"]
-    if isinstance(codec, GeoDM):
-        lim = 90 if codec.axis == "lat" else 180
-        return [0.0, 22.5, -33.8688, lim - 0.5]
-    if isinstance(codec, GeoDeg):
+    if isinstance(codec, Geo) and codec.style == "dm":
+        return [0.0, 22.5, -33.8688, codec.limit - 0.5]
+    if isinstance(codec, Geo):
         return [0.0, 22.123456, -113.654321 if codec.axis == "lon" else -45.5]
     if isinstance(codec, Timestamp):
         return [datetime(2024, 5, 6, 7, 8, 9), datetime(2099, 12, 31, 23, 59, 58)]
