@@ -95,6 +95,7 @@ class RawData(Codec):
 
     width: int | None = None
     binary: bool = False
+    max_bytes: int = 0xFF  # variable width: the most a frame of the dialect can carry
     kind: ClassVar[str] = "raw"
 
     @property
@@ -103,10 +104,10 @@ class RawData(Codec):
 
     @property
     def max_width(self) -> int:
-        return self.width if self.width is not None else 0xFF
+        return self.width if self.width is not None else self.max_bytes
 
     def allowed(self) -> str:
-        n = f"{self.width} bytes" if self.width is not None else "0..255 bytes"
+        n = f"{self.width} bytes" if self.width is not None else f"0..{self.max_bytes} bytes"
         return f"{n} given as a hex string" + ("" if self.binary else " (no 23 '#', 0D or 0A)")
 
     def encode(self, value: Any, name: str = "value") -> bytes:
