@@ -247,18 +247,21 @@ class Dialect:
             )
         if not forms:
             return Message(frame, spec, None, None, f"unknown form: {spec.ident} has no {rw!r} form", self.name)
-        last_error = ""
+        data_error = ""
         for form in forms:
-            if not form.accepts_length(len(data)):
-                last_error = f"{len(data)} data bytes; {spec.ident} ({rw}) takes " + " or ".join(
-                    f"{f.min_length}" + (f"..{f.max_length}" if f.max_length != f.min_length else "") for f in forms
-                )
-                continue
-            try:
-                return Message(frame, spec, form, form.decode(data), None, self.name)
-            except ValueError as exc:
-                last_error = f"{spec.ident}: {exc}"
-        return Message(frame, spec, None, None, last_error, self.name)
+            if form.accepts_length(len(data)):
+                try:
+                    return Message(frame, spec, form, form.decode(data), None, self.name)
+                except ValueError as exc:
+                    data_error = data_error or f"{spec.ident}: {exc}"
+        if data_error:  # a form of the right length, wrong content: say what the content lacks
+            return Message(frame, spec, None, None, data_error, self.name)
+        lengths = " or ".join(
+            f"{f.min_length}" + (f"..{f.max_length}" if f.max_length != f.min_length else "") for f in forms
+        )
+        return Message(
+            frame, spec, None, None, f"{len(data)} data bytes; {spec.ident} ({rw}) takes {lengths}", self.name
+        )
 
     def check_values(self, model: DeviceModel, ident: str, values: Mapping[str, Any]) -> None:
         """Raise if `model` does not support `ident` or a value is outside the model's limits."""

@@ -228,7 +228,7 @@ def commands(u: float, bo: str) -> list[CommandSpec]:
                 write=[F("state", on_off)], read=[F("state", on_off)],
                 extra_forms=[
                     report(*earth, rw="r", title="stream (first 12 characters; ArduPilot)"),
-                    report(*earth, F("extra", RawData(None), "characters after the first 12"), rw="r",
+                    report(*earth, F("extra", RawData(None, min_bytes=1), "characters after the first 12"), rw="r",
                            title="stream with extra data"),
                     report(*earth, title="stream (w)"),
                 ],

@@ -128,8 +128,10 @@ class DecInt(Codec):
     def encode(self, value: Any, name: str = "value") -> bytes:
         v = to_number(value, name, self)
         hi = self.max if self.max is not None else (10**self.width - 1) * self.scale
+        if not in_range(v, self.min, hi):  # first: a huge float would overflow round()
+            raise FieldValueError(name, value, self.allowed())
         raw = round(v / self.scale)
-        if not in_range(v, self.min, hi) or not 0 <= raw < 10**self.width:
+        if not 0 <= raw < 10**self.width:
             raise FieldValueError(name, value, self.allowed())
         return b"%0*d" % (self.width, raw)
 
@@ -253,8 +255,10 @@ class BinInt(Codec):
         v = to_number(value, name, self)
         lo = self.min if self.min is not None else self._raw_lo * self.scale
         hi = self.max if self.max is not None else self._raw_hi * self.scale
+        if not in_range(v, lo, hi):  # first: a huge float would overflow round()
+            raise FieldValueError(name, value, self.allowed())
         raw = round(v / self.scale)
-        if not in_range(v, lo, hi) or not self._raw_lo <= raw <= self._raw_hi:
+        if not self._raw_lo <= raw <= self._raw_hi:
             raise FieldValueError(name, value, self.allowed())
         return raw.to_bytes(self.width, "little" if self.byteorder == "little" else "big", signed=self.signed)
 

@@ -96,18 +96,19 @@ class RawData(Codec):
     width: int | None = None
     binary: bool = False
     max_bytes: int = 0xFF  # variable width: the most a frame of the dialect can carry
+    min_bytes: int = 0  # variable width: the fewest (1 where an empty tail would be another form)
     kind: ClassVar[str] = "raw"
 
     @property
     def min_width(self) -> int:
-        return self.width if self.width is not None else 0
+        return self.width if self.width is not None else self.min_bytes
 
     @property
     def max_width(self) -> int:
         return self.width if self.width is not None else self.max_bytes
 
     def allowed(self) -> str:
-        n = f"{self.width} bytes" if self.width is not None else f"0..{self.max_bytes} bytes"
+        n = f"{self.width} bytes" if self.width is not None else f"{self.min_bytes}..{self.max_bytes} bytes"
         return f"{n} given as a hex string" + ("" if self.binary else " (no 23 '#', 0D or 0A)")
 
     def encode(self, value: Any, name: str = "value") -> bytes:
