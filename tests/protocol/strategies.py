@@ -31,19 +31,28 @@ from topgimbal.protocol.fields.text import FRAME_BYTES
 PRINTABLE_NO_HASH = "".join(c for c in string.printable if c.isprintable() and c != "#")
 
 
-def _floats(lo: float, hi: float) -> st.SearchStrategy[float]:
-    # Edges matter most (rounding at the ends of a range): sample them explicitly too.
-    return st.one_of(
+def _floats(lo: float, hi: float, step: float = 0.0) -> st.SearchStrategy[float]:
+    # Edges matter most: the ends of the range, and values halfway between two steps (where
+    # rounding decides), sampled explicitly besides any float in the range.
+    parts = [
         st.floats(min_value=lo, max_value=hi, allow_nan=False, allow_infinity=False),
         st.sampled_from([lo, hi, (lo + hi) / 2]),
-    )
+    ]
+    if step:
+        k_lo, k_hi = math.floor(lo / step), math.ceil(hi / step)
+        parts.append(
+            st.tuples(st.integers(k_lo, k_hi), st.sampled_from([0.5, -0.5, 0.4999999, 0.5000001])).map(
+                lambda kf: min(hi, max(lo, (kf[0] + kf[1]) * step))
+            )
+        )
+    return st.one_of(*parts)
 
 
 def values(codec: Codec) -> st.SearchStrategy[Any]:
     """Values `codec.encode` must accept (in range, of the right type)."""
     if isinstance(codec, (HexInt, BinInt)):
         assert codec.min is not None and codec.max is not None
-        base: st.SearchStrategy[Any] = _floats(codec.min, codec.max)
+        base: st.SearchStrategy[Any] = _floats(codec.min, codec.max, codec.scale)
         if codec.scale == 1:
             base = st.integers(math.ceil(codec.min), math.floor(codec.max))
         if isinstance(codec, HexInt) and codec.none_tokens:
@@ -57,7 +66,7 @@ def values(codec: Codec) -> st.SearchStrategy[Any]:
             else _floats(codec.min, codec.max)
         )
     if isinstance(codec, DecFloat):
-        base = _floats(codec.min, codec.max)
+        base = _floats(codec.min, codec.max, codec.scale)
         return st.one_of(st.none(), base) if codec.none_tokens else base
     if isinstance(codec, Bitrate):
         return st.integers(codec.min, codec.max)
@@ -75,7 +84,7 @@ def values(codec: Codec) -> st.SearchStrategy[Any]:
             data = data.filter(lambda b: not FRAME_BYTES.intersection(b))
         return data.map(bytes.hex)
     if isinstance(codec, Geo):
-        return _floats(-float(codec.limit), float(codec.limit))
+        return _floats(-float(codec.limit), float(codec.limit), codec.step)
     if isinstance(codec, Timestamp):
         lo, hi = (2000, 2099) if "%y" in codec.layout else (1000, 9999)
         return st.datetimes(min_value=datetime(lo, 1, 1), max_value=datetime(hi, 12, 31, 23, 59, 59, 999999))

@@ -7,6 +7,7 @@ from typing import Any
 
 from .catalog import (
     GROUPS,
+    QUERY,
     QUIRKS,
     REQUEST,
     RESPONSE,
@@ -46,6 +47,7 @@ def decode(dialect: str | Dialect, frame: Frame | bytes | str, *, fallback: bool
 __all__ = [
     "DIALECT_NAMES",
     "GROUPS",
+    "QUERY",
     "QUIRKS",
     "REQUEST",
     "RESPONSE",

@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import difflib
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 from ..protocol import DIALECT_NAMES, get_dialect
@@ -111,7 +112,7 @@ def _model_tables(d: Dialect) -> list[str]:
     return out
 
 
-def _roles_table(dialects: list[Dialect]) -> list[str]:
+def _roles_table(dialects: Sequence[Dialect]) -> list[str]:
     out = ["## Roles", "", "What a command is for, so programs find it without naming a dialect: "
            "`dialect.by_role(role, model)` returns the command (None when the model has none).", ""]  # fmt: skip
     out.append("| role | meaning | " + " | ".join(f"`{d.name}`" for d in dialects) + " |")
@@ -123,7 +124,8 @@ def _roles_table(dialects: list[Dialect]) -> list[str]:
     return out
 
 
-def render() -> str:
+def render(dialects: Sequence[Dialect] | None = None) -> str:
+    """The reference page for `dialects` (default: every built-in dialect)."""
     out = [
         "# TOP protocol reference",
         "",
@@ -139,7 +141,7 @@ def render() -> str:
         "Addresses: " + ", ".join(f"`{k}` {v}" for k, v in ADDRESS_NAMES.items()) + ".",
         "",
     ]
-    dialects = [get_dialect(name) for name in DIALECT_NAMES]
+    dialects = list(dialects) if dialects is not None else [get_dialect(name) for name in DIALECT_NAMES]
     for d in dialects:
         out += [f"## {d.title} — dialect `{d.name}`", ""]
         out += _model_tables(d)

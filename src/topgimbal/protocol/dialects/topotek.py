@@ -145,7 +145,7 @@ def commands(u: float, bo: str) -> list[CommandSpec]:
     pos = F("zoom_pos", HexInt(4, signed=True), "zoom motor position", state_key="zoom.position")
     att = attitude_fields(state="attitude")
     earth = attitude_fields(state="earth_attitude")
-    pitch_note = "down-positive on the wire (§四.2)"
+    pitch_note = "down-positive on the wire, as the document says for speeds"
     lens = place("M", "lens")
     gimbal = place("G", "gimbal")
     camera = place("D", "camera")
