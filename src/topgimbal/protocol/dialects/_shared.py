@@ -5,7 +5,7 @@ so each dialect cites its own document."""
 from __future__ import annotations
 
 from ..commands import CommandSpec
-from ..fields import Codec, DecFloat, DecInt, Enum, Field, GeoDeg, GeoDM, HexInt, IPv4Text, Literal, OneOf, enum
+from ..fields import Codec, DecFloat, DecInt, Enum, Field, Geo, HexInt, IPv4Text, Literal, OneOf, enum
 from ..forms import Form
 from ._build import F, command, report, write_forms
 
@@ -215,29 +215,22 @@ def position_commands(section: dict[str, str], *, target: bool = True) -> list[C
             return []
         return [report(F(name, codec, f"target {what}"), title="target solution", section=tgt)]
 
+    def coordinate(ident: str, axis: str, what: str, negative: str, pattern: str) -> CommandSpec:
+        return command(
+            ident=ident,
+            name=what,
+            title=f"Vehicle {what} ({pattern}); target {what} from the device",
+            address="D",
+            section=section[ident],
+            role=what,
+            group="position",
+            write=[F(f"{axis}_deg", Geo(axis, "dm"), f"vehicle {what}, {negative} negative")],
+            extra_forms=target_report(f"{axis}_deg", Geo(axis, "deg"), what),
+        )
+
     return [
-        command(
-            ident="LAT",
-            name="latitude",
-            title="Vehicle latitude (ddmm.mmmm); target latitude from the device",
-            address="D",
-            section=section["LAT"],
-            role="latitude",
-            group="position",
-            write=[F("lat_deg", GeoDM("lat"), "vehicle latitude, south negative")],
-            extra_forms=target_report("lat_deg", GeoDeg("lat"), "latitude"),
-        ),
-        command(
-            ident="LON",
-            name="longitude",
-            title="Vehicle longitude (dddmm.mmmm); target longitude from the device",
-            address="D",
-            section=section["LON"],
-            role="longitude",
-            group="position",
-            write=[F("lon_deg", GeoDM("lon"), "vehicle longitude, west negative")],
-            extra_forms=target_report("lon_deg", GeoDeg("lon"), "longitude"),
-        ),
+        coordinate("LAT", "lat", "latitude", "south", "ddmm.mmmm"),
+        coordinate("LON", "lon", "longitude", "west", "dddmm.mmmm"),
         command(
             ident="ALT",
             name="altitude",
