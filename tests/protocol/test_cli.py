@@ -160,3 +160,38 @@ def test_every_decode_record_has_the_same_keys(capsys: pytest.CaptureFixture[str
     ):
         _, out, _ = run(argv, capsys)
         assert tuple(json.loads(out)) == RECORD_KEYS, argv
+
+
+def test_decode_batch_reports_every_bad_line_and_goes_on(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Issue 9: one odd line used to raise KeyError and lose the rest of the batch."""
+    lines = [
+        "#TPUG2wPTZ006A",  # good
+        "#TPUG2xGAA0100",  # control x: bad frame, fields an "unknown form"
+        "#TPUDDwQQQ00",  # not a frame (length)
+        "#TPUD2rBIT0043",  # TOPOTEK only: the fallback decodes it
+        "\x00\xff#",  # garbage
+        "#tpUD3rXYZ123",  # short
+        "#TPUG2wPTZ006A",  # good again
+    ]
+    rc, out, _ = run(["decode", "--json"], capsys, "\n".join(lines) + "\n", monkeypatch)
+    recs = [json.loads(x) for x in out.splitlines()]
+    assert len(recs) == len(lines) and rc == 1  # every line reported, and the batch says some failed
+    assert recs[0]["ok"] and recs[-1]["ok"] and recs[0]["dialect"] == "skydroid"
+    assert "unknown form" in recs[1]["fields_error"]
+    assert recs[3]["ok"] and recs[3]["dialect"] == "topotek" and recs[3]["name"] == "bitrate"
+    rc, _, _ = run(["decode", "#TPUG2wPTZ006A", "#TPUD2rBIT0043"], capsys)
+    assert rc == 0
+
+
+def test_decode_says_which_dialect_decoded_it(capsys: pytest.CaptureFixture[str]) -> None:
+    rc, out, _ = run(["decode", "--dialect", "skydroid", "#TPUD2rBIT0043"], capsys)
+    assert rc == 0 and "decoded by the topotek dialect" in out
+
+
+def test_encode_picks_a_form_by_title(capsys: pytest.CaptureFixture[str]) -> None:
+    rc, out, _ = run(["encode", "DZM", "zoom=2.5", "--dialect", "topotek", "--form", "zoom (2 characters)"], capsys)
+    assert rc == 0 and out.strip() == "#TPUD2wDZM255B"
+    rc, _, err = run(["encode", "GAC", "--read", "--header", "#Tp", "--dialect", "topotek"], capsys)
+    assert rc == 1 and "#Tp frame has no r/w" in err

@@ -188,7 +188,7 @@ async def test_ardupilot_topotek_driver_conversation_over_tcp() -> None:
         ("C10", ("PTZ", {"action": "lock"}), "GAC", "SDC"),
         ("C10Pro", ("REC", {"action": "start"}), "EXT", "IMG"),
         ("C12", ("IMG", {"palette": "rainbow"}), "UID", "TSM"),
-        ("C13", ("TIB", {"brightness": 80}), "TGM", "PTZ"),
+        ("C13", ("TIB", {"brightness": 80}), "TGM", "GOT"),  # C13 motion: public reports (errata E28)
         ("C20", ("GSY", {"yaw_rate_deg_s": 5.0}), "GAC", "REC"),
         ("SIP", ("GIY", {"yaw_deg": -30.0, "speed_deg_s": 5.0}), "GMS", "SLR"),
     ],

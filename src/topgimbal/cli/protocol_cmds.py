@@ -9,7 +9,7 @@ from collections.abc import Iterable
 from typing import Any
 
 from ..errors import FieldValueError, UnknownCommandError
-from ..protocol import DIALECT_NAMES, Dialect, Message, dissect, get_dialect, get_model
+from ..protocol import DIALECT_NAMES, Dialect, Message, decode_any, dissect, get_dialect, get_model
 from ..protocol.catalog import REQUEST
 from ..protocol.frame import Frame
 from .args import add_dialect_argument, add_json_argument
@@ -31,6 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--src", help="source address (default: the dialect's host address)")
     p.add_argument("--dst", help="destination address (default: the command's)")
     p.add_argument("--header", choices=["#TP", "#tp", "#tP", "#Tp"], help="force a header")
+    p.add_argument("--form", metavar="TITLE", help="pick a form by its title (`catalog ID` lists them)")
     add_json_argument(p)
     p.set_defaults(func=cmd_encode)
 
@@ -52,25 +53,11 @@ def _dialect_from_args(args: argparse.Namespace) -> Dialect | None:
     return None
 
 
-def _auto_candidates(frame: Frame) -> list[Dialect]:
-    """TOPOTEK-only traits first (network host address P, extended headers), else SkyDroid first."""
-    order = list(DIALECT_NAMES)
-    if "P" in (frame.src, frame.dst) or frame.header in ("#tP", "#Tp"):
-        order = ["topotek", "skydroid"]
-    return [get_dialect(n) for n in order]
-
-
 def decode_with(frame: Frame, dialect: Dialect | None) -> tuple[Dialect, Message]:
-    if dialect is not None:
-        return dialect, dialect.decode(frame)
-    first: tuple[Dialect, Message] | None = None
-    for d in _auto_candidates(frame):
-        msg = d.decode(frame)
-        first = first or (d, msg)
-        if msg.fields is not None:
-            return d, msg
-    assert first is not None
-    return first
+    """Decode with `dialect` (or the most likely one), falling back to the other dialect when the
+    first cannot name the fields; the dialect returned is the one that decoded it."""
+    msg = decode_any(frame, prefer=dialect)
+    return get_dialect(msg.dialect or (dialect.name if dialect else DIALECT_NAMES[0])), msg
 
 
 # -- decode ---------------------------------------------------------------------------------------
@@ -133,7 +120,7 @@ def decode_line(line: str, *, as_hex: bool, dialect: Dialect | None) -> dict[str
         frame = Frame(d.header, d.src, d.dst, d.rw, d.ident, d.data)
     if frame is not None:
         dia, msg = decode_with(frame, dialect)
-        out["dialect"] = dia.name
+        out["dialect"] = dia.name if msg.fields is not None else None
         out["name"] = msg.spec.name if msg.spec else None
         out["fields"] = msg.to_dict()["fields"]
         out["units"] = {f.name: f.unit for f in msg.form.fields if f.unit} if msg.form else {}
@@ -148,9 +135,10 @@ def _human(rec: dict[str, Any]) -> str:
         lines.append(f"    note: {rec['anomaly']}")
     if rec["id"]:
         lines.append(
-            f"    {rec['dialect'] or '?'} {rec['id']} {rec['name'] or '(unknown)'}  {rec['src']}->{rec['dst']} "
+            f"    {rec['id']} {rec['name'] or '(unknown)'}  {rec['src']}->{rec['dst']} "
             f"{rec['rw'] or '-'}  length {rec['length']}  data {rec['data']!r}"
         )
+        lines.append(f"    decoded by the {rec['dialect']} dialect" if rec["dialect"] else "    not decoded")
     if rec["fields"]:
         width = max(len(k) for k in rec["fields"])
         units = rec.get("units") or {}
@@ -172,11 +160,16 @@ def _inputs(frames: list[str]) -> Iterable[str]:
 
 
 def cmd_decode(args: argparse.Namespace) -> int:
+    """Every input line gets one record, whatever it holds; the exit status is 1 when any line is
+    not a good frame or its fields could not be named (the records say which and why)."""
     dialect = _dialect_from_args(args)
     bad = 0
     for line in _inputs(args.frames):
-        rec = decode_line(line, as_hex=args.hex, dialect=dialect)
-        bad += not rec["ok"]
+        try:
+            rec = decode_line(line, as_hex=args.hex, dialect=dialect)
+        except Exception as exc:
+            rec = _failed(_show_data(line.strip().encode("latin-1", "replace")) or "", f"internal error: {exc!r}")
+        bad += not rec["ok"] or rec["fields_error"] is not None
         print(json.dumps(rec, ensure_ascii=False) if args.json else _human(rec))
     return 1 if bad else 0
 
@@ -184,14 +177,17 @@ def cmd_decode(args: argparse.Namespace) -> int:
 # -- encode ---------------------------------------------------------------------------------------
 
 
-def _parse_values(dialect: Dialect, ident: str, read: bool, pairs: list[str]) -> dict[str, Any]:
+def _parse_values(
+    dialect: Dialect, ident: str, read: bool, pairs: list[str], form_title: str | None = None
+) -> dict[str, Any]:
     spec = dialect.command(ident)
     keys = []
     for p in pairs:
         if "=" not in p:
             raise FieldValueError(p, p, "NAME=VALUE")
         keys.append(p.split("=", 1)[0])
-    form = spec.request_form("r" if read else "w", keys)
+    rw = "r" if read else "w"
+    form = spec.form(form_title, rw, REQUEST) if form_title else spec.request_form(rw, keys)
     codecs = {f.name: f.codec for f in form.fields}
     values: dict[str, Any] = {}
     for p in pairs:
@@ -209,11 +205,13 @@ def cmd_encode(args: argparse.Namespace) -> int:
     dialect = _dialect_from_args(args)
     if dialect is None:
         raise UnknownCommandError("encode needs --dialect skydroid|topotek (or --model)")
-    values = _parse_values(dialect, args.ident, args.read, args.values)
+    values = _parse_values(dialect, args.ident, args.read, args.values, args.form)
     if args.model:
         _, model = get_model(args.model)
         dialect.check_values(model, dialect.command(args.ident).ident, values)
-    frame = dialect.encode(args.ident, read=args.read, src=args.src, dst=args.dst, header=args.header, **values)
+    frame = dialect.encode(
+        args.ident, read=args.read, src=args.src, dst=args.dst, header=args.header, form=args.form, **values
+    )
     if args.json:
         print(json.dumps({"frame": frame.text(), "hex": frame.to_bytes().hex(), "dialect": dialect.name}))
     else:
@@ -243,7 +241,7 @@ def cmd_catalog(args: argparse.Namespace) -> int:
         else:
             for e in out:
                 print(f"{e['dialect']} {e['id']} ({e['name']}): {e['title']}  -> {e['address']}  [{e['section']}]")
-                print(f"    models: {', '.join(e['models'])}")
+                print(f"    role: {e['role'] or '-'}  group: {e['group'] or '-'}  models: {', '.join(e['models'])}")
                 for f in e["forms"]:
                     arrow = "host->device" if f["direction"] == REQUEST else "device->host"
                     body = (
@@ -251,7 +249,8 @@ def cmd_catalog(args: argparse.Namespace) -> int:
                         if f["const"]
                         else ", ".join(f"{x['name']} ({x['allowed']})" for x in f["fields"]) or "no data"
                     )
-                    print(f"    {f['rw']} {arrow} {f['title']}: {body}")
+                    where = f" [{f['section']}]" if f["section"] else ""
+                    print(f"    {f['rw']} {arrow} {f['title']}{where}: {body}")
         return 0
     rows = []
     for d in dialects:

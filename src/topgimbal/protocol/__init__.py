@@ -5,8 +5,24 @@ from __future__ import annotations
 
 from typing import Any
 
-from .catalog import REQUEST, RESPONSE, CommandSpec, DeviceModel, Dialect, Endpoint, Form, Message, direction_of
-from .dialects import DIALECT_NAMES, all_models, get_dialect, get_model
+from .catalog import (
+    GROUPS,
+    QUERY,
+    QUIRKS,
+    REQUEST,
+    RESPONSE,
+    ROLES,
+    CommandSpec,
+    DeviceModel,
+    Dialect,
+    Endpoint,
+    Form,
+    Message,
+    VideoStream,
+    direction_of,
+    factory_values,
+)
+from .dialects import DIALECT_NAMES, all_models, decode_any, dialect_for, get_dialect, get_model, guess_dialects
 from .fields import Field
 from .frame import Dissection, Frame, checksum, dissect, make_frame, parse_frame
 from .parser import Diagnostic, FrameParser, ParserStats
@@ -18,17 +34,24 @@ def encode(dialect: str | Dialect, ident: str, *, read: bool = False, **values: 
     return get_dialect(dialect).encode(ident, read=read, **values)
 
 
-def decode(dialect: str | Dialect, frame: Frame | bytes | str) -> Message:
-    """Named fields of a frame (bytes and text are parsed strictly first)."""
+def decode(dialect: str | Dialect, frame: Frame | bytes | str, *, fallback: bool = True) -> Message:
+    """Named fields of a frame (bytes and text are parsed strictly first). With `fallback`, a frame
+    `dialect` cannot decode is tried with the other dialect; `Message.dialect` says which one did."""
     if not isinstance(frame, Frame):
         frame = parse_frame(frame if isinstance(frame, bytes) else frame.encode("latin-1"))
+    if fallback:
+        return decode_any(frame, prefer=dialect)
     return get_dialect(dialect).decode(frame)
 
 
 __all__ = [
     "DIALECT_NAMES",
+    "GROUPS",
+    "QUERY",
+    "QUIRKS",
     "REQUEST",
     "RESPONSE",
+    "ROLES",
     "CommandSpec",
     "DeviceModel",
     "Diagnostic",
@@ -41,14 +64,19 @@ __all__ = [
     "FrameParser",
     "Message",
     "ParserStats",
+    "VideoStream",
     "all_models",
     "checksum",
     "decode",
+    "decode_any",
+    "dialect_for",
     "direction_of",
     "dissect",
     "encode",
+    "factory_values",
     "get_dialect",
     "get_model",
+    "guess_dialects",
     "make_frame",
     "parse_frame",
 ]

@@ -1,46 +1,138 @@
-"""The two dialects as explicit objects. `get_dialect(name, **options)` builds one; with no
-options the built object is memoised (dialects are immutable, so sharing one is safe)."""
+"""The two dialects as explicit objects, their model profiles, and decoding across dialects.
+
+`get_dialect(name, **options)` builds one; built objects are memoised by their options (dialects are
+immutable, so sharing one is safe). `get_model(name)` returns a model's profile with the dialect
+built for it (its `dialect_options` and `destinations` applied): the C11's dialect counts GSY in
+0.5 deg/s steps and sends DZM to M, every other SkyDroid model's follows the document."""
 
 from __future__ import annotations
 
-from functools import cache
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 from ...errors import UnknownCommandError
-from ..catalog import DeviceModel, Dialect
+from ..dialect import Dialect
+from ..frame import Frame
+from ..message import Message
+from ..models import DeviceModel
+from . import skydroid_models, topotek_models
 from .skydroid import skydroid
 from .topotek import topotek
 
-BUILDERS = {"skydroid": skydroid, "topotek": topotek}
+BUILDERS: dict[str, Callable[..., Dialect]] = {"skydroid": skydroid, "topotek": topotek}
 DIALECT_NAMES = tuple(BUILDERS)
+PROFILES: dict[str, tuple[DeviceModel, ...]] = {"skydroid": skydroid_models.MODELS, "topotek": topotek_models.MODELS}
+_built: dict[tuple[str, tuple[tuple[str, Any], ...]], Dialect] = {}
 
 
-@cache
-def _default(name: str) -> Dialect:
-    return BUILDERS[name]()
+def _key(options: Mapping[str, Any]) -> tuple[tuple[str, Any], ...] | None:
+    """A hashable form of build options, or None when they cannot be one (then: no memo)."""
+    items = []
+    for k, v in sorted(options.items()):
+        if isinstance(v, Mapping):
+            v = tuple(sorted(v.items()))
+        try:
+            hash(v)
+        except TypeError:
+            return None
+        items.append((k, v))
+    return tuple(items)
 
 
 def get_dialect(name: str | Dialect, **options: Any) -> Dialect:
+    """A dialect by name (`skydroid`, `topotek`), built with `options` (see each builder)."""
     if isinstance(name, Dialect):
         return name
     key = name.lower()
     if key not in BUILDERS:
         raise UnknownCommandError(f"{name!r} is not a dialect; known: {', '.join(BUILDERS)}")
-    return BUILDERS[key](**options) if options else _default(key)
+    okey = _key(options)
+    if okey is None:
+        return BUILDERS[key](**options)
+    memo = (key, okey)
+    if memo not in _built:
+        _built[memo] = BUILDERS[key](**options)
+    return _built[memo]
+
+
+def dialect_for(model: DeviceModel) -> Dialect:
+    """The dialect `model` speaks, built with the model's options and destinations."""
+    options = dict(model.dialect_options)
+    if model.destinations:
+        options["destinations"] = dict(model.destinations)
+    return get_dialect(model.dialect, **options)
+
+
+def _profile(name: str) -> DeviceModel:
+    for profiles in PROFILES.values():
+        for m in profiles:
+            if m.name.lower() == name.lower():
+                return m
+    known = ", ".join(m.name for profiles in PROFILES.values() for m in profiles)
+    raise UnknownCommandError(f"{name!r} is not a device model; known: {known}")
+
+
+def get_model(model: str | DeviceModel) -> tuple[Dialect, DeviceModel]:
+    """The dialect and profile of a device model, by name (case-insensitive) or by profile (a
+    user's variant from `dataclasses.replace` keeps its own fields)."""
+    if isinstance(model, DeviceModel):
+        return dialect_for(model), model
+    d = dialect_for(_profile(model))
+    return d, d.model(model)
 
 
 def all_models() -> dict[str, DeviceModel]:
-    out: dict[str, DeviceModel] = {}
-    for name in BUILDERS:
-        out.update(_default(name).models)
-    return out
+    """Every model's profile as its own dialect holds it, by name."""
+    return {m.name: get_model(m.name)[1] for profiles in PROFILES.values() for m in profiles}
 
 
-def get_model(name: str) -> tuple[Dialect, DeviceModel]:
-    """The dialect and profile of a device model, by name (case-insensitive)."""
-    for dname in BUILDERS:
-        d = _default(dname)
-        for m in d.models.values():
-            if m.name.lower() == name.lower():
-                return d, m
-    raise UnknownCommandError(f"{name!r} is not a device model; known: {', '.join(all_models())}")
+# -- decoding across dialects ---------------------------------------------------------------------
+
+
+def guess_dialects(frame: Frame, dialects: Iterable[Dialect] | None = None) -> list[Dialect]:
+    """Dialects in the order most likely to decode `frame`, from data only: a dialect whose catalog
+    has the identifier, whose host addresses include the frame's host side and whose headers include
+    its header ranks first; ties keep the default order."""
+    candidates = list(dialects) if dialects is not None else [get_dialect(n) for n in DIALECT_NAMES]
+
+    def score(d: Dialect) -> int:
+        host = {frame.src, frame.dst} & {"U", "P"}
+        return (
+            (frame.ident in d.commands) * 4
+            + (frame.header in d.headers) * 2
+            + (bool(host) and host <= set(d.host_addresses))
+        )
+
+    return sorted(candidates, key=lambda d: -score(d))
+
+
+def decode_any(frame: Frame, prefer: str | Dialect | None = None) -> Message:
+    """Decode `frame` with `prefer` (a dialect or its name) and, when that cannot name its fields,
+    with the other dialects before giving up. `Message.dialect` says which one decoded it; when none
+    did, the preferred (or most likely) dialect's message is returned with every reason in `error`."""
+    order = guess_dialects(frame)
+    if prefer is not None:
+        first = get_dialect(prefer)
+        order = [first] + [d for d in order if d.name != first.name]
+    messages = []
+    for d in order:
+        msg = d.decode(frame)
+        if msg.fields is not None:
+            return msg
+        messages.append(msg)
+    head = messages[0]
+    others = "; ".join(f"{m.dialect}: {m.error}" for m in messages[1:])
+    return head._replace(error=f"{head.error} (also tried {others})" if others else head.error)
+
+
+__all__ = [
+    "BUILDERS",
+    "DIALECT_NAMES",
+    "PROFILES",
+    "all_models",
+    "decode_any",
+    "dialect_for",
+    "get_dialect",
+    "get_model",
+    "guess_dialects",
+]

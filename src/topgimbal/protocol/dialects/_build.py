@@ -1,14 +1,42 @@
-"""Shorthands the dialect tables are written with (data stays data; these only cut repetition)."""
+"""Shorthands the dialect tables are written with (data stays data; these only cut repetition).
+
+A table row is `command(ident=..., name=..., title=..., address=..., section=..., role=...,
+group=..., write=[fields], read=[fields], ...)`, keyword-only: a row reads as what it is."""
 
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import Any
+from typing import Any, TypedDict
 
-from ..catalog import REQUEST, RESPONSE, CommandSpec, Form
+from ..commands import CommandSpec
 from ..fields import Codec, Field, HexInt
+from ..forms import QUERY, REQUEST, RESPONSE, Form
 
-QUERY = Form("r", REQUEST, const=b"00", title="query")
+__all__ = [
+    "QUERY",
+    "F",
+    "Place",
+    "angle",
+    "attitude_fields",
+    "command",
+    "level",
+    "place",
+    "rate",
+    "report",
+    "request",
+    "write_forms",
+]
+
+
+class Place(TypedDict):
+    """Where a run of table rows goes: destination address class and console group."""
+
+    address: str
+    group: str
+
+
+def place(address: str, group: str) -> Place:
+    return {"address": address, "group": group}
 
 
 def F(name: str, codec: Codec, description: str = "", default: Any = None, **kw: Any) -> Field:  # noqa: N802
@@ -16,34 +44,64 @@ def F(name: str, codec: Codec, description: str = "", default: Any = None, **kw:
 
 
 def angle(name: str, lo: float, hi: float, description: str = "", *, gimbal: bool = True) -> Field:
-    """A signed 16-bit hex angle in 0.01 deg. A gimbal angle (`yaw_deg`...) carries its axis, so
-    the model's wire signs apply to it."""
+    """A signed 16-bit hex angle in 0.01 deg. A gimbal angle (`yaw_deg`...) carries its axis and
+    the `angle` sign kind, so the model's wire signs apply to it."""
     axis = name.split("_", 1)[0] if gimbal else None
-    return Field(name, HexInt(4, signed=True, scale=0.01, unit="deg", min=lo, max=hi), description, axis=axis)
+    codec = HexInt(4, signed=True, scale=0.01, unit="deg", min=lo, max=hi)
+    return Field(name, codec, description, axis=axis, sign_kind="angle" if gimbal else None)
 
 
-def attitude_fields(what: str = "gimbal") -> tuple[Field, ...]:
+def attitude_fields(what: str = "gimbal", state: str | None = None) -> tuple[Field, ...]:
     """Yaw, pitch, roll as signed 16-bit hex in 0.01 deg, as on the wire (no sign changes here).
-    Vehicle attitude (FAI) is not a gimbal axis: model wire signs do not apply to it."""
+    Vehicle attitude (FAI) is not a gimbal axis: model wire signs do not apply to it. `state`
+    prefixes the client state keys (`attitude` -> `attitude.yaw_deg`)."""
     g = what == "gimbal"
-    return (
-        angle("yaw_deg", -327.68, 327.67, f"{what} yaw", gimbal=g),
-        angle("pitch_deg", -327.68, 327.67, f"{what} pitch", gimbal=g),
-        angle("roll_deg", -327.68, 327.67, f"{what} roll", gimbal=g),
-    )
+    out = []
+    for axis in ("yaw", "pitch", "roll"):
+        name = f"{axis}_deg"
+        out.append(
+            Field(
+                name,
+                HexInt(4, signed=True, scale=0.01, unit="deg", min=-327.68, max=327.67),
+                f"{what} {axis}",
+                axis=axis if g else None,
+                sign_kind="attitude" if g else None,
+                state_key=f"{state}.{name}" if state else None,
+            )
+        )
+    return tuple(out)
 
 
-def level(name: str, hi: int = 100, description: str = "", unit: str = "") -> Field:
-    return Field(name, HexInt(2, max=hi, unit=unit), description)
+def rate(axis: str, unit_deg_s: float, steps: int, description: str = "") -> Field:
+    """A gimbal rate: signed 8-bit hex steps of `unit_deg_s`, +-`steps`."""
+    codec = HexInt(2, signed=True, scale=unit_deg_s, unit="deg/s", min=-steps * unit_deg_s, max=steps * unit_deg_s)
+    text = f"{axis} rate, -{steps}..{steps} steps" + (f"; {description}" if description else "")
+    return Field(f"{axis}_rate_deg_s", codec, text, axis=axis, sign_kind="rate")
 
 
-def spec(
+def level(name: str, hi: int = 100, description: str = "", unit: str = "", factory: Any = None) -> Field:
+    return Field(name, HexInt(2, max=hi, unit=unit), description, factory=factory)
+
+
+def write_forms(fields: Iterable[Field], title: str = "set / control", *, section: str = "") -> list[Form]:
+    """A write and its echo (the device's copy with addresses swapped)."""
+    w = tuple(fields)
+    return [
+        Form("w", REQUEST, w, title=title, section=section),
+        Form("w", RESPONSE, w, title=f"echo of {title}" if title != "set / control" else "echo", role="echo",
+             section=section),
+    ]  # fmt: skip
+
+
+def command(
+    *,
     ident: str,
     name: str,
     title: str,
     address: str,
     section: str,
-    *,
+    role: str,
+    group: str,
     write: Iterable[Field] | None = None,
     read: Iterable[Field] | None = None,
     read_request: Form | None = None,
@@ -52,7 +110,7 @@ def spec(
     **kw: Any,
 ) -> CommandSpec:
     """A command with the usual shape: a write that the device echoes, and/or a query (`00`)
-    answered with `read` fields."""
+    answered with `read` fields, plus any other forms."""
     forms: list[Form] = []
     if write is not None:
         w = tuple(write)
@@ -64,13 +122,23 @@ def spec(
         forms.append(read_request or QUERY)
         forms.append(Form("r", RESPONSE, tuple(read), title="answer"))
     forms.extend(extra_forms)
-    return CommandSpec(ident, name, title, address, tuple(forms), section, **kw)
+    return CommandSpec(
+        ident=ident,
+        name=name,
+        title=title,
+        address=address,
+        forms=tuple(forms),
+        section=section,
+        role=role,
+        group=group,
+        **kw,
+    )
 
 
-def report(*fields: Field, rw: str = "w", title: str = "report") -> Form:
+def report(*fields: Field, rw: str = "w", title: str = "report", section: str = "") -> Form:
     """A device -> host form (unsolicited reports and alternative answers)."""
-    return Form(rw, RESPONSE, tuple(fields), title=title)
+    return Form(rw, RESPONSE, tuple(fields), title=title, section=section)
 
 
-def request(*fields: Field, rw: str = "w", title: str = "") -> Form:
-    return Form(rw, REQUEST, tuple(fields), title=title)
+def request(*fields: Field, rw: str = "w", title: str = "", section: str = "") -> Form:
+    return Form(rw, REQUEST, tuple(fields), title=title, section=section)

@@ -1,0 +1,281 @@
+"""A dialect: the commands and model profiles of one vendor document, with encode and decode.
+
+A `Dialect` is an explicit, immutable object; two live side by side and nothing here is global.
+It answers what programs need without branching on its name: which models support a command
+(from the profiles), the command holding a role (`by_role`), how to encode a request or an answer,
+and what a received frame means (`decode`, which never raises)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import replace
+from typing import Any
+
+from ..errors import FieldValueError, UnknownCommandError, UnsupportedError
+from .commands import MANY_ROLES, ROLES, CommandSpec
+from .forms import REQUEST, RESPONSE, Form
+from .frame import DEVICE_ADDRESSES, HOST_ADDRESSES, MAX_LENGTH, Frame, make_frame
+from .message import Message
+from .models import DeviceModel
+
+NO_CONTROL_HEADER = "#Tp"  # its control position carries length: such a frame has no r/w
+
+
+class Dialect:
+    """All commands and device models of one vendor document. Immutable once built.
+
+    `destinations` moves commands to another address (a model profile's `destinations`, e.g. the
+    C11's DZM to M); `options` records how the dialect was built (speed units, byte order)."""
+
+    def __init__(
+        self,
+        name: str,
+        title: str,
+        commands: Iterable[CommandSpec],
+        models: Iterable[DeviceModel],
+        *,
+        host_addresses: str = "U",
+        headers: tuple[str, ...] = ("#TP", "#tp"),
+        gimbal_header: str | None = None,
+        options: Mapping[str, Any] | None = None,
+        destinations: Mapping[str, str] | None = None,
+    ) -> None:
+        self.name = name
+        self.title = title
+        self.host_addresses = host_addresses
+        self.headers = headers
+        self.gimbal_header = gimbal_header
+        self.options = dict(options or {})
+        self.models: Mapping[str, DeviceModel] = {m.name: m for m in models}
+        moved = dict(destinations or {})
+        cmds: dict[str, CommandSpec] = {}
+        roles: dict[str, list[CommandSpec]] = {}
+        self._restrict: dict[str, frozenset[str] | None] = {}
+        for c in commands:
+            if c.ident in cmds:
+                raise ValueError(f"{name}: {c.ident} defined twice")
+            if c.ident in moved:
+                c = replace(c, address=moved.pop(c.ident))
+            self._restrict[c.ident] = c.models
+            supporting = frozenset(m.name for m in self.models.values() if self._allows(m, c.ident))
+            c = replace(c, models=None if supporting == frozenset(self.models) else supporting)
+            cmds[c.ident] = c
+            if c.role:
+                if c.role in roles and c.role not in MANY_ROLES:
+                    raise ValueError(f"{name}: role {c.role!r} held by {roles[c.role][0].ident} and {c.ident}")
+                roles.setdefault(c.role, []).append(c)
+        if moved:
+            raise ValueError(f"{name}: destinations for unknown commands {', '.join(sorted(moved))}")
+        capacity = max(MAX_LENGTH[h] for h in headers)
+        for c in cmds.values():
+            for f in c.forms:
+                if f.max_length > capacity:
+                    raise ValueError(f"{name}: {c.ident} form {f.title!r} takes up to {f.max_length} bytes, "
+                                     f"more than a {name} frame carries ({capacity})")  # fmt: skip
+        self.commands: Mapping[str, CommandSpec] = cmds
+        self._roles = roles
+        self._by_name = {c.name: c for c in cmds.values()}
+        for m in self.models.values():
+            unknown = (m.commands or frozenset()) - cmds.keys()
+            if unknown:
+                raise ValueError(f"{name}: model {m.name} lists unknown commands {', '.join(sorted(unknown))}")
+        # (ident, rw, direction) -> forms to try: the direction's own first, then the other
+        # direction's, for frames whose addresses are not swapped (several document examples,
+        # errata E5). Built once: decode is on the hot path.
+        index: dict[tuple[str, str, str], tuple[Form, ...]] = {}
+        for c in cmds.values():
+            for rw in ("r", "w"):
+                for direction, other in ((REQUEST, RESPONSE), (RESPONSE, REQUEST)):
+                    index[(c.ident, rw, direction)] = tuple(c.forms_for(rw, direction)) + tuple(c.forms_for(rw, other))
+        self._decode_index = index
+
+    def __repr__(self) -> str:
+        return f"<Dialect {self.name}: {len(self.commands)} commands, models {', '.join(self.models)}>"
+
+    # -- lookup ------------------------------------------------------------------------------
+
+    def command(self, ident: str) -> CommandSpec:
+        """A command by identifier (any case) or by name."""
+        spec = self.commands.get(ident) or self.commands.get(ident.upper()) or self._by_name.get(ident)
+        if spec is None:
+            raise UnknownCommandError(
+                f"{ident!r} is not a command of the {self.name} dialect; known: {', '.join(sorted(self.commands))}"
+            )
+        return spec
+
+    def model(self, name: str) -> DeviceModel:
+        for m in self.models.values():
+            if m.name.lower() == name.lower():
+                return m
+        raise UnknownCommandError(f"{name!r} is not a {self.name} model; known: {', '.join(self.models)}")
+
+    def _allows(self, model: DeviceModel, ident: str) -> bool:
+        restrict = self._restrict.get(ident)
+        return model.supports(ident) and (restrict is None or model.name in restrict)
+
+    def supports(self, model: str | DeviceModel, ident: str) -> bool:
+        """Whether `model` (a name, or a profile, which may be a user's variant) has `ident`."""
+        spec = self.commands.get(ident)
+        if spec is None:
+            return False
+        if isinstance(model, DeviceModel):
+            return self._allows(model, ident)
+        return spec.models is None or model in spec.models
+
+    def supported(self, model: str | DeviceModel) -> list[CommandSpec]:
+        return [c for c in self.commands.values() if self.supports(model, c.ident)]
+
+    def by_role(self, role: str, model: str | DeviceModel | None = None) -> CommandSpec | None:
+        """The command that holds `role` (`ROLES`), among those `model` supports when given; None
+        when there is none. For roles several commands hold (rate, angle...) the first one."""
+        found = self.commands_with_role(role, model)
+        return found[0] if found else None
+
+    def require_role(self, role: str, model: str | DeviceModel | None = None) -> CommandSpec:
+        """`by_role`, or UnsupportedError saying that this dialect / model has no such command."""
+        spec = self.by_role(role, model)
+        if spec is None:
+            who = f"the {model if isinstance(model, str) else model.name}" if model is not None else f"{self.name}"
+            raise UnsupportedError(f"{who} has no {role} command ({ROLES[role]})")
+        return spec
+
+    def commands_with_role(self, role: str, model: str | DeviceModel | None = None) -> list[CommandSpec]:
+        if role not in ROLES:
+            raise UnknownCommandError(f"{role!r} is not a role; known: {', '.join(ROLES)}")
+        return [c for c in self._roles.get(role, ()) if model is None or self.supports(model, c.ident)]
+
+    def header_for(self, spec: CommandSpec | None, n: int, dst: str = "") -> str:
+        if spec is not None and spec.header is not None and n <= MAX_LENGTH[spec.header]:
+            return spec.header
+        if self.gimbal_header and (dst == "G" or (spec is not None and spec.address == "G")) and n <= 15:
+            return self.gimbal_header
+        if n == 2:
+            return "#TP"
+        if n <= 0x0F:
+            return "#tp"
+        if n <= 0xFF and "#tP" in self.headers:
+            return "#tP"
+        if "#Tp" in self.headers:
+            return "#Tp"
+        raise FieldValueError("data", n, f"at most 15 data bytes in the {self.name} dialect")
+
+    def _header(self, header: str | None, rw: str, spec: CommandSpec, n: int, dst: str) -> str:
+        """The header to send: the caller's, checked against the dialect and the control, or ours."""
+        if header is None:
+            return self.header_for(spec, n, dst)
+        if header not in self.headers:
+            raise FieldValueError("header", header, f"one of {', '.join(self.headers)} in the {self.name} dialect")
+        if header == NO_CONTROL_HEADER and rw != "w":
+            raise FieldValueError(
+                "header", header, "#TP, #tp or #tP for a query: a #Tp frame has no r/w control (it reads as a write)"
+            )
+        return header
+
+    # -- encode --------------------------------------------------------------------------------
+
+    def encode(
+        self,
+        ident: str,
+        *,
+        read: bool = False,
+        src: str | None = None,
+        dst: str | None = None,
+        header: str | None = None,
+        form: str | None = None,
+        **values: Any,
+    ) -> Frame:
+        """The request frame for `ident` with field values in user units. `form` picks a form by
+        title when several take the same field names (DZM's 2-, 4- and 6-character forms)."""
+        spec = self.command(ident)
+        rw = "r" if read else "w"
+        chosen = spec.form(form, rw, REQUEST) if form is not None else spec.request_form(rw, values)
+        data = chosen.encode(values, f"{spec.ident} ({'read' if read else 'write'})")
+        dst = dst or spec.address
+        hdr = self._header(header, rw, spec, len(data), dst)
+        return make_frame(spec.ident, data, src=src or self.host_addresses[0], dst=dst, rw=rw, header=hdr)
+
+    def response(self, request: Frame, *, rw: str | None = None, header: str | None = None, **values: Any) -> Frame:
+        """The device's answer to `request` (addresses swapped) with field values in user units."""
+        spec = self.command(request.ident)
+        rw = rw or request.rw or "w"
+        forms = spec.forms_for(rw, RESPONSE)
+        if not forms:
+            raise UnsupportedError(f"{spec.ident} has no {rw!r} response form in the {self.name} dialect")
+        keys = values.keys()
+        form = next((f for f in forms if keys <= f.names), forms[0])
+        data = form.encode(values, f"{spec.ident} response")
+        hdr = self._header(header, rw, spec, len(data), request.dst)
+        return make_frame(spec.ident, data, src=request.dst, dst=request.src, rw=rw, header=hdr)
+
+    def notification(
+        self,
+        ident: str,
+        *,
+        src: str | None = None,
+        dst: str = "U",
+        rw: str | None = None,
+        header: str | None = None,
+        **values: Any,
+    ) -> Frame:
+        """An unsolicited device -> host frame (attitude stream, ZMP, LRF result, target solution).
+        Echo forms are passed over: an echo answers a write, it is never sent on its own."""
+        spec = self.command(ident)
+        forms = [f for f in spec.forms if f.direction == RESPONSE and f.role != "echo" and (rw is None or f.rw == rw)]
+        keys = values.keys()
+        form = next((f for f in forms if keys <= f.names and f.fields), None)
+        if form is None:
+            raise UnsupportedError(f"{spec.ident} has no matching device -> host form in the {self.name} dialect")
+        data = form.encode(values, f"{spec.ident} report")
+        src = src or spec.address
+        hdr = self._header(header, form.rw, spec, len(data), src)
+        return make_frame(spec.ident, data, src=src, dst=dst, rw=form.rw, header=hdr)
+
+    # -- decode --------------------------------------------------------------------------------
+
+    def decode(self, frame: Frame) -> Message:
+        """Name the fields of `frame` in user units (never raises; `error` says what did not fit)."""
+        spec = self.commands.get(frame.ident)
+        if spec is None:
+            return Message(frame, None, None, None, f"{frame.ident!r} is not in the {self.name} catalog", self.name)
+        direction = RESPONSE if frame.src in DEVICE_ADDRESSES and frame.dst in HOST_ADDRESSES else REQUEST
+        rw = frame.rw or "w"
+        data = frame.data
+        forms = self._decode_index.get((frame.ident, rw, direction))
+        if forms is None:
+            return Message(
+                frame, spec, None, None, f"unknown form: control {rw!r} (a frame's control is r or w)", self.name
+            )
+        if not forms:
+            return Message(frame, spec, None, None, f"unknown form: {spec.ident} has no {rw!r} form", self.name)
+        data_error = ""
+        for form in forms:
+            if form.accepts_length(len(data)):
+                try:
+                    return Message(frame, spec, form, form.decode(data), None, self.name)
+                except ValueError as exc:
+                    data_error = data_error or f"{spec.ident}: {exc}"
+        if data_error:  # a form of the right length, wrong content: say what the content lacks
+            return Message(frame, spec, None, None, data_error, self.name)
+        lengths = " or ".join(
+            f"{f.min_length}" + (f"..{f.max_length}" if f.max_length != f.min_length else "") for f in forms
+        )
+        return Message(
+            frame, spec, None, None, f"{len(data)} data bytes; {spec.ident} ({rw}) takes {lengths}", self.name
+        )
+
+    def check_values(self, model: DeviceModel, ident: str, values: Mapping[str, Any]) -> None:
+        """Raise if `model` does not support `ident` or a value is outside the model's limits."""
+        if not self.supports(model, ident):
+            raise UnsupportedError(f"the {model.name} does not support {ident} ({self.command(ident).title})")
+        for (lim_ident, fname), (lo, hi) in model.limits.items():
+            value = values.get(fname)
+            if (
+                lim_ident == ident
+                and isinstance(value, (int, float))
+                and not isinstance(value, bool)
+                and not lo <= value <= hi
+            ):
+                raise FieldValueError(fname, value, f"{lo:g}..{hi:g} on the {model.name}")
+
+
+__all__ = ["Dialect"]

@@ -1,0 +1,167 @@
+"""Forms: the data layouts a command takes, one per control (`r`/`w`) and direction.
+
+`request` is host -> device, `response` device -> host (answers, echoes and unsolicited reports).
+A form is either a sequence of fields (only the last may have a variable width) or constant data
+(a query's `00`)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..errors import FieldValueError
+from .fields import Codec, Field
+
+REQUEST = "request"
+RESPONSE = "response"
+FORM_ROLES = ("", "echo")  # "echo": the device's copy of a write; answers and reports leave it empty
+
+
+@dataclass(frozen=True)
+class Form:
+    """One data layout of a command: control, direction, fields (or constant data).
+
+    `title` names the form for people (and selects it: `Dialect.encode(..., form=title)`);
+    `section` is where a document defines it, when that differs from the command's own section."""
+
+    rw: str
+    direction: str
+    fields: tuple[Field, ...] = ()
+    const: bytes | None = None
+    title: str = ""
+    role: str = ""
+    section: str = ""
+    # Derived once: decode and encode are on hot paths.
+    names: frozenset[str] = field(init=False, repr=False, compare=False, default=frozenset())
+    _fixed: int = field(init=False, repr=False, compare=False, default=0)
+    _variable: Codec | None = field(init=False, repr=False, compare=False, default=None)
+    _slices: tuple[tuple[str, Codec, int, int], ...] = field(init=False, repr=False, compare=False, default=())
+    _min_len: int = field(init=False, repr=False, compare=False, default=0)
+    _max_len: int = field(init=False, repr=False, compare=False, default=0)
+
+    def __post_init__(self) -> None:
+        if self.rw not in ("r", "w") or self.direction not in (REQUEST, RESPONSE) or self.role not in FORM_ROLES:
+            raise ValueError(f"form {self.title!r}: rw r|w, direction request|response, role '' or 'echo'")
+        if self.const is not None and self.fields:
+            raise ValueError(f"form {self.title!r}: constant data and fields exclude each other")
+        fixed = 0
+        variable: Codec | None = None
+        slices: list[tuple[str, Codec, int, int]] = []
+        names = [f.name for f in self.fields]
+        if len(set(names)) != len(names):
+            raise ValueError(f"form {self.title!r}: a field name is used twice ({', '.join(names)})")
+        for i, f in enumerate(self.fields):
+            w = f.codec.width
+            if w is None:
+                if i != len(self.fields) - 1:
+                    raise ValueError(f"only the last field may have a variable width ({f.name})")
+                variable = f.codec
+            else:
+                slices.append((f.name, f.codec, fixed, fixed + w))
+                fixed += w
+        if self.const is not None:
+            lo = hi = len(self.const)
+        else:
+            lo = fixed + (variable.min_width if variable else 0)
+            hi = fixed + (variable.max_width if variable else 0)
+        set_ = object.__setattr__
+        set_(self, "names", frozenset(names))
+        set_(self, "_fixed", fixed)
+        set_(self, "_variable", variable)
+        set_(self, "_slices", tuple(slices))
+        set_(self, "_min_len", lo)
+        set_(self, "_max_len", hi)
+
+    @property
+    def min_length(self) -> int:
+        return self._min_len
+
+    @property
+    def max_length(self) -> int:
+        return self._max_len
+
+    def accepts_length(self, n: int) -> bool:
+        return self._min_len <= n <= self._max_len
+
+    def describe(self) -> dict[str, Any]:
+        """The form's metadata as JSON-able data (CLI `catalog --json`, the console's page)."""
+        return {
+            "rw": self.rw,
+            "direction": self.direction,
+            "title": self.title,
+            "role": self.role,
+            "section": self.section,
+            "const": self.const.decode("latin-1") if self.const is not None else None,
+            "fields": [f.describe() for f in self.fields],
+        }
+
+    def field(self, name: str) -> Field:
+        for f in self.fields:
+            if f.name == name:
+                return f
+        raise KeyError(name)
+
+    def encode(self, values: Mapping[str, Any], where: str = "") -> bytes:
+        """The data for `values` (user units); FieldValueError names what is wrong and what is allowed."""
+        if self.const is not None:
+            if values:
+                raise FieldValueError(", ".join(sorted(values)), values, f"no fields ({where} sends {self.const!r})")
+            return self.const
+        unknown = values.keys() - self.names
+        if unknown:
+            allowed = ", ".join(f.name for f in self.fields) or "no fields"
+            bad = sorted(unknown)[0]
+            raise FieldValueError(bad, values[bad], f"a field of {where}: {allowed}")
+        out = []
+        for f in self.fields:
+            if f.name in values:
+                value = values[f.name]
+            elif f.default is not None:
+                value = f.default
+            else:
+                raise FieldValueError(f.name, None, f"a value ({f.codec.allowed()}); {where} requires it")
+            out.append(f.codec.encode(value, f.name))
+        return b"".join(out)
+
+    def decode(self, data: bytes) -> dict[str, Any]:
+        """Named values in user units; FieldValueError (a ValueError) when the data do not fit."""
+        if self.const is not None:
+            if data != self.const:
+                raise FieldValueError("data", data, f"exactly {self.const!r}")
+            return {}
+        n = len(data)
+        if not self._min_len <= n <= self._max_len:
+            raise FieldValueError("data", data, f"{self._min_len}..{self._max_len} data bytes, not {n}")
+        try:
+            out = {name: codec.decode(data[a:b]) for name, codec, a, b in self._slices}
+            if self._variable is not None:
+                out[self.fields[-1].name] = self._variable.decode(data[self._fixed :])
+        except ValueError:
+            self._raise_for_field(data)
+            raise
+        return out
+
+    def _raise_for_field(self, data: bytes) -> None:
+        """Which field's bytes failed, as a FieldValueError naming it (only on the error path)."""
+        spans = [(f, a, b) for (_n, _c, a, b), f in zip(self._slices, self.fields, strict=False)]
+        if self._variable is not None:
+            spans.append((self.fields[-1], self._fixed, len(data)))
+        for f, a, b in spans:
+            try:
+                f.codec.decode(data[a:b])
+            except ValueError as exc:
+                raise FieldValueError(f.name, data[a:b], f"{f.codec.allowed()} ({exc})") from None
+
+    def is_idempotent(self, data: bytes) -> bool:
+        """False if any enum value in `data` is a toggle or relative step."""
+        for _name, codec, a, b in self._slices:
+            check = getattr(codec, "is_idempotent", None)
+            if check is not None and not check(data[a:b]):
+                return False
+        return True
+
+
+QUERY = Form("r", REQUEST, const=b"00", title="query")
+
+__all__ = ["FORM_ROLES", "QUERY", "REQUEST", "RESPONSE", "Form"]
