@@ -8,6 +8,7 @@ import math
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.mavlink.quaternion import from_euler_deg, to_euler_deg
+from topgimbal.protocol import get_model
 
 from .conftest import NAN, eventually
 
@@ -24,7 +25,9 @@ async def test_heartbeats_and_device_information(rig) -> None:
     info = await p.request(GIMBAL, 283, "GIMBAL_DEVICE_INFORMATION")
     assert info.vendor_name == "SkyDroid" and info.model_name == "C12"
     assert math.isclose(info.yaw_max, math.radians(90), rel_tol=1e-6)
-    assert math.isclose(info.pitch_min, math.radians(-90), rel_tol=1e-6)
+    # the C12's tilt range from its profile (+-45 deg on real units, errata), not a copy of it
+    assert math.isclose(info.pitch_min, math.radians(get_model("C12")[1].pitch_range_deg[0]), rel_tol=1e-6)
+    assert info.pitch_min > math.radians(-90)
     caps = info.cap_flags
     for flag in ("HAS_NEUTRAL", "HAS_PITCH_AXIS", "HAS_YAW_AXIS", "HAS_YAW_FOLLOW", "HAS_YAW_LOCK", "HAS_ROLL_AXIS"):
         assert caps & getattr(ml, f"GIMBAL_DEVICE_CAP_FLAGS_{flag}"), flag

@@ -6,7 +6,11 @@ resynchronises at the next `#`, and drops only the frame whose checksum is wrong
 
 No valid frame is lost after garbage: an identifier is three ASCII letters or digits, and a
 candidate whose checksum is right yields to a valid frame that starts inside it (it matched by
-chance: garbage that happened to check out would otherwise swallow the real frame after it).
+chance: garbage that happened to check out would otherwise swallow the real frame after it). The
+price, on a byte stream only: a frame whose own data hold the start of what could be a frame
+running past its end (a '#' and a plausible header: possible only in binary payloads, since ASCII
+data never contain '#') is delivered when the next bytes decide it, not before. A datagram's end
+decides at once.
 
 Length recovery: when an ASCII-header frame fails its checksum at its declared length, the parser
 takes the length that ends exactly where the next thing starts (the next `#`, CR, LF, or the end of
