@@ -120,7 +120,7 @@ end
 
 -- float() of a str: sign, digits with single underscores between them, '.', exponent, inf/nan
 local function parse_float(t)
-    t = pystrip(t)
+    t = bytes_strip(t) -- float() strips ASCII whitespace only (str.strip() also strips \x1c-\x1f)
     local sign, word = t:lower():match("^([+-]?)(%a+)$")
     if word then
         if word == "inf" or word == "infinity" then return sign == "-" and -math.huge or math.huge end
@@ -222,11 +222,18 @@ DECODE.oneof = function(c, raw)
     return DECODE[c.number.k](c.number, raw)
 end
 
+local function latin1(raw) -- Python decodes text as latin-1; Wireshark wants UTF-8
+    return (raw:gsub("[\128-\255]", function(ch)
+        local b = sbyte(ch)
+        return string.char(0xC0 + math.floor(b / 64), 0x80 + b % 64)
+    end))
+end
+
 DECODE.text = function(c, raw)
     if #raw < c.min or #raw > c.max then
         return nil, #raw .. " characters, expected " .. c.min .. ".." .. c.max
     end
-    return raw
+    return latin1(raw)
 end
 
 DECODE.ipv4 = function(c, raw)
@@ -628,7 +635,9 @@ local function add_frame(tvb, pinfo, tree, buf, item)
         id_item:add_proto_expert_info(ex.unknown_id, "Unknown identifier: " .. msg.error)
     end
     if #fr.data > 0 then
-        sub:add(pf.data, tvb(a + 10, #fr.data), fr.data)
+        -- binary data (TOPOTEK GPS/UAV structs) shown as \xNN, as `topgimbal decode` does
+        local shown = fr.data:gsub("[^\32-\126]", function(ch) return sfmt("\\x%02x", sbyte(ch)) end)
+        sub:add(pf.data, tvb(a + 10, #fr.data), shown)
     end
     local crc_item = sub:add(pf.checksum, tvb(b - 2, 2), fr.crc,
         "Checksum: " .. fr.crc .. (ok and " [correct]" or (" [incorrect, should be " .. fr.expected .. "]")))
@@ -684,8 +693,10 @@ local GARBAGE_TEXT = {
 }
 
 local function add_garbage(tvb, tree, item)
-    local it = tree:add(pf.garbage, tvb(item.a, item.b - item.a))
-    it:set_text((GARBAGE_TEXT[item.kind] or "Bytes outside a frame") .. ": " .. item.detail)
+    local text = (GARBAGE_TEXT[item.kind] or "Bytes outside a frame") .. ": " .. item.detail
+    local sub = tree:add(top, tvb(item.a, item.b - item.a), "TOP " .. text)
+    local it = sub:add(pf.garbage, tvb(item.a, item.b - item.a))
+    it:set_text(text)
     local ef = (item.kind == "garbage" or item.kind == "bad_header") and ex.garbage or ex.bad_length
     it:add_proto_expert_info(ef, item.detail)
     if ef == ex.bad_length then return "[bad length]" end
