@@ -50,16 +50,22 @@ class CaptureWriter:
         """One datagram."""
         self._write(ts, "udp", src, dst, payload)
 
-    def tcp(self, src: Endpoint, dst: Endpoint, payload: bytes, ts: float | None = None) -> None:
-        """Stream bytes from `src` to `dst` (the first call for a pair opens the connection, `src`
-        being the client), as one segment per 65000 bytes."""
-        conn = self._connection(src, dst, ts)
+    def tcp(
+        self, src: Endpoint, dst: Endpoint, payload: bytes, ts: float | None = None, *, client: Endpoint | None = None
+    ) -> None:
+        """Stream bytes from `src` to `dst`, one segment per 65000 bytes. The first call for a pair
+        opens the connection from `client` (default: `src`)."""
+        if client is None or client == src:
+            conn = self._connection(src, dst, ts)
+        else:
+            conn = self._connection(dst, src, ts)
         for at in range(0, len(payload), MAX_SEGMENT):
             piece = payload[at : at + MAX_SEGMENT]
             self._write(ts, "tcp", src, dst, piece, seq=conn.seq[src], ack=conn.seq[dst], flags=TCP_PSH | TCP_ACK)
             conn.seq[src] = (conn.seq[src] + len(piece)) & 0xFFFFFFFF
 
-    def _connection(self, src: Endpoint, dst: Endpoint, ts: float | None) -> _Tcp:
+    def _connection(self, client: Endpoint, server: Endpoint, ts: float | None) -> _Tcp:
+        src, dst = client, server
         key = frozenset((src, dst))
         conn = self._tcp.get(key)
         if conn is None:
