@@ -469,9 +469,16 @@ local function frame_end(buf, i)
     return i + 12 + n
 end
 
+-- Any case mix of the two hex characters (FrameParser's look-ahead and length recovery).
 local function good_checksum(buf, a, e)
     local crc = S(buf, e - 2, e)
     return crc:upper() == sfmt("%02X", sum8(buf, a, e - 2))
+end
+
+-- All upper or all lower case (FrameParser's check of a frame at its declared length).
+local function exact_checksum(buf, a, e)
+    local crc, s = S(buf, e - 2, e), sum8(buf, a, e - 2)
+    return crc == sfmt("%02X", s) or crc == sfmt("%02x", s)
 end
 
 local function valid_complete_at(buf, j)
@@ -549,7 +556,7 @@ local function scan(buf, pos, out, final)
                 pos = j
                 break
             end
-            if good_checksum(buf, i, e) then
+            if exact_checksum(buf, i, e) then
                 out[#out + 1] = { kind = "frame", a = i, b = e }
                 pos = e
                 break
@@ -703,9 +710,56 @@ local function add_garbage(tvb, tree, item)
     return nil
 end
 
+-- -- TCP: items shown once ----------------------------------------------------------------------
+-- When the dissector asks TCP for more bytes at an offset inside the part of a reassembled buffer
+-- that came from earlier segments, Wireshark extends that reassembly and hands the same bytes over
+-- again. Items are therefore placed in the stream (absolute position of their first byte) and
+-- shown in the first packet that produced them; a re-dissection (GUI) shows the same ones again.
+
+local f_tcp_stream, f_tcp_seq, f_tcp_len = Field.new("tcp.stream"), Field.new("tcp.seq"), Field.new("tcp.len")
+local last_start = {} -- direction key -> absolute start of the last item shown
+local owned = {}      -- packet number -> { [absolute start] = true }
+
+local function stream_position(pinfo, len)
+    local stream, seq, seglen = f_tcp_stream(), f_tcp_seq(), f_tcp_len()
+    if not (stream and seq and seglen) then return nil end
+    -- the buffer always ends with the current segment's payload
+    return tostring(stream.value) .. ":" .. pinfo.src_port, seq.value + seglen.value - len
+end
+
+local function first_showing(out, pinfo, len)
+    local key, base = stream_position(pinfo, len)
+    if not key then return out end
+    local keep = {}
+    if pinfo.visited then
+        local mine = owned[pinfo.number] or {}
+        for _, item in ipairs(out) do
+            if mine[base + item.a] then keep[#keep + 1] = item end
+        end
+        return keep
+    end
+    local mine = owned[pinfo.number] or {}
+    for _, item in ipairs(out) do
+        local at = base + item.a
+        if last_start[key] == nil or at > last_start[key] then
+            keep[#keep + 1] = item
+            mine[at] = true
+            last_start[key] = at
+        end
+    end
+    owned[pinfo.number] = mine
+    return keep
+end
+
+function top.init()
+    last_start, owned = {}, {}
+end
+
 -- -- entry points -----------------------------------------------------------------------------
 
-function top.dissector(tvb, pinfo, tree)
+-- A local function: the heuristic calls it directly (calling `top.dissector` would go through
+-- Wireshark's call_dissector, which uses up the permission to ask TCP for more bytes).
+local function dissect(tvb, pinfo, tree)
     local len = tvb:len()
     if len == 0 then return 0 end
     local buf = tvb:raw(0, len)
@@ -720,6 +774,7 @@ function top.dissector(tvb, pinfo, tree)
         local rest = scan(buf, pos, out, true)
         if rest < len then discard(buf, rest, len, out, "incomplete frame at end of stream", "truncated") end
     end
+    if stream then out = first_showing(out, pinfo, len) end
     if #out == 0 then return len end
     pinfo.cols.protocol = "TOP"
     local infos = {}
@@ -735,15 +790,18 @@ function top.dissector(tvb, pinfo, tree)
     if #infos > 0 then pinfo.cols.info = table.concat(infos, " | ") end
     return len
 end
+top.dissector = dissect
 
 local function heuristic(tvb, pinfo, tree)
     local len = tvb:len()
-    if len < 5 then return false end
+    if len < 3 then return false end
     local head = tvb:raw(0, math.min(len, 16)):gsub("^[\r\n]+", "")
-    if #head < 5 or head:sub(1, 1) ~= "#" or not HDR[head:sub(2, 3)] then return false end
-    if not ADDR[sbyte(head, 4)] or not ADDR[sbyte(head, 5)] then return false end
+    if #head < 3 or head:sub(1, 1) ~= "#" or not HDR[head:sub(2, 3)] then return false end
+    for k = 4, math.min(#head, 5) do
+        if not ADDR[sbyte(head, k)] then return false end
+    end
     pinfo.conversation = top
-    top.dissector(tvb, pinfo, tree)
+    dissect(tvb, pinfo, tree)
     return true
 end
 
