@@ -17,7 +17,8 @@ ALLOWED = {
     "sim": {"protocol"},
     "console": {"protocol", "client", "sim"},  # sim only for `--sim` (in-process camera)
     "tools": {"protocol", "client", "sim", "console"},
-    "cli": {"protocol", "client", "transport", "sim", "console", "tools"},
+    "cli": {"protocol", "client", "transport", "sim", "console", "tools", "wire"},
+    "wire": {"protocol", "transport", "client"},  # client only for the JSONL traffic log format
 }
 
 

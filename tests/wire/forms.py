@@ -8,7 +8,6 @@ from dataclasses import dataclass
 from typing import Any
 
 from protocol.samples import samples
-
 from topgimbal.errors import TopGimbalError
 from topgimbal.protocol import DIALECT_NAMES, REQUEST, Form, Frame, get_dialect, make_frame
 from topgimbal.wire.ports import documented_ports
@@ -40,7 +39,7 @@ def _value_sets(form: Form) -> list[dict[str, Any]]:
         return [{}]
     pools = [samples(f.codec) for f in form.fields]
     n = max(len(p) for p in pools)
-    return [{f.name: pool[i % len(pool)] for f, pool in zip(form.fields, pools)} for i in range(n)]
+    return [{f.name: pool[i % len(pool)] for f, pool in zip(form.fields, pools, strict=True)} for i in range(n)]
 
 
 def form_frames() -> list[FormFrame]:

@@ -62,7 +62,7 @@ def test_every_form_of_the_catalog_decodes_as_in_python(every_form, dissector, t
     packets = top_layers(dissector, capture)
     assert len(packets) == len(every_form)
     problems = []
-    for f, frames in zip(every_form, packets):
+    for f, frames in zip(every_form, packets, strict=True):
         assert len(frames) == 1, f.frame
         bad = _mismatches(frames[0], f.expected, f.dialect)
         if bad:
@@ -72,7 +72,9 @@ def test_every_form_of_the_catalog_decodes_as_in_python(every_form, dissector, t
     built = {(f.dialect, f.ident, f.form_index) for f in every_form}
     from topgimbal.protocol import DIALECT_NAMES, get_dialect
 
-    total = {(n, c.ident, i) for n in DIALECT_NAMES for c in get_dialect(n).commands.values() for i in range(len(c.forms))}
+    total = {
+        (n, c.ident, i) for n in DIALECT_NAMES for c in get_dialect(n).commands.values() for i in range(len(c.forms))
+    }
     assert built == total
 
 
@@ -99,7 +101,7 @@ def test_mutated_frames_decode_as_in_python(every_form, dissector, tmp_path):
             dialect, msg = decode_frame(frame, None if auto else f.dialect)
             expected = msg.to_dict()
             expected["form"] = form_label(msg.form) if msg.form else None
-            src, dst = ((("127.0.0.1", 41000), ("127.0.0.1", 7777)) if auto else (f.src, f.dst))
+            src, dst = (("127.0.0.1", 41000), ("127.0.0.1", 7777)) if auto else (f.src, f.dst)
             cases.append((dialect.name, frame, src, dst, expected))
     capture = tmp_path / "mutated.pcap"
     with CaptureWriter(capture) as w:
@@ -108,7 +110,7 @@ def test_mutated_frames_decode_as_in_python(every_form, dissector, tmp_path):
     packets = top_layers(dissector, capture)
     assert len(packets) == len(cases)
     problems = []
-    for (name, frame, _, _, expected), frames in zip(cases, packets):
+    for (name, frame, _, _, expected), frames in zip(cases, packets, strict=True):
         bad = _mismatches(frames[0], expected, name)
         if bad:
             problems.append(f"{name} {frame.text()}: {'; '.join(bad)}")

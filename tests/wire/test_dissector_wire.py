@@ -16,7 +16,9 @@ from topgimbal.wire import CaptureWriter
 from .tshark import experts, run_tshark, top_layers, values
 
 HOST, SKYDROID, TOPOTEK, OTHER = ("127.0.0.1", 40000), ("127.0.0.1", 5000), ("127.0.0.1", 9003), ("127.0.0.1", 7777)
-GAC = get_dialect("skydroid").response(encode("skydroid", "GAC", read=True), yaw_deg=-2.02, pitch_deg=-47.74, roll_deg=0.72)
+GAC = get_dialect("skydroid").response(
+    encode("skydroid", "GAC", read=True), yaw_deg=-2.02, pitch_deg=-47.74, roll_deg=0.72
+)
 PTZ = b"#TPUG2wPTZ006A"
 
 
@@ -84,7 +86,9 @@ def test_expert_infos(dissector, tmp_path):
 def test_display_filters_under_one_prefix(dissector, tmp_path):
     packets = [(HOST, SKYDROID, PTZ), (SKYDROID, HOST, GAC.to_bytes()), (HOST, SKYDROID, PTZ[:-1] + b"0")]
     capture = _capture(tmp_path, "filters.pcap", packets)
-    frames = run_tshark(dissector, capture, "-Y", 'top.id == "GAC" && top.field.yaw_deg < 0', "-T", "fields", "-e", "frame.number")
+    frames = run_tshark(
+        dissector, capture, "-Y", 'top.id == "GAC" && top.field.yaw_deg < 0', "-T", "fields", "-e", "frame.number"
+    )
     assert frames.split() == ["2"]
     bad = run_tshark(dissector, capture, "-Y", 'top.checksum.status == "Bad"', "-T", "fields", "-e", "frame.number")
     assert bad.split() == ["3"]
@@ -96,7 +100,12 @@ def test_dialect_by_port_then_by_frame(dissector, tmp_path):
     # GAC means the same in both dialects, so the port decides; on another port SkyDroid is
     # tried first, unless the frame carries TOPOTEK's network host address P.
     topotek_gac = make_frame("GAC", GAC.data, src="G", dst="P", rw="r").to_bytes()
-    packets = [(SKYDROID, HOST, GAC.to_bytes()), (TOPOTEK, HOST, GAC.to_bytes()), (OTHER, HOST, GAC.to_bytes()), (OTHER, HOST, topotek_gac)]
+    packets = [
+        (SKYDROID, HOST, GAC.to_bytes()),
+        (TOPOTEK, HOST, GAC.to_bytes()),
+        (OTHER, HOST, GAC.to_bytes()),
+        (OTHER, HOST, topotek_gac),
+    ]
     capture = _capture(tmp_path, "dialects.pcap", packets)
     got = [values(frames[0], "top.dialect")[0] for frames in top_layers(dissector, capture)]
     assert got == ["skydroid", "topotek", "skydroid", "topotek"]

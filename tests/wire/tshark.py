@@ -11,11 +11,12 @@ from typing import Any
 TSHARK = shutil.which("tshark") or "/usr/bin/tshark"
 
 
-def run_tshark(lua: Path, capture: Path, *args: str, timeout: float = 120) -> str:
+def run_tshark(lua: Path | None, capture: Path, *args: str, timeout: float = 120) -> str:
     """tshark's stdout; fails the test with tshark's stderr when it exits non-zero or the
     dissector raised a Lua error."""
     assert Path(TSHARK).exists(), "tshark is not installed: run `make tshark-deps` (make test does)"
-    cmd = [TSHARK, "-n", "-X", f"lua_script:{lua}", "-r", str(capture), *args]
+    script = ["-X", f"lua_script:{lua}"] if lua else []
+    cmd = [TSHARK, "-n", *script, "-r", str(capture), *args]
     proc = subprocess.run(cmd, capture_output=True, timeout=timeout, check=False, encoding="utf-8", errors="replace")
     assert proc.returncode == 0, f"{' '.join(cmd)} exited {proc.returncode}: {proc.stderr}"
     for text in (proc.stdout, proc.stderr):

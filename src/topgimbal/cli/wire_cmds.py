@@ -1,9 +1,9 @@
 """See the wire: `dissector`, `proxy`, `pcap from-log`, and `decode --pcap`.
 
-    topgimbal dissector -o topgimbal.lua            # the Wireshark dissector, from the catalog
-    topgimbal decode --pcap session.pcapng --port 5000 --json
-    topgimbal proxy --listen udp://127.0.0.1:5600 --to udp://127.0.0.1:5000 --pcap s.pcap --log s.jsonl
-    topgimbal pcap from-log session.jsonl -o session.pcap
+topgimbal dissector -o topgimbal.lua            # the Wireshark dissector, from the catalog
+topgimbal decode --pcap session.pcapng --port 5000 --json
+topgimbal proxy --listen udp://127.0.0.1:5600 --to udp://127.0.0.1:5000 --pcap s.pcap --log s.jsonl
+topgimbal pcap from-log session.jsonl -o session.pcap
 """
 
 from __future__ import annotations
@@ -91,7 +91,7 @@ def _record(raw: bytes, item: Frame | Diagnostic, dialect: Dialect | None) -> di
 
 
 def _direction(rec: dict[str, Any]) -> str | None:
-    """"out" for host -> device frames, "in" for device -> host (the traffic log's words)."""
+    """ "out" for host -> device frames, "in" for device -> host (the traffic log's words)."""
     if not rec.get("src") or not rec.get("dst"):
         return None
     return "in" if rec["src"] in DEVICE_ADDRESSES and rec["dst"] in HOST_ADDRESSES else "out"

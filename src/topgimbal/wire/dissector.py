@@ -39,7 +39,30 @@ class DissectorError(TopGimbalError):
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _LUA_KEYWORDS = frozenset(
-    "and break do else elseif end false for function goto if in local nil not or repeat return then true until while".split()
+    [
+        "and",
+        "break",
+        "do",
+        "else",
+        "elseif",
+        "end",
+        "false",
+        "for",
+        "function",
+        "goto",
+        "if",
+        "in",
+        "local",
+        "nil",
+        "not",
+        "or",
+        "repeat",
+        "return",
+        "then",
+        "true",
+        "until",
+        "while",
+    ]
 )
 
 
@@ -146,7 +169,7 @@ def codec_entry(codec: Codec, where: str) -> dict[str, Any]:
     c: dict[str, Any] = {"unit": codec.unit}
     num = cls in NUMERIC_CODECS
     if cls == "HexInt" and kind == "number":
-        scale = getattr(codec, "scale")  # noqa: B009 - attribute of this codec class
+        scale = codec.scale  # type: ignore[attr-defined]
         c.update(k="hex", w=codec.width, signed=bool(codec.signed), scale=scale, div=_exact_divisor(scale))  # type: ignore[attr-defined]
         c.update(dec=_decimals(scale), int=scale == 1, none=list(codec.none_tokens))  # type: ignore[attr-defined]
     elif cls == "DecInt" and kind == "number":
@@ -164,7 +187,8 @@ def codec_entry(codec: Codec, where: str) -> dict[str, Any]:
     elif cls == "Enum" and kind == "enum":
         c.update(k="enum", w=codec.width, map=_enum_map(codec))
     elif cls == "OneOf" and kind == "enum_or_number":
-        c.update(k="oneof", w=codec.width, tokens=codec_entry(codec.tokens, where), number=codec_entry(codec.number, where))  # type: ignore[attr-defined]
+        tokens, number = codec.tokens, codec.number  # type: ignore[attr-defined]
+        c.update(k="oneof", w=codec.width, tokens=codec_entry(tokens, where), number=codec_entry(number, where))
     elif cls == "Text" and kind == "text":
         c.update(k="text", min=codec.min_width, max=codec.max_width)
     elif cls == "IPv4Text" and kind == "ipv4":
@@ -224,16 +248,18 @@ def _command(spec: CommandSpec, codecs: _Codecs, dialect: str) -> dict[str, Any]
         for f in form.fields:
             where = f"{dialect} {spec.ident} field {f.name}"
             w = f.codec.width
-            entry = {
-                "n": f.name,
-                "c": codecs.add(f.codec, where),
-                "a": at,
-                "b": (at + w) if (w is not None and at is not None) else None,
-                "s": short_name(f.name, f.codec.unit),
-                "d": f.description,
-            }
-            fields.append(entry)
-            at = entry["b"]
+            end = at + w if (w is not None and at is not None) else None  # None: the rest of the data
+            fields.append(
+                {
+                    "n": f.name,
+                    "c": codecs.add(f.codec, where),
+                    "a": at,
+                    "b": end,
+                    "s": short_name(f.name, f.codec.unit),
+                    "d": f.description,
+                }
+            )
+            at = end
         forms.append(
             {
                 "rw": form.rw,

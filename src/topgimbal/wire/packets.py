@@ -178,7 +178,9 @@ def build_packet(
     else:
         l4 = l4[:16] + struct.pack("!H", csum) + l4[18:]
     if s.version == 4:
-        head = struct.pack("!BBHHHBBH4s4s", 0x45, 0, 20 + len(l4), ident & 0xFFFF, 0x4000, 64, proto, 0, s.packed, d.packed)
+        head = struct.pack(
+            "!BBHHHBBH4s4s", 0x45, 0, 20 + len(l4), ident & 0xFFFF, 0x4000, 64, proto, 0, s.packed, d.packed
+        )
         head = head[:10] + struct.pack("!H", _checksum(head)) + head[12:]
         etype = ETH_IPV4
     else:

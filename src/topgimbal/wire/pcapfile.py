@@ -68,7 +68,7 @@ def read_capture(path: str | Path) -> Iterator[CaptureRecord | CaptureProblem]:
     ends in a damaged or truncated record. Raises CaptureError only when the file cannot be read
     at all or is neither format (before yielding anything)."""
     try:
-        fh = Path(path).open("rb")
+        fh = Path(path).open("rb")  # noqa: SIM115 - closed by the `with` below; open errors become CaptureError
     except OSError as exc:
         raise CaptureError(f"{path}: {exc.strerror or exc}") from None
     with fh:
@@ -243,8 +243,12 @@ class PcapWriter:
 
     def __init__(self, dest: str | Path | IO[bytes], linktype: int = LINKTYPE_ETHERNET) -> None:
         self.linktype = linktype
-        self._own = not hasattr(dest, "write")
-        self._fh: IO[bytes] | None = Path(dest).open("wb") if self._own else dest  # type: ignore[arg-type]
+        self._own = isinstance(dest, (str, Path))
+        self._fh: IO[bytes] | None
+        if isinstance(dest, (str, Path)):
+            self._fh = Path(dest).open("wb")  # noqa: SIM115 - owned; closed by close()
+        else:
+            self._fh = dest
         self.packets = 0
         self._start()
 

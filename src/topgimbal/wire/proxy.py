@@ -139,7 +139,12 @@ class _Session:
         self.last_active = time.monotonic()
         if self.upstream is None:
             if self.queued_bytes + len(data) > MAX_QUEUED:
-                log.warning("proxy: %s: %d bytes already wait for the device link; dropping %d", self.label, self.queued_bytes, len(data))
+                log.warning(
+                    "proxy: %s: %d bytes already wait for the device link; dropping %d",
+                    self.label,
+                    self.queued_bytes,
+                    len(data),
+                )
                 return
             self.queued.append(data)
             self.queued_bytes += len(data)

@@ -55,10 +55,8 @@ class CaptureWriter:
     ) -> None:
         """Stream bytes from `src` to `dst`, one segment per 65000 bytes. The first call for a pair
         opens the connection from `client` (default: `src`)."""
-        if client is None or client == src:
-            conn = self._connection(src, dst, ts)
-        else:
-            conn = self._connection(dst, src, ts)
+        opener, other = (src, dst) if client is None or client == src else (dst, src)
+        conn = self._connection(opener, other, ts)
         for at in range(0, len(payload), MAX_SEGMENT):
             piece = payload[at : at + MAX_SEGMENT]
             self._write(ts, "tcp", src, dst, piece, seq=conn.seq[src], ack=conn.seq[dst], flags=TCP_PSH | TCP_ACK)
