@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps
+.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps tshark-deps
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -20,6 +20,16 @@ browser-deps:
 	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; \
 	fi
 
+# Debian's tshark (+ editcap, text2pcap from wireshark-common) for the Wireshark dissector tests.
+# The preseed answers the "non-root users may capture" question (no: nothing here captures live).
+tshark-deps:
+	@if ! command -v tshark >/dev/null 2>&1 || ! command -v text2pcap >/dev/null 2>&1 || ! command -v editcap >/dev/null 2>&1; then \
+	  echo "installing Debian's tshark"; \
+	  if [ "$$(id -u)" = 0 ]; then SUDO=; else SUDO=sudo; fi; \
+	  echo "wireshark-common wireshark-common/install-setuid boolean false" | $$SUDO debconf-set-selections; \
+	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq tshark >/dev/null; \
+	fi
+
 lint: $(STAMP)
 	$(BIN)/ruff check src tests bench
 	$(BIN)/ruff format --check src tests bench
@@ -29,14 +39,16 @@ typecheck: $(STAMP)
 
 docs: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.gendocs docs/protocol.md
+	$(BIN)/topgimbal dissector -o contrib/wireshark/topgimbal.lua
 
 docs-check: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.gendocs --check docs/protocol.md
+	$(BIN)/topgimbal dissector --check contrib/wireshark/topgimbal.lua
 
-pytest: $(STAMP) browser-deps
+pytest: $(STAMP) browser-deps tshark-deps
 	$(BIN)/python -m pytest -q
 
-test: $(STAMP) browser-deps lint typecheck pytest
+test: $(STAMP) browser-deps tshark-deps lint typecheck pytest
 
 demo: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.demo
@@ -45,6 +57,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/codec.py
 	$(BIN)/python bench/sim.py
 	$(BIN)/python bench/latency.py
+	$(BIN)/python bench/proxy.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache test-artifacts

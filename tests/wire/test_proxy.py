@@ -229,12 +229,14 @@ async def test_client_limits_and_subscriber_isolation(caplog):
             await first.version()
             async with topgimbal.connect(udp.url, model="C12", timeout_s=2.0) as second:
                 await second.version()  # replaces the first client
+            udp.drain()
             assert udp.stats.clients_dropped == 1
         assert udp.stats.subscriber_errors >= 4 and len(seen) >= 4
         unsubscribe()
         n = len(seen)
         async with topgimbal.connect(udp.url, model="C12", timeout_s=2.0) as third:
             await third.version()
+        udp.drain()
         assert len(seen) == n
     finally:
         await udp.stop()

@@ -9,6 +9,7 @@ IPv4 or IPv6, UDP or TCP with correct checksums.
 
 from __future__ import annotations
 
+import functools
 import ipaddress
 import struct
 from typing import NamedTuple
@@ -140,8 +141,9 @@ def _checksum(data: bytes) -> int:
     return ~_sum16(data) & 0xFFFF
 
 
+@functools.lru_cache(maxsize=256)
 def _addr(text: str) -> ipaddress.IPv4Address | ipaddress.IPv6Address:
-    return ipaddress.ip_address(text)
+    return ipaddress.ip_address(text)  # cached: the proxy writes a packet per chunk
 
 
 def build_packet(

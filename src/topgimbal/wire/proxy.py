@@ -27,9 +27,10 @@ import asyncio
 import contextlib
 import ipaddress
 import logging
+import select
 import socket
 import time
-from collections import OrderedDict
+from collections import OrderedDict, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,6 +43,7 @@ from ..transport import Transport, TransportURL, open_transport, parse_url
 from .packets import Endpoint
 from .ports import decode_frame, dialect_for_ports, documented_ports
 from .synth import CaptureWriter
+from .udplink import UdpSocket
 
 log = logging.getLogger("topgimbal.proxy")
 
@@ -50,7 +52,11 @@ IDLE_TIMEOUT_S = 120.0
 MAX_QUEUED = 64 * 1024
 MAX_SUBSCRIBERS = 32
 STREAM_FLUSH_S = 0.05
+MAX_BACKLOG = 100_000  # chunks forwarded but not yet decoded (a few MB at most)
+DEFER_S = 0.001  # decoding starts this long after a chunk is forwarded (its reply goes first)
+PROCESS_SLICE_S = 0.0005  # decoding runs at most this long before the loop polls sockets again
 OUT, IN = "out", "in"  # client -> device, device -> client (the traffic log's words)
+CLOSED = "closed"  # a session's end, queued behind its last bytes
 SERIAL_CLIENT: Endpoint = ("127.0.0.1", 40000)
 
 
@@ -71,6 +77,7 @@ class ProxyEvent:
 
 
 Subscriber = Callable[[ProxyEvent], None]
+_Work = tuple[float, "_Session", str, bytes, "list[Frame | Diagnostic] | None"]
 
 
 @dataclass
@@ -82,6 +89,7 @@ class ProxyStats:
     clients: int = 0
     clients_dropped: int = 0
     subscriber_errors: int = 0
+    backlog_dropped: int = 0
 
     def as_dict(self) -> dict[str, int]:
         return dict(self.__dict__)
@@ -114,7 +122,7 @@ class _Session:
         self.endpoint = endpoint
         self.send_down = send_down
         self.close_down = close_down
-        self.upstream: Transport | None = None
+        self.upstream: Transport | UdpSocket | None = None
         self.queued: list[bytes] = []
         self.queued_bytes = 0
         self.closed = False
@@ -125,8 +133,17 @@ class _Session:
         self.opening: asyncio.Task[None] | None = None
 
     async def open(self) -> None:
+        to = self.proxy.to
         try:
-            self.upstream = await open_transport(self.proxy.to, self.from_device, self.device_lost)
+            if to.scheme == "udp":
+                self.upstream = await UdpSocket.connect(to.host, to.port or 0, self._device_datagram)
+                self.proxy._watch(self.upstream)
+            else:
+                self.upstream = await open_transport(to, self.from_device, self.device_lost)
+        except OSError as exc:
+            log.warning("proxy: cannot reach %s for %s: %s", to, self.label, exc)
+            self.proxy._drop(self)
+            return
         except TopGimbalError as exc:
             log.warning("proxy: cannot reach %s for %s: %s", self.proxy.to, self.label, exc)
             self.proxy._drop(self)
@@ -161,6 +178,9 @@ class _Session:
             except TransportError as exc:
                 log.warning("proxy: %s: device link: %s", self.label, exc)
 
+    def _device_datagram(self, data: bytes, addr: Any) -> None:
+        self.from_device(data)
+
     def from_device(self, data: bytes) -> None:
         self.last_active = time.monotonic()
         self.proxy._relay(self, IN, data, self.send_down)
@@ -183,22 +203,9 @@ class _Session:
             self.close_down()
         self.proxy._closed(self)
         if self.upstream is not None:
+            if isinstance(self.upstream, UdpSocket):
+                self.proxy._watch(self.upstream, on=False)
             await self.upstream.close()
-
-
-class _UdpListener(asyncio.DatagramProtocol):
-    def __init__(self, proxy: Proxy) -> None:
-        self.proxy = proxy
-        self.transport: asyncio.DatagramTransport | None = None
-
-    def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
-
-    def datagram_received(self, data: bytes, addr: tuple[Any, ...]) -> None:
-        self.proxy._udp_datagram(data, addr)
-
-    def error_received(self, exc: Exception) -> None:
-        log.debug("proxy: listening socket: %s", exc)
 
 
 class _TcpClient(asyncio.Protocol):
@@ -266,9 +273,12 @@ class Proxy:
         self.stats = ProxyStats()
         self._subscribers: list[Subscriber] = []
         self._sessions: OrderedDict[Any, _Session] = OrderedDict()
+        self._backlog: deque[_Work] = deque()
+        self._poll = select.poll()
+        self._drain_handle: asyncio.TimerHandle | None = None
         self._pcap: CaptureWriter | None = None
         self._log: TrafficLog | None = None
-        self._udp: _UdpListener | None = None
+        self._udp: UdpSocket | None = None
         self._server: asyncio.AbstractServer | None = None
         self._serial: Transport | None = None
         self._sweeper: asyncio.TimerHandle | None = None
@@ -322,11 +332,9 @@ class Proxy:
             raise ProxyError(f"cannot write {exc.filename}: {exc.strerror}") from None
         try:
             if self.listen.scheme == "udp":
-                transport, proto = await loop.create_datagram_endpoint(
-                    lambda: _UdpListener(self), local_addr=(self.listen.host, self.listen.port or 0)
-                )
-                self._udp = proto
-                self.listen_address = transport.get_extra_info("sockname")[:2]
+                self._udp = await UdpSocket.bind(self.listen.host, self.listen.port or 0, self._udp_datagram)
+                self._watch(self._udp)
+                self.listen_address = self._udp.address
                 self._sweeper = loop.call_later(min(self.idle_timeout_s, 5.0), self._sweep)
             elif self.listen.scheme == "tcp":
                 self._server = await loop.create_server(
@@ -345,16 +353,18 @@ class Proxy:
     async def stop(self) -> None:
         if self._sweeper is not None:
             self._sweeper.cancel()
+        self.drain()
         for session in list(self._sessions.values()):
             await session.close()
         self._sessions.clear()
-        if self._udp is not None and self._udp.transport is not None:
-            self._udp.transport.close()
+        if self._udp is not None:
+            await self._udp.close()
         if self._server is not None:
             self._server.close()
             await self._server.wait_closed()
         if self._serial is not None:
             await self._serial.close()
+        self.drain()
         if self._pcap is not None:
             self._pcap.close()
             self._pcap = None
@@ -413,8 +423,8 @@ class Proxy:
             udp = self._udp
 
             def send_down(payload: bytes, addr: tuple[Any, ...] = addr) -> None:
-                if udp is not None and udp.transport is not None:
-                    udp.transport.sendto(payload, addr)
+                if udp is not None:
+                    udp.sendto(payload, addr)
 
             session = _Session(self, label, (str(addr[0]), int(addr[1])), send_down)
             self._add(key, session)
@@ -450,19 +460,19 @@ class Proxy:
         self._sweeper = asyncio.get_running_loop().call_later(min(self.idle_timeout_s, 5.0), self._sweep)
 
     # -- the data path ------------------------------------------------------------------------------
+    #
+    # A chunk is forwarded in the callback that received it. Decoding, recording and publishing
+    # wait in `_backlog` and run DEFER_S later, in slices that end after PROCESS_SLICE_S or as soon
+    # as a UDP socket of the proxy has a datagram waiting: a reply is forwarded first, watching
+    # delays the link by at most one chunk's decoding, and a burst is worked off between datagrams.
 
     def _relay(self, session: _Session, direction: str, data: bytes, send: Callable[[bytes], None]) -> None:
-        """Forward `data`, then decode, record and publish it."""
+        """Forward `data` now; decode, record and publish it soon."""
         d = session.dirs[direction]
-        if d.from_datagram:
+        t = time.time()
+        if not (d.to_datagram and not d.from_datagram):
             send(data)
-            self._record(session, direction, data)
-            self._publish(session, direction, d.parser.feed_datagram(data))
-            return
-        if not d.to_datagram:
-            send(data)
-            self._record(session, direction, data)
-            self._publish(session, direction, d.parser.feed(data))
+            self._queue((t, session, direction, data, None))
             return
         # stream -> datagram: send what the parser has consumed (whole frames), hold the rest
         items = d.parser.feed(data)
@@ -470,7 +480,6 @@ class Proxy:
         ready = len(held) - d.parser.buffered
         if ready > 0:
             send(held[:ready])
-            self._record(session, direction, held[:ready])
         d.held = held[ready:]
         if d.flush_timer is not None:
             d.flush_timer.cancel()
@@ -479,23 +488,78 @@ class Proxy:
             d.flush_timer = asyncio.get_running_loop().call_later(
                 STREAM_FLUSH_S, self._flush_held, session, direction, send
             )
-        self._publish(session, direction, items)
+        self._queue((t, session, direction, held[:ready] if ready > 0 else b"", items))
 
     def _flush_held(self, session: _Session, direction: str, send: Callable[[bytes], None]) -> None:
         d = session.dirs[direction]
         d.flush_timer = None
         if d.held and not session.closed:
             send(d.held)
-            self._record(session, direction, d.held)
+            self._queue((time.time(), session, direction, d.held, d.parser.flush()))
             d.held = b""
-            self._publish(session, direction, d.parser.flush())
+
+    def _queue(self, work: _Work) -> None:
+        if len(self._backlog) >= MAX_BACKLOG:
+            self.stats.backlog_dropped += 1
+            if self.stats.backlog_dropped == 1:
+                log.error("proxy: %d chunks wait to be decoded; decoding, pcap and log skip chunks", MAX_BACKLOG)
+            return
+        self._backlog.append(work)
+        if self._drain_handle is None:
+            self._drain_handle = asyncio.get_running_loop().call_later(DEFER_S, self._drain)
+
+    def _drain(self) -> None:
+        self._drain_handle = None
+        end = time.perf_counter() + PROCESS_SLICE_S
+        while self._backlog:
+            self._process(*self._backlog.popleft())
+            if time.perf_counter() > end or self._bytes_waiting():
+                break
+        if self._backlog:
+            self._drain_handle = asyncio.get_running_loop().call_soon(self._drain)  # type: ignore[assignment]
+
+    def _bytes_waiting(self) -> bool:
+        """Whether a UDP socket of the proxy has a datagram to forward (then decoding yields)."""
+        try:
+            return bool(self._poll.poll(0))
+        except OSError:  # pragma: no cover - a socket closed under us: let the loop sort it out
+            return True
+
+    def _watch(self, sock: UdpSocket, on: bool = True) -> None:
+        with contextlib.suppress(KeyError, ValueError, OSError):
+            if on:
+                self._poll.register(sock.sock.fileno(), select.POLLIN)
+            else:
+                self._poll.unregister(sock.sock.fileno())
+
+    def drain(self) -> None:
+        """Process everything that waits now (stop() does; tests and tools may too)."""
+        if self._drain_handle is not None:
+            self._drain_handle.cancel()
+            self._drain_handle = None
+        while self._backlog:
+            self._process(*self._backlog.popleft())
+
+    def _process(
+        self, t: float, session: _Session, direction: str, data: bytes, items: list[Frame | Diagnostic] | None
+    ) -> None:
+        if direction == CLOSED:
+            if self._pcap is not None:
+                self._pcap.close_tcp(session.endpoint, self._device_ep, t)
+            return
+        if items is None:
+            d = session.dirs[direction]
+            items = d.parser.feed_datagram(data) if d.from_datagram else d.parser.feed(data)
+        if data:
+            self._record(t, session, direction, data)
+        self._publish(t, session, direction, items)
 
     def _closed(self, session: _Session) -> None:
-        """A session ended: its TCP connection in the pcap ends too."""
-        if self._pcap is not None and self._transport_kind == "tcp":
-            self._pcap.close_tcp(session.endpoint, self._device_ep)
+        """A session ended: its TCP connection in the pcap ends too, after what it sent."""
+        if self._transport_kind == "tcp":
+            self._queue((time.time(), session, CLOSED, b"", []))
 
-    def _record(self, session: _Session, direction: str, data: bytes) -> None:
+    def _record(self, t: float, session: _Session, direction: str, data: bytes) -> None:
         if direction == OUT:
             self.stats.bytes_out += len(data)
         else:
@@ -505,17 +569,14 @@ class Proxy:
         a, b = (session.endpoint, self._device_ep) if direction == OUT else (self._device_ep, session.endpoint)
         try:
             if self._transport_kind == "tcp":
-                self._pcap.tcp(a, b, data, client=session.endpoint)
+                self._pcap.tcp(a, b, data, t, client=session.endpoint)
             else:
-                self._pcap.udp(a, b, data)
+                self._pcap.udp(a, b, data, t)
         except (OSError, ValueError) as exc:
             log.error("proxy: pcap %s: %s; no longer written", self.pcap_path, exc)
             self._pcap = None
 
-    def _publish(self, session: _Session, direction: str, items: list[Frame | Diagnostic]) -> None:
-        if not items:
-            return
-        t = time.time()
+    def _publish(self, t: float, session: _Session, direction: str, items: list[Frame | Diagnostic]) -> None:
         for item in items:
             dialect: Dialect | None = None
             message: Message | None = None
