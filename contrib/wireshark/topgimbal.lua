@@ -4951,35 +4951,35 @@ DECODE.literal = function(c, raw)
     return raw
 end
 
-DECODE.geodm = function(c, raw)
+-- Coordinates: a hemisphere letter, then digits with the point at a fixed place (spaces ignored).
+local function hemisphere(c, raw, what_lat, what_lon)
     local lat = c.axis == "lat"
-    local bad = quote(raw) .. (lat and " is not N/S ddmm.mmmm" or " is not E/W dddmm.mmmm")
+    local bad = quote(raw) .. " is not " .. (lat and what_lat or what_lon)
     if raw:find("[\128-\255]") then return nil, bad end
     local text = raw:gsub(" ", "")
-    local signs = lat and { N = 1, S = -1 } or { E = 1, W = -1 }
-    local hemi, body = text:sub(1, 1):upper(), text:sub(2)
+    local sign = (lat and { N = 1, S = -1 } or { E = 1, W = -1 })[text:sub(1, 1):upper()]
+    local body = text:sub(2)
     local dot = body:find(".", 1, true)
-    if not signs[hemi] or not dot then return nil, bad end
-    dot = dot - 1
+    if not sign or not dot then return nil, bad end
+    return sign, body, dot - 1, lat, bad
+end
+
+DECODE.geodm = function(c, raw)
+    local sign, body, dot, lat, bad = hemisphere(c, raw, "N/S ddmm.mmmm", "E/W dddmm.mmmm")
+    if not sign then return nil, body end
     local nodot = body:sub(1, dot) .. body:sub(dot + 2)
     if dot ~= (lat and 4 or 5) or not nodot:match("^%d+$") then return nil, bad end
     local deg, minutes = tonumber(body:sub(1, dot - 2)), tonumber(body:sub(dot - 1))
     if minutes >= 60 then return nil, quote(raw) .. ": minutes " .. pyfloat(minutes) .. " >= 60" end
-    return pyround(signs[hemi] * (deg + minutes / 60), 7)
+    return pyround(sign * (deg + minutes / 60), 7)
 end
 
 DECODE.geodeg = function(c, raw)
-    local lat = c.axis == "lat"
-    local bad = quote(raw) .. (lat and " is not N/S dd.dddddd" or " is not E/W ddd.dddddd")
-    if raw:find("[\128-\255]") then return nil, bad end
-    local text = raw:gsub(" ", "")
-    local signs = lat and { N = 1, S = -1 } or { E = 1, W = -1 }
-    local hemi, body = text:sub(1, 1):upper(), text:sub(2)
-    local dot = body:find(".", 1, true)
-    if not signs[hemi] or not dot or dot - 1 ~= (lat and 2 or 3) then return nil, bad end
+    local sign, body, dot, lat, bad = hemisphere(c, raw, "N/S dd.dddddd", "E/W ddd.dddddd")
+    if not sign or dot ~= (lat and 2 or 3) then return nil, sign and bad or body end
     local v = parse_float(body)
     if v == nil then return nil, bad end
-    return pyround(signs[hemi] * v, 7)
+    return pyround(sign * v, 7)
 end
 
 local TWO_DIGIT = {

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import shutil
 import subprocess
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -35,22 +36,28 @@ def top_layers(lua: Path, capture: Path, *args: str) -> list[list[dict[str, Any]
     return result
 
 
+def _walk(node: Any, visit: Callable[[str, Any], bool]) -> None:
+    """Call visit(key, value) for every key below `node`; descend where it returns True."""
+    if isinstance(node, dict):
+        for k, v in node.items():
+            if visit(k, v):
+                _walk(v, visit)
+    elif isinstance(node, list):
+        for x in node:
+            _walk(x, visit)
+
+
 def values(node: dict[str, Any], key: str) -> list[Any]:
     """A field's values in a frame's subtree (tshark gives one value or a list)."""
     found: list[Any] = []
 
-    def walk(n: Any) -> None:
-        if isinstance(n, dict):
-            for k, v in n.items():
-                if k == key:
-                    found.extend(v if isinstance(v, list) else [v])
-                else:
-                    walk(v)
-        elif isinstance(n, list):
-            for x in n:
-                walk(x)
+    def visit(k: str, v: Any) -> bool:
+        if k == key:
+            found.extend(v if isinstance(v, list) else [v])
+            return False
+        return True
 
-    walk(node)
+    _walk(node, visit)
     return found
 
 
@@ -58,15 +65,10 @@ def experts(node: dict[str, Any]) -> list[str]:
     """The expert-info abbreviations raised in a frame's subtree."""
     found: list[str] = []
 
-    def walk(n: Any) -> None:
-        if isinstance(n, dict):
-            for k, v in n.items():
-                if k.startswith("top.expert."):
-                    found.append(k)
-                walk(v)
-        elif isinstance(n, list):
-            for x in n:
-                walk(x)
+    def visit(k: str, v: Any) -> bool:
+        if k.startswith("top.expert."):
+            found.append(k)
+        return True
 
-    walk(node)
+    _walk(node, visit)
     return found

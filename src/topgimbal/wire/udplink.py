@@ -31,27 +31,11 @@ class UdpSocket:
 
     @classmethod
     async def bind(cls, host: str, port: int, on_datagram: Callable[[bytes, Any], None]) -> UdpSocket:
-        infos = await asyncio.get_running_loop().getaddrinfo(host, port, type=socket.SOCK_DGRAM)
-        family, _, _, _, addr = infos[0]
-        sock = socket.socket(family, socket.SOCK_DGRAM)
-        try:
-            sock.bind(addr)
-        except OSError:
-            sock.close()
-            raise
-        return cls(sock, on_datagram)
+        return cls(await _socket(host, port, "bind"), on_datagram)
 
     @classmethod
     async def connect(cls, host: str, port: int, on_datagram: Callable[[bytes, Any], None]) -> UdpSocket:
-        infos = await asyncio.get_running_loop().getaddrinfo(host, port, type=socket.SOCK_DGRAM)
-        family, _, _, _, addr = infos[0]
-        sock = socket.socket(family, socket.SOCK_DGRAM)
-        try:
-            sock.connect(addr)
-        except OSError:
-            sock.close()
-            raise
-        return cls(sock, on_datagram)
+        return cls(await _socket(host, port, "connect"), on_datagram)
 
     @property
     def address(self) -> tuple[str, int]:
@@ -91,3 +75,16 @@ class UdpSocket:
             self._closed = True
             self._loop.remove_reader(self.sock.fileno())
             self.sock.close()
+
+
+async def _socket(host: str, port: int, how: str) -> socket.socket:
+    """A UDP socket bound to, or connected to, (host, port); OSError if that fails."""
+    infos = await asyncio.get_running_loop().getaddrinfo(host, port, type=socket.SOCK_DGRAM)
+    family, _, _, _, addr = infos[0]
+    sock = socket.socket(family, socket.SOCK_DGRAM)
+    try:
+        getattr(sock, how)(addr)
+    except OSError:
+        sock.close()
+        raise
+    return sock
