@@ -6,6 +6,7 @@ limits."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import os
 import socket
@@ -274,3 +275,36 @@ def test_decode_frame_prefers_the_given_dialect():
     frame = get_dialect("topotek").encode("GAC", read=True)
     assert decode_frame(frame, "topotek")[0].name == "topotek"
     assert decode_frame(frame, None)[0].name == "skydroid"  # the frame alone says nothing
+
+
+async def test_a_tcp_client_that_stops_reading_is_closed(caplog):
+    """The camera floods; the client never reads: the proxy drops the client instead of buffering."""
+    chunk = b"#TPGUCrGAC00000000000023" * 40_000  # ~1 MB
+
+    async def device(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        with contextlib.suppress(ConnectionError):
+            for _ in range(64):  # until the proxy closes this link, at most 64 MB
+                writer.write(chunk)
+                await writer.drain()
+        writer.close()
+
+    server = await asyncio.start_server(device, "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    proxy = Proxy("tcp://127.0.0.1:0", f"tcp://127.0.0.1:{port}")
+    await proxy.start()
+    client = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    client.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # and it never reads
+    try:
+        client.setblocking(False)
+        await asyncio.get_running_loop().sock_connect(client, proxy.listen_address)  # type: ignore[arg-type]
+        await asyncio.get_running_loop().sock_sendall(client, b"#TPUG2rGAC0032")
+        for _ in range(400):
+            if "unread bytes" in caplog.text:
+                break
+            await asyncio.sleep(0.05)
+        assert "unread bytes" in caplog.text
+        assert proxy.stats.clients == 1
+    finally:
+        client.close()
+        await proxy.stop()
+        server.close()

@@ -12,7 +12,9 @@ frames; bytes the parser still holds are sent as they are after `STREAM_FLUSH_S`
 
 Bounded: at most `max_clients` clients (UDP: the least recently active is dropped for a new one;
 TCP: a connection beyond the limit is closed), UDP clients idle for `idle_timeout_s` are
-forgotten, at most `MAX_QUEUED` bytes wait per client while its device link opens, at most
+forgotten, at most `MAX_QUEUED` bytes wait per client while its device link opens (a TCP client
+leaving that much unread is closed), at most `MAX_BACKLOG` bytes wait to be decoded (beyond,
+chunks are still forwarded but not decoded, logged or captured; counted), at most
 `MAX_SUBSCRIBERS` subscribers. Every limit hit is logged. A serial device has one host at a time,
 so with `to=serial://` a new client replaces the previous one.
 
@@ -49,10 +51,10 @@ log = logging.getLogger("topgimbal.proxy")
 
 MAX_CLIENTS = 8
 IDLE_TIMEOUT_S = 120.0
-MAX_QUEUED = 64 * 1024
+MAX_QUEUED = 64 * 1024  # bytes waiting for a client's device link to open, or unread by a TCP client
 MAX_SUBSCRIBERS = 32
 STREAM_FLUSH_S = 0.05
-MAX_BACKLOG = 100_000  # chunks forwarded but not yet decoded (a few MB at most)
+MAX_BACKLOG = 1024 * 1024  # bytes forwarded but not yet decoded (decoding fell behind the link)
 DEFER_S = 0.001  # decoding starts this long after a chunk is forwarded (its reply goes first)
 PROCESS_SLICE_S = 0.0005  # decoding runs at most this long before the loop polls sockets again
 OUT, IN = "out", "in"  # client -> device, device -> client (the traffic log's words)
@@ -227,8 +229,14 @@ class _TcpClient(asyncio.Protocol):
             self.proxy._drop(self.session)
 
     def send(self, data: bytes) -> None:
-        if self.transport is not None and not self.transport.is_closing():
-            self.transport.write(data)
+        if self.transport is None or self.transport.is_closing():
+            return
+        if self.transport.get_write_buffer_size() > MAX_QUEUED:
+            # the client stopped reading: it is dropped rather than buffered without bound
+            log.warning("proxy: a TCP client has %d unread bytes; closing it", self.transport.get_write_buffer_size())
+            self.transport.close()
+            return
+        self.transport.write(data)
 
     def close(self) -> None:
         if self.transport is not None:
@@ -274,6 +282,7 @@ class Proxy:
         self._subscribers: list[Subscriber] = []
         self._sessions: OrderedDict[Any, _Session] = OrderedDict()
         self._backlog: deque[_Work] = deque()
+        self._backlog_bytes = 0
         self._poll = select.poll()
         self._drain_handle: asyncio.TimerHandle | None = None
         self._pcap: CaptureWriter | None = None
@@ -499,11 +508,13 @@ class Proxy:
             d.held = b""
 
     def _queue(self, work: _Work) -> None:
-        if len(self._backlog) >= MAX_BACKLOG:
+        size = len(work[3]) + 64  # an empty chunk (a session's end, a flush) still costs an entry
+        if self._backlog_bytes + size > MAX_BACKLOG:
             self.stats.backlog_dropped += 1
             if self.stats.backlog_dropped == 1:
-                log.error("proxy: %d chunks wait to be decoded; decoding, pcap and log skip chunks", MAX_BACKLOG)
+                log.error("proxy: %d bytes wait to be decoded; skipping chunks (still forwarded)", MAX_BACKLOG)
             return
+        self._backlog_bytes += size
         self._backlog.append(work)
         if self._drain_handle is None:
             self._drain_handle = asyncio.get_running_loop().call_later(DEFER_S, self._drain)
@@ -512,7 +523,7 @@ class Proxy:
         self._drain_handle = None
         end = time.perf_counter() + PROCESS_SLICE_S
         while self._backlog:
-            self._process(*self._backlog.popleft())
+            self._process(*self._take())
             if time.perf_counter() > end or self._bytes_waiting():
                 break
         if self._backlog:
@@ -538,7 +549,12 @@ class Proxy:
             self._drain_handle.cancel()
             self._drain_handle = None
         while self._backlog:
-            self._process(*self._backlog.popleft())
+            self._process(*self._take())
+
+    def _take(self) -> _Work:
+        work = self._backlog.popleft()
+        self._backlog_bytes -= len(work[3]) + 64
+        return work
 
     def _process(
         self, t: float, session: _Session, direction: str, data: bytes, items: list[Frame | Diagnostic] | None
