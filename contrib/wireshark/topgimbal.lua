@@ -7,6 +7,7 @@
 -- Filter fields start with `top.` (top.id == "GAC", top.checksum.status == 0, top.field.yaw_deg > 10).
 
 local GEN = {
+ strict_identifier=false,
  dialect_order={"skydroid", "topotek"},
  addresses={
   U="uart/udp host",
@@ -5135,8 +5136,35 @@ local function sum8(buf, a, b)
     return s % 256
 end
 
+-- Identifiers are three ASCII letters or digits (the parser's rule since it gained
+-- `is_identifier`; GEN.strict_identifier says whether the catalog this file came from has it).
+local STRICT = GEN.strict_identifier
+local IDENT = {}
+for ch in ("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789"):gmatch(".") do IDENT[sbyte(ch)] = true end
+
+-- Whether the bytes already after the '#' at i rule out a frame (garbage is dropped at once
+-- instead of waiting for bytes that cannot make it one).
+local function bad_prefix(buf, i, n_buf)
+    if n_buf <= i + 2 then
+        local c = B(buf, i + 1)
+        return n_buf > i + 1 and c ~= 84 and c ~= 116 -- 'T', 't'
+    end
+    local hdr = S(buf, i + 1, i + 3)
+    if not HDR[hdr] then return true end
+    for k = 3, 4 do
+        if n_buf > i + k and not ADDR[B(buf, i + k)] then return true end
+    end
+    if n_buf > i + 5 and (hdr == "TP" or hdr == "tp") and HEXVAL[B(buf, i + 5)] < 0 then return true end
+    if n_buf > i + 6 and hdr ~= "Tp" and not RW[B(buf, i + 6)] then return true end
+    for k = 7, 9 do
+        if n_buf > i + k and not IDENT[B(buf, i + k)] then return true end
+    end
+    return false
+end
+
 local function frame_end(buf, i)
     local n_buf = #buf
+    if STRICT and n_buf < i + 10 then return bad_prefix(buf, i, n_buf) and -1 or -2 end
     if n_buf < i + 7 then
         if n_buf > i + 2 and not HDR[S(buf, i + 1, i + 3)] then return -1 end
         for k = 3, 4 do
@@ -5146,6 +5174,7 @@ local function frame_end(buf, i)
     end
     local hdr = S(buf, i + 1, i + 3)
     if not HDR[hdr] or not ADDR[B(buf, i + 3)] or not ADDR[B(buf, i + 4)] then return -1 end
+    if STRICT and not (IDENT[B(buf, i + 7)] and IDENT[B(buf, i + 8)] and IDENT[B(buf, i + 9)]) then return -1 end
     local n
     if hdr == "TP" or hdr == "tp" then
         n = HEXVAL[B(buf, i + 5)]
@@ -5176,6 +5205,24 @@ local function valid_complete_at(buf, j)
     local e = frame_end(buf, j)
     if e < 0 or e > #buf then return false end
     return good_checksum(buf, j, e)
+end
+
+-- For a frame at i whose checksum is right: the start of the first valid frame that begins inside
+-- it (-1 if none, nil if bytes still to come decide). Such a frame wins: the outer one matched its
+-- checksum by chance.
+local function inner_frame(buf, i, e, final)
+    local n_buf = #buf
+    local j = find_hash(buf, i + 1, e)
+    while j >= 0 do
+        local e2 = frame_end(buf, j)
+        if e2 == -2 or e2 > n_buf then
+            if not final then return nil end
+        elseif e2 > 0 and valid_complete_at(buf, j) then
+            return j
+        end
+        j = find_hash(buf, j + 1, e)
+    end
+    return -1
 end
 
 local function discard(buf, a, b, out, why, kind)
@@ -5248,6 +5295,14 @@ local function scan(buf, pos, out, final)
                 break
             end
             if exact_checksum(buf, i, e) then
+                local inner = -1
+                if STRICT and find_hash(buf, i + 1, e) >= 0 then inner = inner_frame(buf, i, e, final) end
+                if inner == nil then return i end -- a frame that starts inside this one is still arriving
+                if inner >= 0 then
+                    discard(buf, i, inner, out, "checksum matched by chance: a frame starts inside")
+                    pos = inner
+                    break
+                end
                 out[#out + 1] = { kind = "frame", a = i, b = e }
                 pos = e
                 break

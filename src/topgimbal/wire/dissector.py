@@ -20,6 +20,7 @@ from typing import Any
 
 from ..errors import TopGimbalError
 from ..protocol import DIALECT_NAMES, REQUEST, RESPONSE, CommandSpec, Dialect, FrameParser, get_dialect
+from ..protocol import frame as frame_module
 from ..protocol.fields import Codec
 from ..protocol.frame import ADDRESS_NAMES, DEVICE_ADDRESSES, HOST_ADDRESSES, MAX_LENGTH
 from .ports import documented_ports
@@ -319,6 +320,9 @@ def catalog_tables(dialect_names: Iterable[str] = DIALECT_NAMES) -> dict[str, An
     for (transport, port), name in sorted(documented_ports().items()):
         ports[transport][port] = name
     return {
+        # The parser takes only 3 ASCII letters or digits as an identifier (and lets a valid frame
+        # starting inside a chance checksum match win) once protocol.frame has is_identifier.
+        "strict_identifier": hasattr(frame_module, "is_identifier"),
         "dialect_order": [d.name for d in dialects],
         "addresses": dict(ADDRESS_NAMES),
         "device_addresses": DEVICE_ADDRESSES,
