@@ -4,6 +4,10 @@ is what the catalog generates now."""
 from __future__ import annotations
 
 import json
+import re
+import socket
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -128,3 +132,49 @@ def test_log_over_tcp_to_pcap(tmp_path, capsys):
     assert main(["decode", "--pcap", str(pcap), "--json"]) == 0
     got = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
     assert [(r["id"], r["dir"], r["transport"]) for r in got] == [("PTZ", "out", "tcp"), ("GAC", "in", "tcp")]
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("as_json", [True, False])
+def test_proxy_command_prints_each_frame(tmp_path, as_json):
+    """`topgimbal proxy` in its own process between a socket client and a socket 'camera'."""
+    camera = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    camera.bind(("127.0.0.1", 0))
+    camera.settimeout(10)
+    argv = [sys.executable, "-m", "topgimbal.cli.main", "proxy", "--listen", "udp://127.0.0.1:0"]
+    argv += ["--to", f"udp://127.0.0.1:{camera.getsockname()[1]}", "--log", str(tmp_path / "p.jsonl")]
+    argv += ["--json"] if as_json else []
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    client.settimeout(10)
+    try:
+        assert proc.stderr is not None
+        started = proc.stderr.readline()
+        port = int(re.search(r"udp://127\.0\.0\.1:(\d+) ->", started).group(1))  # type: ignore[union-attr]
+        client.sendto(PTZ, ("127.0.0.1", port))
+        data, proxy_side = camera.recvfrom(100)
+        assert data == PTZ
+        camera.sendto(GAC + b"junk", proxy_side)
+        assert client.recv(100) == GAC + b"junk"
+    finally:
+        client.close()
+        camera.close()
+        proc.terminate()
+        out, err = proc.communicate(timeout=10)
+    lines = out.splitlines()
+    assert len(lines) == 3, out
+    if as_json:
+        recs = [json.loads(x) for x in lines]
+        assert set(RECORD_KEYS) <= set(recs[0]) and {"time", "dir", "client"} <= set(recs[0])
+        assert [(r["id"], r["dir"], r["ok"]) for r in recs] == [
+            ("PTZ", "out", True),
+            ("GAC", "in", True),
+            (None, "in", False),
+        ]
+        assert recs[1]["fields"]["pitch_deg"] == -47.74
+    else:
+        assert " -> udp 127.0.0.1:" in lines[0] and "PTZ gimbal_control action=stop" in lines[0]
+        assert " <- " in lines[1] and "GAC attitude yaw_deg=-2.02 pitch_deg=-47.74 roll_deg=0.72" in lines[1]
+        assert "! garbage" in lines[2] and "junk" in lines[2]
+    assert '"frames_out": 1, "frames_in": 1' in err
+    assert len((tmp_path / "p.jsonl").read_text().splitlines()) == 3  # header + 2 frames
