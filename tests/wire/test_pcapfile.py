@@ -232,3 +232,17 @@ def test_tshark_finds_our_checksums_right(tmp_path):
     )  # fmt: skip
     statuses = {s for line in out.splitlines() for s in line.split("\t") if s}
     assert statuses == {"1"}  # Wireshark's checksum status: 0 bad, 1 good, 2 unverified
+
+
+def test_big_endian_pcap(tmp_path):
+    """A pcap written on a big-endian machine (SPARC, PowerPC): every header field swapped."""
+    packet = build_packet("udp", ("127.0.0.1", 40000), ("127.0.0.1", 5000), PTZ)
+    path = tmp_path / "be.pcap"
+    path.write_bytes(
+        struct.pack(">IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, LINKTYPE_ETHERNET)
+        + struct.pack(">IIII", 1_700_000_000, 250_000, len(packet), len(packet))
+        + packet
+    )
+    [rec] = _records(path)
+    assert rec.data == packet and rec.ts == pytest.approx(1_700_000_000.25)
+    assert [x.item.ident for x in frames_in_capture(path) if isinstance(x, WireFrame)] == ["PTZ"]  # type: ignore[union-attr]
