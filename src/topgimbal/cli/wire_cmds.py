@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import datetime
+import gc
 import ipaddress
 import json
 import signal
@@ -236,6 +237,9 @@ def cmd_proxy(args: argparse.Namespace) -> int:
 
 async def _serve(proxy: Proxy) -> int:
     await proxy.start()
+    # Everything alive now (the catalog, modules) lives for the whole run: keep the collector from
+    # walking it again and again (a full collection would stall forwarding for milliseconds).
+    gc.freeze()
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()
     for sig in (signal.SIGINT, signal.SIGTERM):
