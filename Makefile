@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps c-deps c-test
+.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps c-deps c-test tshark-deps
 
 # The C fast path is compiled by `pip install`: rebuild it when its sources change.
 $(STAMP): pyproject.toml setup.py src/topgimbal/_speedups/_ctop.c $(wildcard c/src/*.c c/include/*.h c/generated/*)
@@ -25,6 +25,16 @@ browser-deps:
 	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null; \
 	fi
 
+# Debian's tshark (+ editcap, text2pcap from wireshark-common) for the Wireshark dissector tests.
+# The preseed answers the "non-root users may capture" question (no: nothing here captures live).
+tshark-deps:
+	@if ! command -v tshark >/dev/null 2>&1 || ! command -v text2pcap >/dev/null 2>&1 || ! command -v editcap >/dev/null 2>&1; then \
+	  echo "installing Debian's tshark"; \
+	  if [ "$$(id -u)" = 0 ]; then SUDO=; else SUDO=sudo; fi; \
+	  echo "wireshark-common wireshark-common/install-setuid boolean false" | $$SUDO debconf-set-selections; \
+	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq tshark >/dev/null; \
+	fi
+
 lint: $(STAMP)
 	$(BIN)/ruff check src tests bench
 	$(BIN)/ruff format --check src tests bench
@@ -34,11 +44,13 @@ typecheck: $(STAMP)
 
 docs: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.gendocs docs/protocol.md
+	$(BIN)/topgimbal dissector -o contrib/wireshark/topgimbal.lua
 
 docs-check: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.gendocs --check docs/protocol.md
+	$(BIN)/topgimbal dissector --check contrib/wireshark/topgimbal.lua
 
-pytest: $(STAMP) browser-deps
+pytest: $(STAMP) browser-deps tshark-deps
 	$(BIN)/python -m pytest -q
 
 # libtopgimbal (c/): clang with libFuzzer and sanitizer runtimes, installed only when missing.
@@ -50,7 +62,7 @@ c-deps:
 c-test: $(STAMP) c-deps
 	$(MAKE) -C c test PYTHON=$(CURDIR)/$(BIN)/python
 
-test: $(STAMP) browser-deps c-deps lint typecheck pytest c-test
+test: $(STAMP) browser-deps tshark-deps c-deps lint typecheck pytest c-test
 
 demo: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.demo
@@ -61,6 +73,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/latency.py
 	$(BIN)/python bench/mavlink.py
 	$(BIN)/python bench/console.py
+	$(BIN)/python bench/proxy.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache test-artifacts

@@ -19,7 +19,8 @@ ALLOWED = {
     "console": {"protocol", "client", "sim"},  # sim only for `--sim` (in-process camera)
     "tools": {"protocol", "client", "sim", "console", "_speedups"},
     "mavlink": {"protocol", "client"},
-    "cli": {"protocol", "client", "transport", "sim", "console", "tools", "mavlink"},
+    "wire": {"protocol", "transport", "client"},  # client only for the JSONL traffic log format
+    "cli": {"protocol", "client", "transport", "sim", "console", "tools", "mavlink", "wire"},
 }
 
 

@@ -21,6 +21,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--hex", action="store_true", help="frames are given as hex (binary data: GPS, UAV, LOC)")
     add_dialect_argument(p)
     add_json_argument(p)
+    from .wire_cmds import add_pcap_arguments  # decode --pcap lives with the other capture tools
+
+    add_pcap_arguments(p)
     p.set_defaults(func=cmd_decode)
 
     p = sub.add_parser("encode", help="print the frame for a command: encode GAY yaw_deg=-50 --dialect skydroid")
@@ -162,6 +165,10 @@ def _inputs(frames: list[str]) -> Iterable[str]:
 def cmd_decode(args: argparse.Namespace) -> int:
     """Every input line gets one record, whatever it holds; the exit status is 1 when any line is
     not a good frame or its fields could not be named (the records say which and why)."""
+    if getattr(args, "pcap", None):
+        from .wire_cmds import decode_pcap
+
+        return decode_pcap(args)
     dialect = _dialect_from_args(args)
     bad = 0
     for line in _inputs(args.frames):

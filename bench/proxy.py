@@ -1,0 +1,186 @@
+"""What the proxy costs: added latency and loss on loopback UDP.
+
+The proxy runs in its own process exactly as a user runs it (`topgimbal proxy --json --pcap
+--log`, its output to /dev/null), between this client and a UDP echo "camera" (another process).
+Prints:
+  1. round trip one frame at a time, alternating direct-to-echo and through-the-proxy samples
+     (--ping-rate pairs/s): p50/p99 of each and what the proxy adds;
+  2. a stream at --rate frames/s (each echoed, so twice that many cross the proxy) for --seconds,
+     direct and through the proxy: frames lost (target 0), round-trip p50/p99 and what the proxy
+     adds at that rate (target: p99 <= 1 ms), and what the proxy wrote (pcap packets, log lines).
+Each frame crosses the proxy twice per round trip, so the added figures are for both crossings.
+
+    python bench/proxy.py [--pings 2000] [--ping-rate 200] [--rate 1000] [--seconds 10] [--bare]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from latency import ECHO_CODE, Peer, pct  # a sibling script (bench/ is not a package)
+
+from topgimbal.protocol import make_frame
+from topgimbal.wire import CaptureRecord, read_capture
+
+
+def frame(seq: int) -> bytes:
+    """An attitude answer whose data is the sequence number (unique, decodable)."""
+    return make_frame("GAC", f"{seq % (1 << 48):012X}", src="G", dst="U", rw="r", header="#tp").to_bytes()
+
+
+class ProxyProcess:
+    def __init__(self, to_port: int, pcap: Path, log: Path, bare: bool = False) -> None:
+        argv = [sys.executable, "-m", "topgimbal.cli.main", "proxy", "--listen", "udp://127.0.0.1:0"]
+        argv += ["--to", f"udp://127.0.0.1:{to_port}"]
+        argv += ["--quiet"] if bare else ["--json", "--pcap", str(pcap), "--log", str(log)]
+        self.proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        assert self.proc.stderr is not None
+        line = self.proc.stderr.readline()
+        m = re.search(r"udp://127\.0\.0\.1:(\d+)", line)
+        if not m:
+            self.proc.kill()
+            raise RuntimeError(f"the proxy did not start: {line!r}")
+        self.port = int(m.group(1))
+
+    def stop(self) -> str:
+        self.proc.terminate()
+        _, err = self.proc.communicate(timeout=10)
+        return err.strip()
+
+
+def connected(port: int) -> socket.socket:
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.connect(("127.0.0.1", port))
+    s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+    s.settimeout(1.0)
+    return s
+
+
+def ping_pong(
+    direct: socket.socket, proxied: socket.socket, n: int, rate: float = 0.0
+) -> tuple[list[float], list[float]]:
+    """n round trips each way, alternating, `rate` pairs per second (0: back to back)."""
+    a: list[float] = []
+    b: list[float] = []
+    start = time.perf_counter()
+    for i in range(n):
+        if rate:
+            time.sleep(max(0.0, start + i / rate - time.perf_counter()))
+        for sock, out in ((direct, a), (proxied, b)):
+            data = frame(i)
+            t0 = time.perf_counter()
+            sock.send(data)
+            while sock.recv(2048) != data:  # a late echo of an earlier frame is skipped
+                pass
+            out.append(time.perf_counter() - t0)
+    return a, b
+
+
+def stream(sock: socket.socket, n: int, rate: float, base: int) -> tuple[int, list[float], float]:
+    """Send n frames paced at `rate`; returns (frames echoed back, round trips, achieved rate)."""
+    sent: dict[bytes, float] = {}
+    rtts: list[float] = []
+    done = threading.Event()
+
+    def receive() -> None:
+        idle_until = None
+        while len(rtts) < n:
+            try:
+                data = sock.recv(2048)
+            except TimeoutError:
+                if done.is_set() and idle_until is not None and time.perf_counter() > idle_until:
+                    return
+                if done.is_set() and idle_until is None:
+                    idle_until = time.perf_counter() + 2.0
+                continue
+            t = time.perf_counter()
+            t0 = sent.pop(data, None)
+            if t0 is not None:
+                rtts.append(t - t0)
+
+    rx = threading.Thread(target=receive)
+    rx.start()
+    frames = [frame(base + i) for i in range(n)]
+    start = time.perf_counter()
+    for i, data in enumerate(frames):
+        due = start + i / rate
+        while (wait := due - time.perf_counter()) > 0:
+            time.sleep(wait if wait > 0.0005 else 0)
+        sent[data] = time.perf_counter()
+        sock.send(data)
+    elapsed = time.perf_counter() - start
+    done.set()
+    rx.join()
+    return len(rtts), rtts, (n - 1) / elapsed if elapsed else 0.0
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--pings", type=int, default=2000)
+    ap.add_argument("--ping-rate", type=float, default=200.0, help="round-trip pairs per second (0: flat out)")
+    ap.add_argument("--rate", type=float, default=1000.0, help="frames per second (default 1000)")
+    ap.add_argument("--seconds", type=float, default=10.0)
+    ap.add_argument("--bare", action="store_true", help="forwarding only: --quiet, no pcap, no log")
+    args = ap.parse_args()
+    ms = 1000.0
+    tmp = Path(tempfile.mkdtemp(prefix="topgimbal-bench-proxy-"))
+    echo = Peer([sys.executable, "-c", ECHO_CODE])
+    proxy = ProxyProcess(echo.port, tmp / "bench.pcap", tmp / "bench.jsonl", args.bare)
+    direct, proxied = connected(echo.port), connected(proxy.port)
+    try:
+        ping_pong(direct, proxied, 100)  # warm-up
+        a, b = ping_pong(direct, proxied, args.pings, args.ping_rate)
+        what = "forwarding only (--quiet)" if args.bare else "--json to /dev/null, --pcap and --log on"
+        load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
+        print(f"proxy in its own process ({what}), UDP echo camera, loopback; load average {load}")
+        print(f"round trip, one frame at a time, {args.pings} each (alternating, {args.ping_rate:g} pairs/s)")
+        print(f"  {'':22s} {'p50 ms':>8s} {'p99 ms':>8s} {'mean ms':>8s}")
+        for name, xs in (("direct to the echo", a), ("through the proxy", b)):
+            print(f"  {name:22s} {pct(xs, 50) * ms:8.3f} {pct(xs, 99) * ms:8.3f} {statistics.fmean(xs) * ms:8.3f}")
+        print(
+            f"  added by the proxy: p50 {(pct(b, 50) - pct(a, 50)) * ms:.3f} ms, "
+            f"p99 {(pct(b, 99) - pct(a, 99)) * ms:.3f} ms (target p99 <= 1 ms)"
+        )
+        n = int(args.rate * args.seconds)
+        print(f"stream at {args.rate:g} frames/s for {args.seconds:g} s ({n} frames each way)")
+        runs = []
+        for name, sock, base in (
+            ("direct to the echo", direct, 10_000_000),
+            ("through the proxy", proxied, 20_000_000),
+        ):
+            got, rtts, achieved = stream(sock, n, args.rate, base)
+            runs.append(rtts)
+            print(
+                f"  {name:22s} sent {n} at {achieved:.1f}/s, echoed back {got}, lost {n - got}"
+                f" (target 0); round trip p50 {pct(rtts, 50) * ms:.3f} ms, p99 {pct(rtts, 99) * ms:.3f} ms"
+            )
+        print(
+            f"  added by the proxy at {args.rate:g} frames/s: p50 {(pct(runs[1], 50) - pct(runs[0], 50)) * ms:.3f} ms, "
+            f"p99 {(pct(runs[1], 99) - pct(runs[0], 99)) * ms:.3f} ms (target p99 <= 1 ms)"
+        )
+    finally:
+        direct.close()
+        proxied.close()
+        stats = proxy.stop()
+        echo.stop()
+    if not args.bare:
+        packets = sum(1 for r in read_capture(tmp / "bench.pcap") if isinstance(r, CaptureRecord))
+        lines = len((tmp / "bench.jsonl").read_text().splitlines()) - 1
+        expected = 2 * (100 + args.pings + n)
+        print(f"  the proxy wrote {packets} pcap packets and {lines} log lines (expected {expected} each)")
+    print(f"  {stats.splitlines()[-1] if stats else ''}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,257 @@
+"""See the wire: `dissector`, `proxy`, `pcap from-log`, and `decode --pcap`.
+
+topgimbal dissector -o topgimbal.lua            # the Wireshark dissector, from the catalog
+topgimbal decode --pcap session.pcapng --port 5000 --json
+topgimbal proxy --listen udp://127.0.0.1:5600 --to udp://127.0.0.1:5000 --pcap s.pcap --log s.jsonl
+topgimbal pcap from-log session.jsonl -o session.pcap
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import datetime
+import gc
+import ipaddress
+import json
+import signal
+import sys
+from pathlib import Path
+from typing import Any
+
+from ..protocol import Diagnostic, Dialect, Frame, get_dialect
+from ..protocol.frame import DEVICE_ADDRESSES, HOST_ADDRESSES
+from ..wire import CaptureProblem, PacketNote, WireFrame, frames_in_capture, generate_dissector
+from ..wire.export import log_to_pcap
+from ..wire.proxy import MAX_CLIENTS, Proxy, ProxyEvent
+from .args import add_dialect_argument, add_json_argument
+from .protocol_cmds import _dialect_from_args, _human, decode_line
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("dissector", help="write the Wireshark Lua dissector generated from the catalog")
+    p.add_argument("-o", "--output", metavar="FILE", help="where to write it (default: stdout)")
+    p.add_argument("--check", metavar="FILE", help="exit 1 if FILE is not what would be generated now")
+    p.set_defaults(func=cmd_dissector)
+
+    p = sub.add_parser(
+        "proxy",
+        help="forward between a ground station and a camera, decoding every frame live",
+        description="Listen where a ground station or vendor app sends, forward both ways unchanged to the "
+        "camera, and print each frame decoded. Either side may be udp://HOST:PORT, tcp://HOST:PORT or "
+        "serial:///dev/ttyX?baud=115200 (port 0 picks a free port; the listening URL is printed on stderr).",
+    )
+    p.add_argument("--listen", required=True, metavar="URL", help="where clients connect, e.g. udp://127.0.0.1:5600")
+    p.add_argument("--to", required=True, metavar="URL", help="the camera, e.g. udp://192.0.2.10:5000")
+    p.add_argument("--pcap", metavar="FILE", help="also write the traffic as pcap (pcapng if FILE ends in .pcapng)")
+    p.add_argument("--log", dest="traffic_log", metavar="FILE", help="also write the JSONL traffic log")
+    p.add_argument("--quiet", action="store_true", help="print nothing per frame")
+    p.add_argument("--max-clients", type=int, default=MAX_CLIENTS, help=f"clients at once (default {MAX_CLIENTS})")
+    add_dialect_argument(p)
+    add_json_argument(p)
+    p.set_defaults(func=cmd_proxy)
+
+    p = sub.add_parser("pcap", help="capture files: convert a traffic log to pcap")
+    pcap_sub = p.add_subparsers(dest="pcap_command", metavar="COMMAND", required=True)
+    q = pcap_sub.add_parser("from-log", help="write a JSONL traffic log (client log_path, proxy --log) as pcap")
+    q.add_argument("log_file", metavar="LOG")
+    q.add_argument("-o", "--output", required=True, metavar="FILE", help="pcap to write (pcapng if it ends in .pcapng)")
+    q.set_defaults(func=cmd_from_log)
+
+
+# -- decode --pcap ---------------------------------------------------------------------------------
+
+
+def add_pcap_arguments(p: argparse.ArgumentParser) -> None:
+    """The options `decode` gains for captures."""
+    p.add_argument("--pcap", metavar="FILE", help="decode every frame in a pcap/pcapng capture, in time order")
+    p.add_argument("--port", type=int, action="append", metavar="N", help="with --pcap: only this port (repeatable)")
+    p.add_argument(
+        "--address", type=_address, action="append", metavar="IP", help="with --pcap: only this address (repeatable)"
+    )
+
+
+def _address(text: str) -> str:
+    try:
+        return str(ipaddress.ip_address(text))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an IPv4 or IPv6 address") from None
+
+
+def _ep(ep: tuple[str, int]) -> str:
+    return f"[{ep[0]}]:{ep[1]}" if ":" in ep[0] else f"{ep[0]}:{ep[1]}"
+
+
+def _record(raw: bytes, item: Frame | Diagnostic, dialect: Dialect | None) -> dict[str, Any]:
+    """`decode --json`'s record of one frame or diagnostic."""
+    rec = decode_line(raw.hex(), as_hex=True, dialect=dialect)
+    if isinstance(item, Diagnostic) and item.kind != "bad_checksum":
+        rec["ok"] = False
+        rec["error"] = f"{item.detail} ({item.kind})"
+    return rec
+
+
+def _direction(rec: dict[str, Any]) -> str | None:
+    """ "out" for host -> device frames, "in" for device -> host (the traffic log's words)."""
+    if not rec.get("src") or not rec.get("dst"):
+        return None
+    return "in" if rec["src"] in DEVICE_ADDRESSES and rec["dst"] in HOST_ADDRESSES else "out"
+
+
+def decode_pcap(args: argparse.Namespace) -> int:
+    """`decode --pcap FILE`: every frame in the capture, in time order."""
+    forced = _dialect_from_args(args)
+    items: list[tuple[float, int, dict[str, Any]]] = []
+    problems = 0
+    for seq, got in enumerate(frames_in_capture(args.pcap, ports=args.port or (), addresses=args.address or ())):
+        if isinstance(got, (PacketNote, CaptureProblem)):
+            where = f"packet {got.number}" if isinstance(got, PacketNote) else args.pcap
+            print(f"topgimbal: {where}: {got.detail if isinstance(got, PacketNote) else got}", file=sys.stderr)
+            problems += 1
+            continue
+        if isinstance(got.item, Diagnostic) and got.item.kind == "length_mismatch":
+            continue  # the recovered frame follows, with the same note as its anomaly
+        items.append((got.ts, seq, _pcap_record(got, forced)))
+    items.sort(key=lambda x: (x[0], x[1]))
+    start = items[0][0] if items else 0.0
+    bad = 0
+    for ts, _, rec in items:
+        bad += not rec["ok"]
+        if args.json:
+            print(json.dumps(rec, ensure_ascii=False))
+        else:
+            print(
+                f"#{rec['packet']} +{ts - start:.6f}s {rec['transport']} {rec['src_addr']} -> {rec['dst_addr']}"
+                f" {rec['dir'] or ''}".rstrip()
+            )
+            print(_human(rec))
+    if not items:
+        print(f"topgimbal: {args.pcap}: no TOP frames found", file=sys.stderr)
+    return 1 if bad or problems else 0
+
+
+def _pcap_record(got: WireFrame, forced: Dialect | None) -> dict[str, Any]:
+    raw = got.item.to_bytes() if isinstance(got.item, Frame) else got.item.raw
+    dialect = forced or (get_dialect(got.dialect) if got.dialect else None)
+    rec = _record(raw, got.item, dialect)
+    rec.update(
+        time=round(got.ts, 6),
+        packet=got.number,
+        transport=got.transport,
+        src_addr=_ep(got.src),
+        dst_addr=_ep(got.dst),
+        dir=_direction(rec),
+    )
+    return rec
+
+
+# -- dissector ------------------------------------------------------------------------------------
+
+
+def cmd_dissector(args: argparse.Namespace) -> int:
+    text = generate_dissector()
+    if args.check:
+        try:
+            current = Path(args.check).read_text(encoding="utf-8")
+        except OSError as exc:
+            print(f"topgimbal: {args.check}: {exc.strerror}", file=sys.stderr)
+            return 1
+        if current != text:
+            print(f"topgimbal: {args.check} is stale: run `topgimbal dissector -o {args.check}`", file=sys.stderr)
+            return 1
+        return 0
+    if args.output and args.output != "-":
+        Path(args.output).write_text(text, encoding="utf-8")
+        print(f"wrote {args.output} ({len(text)} bytes)", file=sys.stderr)
+    else:
+        sys.stdout.write(text)
+    return 0
+
+
+# -- pcap from-log --------------------------------------------------------------------------------
+
+
+def cmd_from_log(args: argparse.Namespace) -> int:
+    report = log_to_pcap(args.log_file, args.output)
+    for problem in report.problems:
+        print(f"topgimbal: {args.log_file}: {problem}", file=sys.stderr)
+    print(
+        f"wrote {args.output}: {report.frames} frames as {report.transport.upper()} "
+        f"{_ep(report.host)} <-> {_ep(report.device)}",
+        file=sys.stderr,
+    )
+    return 1 if report.problems else 0
+
+
+# -- proxy ----------------------------------------------------------------------------------------
+
+
+def _live_line(event: ProxyEvent, as_json: bool) -> str:
+    item = event.item
+    raw = item.to_bytes() if isinstance(item, Frame) else item.raw
+    if as_json:
+        rec = _record(raw, item, event.dialect)
+        rec.update(time=round(event.t, 6), dir=event.direction, client=event.client)
+        return json.dumps(rec, ensure_ascii=False)
+    stamp = datetime.datetime.fromtimestamp(event.t).strftime("%H:%M:%S.%f")
+    arrow = "->" if event.direction == "out" else "<-"
+    if isinstance(item, Diagnostic):
+        shown = raw.decode("latin-1").encode("ascii", "backslashreplace").decode("ascii")
+        return f"{stamp} {arrow} {event.client}  ! {item.kind}: {item.detail}  {shown!r}"
+    msg = event.message
+    text = f"{stamp} {arrow} {event.client}  {item.text()}  {item.ident}"
+    if msg is not None and msg.spec is not None:
+        text += f" {msg.spec.name}"
+        if msg.fields is not None:
+            text += "".join(f" {k}={_value(v)}" for k, v in msg.fields.items())
+        else:
+            text += f"  ({msg.error})"
+    elif msg is not None:
+        text += f"  ({msg.error})"
+    return text
+
+
+def _value(v: Any) -> str:
+    return v.isoformat() if isinstance(v, datetime.datetime) else str(v)
+
+
+def cmd_proxy(args: argparse.Namespace) -> int:
+    dialect = args.dialect if args.dialect not in (None, "auto") else None
+    proxy = Proxy(
+        args.listen,
+        args.to,
+        dialect=dialect,
+        model=args.model,
+        pcap=args.pcap,
+        log_path=args.traffic_log,
+        max_clients=args.max_clients,
+    )
+    if not args.quiet:
+
+        def show(event: ProxyEvent) -> None:
+            print(_live_line(event, args.json), flush=True)
+
+        proxy.subscribe(show)
+    return asyncio.run(_serve(proxy))
+
+
+async def _serve(proxy: Proxy) -> int:
+    await proxy.start()
+    # Everything alive now (the catalog, modules) lives for the whole run: keep the collector from
+    # walking it again and again (a full collection would stall forwarding for milliseconds).
+    gc.freeze()
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            loop.add_signal_handler(sig, stop.set)
+        except (NotImplementedError, RuntimeError):  # pragma: no cover - not on the main thread
+            pass
+    name = proxy.dialect.name if proxy.dialect else "auto"
+    print(f"topgimbal proxy: {proxy.url} -> {proxy.to} (dialect {name})", file=sys.stderr, flush=True)
+    try:
+        await stop.wait()
+    finally:
+        await proxy.stop()
+        print(f"topgimbal proxy: {json.dumps(proxy.stats.as_dict())}", file=sys.stderr, flush=True)
+    return 0

@@ -1,0 +1,358 @@
+"""The Wireshark dissector, generated from the catalog.
+
+`generate_dissector()` returns a Lua file made of two parts: a table generated here from the
+catalog's public objects (every command of every dialect, its forms, fields, codecs, units,
+enum tables, the documented ports), and the fixed runtime in `dissector_runtime.lua` (a port of
+`FrameParser`'s scanning rules, one decoder per codec class, tree and column building). Nothing
+about individual commands is written by hand on the Lua side.
+
+A codec class the generator does not know raises `DissectorError` naming it, so a new codec kind
+in the catalog is noticed (and taught to the runtime) instead of being silently shown as raw.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Iterable, Mapping
+from importlib import resources
+from typing import Any
+
+from ..errors import TopGimbalError
+from ..protocol import DIALECT_NAMES, REQUEST, RESPONSE, CommandSpec, Dialect, FrameParser, get_dialect
+from ..protocol import frame as frame_module
+from ..protocol.fields import Codec
+from ..protocol.frame import ADDRESS_NAMES, DEVICE_ADDRESSES, HOST_ADDRESSES, MAX_LENGTH
+from .ports import documented_ports
+
+# Codec classes whose decoded value is a number (their Wireshark fields are FT_DOUBLE).
+NUMERIC_CODECS = frozenset({"HexInt", "DecInt", "DecFloat", "BinInt", "Bitrate", "GeoDM", "GeoDeg"})
+# strptime directives the runtime's timestamp decoder handles: (name, width). `%f2` is the
+# catalog's "hundredths of a second".
+_TIME_DIRECTIVES = {"%Y": 4, "%y": 2, "%m": 2, "%d": 2, "%H": 2, "%M": 2, "%S": 2, "%f2": 2}
+
+
+class DissectorError(TopGimbalError):
+    """The catalog holds something the dissector generator does not know how to show."""
+
+
+# -- Lua literals ------------------------------------------------------------------------------
+
+_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_LUA_KEYWORDS = frozenset(
+    [
+        "and",
+        "break",
+        "do",
+        "else",
+        "elseif",
+        "end",
+        "false",
+        "for",
+        "function",
+        "goto",
+        "if",
+        "in",
+        "local",
+        "nil",
+        "not",
+        "or",
+        "repeat",
+        "return",
+        "then",
+        "true",
+        "until",
+        "while",
+    ]
+)
+
+
+def _lua_str(s: str | bytes) -> str:
+    """Text (labels, descriptions) goes out as UTF-8, which Wireshark shows; wire bytes are
+    passed as `bytes` and kept byte for byte."""
+    raw = s.encode("utf-8") if isinstance(s, str) else s
+    out = []
+    for b in raw:
+        if b in (0x22, 0x5C):
+            out.append("\\" + chr(b))
+        elif 0x20 <= b < 0x7F:
+            out.append(chr(b))
+        else:
+            out.append(f"\\{b:03d}")
+    return '"' + "".join(out) + '"'
+
+
+def to_lua(obj: Any, indent: str = "") -> str:
+    """A Lua literal for JSON-like data (dict keys are strings or ints); deterministic."""
+    if obj is None:
+        return "nil"
+    if isinstance(obj, bool):
+        return "true" if obj else "false"
+    if isinstance(obj, int):
+        return str(obj)
+    if isinstance(obj, float):
+        if math.isnan(obj) or math.isinf(obj):
+            raise DissectorError(f"{obj!r} has no Lua literal")
+        return repr(obj)
+    if isinstance(obj, (str, bytes)):
+        return _lua_str(obj)
+    inner = indent + " "
+    if isinstance(obj, Mapping):
+        parts = []
+        for k, v in obj.items():
+            if v is None:
+                continue
+            if isinstance(k, str) and _IDENT.match(k) and k not in _LUA_KEYWORDS:
+                key = k
+            elif isinstance(k, (str, bytes)):
+                key = f"[{_lua_str(k)}]"
+            else:
+                key = f"[{int(k)}]"
+            parts.append(f"{key}={to_lua(v, inner)}")
+        return _wrap(parts, indent)
+    if isinstance(obj, Iterable):
+        return _wrap([to_lua(v, inner) for v in obj], indent)
+    raise DissectorError(f"cannot write {type(obj).__name__} as Lua")
+
+
+def _wrap(parts: list[str], indent: str) -> str:
+    one = "{" + ", ".join(parts) + "}"
+    if len(one) + len(indent) <= 110 and "\n" not in one:
+        return one
+    inner = indent + " "
+    return "{\n" + ",\n".join(inner + p for p in parts) + "\n" + indent + "}"
+
+
+# -- codecs ------------------------------------------------------------------------------------
+
+
+def _decimals(scale: float) -> int:
+    """Decimals a scaled value is rounded to; mirrors the codecs' own rounding rule."""
+    if scale >= 1 and float(scale).is_integer():
+        return 0
+    return max(0, -math.floor(math.log10(scale) + 1e-9)) if scale < 1 else 0
+
+
+def _exact_divisor(scale: float) -> int:
+    """1/scale when that is a whole number (values are then divided, which is exact)."""
+    inv = 1 / scale
+    return round(inv) if scale < 1 and abs(inv - round(inv)) < 1e-9 else 0
+
+
+def _time_segments(layout: str) -> list[Any]:
+    out: list[Any] = []
+    i = 0
+    while i < len(layout):
+        if layout[i] == "%":
+            d = layout[i : i + 3] if layout[i : i + 3] == "%f2" else layout[i : i + 2]
+            if d not in _TIME_DIRECTIVES:
+                raise DissectorError(f"timestamp layout {layout!r}: directive {d!r} is unknown to the dissector")
+            out.append({"d": d[1:], "w": _TIME_DIRECTIVES[d]})
+            i += len(d)
+        else:
+            out.append({"lit": layout[i].encode("latin-1")})
+            i += 1
+    return out
+
+
+def _enum_map(codec: Any) -> dict[bytes, Any]:
+    table: dict[bytes, Any] = {}
+    for v in codec.values:
+        entry = {"name": v.name, "label": v.label}
+        table[v.raw.encode("latin-1")] = entry
+        table.setdefault(v.raw.lower().encode("latin-1"), entry)  # some firmware spells hex in lower case
+    return table
+
+
+def codec_entry(codec: Codec, where: str) -> dict[str, Any]:
+    """What the Lua runtime needs to decode one codec, from its public attributes."""
+    cls, kind = type(codec).__name__, codec.kind
+    c: dict[str, Any] = {"unit": codec.unit}
+    num = cls in NUMERIC_CODECS
+    if cls == "HexInt" and kind == "number":
+        scale = codec.scale  # type: ignore[attr-defined]
+        c.update(k="hex", w=codec.width, signed=bool(codec.signed), scale=scale, div=_exact_divisor(scale))  # type: ignore[attr-defined]
+        c.update(dec=_decimals(scale), int=scale == 1, none=list(codec.none_tokens))  # type: ignore[attr-defined]
+    elif cls == "DecInt" and kind == "number":
+        scale = codec.scale  # type: ignore[attr-defined]
+        c.update(k="dec", w=codec.width, scale=scale, dec=_decimals(scale), int=scale == 1)
+    elif cls == "DecFloat" and kind == "number":
+        c.update(k="float", w=codec.width, decimals=codec.decimals)  # type: ignore[attr-defined]
+        c.update(none=list(codec.none_tokens))  # type: ignore[attr-defined]
+    elif cls == "BinInt" and kind == "number":
+        scale = codec.scale  # type: ignore[attr-defined]
+        c.update(k="bin", w=codec.width, signed=bool(codec.signed), little=codec.byteorder == "little")  # type: ignore[attr-defined]
+        c.update(scale=scale, dec=_decimals(scale), int=scale == 1)
+    elif cls == "Bitrate" and kind == "number":
+        c.update(k="bitrate", w=codec.width, int=True)
+    elif cls == "Enum" and kind == "enum":
+        c.update(k="enum", w=codec.width, map=_enum_map(codec))
+    elif cls == "OneOf" and kind == "enum_or_number":
+        tokens, number = codec.tokens, codec.number  # type: ignore[attr-defined]
+        c.update(k="oneof", w=codec.width, tokens=codec_entry(tokens, where), number=codec_entry(number, where))
+    elif cls == "Text" and kind == "text":
+        c.update(k="text", min=codec.min_width, max=codec.max_width)
+    elif cls == "IPv4Text" and kind == "ipv4":
+        c.update(k="ipv4")
+    elif cls == "RawData" and kind == "raw":
+        c.update(k="raw", w=codec.width)
+    elif cls == "Literal" and kind == "literal":
+        c.update(k="literal", text=codec.text.encode("latin-1"))  # type: ignore[attr-defined]
+    elif cls in ("GeoDM", "GeoDeg") and kind == "coordinate":
+        c.update(k="geodm" if cls == "GeoDM" else "geodeg", axis=codec.axis)  # type: ignore[attr-defined]
+    elif cls == "Timestamp" and kind == "datetime":
+        c.update(k="time", segments=_time_segments(codec.layout))  # type: ignore[attr-defined]
+    else:
+        raise DissectorError(
+            f"{where}: codec {cls} (kind {kind!r}) is unknown to the dissector generator; "
+            "teach topgimbal/wire/dissector.py and dissector_runtime.lua to decode it"
+        )
+    c["numeric"] = num
+    return c
+
+
+# -- catalog -> tables ---------------------------------------------------------------------------
+
+_UNIT_SUFFIX = re.compile(r"[^a-z0-9]+")
+
+
+def short_name(name: str, unit: str) -> str:
+    """A field's name without its unit suffix, for the Info column (`yaw_deg` -> `yaw`)."""
+    if unit:
+        suffix = "_" + _UNIT_SUFFIX.sub("_", unit.lower()).strip("_")
+        if name.endswith(suffix) and len(name) > len(suffix):
+            return name[: -len(suffix)]
+    return name
+
+
+class _Codecs:
+    """Codec entries shared by reference (many fields use the same codec)."""
+
+    def __init__(self) -> None:
+        self.entries: list[dict[str, Any]] = []
+        self._index: dict[str, int] = {}
+
+    def add(self, codec: Codec, where: str) -> int:
+        entry = codec_entry(codec, where)
+        key = to_lua(entry)
+        if key not in self._index:
+            self.entries.append(entry)
+            self._index[key] = len(self.entries)
+        return self._index[key]
+
+
+def _command(spec: CommandSpec, codecs: _Codecs, dialect: str) -> dict[str, Any]:
+    forms = []
+    for form in spec.forms:
+        fields = []
+        at: int | None = 0
+        for f in form.fields:
+            where = f"{dialect} {spec.ident} field {f.name}"
+            w = f.codec.width
+            end = at + w if (w is not None and at is not None) else None  # None: the rest of the data
+            fields.append(
+                {
+                    "n": f.name,
+                    "c": codecs.add(f.codec, where),
+                    "a": at,
+                    "b": end,
+                    "s": short_name(f.name, f.codec.unit),
+                    "d": f.description,
+                }
+            )
+            at = end
+        forms.append(
+            {
+                "rw": form.rw,
+                "dir": form.direction,
+                "title": form.title,
+                "role": form.role,
+                "const": form.const,
+                "min": form.min_length,
+                "max": form.max_length,
+                "fields": fields,
+            }
+        )
+    return {"name": spec.name, "title": spec.title, "forms": forms}
+
+
+def _index(spec: CommandSpec) -> dict[str, list[int]]:
+    """(rw, direction) -> forms to try, 1-based: the direction's own forms first, then the other
+    direction's (frames whose addresses are not swapped); the order the Python decoder uses."""
+    out: dict[str, list[int]] = {}
+    pos = {id(f): i + 1 for i, f in enumerate(spec.forms)}
+    for rw in ("r", "w"):
+        for direction, other in ((REQUEST, RESPONSE), (RESPONSE, REQUEST)):
+            forms = spec.forms_for(rw, direction) + spec.forms_for(rw, other)
+            if forms:
+                out[f"{rw}|{direction}"] = [pos[id(f)] for f in forms]
+    return out
+
+
+def _dialect(d: Dialect, codecs: _Codecs) -> dict[str, Any]:
+    commands = {}
+    index = {}
+    for ident in sorted(d.commands):
+        spec = d.commands[ident]
+        commands[ident] = _command(spec, codecs, d.name)
+        for key, forms in _index(spec).items():
+            index[f"{ident}|{key}"] = forms
+    return {"title": d.title, "commands": commands, "index": index}
+
+
+def _field_types(dialects: list[Dialect]) -> dict[str, str]:
+    """Every field name -> "double" when all its codecs decode to numbers, else "string"."""
+    kinds: dict[str, set[bool]] = {}
+    for d in dialects:
+        for spec in d.commands.values():
+            for form in spec.forms:
+                for f in form.fields:
+                    kinds.setdefault(f.name, set()).add(type(f.codec).__name__ in NUMERIC_CODECS)
+    return {name: ("double" if k == {True} else "string") for name, k in sorted(kinds.items())}
+
+
+def catalog_tables(dialect_names: Iterable[str] = DIALECT_NAMES) -> dict[str, Any]:
+    """Everything the Lua runtime reads, as data."""
+    dialects = [get_dialect(n) for n in dialect_names]
+    codecs = _Codecs()
+    tables = {d.name: _dialect(d, codecs) for d in dialects}
+    ports: dict[str, dict[int, str]] = {"udp": {}, "tcp": {}}
+    for (transport, port), name in sorted(documented_ports().items()):
+        ports[transport][port] = name
+    return {
+        # The parser takes only 3 ASCII letters or digits as an identifier (and lets a valid frame
+        # starting inside a chance checksum match win) once protocol.frame has is_identifier.
+        "strict_identifier": hasattr(frame_module, "is_identifier"),
+        "dialect_order": [d.name for d in dialects],
+        "addresses": dict(ADDRESS_NAMES),
+        "device_addresses": DEVICE_ADDRESSES,
+        "host_addresses": HOST_ADDRESSES,
+        "max_ascii_length": MAX_LENGTH["#TP"],
+        "max_data_length": FrameParser().max_data_length,
+        "ports": ports,
+        "field_types": _field_types(dialects),
+        "codecs": codecs.entries,
+        "dialects": tables,
+    }
+
+
+HEADER = """\
+-- topgimbal.lua: Wireshark dissector for the TOP gimbal-camera protocol
+-- (SkyDroid C10/C10Pro/C12/C13/C20 and TOPOTEK SIP).
+--
+-- GENERATED by `topgimbal dissector` from the topgimbal catalog: do not edit by hand.
+-- Install: copy into your personal Lua plugins folder (see docs/wireshark.md), or run
+--   tshark -X lua_script:topgimbal.lua -r capture.pcap
+-- Filter fields start with `top.` (top.id == "GAC", top.checksum.status == 0, top.field.yaw_deg > 10).
+"""
+
+
+def runtime_source() -> str:
+    """The fixed Lua runtime (shipped with the package)."""
+    return resources.files(__package__).joinpath("dissector_runtime.lua").read_text(encoding="utf-8")
+
+
+def generate_dissector(dialect_names: Iterable[str] = DIALECT_NAMES) -> str:
+    """The whole dissector: generated tables followed by the runtime."""
+    tables = catalog_tables(dialect_names)
+    return HEADER + "\nlocal GEN = " + to_lua(tables) + "\n\n" + runtime_source()

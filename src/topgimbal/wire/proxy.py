@@ -1,0 +1,618 @@
+"""The proxy: sits between a ground station (or vendor app) and a camera, forwards every byte both
+ways unchanged, and decodes what passes.
+
+    proxy = Proxy("udp://127.0.0.1:5600", "udp://127.0.0.1:5000", pcap="s.pcap", log="s.jsonl")
+    unsubscribe = proxy.subscribe(lambda event: print(event.direction, event.item))
+    await proxy.start(); ...; await proxy.stop()
+
+Forwarding comes first: a chunk is sent on before it is decoded, logged or shown, so watching
+costs the link no latency. Between a stream side (TCP, serial) and a datagram side (UDP) bytes are
+sent on at frame boundaries (what the frame parser has consumed), so each datagram holds whole
+frames; bytes the parser still holds are sent as they are after `STREAM_FLUSH_S` of silence.
+
+Bounded: at most `max_clients` clients (UDP: the least recently active is dropped for a new one;
+TCP: a connection beyond the limit is closed), UDP clients idle for `idle_timeout_s` are
+forgotten, at most `MAX_QUEUED` bytes wait per client while its device link opens (a TCP client
+leaving that much unread is closed), at most `MAX_BACKLOG` bytes wait to be decoded (beyond,
+chunks are still forwarded but not decoded, logged or captured; counted), at most
+`MAX_SUBSCRIBERS` subscribers. Every limit hit is logged. A serial device has one host at a time,
+so with `to=serial://` a new client replaces the previous one.
+
+The pcap shows the device's side of the proxy as if captured on that link: the client's address
+talking to the device's (a serial side is given loopback addresses and the dialect's documented
+port, so Wireshark picks the right dialect). The traffic log is the client SDK's JSONL format.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import ipaddress
+import logging
+import select
+import socket
+import time
+from collections import OrderedDict, deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..client.traffic import TrafficLog
+from ..errors import TopGimbalError, TransportError
+from ..protocol import Diagnostic, Dialect, Frame, FrameParser, Message, get_dialect, get_model
+from ..transport import Transport, TransportURL, open_transport, parse_url
+from .packets import Endpoint
+from .ports import decode_frame, dialect_for_ports, documented_ports
+from .synth import CaptureWriter
+from .udplink import UdpSocket
+
+log = logging.getLogger("topgimbal.proxy")
+
+MAX_CLIENTS = 8
+IDLE_TIMEOUT_S = 120.0
+MAX_QUEUED = 64 * 1024  # bytes waiting for a client's device link to open, or unread by a TCP client
+MAX_SUBSCRIBERS = 32
+STREAM_FLUSH_S = 0.05
+MAX_BACKLOG = 1024 * 1024  # bytes forwarded but not yet decoded (decoding fell behind the link)
+DEFER_S = 0.001  # decoding starts this long after a chunk is forwarded (its reply goes first)
+PROCESS_SLICE_S = 0.0005  # decoding runs at most this long before the loop polls sockets again
+OUT, IN = "out", "in"  # client -> device, device -> client (the traffic log's words)
+CLOSED = "closed"  # a session's end, queued behind its last bytes
+SERIAL_CLIENT: Endpoint = ("127.0.0.1", 40000)
+
+
+class ProxyError(TopGimbalError):
+    """The proxy cannot start as asked."""
+
+
+@dataclass(frozen=True)
+class ProxyEvent:
+    """One frame (or what the parser says about bytes that are not one) that crossed the proxy."""
+
+    t: float  # wall clock, seconds
+    direction: str  # "out": client -> device; "in": device -> client
+    client: str  # which client ("udp 127.0.0.1:53012", "tcp ...", "serial ...")
+    item: Frame | Diagnostic
+    dialect: Dialect | None
+    message: Message | None  # None for diagnostics
+
+
+Subscriber = Callable[[ProxyEvent], None]
+_Work = tuple[float, "_Session", str, bytes, "list[Frame | Diagnostic] | None"]
+
+
+@dataclass
+class ProxyStats:
+    frames_out: int = 0
+    frames_in: int = 0
+    bytes_out: int = 0
+    bytes_in: int = 0
+    clients: int = 0
+    clients_dropped: int = 0
+    subscriber_errors: int = 0
+    backlog_dropped: int = 0
+
+    def as_dict(self) -> dict[str, int]:
+        return dict(self.__dict__)
+
+
+@dataclass
+class _Direction:
+    """Decoding (and, from a stream to a datagram side, framing) of one direction of a session."""
+
+    from_datagram: bool
+    to_datagram: bool
+    parser: FrameParser = field(default_factory=FrameParser)
+    held: bytes = b""  # stream bytes the parser still holds (sent on when complete or stale)
+    flush_timer: asyncio.TimerHandle | None = None
+
+
+class _Session:
+    """One client's path to the device."""
+
+    def __init__(
+        self,
+        proxy: Proxy,
+        label: str,
+        endpoint: Endpoint,
+        send_down: Callable[[bytes], None],
+        close_down: Callable[[], None] | None = None,
+    ) -> None:
+        self.proxy = proxy
+        self.label = label
+        self.endpoint = endpoint
+        self.send_down = send_down
+        self.close_down = close_down
+        self.upstream: Transport | UdpSocket | None = None
+        self.queued: list[bytes] = []
+        self.queued_bytes = 0
+        self.closed = False
+        self.last_active = time.monotonic()
+        down_dgram = proxy.listen.scheme == "udp"
+        up_dgram = proxy.to.scheme == "udp"
+        self.dirs = {OUT: _Direction(down_dgram, up_dgram), IN: _Direction(up_dgram, down_dgram)}
+        self.opening: asyncio.Task[None] | None = None
+
+    async def open(self) -> None:
+        to = self.proxy.to
+        try:
+            if to.scheme == "udp":
+                self.upstream = await UdpSocket.connect(to.host, to.port or 0, self._device_datagram)
+                self.proxy._watch(self.upstream)
+            else:
+                self.upstream = await open_transport(to, self.from_device, self.device_lost)
+        except OSError as exc:
+            log.warning("proxy: cannot reach %s for %s: %s", to, self.label, exc)
+            self.proxy._drop(self)
+            return
+        except TopGimbalError as exc:
+            log.warning("proxy: cannot reach %s for %s: %s", self.proxy.to, self.label, exc)
+            self.proxy._drop(self)
+            return
+        queued, self.queued, self.queued_bytes = self.queued, [], 0
+        for chunk in queued:
+            self._send_up(chunk)
+
+    def from_client(self, data: bytes) -> None:
+        self.last_active = time.monotonic()
+        if self.upstream is None:
+            if self.queued_bytes + len(data) > MAX_QUEUED:
+                log.warning(
+                    "proxy: %s: %d bytes already wait for the device link; dropping %d",
+                    self.label,
+                    self.queued_bytes,
+                    len(data),
+                )
+                return
+            self.queued.append(data)
+            self.queued_bytes += len(data)
+            return
+        self._send_up(data)
+
+    def _send_up(self, data: bytes) -> None:
+        self.proxy._relay(self, OUT, data, self._upstream_send)
+
+    def _upstream_send(self, data: bytes) -> None:
+        if self.upstream is not None and self.upstream.connected:
+            try:
+                self.upstream.send(data)
+            except TransportError as exc:
+                log.warning("proxy: %s: device link: %s", self.label, exc)
+
+    def _device_datagram(self, data: bytes, addr: Any) -> None:
+        self.from_device(data)
+
+    def from_device(self, data: bytes) -> None:
+        self.last_active = time.monotonic()
+        self.proxy._relay(self, IN, data, self.send_down)
+
+    def device_lost(self, exc: Exception | None) -> None:
+        if not self.closed:
+            log.info("proxy: device link of %s closed%s", self.label, f": {exc}" if exc else "")
+            self.proxy._drop(self)
+
+    async def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        for d in self.dirs.values():
+            if d.flush_timer is not None:
+                d.flush_timer.cancel()
+        if self.opening is not None and not self.opening.done():
+            self.opening.cancel()
+        if self.close_down is not None:
+            self.close_down()
+        self.proxy._closed(self)
+        if self.upstream is not None:
+            if isinstance(self.upstream, UdpSocket):
+                self.proxy._watch(self.upstream, on=False)
+            await self.upstream.close()
+
+
+class _TcpClient(asyncio.Protocol):
+    def __init__(self, proxy: Proxy) -> None:
+        self.proxy = proxy
+        self.session: _Session | None = None
+        self.transport: asyncio.Transport | None = None
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        self.transport = transport  # type: ignore[assignment]
+        self.session = self.proxy._tcp_connected(self)
+
+    def data_received(self, data: bytes) -> None:
+        if self.session is not None:
+            self.session.from_client(data)
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        if self.session is not None:
+            self.proxy._drop(self.session)
+
+    def send(self, data: bytes) -> None:
+        if self.transport is None or self.transport.is_closing():
+            return
+        if self.transport.get_write_buffer_size() > MAX_QUEUED:
+            # the client stopped reading: it is dropped rather than buffered without bound
+            log.warning("proxy: a TCP client has %d unread bytes; closing it", self.transport.get_write_buffer_size())
+            self.transport.close()
+            return
+        self.transport.write(data)
+
+    def close(self) -> None:
+        if self.transport is not None:
+            self.transport.close()
+
+
+class Proxy:
+    """Forward `listen` <-> `to` (udp://, tcp://, serial:// on either side), decoding both ways."""
+
+    def __init__(
+        self,
+        listen: str,
+        to: str,
+        *,
+        dialect: str | None = None,
+        model: str | None = None,
+        pcap: str | Path | None = None,
+        log_path: str | Path | None = None,
+        max_clients: int = MAX_CLIENTS,
+        idle_timeout_s: float = IDLE_TIMEOUT_S,
+    ) -> None:
+        self.listen: TransportURL = parse_url(listen)
+        self.to: TransportURL = parse_url(to)
+        if max_clients < 1:
+            raise ProxyError(f"max_clients={max_clients}: at least 1")
+        self.model = model
+        self.dialect: Dialect | None = None
+        if model:
+            self.dialect = get_model(model)[0]
+        elif dialect:
+            self.dialect = get_dialect(dialect)
+        else:
+            hint = None
+            for url in (self.to, self.listen):
+                if url.scheme in ("udp", "tcp") and url.port is not None:
+                    hint = hint or dialect_for_ports(url.scheme, url.port)
+            self.dialect = get_dialect(hint) if hint else None
+        self.max_clients = 1 if self.to.scheme == "serial" else max_clients
+        self.idle_timeout_s = idle_timeout_s
+        self.pcap_path = Path(pcap) if pcap else None
+        self.log_path = Path(log_path) if log_path else None
+        self.stats = ProxyStats()
+        self._subscribers: list[Subscriber] = []
+        self._sessions: OrderedDict[Any, _Session] = OrderedDict()
+        self._backlog: deque[_Work] = deque()
+        self._backlog_bytes = 0
+        self._poll = select.poll()
+        self._drain_handle: asyncio.TimerHandle | None = None
+        self._pcap: CaptureWriter | None = None
+        self._log: TrafficLog | None = None
+        self._udp: UdpSocket | None = None
+        self._server: asyncio.AbstractServer | None = None
+        self._serial: Transport | None = None
+        self._sweeper: asyncio.TimerHandle | None = None
+        self._device_ep: Endpoint = ("127.0.0.1", 0)
+        self._transport_kind = self.to.scheme if self.to.scheme in ("udp", "tcp") else self.listen.scheme
+        if self._transport_kind == "serial":
+            self._transport_kind = "udp"
+        self.listen_address: tuple[str, int] | None = None
+
+    # -- subscribers ------------------------------------------------------------------------------
+
+    def subscribe(self, callback: Subscriber) -> Callable[[], None]:
+        """Call `callback(event)` for every frame that crosses the proxy; returns the function that
+        unsubscribes. Callbacks run on the proxy's event loop: keep them short. An exception in one
+        is logged and counted, never passed on."""
+        if len(self._subscribers) >= MAX_SUBSCRIBERS:
+            raise ProxyError(f"at most {MAX_SUBSCRIBERS} subscribers")
+        self._subscribers.append(callback)
+
+        def unsubscribe() -> None:
+            with contextlib.suppress(ValueError):
+                self._subscribers.remove(callback)
+
+        return unsubscribe
+
+    # -- lifecycle --------------------------------------------------------------------------------
+
+    @property
+    def url(self) -> str:
+        """Where clients connect (the real port when the listen URL said 0)."""
+        if self.listen.scheme == "serial" or self.listen_address is None:
+            return self.listen.text
+        host, port = self.listen_address
+        host = f"[{host}]" if ":" in host else host
+        return f"{self.listen.scheme}://{host}:{port}"
+
+    async def start(self) -> None:
+        loop = asyncio.get_running_loop()
+        self._device_ep = await self._device_endpoint()
+        try:
+            if self.pcap_path:
+                self._pcap = CaptureWriter(self.pcap_path)
+            if self.log_path:
+                self._log = TrafficLog(
+                    self.log_path,
+                    url=self.to.text,
+                    model=self.model or "",
+                    dialect=self.dialect.name if self.dialect else "",
+                )
+        except OSError as exc:
+            raise ProxyError(f"cannot write {exc.filename}: {exc.strerror}") from None
+        try:
+            if self.listen.scheme == "udp":
+                self._udp = await UdpSocket.bind(self.listen.host, self.listen.port or 0, self._udp_datagram)
+                self._watch(self._udp)
+                self.listen_address = self._udp.address
+                self._sweeper = loop.call_later(min(self.idle_timeout_s, 5.0), self._sweep)
+            elif self.listen.scheme == "tcp":
+                self._server = await loop.create_server(
+                    lambda: _TcpClient(self), self.listen.host, self.listen.port or 0, reuse_address=True
+                )
+                self.listen_address = self._server.sockets[0].getsockname()[:2]
+            else:
+                session = _Session(self, f"serial {self.listen.path}", SERIAL_CLIENT, self._serial_send)
+                self._serial = await open_transport(self.listen, session.from_client, self._serial_lost)
+                self._add(("serial",), session)
+        except OSError as exc:
+            await self.stop()
+            raise ProxyError(f"cannot listen on {self.listen}: {exc.strerror or exc}") from None
+        log.info("proxy: %s -> %s", self.url, self.to)
+
+    async def stop(self) -> None:
+        if self._sweeper is not None:
+            self._sweeper.cancel()
+        self.drain()
+        for session in list(self._sessions.values()):
+            await session.close()
+        self._sessions.clear()
+        if self._udp is not None:
+            await self._udp.close()
+        if self._server is not None:
+            self._server.close()
+            await self._server.wait_closed()
+        if self._serial is not None:
+            await self._serial.close()
+        self.drain()
+        if self._pcap is not None:
+            self._pcap.close()
+            self._pcap = None
+        if self._log is not None:
+            self._log.close()
+            self._log = None
+
+    async def __aenter__(self) -> Proxy:
+        await self.start()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.stop()
+
+    async def _device_endpoint(self) -> Endpoint:
+        """The device's address as the pcap shows it."""
+        if self.to.scheme == "serial":
+            name = self.dialect.name if self.dialect else None
+            ports = sorted(p for (t, p), d in documented_ports().items() if d == name and t == "udp" and p != 9004)
+            return ("127.0.0.1", ports[0] if ports else 5000)
+        host, port = self.to.host, self.to.port or 0
+        try:
+            return (str(ipaddress.ip_address(host)), port)
+        except ValueError:
+            pass
+        try:
+            infos = await asyncio.get_running_loop().getaddrinfo(host, port, type=socket.SOCK_DGRAM)
+        except OSError as exc:
+            raise ProxyError(f"cannot resolve {host!r}: {exc}") from None
+        return (str(infos[0][4][0]), port)
+
+    # -- clients ----------------------------------------------------------------------------------
+
+    def _add(self, key: Any, session: _Session) -> None:
+        while len(self._sessions) >= self.max_clients:
+            _, old = self._sessions.popitem(last=False)
+            self.stats.clients_dropped += 1
+            log.warning("proxy: at most %d client(s); dropping %s for %s", self.max_clients, old.label, session.label)
+            asyncio.get_running_loop().create_task(old.close())
+        self._sessions[key] = session
+        self.stats.clients += 1
+        session.opening = asyncio.get_running_loop().create_task(session.open())
+
+    def _drop(self, session: _Session) -> None:
+        for key, s in list(self._sessions.items()):
+            if s is session:
+                del self._sessions[key]
+        if not session.closed:
+            asyncio.get_running_loop().create_task(session.close())
+
+    def _udp_datagram(self, data: bytes, addr: tuple[Any, ...]) -> None:
+        key = addr[:2]
+        session = self._sessions.get(key)
+        if session is None:
+            label = f"udp {_ep_text(key)}"
+            udp = self._udp
+
+            def send_down(payload: bytes, addr: tuple[Any, ...] = addr) -> None:
+                if udp is not None:
+                    udp.sendto(payload, addr)
+
+            session = _Session(self, label, (str(addr[0]), int(addr[1])), send_down)
+            self._add(key, session)
+        else:
+            self._sessions.move_to_end(key)
+        session.from_client(data)
+
+    def _tcp_connected(self, client: _TcpClient) -> _Session | None:
+        assert client.transport is not None
+        peer = client.transport.get_extra_info("peername")[:2]
+        if len(self._sessions) >= self.max_clients and self.to.scheme != "serial":
+            log.warning("proxy: at most %d clients; refusing %s", self.max_clients, _ep_text(peer))
+            client.transport.close()
+            return None
+        session = _Session(self, f"tcp {_ep_text(peer)}", (str(peer[0]), int(peer[1])), client.send, client.close)
+        self._add(peer, session)
+        return session
+
+    def _serial_send(self, data: bytes) -> None:
+        if self._serial is not None and self._serial.connected:
+            self._serial.send(data)
+
+    def _serial_lost(self, exc: Exception | None) -> None:
+        log.warning("proxy: serial port %s closed%s", self.listen.path, f": {exc}" if exc else "")
+
+    def _sweep(self) -> None:
+        now = time.monotonic()
+        for key, s in list(self._sessions.items()):
+            if now - s.last_active > self.idle_timeout_s:
+                log.info("proxy: %s idle for %.0f s; forgotten", s.label, now - s.last_active)
+                del self._sessions[key]
+                asyncio.get_running_loop().create_task(s.close())
+        self._sweeper = asyncio.get_running_loop().call_later(min(self.idle_timeout_s, 5.0), self._sweep)
+
+    # -- the data path ------------------------------------------------------------------------------
+    #
+    # A chunk is forwarded in the callback that received it. Decoding, recording and publishing
+    # wait in `_backlog` and run DEFER_S later, in slices that end after PROCESS_SLICE_S or as soon
+    # as a UDP socket of the proxy has a datagram waiting: a reply is forwarded first, watching
+    # delays the link by at most one chunk's decoding, and a burst is worked off between datagrams.
+
+    def _relay(self, session: _Session, direction: str, data: bytes, send: Callable[[bytes], None]) -> None:
+        """Forward `data` now; decode, record and publish it soon."""
+        d = session.dirs[direction]
+        t = time.time()
+        if not (d.to_datagram and not d.from_datagram):
+            send(data)
+            self._queue((t, session, direction, data, None))
+            return
+        # stream -> datagram: send what the parser has consumed (whole frames), hold the rest
+        items = d.parser.feed(data)
+        held = d.held + data
+        ready = len(held) - d.parser.buffered
+        if ready > 0:
+            send(held[:ready])
+        d.held = held[ready:]
+        if d.flush_timer is not None:
+            d.flush_timer.cancel()
+            d.flush_timer = None
+        if d.held:
+            d.flush_timer = asyncio.get_running_loop().call_later(
+                STREAM_FLUSH_S, self._flush_held, session, direction, send
+            )
+        self._queue((t, session, direction, held[:ready] if ready > 0 else b"", items))
+
+    def _flush_held(self, session: _Session, direction: str, send: Callable[[bytes], None]) -> None:
+        d = session.dirs[direction]
+        d.flush_timer = None
+        if d.held and not session.closed:
+            send(d.held)
+            self._queue((time.time(), session, direction, d.held, d.parser.flush()))
+            d.held = b""
+
+    def _queue(self, work: _Work) -> None:
+        size = len(work[3]) + 64  # an empty chunk (a session's end, a flush) still costs an entry
+        if self._backlog_bytes + size > MAX_BACKLOG:
+            self.stats.backlog_dropped += 1
+            if self.stats.backlog_dropped == 1:
+                log.error("proxy: %d bytes wait to be decoded; skipping chunks (still forwarded)", MAX_BACKLOG)
+            return
+        self._backlog_bytes += size
+        self._backlog.append(work)
+        if self._drain_handle is None:
+            self._drain_handle = asyncio.get_running_loop().call_later(DEFER_S, self._drain)
+
+    def _drain(self) -> None:
+        self._drain_handle = None
+        end = time.perf_counter() + PROCESS_SLICE_S
+        while self._backlog:
+            self._process(*self._take())
+            if time.perf_counter() > end or self._bytes_waiting():
+                break
+        if self._backlog:
+            self._drain_handle = asyncio.get_running_loop().call_soon(self._drain)  # type: ignore[assignment]
+
+    def _bytes_waiting(self) -> bool:
+        """Whether a UDP socket of the proxy has a datagram to forward (then decoding yields)."""
+        try:
+            return bool(self._poll.poll(0))
+        except OSError:  # pragma: no cover - a socket closed under us: let the loop sort it out
+            return True
+
+    def _watch(self, sock: UdpSocket, on: bool = True) -> None:
+        with contextlib.suppress(KeyError, ValueError, OSError):
+            if on:
+                self._poll.register(sock.sock.fileno(), select.POLLIN)
+            else:
+                self._poll.unregister(sock.sock.fileno())
+
+    def drain(self) -> None:
+        """Process everything that waits now (stop() does; tests and tools may too)."""
+        if self._drain_handle is not None:
+            self._drain_handle.cancel()
+            self._drain_handle = None
+        while self._backlog:
+            self._process(*self._take())
+
+    def _take(self) -> _Work:
+        work = self._backlog.popleft()
+        self._backlog_bytes -= len(work[3]) + 64
+        return work
+
+    def _process(
+        self, t: float, session: _Session, direction: str, data: bytes, items: list[Frame | Diagnostic] | None
+    ) -> None:
+        if direction == CLOSED:
+            if self._pcap is not None:
+                self._pcap.close_tcp(session.endpoint, self._device_ep, t)
+            return
+        if items is None:
+            d = session.dirs[direction]
+            items = d.parser.feed_datagram(data) if d.from_datagram else d.parser.feed(data)
+        if data:
+            self._record(t, session, direction, data)
+        self._publish(t, session, direction, items)
+
+    def _closed(self, session: _Session) -> None:
+        """A session ended: its TCP connection in the pcap ends too, after what it sent."""
+        if self._transport_kind == "tcp":
+            self._queue((time.time(), session, CLOSED, b"", []))
+
+    def _record(self, t: float, session: _Session, direction: str, data: bytes) -> None:
+        if direction == OUT:
+            self.stats.bytes_out += len(data)
+        else:
+            self.stats.bytes_in += len(data)
+        if self._pcap is None:
+            return
+        a, b = (session.endpoint, self._device_ep) if direction == OUT else (self._device_ep, session.endpoint)
+        try:
+            if self._transport_kind == "tcp":
+                self._pcap.tcp(a, b, data, t, client=session.endpoint)
+            else:
+                self._pcap.udp(a, b, data, t)
+        except (OSError, ValueError) as exc:
+            log.error("proxy: pcap %s: %s; no longer written", self.pcap_path, exc)
+            self._pcap = None
+
+    def _publish(self, t: float, session: _Session, direction: str, items: list[Frame | Diagnostic]) -> None:
+        for item in items:
+            dialect: Dialect | None = None
+            message: Message | None = None
+            if isinstance(item, Frame):
+                dialect, message = decode_frame(item, self.dialect)
+                if direction == OUT:
+                    self.stats.frames_out += 1
+                else:
+                    self.stats.frames_in += 1
+                if self._log is not None:
+                    self._log.record(direction, item, message)
+            event = ProxyEvent(t, direction, session.label, item, dialect, message)
+            for callback in list(self._subscribers):
+                try:
+                    callback(event)
+                except Exception:
+                    self.stats.subscriber_errors += 1
+                    log.exception("proxy: subscriber %r failed", callback)
+
+
+def _ep_text(addr: tuple[Any, ...]) -> str:
+    host, port = str(addr[0]), addr[1]
+    return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"

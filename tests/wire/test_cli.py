@@ -1,0 +1,180 @@
+"""The command line: `decode --pcap`, `dissector`, `pcap from-log`; and the committed dissector
+is what the catalog generates now."""
+
+from __future__ import annotations
+
+import json
+import re
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from topgimbal.cli.main import main
+from topgimbal.cli.protocol_cmds import RECORD_KEYS
+from topgimbal.wire import CaptureWriter, generate_dissector
+
+from .tshark import top_layers, values
+
+HOST, SKY, SIP = ("127.0.0.1", 40000), ("127.0.0.1", 5000), ("127.0.0.1", 9003)
+PTZ = b"#TPUG2wPTZ006A"
+GAC = b"#tpGUCrGACFF36ED5A0048E3"
+CONTRIB = Path(__file__).resolve().parents[2] / "contrib" / "wireshark" / "topgimbal.lua"
+
+
+def test_committed_dissector_is_current():
+    assert CONTRIB.read_text(encoding="utf-8") == generate_dissector(), (
+        "contrib/wireshark/topgimbal.lua is stale: run `make docs` (topgimbal dissector -o ...)"
+    )
+    assert main(["dissector", "--check", str(CONTRIB)]) == 0
+
+
+def test_dissector_command_writes_and_checks(tmp_path, capsys):
+    out = tmp_path / "top.lua"
+    assert main(["dissector", "-o", str(out)]) == 0
+    assert out.read_text(encoding="utf-8") == generate_dissector()
+    out.write_text(out.read_text(encoding="utf-8") + "-- edited\n", encoding="utf-8")
+    assert main(["dissector", "--check", str(out)]) == 1
+    assert "stale" in capsys.readouterr().err
+
+
+def _session(path: Path) -> None:
+    with CaptureWriter(path) as w:
+        w.udp(HOST, SKY, PTZ, ts=100.0)
+        w.udp(SKY, HOST, PTZ.replace(b"UG", b"GU")[:-2] + b"6A", ts=100.5)
+        w.udp(SKY, HOST, GAC + b"\r\n" + GAC[:-1] + b"0", ts=101.0)  # one good, one bad checksum
+        w.udp(("127.0.0.1", 9004), SIP, b"#TPPG2rGAC002D", ts=99.0)  # earlier in time
+        w.tcp(HOST, ("127.0.0.1", 5000), PTZ[:6], ts=102.0)
+        w.tcp(HOST, ("127.0.0.1", 5000), PTZ[6:], ts=102.1)
+
+
+@pytest.mark.parametrize("name", ["s.pcap", "s.pcapng"])
+def test_decode_pcap_json_in_time_order(tmp_path, capsys, name):
+    path = tmp_path / name
+    _session(path)
+    rc = main(["decode", "--pcap", str(path), "--json"])
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert rc == 1  # one frame has a bad checksum
+    assert all(set(RECORD_KEYS) <= set(r) for r in lines)
+    assert [r["time"] for r in lines] == sorted(r["time"] for r in lines)
+    assert [(r["id"], r["ok"], r["dir"], r["dialect"]) for r in lines] == [
+        ("GAC", True, "out", "topotek"),  # port 9003 and 9004: TOPOTEK
+        ("PTZ", True, "out", "skydroid"),
+        ("PTZ", True, "in", "skydroid"),
+        ("GAC", True, "in", "skydroid"),
+        ("GAC", False, "in", "skydroid"),
+        ("PTZ", True, "out", "skydroid"),
+    ]
+    assert lines[3]["fields"] == {"yaw_deg": -2.02, "pitch_deg": -47.74, "roll_deg": 0.72}
+    assert lines[4]["error"].startswith("bad checksum")
+    assert lines[5]["transport"] == "tcp" and lines[5]["packet"] == 9  # completed by the 2nd segment
+    assert lines[1]["src_addr"] == "127.0.0.1:40000" and lines[1]["dst_addr"] == "127.0.0.1:5000"
+
+
+def test_decode_pcap_human_and_filters(tmp_path, capsys):
+    path = tmp_path / "s.pcap"
+    _session(path)
+    main(["decode", "--pcap", str(path), "--port", "9003"])
+    out = capsys.readouterr().out
+    assert out.count("ok") == 1 and "topotek GAC attitude" in out and "PTZ" not in out
+    main(["decode", "--pcap", str(path), "--address", "127.0.0.2"])
+    assert capsys.readouterr().out == ""
+    main(["decode", "--pcap", str(path), "--dialect", "topotek", "--json", "--port", "5000"])
+    assert {json.loads(x)["dialect"] for x in capsys.readouterr().out.splitlines()} == {"topotek"}
+
+
+def test_decode_pcap_on_damaged_and_wrong_files(tmp_path, capsys):
+    path = tmp_path / "cut.pcap"
+    _session(path)
+    path.write_bytes(path.read_bytes()[:-215])  # the FIN exchange (3 x 70 bytes) and into the last segment
+    rc = main(["decode", "--pcap", str(path), "--json"])
+    out, err = capsys.readouterr()
+    assert rc == 1 and "truncated" in err
+    got = [json.loads(x) for x in out.splitlines()]
+    assert [r["id"] for r in got] == ["GAC", "PTZ", "PTZ", "GAC", "GAC", None]
+    assert got[-1]["frame"] == "#TPUG2" and "incomplete frame at end of stream" in got[-1]["error"]
+    text = tmp_path / "notes.txt"
+    text.write_text("not a capture")
+    assert main(["decode", "--pcap", str(text)]) == 1
+    assert "not a pcap or pcapng file" in capsys.readouterr().err
+
+
+def test_log_to_pcap(tmp_path, capsys, dissector):
+    log = tmp_path / "session.jsonl"
+    header = {"topgimbal_log": 1, "url": "udp://127.0.0.1:41234", "model": "SIP", "dialect": "topotek", "t": 1.0}
+    out_frame = {"t": 10.0, "mono": 1.0, "dir": "out", "raw": "#TPPG2rGAC002D", "decoded": None}
+    in_frame = {"t": 10.1, "mono": 1.1, "dir": "in", "raw": "#tpGPCrGACFF36ED5A0048DE", "decoded": None}
+    lines = [json.dumps(x) for x in (header, out_frame, in_frame)] + ["{broken", json.dumps({"dir": "sideways"})]
+    log.write_text("\n".join(lines) + "\n")
+    pcap = tmp_path / "session.pcap"
+    assert main(["pcap", "from-log", str(log), "-o", str(pcap)]) == 1  # two bad lines reported
+    err = capsys.readouterr().err
+    assert "line 4: not JSON" in err and "line 5" in err and "2 frames" in err
+    packets = top_layers(dissector, pcap)
+    assert [values(p[0], "top.id") for p in packets] == [["GAC"], ["GAC"]]
+    # the client port 9004 tells Wireshark the dialect although the device port is not documented
+    assert [values(p[0], "top.dialect") for p in packets] == [["topotek"], ["topotek"]]
+    assert values(packets[1][0], "top.field.pitch_deg") == ["-47.74"]
+
+
+def test_log_over_tcp_to_pcap(tmp_path, capsys):
+    log = tmp_path / "tcp.jsonl"
+    header = {"topgimbal_log": 1, "url": "tcp://[::1]:5000", "model": "C20", "dialect": "skydroid"}
+    frames = [
+        {"t": 5.0 + i, "dir": d, "raw": raw} for i, (d, raw) in enumerate([("out", PTZ.decode()), ("in", GAC.decode())])
+    ]
+    log.write_text("\n".join(json.dumps(x) for x in (header, *frames)) + "\n")
+    pcap = tmp_path / "tcp.pcapng"
+    assert main(["pcap", "from-log", str(log), "-o", str(pcap)]) == 0
+    assert "TCP [::1]:40000 <-> [::1]:5000" in capsys.readouterr().err
+    assert main(["decode", "--pcap", str(pcap), "--json"]) == 0
+    got = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert [(r["id"], r["dir"], r["transport"]) for r in got] == [("PTZ", "out", "tcp"), ("GAC", "in", "tcp")]
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("as_json", [True, False])
+def test_proxy_command_prints_each_frame(tmp_path, as_json):
+    """`topgimbal proxy` in its own process between a socket client and a socket 'camera'."""
+    camera = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    camera.bind(("127.0.0.1", 0))
+    camera.settimeout(10)
+    argv = [sys.executable, "-m", "topgimbal.cli.main", "proxy", "--listen", "udp://127.0.0.1:0"]
+    argv += ["--to", f"udp://127.0.0.1:{camera.getsockname()[1]}", "--log", str(tmp_path / "p.jsonl")]
+    argv += ["--json"] if as_json else []
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    client.settimeout(10)
+    try:
+        assert proc.stderr is not None
+        started = proc.stderr.readline()
+        port = int(re.search(r"udp://127\.0\.0\.1:(\d+) ->", started).group(1))  # type: ignore[union-attr]
+        client.sendto(PTZ, ("127.0.0.1", port))
+        data, proxy_side = camera.recvfrom(100)
+        assert data == PTZ
+        camera.sendto(GAC + b"junk", proxy_side)
+        assert client.recv(100) == GAC + b"junk"
+    finally:
+        client.close()
+        camera.close()
+        proc.terminate()
+        out, err = proc.communicate(timeout=10)
+    lines = out.splitlines()
+    assert len(lines) == 3, out
+    if as_json:
+        recs = [json.loads(x) for x in lines]
+        assert set(RECORD_KEYS) <= set(recs[0]) and {"time", "dir", "client"} <= set(recs[0])
+        assert [(r["id"], r["dir"], r["ok"]) for r in recs] == [
+            ("PTZ", "out", True),
+            ("GAC", "in", True),
+            (None, "in", False),
+        ]
+        assert recs[1]["fields"]["pitch_deg"] == -47.74
+    else:
+        assert " -> udp 127.0.0.1:" in lines[0] and "PTZ gimbal_control action=stop" in lines[0]
+        assert " <- " in lines[1] and "GAC attitude yaw_deg=-2.02 pitch_deg=-47.74 roll_deg=0.72" in lines[1]
+        assert "! garbage" in lines[2] and "junk" in lines[2]
+    assert '"frames_out": 1, "frames_in": 1' in err
+    assert len((tmp_path / "p.jsonl").read_text().splitlines()) == 3  # header + 2 frames

@@ -1,0 +1,310 @@
+"""The proxy between the SDK (or raw sockets) and the simulator, on loopback: it forwards every
+byte unchanged both ways over UDP, TCP and serial, publishes each frame to subscribers, writes a
+pcap that tshark decodes like the Python decoder and the client's JSONL traffic log, and keeps its
+limits."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import os
+import socket
+import tty
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import topgimbal
+from topgimbal.client.traffic import read_log
+from topgimbal.protocol import Frame, FrameParser, get_dialect
+from topgimbal.sim import Simulator
+from topgimbal.wire import CaptureRecord, read_capture
+from topgimbal.wire.capture import WireFrame, frames_in_capture
+from topgimbal.wire.ports import decode_frame
+from topgimbal.wire.proxy import Proxy, ProxyEvent
+
+from .tshark import top_layers, values
+
+pytestmark = pytest.mark.integration
+
+PTZ = b"#TPUG2wPTZ006A"
+
+
+async def _sim(model: str, **listen: Any) -> Simulator:
+    sim = Simulator(model, seed=7)
+    await sim.start(**listen)
+    return sim
+
+
+def _url(sim: Simulator, kind: str) -> str:
+    return dict(sim.endpoints)[kind]
+
+
+async def test_sdk_through_a_udp_proxy(tmp_path, dissector):
+    sim = await _sim("SIP", udp=[("127.0.0.1", 0)])
+    pcap, log = tmp_path / "sip.pcap", tmp_path / "sip.jsonl"
+    proxy = Proxy("udp://127.0.0.1:0", _url(sim, "udp"), model="SIP", pcap=pcap, log_path=log)
+    events: list[ProxyEvent] = []
+    proxy.subscribe(events.append)
+    try:
+        await proxy.start()
+        async with topgimbal.connect(proxy.url, model="SIP", timeout_s=2.0) as cam:
+            assert await cam.version()
+            await cam.set_angles(yaw_deg=20, pitch_deg=-30)
+            await cam.photo()
+            att = await cam.get_attitude()
+            assert att is not None
+    finally:
+        await proxy.stop()
+        await sim.stop()
+    frames = [e for e in events if isinstance(e.item, Frame)]
+    assert {e.direction for e in frames} == {"out", "in"}
+    assert all(e.dialect is not None and e.dialect.name == "topotek" for e in frames)
+    assert proxy.stats.frames_out + proxy.stats.frames_in == len(frames)
+    assert any(e.message and e.message.spec and e.message.spec.ident == "CAP" for e in frames)
+
+    # the traffic log: the client SDK's own reader reads every frame, in order
+    header = json.loads(log.read_text().splitlines()[0])
+    assert header["topgimbal_log"] == 1 and header["dialect"] == "topotek" and header["model"] == "SIP"
+    logged = list(read_log(log))
+    assert [(r.direction, r.frame) for r in logged] == [(e.direction, e.item) for e in frames]
+
+    # the pcap: our reader, and tshark with the dissector, see exactly those frames
+    in_pcap = [x for x in frames_in_capture(pcap) if isinstance(x, WireFrame)]
+    assert [x.item for x in in_pcap] == [e.item for e in frames]
+    packets = top_layers(dissector, pcap, "-o", "top.dialect:topotek")
+    shown = [f for p in packets for f in p]
+    assert len(shown) == len(frames)
+    for node, e in zip(shown, frames, strict=True):
+        msg = get_dialect("topotek").decode(e.item)  # type: ignore[arg-type]
+        assert values(node, "top.id") == [msg.frame.ident]
+        for name, value in (msg.to_dict()["fields"] or {}).items():
+            got = values(node, f"top.field.{name}")
+            if isinstance(value, (int, float)):
+                assert got and float(got[0]) == pytest.approx(value), (name, got, value)
+            elif value is not None:
+                assert got == [value], (name, got, value)
+
+
+async def test_sdk_through_a_tcp_proxy(tmp_path, dissector):
+    sim = await _sim("C20", tcp=[("127.0.0.1", 0)])
+    pcap = tmp_path / "c20.pcapng"
+    proxy = Proxy("tcp://127.0.0.1:0", _url(sim, "tcp"), pcap=pcap)
+    try:
+        await proxy.start()
+        async with topgimbal.connect(proxy.url, model="C20", timeout_s=2.0) as cam:
+            await cam.set_angles(yaw_deg=10, pitch_deg=-5)
+            assert await cam.get_attitude() is not None
+    finally:
+        await proxy.stop()
+        await sim.stop()
+    assert proxy.stats.frames_out >= 2 and proxy.stats.frames_in >= 2
+    ids = [values(f, "top.id")[0] for p in top_layers(dissector, pcap) for f in p]
+    assert "GAM" in ids or "GAY" in ids
+    assert "GAC" in ids and len(ids) == proxy.stats.frames_out + proxy.stats.frames_in
+
+
+async def test_bytes_pass_unchanged_with_garbage_and_several_frames(tmp_path):
+    """A raw UDP 'device' that echoes: what arrives on each side is exactly what was sent."""
+    loop = asyncio.get_running_loop()
+    got_device: list[bytes] = []
+
+    class Echo(asyncio.DatagramProtocol):
+        def connection_made(self, transport: Any) -> None:
+            self.t = transport
+
+        def datagram_received(self, data: bytes, addr: Any) -> None:
+            got_device.append(data)
+            self.t.sendto(data[::-1], addr)
+
+    dev, _ = await loop.create_datagram_endpoint(Echo, local_addr=("127.0.0.1", 0))
+    port = dev.get_extra_info("sockname")[1]
+    events: list[ProxyEvent] = []
+    proxy = Proxy("udp://127.0.0.1:0", f"udp://127.0.0.1:{port}")
+    proxy.subscribe(events.append)
+    await proxy.start()
+    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    client.setblocking(False)
+    payloads = [PTZ + b"\r\n" + PTZ, b"garbage\xff\x00", b"#tpGPCrGACFF36ED5A0048de\r\n"]  # lower-case checksum
+    try:
+        for p in payloads:
+            await loop.sock_sendto(client, p, ("127.0.0.1", proxy.listen_address[1]))  # type: ignore[index]
+            reply = await asyncio.wait_for(loop.sock_recv(client, 1024), 2)
+            assert reply == p[::-1]
+    finally:
+        client.close()
+        await proxy.stop()
+        dev.close()
+    assert got_device == payloads
+    kinds = [(e.direction, e.item.ident if isinstance(e.item, Frame) else e.item.kind) for e in events]
+    assert kinds[:3] == [("out", "PTZ"), ("out", "PTZ"), ("in", "garbage")]  # a reversed frame is garbage
+    assert ("out", "garbage") in kinds and ("out", "GAC") in kinds
+
+
+async def test_stream_client_to_datagram_device_sends_whole_frames():
+    """TCP client, UDP camera: bytes trickling in one at a time reach the camera as whole frames."""
+    sim = await _sim("C12", udp=[("127.0.0.1", 0)])
+    proxy = Proxy("tcp://127.0.0.1:0", _url(sim, "udp"))
+    await proxy.start()
+    try:
+        reader, writer = await asyncio.open_connection(*proxy.listen_address)  # type: ignore[misc]
+        query = get_dialect("skydroid").encode("GAC", read=True).to_bytes()
+        for b in query:
+            writer.write(bytes([b]))
+            await writer.drain()
+            await asyncio.sleep(0.002)
+        parser = FrameParser()
+        answer: list[Any] = []
+        while not answer:
+            answer = [f for f in parser.feed(await asyncio.wait_for(reader.read(100), 2)) if isinstance(f, Frame)]
+        assert answer[0].ident == "GAC" and len(answer[0].data) == 12
+        assert [f.ident for f in sim.received][-1:] == ["GAC"]
+        writer.close()
+    finally:
+        await proxy.stop()
+        await sim.stop()
+
+
+async def test_udp_client_to_serial_camera():
+    """Apps on UDP, the camera on its UART (the simulator's pty)."""
+    sim = await _sim("SIP", serial=["pty"])
+    proxy = Proxy("udp://127.0.0.1:0", _url(sim, "serial"), model="SIP")
+    await proxy.start()
+    try:
+        async with topgimbal.connect(proxy.url, model="SIP", timeout_s=2.0) as cam:
+            await cam.set_angles(yaw_deg=5, pitch_deg=5)
+            assert await cam.version()
+    finally:
+        await proxy.stop()
+        await sim.stop()
+    assert proxy.stats.frames_in >= 2
+
+
+async def test_serial_ground_station_to_udp_camera(tmp_path):
+    """A ground station on a serial line (here a pty the test holds) and the camera on UDP."""
+    sim = await _sim("C12", udp=[("127.0.0.1", 0)])
+    master, slave = os.openpty()
+    tty.setraw(master)
+    tty.setraw(slave)
+    path = os.ttyname(slave)
+    pcap = tmp_path / "serial.pcap"
+    proxy = Proxy(f"serial://{path}?baud=115200", _url(sim, "udp"), pcap=pcap)
+    await proxy.start()
+    loop = asyncio.get_running_loop()
+    try:
+        query = get_dialect("skydroid").encode("GAC", read=True).to_bytes()
+        os.write(master, query[:5])
+        await asyncio.sleep(0.01)
+        os.write(master, query[5:])
+        parser = FrameParser()
+        answer: list[Any] = []
+        while not answer:
+            chunk = await asyncio.wait_for(loop.run_in_executor(None, os.read, master, 100), 2)
+            answer = [f for f in parser.feed(chunk) if isinstance(f, Frame)]
+        assert answer[0].ident == "GAC"
+    finally:
+        await proxy.stop()
+        await sim.stop()
+        os.close(master)
+        os.close(slave)
+    got = [x for x in frames_in_capture(pcap) if isinstance(x, WireFrame)]
+    assert [x.item.ident for x in got] == ["GAC", "GAC"]  # type: ignore[union-attr]
+    assert got[0].dst == ("127.0.0.1", int(_url(sim, "udp").rsplit(":", 1)[1]))
+
+
+async def test_client_limits_and_subscriber_isolation(caplog):
+    sim = await _sim("C12", udp=[("127.0.0.1", 0)], tcp=[("127.0.0.1", 0)])
+    seen: list[ProxyEvent] = []
+
+    def broken(event: ProxyEvent) -> None:
+        raise RuntimeError("a subscriber bug")
+
+    udp = Proxy("udp://127.0.0.1:0", _url(sim, "udp"), max_clients=1)
+    udp.subscribe(broken)
+    unsubscribe = udp.subscribe(seen.append)
+    await udp.start()
+    try:
+        async with topgimbal.connect(udp.url, model="C12", timeout_s=2.0) as first:
+            await first.version()
+            async with topgimbal.connect(udp.url, model="C12", timeout_s=2.0) as second:
+                await second.version()  # replaces the first client
+            udp.drain()
+            assert udp.stats.clients_dropped == 1
+        assert udp.stats.subscriber_errors >= 4 and len(seen) >= 4
+        unsubscribe()
+        n = len(seen)
+        async with topgimbal.connect(udp.url, model="C12", timeout_s=2.0) as third:
+            await third.version()
+        udp.drain()
+        assert len(seen) == n
+    finally:
+        await udp.stop()
+    assert "at most 1 client" in caplog.text and "subscriber" in caplog.text
+
+    tcp = Proxy("tcp://127.0.0.1:0", _url(sim, "tcp"), max_clients=1)
+    await tcp.start()
+    try:
+        r1, w1 = await asyncio.open_connection(*tcp.listen_address)  # type: ignore[misc]
+        await asyncio.sleep(0.05)
+        r2, w2 = await asyncio.open_connection(*tcp.listen_address)  # type: ignore[misc]
+        assert await asyncio.wait_for(r2.read(10), 2) == b""  # refused: closed at once
+        w1.write(get_dialect("skydroid").encode("GAC", read=True).to_bytes())
+        assert (await asyncio.wait_for(r1.read(100), 2)).startswith(b"#TPGUCrGAC")
+        w1.close()
+        w2.close()
+    finally:
+        await tcp.stop()
+        await sim.stop()
+
+
+def test_proxy_pcap_is_readable_while_it_is_written(tmp_path):
+    """Every packet is flushed as written (a reader sees a whole file at any moment)."""
+    from topgimbal.wire import CaptureWriter
+
+    path = tmp_path / "live.pcap"
+    w = CaptureWriter(path)
+    w.udp(("127.0.0.1", 1), ("127.0.0.1", 5000), PTZ)
+    assert [type(r) for r in read_capture(path)] == [CaptureRecord]
+    w.close()
+    assert Path(path).stat().st_size > 24
+
+
+def test_decode_frame_prefers_the_given_dialect():
+    frame = get_dialect("topotek").encode("GAC", read=True)
+    assert decode_frame(frame, "topotek")[0].name == "topotek"
+    assert decode_frame(frame, None)[0].name == "skydroid"  # the frame alone says nothing
+
+
+async def test_a_tcp_client_that_stops_reading_is_closed(caplog):
+    """The camera floods; the client never reads: the proxy drops the client instead of buffering."""
+    chunk = b"#TPGUCrGAC00000000000023" * 40_000  # ~1 MB
+
+    async def device(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        with contextlib.suppress(ConnectionError):
+            for _ in range(64):  # until the proxy closes this link, at most 64 MB
+                writer.write(chunk)
+                await writer.drain()
+        writer.close()
+
+    server = await asyncio.start_server(device, "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    proxy = Proxy("tcp://127.0.0.1:0", f"tcp://127.0.0.1:{port}")
+    await proxy.start()
+    client = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    client.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # and it never reads
+    try:
+        client.setblocking(False)
+        await asyncio.get_running_loop().sock_connect(client, proxy.listen_address)  # type: ignore[arg-type]
+        await asyncio.get_running_loop().sock_sendall(client, b"#TPUG2rGAC0032")
+        for _ in range(400):
+            if "unread bytes" in caplog.text:
+                break
+            await asyncio.sleep(0.05)
+        assert "unread bytes" in caplog.text
+        assert proxy.stats.clients == 1
+    finally:
+        client.close()
+        await proxy.stop()
+        server.close()
