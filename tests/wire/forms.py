@@ -7,9 +7,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from protocol.samples import samples
 from topgimbal.errors import TopGimbalError
 from topgimbal.protocol import DIALECT_NAMES, REQUEST, Form, Frame, get_dialect, make_frame
+from topgimbal.protocol.examples import example_values as samples
 from topgimbal.wire.ports import documented_ports
 
 HOST = ("127.0.0.1", 40000)
