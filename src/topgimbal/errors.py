@@ -9,6 +9,7 @@ TopGimbalError
 │   ├── UnsupportedError      the device model does not support the command
 │   └── FieldValueError       a value is out of range / of the wrong kind (also ValueError)
 ├── TransportError        the byte pipe failed or is closed
+│   └── LinkLostError     the device went silent (UDP) or the link closed; resumes by itself
 ├── DeviceError           the device answered with the error frame (ERE)
 └── RequestTimeoutError   no matching reply in time (also builtin TimeoutError)
 """
@@ -60,6 +61,11 @@ class FieldValueError(CatalogError, ValueError):
 
 class TransportError(TopGimbalError, ConnectionError):
     pass
+
+
+class LinkLostError(TransportError):
+    """Nothing came from the device for the link timeout (UDP), or the link closed (TCP, serial).
+    Pending requests and streams end with it; the client resumes when frames come back."""
 
 
 class DeviceError(TopGimbalError):
