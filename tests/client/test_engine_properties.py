@@ -64,7 +64,11 @@ def _run_many(
 ) -> tuple[int, int, World]:
     world = World(faults, 1234, late_window_s=LATE_WINDOW_S, timeout_s=timeout_s, retries=retries)
     if kind == "write+read":
-        script = [Op(k, 0, ADDRESSES[i % len(ADDRESSES)] if k == "write" else None) for i in range(n // 2) for k in ("write", "read")]
+        script = [
+            Op(k, 0, ADDRESSES[i % len(ADDRESSES)] if k == "write" else None)
+            for i in range(n // 2)
+            for k in ("write", "read")
+        ]
     else:
         script = [Op(kind, 0) for _ in range(n)]
     world.start([script])

@@ -16,8 +16,8 @@ Everything else the engine decides from timing. The reasoning is in docs/client.
 - A non-idempotent write (photo, toggle, relative step) is sent once, after the key has been
   quiet: no earlier attempt open, no frame for `dup_window_s` (network copies of an earlier
   acknowledgement). Its acknowledgement is then its own.
-- A frame arriving sooner after a read's first send than half the fastest round trip seen cannot
-  answer it (a network copy of the previous answer).
+- A frame arriving sooner after a read's first send than half the fastest round trip seen (at most
+  COPY_FLOOR_CAP_S) cannot answer it: it is a network copy of the previous answer.
 - ERE names no command: it fails a request only when that request is the only one to that address
   that it could answer; otherwise the request's error mentions it.
 - Frames the parser recovered with a wrong length character are answers only for the identifiers
@@ -42,6 +42,10 @@ RKey = tuple[str, str, str]  # (identifier, device address, control): where its 
 Clock = Callable[[], float]
 EchoRule = Callable[[Frame, "Mapping[str, Any] | None", Message], bool]
 
+# A copy of an answer comes right behind the original: one arriving within this long after a query
+# went out (and sooner than half the fastest round trip seen) cannot be that query's answer. Capped
+# so that a slow first round trip cannot make later fast answers look like copies.
+COPY_FLOOR_CAP_S = 0.0002
 MAX_WAITING = 256  # requests queued behind one key (a runaway caller gets an error, not a leak)
 MAX_LEDGER = 1024  # attempts remembered per key (only an absurd send rate reaches it)
 
@@ -241,33 +245,31 @@ class Engine:
             return Inbound("ignored")
         last = self._last_frame.get(rkey)
         self._last_frame[rkey] = (now, frame.data)
+        # Right behind an identical frame: perhaps a network copy, so it proves no other attempt answered.
+        maybe_copy = last is not None and last[1] == frame.data and now - last[0] <= self.dup_window_s
         ledger = self._ledger.get(rkey)
         live = self.live.get((frame.ident, frame.src))
         if live is not None and (live.state != "sent" or live.rkey != rkey):
             live = None
         if not ledger:
-            return self._unowned(message, live, now)
+            return self._unowned(message, live, now, known=False)
         window = now - self.late_window_s
         if frame.rw == "r":
             if roles.is_report(message):
                 return Inbound("unsolicited")  # a stream frame on a query's key
-            fits = [a for a in ledger if not a.closed and a.sent_at >= window]
+            recent = [a for a in ledger if a.sent_at >= window]
         else:
-            fits = [
-                a
-                for a in ledger
-                if not a.closed and a.sent_at >= window and self.echo_matches(a.tx.frame, a.tx.fields, message)
-            ]
+            recent = [a for a in ledger if a.sent_at >= window and self.echo_matches(a.tx.frame, a.tx.fields, message)]
+        fits = [a for a in recent if not a.closed]
         own = [a for a in fits if a.tx is live]
         foreign = [a for a in fits if a.tx is not live]
         if live is not None and own and frame.rw == "r" and live.first_sent_at is not None:
-            floor = 0.0005 * (self.stats.rtt_ms_min or 0.0)
-            if now < live.first_sent_at + floor:
-                # Sooner than any answer to it can come: a copy of the previous answer.
-                if last is not None and last[1] == frame.data and now - last[0] <= self.dup_window_s:
-                    self.stats.duplicates += 1
-                    return Inbound("duplicate")
-                own = []
+            rtt_min = self.stats.rtt_ms_min
+            floor = COPY_FLOOR_CAP_S if rtt_min is None else min(0.0005 * rtt_min, COPY_FLOOR_CAP_S)
+            if maybe_copy and now < live.first_sent_at + floor:
+                # An identical frame sooner than any answer can come: a copy of the previous one.
+                self.stats.duplicates += 1
+                return Inbound("duplicate")
         if live is not None and own and (not foreign or frame.rw == "w"):
             # Reads never have foreign attempts here (deferred until there are none); a write's
             # echo with the data sent proves the data were applied, whichever attempt it answers.
@@ -277,17 +279,23 @@ class Engine:
                 self.stats.ambiguous += 1
                 live.notes.append(f"{frame.text()} could answer this request or an earlier one: not taken")
                 return Inbound("ambiguous")
-            self._close_if_single_owner(foreign)
+            if not maybe_copy:
+                self._close_if_single_owner(foreign)
             self.stats.late_replies += 1
             return Inbound("late")
-        return self._unowned(message, live, now)
+        # Fits an attempt that was answered already: another copy of that answer.
+        return self._unowned(message, live, now, known=bool(recent))
 
     # -- internals ----------------------------------------------------------------------------------
 
-    def _unowned(self, message: Message, live: Transaction | None, now: float) -> Inbound:
-        """A frame that fits no open attempt: a report, a mismatched echo, or a stray answer."""
+    def _unowned(self, message: Message, live: Transaction | None, now: float, *, known: bool) -> Inbound:
+        """A frame that fits no open attempt: a report, a copy of an answer already taken, a
+        mismatched echo, or a stray answer."""
         if roles.is_report(message):
             return Inbound("unsolicited")
+        if known:
+            self.stats.duplicates += 1
+            return Inbound("late")
         if live is not None and message.frame.rw == "w":
             # An echo with other data than any attempt sent: the device did something else.
             self.stats.errors += 1
@@ -335,7 +343,9 @@ class Engine:
         if len(owners) == 1 and len(live) == 1 and not copy:
             tx = live[0]
             tx.attempts[0].closed = True
-            err = DeviceError(f"the device refused {tx.frame.ident} ({tx.frame.text()}): it answered {message.frame.text()}")
+            err = DeviceError(
+                f"the device refused {tx.frame.ident} ({tx.frame.text()}): it answered {message.frame.text()}"
+            )
             self._finish(tx, now, error=err)
             return Inbound("error", tx)
         for tx in live:
@@ -384,7 +394,7 @@ class Engine:
         if ledger is None:
             ledger = self._ledger[tx.rkey] = deque(maxlen=MAX_LEDGER)
         window = now - self.late_window_s
-        while ledger and (ledger[0].sent_at < window or ledger[0].closed):
+        while ledger and ledger[0].sent_at < window:
             ledger.popleft()
         ledger.append(attempt)
         tx.attempts.append(attempt)

@@ -9,7 +9,7 @@ identifier and field name: no branch on a dialect's name. When the catalog gains
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -32,6 +32,9 @@ ROLES: dict[str, tuple[tuple[str, ...], str]] = {
     "digital_zoom": (("DZM",), ""),
     "altitude": (("ALT",), ""),
 }
+
+# What `detect_model()` assumes when a probe is answered and the dialect has several models.
+DETECTED_MODEL = {"PA2": "SIP", "VER": "C12", "VSN": "SIP"}
 
 # Frames that report the gimbal's attitude (answers and streams look alike).
 ATTITUDE_IDENTS = frozenset({"GAC", "GIC", "GIA"})
@@ -89,7 +92,7 @@ def sd_card_queries(spec: CommandSpec) -> list[dict[str, Any]]:
     return [{}]
 
 
-def sd_card_figures(answers: list[Mapping[str, Any]]) -> tuple[bool, int | None, int | None]:
+def sd_card_figures(answers: Sequence[Mapping[str, Any]]) -> tuple[bool, int | None, int | None]:
     """(present, remaining_mb, total_mb) from the answers to `sd_card_queries`."""
     if len(answers) == 1:
         total, remaining = answers[0].get("total_mb"), answers[0].get("remaining_mb")
