@@ -20,7 +20,7 @@ from topgimbal.protocol import Frame, get_model
 
 DIALECT, MODEL = get_model("C12")
 BASE_DELAY_S = 0.001  # one way; every round trip is at least twice this
-ADDRESSES = ["10.0.0.%d" % i for i in range(1, 9)]
+ADDRESSES = [f"10.0.0.{i}" for i in range(1, 9)]
 REFUSED = "10.0.0.9"  # the device answers ERE to this one
 
 

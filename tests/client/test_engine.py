@@ -115,7 +115,7 @@ def test_a_write_needs_an_echo_carrying_its_data(sky):
 
 
 def test_an_echo_cut_short_is_no_acknowledgement(sky):
-    d, e, clock = sky
+    d, e, _clock = sky
     req = d.encode("IPV", address="192.168.144.108")
     tx = e.submit(req, timeout_s=1.0, retries=0)
     short = req.swapped(data=req.data[:-1])  # decodes fine, other length
@@ -184,7 +184,7 @@ def test_a_slow_first_round_trip_does_not_make_fast_answers_duplicates(sky):
 
 
 def test_ere_fails_the_only_request_that_it_can_answer(sky):
-    d, e, clock = sky
+    d, e, _clock = sky
     p = e.submit(d.encode("SDC", read=True), timeout_s=1.0)
     ere = d.decode(make_frame("ERE", b"!!", src="D", dst="U", header="#TP"))
     r = e.on_message(ere)
