@@ -6,7 +6,12 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from ..errors import FieldValueError
+from ..errors import FieldValueError, UnknownCommandError
+
+
+class CommandNameError(UnknownCommandError, ValueError):
+    """An identifier or catalog name the model's dialect does not have: an UnknownCommandError
+    that is also a ValueError, like every other bad argument."""
 
 
 def is_number(v: Any) -> bool:

@@ -14,7 +14,14 @@ from collections.abc import Callable, Mapping
 from types import TracebackType
 from typing import Any
 
-from ..errors import FieldValueError, LinkLostError, TopGimbalError, TransportError, UnsupportedError
+from ..errors import (
+    FieldValueError,
+    LinkLostError,
+    TopGimbalError,
+    TransportError,
+    UnknownCommandError,
+    UnsupportedError,
+)
 from ..protocol import CommandSpec, DeviceModel, Dialect, Frame, FrameParser, Message, get_model
 from ..protocol.frame import DEVICE_ADDRESSES
 from ..transport import Transport, TransportURL, open_transport, parse_url
@@ -375,7 +382,10 @@ class ClientCore:
     def spec(self, ident: str) -> CommandSpec:
         if not isinstance(ident, str):
             raise FieldValueError("ident", ident, "a command identifier such as 'GAC' or a catalog name")
-        spec = self.dialect.command(ident)
+        try:
+            spec = self.dialect.command(ident)
+        except UnknownCommandError as exc:
+            raise checks.CommandNameError(str(exc)) from None
         if not self.dialect.supports(self.model, spec.ident):
             raise UnsupportedError(f"the {self.model.name} does not support {spec.ident} ({spec.title})")
         return spec

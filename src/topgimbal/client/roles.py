@@ -170,7 +170,11 @@ def thermal_ident(dialect: Dialect, setting: str) -> str:
     for spec in dialect.commands.values():
         if spec.name in (setting, f"thermal_{setting}") or spec.ident == setting.upper():
             return spec.ident
-    raise UnsupportedError(f"no thermal setting {setting!r} in the {dialect.name} dialect")
+    known = [
+        *THERMAL_ALIASES,
+        *(s.name.removeprefix("thermal_") for s in dialect.commands.values() if s.name.startswith("thermal_")),
+    ]
+    raise FieldValueError("setting", setting, "one of " + ", ".join(dict.fromkeys(known)))
 
 
 # -- acknowledgements ---------------------------------------------------------------------------------

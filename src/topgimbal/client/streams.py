@@ -18,6 +18,7 @@ import asyncio
 import contextlib
 import math
 import time
+import weakref
 from collections import deque
 from typing import TYPE_CHECKING
 
@@ -34,7 +35,8 @@ QUEUE_SIZE = 64  # samples held per consumer; the oldest go first when a consume
 class StreamControl:
     def __init__(self, core: ClientCore) -> None:
         self.core = core
-        self.consumers: set[AttitudeStream] = set()
+        # Weak: a consumer dropped without aclose() must be collectable (its __del__ releases it).
+        self.consumers: weakref.WeakSet[AttitudeStream] = weakref.WeakSet()
         self.manual_rate: float | None = None
         self.device_rate: float | None = None  # what the device was last told; None: off or unknown
         self._listeners: list[tuple[float, asyncio.Future[Attitude]]] = []
@@ -68,9 +70,8 @@ class StreamControl:
             raise
 
     def release(self, consumer: AttitudeStream) -> None:
-        if consumer in self.consumers:
-            self.consumers.discard(consumer)
-            self.kick()
+        self.consumers.discard(consumer)
+        self.kick()  # also when the weak set has already let it go
 
     def kick(self) -> None:
         """Start bringing the device to the wanted state, unless that is under way."""
