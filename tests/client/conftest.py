@@ -38,7 +38,7 @@ class FakeDevice:
     def default(self, frame: Frame) -> list[bytes] | None:
         if frame.ident == "GAA" and frame.rw == "w":
             self._set_stream(int(frame.data, 16))
-        if frame.ident == "GAC" and frame.rw == "r":
+        if frame.ident == "GAC" and frame.rw == "r" and "GAC" not in self.answers:
             y, p, r = self.attitude
             return [self.dialect.response(frame, yaw_deg=y, pitch_deg=p, roll_deg=r).to_bytes()]
         if frame.rw == "w":

@@ -8,7 +8,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from ..errors import DeviceError, RequestTimeoutError, TopGimbalError, UnsupportedError
+from ..errors import DeviceError, LinkLostError, RequestTimeoutError, TopGimbalError, UnsupportedError
 from ..protocol import DIALECT_NAMES, Frame, Message, get_dialect, parse_frame
 from ..protocol.frame import complete_frame
 from . import checks, roles
@@ -177,6 +177,8 @@ async def detect_model(core: ClientCore, *, timeout_s: float = 0.5) -> str | Non
                     await core._request(probe, timeout_s=float(timeout_s), retries=1)
                 except (RequestTimeoutError, DeviceError):
                     break  # this dialect's probe got no answer: try the next
+                except LinkLostError:
+                    return None  # nothing answered any probe for the link timeout
                 if d is core.dialect:
                     return core.model.name
                 return roles.DETECTED_MODEL.get(ident, model.name)

@@ -315,7 +315,14 @@ class ClientCore:
         assert self._engine is not None and self._link is not None
         self._engine.on_tick()
         self._link_event(self._link.check())
-        if self._link.ping_due() and self._ping_task is None and self.connected_transport:
+        # Requests in flight are probes already; a ping is for streams that went quiet.
+        if (
+            self._link.ping_due()
+            and self.streams.active
+            and not self._engine.live
+            and self._ping_task is None
+            and self.connected_transport
+        ):
             self._link.pinged()
             self._ping_task = asyncio.ensure_future(self._ping())
         self._drive()
