@@ -47,8 +47,8 @@ async def request(
     spec = core.dialect.command(frame.ident)
     if wait_reply is None:
         wait_reply = read or (spec.echo and (core.echo_motion or not spec.motion))
-    exclusive = not spec.is_idempotent(frame)
-    n = 0 if exclusive else (core.retries if retries is None else retries)
+    exclusive = not spec.is_idempotent(frame)  # the engine sends it once (and waits as long in all)
+    n = core.retries if retries is None else retries
     wire = core.dialect.decode(frame).fields if frame.ident in roles.ACK_REPORTS else None
     reply = await core._request(
         frame,

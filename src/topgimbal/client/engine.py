@@ -15,9 +15,12 @@ Everything else the engine decides from timing. The reasoning is in docs/client.
   DeviceError, unless an earlier attempt sent those data (then it is that one's late echo).
 - A non-idempotent write (photo, toggle, relative step) is sent once, after the key has been
   quiet: no earlier attempt open, no frame for `dup_window_s` (network copies of an earlier
-  acknowledgement). Its acknowledgement is then its own.
+  acknowledgement). Its acknowledgement is then its own. It waits as long in all as a retried
+  request would (timeout x (retries + 1)).
 - A frame arriving sooner after a read's first send than half the fastest round trip seen (at most
-  COPY_FLOOR_CAP_S) cannot answer it: it is a network copy of the previous answer.
+  COPY_FLOOR_CAP_S) cannot answer it: it is a network copy of the previous answer. Once the link
+  has shown copies, a read too is sent only after `dup_window_s` without a frame on its key, so
+  a copy held back by the network cannot pass for its answer.
 - ERE names no command: it fails a request only when that request is the only one to that address
   that it could answer; otherwise the request's error mentions it.
 - Frames the parser recovered with a wrong length character are answers only for the identifiers
@@ -136,6 +139,7 @@ class Engine:
         self._ledger: dict[RKey, deque[Attempt]] = {}
         self._last_frame: dict[RKey, tuple[float, bytes]] = {}  # time and data of the last frame
         self._last_error: dict[str, float] = {}  # device address -> when its last ERE came
+        self.copies_seen = False  # the link has delivered a frame twice
         self._out: list[Frame] = []
         self._finished: list[Transaction] = []
 
@@ -154,7 +158,9 @@ class Engine:
         """Register a request (arguments already validated). Its frames come out of
         `take_frames()`; it ends up in `take_finished()`."""
         now = self.clock()
-        tx = Transaction(frame, timeout_s, 0 if exclusive or not expect_reply else retries, expect_reply, exclusive)
+        # Sent once, a non-idempotent request waits as long in all as a retried one would.
+        wait_s = timeout_s * (retries + 1) if exclusive else timeout_s
+        tx = Transaction(frame, wait_s, 0 if exclusive or not expect_reply else retries, expect_reply, exclusive)
         tx.fields, tx.submitted_at = fields, now
         self.stats.requests += 1
         if not expect_reply:
@@ -268,7 +274,7 @@ class Engine:
             floor = COPY_FLOOR_CAP_S if rtt_min is None else min(0.0005 * rtt_min, COPY_FLOOR_CAP_S)
             if maybe_copy and now < live.first_sent_at + floor:
                 # An identical frame sooner than any answer can come: a copy of the previous one.
-                self.stats.duplicates += 1
+                self._copy_seen()
                 return Inbound("duplicate")
         if live is not None and own and (not foreign or frame.rw == "w"):
             # Reads never have foreign attempts here (deferred until there are none); a write's
@@ -294,7 +300,7 @@ class Engine:
         if roles.is_report(message):
             return Inbound("unsolicited")
         if known:
-            self.stats.duplicates += 1
+            self._copy_seen()
             return Inbound("late")
         if live is not None and message.frame.rw == "w":
             # An echo with other data than any attempt sent: the device did something else.
@@ -309,6 +315,10 @@ class Engine:
             self.stats.stray_replies += 1
             return Inbound("late")
         return Inbound("unsolicited")
+
+    def _copy_seen(self) -> None:
+        self.stats.duplicates += 1
+        self.copies_seen = True
 
     def _answer(self, tx: Transaction, own: list[Attempt], message: Message, now: float, *, sole: bool) -> Inbound:
         oldest = own[0]
@@ -376,7 +386,9 @@ class Engine:
                 if not a.closed and a.sent_at >= window and a.tx is not tx:
                     end = a.sent_at + self.late_window_s
                     until = end if until is None else max(until, end)
-        if tx.exclusive:
+        if tx.exclusive or self.copies_seen:
+            # Quiet first: a copy of an earlier frame may still be on its way (only a link that
+            # has shown copies delays queries for this; photos and toggles always wait).
             last = self._last_frame.get(tx.rkey)
             if last is not None and now - last[0] < self.dup_window_s:
                 end = last[0] + self.dup_window_s
