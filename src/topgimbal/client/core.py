@@ -106,6 +106,7 @@ class ClientCore:
         self._reconnect_task: asyncio.Task[None] | None = None
         self._ping_task: asyncio.Task[None] | None = None
         self._dup_window_s = float(dup_window_s)
+        self._plain_frames: dict[tuple[str, bool, str | None], Frame] = {}
         self._closed = False
 
     # -- life cycle ------------------------------------------------------------------------------
@@ -301,14 +302,14 @@ class ClientCore:
         ld = link.next_deadline()
         if ld is not None and (deadline is None or ld < deadline):
             deadline = ld
-        if deadline == self._timer_at:
+        # One timer; re-armed only for an earlier deadline (one that fires early just re-arms),
+        # so a request answered in time costs no timer churn.
+        if deadline is None or self._closed or (self._timer_at is not None and self._timer_at <= deadline):
             return
         if self._timer is not None:
             self._timer.cancel()
-            self._timer = None
         self._timer_at = deadline
-        if deadline is not None and not self._closed:
-            self._timer = self._loop.call_at(deadline, self._on_timer)
+        self._timer = self._loop.call_at(deadline, self._on_timer)
 
     def _on_timer(self) -> None:
         self._timer = self._timer_at = None
@@ -399,21 +400,28 @@ class ClientCore:
 
     def build(self, ident: str, *, read: bool = False, dst: str | None = None, **values: Any) -> Frame:
         """The frame `request()` would send (values in API units and signs), validated."""
-        spec = self.spec(ident)
         if not isinstance(read, bool):
             raise FieldValueError("read", read, "True or False")
+        if not values:
+            cached = self._plain_frames.get((ident, read, dst))
+            if cached is not None:
+                return cached
+        spec = self.spec(ident)
         if dst is not None and (not isinstance(dst, str) or dst not in DEVICE_ADDRESSES):
             raise FieldValueError("dst", dst, f"a device address, one of {', '.join(DEVICE_ADDRESSES)}")
         try:
             self.dialect.check_values(self.model, spec.ident, values)
             wire = map_values(spec, values, self.signs)
-            return self.dialect.encode(spec.ident, read=read, src=self.host_address, dst=dst, **wire)
+            frame = self.dialect.encode(spec.ident, read=read, src=self.host_address, dst=dst, **wire)
         except TopGimbalError:
             raise
         except (ValueError, TypeError, KeyError, ArithmeticError) as exc:
             # a codec that met a value of a kind it does not take: say which, never half-send
             bad = next(iter(values), "values")
             raise FieldValueError(bad, values.get(bad), f"values {spec.ident} accepts ({exc})") from None
+        if not values and len(self._plain_frames) < 256 and isinstance(ident, str):
+            self._plain_frames[(ident, read, dst)] = frame  # queries: frames are immutable
+        return frame
 
     async def _request(
         self,

@@ -29,6 +29,7 @@ Everything else the engine decides from timing. The reasoning is in docs/client.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 from collections import deque
 from collections.abc import Callable, Mapping
@@ -60,6 +61,34 @@ class Attempt:
     tx: Transaction
     sent_at: float
     closed: bool = False  # a frame was taken as its answer
+
+
+class Ledger:
+    """The attempts on one key within the late window: the open ones in send order, and the last
+    answered one per request data (copies of its answer may still come)."""
+
+    __slots__ = ("answered", "open")
+
+    def __init__(self) -> None:
+        self.open: list[Attempt] = []
+        self.answered: dict[bytes, Attempt] = {}
+
+    def prune(self, window: float) -> None:
+        if self.open and self.open[0].sent_at < window:
+            self.open = [a for a in self.open if a.sent_at >= window]
+        if len(self.answered) > 32:
+            self.answered = {k: a for k, a in self.answered.items() if a.sent_at >= window}
+
+    def add(self, attempt: Attempt) -> None:
+        if len(self.open) >= MAX_LEDGER:
+            del self.open[0]
+        self.open.append(attempt)
+
+    def close(self, attempt: Attempt) -> None:
+        attempt.closed = True
+        with contextlib.suppress(ValueError):
+            self.open.remove(attempt)
+        self.answered[attempt.tx.frame.data] = attempt
 
 
 @dataclass(eq=False)
@@ -136,7 +165,7 @@ class Engine:
         self.recovered_ok = recovered_ok
         self.live: dict[Key, Transaction] = {}
         self._waiting: dict[Key, deque[Transaction]] = {}
-        self._ledger: dict[RKey, deque[Attempt]] = {}
+        self._ledger: dict[RKey, Ledger] = {}
         self._last_frame: dict[RKey, tuple[float, bytes]] = {}  # time and data of the last frame
         self._last_error: dict[str, float] = {}  # device address -> when its last ERE came
         self.copies_seen = False  # the link has delivered a frame twice
@@ -257,16 +286,16 @@ class Engine:
         live = self.live.get((frame.ident, frame.src))
         if live is not None and (live.state != "sent" or live.rkey != rkey):
             live = None
-        if not ledger:
+        if ledger is None:
             return self._unowned(message, live, now, known=False)
         window = now - self.late_window_s
+        ledger.prune(window)
         if frame.rw == "r":
             if roles.is_report(message):
                 return Inbound("unsolicited")  # a stream frame on a query's key
-            recent = [a for a in ledger if a.sent_at >= window]
+            fits = list(ledger.open)
         else:
-            recent = [a for a in ledger if a.sent_at >= window and self.echo_matches(a.tx.frame, a.tx.fields, message)]
-        fits = [a for a in recent if not a.closed]
+            fits = [a for a in ledger.open if self.echo_matches(a.tx.frame, a.tx.fields, message)]
         own = [a for a in fits if a.tx is live]
         foreign = [a for a in fits if a.tx is not live]
         if live is not None and own and frame.rw == "r" and live.first_sent_at is not None:
@@ -290,7 +319,11 @@ class Engine:
             self.stats.late_replies += 1
             return Inbound("late")
         # Fits an attempt that was answered already: another copy of that answer.
-        return self._unowned(message, live, now, known=bool(recent))
+        known = any(
+            a.sent_at >= window and (frame.rw == "r" or self.echo_matches(a.tx.frame, a.tx.fields, message))
+            for a in ledger.answered.values()
+        )
+        return self._unowned(message, live, now, known=known)
 
     # -- internals ----------------------------------------------------------------------------------
 
@@ -311,7 +344,8 @@ class Engine:
             )
             self._finish(live, now, error=err)
             return Inbound("mismatch", live)
-        if self._ledger.get((message.frame.ident, message.frame.src, message.frame.rw or "w")):
+        ledger = self._ledger.get((message.frame.ident, message.frame.src, message.frame.rw or "w"))
+        if ledger is not None and (ledger.open or ledger.answered):
             self.stats.stray_replies += 1
             return Inbound("late")
         return Inbound("unsolicited")
@@ -320,9 +354,16 @@ class Engine:
         self.stats.duplicates += 1
         self.copies_seen = True
 
+    def _close(self, attempt: Attempt) -> None:
+        ledger = self._ledger.get(attempt.tx.rkey)
+        if ledger is not None:
+            ledger.close(attempt)
+        else:
+            attempt.closed = True
+
     def _answer(self, tx: Transaction, own: list[Attempt], message: Message, now: float, *, sole: bool) -> Inbound:
         oldest = own[0]
-        oldest.closed = True
+        self._close(oldest)
         if sole and len(own) == 1:
             self.stats.add_rtt(now - oldest.sent_at)  # only when it is clear which attempt answered
         self.stats.replies += 1
@@ -332,7 +373,7 @@ class Engine:
     def _close_if_single_owner(self, attempts: list[Attempt]) -> None:
         owner = attempts[0].tx
         if all(a.tx is owner for a in attempts):
-            attempts[0].closed = True
+            self._close(attempts[0])
             self._recheck(attempts[0].tx.rkey)
 
     def _on_error(self, message: Message, now: float) -> Inbound:
@@ -342,17 +383,13 @@ class Engine:
         self._last_error[src] = now
         window = now - self.late_window_s
         owners = {
-            a.tx
-            for rkey, ledger in self._ledger.items()
-            if rkey[1] == src
-            for a in ledger
-            if not a.closed and a.sent_at >= window
+            a.tx for rkey, ledger in self._ledger.items() if rkey[1] == src for a in ledger.open if a.sent_at >= window
         }
         live = [t for t in owners if t.state == "sent" and self.live.get(t.key) is t]
         copy = previous is not None and now - previous <= self.dup_window_s  # may copy the last one
         if len(owners) == 1 and len(live) == 1 and not copy:
             tx = live[0]
-            tx.attempts[0].closed = True
+            self._close(next(a for a in tx.attempts if not a.closed))
             err = DeviceError(
                 f"the device refused {tx.frame.ident} ({tx.frame.text()}): it answered {message.frame.text()}"
             )
@@ -380,10 +417,10 @@ class Engine:
             return None
         until: float | None = None
         ledger = self._ledger.get(tx.rkey)
-        if ledger:
+        if ledger is not None:
             window = now - self.late_window_s
-            for a in ledger:
-                if not a.closed and a.sent_at >= window and a.tx is not tx:
+            for a in ledger.open:
+                if a.sent_at >= window and a.tx is not tx:
                     end = a.sent_at + self.late_window_s
                     until = end if until is None else max(until, end)
         if tx.exclusive or self.copies_seen:
@@ -404,11 +441,9 @@ class Engine:
         attempt = Attempt(tx, now)
         ledger = self._ledger.get(tx.rkey)
         if ledger is None:
-            ledger = self._ledger[tx.rkey] = deque(maxlen=MAX_LEDGER)
-        window = now - self.late_window_s
-        while ledger and ledger[0].sent_at < window:
-            ledger.popleft()
-        ledger.append(attempt)
+            ledger = self._ledger[tx.rkey] = Ledger()
+        ledger.prune(now - self.late_window_s)
+        ledger.add(attempt)
         tx.attempts.append(attempt)
         if tx.first_sent_at is None:
             tx.first_sent_at = now

@@ -45,7 +45,7 @@ class StreamControl:
     @property
     def active(self) -> bool:
         """Something expects attitude frames (the link monitor watches for silence)."""
-        return self.device_rate is not None or self.wanted() is not None
+        return self.device_rate is not None or self.manual_rate is not None or len(self.consumers) > 0
 
     def wanted(self) -> float | None:
         rates = [c.rate_hz for c in self.consumers]
