@@ -12,7 +12,7 @@ import contextlib
 import threading
 from collections.abc import Callable, Coroutine, Iterator, Mapping
 from types import TracebackType
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from ..errors import TopGimbalError
 from ..protocol import CommandSpec, DeviceModel, Dialect, Message
@@ -235,3 +235,14 @@ class SyncCatalogCommand:
 
     def read(self, **values: Any) -> Message:
         return self._g.request(self.spec.ident, read=True, **values)
+
+
+if TYPE_CHECKING:
+    from typing import assert_type
+
+    from .state import SdCard
+
+    def _typed(g: Gimbal) -> None:  # mypy checks that the facade's methods carry real types
+        assert_type(g.point(1.0, 2.0), Attitude)
+        assert_type(g.sd_card(), SdCard)
+        assert_type(g.recording(), bool)
