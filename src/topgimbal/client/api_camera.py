@@ -64,7 +64,7 @@ async def sd_card(core: ClientCore) -> SdCard:
 async def zoom(core: ClientCore, action_or_level: str | float) -> None:
     """`"in"`, `"out"`, `"stop"` (continuous optical zoom), or a magnification: optical where the
     model has a magnification command, digital otherwise."""
-    if isinstance(action_or_level, str) and not _is_number(action_or_level):
+    if isinstance(action_or_level, str) and not roles.is_number_text(action_or_level):
         await request(core, "ZMC", action=roles.ZOOM_ALIASES.get(action_or_level, action_or_level))
         return
     level = float(action_or_level)
@@ -170,14 +170,6 @@ async def set_network(
         core.build(ident, address=v)
     for ident, v in plan:
         await request(core, ident, address=v)
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
 
 
 class CameraMethods:

@@ -121,7 +121,7 @@ def digital_zoom_values(
     """DZM values: per-lens 0.1x levels and steps, or whole levels 1..4x and steps."""
     fields = {f.name for form in spec.forms_for("w", "request") for f in form.fields}
     value: Any = level_or_action
-    words = isinstance(value, str) and not _is_number(value)
+    words = isinstance(value, str) and not is_number_text(value)
     if "lens" in fields:
         value = {"in": "step_in", "out": "step_out"}.get(value, value) if words else float(value)
         return {"lens": lens, "zoom": value}
@@ -133,7 +133,7 @@ def digital_zoom_values(
     return {"zoom": f"{int(f)}x"}
 
 
-def _is_number(text: str) -> bool:
+def is_number_text(text: str) -> bool:
     try:
         float(text)
     except ValueError:
