@@ -71,6 +71,7 @@ def test_every_command_against_a_silent_device_says_so(capsys, silent_url, comma
     line = err.strip()
     assert line.startswith("topgimbal: error: ") and len(line.splitlines()) == 1
     assert "nothing at all has come from" in line and silent_url in line, line
+    assert re.search(r"\[\d+\.\d s since the command started\]", line), line  # the true elapsed time
 
 
 def test_without_model_a_silent_device_says_so(capsys, silent_url):
