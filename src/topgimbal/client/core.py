@@ -19,17 +19,16 @@ from ..errors import (
     LinkLostError,
     TopGimbalError,
     TransportError,
-    UnknownCommandError,
-    UnsupportedError,
 )
 from ..protocol import CommandSpec, DeviceModel, Dialect, Frame, FrameParser, Message, get_model
 from ..protocol.frame import DEVICE_ADDRESSES
 from ..transport import Transport, TransportURL, open_transport, parse_url
 from . import checks, roles
+from .builder import FrameBuilder
 from .engine import Engine, Transaction
 from .link import LinkEvent, LinkMonitor
 from .notifier import LinkCallback, MessageCallback, Notifier, TrafficCallback
-from .signs import map_message, map_values, resolve_signs
+from .signs import map_message, resolve_signs
 from .state import Attitude, StateCache
 from .stats import LinkStats
 from .streams import StreamControl
@@ -106,7 +105,7 @@ class ClientCore:
         self._reconnect_task: asyncio.Task[None] | None = None
         self._ping_task: asyncio.Task[None] | None = None
         self._dup_window_s = float(dup_window_s)
-        self._plain_frames: dict[tuple[str, bool, str | None], Frame] = {}
+        self._builder = FrameBuilder(self.dialect, self.model, self.signs, self.host_address)
         self._closed = False
 
     # -- life cycle ------------------------------------------------------------------------------
@@ -388,40 +387,12 @@ class ClientCore:
     # -- requests ---------------------------------------------------------------------------------
 
     def spec(self, ident: str) -> CommandSpec:
-        if not isinstance(ident, str):
-            raise FieldValueError("ident", ident, "a command identifier such as 'GAC' or a catalog name")
-        try:
-            spec = self.dialect.command(ident)
-        except UnknownCommandError as exc:
-            raise checks.CommandNameError(str(exc)) from None
-        if not self.dialect.supports(self.model, spec.ident):
-            raise UnsupportedError(f"the {self.model.name} does not support {spec.ident} ({spec.title})")
-        return spec
+        """The catalog command `ident` (identifier or name), if this model supports it."""
+        return self._builder.spec(ident)
 
     def build(self, ident: str, *, read: bool = False, dst: str | None = None, **values: Any) -> Frame:
         """The frame `request()` would send (values in API units and signs), validated."""
-        if not isinstance(read, bool):
-            raise FieldValueError("read", read, "True or False")
-        if not values:
-            cached = self._plain_frames.get((ident, read, dst))
-            if cached is not None:
-                return cached
-        spec = self.spec(ident)
-        if dst is not None and (not isinstance(dst, str) or dst not in DEVICE_ADDRESSES):
-            raise FieldValueError("dst", dst, f"a device address, one of {', '.join(DEVICE_ADDRESSES)}")
-        try:
-            self.dialect.check_values(self.model, spec.ident, values)
-            wire = map_values(spec, values, self.signs)
-            frame = self.dialect.encode(spec.ident, read=read, src=self.host_address, dst=dst, **wire)
-        except TopGimbalError:
-            raise
-        except (ValueError, TypeError, KeyError, ArithmeticError) as exc:
-            # a codec that met a value of a kind it does not take: say which, never half-send
-            bad = next(iter(values), "values")
-            raise FieldValueError(bad, values.get(bad), f"values {spec.ident} accepts ({exc})") from None
-        if not values and len(self._plain_frames) < 256 and isinstance(ident, str):
-            self._plain_frames[(ident, read, dst)] = frame  # queries: frames are immutable
-        return frame
+        return self._builder.build(ident, read=read, dst=dst, **values)
 
     async def _request(
         self,
