@@ -74,6 +74,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/mavlink.py
 	$(BIN)/python bench/console.py
 	$(BIN)/python bench/proxy.py
+	$(BIN)/python bench/faults.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache test-artifacts

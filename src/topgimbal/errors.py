@@ -9,6 +9,7 @@ TopGimbalError                kind
 │   ├── UnsupportedError      "unsupported"      the device model does not support the command
 │   └── FieldValueError       "value"            a value is out of range / of the wrong kind (also ValueError)
 ├── TransportError            "transport"        the byte pipe failed or is closed (also ConnectionError)
+│   └── LinkLostError         "link_lost"        the device went silent (UDP) or the link closed; resumes by itself
 ├── DeviceError               "device"           the device answered with the error frame (ERE)
 │   └── DecodeError           "decode"           the device answered, but the answer cannot be decoded
 └── RequestTimeoutError       "timeout"          no matching reply in time (also builtin TimeoutError)
@@ -94,6 +95,13 @@ def _show(value: object) -> str:
 
 class TransportError(TopGimbalError, ConnectionError):
     kind = "transport"
+
+
+class LinkLostError(TransportError):
+    """Nothing came from the device for the link timeout (UDP), or the link closed (TCP, serial).
+    Pending requests and streams end with it; the client resumes when frames come back."""
+
+    kind = "link_lost"
 
 
 class DeviceError(TopGimbalError):

@@ -1,16 +1,20 @@
-"""Fixtures for the client tests: a scriptable fake device on loopback (for transport and
-matching edge cases) and the real simulator (for end-to-end tests). Ports are always 0."""
+"""Fixtures for the client tests: a scriptable fake device on loopback or on an in-memory port
+(for transport, matching and link edge cases; `memory://` needs no socket) and the real simulator
+(for end-to-end tests). Ports are always 0."""
 
 from __future__ import annotations
 
 import asyncio
+import itertools
 from collections.abc import AsyncIterator, Callable
 
 import pytest
 
 from topgimbal.protocol import Frame, FrameParser, get_model
+from topgimbal.transport.memory import MemoryPort
 
 Handler = Callable[[Frame], "list[bytes] | None"]
+_names = itertools.count(1)
 
 
 class FakeDevice:
@@ -20,14 +24,23 @@ class FakeDevice:
     def __init__(self, model: str = "C12") -> None:
         self.dialect, self.model = get_model(model)
         self.received: list[Frame] = []
-        self.answers: dict[str, dict] = {}
+        self.answers: dict[str, dict] = {"VER": {"version": "1.5.2"}}
         self.handler: Handler = self.default
         self.udp: asyncio.DatagramTransport | None = None
         self.tcp: asyncio.base_events.Server | None = None
         self.tcp_peers: list[asyncio.Transport] = []
+        self.port: MemoryPort | None = None
         self.url = ""
+        self.muted = False  # a device that has gone quiet: it hears, does, and says nothing
+        self.attitude = (0.0, 0.0, 0.0)  # what GAC answers and streams carry (wire values)
+        self._stream: asyncio.Task[None] | None = None
 
     def default(self, frame: Frame) -> list[bytes] | None:
+        if frame.ident == "GAA" and frame.rw == "w":
+            self._set_stream(int(frame.data, 16))
+        if frame.ident == "GAC" and frame.rw == "r" and "GAC" not in self.answers:
+            y, p, r = self.attitude
+            return [self.dialect.response(frame, yaw_deg=y, pitch_deg=p, roll_deg=r).to_bytes()]
         if frame.rw == "w":
             return [frame.swapped().to_bytes()]
         values = self.answers.get(frame.ident)
@@ -40,7 +53,31 @@ class FakeDevice:
             if isinstance(item, Frame):
                 self.received.append(item)
                 for out in self.handler(item) or []:
-                    send(out)
+                    if not self.muted:
+                        send(out)
+
+    def _set_stream(self, rate_hz: int) -> None:
+        """SkyDroid GAA: GAC frames at `rate_hz` (0: off), to the memory client."""
+        if self._stream is not None:
+            self._stream.cancel()
+            self._stream = None
+        if rate_hz and self.port is not None:
+            self._stream = asyncio.ensure_future(self._run_stream(1.0 / rate_hz))
+
+    async def _run_stream(self, period: float) -> None:
+        while True:
+            await asyncio.sleep(period)
+            if self.port is not None and not self.muted:
+                y, p, r = self.attitude
+                frame = self.dialect.notification("GAC", src="G", rw="r", yaw_deg=y, pitch_deg=p, roll_deg=r)
+                self.port.send(frame.to_bytes())
+
+    def start_memory(self) -> str:
+        """Listen on a fresh `memory://` port (datagram semantics)."""
+        self.port = port = MemoryPort.listen(f"fake-{next(_names)}")
+        port.on_bytes = lambda data: self._handle(data, FrameParser(), port.send)
+        self.url = port.url
+        return self.url
 
     async def start_udp(self) -> str:
         loop = asyncio.get_running_loop()
@@ -76,6 +113,10 @@ class FakeDevice:
         return self.url
 
     async def stop(self) -> None:
+        if self._stream is not None:
+            self._stream.cancel()
+        if self.port is not None:
+            self.port.close()
         if self.udp is not None:
             self.udp.close()
         for t in self.tcp_peers:

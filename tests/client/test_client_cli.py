@@ -76,8 +76,9 @@ def test_every_command(bg, capsys, tmp_path, kind):
     frame = "#TPPD2rREC0039" if model == "SIP" and kind != "serial" else "#TPUD2rREC003E"
     assert ok("raw", frame)["fields"] == {"state": "stopped"}
     assert ok("command", "REC", "--read")["fields"] == {"state": "stopped"}
-    if model == "SIP":
-        assert "range_m" in ok("range")
+    if model == "SIP":  # no altitude sent: no distance, and it says what is missing
+        code, _, err = run(capsys, *base, "range")
+        assert code == 1 and "ALT" in err
     else:
         code, _, err = run(capsys, *base, "range")
         assert code == 1 and err.startswith("topgimbal: error:") and len(err.strip().splitlines()) == 1
@@ -96,7 +97,7 @@ def test_every_command(bg, capsys, tmp_path, kind):
 def test_errors_are_one_line_and_nonzero(bg, capsys):
     url, model = bg.url, bg.sim.model
     code, _, err = run(capsys, "--url", url, "--model", model, "point", "500", "0")
-    assert code == 1 and err.count("\n") == 1 and "yaw_deg" in err
+    assert code == 1 and err.count("\n") == 1 and "YAW=500" in err  # named as typed
     code, _, err = run(capsys, "--model", model, "photo")
     assert code != 0 and "--url" in err
     code, _, err = run(

@@ -19,12 +19,22 @@ def test_parse_urls():
     assert (t.scheme, t.host, t.port) == ("tcp", "::1", 5000)
     s = parse_url("serial:///dev/ttyUSB0?baud=57600")
     assert (s.scheme, s.path, s.params["baud"]) == ("serial", "/dev/ttyUSB0", "57600")
-    assert set(BACKENDS) == {"udp", "tcp", "serial"}
+    m = parse_url("memory://cam1?stream=1")
+    assert (m.scheme, m.host, m.params["stream"]) == ("memory", "cam1", "1")
+    assert set(BACKENDS) == {"udp", "tcp", "serial", "memory"}
 
 
 @pytest.mark.parametrize(
     "bad",
-    ["127.0.0.1:5000", "udp://127.0.0.1", "http://x:1", "serial://", "serial:///dev/x?baud=fast", "tcp://h:99999"],
+    [
+        "127.0.0.1:5000",
+        "udp://127.0.0.1",
+        "http://x:1",
+        "serial://",
+        "serial:///dev/x?baud=fast",
+        "tcp://h:99999",
+        "memory://",
+    ],
 )
 def test_bad_urls_raise_transport_error(bad):
     with pytest.raises(TransportError):

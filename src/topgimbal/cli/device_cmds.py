@@ -9,15 +9,18 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import datetime
 import json
+import math
 import sys
 import time
 from collections.abc import Awaitable, Callable
 from typing import Any
 
 from ..client import AsyncClient, connect, read_log
-from ..errors import TopGimbalError, TransportError
-from ..protocol import Frame, Message
+from ..client.roles import focus_actions, role_ident
+from ..errors import FieldValueError, RequestTimeoutError, TopGimbalError, TransportError
+from ..protocol import DIALECT_NAMES, Frame, Message, all_models, get_dialect, get_model
 from .args import add_json_argument
 
 Runner = Callable[[AsyncClient, argparse.Namespace], Awaitable[Any]]
@@ -26,10 +29,33 @@ Runner = Callable[[AsyncClient, argparse.Namespace], Awaitable[Any]]
 # -- plumbing ------------------------------------------------------------------------------------
 
 
+def _seconds(text: str) -> float:
+    """argparse type: a number of seconds above zero."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"{text} s: give a time above 0, e.g. 0.5")
+    return value
+
+
+def _retries(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if not 0 <= value <= 100:
+        raise argparse.ArgumentTypeError(f"{value}: give 0..100 retries")
+    return value
+
+
 def _options(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     add_json_argument(p)
-    p.add_argument("--timeout", type=float, default=1.0, metavar="S", help="reply timeout per request (default 1.0 s)")
-    p.add_argument("--retries", type=int, default=2, help="retries for idempotent requests (default 2)")
+    p.add_argument(
+        "--timeout", type=_seconds, default=1.0, metavar="S", help="reply timeout per request (default 1.0 s)"
+    )
+    p.add_argument("--retries", type=_retries, default=2, help="retries for idempotent requests (default 2)")
     p.add_argument("--log", metavar="FILE", help="append the traffic to a JSONL log")
     return p
 
@@ -53,7 +79,17 @@ def _run(args: argparse.Namespace, runner: Runner) -> int:
         ) as cam:
             return await runner(cam, args)
 
-    result = asyncio.run(main())
+    started = time.monotonic()
+    try:
+        result = asyncio.run(main())
+    except RequestTimeoutError as exc:
+        # The message counts one request's attempts; say how long the whole command waited.
+        raise RequestTimeoutError(f"{exc} [{time.monotonic() - started:.1f} s since the command started]") from None
+    except TimeoutError as exc:  # a bare asyncio timeout has no message: never print an empty error
+        raise RequestTimeoutError(
+            f"the device at {args.url} did not answer in time ({exc or 'no reply'}); "
+            "check --url, --model and that the camera is on"
+        ) from None
     if isinstance(result, int):
         return result
     _print(args, result)
@@ -61,11 +97,13 @@ def _run(args: argparse.Namespace, runner: Runner) -> int:
 
 
 async def _detect(args: argparse.Namespace) -> str:
-    """No --model: ask the device which dialect it speaks (TOPOTEK PA2, SkyDroid VER)."""
+    """No --model: ask the device which dialect it speaks (a model-name query, then a version)."""
     async with connect(args.url, model="C12", timeout_s=min(args.timeout, 0.5), retries=1) as cam:
         found = await cam.detect_model()
+        heard = cam.stats.frames_in > 0
     if found is None:
-        raise TopGimbalError("no --model given and the device did not identify itself; pass --model")
+        why = "it answered neither query" if heard else f"nothing at all came from {args.url}"
+        raise TopGimbalError(f"no --model given and the device did not identify itself ({why}); pass --model")
     return found
 
 
@@ -84,11 +122,38 @@ def _print(args: argparse.Namespace, result: Any) -> None:
     if args.json:
         print(json.dumps(result, default=str))
         return
-    if isinstance(result, dict):
-        for k, v in result.items():
-            print(f"{k}: {v}")
-    elif result is not None:
-        print(result)
+    for line in _human(result):
+        print(line)
+
+
+def _human(value: Any, indent: str = "") -> list[str]:
+    """Readable lines: nested mappings indented, no Python reprs (None, {...}), times as dates."""
+    if isinstance(value, dict):
+        out = []
+        for k, v in value.items():
+            if v is None and k in ("error",):
+                continue  # "error: None" says nothing
+            if isinstance(v, dict) and v:
+                out.append(f"{indent}{k}:")
+                out += _human(v, indent + "  ")
+            else:
+                out.append(f"{indent}{k}: {_text(k, v)}")
+        return out
+    return [] if value is None else [f"{indent}{_text('', value)}"]
+
+
+def _text(key: str, v: Any) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, dict):
+        return "-"
+    if isinstance(v, (list, tuple)):
+        return ", ".join(_text("", x) for x in v) or "-"
+    if key in ("t", "wall") and isinstance(v, float) and v > 1e9:
+        return datetime.datetime.fromtimestamp(v).isoformat(sep=" ", timespec="milliseconds")
+    if isinstance(v, float):
+        return f"{v:g}"
+    return str(v)
 
 
 def _attitude_dict(att: Any) -> dict[str, Any]:
@@ -123,10 +188,28 @@ async def _attitude(cam: AsyncClient, args: argparse.Namespace) -> Any:
     return 0
 
 
+# API argument -> the CLI's words for it (errors name what the user typed)
+_POINT_OPTIONS = {
+    "yaw_deg": "YAW",
+    "pitch_deg": "PITCH",
+    "speed_deg_s": "--speed",
+    "yaw_speed_deg_s": "--speed",
+    "pitch_speed_deg_s": "--speed",
+    "tolerance_deg": "--tolerance",
+    "timeout_s": "--wait",
+}
+
+
 async def _point(cam: AsyncClient, args: argparse.Namespace) -> Any:
-    att = await cam.point(
-        args.yaw, args.pitch, tolerance_deg=args.tolerance, timeout_s=args.wait, speed_deg_s=args.speed
-    )
+    try:
+        att = await cam.point(
+            args.yaw, args.pitch, tolerance_deg=args.tolerance, timeout_s=args.wait, speed_deg_s=args.speed
+        )
+    except FieldValueError as exc:
+        option = _POINT_OPTIONS.get(exc.field)
+        if option is None:
+            raise
+        raise FieldValueError(option, exc.value, exc.allowed) from None
     return _attitude_dict(att)
 
 
@@ -200,7 +283,18 @@ async def _thermal(cam: AsyncClient, args: argparse.Namespace) -> Any:
 
 
 async def _range(cam: AsyncClient, args: argparse.Namespace) -> Any:
-    return {"range_m": await cam.range()}
+    distance = await cam.range()
+    if distance is None:
+        lo, hi = cam.model.lrf_range_m or (0.0, 0.0)
+        why = f"the rangefinder reported no distance (ERR): nothing between {lo:g} and {hi:g} m where it points"
+        if role_ident(cam.dialect, cam.model, "altitude") is not None:
+            why += (
+                f". The {cam.model.name} (and the simulator) measure ground range from the vehicle altitude the "
+                f"host sends (ALT): send it first, e.g. `topgimbal --url {cam.url} --model {cam.model.name} "
+                "command ALT alt_m=120`, then point the camera below the horizon"
+            )
+        raise TopGimbalError(why)
+    return {"range_m": distance}
 
 
 async def _net(cam: AsyncClient, args: argparse.Namespace) -> Any:
@@ -226,7 +320,15 @@ async def _net(cam: AsyncClient, args: argparse.Namespace) -> Any:
     return _ok("net set", **changes)
 
 
+async def _first_attitude(cam: AsyncClient, rate_hz: float) -> None:
+    """Start the stream and wait (briefly) for its first sample, so the first screen shows it."""
+    await cam.attitude_stream(rate_hz)
+    with contextlib.suppress(RequestTimeoutError):
+        await cam.wait_attitude(timeout_s=max(1.0, 3.0 / rate_hz))
+
+
 async def _raw(cam: AsyncClient, args: argparse.Namespace) -> Any:
+    """A frame as given; without its checksum it is completed (as the console does)."""
     reply = await cam.send_raw(args.frame, wait_reply=not args.no_wait)
     if reply is None:
         return _ok("raw")
@@ -276,7 +378,7 @@ async def _monitor(cam: AsyncClient, args: argparse.Namespace) -> Any:
     from rich.console import Console
     from rich.live import Live
 
-    await cam.attitude_stream(args.rate)
+    await _first_attitude(cam, args.rate)
     with contextlib.suppress(TopGimbalError):
         await cam.recording()
     with contextlib.suppress(TopGimbalError):
@@ -319,6 +421,8 @@ async def _log(cam: AsyncClient, args: argparse.Namespace) -> Any:
             await cam.stop_attitude_stream()
     finally:
         log.close()
+    if args.stream and cam.stats.frames_in == 0:
+        raise TopGimbalError(f"nothing came from the device in {args.seconds:g} s; {args.file} holds no answers")
     return {"file": args.file, "frames": count}
 
 
@@ -345,10 +449,35 @@ async def _replay(cam: AsyncClient, args: argparse.Namespace) -> Any:
             replies += 1
             if not args.json:
                 print(f"{r.frame.text()} -> {reply.frame.text()}")
+    if sent and not replies and not args.no_wait:
+        raise TopGimbalError(f"replay: the device answered none of the {sent} frames sent")
     return {"file": args.file, "sent": sent, "replies": replies}
 
 
 # -- registration --------------------------------------------------------------------------------
+
+
+def _point_ranges() -> tuple[str, str, str]:
+    """Help text with the limits each model has, from the catalog and the model profiles."""
+    yaw: dict[str, list[str]] = {}
+    pitch: dict[str, list[str]] = {}
+    speeds: dict[str, str] = {}
+    for name in all_models():
+        dialect, model = get_model(name)
+        yaw.setdefault("{:g}..{:g}".format(*model.yaw_range_deg), []).append(name)
+        pitch.setdefault("{:g}..{:g}".format(*model.pitch_range_deg), []).append(name)
+        gay = dialect.command("GAY").request_form("w")
+        speeds[dialect.name] = next(f.codec.allowed() for f in gay.fields if f.name == "speed_deg_s")
+
+    def join(ranges: dict[str, list[str]]) -> str:
+        return "; ".join(f"{', '.join(models)}: {r}" for r, models in ranges.items())
+
+    speed = (
+        "; ".join(f"{d}: {a}" for d, a in speeds.items())
+        if len(set(speeds.values())) > 1
+        else next(iter(speeds.values()))
+    )
+    return join(yaw), join(pitch), speed
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -359,12 +488,13 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--rate", type=float, default=10.0, help="--watch sample rate in Hz (default 10)")
     p.add_argument("--count", type=int, default=0, help="--watch: stop after N samples")
 
+    yaw_help, pitch_help, speed_help = _point_ranges()
     p = _command(sub, "point", _point, "move to YAW PITCH (degrees) and return once reached")
-    p.add_argument("yaw", type=float)
-    p.add_argument("pitch", type=float)
+    p.add_argument("yaw", type=float, help=f"degrees, right-positive ({yaw_help})")
+    p.add_argument("pitch", type=float, help=f"degrees, up-positive ({pitch_help})")
     p.add_argument("--tolerance", type=float, default=0.5, help="degrees (default 0.5)")
-    p.add_argument("--speed", type=float, default=None, help="slew speed in deg/s")
-    p.add_argument("--wait", type=float, default=None, metavar="S", help="give up after S seconds")
+    p.add_argument("--speed", type=float, default=None, help=f"slew speed: {speed_help}")
+    p.add_argument("--wait", type=_seconds, default=None, metavar="S", help="give up after S seconds")
 
     p = _command(sub, "rate", _rate, "turn at constant rates in deg/s (stop with `stop`)")
     p.add_argument("yaw_rate", type=float)
@@ -380,8 +510,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = _command(sub, "zoom", _zoom, "zoom: in | out | stop | a magnification")
     p.add_argument("value", help="in, out, stop or a magnification such as 2")
     p.add_argument("--digital", action="store_true", help="digital zoom (DZM)")
-    p = _command(sub, "focus", _focus, "focus: plus | minus | stop | auto | manual")
-    p.add_argument("action")
+    actions = list(dict.fromkeys(a for name in DIALECT_NAMES for a in focus_actions(get_dialect(name))))
+    p = _command(sub, "focus", _focus, "focus: " + " | ".join(actions))
+    p.add_argument("action", help=", ".join(actions))
 
     _command(sub, "photo", _photo, "take a photo")
     p = _command(sub, "record", _record, "recording: start | stop | status | toggle")
@@ -401,7 +532,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--yes", action="store_true", help="do not ask for confirmation")
 
     p = _command(sub, "raw", _raw, "send one frame as given and print the decoded reply")
-    p.add_argument("frame", help="e.g. '#TPUD2rREC0064' (quote the #)")
+    p.add_argument("frame", help="e.g. '#TPUD2rREC003E', or without its checksum '#TPUD2rREC00' (quote the #)")
     p.add_argument("--no-wait", action="store_true", help="do not wait for a reply")
 
     p = _command(sub, "command", _command_generic, "send any catalog command: command GAY yaw_deg=10")

@@ -1,21 +1,29 @@
-"""The blocking facade: the same AsyncClient, driven from one event loop in a thread.
+"""The blocking facade: the same client, driven from one event loop in a thread.
 
 This is asyncua's ThreadLoop pattern: there is no second engine, so the sync API can never drift
-from the async one. A blocking call made on the loop thread itself (say, from a subscription
+from the async one. The typed methods are the very same functions (methods.py makes each a
+blocking method here). A blocking call made on the loop thread itself (say, from a subscription
 callback) would wait for the loop it is blocking: that raises LoopThreadError instead."""
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import threading
 from collections.abc import Callable, Coroutine, Iterator, Mapping
 from types import TracebackType
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from ..errors import TopGimbalError
+from ..protocol import CommandSpec, DeviceModel, Dialect, Message
 from .aio import AsyncClient
-from .session import LinkStats
+from .api_camera import CameraMethods
+from .api_core import CoreMethods
+from .api_motion import MotionMethods
+from .methods import SyncDriver
 from .state import Attitude, StateCache
+from .stats import LinkStats
+from .streams import AttitudeStream
 
 T = TypeVar("T")
 
@@ -57,19 +65,10 @@ class ThreadLoop:
             self.loop.close()
 
 
-# Coroutine methods of AsyncClient forwarded one-to-one (same names, same arguments).
-FORWARDED = (
-    "request", "send_raw", "attitude_stream", "stop_attitude_stream", "get_attitude", "wait_attitude",
-    "set_angles", "rates", "stop", "center", "set_mode", "point", "photo", "start_recording",
-    "stop_recording", "toggle_recording", "recording", "sd_card", "zoom", "digital_zoom", "focus", "palette",
-    "thermal", "version", "identify", "detect_model", "range", "network", "set_network",
-)  # fmt: skip
-
-
-class Gimbal:
+class Gimbal(SyncDriver, CoreMethods, MotionMethods, CameraMethods):
     """`with Gimbal("serial:///dev/ttyUSB0?baud=115200", model="SIP") as cam: cam.point(10, -20)`.
 
-    Same methods as AsyncClient, blocking. Subscription callbacks run on the loop thread."""
+    The same typed methods as AsyncClient, blocking. Callbacks run on the loop thread."""
 
     def __init__(
         self,
@@ -91,8 +90,12 @@ class Gimbal:
         except BaseException:
             self._thread.stop()
             raise
+        self.cmd = SyncCommands(self)
 
-    # -- plumbing ------------------------------------------------------------------------------
+    # -- plumbing --------------------------------------------------------------------------------
+
+    def _core(self) -> AsyncClient:
+        return self.aio
 
     def _run(self, coro: Coroutine[Any, Any, T]) -> T:
         return self._thread.run(coro)
@@ -111,7 +114,7 @@ class Gimbal:
     def __exit__(self, et: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None) -> None:
         self.close()
 
-    # -- non-coroutine parts of the API --------------------------------------------------------
+    # -- the non-coroutine parts -----------------------------------------------------------------
 
     @property
     def state(self) -> StateCache:
@@ -122,79 +125,124 @@ class Gimbal:
         return self.aio.stats
 
     @property
-    def model(self) -> Any:
+    def model(self) -> DeviceModel:
         return self.aio.model
 
     @property
-    def dialect(self) -> Any:
+    def dialect(self) -> Dialect:
         return self.aio.dialect
 
     @property
     def url(self) -> str:
         return self.aio.url
 
-    def subscribe(self, callback: Callable[..., Any], ident: str | None = None) -> Callable[[], None]:
+    @property
+    def connected(self) -> bool:
+        return self.aio.connected
+
+    @property
+    def link_state(self) -> dict[str, Any]:
+        return self.aio.link_state
+
+    def commands(self) -> list[CommandSpec]:
+        return self.aio.commands()
+
+    def subscribe(self, callback: Callable[[Message], Any], ident: str | None = None) -> Callable[[], None]:
         """As AsyncClient.subscribe; the callback runs on the loop thread (keep it short, and do
         not call blocking Gimbal methods from it)."""
-        return self._thread.run(_call(self.aio.subscribe, callback, ident))
+        return self._run(_call(self.aio.subscribe, callback, ident))
 
     def on_traffic(self, callback: Callable[..., Any]) -> Callable[[], None]:
-        return self._thread.run(_call(self.aio.on_traffic, callback))
+        return self._run(_call(self.aio.on_traffic, callback))
 
-    def attitude(self, rate_hz: float = 50, *, timeout_s: float | None = None) -> Iterator[Attitude]:
-        """Blocking iterator over attitude samples (`for att in cam.attitude(20): ...`)."""
-        agen = self.aio.attitude(rate_hz)
+    def on_link_change(self, callback: Callable[[bool, str], Any]) -> Callable[[], None]:
+        return self._run(_call(self.aio.on_link_change, callback))
+
+    def attitude(self, rate_hz: float = 50, *, timeout_s: float | None = None) -> SyncAttitudeStream:
+        """Blocking iterator over attitude samples (`for att in cam.attitude(20): ...`); use
+        `with cam.attitude(20) as s:` to stop the stream when the block ends."""
+        return SyncAttitudeStream(self, self.aio.attitude(rate_hz), timeout_s)
+
+
+class SyncAttitudeStream:
+    def __init__(self, gimbal: Gimbal, stream: AttitudeStream, timeout_s: float | None) -> None:
+        self._g = gimbal
+        self._stream = stream
+        self._timeout_s = timeout_s
+        self._open = True
+
+    def __iter__(self) -> Iterator[Attitude]:
+        return self
+
+    def __next__(self) -> Attitude:
+        if not self._open:
+            raise StopIteration
         try:
-            while True:
-                try:
-                    yield self._thread.run(_anext(agen), timeout_s)
-                except StopAsyncIteration:
-                    return
-        finally:
-            if not self._thread.loop.is_closed():
-                self._thread.run(agen.aclose())
+            return self._g._thread.run(_anext(self._stream), self._timeout_s)
+        except StopAsyncIteration:
+            self._open = False
+            raise StopIteration from None
 
-    def __getattr__(self, name: str) -> Any:
-        # Forward the coroutine methods (listed in FORWARDED) as blocking calls.
-        if name in FORWARDED:
-            method = getattr(self.aio, name)
+    def __enter__(self) -> SyncAttitudeStream:
+        self._g._thread.run(self._stream.start())
+        return self
 
-            def blocking(*args: Any, **kwargs: Any) -> Any:
-                return self._run(method(*args, **kwargs))
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
-            blocking.__name__ = name
-            blocking.__doc__ = method.__doc__
-            return blocking
-        if name == "cmd":
-            return _SyncCommands(self)
-        raise AttributeError(f"{type(self).__name__!s} has no attribute {name!r}")
+    def close(self) -> None:
+        if self._open and not self._g._thread.loop.is_closed():
+            self._open = False
+            with contextlib.suppress(TopGimbalError, RuntimeError):
+                self._g._thread.run(self._stream.aclose())
 
-    def __dir__(self) -> list[str]:
-        return sorted({*super().__dir__(), *FORWARDED, "cmd"})
+    def __del__(self) -> None:
+        with contextlib.suppress(Exception):
+            self.close()
 
 
-async def _anext(agen: Any) -> Any:
-    return await agen.__anext__()
+async def _anext(stream: AttitudeStream) -> Attitude:
+    return await stream.__anext__()
 
 
 async def _call(fn: Callable[..., T], *args: Any) -> T:
     return fn(*args)
 
 
-class _SyncCommands:
+class SyncCommands:
+    """`cam.cmd.<name>(**values)` and `.read()`, blocking."""
+
     def __init__(self, gimbal: Gimbal) -> None:
         self._g = gimbal
 
-    def __getattr__(self, name: str) -> Any:
-        cmd = getattr(self._g.aio.cmd, name)
+    def __getattr__(self, name: str) -> SyncCatalogCommand:
+        if name.startswith("_"):
+            raise AttributeError(name)
+        return SyncCatalogCommand(self._g, getattr(self._g.aio.cmd, name).spec)
 
-        class _Blocking:
-            spec = cmd.spec
+    def __dir__(self) -> list[str]:
+        return dir(self._g.aio.cmd)
 
-            def __call__(_self, **values: Any) -> Any:  # noqa: N805
-                return self._g._run(cmd(**values))
 
-            def read(_self, **values: Any) -> Any:  # noqa: N805
-                return self._g._run(cmd.read(**values))
+class SyncCatalogCommand:
+    def __init__(self, gimbal: Gimbal, spec: CommandSpec) -> None:
+        self._g = gimbal
+        self.spec = spec
+        self.__doc__ = f"{spec.ident} {spec.title} ({spec.section})"
 
-        return _Blocking()
+    def __call__(self, **values: Any) -> Message:
+        return self._g.request(self.spec.ident, **values)
+
+    def read(self, **values: Any) -> Message:
+        return self._g.request(self.spec.ident, read=True, **values)
+
+
+if TYPE_CHECKING:
+    from typing import assert_type
+
+    from .state import SdCard
+
+    def _typed(g: Gimbal) -> None:  # mypy checks that the facade's methods carry real types
+        assert_type(g.point(1.0, 2.0), Attitude)
+        assert_type(g.sd_card(), SdCard)
+        assert_type(g.recording(), bool)

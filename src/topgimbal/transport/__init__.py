@@ -12,6 +12,7 @@ BACKENDS: dict[str, tuple[str, str]] = {
     "udp": ("topgimbal.transport.udp", "UdpTransport"),
     "tcp": ("topgimbal.transport.tcp", "TcpTransport"),
     "serial": ("topgimbal.transport.serial", "SerialTransport"),
+    "memory": ("topgimbal.transport.memory", "MemoryTransport"),
 }
 
 

@@ -19,7 +19,8 @@ LostCallback = Callable[["Exception | None"], None]
 
 @dataclass(frozen=True)
 class TransportURL:
-    """A parsed `udp://HOST:PORT`, `tcp://HOST:PORT` or `serial:///dev/ttyUSB0?baud=115200`."""
+    """A parsed `udp://HOST:PORT`, `tcp://HOST:PORT`, `serial:///dev/ttyUSB0?baud=115200` or
+    `memory://NAME` (in-process, see transport/memory.py)."""
 
     scheme: str
     host: str = ""
@@ -60,7 +61,11 @@ def parse_url(url: str) -> TransportURL:
         if not baud.isdigit():
             raise TransportError(f"{url!r}: baud={baud!r} is not a number")
         return TransportURL(scheme, "", None, path, params, url)
-    raise TransportError(f"{url!r}: unknown scheme {parts.scheme!r}; use udp://, tcp:// or serial://")
+    if scheme == "memory":
+        if not parts.netloc:
+            raise TransportError(f"{url!r}: a memory URL needs a port name (memory://NAME)")
+        return TransportURL(scheme, parts.netloc, None, "", params, url)
+    raise TransportError(f"{url!r}: unknown scheme {parts.scheme!r}; use udp://, tcp://, serial:// or memory://")
 
 
 class Transport(abc.ABC):

@@ -1,0 +1,388 @@
+"""The transaction engine: which frame answers which request. No I/O; an injected clock.
+
+The TOP protocol has no transaction id. An answer has the request's identifier and control
+(`r`/`w`), comes from the address the request went to, and (for a write) carries the data sent.
+Everything else the engine decides from timing. The reasoning is in docs/client.md; in short:
+
+- One live request per (identifier, device address); later ones wait in a FIFO.
+- Every send is an *attempt*, kept in a per-(identifier, address, control) ledger for
+  `late_window_s` (the longest a link may delay a frame) or until a frame is taken as its answer.
+- A reply to ANY attempt of the live request completes it. A frame that could also answer an
+  attempt of a request that has already finished is never taken by a read: before its first send,
+  a read waits (deferred) until no such attempt can still be answered. So whatever answers it was
+  produced by the device after the read began. A write is completed only by a frame carrying the
+  data sent (`roles.echo_matches`); an acknowledgement showing other data fails it with
+  DeviceError, unless an earlier attempt sent those data (then it is that one's late echo).
+- A non-idempotent write (photo, toggle, relative step) is sent once, after the key has been
+  quiet: no earlier attempt open, no frame for `dup_window_s` (network copies of an earlier
+  acknowledgement). Its acknowledgement is then its own. It waits as long in all as a retried
+  request would (timeout x (retries + 1)).
+- A frame arriving sooner after a read's first send than half the fastest round trip seen (at most
+  COPY_FLOOR_CAP_S) cannot answer it: it is a network copy of the previous answer. Once the link
+  has shown copies, a read too is sent only after `dup_window_s` without a frame on its key, so
+  a copy held back by the network cannot pass for its answer.
+- ERE names no command: it fails a request only when that request is the only one to that address
+  that it could answer; otherwise the request's error mentions it.
+- Frames the parser recovered with a wrong length character are answers only for the identifiers
+  real firmware gets wrong (`roles.RECOVERED_LENGTH_OK`).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Mapping
+from typing import Any
+
+from ..errors import DeviceError, RequestTimeoutError, TopGimbalError
+from ..protocol import Frame, Message
+from . import roles
+from .records import Attempt, Clock, EchoRule, Inbound, Key, Ledger, RKey, Transaction
+from .stats import LinkStats
+
+__all__ = ["Attempt", "Engine", "Inbound", "Key", "Ledger", "RKey", "Transaction"]
+
+# A copy of an answer comes right behind the original: one arriving within this long after a query
+# went out (and sooner than half the fastest round trip seen) cannot be that query's answer. Capped
+# so that a slow first round trip cannot make later fast answers look like copies.
+COPY_FLOOR_CAP_S = 0.0002
+MAX_WAITING = 256  # requests queued behind one key (a runaway caller gets an error, not a leak)
+
+
+class Engine:
+    def __init__(
+        self,
+        *,
+        clock: Clock,
+        late_window_s: float = 2.0,
+        dup_window_s: float = 0.05,
+        stats: LinkStats | None = None,
+        echo_matches: EchoRule = roles.echo_matches,
+        recovered_ok: frozenset[str] = roles.RECOVERED_LENGTH_OK,
+    ) -> None:
+        self.clock = clock
+        self.late_window_s = late_window_s
+        self.dup_window_s = dup_window_s
+        self.stats = stats if stats is not None else LinkStats()
+        self.echo_matches = echo_matches
+        self.recovered_ok = recovered_ok
+        self.live: dict[Key, Transaction] = {}
+        self._waiting: dict[Key, deque[Transaction]] = {}
+        self._ledger: dict[RKey, Ledger] = {}
+        self._last_frame: dict[RKey, tuple[float, bytes]] = {}  # time and data of the last frame
+        self._last_error: dict[str, float] = {}  # device address -> when its last ERE came
+        self.copies_seen = False  # the link has delivered a frame twice
+        self._out: list[Frame] = []
+        self._finished: list[Transaction] = []
+
+    # -- requests --------------------------------------------------------------------------------
+
+    def submit(
+        self,
+        frame: Frame,
+        *,
+        timeout_s: float,
+        retries: int = 0,
+        expect_reply: bool = True,
+        exclusive: bool = False,
+        fields: Mapping[str, Any] | None = None,
+    ) -> Transaction:
+        """Register a request (arguments already validated). Its frames come out of
+        `take_frames()`; it ends up in `take_finished()`."""
+        now = self.clock()
+        # Sent once, a non-idempotent request waits as long in all as a retried one would.
+        wait_s = timeout_s * (retries + 1) if exclusive else timeout_s
+        tx = Transaction(frame, wait_s, 0 if exclusive or not expect_reply else retries, expect_reply, exclusive)
+        tx.fields, tx.submitted_at = fields, now
+        self.stats.requests += 1
+        if not expect_reply:
+            self._send(tx, now)
+            tx.state = "done"
+            tx.deadline = None
+            return tx
+        key = tx.key
+        if key in self.live:
+            queue = self._waiting.setdefault(key, deque())
+            if len(queue) >= MAX_WAITING:
+                raise TopGimbalError(f"{len(queue)} {key[0]} requests to {key[1]} are already waiting; slow down")
+            queue.append(tx)
+        else:
+            self._start(tx, now)
+        return tx
+
+    def cancel(self, tx: Transaction, error: Exception | None = None) -> None:
+        """The caller gave up on `tx`. Attempts already sent stay in the ledger: a reply that
+        still comes is recognised as late rather than taken by the next request."""
+        if tx.done:
+            return
+        queue = self._waiting.get(tx.key)
+        if tx.state == "queued" and queue is not None and tx in queue:
+            queue.remove(tx)
+            tx.state, tx.error = "done", error
+            return
+        self._finish(tx, self.clock(), error=error)
+
+    def fail_all(self, error: Exception) -> list[Transaction]:
+        """End every live and waiting request with `error` (the link is gone)."""
+        failed = [*self.live.values(), *(t for q in self._waiting.values() for t in q)]
+        self._waiting.clear()
+        self.live.clear()
+        for tx in failed:
+            if not tx.done:
+                tx.state, tx.error, tx.deadline = "done", error, None
+                self._finished.append(tx)
+        return failed
+
+    def reset(self) -> None:
+        """A new connection (TCP, serial): nothing sent on the old one can be answered on it."""
+        self._ledger.clear()
+        self._last_frame.clear()
+        self._last_error.clear()
+
+    def take_frames(self) -> list[Frame]:
+        out, self._out = self._out, []
+        return out
+
+    def take_finished(self) -> list[Transaction]:
+        out, self._finished = self._finished, []
+        return out
+
+    def next_deadline(self) -> float | None:
+        best: float | None = None
+        for tx in self.live.values():
+            d = tx.deadline
+            if d is not None and (best is None or d < best):
+                best = d
+        return best
+
+    def on_tick(self) -> None:
+        """Retries, timeouts and the end of deferrals that are due now."""
+        now = self.clock()
+        for tx in [t for t in self.live.values() if t.deadline is not None and t.deadline <= now]:
+            if tx.state == "deferred":
+                self._start(tx, now)
+            elif tx.state == "sent":
+                if len(tx.attempts) <= tx.retries:
+                    self.stats.retries += 1
+                    self._send(tx, now)
+                else:
+                    self.stats.timeouts += 1
+                    self._finish(tx, now, error=RequestTimeoutError(self._timeout_text(tx, now)))
+
+    # -- incoming ---------------------------------------------------------------------------------
+
+    def on_message(self, message: Message) -> Inbound:
+        """Classify one decoded frame from the device; completes at most one request."""
+        frame = message.frame
+        now = self.clock()
+        if message.is_error:
+            return self._on_error(message, now)
+        rkey = (frame.ident, frame.src, frame.rw or "w")
+        if frame.declared_length is not None and frame.ident not in self.recovered_ok:
+            self.stats.bad_frames += 1
+            return Inbound("ignored")
+        last = self._last_frame.get(rkey)
+        self._last_frame[rkey] = (now, frame.data)
+        # Right behind an identical frame: perhaps a network copy, so it proves no other attempt answered.
+        maybe_copy = last is not None and last[1] == frame.data and now - last[0] <= self.dup_window_s
+        ledger = self._ledger.get(rkey)
+        live = self.live.get((frame.ident, frame.src))
+        if live is not None and (live.state != "sent" or live.rkey != rkey):
+            live = None
+        if ledger is None:
+            return self._unowned(message, live, now, known=False)
+        window = now - self.late_window_s
+        ledger.prune(window)
+        if frame.rw == "r":
+            if roles.is_report(message):
+                return Inbound("unsolicited")  # a stream frame on a query's key
+            fits = list(ledger.open)
+        else:
+            fits = [a for a in ledger.open if self.echo_matches(a.tx.frame, a.tx.fields, message)]
+        own = [a for a in fits if a.tx is live]
+        foreign = [a for a in fits if a.tx is not live]
+        if live is not None and own and frame.rw == "r" and live.first_sent_at is not None:
+            rtt_min = self.stats.rtt_ms_min
+            floor = COPY_FLOOR_CAP_S if rtt_min is None else min(0.0005 * rtt_min, COPY_FLOOR_CAP_S)
+            if maybe_copy and now < live.first_sent_at + floor:
+                # An identical frame sooner than any answer can come: a copy of the previous one.
+                self._copy_seen()
+                return Inbound("duplicate")
+        if live is not None and own and (not foreign or frame.rw == "w"):
+            # Reads never have foreign attempts here (deferred until there are none); a write's
+            # echo with the data sent proves the data were applied, whichever attempt it answers.
+            return self._answer(live, own, message, now, sole=not foreign)
+        if foreign:
+            if live is not None and own:
+                self.stats.ambiguous += 1
+                live.notes.append(f"{frame.text()} could answer this request or an earlier one: not taken")
+                return Inbound("ambiguous")
+            if not maybe_copy:
+                self._close_if_single_owner(foreign)
+            self.stats.late_replies += 1
+            return Inbound("late")
+        # Fits an attempt that was answered already: another copy of that answer.
+        known = any(
+            a.sent_at >= window and (frame.rw == "r" or self.echo_matches(a.tx.frame, a.tx.fields, message))
+            for a in ledger.answered.values()
+        )
+        return self._unowned(message, live, now, known=known)
+
+    # -- internals ----------------------------------------------------------------------------------
+
+    def _unowned(self, message: Message, live: Transaction | None, now: float, *, known: bool) -> Inbound:
+        """A frame that fits no open attempt: a report, a copy of an answer already taken, a
+        mismatched echo, or a stray answer."""
+        if roles.is_report(message):
+            return Inbound("unsolicited")
+        if known:
+            self._copy_seen()
+            return Inbound("late")
+        if live is not None and message.frame.rw == "w":
+            # An echo with other data than any attempt sent: the device did something else.
+            self.stats.errors += 1
+            err = DeviceError(
+                f"the device acknowledged {live.frame.ident} ({live.frame.text()}) with {message.frame.text()}, "
+                f"which does not carry the data sent; the setting may not be what was asked"
+            )
+            self._finish(live, now, error=err)
+            return Inbound("mismatch", live)
+        ledger = self._ledger.get((message.frame.ident, message.frame.src, message.frame.rw or "w"))
+        if ledger is not None and (ledger.open or ledger.answered):
+            self.stats.stray_replies += 1
+            return Inbound("late")
+        return Inbound("unsolicited")
+
+    def _copy_seen(self) -> None:
+        self.stats.duplicates += 1
+        self.copies_seen = True
+
+    def _close(self, attempt: Attempt) -> None:
+        ledger = self._ledger.get(attempt.tx.rkey)
+        if ledger is not None:
+            ledger.close(attempt)
+        else:
+            attempt.closed = True
+
+    def _answer(self, tx: Transaction, own: list[Attempt], message: Message, now: float, *, sole: bool) -> Inbound:
+        oldest = own[0]
+        self._close(oldest)
+        if sole and len(own) == 1:
+            self.stats.add_rtt(now - oldest.sent_at)  # only when it is clear which attempt answered
+        self.stats.replies += 1
+        self._finish(tx, now, reply=message)
+        return Inbound("answer", tx)
+
+    def _close_if_single_owner(self, attempts: list[Attempt]) -> None:
+        owner = attempts[0].tx
+        if all(a.tx is owner for a in attempts):
+            self._close(attempts[0])
+            self._recheck(attempts[0].tx.rkey)
+
+    def _on_error(self, message: Message, now: float) -> Inbound:
+        self.stats.errors += 1
+        src = message.frame.src
+        previous = self._last_error.get(src)
+        self._last_error[src] = now
+        window = now - self.late_window_s
+        owners = {
+            a.tx for rkey, ledger in self._ledger.items() if rkey[1] == src for a in ledger.open if a.sent_at >= window
+        }
+        live = [t for t in owners if t.state == "sent" and self.live.get(t.key) is t]
+        copy = previous is not None and now - previous <= self.dup_window_s  # may copy the last one
+        if len(owners) == 1 and len(live) == 1 and not copy:
+            tx = live[0]
+            self._close(next(a for a in tx.attempts if not a.closed))
+            err = DeviceError(
+                f"the device refused {tx.frame.ident} ({tx.frame.text()}): it answered {message.frame.text()}"
+            )
+            self._finish(tx, now, error=err)
+            return Inbound("error", tx)
+        for tx in live:
+            tx.notes.append(
+                f"the device sent an error frame {message.frame.text()} that may answer this request or another to {src}"
+            )
+        return Inbound("error")
+
+    def _start(self, tx: Transaction, now: float) -> None:
+        self.live[tx.key] = tx
+        until = self._blocked_until(tx, now)
+        if until is not None:
+            if tx.state != "deferred":
+                self.stats.deferred += 1
+            tx.state, tx.deadline = "deferred", until
+            return
+        self._send(tx, now)
+
+    def _blocked_until(self, tx: Transaction, now: float) -> float | None:
+        """When `tx` may be sent without an earlier request's answer passing for its own."""
+        if tx.frame.rw == "w" and not tx.exclusive:
+            return None
+        until: float | None = None
+        ledger = self._ledger.get(tx.rkey)
+        if ledger is not None:
+            window = now - self.late_window_s
+            for a in ledger.open:
+                if a.sent_at >= window and a.tx is not tx:
+                    end = a.sent_at + self.late_window_s
+                    until = end if until is None else max(until, end)
+        if tx.exclusive or self.copies_seen:
+            # Quiet first: a copy of an earlier frame may still be on its way (only a link that
+            # has shown copies delays queries for this; photos and toggles always wait).
+            last = self._last_frame.get(tx.rkey)
+            if last is not None and now - last[0] < self.dup_window_s:
+                end = last[0] + self.dup_window_s
+                until = end if until is None else max(until, end)
+        return until if until is not None and until > now else None
+
+    def _recheck(self, rkey: RKey) -> None:
+        tx = self.live.get((rkey[0], rkey[1]))
+        if tx is not None and tx.state == "deferred" and tx.rkey == rkey:
+            self._start(tx, self.clock())
+
+    def _send(self, tx: Transaction, now: float) -> None:
+        attempt = Attempt(tx, now)
+        ledger = self._ledger.get(tx.rkey)
+        if ledger is None:
+            ledger = self._ledger[tx.rkey] = Ledger()
+        ledger.prune(now - self.late_window_s)
+        ledger.add(attempt)
+        tx.attempts.append(attempt)
+        if tx.first_sent_at is None:
+            tx.first_sent_at = now
+        tx.last_sent_at = now
+        tx.state = "sent"
+        tx.deadline = now + tx.timeout_s
+        self._out.append(tx.frame)
+
+    def _finish(
+        self, tx: Transaction, now: float, *, reply: Message | None = None, error: Exception | None = None
+    ) -> None:
+        tx.state, tx.reply, tx.error, tx.deadline = "done", reply, error, None
+        self._finished.append(tx)
+        key = tx.key
+        if self.live.get(key) is tx:
+            del self.live[key]
+            queue = self._waiting.get(key)
+            if queue:
+                nxt = queue.popleft()
+                if not queue:
+                    del self._waiting[key]
+                self._start(nxt, now)
+
+    def _timeout_text(self, tx: Transaction, now: float) -> str:
+        n = len(tx.attempts)
+        sent_for = now - (tx.first_sent_at or now)
+        text = (
+            f"no reply to {tx.frame.ident} ({tx.frame.text()}) after {n} attempt{'s' if n != 1 else ''} "
+            f"in {sent_for:.2f} s"
+        )
+        if tx.waited_s >= 0.01:
+            text += (
+                f" ({now - tx.submitted_at:.2f} s in all: it first waited {tx.waited_s:.2f} s for earlier "
+                f"requests on {tx.frame.ident} to be answered or run out)"
+            )
+        if tx.exclusive:
+            text += f"; {tx.frame.ident} acts on every copy, so it is never retried"
+        if tx.notes:
+            text += "; " + "; ".join(dict.fromkeys(tx.notes))
+        return text

@@ -1,0 +1,285 @@
+"""Attitude streams: the device's stream kept at what the consumers need, and consumer objects
+that stop it deterministically.
+
+`cam.attitude(rate_hz)` returns an `AttitudeStream`: an async iterator and an async context manager.
+`async with cam.attitude(20) as s: async for att in s: ...` (or `await s.aclose()`) stops the
+device's stream the moment the consumer is done. The short form `async for att in
+cam.attitude(20): ... break` keeps working: the object is released when it is dropped (at once in
+CPython) and, as a backstop that does not depend on the garbage collector, when it has not asked
+for a sample for `abandon_after_s`; a consumer that comes back later simply starts again.
+
+One reconciler task brings the device to the wanted state (the highest rate any consumer or
+`attitude_stream()` asked for, or off), so starts and stops from several consumers never race.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+import time
+import weakref
+from collections import deque
+from typing import TYPE_CHECKING
+
+from ..errors import RequestTimeoutError, TopGimbalError
+from . import roles
+from .state import Attitude
+
+if TYPE_CHECKING:
+    from .core import ClientCore
+
+QUEUE_SIZE = 64  # samples held per consumer; the oldest go first when a consumer falls behind
+
+
+class StreamControl:
+    def __init__(self, core: ClientCore) -> None:
+        self.core = core
+        # Weak: a consumer dropped without aclose() must be collectable (its __del__ releases it).
+        self.consumers: weakref.WeakSet[AttitudeStream] = weakref.WeakSet()
+        self.manual_rate: float | None = None
+        self.device_rate: float | None = None  # what the device was last told; None: off or unknown
+        self._listeners: list[tuple[float, asyncio.Future[Attitude]]] = []
+        self._task: asyncio.Task[None] | None = None
+
+    @property
+    def active(self) -> bool:
+        """Something expects attitude frames (the link monitor watches for silence)."""
+        return self.device_rate is not None or self.manual_rate is not None or len(self.consumers) > 0
+
+    def wanted(self) -> float | None:
+        rates = [c.rate_hz for c in self.consumers]
+        if self.manual_rate is not None:
+            rates.append(self.manual_rate)
+        return max(rates) if rates else None
+
+    # -- the device's stream ---------------------------------------------------------------------
+
+    async def set_manual(self, rate_hz: float | None) -> None:
+        """`attitude_stream(rate)` / `stop_attitude_stream()`: a stream that stays until stopped."""
+        self.manual_rate = rate_hz
+        await self.reconcile()
+
+    async def acquire(self, consumer: AttitudeStream) -> None:
+        self.consumers.add(consumer)
+        try:
+            await self.reconcile()
+        except BaseException:
+            self.consumers.discard(consumer)
+            self.kick()
+            raise
+
+    def release(self, consumer: AttitudeStream) -> None:
+        self.consumers.discard(consumer)
+        self.kick()  # also when the weak set has already let it go
+
+    def kick(self) -> None:
+        """Start bringing the device to the wanted state, unless that is under way."""
+        if self._task is None or self._task.done():
+            loop = self.core._loop
+            if loop is None or loop.is_closed() or self.core._closed:
+                return
+            if self.wanted() == self.device_rate:
+                return
+            self._task = loop.create_task(self._reconcile())
+            self._task.add_done_callback(_consume_error)
+
+    async def reconcile(self) -> None:
+        """Wait until the device does what is wanted; raises what stopped it."""
+        while self.wanted() != self.device_rate:
+            if self._task is None or self._task.done():
+                self._task = asyncio.ensure_future(self._reconcile())
+                self._task.add_done_callback(_consume_error)
+            task = self._task
+            await asyncio.shield(task)
+            if task.exception() is not None:
+                raise task.exception()  # type: ignore[misc]
+
+    async def _reconcile(self) -> None:
+        core = self.core
+        ident = roles.require_role(core.dialect, core.model, "attitude_stream", "attitude stream")
+        spec = core.dialect.command(ident)
+        while (want := self.wanted()) != self.device_rate:
+            frame = core.build(ident, **roles.stream_values(spec, want))
+            await core._request(frame, timeout_s=core.timeout_s, retries=core.retries)
+            self.device_rate = want
+
+    def resume(self) -> None:
+        """The device is there again: it may have forgotten its stream."""
+        if self.wanted() is not None:
+            self.device_rate = None
+            self.kick()
+
+    async def shutdown(self, *, timeout_s: float) -> None:
+        """Closing the client: end consumers, and switch the device's stream off if it is on."""
+        for c in list(self.consumers):
+            c._end(None)
+        self.consumers.clear()
+        self.manual_rate = None
+        if self.device_rate is None:
+            return
+        core = self.core
+        ident = roles.role_ident(core.dialect, core.model, "attitude_stream")
+        if ident is None:
+            return
+        off = core.build(ident, **roles.stream_values(core.dialect.command(ident), None))
+        with contextlib.suppress(TopGimbalError, asyncio.TimeoutError):
+            await asyncio.wait_for(core._request(off, timeout_s=timeout_s, retries=0), timeout_s * 2)
+            self.device_rate = None
+
+    # -- samples ---------------------------------------------------------------------------------
+
+    def publish(self, att: Attitude) -> None:
+        for c in list(self.consumers):
+            if c._abandoned(att.t):
+                c._started = False  # it starts again if it ever asks for a sample
+                c._queue.clear()
+                self.release(c)
+            else:
+                c._push(att)
+        if self._listeners:
+            keep = []
+            for newer_than, fut in self._listeners:
+                if fut.done():
+                    continue
+                if att.t > newer_than:
+                    fut.set_result(att)
+                else:
+                    keep.append((newer_than, fut))
+            self._listeners = keep
+
+    def fail(self, error: Exception) -> None:
+        """The link is gone: consumers end with `error`; the device's state is unknown."""
+        for c in list(self.consumers):
+            c._end(error)
+        self.consumers.clear()
+        self.device_rate = None
+        for _, fut in self._listeners:
+            if not fut.done():
+                fut.set_exception(error)
+        self._listeners = []
+
+    async def next_sample(self, *, newer_than: float, timeout_s: float) -> Attitude:
+        """The next sample from whatever stream runs (none is started here)."""
+        loop = asyncio.get_running_loop()
+        fut: asyncio.Future[Attitude] = loop.create_future()
+        self._listeners.append((newer_than, fut))
+        try:
+            return await asyncio.wait_for(fut, timeout_s)
+        except asyncio.TimeoutError:
+            raise RequestTimeoutError(f"no attitude sample arrived within {timeout_s:.2f} s") from None
+        finally:
+            self._listeners = [(n, f) for n, f in self._listeners if f is not fut]
+
+
+def _consume_error(task: asyncio.Task[None]) -> None:
+    if not task.cancelled():
+        task.exception()  # retrieved: a failed background stop is not an unhandled error
+
+
+class AttitudeStream:
+    """Attitude samples as they arrive, at most `rate_hz`. See the module docstring."""
+
+    def __init__(self, control: StreamControl, rate_hz: float, *, abandon_after_s: float | None = None) -> None:
+        self.control = control
+        self.rate_hz = rate_hz
+        self.abandon_after_s = abandon_after_s if abandon_after_s is not None else max(5.0, 50.0 / rate_hz)
+        self.dropped = 0  # samples lost because the consumer fell behind
+        self._queue: deque[Attitude | BaseException | None] = deque()
+        self._waiter: asyncio.Future[None] | None = None
+        self._min_gap = 0.9 / rate_hz  # 10 % slack: device clocks drift
+        self._last_t = -math.inf
+        self._last_pull = time.monotonic()
+        self._started = False
+        self._closed = False
+
+    # -- consumer side -----------------------------------------------------------------------------
+
+    async def start(self) -> AttitudeStream:
+        if self._closed:
+            raise TopGimbalError("this attitude stream was closed; call cam.attitude() again")
+        if not self._started:
+            self._started = True
+            self._last_pull = time.monotonic()
+            try:
+                await self.control.acquire(self)
+            except BaseException:
+                self._started = False
+                raise
+        return self
+
+    async def __aenter__(self) -> AttitudeStream:
+        return await self.start()
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.aclose()
+
+    def __aiter__(self) -> AttitudeStream:
+        return self
+
+    async def __anext__(self) -> Attitude:
+        if self._closed:
+            raise StopAsyncIteration
+        if not self._started:
+            await self.start()
+        while not self._queue:
+            self._waiter = asyncio.get_running_loop().create_future()
+            try:
+                await self._waiter
+            finally:
+                self._waiter = None
+        self._last_pull = time.monotonic()
+        item = self._queue.popleft()
+        if item is None:
+            self._closed = True
+            raise StopAsyncIteration
+        if isinstance(item, BaseException):
+            self._closed = True
+            raise item
+        return item
+
+    async def aclose(self) -> None:
+        """Stop: the device's stream goes off if no one else needs it (waits for that, briefly)."""
+        if self._closed and not self._started:
+            return
+        was_started, self._started, self._closed = self._started, False, True
+        if was_started:
+            self.control.release(self)
+            core = self.control.core
+            with contextlib.suppress(TopGimbalError, asyncio.TimeoutError):
+                await asyncio.wait_for(self.control.reconcile(), core.timeout_s * (core.retries + 2))
+
+    def __del__(self) -> None:
+        # Dropped without aclose() (a `break` out of `async for`): release now, not at GC's leisure.
+        if self._started and not self._closed:
+            self._closed = True
+            with contextlib.suppress(Exception):
+                self.control.release(self)
+
+    # -- producer side -----------------------------------------------------------------------------
+
+    def _abandoned(self, now: float) -> bool:
+        return self._waiter is None and now - self._last_pull > self.abandon_after_s
+
+    def _push(self, att: Attitude) -> None:
+        if att.t - self._last_t < self._min_gap:
+            return
+        self._last_t = att.t
+        if len(self._queue) >= QUEUE_SIZE:
+            self._queue.popleft()
+            self.dropped += 1
+        self._queue.append(att)
+        self._wake()
+
+    def _end(self, error: BaseException | None) -> None:
+        self._queue.append(error)
+        self._started = False
+        self._wake()
+
+    def _wake(self) -> None:
+        w = self._waiter
+        if w is not None and not w.done():
+            w.set_result(None)
+
+
+__all__ = ["AttitudeStream", "StreamControl"]

@@ -1,0 +1,108 @@
+"""Attitude streams stop deterministically when their consumer leaves, and `point()` works after
+the README's own telemetry pattern (issue 17, item 1)."""
+
+from __future__ import annotations
+
+import asyncio
+import gc
+import itertools
+
+import pytest
+
+import topgimbal
+from topgimbal.errors import RequestTimeoutError
+
+from .test_client_link import until
+
+
+def gaa_rates(frames) -> list[int]:
+    return [int(f.data, 16) for f in frames if f.ident == "GAA" and f.rw == "w"]
+
+
+@pytest.mark.integration
+async def test_point_works_right_after_breaking_out_of_an_attitude_loop(sim_factory):
+    sim = await sim_factory("C12", seed=31)
+    async with topgimbal.connect(dict(sim.endpoints)["udp"], model="C12", timeout_s=0.5) as cam:
+        async for _att in cam.attitude(rate_hz=20):
+            break
+        att = await cam.point(5, -5)
+        assert abs(att.yaw_deg - 5) <= 0.5 and abs(att.pitch_deg + 5) <= 0.5
+        got = await cam.get_attitude()
+        assert abs(got.yaw_deg - 5) <= 0.5
+
+
+async def test_a_context_managed_stream_is_off_when_the_block_ends(fake):
+    url = fake.start_memory()
+    async with topgimbal.connect(url, model="C12", timeout_s=0.5) as cam:
+        async with cam.attitude(rate_hz=20) as stream:
+            async for _att in stream:
+                break
+        # the stop was sent and acknowledged before the block ended: not left to the GC
+        assert gaa_rates(fake.received) == [20, 0] and cam.streams.device_rate is None
+
+
+async def test_a_dropped_stream_is_released_and_a_second_consumer_keeps_it(fake):
+    url = fake.start_memory()
+    async with topgimbal.connect(url, model="C12", timeout_s=0.5) as cam:
+        async with cam.attitude(rate_hz=10) as keeper:
+            async for _att in cam.attitude(rate_hz=40):  # raises the rate while it runs
+                break
+            gc.collect()
+            await until(lambda: gaa_rates(fake.received)[-1] == 10)  # back to what the keeper needs
+            assert await keeper.__anext__()
+        assert gaa_rates(fake.received) == [10, 40, 10, 0]
+
+
+async def test_an_abandoned_consumer_is_released_without_the_garbage_collector(fake):
+    url = fake.start_memory()
+    async with topgimbal.connect(url, model="C12", timeout_s=0.5) as cam:
+        stream = cam.attitude(rate_hz=50, abandon_after_s=0.1)
+        await stream.__anext__()  # started; then the consumer stops asking (but is still referenced)
+        await until(lambda: gaa_rates(fake.received)[-1:] == [0])
+        assert await stream.__anext__()  # coming back starts it again
+        assert gaa_rates(fake.received)[-1] == 50
+        await stream.aclose()
+
+
+async def test_point_falls_back_to_polling_and_says_where_the_gimbal_was(fake):
+    url = fake.start_memory()
+    fake.attitude = (1.0, 2.0, 0.0)  # a gimbal that never moves
+    async with topgimbal.connect(url, model="C12", timeout_s=0.2) as cam:
+        await cam.attitude_stream(20)
+        fake._set_stream(0)  # ... and whose stream stopped on its own: no sample will come
+        with pytest.raises(RequestTimeoutError) as err:
+            await cam.point(5, -5, timeout_s=1.0)
+        text = str(err.value)
+        assert "did not reach yaw 5, pitch -5" in text and "last attitude seen: yaw 1.00, pitch 2.00" in text
+        polls = [f for f in fake.received if f.ident == "GAC" and f.rw == "r"]
+        assert len(polls) >= 2  # it asked, since the stream said nothing
+
+
+@pytest.mark.integration
+def test_a_blocking_stream_is_off_when_its_block_ends():
+    from topgimbal.sim import BackgroundSimulator
+
+    with BackgroundSimulator("C12", seed=32, listen={"udp": [("127.0.0.1", 0)]}) as bg:  # noqa: SIM117 - bg.url
+        with topgimbal.Gimbal(bg.url, model="C12", timeout_s=0.5) as cam:
+            with cam.attitude(rate_hz=20) as stream:
+                for _att in stream:
+                    break
+            assert gaa_rates(bg.call(lambda s: list(s.received))) == [20, 0]
+            for n, _att in enumerate(cam.attitude(rate_hz=20), 1):  # the short form still works
+                if n == 2:
+                    break
+
+
+async def test_stream_samples_are_decimated_to_the_asked_rate(fake):
+    url = fake.start_memory()
+    async with topgimbal.connect(url, model="C12", timeout_s=0.5) as cam:
+        await cam.attitude_stream(50)
+        ts = []
+        async with cam.attitude(rate_hz=10) as stream:
+            async for att in stream:
+                ts.append(att.t)
+                if len(ts) == 4:
+                    break
+        gaps = [b - a for a, b in itertools.pairwise(ts)]
+        assert all(g >= 0.09 * 0.99 for g in gaps), gaps  # never faster than asked (10 % slack)
+        await asyncio.sleep(0)
