@@ -194,7 +194,7 @@ class CameraLink:
             return
         with contextlib.suppress(TopGimbalError, OSError):
             if self._streaming:
-                await client.attitude_stream(self.stream_rate_hz, timeout_s=min(self.timeout_s, 0.5), retries=0)
+                await client.attitude_stream(self.stream_rate_hz)
             else:
                 await client.version()
 
