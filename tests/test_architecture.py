@@ -15,9 +15,10 @@ ALLOWED = {
     "transport": {"protocol"},
     "client": {"protocol", "transport"},
     "sim": {"protocol"},
-    "console": {"protocol", "client", "sim"},  # sim only for `--sim` (in-process camera)
-    "tools": {"protocol", "client", "sim", "console"},
-    "cli": {"protocol", "client", "transport", "sim", "console", "tools"},
+    "console": {"protocol", "client", "sim", "video"},  # sim only for `--sim` (in-process camera)
+    "video": {"protocol", "sim"},  # renders the simulator's state; relays any camera's RTSP
+    "tools": {"protocol", "client", "sim", "console", "video"},
+    "cli": {"protocol", "client", "transport", "sim", "console", "tools", "video"},
 }
 
 
