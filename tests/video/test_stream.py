@@ -1,0 +1,129 @@
+"""The simulator's RTSP streams, read by Debian's ffprobe/ffmpeg: codecs and sizes, the picture
+following the gimbal and the zoom, several receivers, the CLI."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+import topgimbal
+from topgimbal.video import world
+from topgimbal.video.lens import View, hfov_at, stream_for
+from topgimbal.video.render import decode_stamp
+
+from .blobs import nearest, red_blobs
+from .conftest import FFPROBE, LiveSim, grab
+
+pytestmark = pytest.mark.integration
+
+# Where a landmark's bullseye is found against where the lens model puts it. The centroid of a
+# ~30 px ring in an H.264 picture lands within a pixel of its centre; the picture is taken at
+# most one frame after the gimbal settled (it is still), so 3 px (0.15 deg at 62 deg / 1280 px)
+# separates "right place" from any real error (one landmark step is 30 deg = hundreds of px).
+TOLERANCE_PX = 3.0
+
+
+def probe(url: str, transport: str = "tcp") -> dict:
+    out = subprocess.run(
+        [FFPROBE, "-v", "error", "-rtsp_transport", transport, "-show_entries", "stream=codec_name,width,height",
+         "-of", "json", url],
+        capture_output=True, text=True, timeout=30, check=True,
+    ).stdout
+    return json.loads(out)["streams"][0]
+
+
+def test_ffprobe_reads_the_c12s_visible_and_thermal_streams(c12: LiveSim) -> None:
+    urls = c12.video.urls
+    assert urls["visible"].endswith("/stream=1") and urls["thermal"].endswith("/stream=2")
+    assert probe(urls["visible"], "udp") == {"codec_name": "h264", "width": 1280, "height": 720}
+    assert probe(urls["thermal"], "tcp") == {"codec_name": "h264", "width": 640, "height": 512}
+
+
+def _predicted(live: LiveSim, number: int) -> tuple[float, float]:
+    yaw, pitch, roll = live.call(lambda: (live.sim.device.sync(), live.sim.gimbal.earth())[1])
+    zoom = live.call(lambda: live.sim.camera.zoom_x)
+    spec = stream_for("C12", "visible")
+    view = View(yaw, pitch, roll, hfov_at(spec.hfov_deg, zoom), *spec.size)
+    m = world.landmark(number)
+    p = view.project(m.az_deg, m.el_deg)
+    assert p is not None
+    return p
+
+
+def test_a_landmark_moves_as_the_gimbal_turns_and_zooms(c12: LiveSim) -> None:
+    url = c12.video.urls["visible"]
+    with topgimbal.Gimbal(c12.url, model="C12") as cam:
+        cam.point(0, 0, tolerance_deg=0.05)
+        (pic,) = grab(url, (1280, 720))
+        x0, y0 = _predicted(c12, 1)
+        assert abs(x0 - 640) < 2 and abs(y0 - 360) < 2  # landmark 1 is due north, on the horizon
+        bx, by, err = nearest(red_blobs(pic), x0, y0)
+        assert err < TOLERANCE_PX, (bx, by, x0, y0)
+
+        cam.point(20, -5, tolerance_deg=0.05)  # landmark 2 (bearing 30) is now 10 deg right, 5 up
+        (pic,) = grab(url, (1280, 720))
+        x1, y1 = _predicted(c12, 2)
+        assert x1 - 640 == pytest.approx(640 / 0.6009 * 0.1763 / 0.9962, rel=0.05)  # f tan(10) / cos-ish
+        bx, by, err = nearest(red_blobs(pic), x1, y1)
+        assert err < TOLERANCE_PX, (bx, by, x1, y1)
+
+        cam.digital_zoom(2)  # twice the focal length: the offset from the centre doubles
+        time.sleep(0.3)
+        (pic,) = grab(url, (1280, 720))
+        x2, y2 = _predicted(c12, 2)
+        assert x2 - 640 == pytest.approx(2 * (x1 - 640), rel=0.01)
+        bx, by, err = nearest(red_blobs(pic), x2, y2)
+        assert err < TOLERANCE_PX, (bx, by, x2, y2)
+        # ... and nothing is left where it was before the zoom.
+        assert nearest(red_blobs(pic), x1, y1)[2] > 20
+
+
+def test_two_receivers_get_the_same_pictures(c12: LiveSim) -> None:
+    url = c12.video.urls["thermal"]
+    results: dict[str, list] = {}
+
+    def read(name: str, transport: str) -> None:
+        results[name] = grab(url, (640, 512), frames=20, transport=transport)
+
+    threads = [threading.Thread(target=read, args=(n, t)) for n, t in (("a", "tcp"), ("b", "udp"))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(60)
+    stamps = {n: {decode_stamp(p) for p in pics} for n, pics in results.items()}
+    assert None not in stamps["a"] | stamps["b"]
+    # Same encoder, same pictures: the burned-in capture times of the two receivers coincide.
+    assert len(stamps["a"] & stamps["b"]) >= 5
+
+
+def test_sim_cli_serves_video_on_free_ports_with_h265_when_told() -> None:
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "topgimbal.cli.main", "sim", "--model", "SIP", "--udp", "127.0.0.1:0", "--video",
+         "--video-port", "0", "--video-fps", "10", "--video-size", "320x240", "--video-codec", "h265"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        assert proc.stdout is not None
+        lines = [proc.stdout.readline().strip() for _ in range(3)]
+        rtsp = [u for u in lines if u.startswith("rtsp://127.0.0.1:")]
+        assert [u.rsplit("/", 1)[1] for u in rtsp] == ["stream=0", "stream=1"], lines
+        assert probe(rtsp[0]) == {"codec_name": "hevc", "width": 320, "height": 240}
+        assert probe(rtsp[1])["codec_name"] == "hevc"
+    finally:
+        proc.terminate()
+        proc.wait(10)
+
+
+def test_sim_cli_refuses_a_non_loopback_video_address() -> None:
+    r = subprocess.run(
+        [sys.executable, "-m", "topgimbal.cli.main", "sim", "--model", "C12", "--udp", "127.0.0.1:0", "--video",
+         "--video-port", "0", "--video-host", "0.0.0.0"],
+        capture_output=True, text=True, timeout=30,
+    )
+    assert r.returncode != 0
+    assert "loopback only" in r.stderr
