@@ -13,7 +13,7 @@ PKG = Path(__file__).resolve().parents[1] / "src" / "topgimbal"
 ALLOWED = {
     "protocol": set(),
     "transport": {"protocol"},
-    "client": {"protocol", "transport"},
+    "client": {"protocol", "transport", "video"},  # video.lens only (the stream table; tests/video checks)
     "sim": {"protocol"},
     "console": {"protocol", "client", "sim", "video"},  # sim only for `--sim` (in-process camera)
     "video": {"protocol", "sim"},  # renders the simulator's state; relays any camera's RTSP

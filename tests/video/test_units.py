@@ -122,3 +122,22 @@ def test_thermal_picture_follows_the_palette_and_osd_and_recording_show() -> Non
     off = np.asarray(v.render(_state(osd=True, recording=True, record_s=0.7)))[rec_box]
     red = lambda a: int(((a[..., 0] > 200) & (a[..., 1] < 50)).sum())  # noqa: E731
     assert red(on) > 20 and red(off) == 0  # the REC light blinks
+
+
+def test_client_builds_video_urls_and_imports_only_the_stream_table() -> None:
+    import ast
+    from pathlib import Path
+
+    import topgimbal
+
+    cam = topgimbal.AsyncClient("udp://127.0.0.1:5000", model="C12")
+    assert cam.video_url() == "rtsp://127.0.0.1:554/stream=1"
+    assert cam.video_url("thermal", host="192.168.144.108") == "rtsp://192.168.144.108:555/stream=2"
+    client_dir = Path(topgimbal.__file__).parent / "client"
+    used = {
+        node.module
+        for path in client_dir.glob("*.py")
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.ImportFrom) and node.module and "video" in node.module
+    }
+    assert used == {"video.lens"}  # the client layer reaches only the pure table, not the renderer

@@ -154,6 +154,9 @@ class Gimbal:
             if not self._thread.loop.is_closed():
                 self._thread.run(agen.aclose())
 
+    def video_url(self, lens: str = "visible", **kw: Any) -> str:
+        return self.aio.video_url(lens, **kw)  # plain method: no loop needed (docs/video.md)
+
     def __getattr__(self, name: str) -> Any:
         # Forward the coroutine methods (listed in FORWARDED) as blocking calls.
         if name in FORWARDED:

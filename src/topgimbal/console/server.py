@@ -16,6 +16,7 @@ from typing import Any
 
 from aiohttp import web
 
+from ..video.webconsole import attach as attach_video
 from .auth import origin_allowed, resolve_token, token_middleware
 from .catalog_api import catalog_json
 from .hub import Hub
@@ -102,6 +103,7 @@ class ConsoleServer:
         self.app: web.Application | None = None
         self._runner: web.AppRunner | None = None
         self.bound_port: int | None = None
+        self.video: Any = None
 
     @property
     def base_url(self) -> str:
@@ -130,6 +132,7 @@ class ConsoleServer:
             self.hub = Hub(self.cam, url=self.url, attitude_hz=self.attitude_hz)
             await self.hub.start()
             self.app = create_app(self.hub, token=self.token)
+            self.video = await attach_video(self, self.app, origin_allowed)  # topgimbal.video: streams, relay, routes
             self._runner = web.AppRunner(self.app, access_log=None, handle_signals=False)
             await self._runner.setup()
             site = web.TCPSite(self._runner, self.host, self.port)
@@ -146,6 +149,9 @@ class ConsoleServer:
             with contextlib.suppress(Exception):
                 await self._runner.cleanup()
             self._runner = None
+        if self.video is not None:
+            await self.video.close()
+            self.video = None
         if self.hub is not None:
             await self.hub.stop()
             self.hub = None

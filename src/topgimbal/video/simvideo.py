@@ -5,7 +5,8 @@
     await video.start(); print(video.urls)      # {"visible": "rtsp://127.0.0.1:554/stream=1", ...}
     await video.stop()
 
-One thread per stream renders and encodes (numpy, Pillow and FFmpeg release the GIL for their
+One thread per stream renders and encodes, only while someone plays the stream (and once for a
+DESCRIBE, which needs the parameter sets) (numpy, Pillow and FFmpeg release the GIL for their
 heavy work, so the simulator's event loop keeps its timing; bench/video.py measures it). Each
 picture starts with a snapshot of the simulator taken on the simulator's own loop thread, so the
 render thread never reads half-updated state.
@@ -220,6 +221,10 @@ class _Worker:
                     self.skipped += int((now - next_t) / period)
                     next_t = now
                 next_t += period
+                if not self.stream.receivers and not self._key.is_set():
+                    # Nobody watches: render nothing (a DESCRIBE or PLAY asks for a keyframe).
+                    self._key.wait(period)
+                    continue
                 state = self.video.snapshot(self.frames)
                 if state is None:
                     continue

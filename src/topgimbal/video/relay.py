@@ -1,0 +1,156 @@
+"""The console's video relay: one camera stream (RTSP, real or simulated) to any number of
+browsers as MJPEG (multipart JPEG over HTTP: one `<img>`, no script, no player buffer).
+
+A reader thread opens the stream with PyAV only while someone watches, decodes every picture,
+and JPEG-encodes the newest one for the viewers; viewers that are slower than the camera skip
+pictures (the relay keeps one picture, never a queue). When the stream fails or stops, the state
+says so and the reader tries again every RETRY_S. Bounds: MAX_VIEWERS per stream (more get 503),
+one JPEG buffered, MAX_FPS pictures per second to the browsers.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import io
+import logging
+import threading
+import time
+from collections.abc import AsyncIterator
+from typing import Any
+
+from .lens import VideoError
+
+log = logging.getLogger("topgimbal.video.relay")
+
+MAX_VIEWERS = 8
+MAX_FPS = 30.0
+RETRY_S = 1.0
+IDLE_CLOSE_S = 5.0  # keep the camera stream open this long after the last viewer left
+JPEG_QUALITY = 80
+READ_TIMEOUT_S = 3.0
+
+
+class Relay:
+    """One stream. `state` is "idle", "connecting", "playing" or "reconnecting" (+ `error`)."""
+
+    def __init__(self, name: str, url: str) -> None:
+        self.name = name
+        self.url = url
+        self.state = "idle"
+        self.error: str | None = None
+        self.viewers = 0
+        self.size: tuple[int, int] | None = None
+        self.pictures = 0
+        self.jpeg: bytes | None = None
+        self.jpeg_seq = 0
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._cond: asyncio.Condition | None = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._last_viewer = 0.0
+
+    def status(self) -> dict[str, Any]:
+        return {
+            "state": self.state,
+            "error": self.error,
+            "viewers": self.viewers,
+            "size": list(self.size) if self.size else None,
+            "pictures": self.pictures,
+        }
+
+    # -- viewers (event loop) ------------------------------------------------------------------------
+
+    async def pictures_for_viewer(self) -> AsyncIterator[bytes]:
+        """JPEG pictures as they come, newest first, for one viewer. Raises RelayFullError."""
+        if self.viewers >= MAX_VIEWERS:
+            log.warning("video %s: refusing a viewer: %d already (limit)", self.name, MAX_VIEWERS)
+            raise RelayFullError(f"{MAX_VIEWERS} viewers already watch the {self.name} stream")
+        self._loop = asyncio.get_running_loop()
+        if self._cond is None:
+            self._cond = asyncio.Condition()
+        self.viewers += 1
+        self._ensure_reader()
+        seen = -1
+        try:
+            while True:
+                async with self._cond:
+                    await self._cond.wait_for(lambda: self.jpeg_seq != seen)
+                seen = self.jpeg_seq
+                if self.jpeg is not None:
+                    yield self.jpeg
+        finally:
+            self.viewers -= 1
+            self._last_viewer = time.monotonic()
+
+    def _ensure_reader(self) -> None:
+        if self._thread is not None and self._thread.is_alive():
+            return
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._read_loop, name=f"topgimbal-relay-{self.name}", daemon=True)
+        self._thread.start()
+
+    async def _publish(self, jpeg: bytes) -> None:
+        assert self._cond is not None
+        async with self._cond:
+            self.jpeg = jpeg
+            self.jpeg_seq += 1
+            self._cond.notify_all()
+
+    def close(self) -> None:
+        self._stop.set()
+
+    # -- the reader (thread) -------------------------------------------------------------------------
+
+    def _read_loop(self) -> None:
+        from .frames import open_stream
+
+        while not self._stop.is_set():
+            if self.viewers == 0 and time.monotonic() - self._last_viewer > IDLE_CLOSE_S:
+                self.state = "idle"
+                return
+            self.state = "connecting" if self.pictures == 0 else "reconnecting"
+            try:
+                container = open_stream(self.url, timeout_s=READ_TIMEOUT_S)
+            except Exception as exc:
+                self._failed(exc)
+                continue
+            try:
+                self._pump(container)
+            except Exception as exc:
+                self._failed(exc)
+            finally:
+                container.close()
+            if not self._stop.is_set() and self.viewers:
+                self._failed(None)
+
+    def _failed(self, exc: Exception | None) -> None:
+        self.error = str(exc) if exc else "the stream ended"
+        if self.state != "reconnecting":
+            log.warning("video %s: %s; retrying every %.0f s", self.name, self.error, RETRY_S)
+        self.state = "reconnecting"
+        self._stop.wait(RETRY_S)
+
+    def _pump(self, container: Any) -> None:
+        min_gap = 1.0 / MAX_FPS
+        last = 0.0
+        for frame in container.decode(video=0):
+            if self._stop.is_set():
+                return
+            if self.viewers == 0 and time.monotonic() - self._last_viewer > IDLE_CLOSE_S:
+                return
+            self.state, self.error = "playing", None
+            self.size = (frame.width, frame.height)
+            self.pictures += 1
+            now = time.monotonic()
+            if now - last < min_gap:
+                continue
+            last = now
+            buf = io.BytesIO()
+            frame.to_image().save(buf, format="JPEG", quality=JPEG_QUALITY)
+            loop = self._loop
+            if loop is not None and not loop.is_closed():
+                asyncio.run_coroutine_threadsafe(self._publish(buf.getvalue()), loop)
+
+
+class RelayFullError(VideoError):
+    """Too many viewers on one stream."""
