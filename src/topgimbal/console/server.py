@@ -145,13 +145,13 @@ class ConsoleServer:
             raise
 
     async def stop(self) -> None:
+        if self.video is not None:  # first: it ends the endless picture responses
+            await self.video.close()
+            self.video = None
         if self._runner is not None:
             with contextlib.suppress(Exception):
                 await self._runner.cleanup()
             self._runner = None
-        if self.video is not None:
-            await self.video.close()
-            self.video = None
         if self.hub is not None:
             await self.hub.stop()
             self.hub = None

@@ -48,6 +48,7 @@ class Relay:
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._last_viewer = 0.0
+        self.closed = False
 
     def status(self) -> dict[str, Any]:
         return {
@@ -74,7 +75,9 @@ class Relay:
         try:
             while True:
                 async with self._cond:
-                    await self._cond.wait_for(lambda: self.jpeg_seq != seen)
+                    await self._cond.wait_for(lambda: self.jpeg_seq != seen or self.closed)
+                if self.closed:
+                    return
                 seen = self.jpeg_seq
                 if self.jpeg is not None:
                     yield self.jpeg
@@ -96,8 +99,13 @@ class Relay:
             self.jpeg_seq += 1
             self._cond.notify_all()
 
-    def close(self) -> None:
+    async def close(self) -> None:
+        """Stop reading and end every viewer's pictures (their responses finish)."""
         self._stop.set()
+        self.closed = True
+        if self._cond is not None:
+            async with self._cond:
+                self._cond.notify_all()
 
     # -- the reader (thread) -------------------------------------------------------------------------
 

@@ -55,7 +55,7 @@ class ConsoleVideo:
 
     async def close(self) -> None:
         for r in self.relays.values():
-            r.close()
+            await r.close()
         if self.sim_video is not None:
             await self.sim_video.stop()
             self.sim_video = None
@@ -102,6 +102,8 @@ class ConsoleVideo:
             first = await pictures.__anext__()
         except RelayFullError as exc:
             return _error(503, str(exc))
+        except StopAsyncIteration:
+            return _error(503, "the console is stopping")
         resp = web.StreamResponse(
             headers={
                 "Content-Type": f"multipart/x-mixed-replace; boundary={BOUNDARY}",
@@ -115,7 +117,7 @@ class ConsoleVideo:
                 head = f"--{BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {len(jpeg)}\r\n\r\n"
                 await resp.write(head.encode() + jpeg + b"\r\n")
                 jpeg = await pictures.__anext__()
-        except (ConnectionResetError, asyncio.CancelledError):
+        except (ConnectionResetError, StopAsyncIteration, asyncio.CancelledError):
             pass
         finally:
             await pictures.aclose()
