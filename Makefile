@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps
+.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps video-deps
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -20,6 +20,14 @@ browser-deps:
 	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; \
 	fi
 
+# Debian's ffmpeg/ffprobe: the video tests read the simulator's RTSP streams with them.
+video-deps:
+	@if ! command -v ffprobe >/dev/null || ! command -v ffmpeg >/dev/null; then \
+	  echo "installing Debian's ffmpeg"; \
+	  if [ "$$(id -u)" = 0 ]; then SUDO=; else SUDO=sudo; fi; \
+	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq ffmpeg >/dev/null; \
+	fi
+
 lint: $(STAMP)
 	$(BIN)/ruff check src tests bench
 	$(BIN)/ruff format --check src tests bench
@@ -33,10 +41,10 @@ docs: $(STAMP)
 docs-check: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.gendocs --check docs/protocol.md
 
-pytest: $(STAMP) browser-deps
+pytest: $(STAMP) browser-deps video-deps
 	$(BIN)/python -m pytest -q
 
-test: $(STAMP) browser-deps lint typecheck pytest
+test: $(STAMP) browser-deps video-deps lint typecheck pytest
 
 demo: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.demo
@@ -45,6 +53,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/codec.py
 	$(BIN)/python bench/sim.py
 	$(BIN)/python bench/latency.py
+	$(BIN)/python bench/video.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache test-artifacts

@@ -12,7 +12,7 @@ def red_blobs(rgb: np.ndarray, min_pixels: int = 20) -> list[tuple[float, float,
     seen = np.zeros_like(mask)
     h, w = mask.shape
     blobs = []
-    for y0, x0 in zip(*np.nonzero(mask)):
+    for y0, x0 in zip(*np.nonzero(mask), strict=False):
         if seen[y0, x0]:
             continue
         stack = [(y0, x0)]
@@ -27,7 +27,7 @@ def red_blobs(rgb: np.ndarray, min_pixels: int = 20) -> list[tuple[float, float,
                     seen[yy, xx] = True
                     stack.append((yy, xx))
         if len(pts) >= min_pixels:
-            ys, xs = zip(*pts)
+            ys, xs = zip(*pts, strict=False)
             blobs.append((float(np.mean(xs)), float(np.mean(ys)), len(pts)))
     return sorted(blobs, key=lambda b: -b[2])
 

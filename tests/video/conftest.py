@@ -13,10 +13,9 @@ from typing import Any, TypeVar
 import numpy as np
 import pytest
 
-pytest.importorskip("av", reason="the video extra (pip install 'topgimbal[video]') is part of dev")
-
-from topgimbal.sim import Simulator  # noqa: E402
-from topgimbal.video.simvideo import SimVideo, VideoOptions  # noqa: E402
+from console.conftest import artifacts, browser  # noqa: F401  (the console tests' chromium fixtures)
+from topgimbal.sim import Simulator
+from topgimbal.video.simvideo import SimVideo, VideoOptions
 
 T = TypeVar("T")
 FFMPEG = shutil.which("ffmpeg") or "/usr/bin/ffmpeg"
@@ -63,9 +62,25 @@ def grab(url: str, size: tuple[int, int], frames: int = 1, transport: str = "tcp
     """Decoded RGB pictures read from an RTSP URL by ffmpeg."""
     w, h = size
     out = subprocess.run(
-        [FFMPEG, "-v", "error", "-rtsp_transport", transport, "-i", url, "-frames:v", str(frames),
-         "-f", "rawvideo", "-pix_fmt", "rgb24", "-"],
-        capture_output=True, timeout=30, check=True,
+        [
+            FFMPEG,
+            "-v",
+            "error",
+            "-rtsp_transport",
+            transport,
+            "-i",
+            url,
+            "-frames:v",
+            str(frames),
+            "-f",
+            "rawvideo",
+            "-pix_fmt",
+            "rgb24",
+            "-",
+        ],
+        capture_output=True,
+        timeout=30,
+        check=True,
     ).stdout
     n = w * h * 3
     assert len(out) == n * frames, f"ffmpeg gave {len(out)} bytes, expected {frames} pictures of {w}x{h}"

@@ -9,9 +9,9 @@ from typing import Any
 
 import numpy as np
 import pytest
-from console.conftest import BackgroundConsole, artifacts, browser, open_console, wait_for  # noqa: F401
 from PIL import Image
 
+from console.conftest import BackgroundConsole, open_console, wait_for
 from topgimbal.video import world
 from topgimbal.video.lens import View, stream_for
 from topgimbal.video.simvideo import SimVideo, VideoOptions
@@ -35,7 +35,9 @@ def _picture(page: Any, lens: str = "visible") -> tuple[np.ndarray, dict[str, fl
 
 
 def test_video_plays_and_a_click_on_a_landmark_points_there(
-    browser: Any, console_c12: BackgroundConsole, artifacts: Any  # noqa: F811
+    browser: Any,
+    console_c12: BackgroundConsole,
+    artifacts: Any,
 ) -> None:
     errors: list[str] = []
     page = open_console(browser, console_c12, errors)
@@ -47,7 +49,9 @@ def test_video_plays_and_a_click_on_a_landmark_points_there(
 
 def _play_and_point(page: Any, console_c12: BackgroundConsole, artifacts: Any, errors: list[str]) -> None:
     page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=10_000)
-    page.wait_for_function("document.querySelector('[data-testid=video-visible]').naturalWidth === 1280", timeout=15_000)
+    page.wait_for_function(
+        "document.querySelector('[data-testid=video-visible]').naturalWidth === 1280", timeout=15_000
+    )
     page.wait_for_function("document.querySelector('[data-testid=video-thermal]').naturalWidth === 640", timeout=15_000)
     # The picture moves: two screenshots a moment apart differ (the burned-in clock runs).
     a, _ = _picture(page)
@@ -78,7 +82,7 @@ def _play_and_point(page: Any, console_c12: BackgroundConsole, artifacts: Any, e
     assert not [e for e in errors if "video" in e.lower()], errors
 
 
-def test_a_dropped_stream_shows_its_state_and_reconnects(browser: Any) -> None:  # noqa: F811
+def test_a_dropped_stream_shows_its_state_and_reconnects(browser: Any) -> None:
     with BackgroundConsole("C10") as bg:
         errors: list[str] = []
         page = open_console(browser, bg, errors)

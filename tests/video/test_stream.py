@@ -30,9 +30,22 @@ TOLERANCE_PX = 3.0
 
 def probe(url: str, transport: str = "tcp") -> dict:
     out = subprocess.run(
-        [FFPROBE, "-v", "error", "-rtsp_transport", transport, "-show_entries", "stream=codec_name,width,height",
-         "-of", "json", url],
-        capture_output=True, text=True, timeout=30, check=True,
+        [
+            FFPROBE,
+            "-v",
+            "error",
+            "-rtsp_transport",
+            transport,
+            "-show_entries",
+            "stream=codec_name,width,height",
+            "-of",
+            "json",
+            url,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=30,
+        check=True,
     ).stdout
     return json.loads(out)["streams"][0]
 
@@ -103,9 +116,28 @@ def test_two_receivers_get_the_same_pictures(c12: LiveSim) -> None:
 
 def test_sim_cli_serves_video_on_free_ports_with_h265_when_told() -> None:
     proc = subprocess.Popen(
-        [sys.executable, "-m", "topgimbal.cli.main", "sim", "--model", "SIP", "--udp", "127.0.0.1:0", "--video",
-         "--video-port", "0", "--video-fps", "10", "--video-size", "320x240", "--video-codec", "h265"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        [
+            sys.executable,
+            "-m",
+            "topgimbal.cli.main",
+            "sim",
+            "--model",
+            "SIP",
+            "--udp",
+            "127.0.0.1:0",
+            "--video",
+            "--video-port",
+            "0",
+            "--video-fps",
+            "10",
+            "--video-size",
+            "320x240",
+            "--video-codec",
+            "h265",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
     )
     try:
         assert proc.stdout is not None
@@ -121,9 +153,24 @@ def test_sim_cli_serves_video_on_free_ports_with_h265_when_told() -> None:
 
 def test_sim_cli_refuses_a_non_loopback_video_address() -> None:
     r = subprocess.run(
-        [sys.executable, "-m", "topgimbal.cli.main", "sim", "--model", "C12", "--udp", "127.0.0.1:0", "--video",
-         "--video-port", "0", "--video-host", "0.0.0.0"],
-        capture_output=True, text=True, timeout=30,
+        [
+            sys.executable,
+            "-m",
+            "topgimbal.cli.main",
+            "sim",
+            "--model",
+            "C12",
+            "--udp",
+            "127.0.0.1:0",
+            "--video",
+            "--video-port",
+            "0",
+            "--video-host",
+            "0.0.0.0",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=30,
     )
     assert r.returncode != 0
     assert "loopback only" in r.stderr

@@ -9,12 +9,10 @@ import pytest
 
 from topgimbal.video import VideoError, video_url
 from topgimbal.video.lens import View, hfov_at, host_of, streams_for
+from topgimbal.video.render import Renderer, decode_stamp
 from topgimbal.video.rtp import Packetizer, parameter_sets, sdp, split_nals
 from topgimbal.video.simvideo import VideoOptions, plan_ports
-
-pytest.importorskip("PIL")
-from topgimbal.video.render import Renderer, decode_stamp  # noqa: E402
-from topgimbal.video.snapshot import SceneState  # noqa: E402
+from topgimbal.video.snapshot import SceneState
 
 
 @pytest.mark.parametrize(
@@ -89,9 +87,21 @@ def test_rtp_fragments_big_nal_units_and_marks_the_last_packet() -> None:
 
 
 def _state(**kw: object) -> SceneState:
-    base = dict(model="C12", yaw_deg=0.0, pitch_deg=0.0, roll_deg=0.0, zoom_x=1.0, thermal_zoom_x=1.0,
-                palette="white_hot", osd=True, recording=False, record_s=0.0, tracking="stopped",
-                wall_s=1_700_000_000.123, frame=3)
+    base = dict(
+        model="C12",
+        yaw_deg=0.0,
+        pitch_deg=0.0,
+        roll_deg=0.0,
+        zoom_x=1.0,
+        thermal_zoom_x=1.0,
+        palette="white_hot",
+        osd=True,
+        recording=False,
+        record_s=0.0,
+        tracking="stopped",
+        wall_s=1_700_000_000.123,
+        frame=3,
+    )
     base.update(kw)
     return SceneState(**base)  # type: ignore[arg-type]
 

@@ -34,7 +34,7 @@ def open_stream(url: str, *, transport: str = "tcp", timeout_s: float = 5.0) -> 
 def frames(
     url: str,
     *,
-    format: str = "bgr24",  # noqa: A002 - FFmpeg's name for it
+    format: str = "bgr24",
     transport: str = "tcp",
     timeout_s: float = 5.0,
     max_frames: int | None = None,
@@ -46,10 +46,8 @@ def frames(
 
     container = open_stream(url, transport=transport, timeout_s=timeout_s)
     try:
-        n = 0
-        for frame in container.decode(video=0):
+        for n, frame in enumerate(container.decode(video=0), 1):
             yield frame.to_ndarray(format=format)
-            n += 1
             if max_frames is not None and n >= max_frames:
                 return
     except av.FFmpegError as exc:

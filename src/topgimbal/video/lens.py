@@ -117,8 +117,8 @@ def basis(yaw_deg: float, pitch_deg: float, roll_deg: float) -> tuple[Vec, Vec, 
     right0 = (-math.sin(y), math.cos(y), 0.0)
     up0 = (-math.sin(p) * math.cos(y), -math.sin(p) * math.sin(y), math.cos(p))
     cr, sr = math.cos(r), math.sin(r)
-    right = tuple(a * cr - b * sr for a, b in zip(right0, up0))
-    up = tuple(b * cr + a * sr for a, b in zip(right0, up0))
+    right = tuple(a * cr - b * sr for a, b in zip(right0, up0, strict=False))
+    up = tuple(b * cr + a * sr for a, b in zip(right0, up0, strict=False))
     return fwd, right, up  # type: ignore[return-value]
 
 
@@ -161,7 +161,7 @@ class View:
         f = self.focal_px
         a = (x_px - self.width_px / 2.0) / f
         b = (self.height_px / 2.0 - y_px) / f
-        ray = tuple(fw + a * r + b * u for fw, r, u in zip(fwd, right, up))
+        ray = tuple(fw + a * r + b * u for fw, r, u in zip(fwd, right, up, strict=False))
         n = math.sqrt(sum(c * c for c in ray))
         az = math.degrees(math.atan2(ray[1], ray[0]))
         el = math.degrees(math.asin(max(-1.0, min(1.0, ray[2] / n))))

@@ -15,7 +15,7 @@ import io
 import logging
 import threading
 import time
-from collections.abc import AsyncIterator
+from collections.abc import AsyncGenerator
 from typing import Any
 
 from .lens import VideoError
@@ -61,7 +61,7 @@ class Relay:
 
     # -- viewers (event loop) ------------------------------------------------------------------------
 
-    async def pictures_for_viewer(self) -> AsyncIterator[bytes]:
+    async def pictures_for_viewer(self) -> AsyncGenerator[bytes, None]:
         """JPEG pictures as they come, newest first, for one viewer. Raises RelayFullError."""
         if self.viewers >= MAX_VIEWERS:
             log.warning("video %s: refusing a viewer: %d already (limit)", self.name, MAX_VIEWERS)
@@ -75,7 +75,7 @@ class Relay:
         try:
             while True:
                 async with self._cond:
-                    await self._cond.wait_for(lambda: self.jpeg_seq != seen or self.closed)
+                    await self._cond.wait_for(lambda seen=seen: self.jpeg_seq != seen or self.closed)  # type: ignore[misc]
                 if self.closed:
                     return
                 seen = self.jpeg_seq

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from datetime import datetime
+from typing import Any
 
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
@@ -72,7 +73,9 @@ def _lut_thermal() -> np.ndarray:
     ground (ambient)."""
     s = np.linspace(-1.0, 1.0, LUT_SIZE)
     el = np.degrees(np.arcsin(s))
-    t = np.where(el < 0, world.GROUND_C, world.SKY_C + (world.GROUND_C - world.SKY_C) * np.exp(-np.maximum(el, 0) / 3.0))
+    t = np.where(
+        el < 0, world.GROUND_C, world.SKY_C + (world.GROUND_C - world.SKY_C) * np.exp(-np.maximum(el, 0) / 3.0)
+    )
     lo, hi = world.THERMAL_SPAN_C
     return np.clip(np.round((t - lo) / (hi - lo) * 255), 0, 255).astype(np.uint8)
 
@@ -103,8 +106,8 @@ class Renderer:
         self.hfov_1x_deg = hfov_1x_deg
         self._grid: _Grid | None = None
         size = max(10, height // 36)
-        self._font = ImageFont.load_default(size=size)
-        self._font_big = ImageFont.load_default(size=int(size * 1.4))
+        self._font: Any = ImageFont.load_default(size=size)
+        self._font_big: Any = ImageFont.load_default(size=int(size * 1.4))
         self._palette_name = ""
         self._palette: list[int] = []
         # Ground grid: every road as a segment between two points on the ground plane (north, east).
@@ -116,7 +119,7 @@ class Renderer:
             segs.append(((c, -ext), (c, ext)))
             segs.append(((-ext, c), (ext, c)))
         pts = np.array(segs, np.float64)  # (S, 2, 2)
-        self._roads = np.concatenate([pts, np.full(pts.shape[:2] + (1,), -world.CAMERA_HEIGHT_M)], axis=2)
+        self._roads = np.concatenate([pts, np.full((*pts.shape[:2], 1), -world.CAMERA_HEIGHT_M)], axis=2)
         self._marks = np.array([world_dir(m.az_deg, m.el_deg) for m in world.LANDMARKS])
         ticks = np.arange(-180, 180, 10.0)
         self._ticks = ticks
@@ -170,10 +173,7 @@ class Renderer:
         sin_el = (fwd[2] + g.a[None, :] * right[2] + g.b[:, None] * up[2]) * g.inv_norm
         idx = ((sin_el + 1.0) * ((LUT_SIZE - 1) / 2.0)).astype(np.int32)
         np.clip(idx, 0, LUT_SIZE - 1, out=idx)
-        if thermal:
-            small = Image.fromarray(_LUT_THERMAL[idx], "L")
-        else:
-            small = Image.fromarray(_LUT_VISIBLE[idx], "RGB")
+        small = Image.fromarray(_LUT_THERMAL[idx], "L") if thermal else Image.fromarray(_LUT_VISIBLE[idx], "RGB")
         # Nearest is 10x cheaper than bilinear here; the steps it leaves are only visible at the
         # horizon, which _draw_horizon covers with a line.
         return small.resize((self.width, self.height), Image.Resampling.NEAREST)
@@ -192,7 +192,7 @@ class Renderer:
         pts = [p for p in cam.points(np.array([world_dir(state.yaw_deg + d, 0.0) for d in (-45.0, 45.0)])) if p]
         if len(pts) == 2:
             (x0, y0), (x1, y1) = _clip_far(pts[0], pts[1], 4.0 * self.width, self.width, self.height)
-            colour: object = int(_LUT_THERMAL[LUT_SIZE // 2]) if thermal else (185, 190, 185)
+            colour: Any = int(_LUT_THERMAL[LUT_SIZE // 2]) if thermal else (185, 190, 185)
             draw.line((x0, y0, x1, y1), fill=colour, width=SHADE_DOWNSCALE + 2)
 
     def _draw_world_visible(self, draw: ImageDraw.ImageDraw, cam: Camera) -> None:
@@ -228,7 +228,7 @@ class Renderer:
     def _draw_ticks(self, draw: ImageDraw.ImageDraw, cam: Camera, colour: tuple[int, int, int]) -> None:
         pts = cam.points(self._tick_dirs)
         h = max(4, self.height // 60)
-        for az, p in zip(self._ticks, pts):
+        for az, p in zip(self._ticks, pts, strict=False):
             if p is None:
                 continue
             x, y = p
@@ -238,9 +238,9 @@ class Renderer:
                 label = {0: "N", 90: "E", -180: "S", -90: "W"}.get(int(az), f"{int(az) % 360:03d}")
                 draw.text((x + 3, y - 2 * h - self._font.size), label, fill=colour, font=self._font)
 
-    def _draw_marks(self, draw: ImageDraw.ImageDraw, cam: Camera, rings: tuple, text_fill: object) -> None:
+    def _draw_marks(self, draw: ImageDraw.ImageDraw, cam: Camera, rings: tuple[Any, Any], text_fill: Any) -> None:
         r = cam.radius_px(world.LANDMARK_RADIUS_DEG)
-        for m, p in zip(world.LANDMARKS, cam.points(self._marks)):
+        for m, p in zip(world.LANDMARKS, cam.points(self._marks), strict=False):
             if p is None:
                 continue
             x, y = p
@@ -283,7 +283,9 @@ class Renderer:
         ms = int(state.wall_s * 1000) & ((1 << STAMP_BITS) - 1)
         bits = [1, 0] + [(ms >> (STAMP_BITS - 1 - i)) & 1 for i in range(STAMP_BITS)]
         white, black = (255, 255, 255), (0, 0, 0)
-        draw.rectangle((x0 - cell * 0.5, y0 - cell * 0.5, x0 + (len(bits) + 0.5) * cell, y0 + cell * 1.5), fill=(128, 128, 128))
+        draw.rectangle(
+            (x0 - cell * 0.5, y0 - cell * 0.5, x0 + (len(bits) + 0.5) * cell, y0 + cell * 1.5), fill=(128, 128, 128)
+        )
         for i, bit in enumerate(bits):
             draw.rectangle((x0 + i * cell, y0, x0 + (i + 1) * cell - 1, y0 + cell - 1), fill=white if bit else black)
         t = datetime.fromtimestamp(state.wall_s).strftime("%H:%M:%S.%f")[:-3]
@@ -333,7 +335,7 @@ class Camera:
         c = self._cam(segs)  # (S, 2, 3)
         out = []
         lim = 4.0 * max(self.width, self.height)
-        for (p, q) in c:
+        for p, q in c:
             zp, zq = p[2], q[2]
             if zp <= self.near and zq <= self.near:
                 continue
@@ -359,7 +361,7 @@ def _clip_far(a: tuple[float, float], b: tuple[float, float], lim: float, w: int
         # Move p towards q until inside the box: param s on p + s (q - p).
         best = 0.0
         for coord, lo_hi in ((0, w / 2), (1, h / 2)):
-            d = (p[coord] - lo_hi)
+            d = p[coord] - lo_hi
             dq = q[coord] - p[coord]
             if abs(d) > lim and dq != 0:
                 s = (abs(d) - lim) / abs(dq)

@@ -101,12 +101,16 @@ class _Session:
                 self.dropped += 1
                 self.waiting_key = True
                 if not self._congested:
-                    log.warning("RTSP %s: receiver %s too slow, skipping to the next keyframe", self.stream.path, self.conn.peer)
+                    log.warning(
+                        "RTSP %s: receiver %s too slow, skipping to the next keyframe", self.stream.path, self.conn.peer
+                    )
                     self._congested = True
                 return
             self._congested = False
             head = struct.Struct("!cBH")
-            tr.writelines([head.pack(b"$", self.channel, len(p)) + p for p in self.packetizer.packets(au.data, rtp_time)])
+            tr.writelines(
+                [head.pack(b"$", self.channel, len(p)) + p for p in self.packetizer.packets(au.data, rtp_time)]
+            )
         elif self.udp is not None and self.udp_peer is not None:
             for p in self.packetizer.packets(au.data, rtp_time):
                 self.udp.sendto(p, self.udp_peer)
@@ -206,7 +210,9 @@ class _Connection(asyncio.Protocol):
         if self.transport is not None:
             self.transport.close()
 
-    def reply(self, req: _Request, code: int, reason: str, headers: dict[str, str] | None = None, body: str = "") -> None:
+    def reply(
+        self, req: _Request, code: int, reason: str, headers: dict[str, str] | None = None, body: str = ""
+    ) -> None:
         if self.transport is None or self.transport.is_closing():
             return
         lines = [f"RTSP/1.0 {code} {reason}", f"CSeq: {req.headers.get('cseq', '0')}", f"Server: {SERVER_NAME}"]
@@ -230,7 +236,9 @@ class _Connection(asyncio.Protocol):
     async def _handle(self, req: _Request) -> None:
         m = req.method
         if m == "OPTIONS":
-            self.reply(req, 200, "OK", {"Public": "OPTIONS, DESCRIBE, SETUP, PLAY, TEARDOWN, GET_PARAMETER, SET_PARAMETER"})
+            self.reply(
+                req, 200, "OK", {"Public": "OPTIONS, DESCRIBE, SETUP, PLAY, TEARDOWN, GET_PARAMETER, SET_PARAMETER"}
+            )
         elif m == "DESCRIBE":
             await self._describe(req)
         elif m == "SETUP":
@@ -246,7 +254,9 @@ class _Connection(asyncio.Protocol):
         elif m in ("GET_PARAMETER", "SET_PARAMETER"):
             self.reply(req, 200, "OK", self._session_header(req))
         else:
-            self.reply(req, 405, "Method Not Allowed", {"Allow": "OPTIONS, DESCRIBE, SETUP, PLAY, TEARDOWN, GET_PARAMETER"})
+            self.reply(
+                req, 405, "Method Not Allowed", {"Allow": "OPTIONS, DESCRIBE, SETUP, PLAY, TEARDOWN, GET_PARAMETER"}
+            )
 
     def _session_header(self, req: _Request) -> dict[str, str]:
         sid = req.headers.get("session", "").split(";")[0].strip()
@@ -317,7 +327,9 @@ class _Connection(asyncio.Protocol):
             session.udp, session.udp_rtcp = udp, rtcp  # type: ignore[assignment]
             session.udp_peer = (peer_host, rtp_port)
             session.server_ports = (udp.get_extra_info("sockname")[1], rtcp.get_extra_info("sockname")[1])
-            reply_transport = f"RTP/AVP;unicast;client_port={cp};server_port={session.server_ports[0]}-{session.server_ports[1]}"
+            reply_transport = (
+                f"RTP/AVP;unicast;client_port={cp};server_port={session.server_ports[0]}-{session.server_ports[1]}"
+            )
         self.sessions[sid] = session
         self.reply(req, 200, "OK", {"Transport": reply_transport, "Session": f"{sid};timeout={SESSION_TIMEOUT_S}"})
 

@@ -81,7 +81,12 @@ class SimVideo:
         if self.options.codec:
             return self.options.codec
         ent = self.sim.settings.get("ENT")
-        if spec.codec_setting and ent and ent.get("stream") == spec.codec_setting and ent.get("codec") in ("h264", "h265"):
+        if (
+            spec.codec_setting
+            and ent
+            and ent.get("stream") == spec.codec_setting
+            and ent.get("codec") in ("h264", "h265")
+        ):
             return str(ent["codec"])
         return spec.codec
 

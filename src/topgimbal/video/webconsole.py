@@ -20,7 +20,7 @@ import logging
 from collections.abc import Callable
 from typing import Any
 
-from .lens import StreamSpec, View, VideoError, hfov_at, host_of, streams_for, video_url, wrap180
+from .lens import StreamSpec, VideoError, View, hfov_at, host_of, streams_for, video_url, wrap180
 
 log = logging.getLogger("topgimbal.video.console")
 

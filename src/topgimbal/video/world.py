@@ -7,6 +7,7 @@ Angles are earth-frame: bearing (azimuth, right-positive from north) and elevati
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 from ..sim import scene as sim_scene
@@ -64,7 +65,13 @@ def landmark(number: int) -> Landmark:
 _STOPS: dict[str, list[tuple[float, tuple[int, int, int]]]] = {
     "white_hot": [(0, (0, 0, 0)), (1, (255, 255, 255))],
     "black_hot": [(0, (255, 255, 255)), (1, (0, 0, 0))],
-    "ironbow": [(0, (0, 0, 20)), (0.3, (90, 0, 140)), (0.55, (220, 40, 40)), (0.8, (250, 170, 0)), (1, (255, 255, 220))],
+    "ironbow": [
+        (0, (0, 0, 20)),
+        (0.3, (90, 0, 140)),
+        (0.55, (220, 40, 40)),
+        (0.8, (250, 170, 0)),
+        (1, (255, 255, 220)),
+    ],
     "hot_iron": [(0, (0, 0, 0)), (0.4, (160, 0, 0)), (0.75, (255, 160, 0)), (1, (255, 255, 255))],
     "lava": [(0, (0, 0, 60)), (0.4, (120, 0, 120)), (0.7, (255, 60, 0)), (1, (255, 255, 120))],
     "rainbow": [(0, (0, 0, 160)), (0.25, (0, 160, 255)), (0.5, (0, 220, 0)), (0.75, (255, 220, 0)), (1, (255, 0, 0))],
@@ -88,10 +95,10 @@ def palette(name: str) -> list[int]:
     out: list[int] = []
     for i in range(256):
         t = i / 255.0
-        for (p0, c0), (p1, c1) in zip(stops, stops[1:]):
+        for (p0, c0), (p1, c1) in itertools.pairwise(stops):
             if p0 <= t <= p1:
                 k = 0.0 if p1 == p0 else (t - p0) / (p1 - p0)
-                out += [round(a + (b - a) * k) for a, b in zip(c0, c1)]
+                out += [round(a + (b - a) * k) for a, b in zip(c0, c1, strict=False)]
                 break
     return out
 
