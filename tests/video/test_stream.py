@@ -174,3 +174,25 @@ def test_sim_cli_refuses_a_non_loopback_video_address() -> None:
     )
     assert r.returncode != 0
     assert "loopback only" in r.stderr
+
+
+def test_sdk_frames_yields_decoded_pictures_from_the_cameras_url(c12: LiveSim) -> None:
+    from topgimbal.video.frames import frames
+
+    port = int(c12.video.urls["thermal"].rsplit(":", 1)[1].split("/")[0])
+    with topgimbal.Gimbal(c12.url, model="C12") as cam:
+        url = cam.video_url("thermal", port=port)  # the documented path, on the simulator's free port
+    assert url == c12.video.urls["thermal"]
+    pictures = list(frames(url, max_frames=3))
+    assert [p.shape for p in pictures] == [(512, 640, 3)] * 3
+    t0 = time.time() * 1000
+    stamps = [decode_stamp(p[..., ::-1]) for p in pictures]  # BGR for OpenCV; the stamp is grey anyway
+    assert all(s is not None and t0 - 10_000 < s <= t0 for s in stamps)
+
+
+def test_frames_says_what_is_wrong_with_a_dead_url() -> None:
+    from topgimbal.video import VideoError
+    from topgimbal.video.frames import frames
+
+    with pytest.raises(VideoError, match="cannot open rtsp://127.0.0.1:9/"):
+        next(frames("rtsp://127.0.0.1:9/stream=1", timeout_s=2))

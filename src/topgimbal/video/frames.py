@@ -26,9 +26,13 @@ def open_stream(url: str, *, transport: str = "tcp", timeout_s: float = 5.0) -> 
     if transport not in ("tcp", "udp"):
         raise VideoError(f"transport must be tcp or udp (got {transport!r})")
     try:
-        return av.open(url, options={**OPEN_OPTIONS, "rtsp_transport": transport}, timeout=timeout_s)
+        container = av.open(url, options={**OPEN_OPTIONS, "rtsp_transport": transport}, timeout=timeout_s)
     except av.FFmpegError as exc:
         raise VideoError(f"cannot open {url}: {exc}") from None
+    for s in container.streams.video:
+        # Frame threads hold (threads - 1) pictures back; slice threads hold none.
+        s.thread_type = "SLICE"
+    return container
 
 
 def frames(

@@ -5,7 +5,8 @@ A reader thread opens the stream with PyAV only while someone watches, decodes e
 and JPEG-encodes the newest one for the viewers; viewers that are slower than the camera skip
 pictures (the relay keeps one picture, never a queue). When the stream fails or stops, the state
 says so and the reader tries again every RETRY_S. Bounds: MAX_VIEWERS per stream (more get 503),
-one JPEG buffered, MAX_FPS pictures per second to the browsers.
+one JPEG buffered, MAX_FPS pictures per second to the browsers, and at most MAX_LAG_S behind
+the camera (a relay that falls further behind reopens the stream).
 """
 
 from __future__ import annotations
@@ -28,6 +29,11 @@ RETRY_S = 1.0
 IDLE_CLOSE_S = 5.0  # keep the camera stream open this long after the last viewer left
 JPEG_QUALITY = 80
 READ_TIMEOUT_S = 3.0
+# Behind the camera by more than this (pictures arrive faster than this machine decodes them):
+# stop JPEG-encoding until caught up, and past MAX_LAG_S reopen the stream instead of falling
+# further behind (the operator wants the newest picture, not a backlog).
+CATCH_UP_LAG_S = 0.15
+MAX_LAG_S = 1.0
 
 
 class Relay:
@@ -49,6 +55,7 @@ class Relay:
         self._stop = threading.Event()
         self._last_viewer = 0.0
         self.closed = False
+        self.lag_resets = 0
 
     def status(self) -> dict[str, Any]:
         return {
@@ -57,6 +64,7 @@ class Relay:
             "viewers": self.viewers,
             "size": list(self.size) if self.size else None,
             "pictures": self.pictures,
+            "lag_resets": self.lag_resets,
         }
 
     # -- viewers (event loop) ------------------------------------------------------------------------
@@ -122,13 +130,14 @@ class Relay:
             except Exception as exc:
                 self._failed(exc)
                 continue
+            lag_resets = self.lag_resets
             try:
                 self._pump(container)
             except Exception as exc:
                 self._failed(exc)
             finally:
                 container.close()
-            if not self._stop.is_set() and self.viewers:
+            if not self._stop.is_set() and self.viewers and self.lag_resets == lag_resets:
                 self._failed(None)
 
     def _failed(self, exc: Exception | None) -> None:
@@ -141,6 +150,7 @@ class Relay:
     def _pump(self, container: Any) -> None:
         min_gap = 1.0 / MAX_FPS
         last = 0.0
+        origin: tuple[float, float] | None = None  # (wall, stream time) of the first picture
         for frame in container.decode(video=0):
             if self._stop.is_set():
                 return
@@ -150,7 +160,16 @@ class Relay:
             self.size = (frame.width, frame.height)
             self.pictures += 1
             now = time.monotonic()
-            if now - last < min_gap:
+            lag = 0.0
+            if frame.time is not None:
+                if origin is None:
+                    origin = (now, float(frame.time))
+                lag = max(0.0, (now - origin[0]) - (float(frame.time) - origin[1]))
+            if lag > MAX_LAG_S:
+                self.lag_resets += 1
+                log.warning("video %s: %.1f s behind the camera (this machine is too busy): reopening", self.name, lag)
+                return
+            if lag > CATCH_UP_LAG_S or now - last < min_gap:
                 continue
             last = now
             buf = io.BytesIO()
