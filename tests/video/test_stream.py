@@ -194,5 +194,5 @@ def test_frames_says_what_is_wrong_with_a_dead_url() -> None:
     from topgimbal.video import VideoError
     from topgimbal.video.frames import frames
 
-    with pytest.raises(VideoError, match="cannot open rtsp://127.0.0.1:9/"):
+    with pytest.raises(VideoError, match=r"cannot open rtsp://127\.0\.0\.1:9/"):
         next(frames("rtsp://127.0.0.1:9/stream=1", timeout_s=2))
