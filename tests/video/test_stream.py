@@ -8,6 +8,7 @@ import subprocess
 import sys
 import threading
 import time
+from typing import Any
 
 import pytest
 
@@ -26,6 +27,7 @@ pytestmark = pytest.mark.integration
 # most one frame after the gimbal settled (it is still), so 3 px (0.15 deg at 62 deg / 1280 px)
 # separates "right place" from any real error (one landmark step is 30 deg = hundreds of px).
 TOLERANCE_PX = 3.0
+SIM_CLI = (sys.executable, "-m", "topgimbal.cli.main", "sim")
 
 
 def probe(url: str, transport: str = "tcp") -> dict:
@@ -117,10 +119,7 @@ def test_two_receivers_get_the_same_pictures(c12: LiveSim) -> None:
 def test_sim_cli_serves_video_on_free_ports_with_h265_when_told() -> None:
     proc = subprocess.Popen(
         [
-            sys.executable,
-            "-m",
-            "topgimbal.cli.main",
-            "sim",
+            *SIM_CLI,
             "--model",
             "SIP",
             "--udp",
@@ -154,10 +153,7 @@ def test_sim_cli_serves_video_on_free_ports_with_h265_when_told() -> None:
 def test_sim_cli_refuses_a_non_loopback_video_address() -> None:
     r = subprocess.run(
         [
-            sys.executable,
-            "-m",
-            "topgimbal.cli.main",
-            "sim",
+            *SIM_CLI,
             "--model",
             "C12",
             "--udp",
@@ -196,3 +192,43 @@ def test_frames_says_what_is_wrong_with_a_dead_url() -> None:
 
     with pytest.raises(VideoError, match=r"cannot open rtsp://127\.0\.0\.1:9/"):
         next(frames("rtsp://127.0.0.1:9/stream=1", timeout_s=2))
+
+
+def _rtsp(sock: Any, request: str) -> str:
+    sock.sendall(request.encode())
+    data = b""
+    while b"\r\n\r\n" not in data:
+        chunk = sock.recv(4096)
+        if not chunk:
+            break
+        data += chunk
+    return data.decode(errors="replace")
+
+
+def test_rtsp_server_answers_bad_input_clearly_and_bounds_receivers(c12: LiveSim, monkeypatch: Any) -> None:
+    import socket
+
+    from topgimbal.video import rtsp
+
+    url = c12.video.urls["visible"]
+    port = int(url.rsplit(":", 1)[1].split("/")[0])
+    with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+        assert _rtsp(s, "HELLO\r\n\r\n").startswith("RTSP/1.0 400")
+    with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+        assert _rtsp(s, f"DESCRIBE rtsp://127.0.0.1:{port}/nope RTSP/1.0\r\nCSeq: 1\r\n\r\n").startswith("RTSP/1.0 404")
+        assert "405" in _rtsp(s, f"RECORD {url} RTSP/1.0\r\nCSeq: 2\r\n\r\n").split("\r\n")[0]
+    monkeypatch.setattr(rtsp, "MAX_RECEIVERS", 1)
+    setup = f"SETUP {url}/trackID=0 RTSP/1.0\r\nCSeq: 3\r\nTransport: RTP/AVP/TCP;unicast;interleaved=0-1\r\n\r\n"
+    with (
+        socket.create_connection(("127.0.0.1", port), timeout=10) as a,
+        socket.create_connection(("127.0.0.1", port), timeout=10) as b,
+    ):
+        first = _rtsp(a, setup)
+        assert first.startswith("RTSP/1.0 200") and "interleaved=0-1" in first
+        session = next(
+            line.split(":", 1)[1].split(";")[0].strip() for line in first.split("\r\n") if line.startswith("Session")
+        )
+        assert _rtsp(a, f"PLAY {url} RTSP/1.0\r\nCSeq: 4\r\nSession: {session}\r\n\r\n").startswith("RTSP/1.0 200")
+        assert _rtsp(b, setup).startswith("RTSP/1.0 453")  # one receiver already plays
+    # ... and the server still serves a well-behaved client.
+    assert probe(url)["codec_name"] == "h264"

@@ -12,11 +12,11 @@ the camera (a relay that falls further behind reopens the stream).
 from __future__ import annotations
 
 import asyncio
-from fractions import Fraction
 import logging
 import threading
 import time
 from collections.abc import AsyncGenerator
+from fractions import Fraction
 from typing import Any
 
 from .lens import VideoError

@@ -6,7 +6,8 @@ GET_PARAMETER / SET_PARAMETER (keep-alives). Every receiver of a path gets the s
 pictures (one encoder per stream, whatever the number of receivers), starting at a keyframe.
 
 Bounds (each refusal is logged): MAX_CONNECTIONS RTSP connections per server, MAX_RECEIVERS
-playing sessions per stream (SETUP beyond it is answered 453), MAX_REQUEST_BYTES per request, and
+playing sessions per stream (SETUP beyond it is answered 453), MAX_REQUEST_BYTES per request,
+MAX_PIPELINED requests waiting per connection, and
 MAX_BUFFERED_BYTES of unsent RTP per TCP receiver (past it the receiver skips pictures up to the
 next keyframe instead of queueing). A UDP session lives as long as its RTSP connection.
 """
@@ -32,6 +33,7 @@ log = logging.getLogger("topgimbal.video.rtsp")
 MAX_CONNECTIONS = 16
 MAX_RECEIVERS = 8
 MAX_REQUEST_BYTES = 8192
+MAX_PIPELINED = 32  # requests waiting for an answer on one connection
 MAX_BUFFERED_BYTES = 2_000_000
 DESCRIBE_WAIT_S = 5.0
 SESSION_TIMEOUT_S = 60
@@ -200,6 +202,9 @@ class _Connection(asyncio.Protocol):
             parts = lines[0].split()
             if len(parts) != 3 or not parts[2].startswith("RTSP/"):
                 self._bad(f"not an RTSP request line: {lines[0][:80]!r}")
+                return
+            if self.queue.qsize() >= MAX_PIPELINED:
+                self._bad(f"more than {MAX_PIPELINED} requests waiting")
                 return
             self.queue.put_nowait(_Request(parts[0].upper(), parts[1], headers))
 
