@@ -97,3 +97,31 @@ def test_a_dropped_stream_shows_its_state_and_reconnects(browser: Any) -> None:
         before = bg.call(lambda: video.relays["visible"].pictures)
         wait_for(lambda: bg.call(lambda: video.relays["visible"].pictures) > before + 5, 10, what="new pictures")
         page.context.close()
+
+
+def test_video_routes_refuse_bad_requests_with_the_reason() -> None:
+    import json
+    import urllib.error
+    import urllib.request
+
+    def post(bg: BackgroundConsole, path: str, body: object) -> tuple[int, dict[str, Any]]:
+        req = urllib.request.Request(bg.base + path.lstrip("/"), data=json.dumps(body).encode(), method="POST")
+        req.add_header("Content-Type", "application/json")
+        try:
+            with urllib.request.urlopen(req, timeout=10) as r:
+                return r.status, json.loads(r.read())
+        except urllib.error.HTTPError as e:
+            return e.code, json.loads(e.read())
+
+    with BackgroundConsole("C10") as bg:
+        code, body = post(bg, "/api/video/point", {"lens": "visible", "x": 1.5, "y": 0.5})
+        assert code == 400 and "x must be a number from 0 to 1" in body["message"]
+        code, body = post(bg, "/api/video/point", {"lens": "thermal", "x": 0.5, "y": 0.5})
+        assert code == 400 and "lens must be one of visible" in body["message"]
+        code, body = post(bg, "/api/video/track", {"x0": 0.1, "y0": 0.1, "x1": 0.3, "y1": 0.3})
+        assert code == 409 and "does not track" in body["message"]
+        code, body = post(bg, "/api/video/zoom", {"direction": "sideways"})
+        assert code == 400
+        assert bg.call(lambda: bg.sim.gimbal.yaw_axis.target) == 0.0  # nothing was sent
+        code, body = post(bg, "/api/video/point", {"lens": "visible", "x": 1.0, "y": 0.5})
+        assert code == 200 and body["yaw_deg"] == pytest.approx(31.0, abs=0.01)  # the right edge: half the 62 deg

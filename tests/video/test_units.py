@@ -151,3 +151,16 @@ def test_client_builds_video_urls_and_imports_only_the_stream_table() -> None:
         if isinstance(node, ast.ImportFrom) and node.module and "video" in node.module
     }
     assert used == {"video.lens"}  # the client layer reaches only the pure table, not the renderer
+
+
+def test_sip_streams_follow_the_ent_codec_setting() -> None:
+    from topgimbal.sim import Simulator
+    from topgimbal.video.simvideo import SimVideo
+
+    sim = Simulator("SIP")
+    video = SimVideo(sim, port=0)
+    visible, thermal = video.specs
+    assert (video._codec(visible), video._codec(thermal)) == ("h264", "h264")
+    sim.settings["ENT"] = {"stream": "stream1", "codec": "h265"}  # what `ENT 11` leaves behind
+    assert (video._codec(visible), video._codec(thermal)) == ("h264", "h265")
+    assert SimVideo(sim, port=0, codec="h264")._codec(thermal) == "h264"  # --video-codec wins
