@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import json
 import resource
 import shutil
 import statistics
 import subprocess
 import sys
-import threading
 import time
 from typing import Any
 
@@ -26,8 +26,7 @@ import numpy as np
 
 from topgimbal.sim import Simulator
 from topgimbal.video.encode import Encoder
-from topgimbal.video.frames import frames
-from topgimbal.video.render import Renderer, decode_stamp
+from topgimbal.video.render import Renderer
 from topgimbal.video.simvideo import SimVideo, VideoOptions
 from topgimbal.video.snapshot import SceneState
 
@@ -120,30 +119,33 @@ def encoder_figures(n: int = 60) -> list[str]:
     return out
 
 
+READER = """
+import json, sys, time
+from topgimbal.video.frames import frames
+from topgimbal.video.render import decode_stamp
+lat, end = [], time.time() + float(sys.argv[2])
+for pic in frames(sys.argv[1], format="rgb24"):
+    stamp = decode_stamp(pic)
+    if stamp is not None:
+        lat.append(time.time() * 1000 - stamp)
+    if time.time() > end:
+        break
+print(json.dumps(lat))
+"""
+
+
 async def rtsp_latency(seconds: float) -> list[float]:
-    """Burned-in capture time -> decoded in Python (PyAV, TCP, no buffering)."""
+    """Burned-in capture time -> decoded by the SDK's frames() in another process."""
     sim = Simulator("C12")
     await sim.start(udp=[("127.0.0.1", 0)])
     video = await SimVideo(sim, VideoOptions(port=0)).start()
-    url = video.urls["visible"]
-    lat: list[float] = []
-
-    def read() -> None:
-        end = time.time() + seconds
-        for pic in frames(url, format="rgb24"):
-            stamp = decode_stamp(pic)
-            if stamp is not None:
-                lat.append(time.time() * 1000 - stamp)
-            if time.time() > end:
-                return
-
-    t = threading.Thread(target=read)
-    t.start()
-    while t.is_alive():
-        await asyncio.sleep(0.1)
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable, "-c", READER, video.urls["visible"], str(seconds), stdout=asyncio.subprocess.PIPE
+    )
+    out, _ = await proc.communicate()
     await video.stop()
     await sim.stop()
-    return lat[5:]
+    return [float(x) for x in json.loads(out or b"[]")][5:]
 
 
 def browser_latency(seconds: float) -> tuple[list[float], float]:

@@ -11,12 +11,21 @@ lossy links better than UDP at the price of a little delay.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 from typing import Any
 
 from .lens import VideoError
 
-OPEN_OPTIONS = {"fflags": "nobuffer", "flags": "low_delay", "max_delay": "0"}
+# Little probing: the SDP already carries the parameter sets, and every probed picture is one the
+# reader starts behind by.
+OPEN_OPTIONS = {
+    "fflags": "nobuffer",
+    "flags": "low_delay",
+    "max_delay": "0",
+    "analyzeduration": "100000",
+    "probesize": "65536",
+}
 
 
 def open_stream(url: str, *, transport: str = "tcp", timeout_s: float = 5.0) -> Any:
@@ -35,6 +44,22 @@ def open_stream(url: str, *, transport: str = "tcp", timeout_s: float = 5.0) -> 
     return container
 
 
+class LagMeter:
+    """How far behind the camera a reader is: wall-clock time elapsed since the first picture
+    minus stream time elapsed. Grows when pictures arrive faster than they are consumed."""
+
+    def __init__(self) -> None:
+        self._origin: tuple[float, float] | None = None
+
+    def lag_s(self, frame: Any) -> float:
+        if frame.time is None:
+            return 0.0
+        now = time.monotonic()
+        if self._origin is None:
+            self._origin = (now, float(frame.time))
+        return max(0.0, (now - self._origin[0]) - (float(frame.time) - self._origin[1]))
+
+
 def frames(
     url: str,
     *,
@@ -42,16 +67,26 @@ def frames(
     transport: str = "tcp",
     timeout_s: float = 5.0,
     max_frames: int | None = None,
+    max_lag_s: float | None = 0.25,
 ) -> Iterator[Any]:
     """Yield decoded pictures as numpy arrays (`format`: bgr24 for OpenCV, rgb24, gray). Ends
     when the stream ends or after `max_frames`; raises VideoError when the stream cannot be
-    opened or stops sending for `timeout_s`."""
+    opened or stops sending for `timeout_s`.
+
+    A consumer slower than the camera gets the newest pictures: those decoded more than
+    `max_lag_s` behind the camera are dropped (decoding goes on; converting is what costs).
+    `max_lag_s=None` yields every picture, however late."""
     import av
 
     container = open_stream(url, transport=transport, timeout_s=timeout_s)
+    meter = LagMeter()
     try:
-        for n, frame in enumerate(container.decode(video=0), 1):
+        n = 0
+        for frame in container.decode(video=0):
+            if max_lag_s is not None and meter.lag_s(frame) > max_lag_s:
+                continue
             yield frame.to_ndarray(format=format)
+            n += 1
             if max_frames is not None and n >= max_frames:
                 return
     except av.FFmpegError as exc:

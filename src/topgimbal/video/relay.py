@@ -149,9 +149,11 @@ class Relay:
         self._stop.wait(RETRY_S)
 
     def _pump(self, container: Any) -> None:
+        from .frames import LagMeter
+
         min_gap = 1.0 / MAX_FPS
         last = 0.0
-        origin: tuple[float, float] | None = None  # (wall, stream time) of the first picture
+        meter = LagMeter()
         for frame in container.decode(video=0):
             if self._stop.is_set():
                 return
@@ -161,11 +163,7 @@ class Relay:
             self.size = (frame.width, frame.height)
             self.pictures += 1
             now = time.monotonic()
-            lag = 0.0
-            if frame.time is not None:
-                if origin is None:
-                    origin = (now, float(frame.time))
-                lag = max(0.0, (now - origin[0]) - (float(frame.time) - origin[1]))
+            lag = meter.lag_s(frame)
             if lag > MAX_LAG_S:
                 self.lag_resets += 1
                 log.warning("video %s: %.1f s behind the camera (this machine is too busy): reopening", self.name, lag)
