@@ -164,3 +164,15 @@ def test_sip_streams_follow_the_ent_codec_setting() -> None:
     sim.settings["ENT"] = {"stream": "stream1", "codec": "h265"}  # what `ENT 11` leaves behind
     assert (video._codec(visible), video._codec(thermal)) == ("h264", "h265")
     assert SimVideo(sim, port=0, codec="h264")._codec(thermal) == "h264"  # --video-codec wins
+
+
+def test_lag_meter_measures_how_far_behind_the_camera_a_reader_is() -> None:
+    from types import SimpleNamespace
+
+    from topgimbal.video.frames import LagMeter
+
+    clock = iter([100.0, 100.04, 100.5, 100.52])
+    meter = LagMeter(clock=lambda: next(clock))
+    lags = [meter.lag_s(SimpleNamespace(time=t)) for t in (0.0, 0.033, 0.066, 0.5)]
+    assert lags == pytest.approx([0.0, 0.007, 0.434, 0.02])  # fell behind at the third, caught up by the fourth
+    assert meter.lag_s(SimpleNamespace(time=None)) == 0.0  # no timestamps: no judgement

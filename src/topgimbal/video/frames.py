@@ -12,7 +12,7 @@ lossy links better than UDP at the price of a little delay.
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from .lens import VideoError
@@ -48,13 +48,14 @@ class LagMeter:
     """How far behind the camera a reader is: wall-clock time elapsed since the first picture
     minus stream time elapsed. Grows when pictures arrive faster than they are consumed."""
 
-    def __init__(self) -> None:
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        self._clock = clock
         self._origin: tuple[float, float] | None = None
 
     def lag_s(self, frame: Any) -> float:
         if frame.time is None:
             return 0.0
-        now = time.monotonic()
+        now = self._clock()
         if self._origin is None:
             self._origin = (now, float(frame.time))
         return max(0.0, (now - self._origin[0]) - (float(frame.time) - self._origin[1]))
