@@ -57,6 +57,7 @@ class Relay:
         self.closed = False
         self.lag_resets = 0
         self._encoder: Any = None
+        self._pending: Any = None  # the picture handed to the loop, until it has taken it
 
     def status(self) -> dict[str, Any]:
         return {
@@ -171,10 +172,13 @@ class Relay:
             if lag > CATCH_UP_LAG_S or now - last < min_gap:
                 continue
             last = now
+            pending = self._pending
+            if pending is not None and not pending.done():
+                continue  # the loop has not taken the last picture yet: never queue more than one
             jpeg = self._jpeg(frame)
             loop = self._loop
             if loop is not None and not loop.is_closed():
-                asyncio.run_coroutine_threadsafe(self._publish(jpeg), loop)
+                self._pending = asyncio.run_coroutine_threadsafe(self._publish(jpeg), loop)
 
     def _jpeg(self, frame: Any) -> bytes:
         """JPEG straight from the decoded YUV picture with FFmpeg's encoder: 2.5x cheaper than
