@@ -10,6 +10,7 @@ import threading
 import time
 from typing import Any
 
+import numpy as np
 import pytest
 
 import topgimbal
@@ -232,3 +233,23 @@ def test_rtsp_server_answers_bad_input_clearly_and_bounds_receivers(c12: LiveSim
         assert _rtsp(b, setup).startswith("RTSP/1.0 453")  # one receiver already plays
     # ... and the server still serves a well-behaved client.
     assert probe(url)["codec_name"] == "h264"
+
+
+def test_thermal_stream_follows_the_palette_and_the_osd_setting(c12: LiveSim) -> None:
+    url = c12.video.urls["thermal"]
+    corner = (slice(0, 60), slice(0, 200))  # where the OSD text is
+    with topgimbal.Gimbal(c12.url, model="C12") as cam:
+        cam.point(30, -20, tolerance_deg=0.05)  # sim/scene.py's hot object in the centre
+        cam.palette("black_hot")
+        (black,) = grab(url, (640, 512))
+        cam.palette("white_hot")
+        (white,) = grab(url, (640, 512))
+        assert black[256, 320].max() < 40 and white[256, 320].min() > 215  # hottest: black, then white
+        # The ground (the commonest level) inverts too: black hot is white hot upside down.
+        ground_black, ground_white = (int(np.bincount(p[..., 0].ravel()).argmax()) for p in (black, white))
+        assert ground_black != ground_white and abs(ground_black + ground_white - 255) <= 3
+        osd_on = white[corner].astype(int)
+        cam.request("EXT", osd="off", led="off")
+        (plain,) = grab(url, (640, 512))
+        assert np.abs(osd_on - plain[corner]).max() > 100  # the OSD text is gone
+        assert c12.call(lambda: c12.sim.settings["EXT"]["osd"]) == "off"
