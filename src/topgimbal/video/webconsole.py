@@ -26,7 +26,11 @@ log = logging.getLogger("topgimbal.video.console")
 
 BOUNDARY = "topgimbalframe"
 ZOOM_STEP_S = 0.3  # one wheel notch runs the zoom motor this long
-TRACK_FRAME = (1280, 720)  # SkyDroid GOT coordinates (§3.3.5); TOPOTEK LOC uses the same here
+TRACK_FRAME = (1280, 720)
+# The console's own simulated camera renders at this rate: it shares one process (and, on a
+# small machine, the CPU) with the console and the relay; 15 fps halves the cost of 30 (see
+# docs/video.md) and still shows motion. `topgimbal sim --video` keeps the camera's 30 fps.
+CONSOLE_SIM_FPS = 15.0  # SkyDroid GOT coordinates (§3.3.5); TOPOTEK LOC uses the same here
 
 
 class ConsoleVideo:
@@ -45,7 +49,8 @@ class ConsoleVideo:
         if self.console.sim is not None:
             from .simvideo import SimVideo, VideoOptions
 
-            self.sim_video = await SimVideo(self.console.sim, VideoOptions(port=0)).start()
+            opts = VideoOptions(port=0, fps=CONSOLE_SIM_FPS)
+            self.sim_video = await SimVideo(self.console.sim, opts).start()
             urls = dict(self.sim_video.urls)
         else:
             host = host_of(self.console.url)
