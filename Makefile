@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps c-deps c-test tshark-deps
+.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps
 
 # The C fast path is compiled by `pip install`: rebuild it when its sources change.
 $(STAMP): pyproject.toml setup.py src/topgimbal/_speedups/_ctop.c $(wildcard c/src/*.c c/include/*.h c/generated/*)
@@ -35,6 +35,14 @@ tshark-deps:
 	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq tshark >/dev/null; \
 	fi
 
+# Debian's ffmpeg/ffprobe: the video tests read the simulator's RTSP streams with them.
+video-deps:
+	@if ! command -v ffprobe >/dev/null || ! command -v ffmpeg >/dev/null; then \
+	  echo "installing Debian's ffmpeg"; \
+	  if [ "$$(id -u)" = 0 ]; then SUDO=; else SUDO=sudo; fi; \
+	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq ffmpeg >/dev/null; \
+	fi
+
 lint: $(STAMP)
 	$(BIN)/ruff check src tests bench
 	$(BIN)/ruff format --check src tests bench
@@ -50,7 +58,7 @@ docs-check: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.gendocs --check docs/protocol.md
 	$(BIN)/topgimbal dissector --check contrib/wireshark/topgimbal.lua
 
-pytest: $(STAMP) browser-deps tshark-deps
+pytest: $(STAMP) browser-deps tshark-deps video-deps
 	$(BIN)/python -m pytest -q
 
 # libtopgimbal (c/): clang with libFuzzer and sanitizer runtimes, installed only when missing.
@@ -62,7 +70,7 @@ c-deps:
 c-test: $(STAMP) c-deps
 	$(MAKE) -C c test PYTHON=$(CURDIR)/$(BIN)/python
 
-test: $(STAMP) browser-deps tshark-deps c-deps lint typecheck pytest c-test
+test: $(STAMP) browser-deps tshark-deps video-deps c-deps lint typecheck pytest c-test
 
 demo: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.demo
@@ -75,6 +83,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/console.py
 	$(BIN)/python bench/proxy.py
 	$(BIN)/python bench/faults.py
+	$(BIN)/python bench/video.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache test-artifacts

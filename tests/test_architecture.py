@@ -14,13 +14,14 @@ ALLOWED = {
     "_speedups": set(),  # the optional C fast path: a leaf the protocol core may use
     "protocol": set(),
     "transport": {"protocol"},
-    "client": {"protocol", "transport"},
+    "client": {"protocol", "transport", "video"},  # video.lens only (the stream table; tests/video checks)
     "sim": {"protocol"},
-    "console": {"protocol", "client", "sim"},  # sim only for `--sim` (in-process camera)
-    "tools": {"protocol", "client", "sim", "console", "_speedups"},
+    "console": {"protocol", "client", "sim", "video"},  # sim only for `--sim` (in-process camera)
+    "video": {"protocol", "sim"},  # renders the simulator's state; relays any camera's RTSP
+    "tools": {"protocol", "client", "sim", "console", "_speedups", "video"},
     "mavlink": {"protocol", "client"},
     "wire": {"protocol", "transport", "client"},  # client only for the JSONL traffic log format
-    "cli": {"protocol", "client", "transport", "sim", "console", "tools", "mavlink", "wire"},
+    "cli": {"protocol", "client", "transport", "sim", "console", "tools", "mavlink", "wire", "video"},
 }
 
 

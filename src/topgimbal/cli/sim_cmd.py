@@ -17,6 +17,7 @@ from typing import Any
 from ..protocol import all_models
 from ..sim import FaultPlan, Simulator
 from ..sim import quirks as quirk_table
+from ..video import cli as video_cli
 
 
 def _hostport(text: str) -> tuple[str, int]:
@@ -82,6 +83,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed for every random choice (default 0)")
     p.add_argument("--stream-hz", type=float, default=10.0, help="TOPOTEK GAA/GIA stream rate (default 10)")
     p.add_argument("--allow-any-address", action="store_true", help=argparse.SUPPRESS)
+    video_cli.add_arguments(p)  # --video, --video-port, ... (topgimbal.video)
     p.set_defaults(func=run)
 
 
@@ -105,10 +107,10 @@ def run(args: argparse.Namespace) -> int:
     listen: dict[str, Any] = {}
     if args.udp or args.tcp or args.serial:
         listen = {"udp": args.udp or [], "tcp": args.tcp or [], "serial": args.serial or []}
-    return asyncio.run(_serve(sim, listen))
+    return asyncio.run(_serve(sim, listen, args))
 
 
-async def _serve(sim: Simulator, listen: dict[str, Any]) -> int:
+async def _serve(sim: Simulator, listen: dict[str, Any], args: argparse.Namespace | None = None) -> int:
     await sim.start(**listen)
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()
@@ -120,8 +122,13 @@ async def _serve(sim: Simulator, listen: dict[str, Any]) -> int:
     print(f"topgimbal sim: {sim.model} ({sim.dialect.name}), seed {sim.seed}", file=sys.stderr)
     for _kind, url in sim.endpoints:
         print(url, flush=True)
+    video = None
     try:
+        if args is not None and video_cli.wants_video(args):
+            video = await video_cli.start(sim, args)
         await stop.wait()
     finally:
+        if video is not None:
+            await video.stop()
         await sim.stop()
     return 0

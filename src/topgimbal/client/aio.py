@@ -44,6 +44,13 @@ class AsyncClient(ClientCore, CoreMethods, MotionMethods, CameraMethods):
         checks.positive_seconds("abandon_after_s", abandon_after_s)
         return AttitudeStream(self.streams, _rate(rate_hz), abandon_after_s=abandon_after_s)
 
+    def video_url(self, lens: str = "visible", *, host: str | None = None, port: int | None = None) -> str:
+        """RTSP URL of a lens's stream (the model's documented port and path) at the camera's
+        address: the control URL's host unless `host` says otherwise. See docs/video.md."""
+        from ..video.lens import host_of, video_url  # the per-model stream table (pure)
+
+        return video_url(self.model.name, host or host_of(self.url), lens, port=port)
+
     def rate_control(self, interval_s: float = 0.1) -> RateKeepAlive:
         """A joystick helper: `async with cam.rate_control() as joy: joy.set(yaw_deg_s=10)`
         re-sends the current rates every `interval_s` (fire-and-forget) and stops on exit."""

@@ -158,6 +158,10 @@ class Gimbal(SyncDriver, CoreMethods, MotionMethods, CameraMethods):
     def on_link_change(self, callback: Callable[[bool, str], Any]) -> Callable[[], None]:
         return self._run(_call(self.aio.on_link_change, callback))
 
+    def video_url(self, lens: str = "visible", *, host: str | None = None, port: int | None = None) -> str:
+        """RTSP URL of a lens's stream (no I/O): see AsyncClient.video_url."""
+        return self.aio.video_url(lens, host=host, port=port)
+
     def attitude(self, rate_hz: float = 50, *, timeout_s: float | None = None) -> SyncAttitudeStream:
         """Blocking iterator over attitude samples (`for att in cam.attitude(20): ...`); use
         `with cam.attitude(20) as s:` to stop the stream when the block ends."""

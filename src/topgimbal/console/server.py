@@ -18,6 +18,7 @@ from typing import Any
 from aiohttp import web
 from aiohttp.http_exceptions import HttpProcessingError
 
+from ..video.webconsole import attach as attach_video
 from .auth import needs_token, resolve_token, token_middleware
 from .catalog_api import catalog_json
 from .guard import HostGuard, default_allowed_hosts
@@ -122,6 +123,7 @@ class ConsoleServer:
         self.app: web.Application | None = None
         self._runner: web.AppRunner | None = None
         self.bound_port: int | None = None
+        self.video: Any = None
 
     @property
     def base_url(self) -> str:
@@ -150,6 +152,8 @@ class ConsoleServer:
             self.hub = Hub(self.cam, url=self.url, attitude_hz=self.attitude_hz)
             await self.hub.start()
             self.app = create_app(self.hub, token=self.token, allowed_hosts=self.allowed_hosts)
+            # video routes sit behind the same Host/Origin guard middleware as every other route
+            self.video = await attach_video(self, self.app)  # topgimbal.video: streams, relay, routes
             self._runner = web.AppRunner(
                 self.app, access_log=None, handle_signals=False, logger=HttpLog(logging.getLogger("aiohttp.server"))
             )
@@ -164,6 +168,9 @@ class ConsoleServer:
             raise
 
     async def stop(self) -> None:
+        if self.video is not None:  # first: it ends the endless picture responses
+            await self.video.close()
+            self.video = None
         if self._runner is not None:
             with contextlib.suppress(Exception):
                 await self._runner.cleanup()

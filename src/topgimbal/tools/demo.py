@@ -36,6 +36,8 @@ async def run_demo(model: str, port: int, seconds: float | None, seed: int = 0) 
         note = "" if chosen == port else f" (port {port} is taken: using {server.bound_port})"
         print(f"topgimbal demo: simulated {model} at {server.url}{note}", flush=True)
         print(f"console: {server.page_url}", flush=True)
+        for lens, url in getattr(getattr(server.video, "sim_video", None), "urls", {}).items():
+            print(f"{lens} video: {url}", flush=True)  # topgimbal.video (RTSP; the console shows it)
         print("press Ctrl-C to stop" if seconds is None else f"stopping after {seconds:g} s", flush=True)
         await server.serve_forever(seconds)
     finally:

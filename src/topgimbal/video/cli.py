@@ -1,0 +1,67 @@
+"""`topgimbal sim --video ...`: the options, and starting the streams next to a simulator."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from .lens import VideoError
+
+LOOPBACK = ("127.0.0.1", "::1", "localhost")
+
+
+def _size(text: str) -> tuple[int, int]:
+    w, sep, h = text.lower().partition("x")
+    if not sep or not w.isdigit() or not h.isdigit():
+        raise argparse.ArgumentTypeError(f"{text!r} is not WIDTHxHEIGHT (e.g. 1280x720)")
+    return int(w), int(h)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("video (needs the video extra: pip install 'topgimbal[video]')")
+    g.add_argument("--video", action="store_true", help="serve the model's RTSP streams, rendered from the simulation")
+    g.add_argument(
+        "--video-port",
+        type=int,
+        metavar="N",
+        help="RTSP port instead of the documented one (554; SkyDroid thermal 555 becomes N+1); 0 picks free ports",
+    )
+    g.add_argument("--video-host", metavar="ADDR", help="RTSP address (default: the simulator's loopback address)")
+    g.add_argument("--video-fps", type=float, default=30.0, metavar="FPS", help="frame rate (default 30)")
+    g.add_argument("--video-size", type=_size, metavar="WxH", help="visible picture size (default 1280x720)")
+    g.add_argument("--video-codec", choices=("h264", "h265"), help="force a codec (default: the model's setting)")
+
+
+def wants_video(args: argparse.Namespace) -> bool:
+    return bool(getattr(args, "video", False))
+
+
+def video_host(args: argparse.Namespace, sim: Any) -> str:
+    host = getattr(args, "video_host", None)
+    if host is None:
+        addrs = [a for kind in ("udp", "tcp") for a in sim.addresses.get(kind, [])]
+        host = addrs[0][0] if addrs and addrs[0][0] in LOOPBACK else "127.0.0.1"
+    if host not in LOOPBACK and not getattr(args, "allow_any_address", False):
+        raise VideoError(f"the simulator's video listens on loopback only (got {host!r}; use 127.0.0.1)")
+    return str(host)
+
+
+async def start(sim: Any, args: argparse.Namespace) -> Any:
+    """Start the simulator's streams as the arguments say; prints one URL per lens."""
+    try:
+        from .simvideo import SimVideo, VideoOptions
+    except ImportError as exc:
+        raise VideoError(f"--video needs the video extra (pip install 'topgimbal[video]'): {exc}") from None
+    opts = VideoOptions(
+        host=video_host(args, sim),
+        port=args.video_port,
+        fps=args.video_fps,
+        size=args.video_size,
+        codec=args.video_codec,
+    )
+    video = await SimVideo(sim, opts).start()
+    for lens, url in video.urls.items():
+        print(url, flush=True)
+        print(f"topgimbal sim: {lens} video at {url} ({video.streams[lens].codec})", file=sys.stderr)
+    return video

@@ -1,0 +1,85 @@
+"""H.264 / H.265 encoding with PyAV (its wheels bundle FFmpeg with libx264 and libx265).
+
+Settings chosen for a live picture: no B-frames, zero-latency tuning (one frame in, one access unit
+out), a keyframe every `gop` frames with the parameter sets repeated in front of each (a client
+that joins mid-stream can start there), one thread (its CPU cost is bounded and measurable).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Any
+
+import av
+import numpy as np
+from PIL import Image
+
+from .lens import VideoError
+
+CODECS = {"h264": "libx264", "h265": "libx265"}
+
+
+@dataclass(frozen=True)
+class AccessUnit:
+    """One encoded picture in Annex B form (start codes between NAL units)."""
+
+    data: bytes
+    keyframe: bool
+    pts_s: float  # capture time, seconds (monotonic)
+
+
+class Encoder:
+    def __init__(
+        self, codec: str, width: int, height: int, fps: float, *, bitrate_kbps: int = 4000, gop: int | None = None
+    ) -> None:
+        if codec not in CODECS:
+            raise VideoError(f"codec must be one of {', '.join(CODECS)} (got {codec!r})")
+        self.codec = codec
+        self.width, self.height, self.fps = width, height, fps
+        gop = max(1, int(gop or round(fps)))
+        ctx: Any = av.CodecContext.create(CODECS[codec], "w")
+        ctx.width, ctx.height = width, height
+        ctx.pix_fmt = "yuv420p"
+        ctx.time_base = Fraction(1, 90000)
+        ctx.framerate = Fraction(round(fps * 1000), 1000)
+        ctx.bit_rate = bitrate_kbps * 1000
+        ctx.gop_size = gop
+        ctx.max_b_frames = 0
+        ctx.thread_count = 1
+        if codec == "h264":
+            ctx.options = {
+                "preset": "ultrafast",
+                "tune": "zerolatency",
+                "x264-params": f"keyint={gop}:min-keyint={gop}:scenecut=0:repeat-headers=1:bframes=0",
+            }
+            ctx.profile = "Constrained Baseline"
+        else:
+            ctx.options = {
+                "preset": "ultrafast",
+                "tune": "zerolatency",
+                "x265-params": f"keyint={gop}:min-keyint={gop}:scenecut=0:repeat-headers=1:bframes=0:log-level=error:pools=1:frame-threads=1",
+            }
+        ctx.open()
+        self._ctx = ctx
+        self._n = 0
+
+    def encode(self, picture: Image.Image | np.ndarray, pts_s: float, *, keyframe: bool = False) -> list[AccessUnit]:
+        """Encode one RGB picture; `keyframe` forces an IDR (a new receiver starts at once)."""
+        arr = np.asarray(picture)
+        frame = av.VideoFrame.from_ndarray(arr, format="rgb24").reformat(format="yuv420p")
+        if keyframe:
+            frame.pict_type = av.video.frame.PictureType.I
+        frame.pts = round(pts_s * 90000)
+        frame.time_base = Fraction(1, 90000)
+        self._n += 1
+        return [self._unit(p, pts_s) for p in self._ctx.encode(frame)]
+
+    def _unit(self, packet: Any, pts_s: float) -> AccessUnit:
+        return AccessUnit(bytes(packet), bool(packet.is_keyframe), pts_s)
+
+    def close(self) -> None:
+        try:
+            self._ctx.encode(None)
+        except Exception:  # flushing a live encoder at shutdown: nothing to keep
+            pass

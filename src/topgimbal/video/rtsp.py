@@ -1,0 +1,391 @@
+"""A small RTSP server (RFC 2326) for live H.264 / H.265 streams, in asyncio.
+
+Enough of RTSP for ffmpeg/ffprobe, GStreamer, VLC and OpenCV: OPTIONS, DESCRIBE, SETUP (RTP over
+the RTSP connection, "interleaved", or over UDP to the client's ports), PLAY, TEARDOWN,
+GET_PARAMETER / SET_PARAMETER (keep-alives). Every receiver of a path gets the same encoded
+pictures (one encoder per stream, whatever the number of receivers), starting at a keyframe.
+
+Bounds (each refusal is logged): MAX_CONNECTIONS RTSP connections per server, MAX_RECEIVERS
+playing sessions per stream (SETUP beyond it is answered 453), MAX_REQUEST_BYTES per request,
+MAX_PIPELINED requests waiting per connection, and
+MAX_BUFFERED_BYTES of unsent RTP per TCP receiver (past it the receiver skips pictures up to the
+next keyframe instead of queueing). A UDP session lives as long as its RTSP connection.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import itertools
+import logging
+import random
+import struct
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from urllib.parse import urlsplit
+
+from .encode import AccessUnit
+from .rtp import CLOCK_HZ, Packetizer, parameter_sets, sdp, split_nals
+
+log = logging.getLogger("topgimbal.video.rtsp")
+
+MAX_CONNECTIONS = 16
+MAX_RECEIVERS = 8
+MAX_REQUEST_BYTES = 8192
+MAX_PIPELINED = 32  # requests waiting for an answer on one connection
+MAX_BUFFERED_BYTES = 2_000_000
+DESCRIBE_WAIT_S = 5.0
+SESSION_TIMEOUT_S = 60
+SERVER_NAME = "topgimbal-sim"
+
+
+class Stream:
+    """One live stream (one path): the latest parameter sets and the receivers playing it."""
+
+    def __init__(self, path: str, codec: str, *, on_keyframe_wanted: Callable[[], None] | None = None) -> None:
+        self.path = path
+        self.codec = codec
+        self.params: dict[str, bytes] = {}
+        self.ready = asyncio.Event()
+        self.receivers: set[_Session] = set()
+        self.pictures = 0
+        self._want_key = on_keyframe_wanted or (lambda: None)
+
+    def publish(self, au: AccessUnit) -> None:
+        """Send one access unit to every receiver (on the server's event loop)."""
+        self.pictures += 1
+        if au.keyframe:
+            found = parameter_sets(self.codec, split_nals(au.data))
+            if found:
+                self.params.update(found)
+                self.ready.set()
+        rtp_time = int(au.pts_s * CLOCK_HZ) & 0xFFFFFFFF
+        for r in list(self.receivers):
+            r.send_picture(au, rtp_time)
+
+    def want_keyframe(self) -> None:
+        self._want_key()
+
+    def now_rtp(self) -> int:
+        return int(time.monotonic() * CLOCK_HZ) & 0xFFFFFFFF
+
+
+@dataclass(eq=False)  # identity: a set member
+class _Session:
+    id: str
+    stream: Stream
+    conn: _Connection
+    packetizer: Packetizer
+    channel: int | None = None  # interleaved RTP channel (TCP)
+    udp: asyncio.DatagramTransport | None = None
+    udp_rtcp: asyncio.DatagramTransport | None = None
+    udp_peer: tuple[str, int] | None = None
+    playing: bool = False
+    waiting_key: bool = True
+    dropped: int = 0
+    server_ports: tuple[int, int] = (0, 0)
+    _congested: bool = field(default=False, repr=False)
+
+    def send_picture(self, au: AccessUnit, rtp_time: int) -> None:
+        if not self.playing:
+            return
+        if self.waiting_key:
+            if not au.keyframe:
+                return
+            self.waiting_key = False
+        if self.channel is not None:
+            tr = self.conn.transport
+            if tr is None or tr.is_closing():
+                return
+            if tr.get_write_buffer_size() > MAX_BUFFERED_BYTES:
+                # A receiver that cannot keep up skips to the next keyframe rather than queue.
+                self.dropped += 1
+                self.waiting_key = True
+                if not self._congested:
+                    log.warning(
+                        "RTSP %s: receiver %s too slow, skipping to the next keyframe", self.stream.path, self.conn.peer
+                    )
+                    self._congested = True
+                return
+            self._congested = False
+            head = struct.Struct("!cBH")
+            tr.writelines(
+                [head.pack(b"$", self.channel, len(p)) + p for p in self.packetizer.packets(au.data, rtp_time)]
+            )
+        elif self.udp is not None and self.udp_peer is not None:
+            for p in self.packetizer.packets(au.data, rtp_time):
+                self.udp.sendto(p, self.udp_peer)
+
+    def close(self) -> None:
+        self.playing = False
+        self.stream.receivers.discard(self)
+        for t in (self.udp, self.udp_rtcp):
+            if t is not None:
+                t.close()
+        self.udp = self.udp_rtcp = None
+
+
+class _Ignore(asyncio.DatagramProtocol):
+    """RTCP receiver reports and NAT probes arrive here and are ignored."""
+
+
+@dataclass
+class _Request:
+    method: str
+    url: str
+    headers: dict[str, str]
+
+
+class _Connection(asyncio.Protocol):
+    def __init__(self, server: RtspServer) -> None:
+        self.server = server
+        self.transport: asyncio.Transport | None = None
+        self.peer: str = "?"
+        self.buf = b""
+        self.sessions: dict[str, _Session] = {}
+        self.queue: asyncio.Queue[_Request] = asyncio.Queue()
+        self.task: asyncio.Task[None] | None = None
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        self.transport = transport  # type: ignore[assignment]
+        peer = transport.get_extra_info("peername")
+        self.peer = f"{peer[0]}:{peer[1]}" if peer else "?"
+        if len(self.server.connections) >= MAX_CONNECTIONS:
+            log.warning("RTSP: refusing %s: %d connections already (limit)", self.peer, MAX_CONNECTIONS)
+            transport.close()
+            return
+        self.server.connections.add(self)
+        self.task = asyncio.get_running_loop().create_task(self._serve())
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self.server.connections.discard(self)
+        for s in self.sessions.values():
+            s.close()
+        self.sessions.clear()
+        if self.task is not None:
+            self.task.cancel()
+
+    def data_received(self, data: bytes) -> None:
+        self.buf += data
+        while self.buf:
+            if self.buf[:1] == b"$":  # interleaved RTCP from the receiver: skip it
+                if len(self.buf) < 4:
+                    return
+                n = int.from_bytes(self.buf[2:4], "big")
+                if len(self.buf) < 4 + n:
+                    return
+                self.buf = self.buf[4 + n :]
+                continue
+            end = self.buf.find(b"\r\n\r\n")
+            if end < 0:
+                if len(self.buf) > MAX_REQUEST_BYTES:
+                    self._bad("request header too long")
+                return
+            head = self.buf[:end].decode("utf-8", "replace")
+            lines = head.split("\r\n")
+            headers: dict[str, str] = {}
+            for line in lines[1:]:
+                k, sep, v = line.partition(":")
+                if sep:
+                    headers[k.strip().lower()] = v.strip()
+            try:
+                body_len = int(headers.get("content-length", "0"))
+            except ValueError:
+                body_len = -1
+            if not 0 <= body_len <= MAX_REQUEST_BYTES:
+                self._bad("bad Content-Length")
+                return
+            if len(self.buf) < end + 4 + body_len:
+                return
+            self.buf = self.buf[end + 4 + body_len :]
+            parts = lines[0].split()
+            if len(parts) != 3 or not parts[2].startswith("RTSP/"):
+                self._bad(f"not an RTSP request line: {lines[0][:80]!r}")
+                return
+            if self.queue.qsize() >= MAX_PIPELINED:
+                self._bad(f"more than {MAX_PIPELINED} requests waiting")
+                return
+            self.queue.put_nowait(_Request(parts[0].upper(), parts[1], headers))
+
+    def _bad(self, why: str) -> None:
+        log.warning("RTSP %s: %s; closing", self.peer, why)
+        self.reply(_Request("?", "", {}), 400, "Bad Request")
+        self.buf = b""
+        if self.transport is not None:
+            self.transport.close()
+
+    def reply(
+        self, req: _Request, code: int, reason: str, headers: dict[str, str] | None = None, body: str = ""
+    ) -> None:
+        if self.transport is None or self.transport.is_closing():
+            return
+        lines = [f"RTSP/1.0 {code} {reason}", f"CSeq: {req.headers.get('cseq', '0')}", f"Server: {SERVER_NAME}"]
+        lines += [f"{k}: {v}" for k, v in (headers or {}).items()]
+        data = body.encode()
+        if data:
+            lines.append(f"Content-Length: {len(data)}")
+        self.transport.write(("\r\n".join(lines) + "\r\n\r\n").encode() + data)
+
+    async def _serve(self) -> None:
+        while True:
+            req = await self.queue.get()
+            try:
+                await self._handle(req)
+            except Exception:  # a bad request must not take the server down
+                log.exception("RTSP %s: %s failed", self.peer, req.method)
+                self.reply(req, 500, "Internal Server Error")
+
+    # -- methods ----------------------------------------------------------------------------------
+
+    async def _handle(self, req: _Request) -> None:
+        m = req.method
+        if m == "OPTIONS":
+            self.reply(
+                req, 200, "OK", {"Public": "OPTIONS, DESCRIBE, SETUP, PLAY, TEARDOWN, GET_PARAMETER, SET_PARAMETER"}
+            )
+        elif m == "DESCRIBE":
+            await self._describe(req)
+        elif m == "SETUP":
+            await self._setup(req)
+        elif m == "PLAY":
+            self._play(req)
+        elif m == "TEARDOWN":
+            s = self._session(req)
+            if s is not None:
+                s.close()
+                self.sessions.pop(s.id, None)
+            self.reply(req, 200, "OK")
+        elif m in ("GET_PARAMETER", "SET_PARAMETER"):
+            self.reply(req, 200, "OK", self._session_header(req))
+        else:
+            self.reply(
+                req, 405, "Method Not Allowed", {"Allow": "OPTIONS, DESCRIBE, SETUP, PLAY, TEARDOWN, GET_PARAMETER"}
+            )
+
+    def _session_header(self, req: _Request) -> dict[str, str]:
+        sid = req.headers.get("session", "").split(";")[0].strip()
+        return {"Session": sid} if sid else {}
+
+    def _session(self, req: _Request) -> _Session | None:
+        sid = req.headers.get("session", "").split(";")[0].strip()
+        if sid in self.sessions:
+            return self.sessions[sid]
+        if not sid and len(self.sessions) == 1:
+            return next(iter(self.sessions.values()))
+        return None
+
+    async def _describe(self, req: _Request) -> None:
+        stream = self.server.find(req.url)
+        if stream is None:
+            self.reply(req, 404, "Not Found")
+            return
+        if not stream.ready.is_set():
+            stream.want_keyframe()
+            with contextlib.suppress(asyncio.TimeoutError):
+                await asyncio.wait_for(stream.ready.wait(), DESCRIBE_WAIT_S)
+        if not stream.ready.is_set():
+            self.reply(req, 503, "Service Unavailable")
+            return
+        host = self.server.host
+        body = sdp(stream.codec, stream.params, host=host, session_id=random.getrandbits(31))
+        base = req.url if req.url.endswith("/") else req.url + "/"
+        self.reply(req, 200, "OK", {"Content-Base": base, "Content-Type": "application/sdp"}, body)
+
+    async def _setup(self, req: _Request) -> None:
+        stream = self.server.find(req.url)
+        if stream is None:
+            self.reply(req, 404, "Not Found")
+            return
+        if len(stream.receivers) >= MAX_RECEIVERS:
+            log.warning("RTSP %s: refusing %s: %d receivers already (limit)", stream.path, self.peer, MAX_RECEIVERS)
+            self.reply(req, 453, "Not Enough Bandwidth")
+            return
+        transport = req.headers.get("transport", "")
+        sid = f"{random.getrandbits(48):012X}"
+        pk = Packetizer(stream.codec, random.getrandbits(32), random.getrandbits(16))
+        session = _Session(sid, stream, self, pk)
+        opts = [t.strip() for t in transport.split(",")[0].split(";")]
+        if any(o.upper().startswith("RTP/AVP/TCP") for o in opts):
+            ch = next((o.split("=", 1)[1] for o in opts if o.startswith("interleaved=")), "0-1")
+            try:
+                session.channel = int(ch.split("-")[0])
+            except ValueError:
+                self.reply(req, 461, "Unsupported Transport")
+                return
+            reply_transport = f"RTP/AVP/TCP;unicast;interleaved={session.channel}-{session.channel + 1}"
+        else:
+            cp = next((o.split("=", 1)[1] for o in opts if o.startswith("client_port=")), None)
+            if cp is None or self.transport is None:
+                self.reply(req, 461, "Unsupported Transport")
+                return
+            try:
+                rtp_port = int(cp.split("-")[0])
+            except ValueError:
+                self.reply(req, 461, "Unsupported Transport")
+                return
+            peer_host = self.transport.get_extra_info("peername")[0]
+            loop = asyncio.get_running_loop()
+            local = self.transport.get_extra_info("sockname")[0]
+            udp, _ = await loop.create_datagram_endpoint(_Ignore, local_addr=(local, 0))
+            rtcp, _ = await loop.create_datagram_endpoint(_Ignore, local_addr=(local, 0))
+            session.udp, session.udp_rtcp = udp, rtcp  # type: ignore[assignment]
+            session.udp_peer = (peer_host, rtp_port)
+            session.server_ports = (udp.get_extra_info("sockname")[1], rtcp.get_extra_info("sockname")[1])
+            reply_transport = (
+                f"RTP/AVP;unicast;client_port={cp};server_port={session.server_ports[0]}-{session.server_ports[1]}"
+            )
+        self.sessions[sid] = session
+        self.reply(req, 200, "OK", {"Transport": reply_transport, "Session": f"{sid};timeout={SESSION_TIMEOUT_S}"})
+
+    def _play(self, req: _Request) -> None:
+        s = self._session(req)
+        if s is None:
+            self.reply(req, 454, "Session Not Found")
+            return
+        s.playing = True
+        s.waiting_key = True
+        s.stream.receivers.add(s)
+        s.stream.want_keyframe()  # so the new receiver starts now, not at the next GOP
+        info = f"url={req.url.rstrip('/')}/trackID=0;seq={s.packetizer.seq};rtptime={s.stream.now_rtp()}"
+        self.reply(req, 200, "OK", {"Session": s.id, "Range": "npt=0.000-", "RTP-Info": info})
+
+
+class RtspServer:
+    """Serves some streams (by path) on one TCP port."""
+
+    def __init__(self, host: str, port: int, streams: list[Stream]) -> None:
+        self.host = host
+        self.port = port
+        self.streams = {s.path: s for s in streams}
+        self.connections: set[_Connection] = set()
+        self._server: asyncio.base_events.Server | None = None
+        self._ids = itertools.count(1)
+
+    async def start(self) -> RtspServer:
+        loop = asyncio.get_running_loop()
+        self._server = await loop.create_server(lambda: _Connection(self), self.host, self.port)
+        self.port = self._server.sockets[0].getsockname()[1]
+        return self
+
+    def find(self, url: str) -> Stream | None:
+        path = urlsplit(url).path if "://" in url else url
+        path = path.rstrip("/")
+        if path.endswith("/trackID=0"):
+            path = path[: -len("/trackID=0")]
+        return self.streams.get(path)
+
+    def url(self, path: str) -> str:
+        h = f"[{self.host}]" if ":" in self.host else self.host
+        return f"rtsp://{h}:{self.port}{path}"
+
+    async def close(self) -> None:
+        if self._server is not None:
+            self._server.close()
+        for c in list(self.connections):
+            if c.transport is not None:
+                c.transport.close()
+        if self._server is not None:
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(self._server.wait_closed(), 2.0)
+            self._server = None

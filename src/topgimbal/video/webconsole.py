@@ -1,0 +1,275 @@
+"""Video in the web console: the relay's routes and the picture's controls.
+
+    GET  /api/video                 lenses, their picture size and field of view, relay states
+    GET  /video/<lens>.mjpg         the live picture (multipart JPEG)
+    POST /api/video/point           {"lens", "x", "y"}: point at that spot (fractions of the picture)
+    POST /api/video/track           {"lens", "x0", "y0", "x1", "y1"}: track what the box holds
+    POST /api/video/zoom            {"direction": "in" | "out"}: one zoom step
+
+`attach(console)` is the console's one hook: with a simulator it starts the simulator's RTSP
+streams (free loopback ports); with a real camera it relays the model's documented RTSP URLs at
+the camera's address. Without the video extra it logs why and the console runs without video.
+The console passes its origin check in; its token middleware already guards every route.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import Callable
+from typing import Any
+
+from .lens import StreamSpec, VideoError, View, hfov_at, host_of, streams_for, video_url, wrap180
+
+log = logging.getLogger("topgimbal.video.console")
+
+BOUNDARY = "topgimbalframe"
+ZOOM_STEP_S = 0.3  # one wheel notch runs the zoom motor this long
+TRACK_FRAME = (1280, 720)
+# The console's own simulated camera renders at this rate: it shares one process (and, on a
+# small machine, the CPU) with the console and the relay; 15 fps halves the cost of 30 (see
+# docs/video.md) and still shows motion. `topgimbal sim --video` keeps the camera's 30 fps.
+CONSOLE_SIM_FPS = 15.0  # SkyDroid GOT coordinates (§3.3.5); TOPOTEK LOC uses the same here
+
+
+class ConsoleVideo:
+    def __init__(self, console: Any, *, origin_ok: Callable[[Any], bool] | None = None) -> None:
+        from .relay import Relay
+
+        self.console = console
+        self.origin_ok = origin_ok or (lambda request: True)
+        self.specs: dict[str, StreamSpec] = {s.lens: s for s in streams_for(console.model or "C12")}
+        self.sim_video: Any = None
+        self.relays: dict[str, Relay] = {}
+        self._zoom_task: asyncio.Task[None] | None = None
+        self._relay_cls = Relay
+
+    async def start(self) -> ConsoleVideo:
+        if self.console.sim is not None:
+            from .simvideo import SimVideo, VideoOptions
+
+            opts = VideoOptions(port=0, fps=CONSOLE_SIM_FPS)
+            self.sim_video = await SimVideo(self.console.sim, opts).start()
+            urls = dict(self.sim_video.urls)
+        else:
+            host = host_of(self.console.url)
+            urls = {lens: video_url(self.console.model, host, lens) for lens in self.specs}
+        self.relays = {lens: self._relay_cls(lens, url) for lens, url in urls.items()}
+        return self
+
+    async def close(self) -> None:
+        for r in self.relays.values():
+            await r.close()
+        if self.sim_video is not None:
+            await self.sim_video.stop()
+            self.sim_video = None
+
+    # -- routes ------------------------------------------------------------------------------------
+
+    def add_routes(self, app: Any) -> None:
+        app.router.add_get("/api/video", self.info)
+        app.router.add_get("/video/{lens}.mjpg", self.mjpeg)
+        app.router.add_post("/api/video/point", self.point)
+        app.router.add_post("/api/video/track", self.track)
+        app.router.add_post("/api/video/zoom", self.zoom)
+
+    async def info(self, request: Any) -> Any:
+        from aiohttp import web
+
+        lenses = []
+        for lens, relay in self.relays.items():
+            s = self.specs[lens]
+            lenses.append({"lens": lens, "hfov_deg": s.hfov_deg, **relay.status(), "size": list(relay.size or s.size)})
+        state = self.console.cam.state if self.console.cam is not None else None
+        att = state.attitude if state is not None else None
+        rec = state.recording if state is not None else None
+        return web.json_response(
+            {
+                "model": self.console.model,
+                "lenses": lenses,
+                "zoom_x": self._zoom_x(),
+                "attitude": None if att is None else {k: getattr(att, k) for k in ("yaw_deg", "pitch_deg", "roll_deg")},
+                "recording": bool(rec.value) if rec is not None else False,
+            }
+        )
+
+    async def mjpeg(self, request: Any) -> Any:
+        from aiohttp import web
+
+        from .relay import RelayFullError
+
+        relay = self.relays.get(request.match_info["lens"])
+        if relay is None:
+            return _error(404, f"no such lens; this camera has: {', '.join(self.relays)}")
+        pictures = relay.pictures_for_viewer()
+        try:
+            first = await pictures.__anext__()
+        except RelayFullError as exc:
+            return _error(503, str(exc))
+        except StopAsyncIteration:
+            return _error(503, "the console is stopping")
+        resp = web.StreamResponse(
+            headers={
+                "Content-Type": f"multipart/x-mixed-replace; boundary={BOUNDARY}",
+                "Cache-Control": "no-store",
+            }
+        )
+        await resp.prepare(request)
+        try:
+            jpeg = first
+            while True:
+                head = f"--{BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {len(jpeg)}\r\n\r\n"
+                await resp.write(head.encode() + jpeg + b"\r\n")
+                jpeg = await pictures.__anext__()
+        except (ConnectionResetError, StopAsyncIteration, asyncio.CancelledError):
+            pass
+        finally:
+            await pictures.aclose()
+        return resp
+
+    async def _body(self, request: Any) -> dict[str, Any] | Any:
+        if not self.origin_ok(request):
+            return _error(403, "cross-origin request refused")
+        try:
+            body = await request.json()
+        except Exception:
+            return _error(400, "the body must be JSON")
+        if not isinstance(body, dict):
+            return _error(400, "the body must be a JSON object")
+        return body
+
+    def _zoom_x(self) -> float:
+        sim = self.console.sim
+        if sim is not None:
+            return float(sim.camera.zoom_x)
+        z = getattr(self.console.cam.state, "zoom", None) if self.console.cam is not None else None
+        try:
+            return max(1.0, float(z.value)) if z is not None else 1.0
+        except (TypeError, ValueError):
+            return 1.0
+
+    async def point(self, request: Any) -> Any:
+        from aiohttp import web
+
+        body = await self._body(request)
+        if not isinstance(body, dict):
+            return body
+        try:
+            lens, x, y = _lens(body, self.specs), _fraction(body, "x"), _fraction(body, "y")
+        except VideoError as exc:
+            return _error(400, str(exc))
+        cam = self.console.cam
+        att = cam.state.attitude
+        if att is None:
+            with contextlib.suppress(Exception):
+                att = await cam.get_attitude()
+        if att is None:
+            return _error(503, "the camera has not reported its attitude yet")
+        spec = self.specs[lens]
+        w, h = self.relays[lens].size or spec.size
+        view = View(att.yaw_deg, att.pitch_deg, att.roll_deg, hfov_at(spec.hfov_deg, self._zoom_x()), w, h)
+        az, el = view.angles_at(x * w, y * h)
+        lo, hi = cam.model.yaw_range_deg
+        yaw = min(hi, max(lo, att.yaw_deg + wrap180(az - att.yaw_deg)))
+        plo, phi = cam.model.pitch_range_deg
+        pitch = min(phi, max(plo, el))
+        try:
+            await cam.set_angles(yaw, pitch)
+        except Exception as exc:
+            return _error(502, f"the camera refused: {exc}")
+        return web.json_response({"yaw_deg": round(yaw, 3), "pitch_deg": round(pitch, 3)})
+
+    async def track(self, request: Any) -> Any:
+        from aiohttp import web
+
+        body = await self._body(request)
+        if not isinstance(body, dict):
+            return body
+        try:
+            _lens(body, self.specs)
+            x0, y0, x1, y1 = (_fraction(body, k) for k in ("x0", "y0", "x1", "y1"))
+        except VideoError as exc:
+            return _error(400, str(exc))
+        cam = self.console.cam
+        fw, fh = TRACK_FRAME
+        cx, cy = round((x0 + x1) / 2 * fw), round((y0 + y1) / 2 * fh)
+        bw, bh = round(abs(x1 - x0) * fw), round(abs(y1 - y0) * fh)
+        d, m = cam.dialect, cam.model
+        try:
+            if d.supports(m, "GOT"):
+                await cam.request("GOT", x_px=cx, y_px=cy)
+            elif d.supports(m, "LOC") and d.supports(m, "TRC"):
+                await cam.request("LOC", x_px=cx, y_px=cy, width_px=bw, height_px=bh)
+                await cam.request("TRC", action="start")
+            else:
+                return _error(409, f"the {m.name} does not track targets")
+        except Exception as exc:
+            return _error(502, f"the camera refused: {exc}")
+        return web.json_response({"x_px": cx, "y_px": cy, "width_px": bw, "height_px": bh})
+
+    async def zoom(self, request: Any) -> Any:
+        from aiohttp import web
+
+        body = await self._body(request)
+        if not isinstance(body, dict):
+            return body
+        direction = body.get("direction")
+        if direction not in ("in", "out"):
+            return _error(400, "direction must be 'in' or 'out'")
+        cam = self.console.cam
+        try:
+            if cam.model.optical_zoom_max > 1.0:
+                await cam.zoom(direction)
+                if self._zoom_task is not None:
+                    self._zoom_task.cancel()
+                self._zoom_task = asyncio.get_running_loop().create_task(self._zoom_stop(cam))
+            else:
+                z = self._zoom_x()
+                await cam.zoom(max(1.0, min(cam.model.digital_zoom_max, round(z) + (1 if direction == "in" else -1))))
+        except Exception as exc:
+            return _error(502, f"the camera refused: {exc}")
+        return web.json_response({"direction": direction})
+
+    async def _zoom_stop(self, cam: Any) -> None:
+        await asyncio.sleep(ZOOM_STEP_S)
+        with contextlib.suppress(Exception):
+            await cam.zoom("stop")
+
+
+def _error(status: int, message: str) -> Any:
+    from aiohttp import web
+
+    return web.json_response({"error": "video", "message": message}, status=status)
+
+
+def _lens(body: dict[str, Any], specs: dict[str, StreamSpec]) -> str:
+    lens = body.get("lens", "visible")
+    if lens not in specs:
+        raise VideoError(f"lens must be one of {', '.join(specs)} (got {lens!r})")
+    return str(lens)
+
+
+def _fraction(body: dict[str, Any], key: str) -> float:
+    v = body.get(key)
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
+        raise VideoError(f"{key} must be a number from 0 to 1 (a fraction of the picture), got {v!r}")
+    return float(v)
+
+
+async def attach(console: Any, app: Any, origin_ok: Callable[[Any], bool] | None = None) -> ConsoleVideo | None:
+    """Start video for a console and mount its routes on `app` (before the app starts)."""
+    try:
+        import av  # noqa: F401
+        import numpy  # noqa: F401
+        import PIL  # noqa: F401
+    except ImportError as exc:
+        log.warning("console video is off: the video extra is not installed (%s)", exc)
+        return None
+    try:
+        video = await ConsoleVideo(console, origin_ok=origin_ok).start()
+    except VideoError as exc:
+        log.warning("console video is off: %s", exc)
+        return None
+    video.add_routes(app)
+    return video

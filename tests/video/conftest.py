@@ -1,0 +1,93 @@
+"""Fixtures for the video tests: a simulator with its video in a background event loop, and a
+reader that grabs decoded pictures with Debian's ffmpeg (an independent RTSP client)."""
+
+from __future__ import annotations
+
+import asyncio
+import shutil
+import subprocess
+import threading
+from collections.abc import Coroutine, Iterator
+from typing import Any, TypeVar
+
+import numpy as np
+import pytest
+
+from console.conftest import artifacts, browser  # noqa: F401  (the console tests' chromium fixtures)
+from topgimbal.sim import Simulator
+from topgimbal.video.simvideo import SimVideo, VideoOptions
+
+T = TypeVar("T")
+FFMPEG = shutil.which("ffmpeg") or "/usr/bin/ffmpeg"
+FFPROBE = shutil.which("ffprobe") or "/usr/bin/ffprobe"
+
+
+class LiveSim:
+    """Simulator + SimVideo on 127.0.0.1 (free ports), in their own thread and loop."""
+
+    def __init__(self, model: str, **video: Any) -> None:
+        self.loop = asyncio.new_event_loop()
+        self.thread = threading.Thread(target=self.loop.run_forever, daemon=True)
+        self.sim = Simulator(model)
+        self.video = SimVideo(self.sim, VideoOptions(port=0, **video))
+
+    def run(self, coro: Coroutine[Any, Any, T], timeout: float = 30.0) -> T:
+        return asyncio.run_coroutine_threadsafe(coro, self.loop).result(timeout)
+
+    def call(self, fn: Any) -> Any:
+        async def wrap() -> Any:
+            return fn()
+
+        return self.run(wrap())
+
+    def __enter__(self) -> LiveSim:
+        self.thread.start()
+        self.run(self.sim.start(udp=[("127.0.0.1", 0)]))
+        self.run(self.video.start())
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.run(self.video.stop())
+        self.run(self.sim.stop())
+        self.loop.call_soon_threadsafe(self.loop.stop)
+        self.thread.join(5)
+        self.loop.close()
+
+    @property
+    def url(self) -> str:
+        return self.sim.url
+
+
+def grab(url: str, size: tuple[int, int], frames: int = 1, transport: str = "tcp") -> list[np.ndarray]:
+    """Decoded RGB pictures read from an RTSP URL by ffmpeg."""
+    w, h = size
+    out = subprocess.run(
+        [
+            FFMPEG,
+            "-v",
+            "error",
+            "-rtsp_transport",
+            transport,
+            "-i",
+            url,
+            "-frames:v",
+            str(frames),
+            "-f",
+            "rawvideo",
+            "-pix_fmt",
+            "rgb24",
+            "-",
+        ],
+        capture_output=True,
+        timeout=30,
+        check=True,
+    ).stdout
+    n = w * h * 3
+    assert len(out) == n * frames, f"ffmpeg gave {len(out)} bytes, expected {frames} pictures of {w}x{h}"
+    return [np.frombuffer(out[i * n : (i + 1) * n], np.uint8).reshape(h, w, 3) for i in range(frames)]
+
+
+@pytest.fixture
+def c12() -> Iterator[LiveSim]:
+    with LiveSim("C12", fps=15.0) as live:
+        yield live

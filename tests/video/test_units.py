@@ -1,0 +1,178 @@
+"""The pure parts: the lens model, stream URLs, RTP packetisation, the renderer's picture."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from topgimbal.video import VideoError, video_url
+from topgimbal.video.lens import View, hfov_at, host_of, streams_for
+from topgimbal.video.render import Renderer, decode_stamp
+from topgimbal.video.rtp import Packetizer, parameter_sets, sdp, split_nals
+from topgimbal.video.simvideo import VideoOptions, plan_ports
+from topgimbal.video.snapshot import SceneState
+
+
+@pytest.mark.parametrize(
+    ("model", "lens", "url"),
+    [
+        ("SIP", "visible", "rtsp://192.168.144.108:554/stream=0"),
+        ("SIP", "thermal", "rtsp://192.168.144.108:554/stream=1"),
+        ("C12", "visible", "rtsp://192.168.144.108:554/stream=1"),
+        ("C12", "thermal", "rtsp://192.168.144.108:555/stream=2"),
+    ],
+)
+def test_video_url_per_model_and_lens(model: str, lens: str, url: str) -> None:
+    assert video_url(model, "192.168.144.108", lens) == url
+
+
+def test_video_url_refuses_what_the_model_has_not() -> None:
+    with pytest.raises(VideoError, match="no 'thermal' stream"):
+        video_url("C10", "10.0.0.1", "thermal")
+    with pytest.raises(VideoError, match="lens must be one of"):
+        video_url("C12", "10.0.0.1", "infrared")
+    assert video_url("C12", "::1", port=8554) == "rtsp://[::1]:8554/stream=1"
+    assert host_of("udp://127.0.0.1:5000") == "127.0.0.1"
+    with pytest.raises(VideoError, match="host="):
+        host_of("serial:///dev/ttyUSB0")
+
+
+@pytest.mark.parametrize(("yaw", "pitch", "roll", "zoom"), [(0, 0, 0, 1), (37, -22, 5, 1), (-120, 40, -10, 3.5)])
+def test_pixel_to_angle_inverts_angle_to_pixel(yaw: float, pitch: float, roll: float, zoom: float) -> None:
+    view = View(yaw, pitch, roll, hfov_at(62.0, zoom), 1280, 720)
+    for x, y in ((640, 360), (10, 700), (1200, 40)):
+        az, el = view.angles_at(x, y)
+        px = view.project(az, el)
+        assert px is not None and px[0] == pytest.approx(x, abs=1e-6) and px[1] == pytest.approx(y, abs=1e-6)
+    # The centre pixel is where the camera points; the right edge is half the field of view right.
+    assert view.angles_at(640, 360) == pytest.approx(((yaw + 180) % 360 - 180, pitch), abs=1e-9)
+    if roll == 0 and pitch == 0:
+        assert view.angles_at(1280, 360)[0] == pytest.approx(yaw + view.hfov_deg / 2)
+
+
+def test_zoom_narrows_the_field_of_view_like_a_longer_focal_length() -> None:
+    assert hfov_at(62, 1) == pytest.approx(62)
+    assert math.tan(math.radians(hfov_at(62, 4)) / 2) == pytest.approx(math.tan(math.radians(31)) / 4)
+
+
+def test_ports_keep_the_documented_spacing() -> None:
+    c12 = streams_for("C12")
+    assert plan_ports(c12, None) == {554: 554, 555: 555}
+    assert plan_ports(c12, 8554) == {554: 8554, 555: 8555}
+    assert plan_ports(c12, 0) == {554: 0, 555: 0}
+    with pytest.raises(VideoError, match="fps"):
+        VideoOptions(fps=0)
+    with pytest.raises(VideoError, match="even"):
+        VideoOptions(size=(641, 480))
+
+
+def test_rtp_fragments_big_nal_units_and_marks_the_last_packet() -> None:
+    sps, pps, idr = b"\x67\x42\xc0\x1f\x01", b"\x68\xce\x3c\x80", b"\x65" + bytes(range(256)) * 20
+    au = b"\x00\x00\x00\x01" + sps + b"\x00\x00\x01" + pps + b"\x00\x00\x00\x01" + idr
+    assert split_nals(au) == [sps, pps, idr]
+    assert parameter_sets("h264", [sps, pps, idr]) == {"sps": sps, "pps": pps}
+    pk = Packetizer("h264", ssrc=7, seq=65534)
+    pkts = pk.packets(au, 90000)
+    assert [p[1] & 0x80 for p in pkts] == [0] * (len(pkts) - 1) + [0x80]
+    assert [int.from_bytes(p[2:4], "big") for p in pkts][:3] == [65534, 65535, 0]
+    assert all(len(p) <= 1412 for p in pkts)
+    # Reassemble the FU-A fragments: the IDR comes back byte for byte.
+    fus = [p[12:] for p in pkts[2:]]
+    assert all(f[0] & 0x1F == 28 for f in fus) and fus[0][1] & 0x80 and fus[-1][1] & 0x40
+    assert bytes([(fus[0][0] & 0xE0) | (fus[0][1] & 0x1F)]) + b"".join(f[2:] for f in fus) == idr
+    text = sdp("h264", {"sps": sps, "pps": pps})
+    assert "profile-level-id=42C01F" in text and "sprop-parameter-sets=Z0LAHwE=,aM48gA==" in text
+
+
+def _state(**kw: object) -> SceneState:
+    base = dict(
+        model="C12",
+        yaw_deg=0.0,
+        pitch_deg=0.0,
+        roll_deg=0.0,
+        zoom_x=1.0,
+        thermal_zoom_x=1.0,
+        palette="white_hot",
+        osd=True,
+        recording=False,
+        record_s=0.0,
+        tracking="stopped",
+        wall_s=1_700_000_000.123,
+        frame=3,
+    )
+    base.update(kw)
+    return SceneState(**base)  # type: ignore[arg-type]
+
+
+def test_the_burned_in_timestamp_reads_back() -> None:
+    for lens, w, h in (("visible", 1280, 720), ("thermal", 640, 512), ("visible", 320, 240)):
+        pic = np.asarray(Renderer(lens, w, h, 40.0).render(_state()))
+        assert decode_stamp(pic) == 1_700_000_000_123
+    assert decode_stamp(np.zeros((240, 320, 3), np.uint8)) is None
+
+
+def test_thermal_picture_follows_the_palette_and_osd_and_recording_show() -> None:
+    r = Renderer("thermal", 640, 512, 32.0)
+    hot = (30.0, -20.0)  # sim/scene.py's warm object, centred
+    white = np.asarray(r.render(_state(yaw_deg=hot[0], pitch_deg=hot[1], osd=False)))
+    black = np.asarray(r.render(_state(yaw_deg=hot[0], pitch_deg=hot[1], osd=False, palette="black_hot")))
+    iron = np.asarray(r.render(_state(yaw_deg=hot[0], pitch_deg=hot[1], osd=False, palette="ironbow")))
+    c = (256, 320)
+    assert white[c].min() > 230 and black[c].max() < 25  # hottest: white on white hot, black on black hot
+    assert int(iron[c][0]) - int(iron[c][2]) > 20  # ironbow: hot is yellow-white, not grey
+    v = Renderer("visible", 640, 360, 62.0)
+    corner = (slice(0, 60), slice(0, 300))
+    plain = np.asarray(v.render(_state(osd=False)))[corner]
+    osd = np.asarray(v.render(_state(osd=True)))[corner]
+    assert np.abs(osd.astype(int) - plain).max() > 100  # text where the OSD is on
+    rec_box = (slice(0, 40), slice(640 - 100, 640 - 60))
+    on = np.asarray(v.render(_state(osd=True, recording=True, record_s=0.2)))[rec_box]
+    off = np.asarray(v.render(_state(osd=True, recording=True, record_s=0.7)))[rec_box]
+    red = lambda a: int(((a[..., 0] > 200) & (a[..., 1] < 50)).sum())  # noqa: E731
+    assert red(on) > 20 and red(off) == 0  # the REC light blinks
+
+
+def test_client_builds_video_urls_and_imports_only_the_stream_table() -> None:
+    import ast
+    from pathlib import Path
+
+    import topgimbal
+
+    cam = topgimbal.AsyncClient("udp://127.0.0.1:5000", model="C12")
+    assert cam.video_url() == "rtsp://127.0.0.1:554/stream=1"
+    assert cam.video_url("thermal", host="192.168.144.108") == "rtsp://192.168.144.108:555/stream=2"
+    client_dir = Path(topgimbal.__file__).parent / "client"
+    used = {
+        node.module
+        for path in client_dir.glob("*.py")
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.ImportFrom) and node.module and "video" in node.module
+    }
+    assert used == {"video.lens"}  # the client layer reaches only the pure table, not the renderer
+
+
+def test_sip_streams_follow_the_ent_codec_setting() -> None:
+    from topgimbal.sim import Simulator
+    from topgimbal.video.simvideo import SimVideo
+
+    sim = Simulator("SIP")
+    video = SimVideo(sim, port=0)
+    visible, thermal = video.specs
+    assert (video._codec(visible), video._codec(thermal)) == ("h264", "h264")
+    sim.settings["ENT"] = {"stream": "stream1", "codec": "h265"}  # what `ENT 11` leaves behind
+    assert (video._codec(visible), video._codec(thermal)) == ("h264", "h265")
+    assert SimVideo(sim, port=0, codec="h264")._codec(thermal) == "h264"  # --video-codec wins
+
+
+def test_lag_meter_measures_how_far_behind_the_camera_a_reader_is() -> None:
+    from types import SimpleNamespace
+
+    from topgimbal.video.frames import LagMeter
+
+    clock = iter([100.0, 100.04, 100.5, 100.52])
+    meter = LagMeter(clock=lambda: next(clock))
+    lags = [meter.lag_s(SimpleNamespace(time=t)) for t in (0.0, 0.033, 0.066, 0.5)]
+    assert lags == pytest.approx([0.0, 0.007, 0.434, 0.02])  # fell behind at the third, caught up by the fourth
+    assert meter.lag_s(SimpleNamespace(time=None)) == 0.0  # no timestamps: no judgement
