@@ -166,7 +166,7 @@ def _load_in_thread(path: Path) -> BaseException | None:
         try:
             persist.load(path)
             box.append(None)
-        except BaseException as exc:  # noqa: BLE001 - handed to the test
+        except BaseException as exc:  # handed to the test
             box.append(exc)
 
     t = threading.Thread(target=run, daemon=True)
@@ -190,7 +190,7 @@ def test_a_state_file_written_after_every_kind_of_change_loads_back(tmp_path: Pa
         state = tmp_path / f"{model}.json"
         sim = Simulator(model, state_file=state)
         dev = sim.device
-        for ident, values in list(dev.settings.items()):
+        for values in dev.settings.values():
             for name, value in values.items():
                 if isinstance(value, (int, float)) and not isinstance(value, bool):
                     values[name] = value + 1

@@ -178,7 +178,6 @@ def _log_to_stderr() -> None:
         handler.setFormatter(logging.Formatter("topgimbal sim: %(message)s"))
         logger.addHandler(handler)
         logger.setLevel(logging.INFO)
-        logger.propagate = False
 
 
 async def _serve(sim: Simulator, listen: dict[str, Any]) -> int:

@@ -111,7 +111,9 @@ def _read(p: Path) -> str | None:
     try:
         return b"".join(chunks).decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise StateFileError(f"state file {p} is not UTF-8 text (byte {exc.start}); move it away to start fresh") from None
+        raise StateFileError(
+            f"state file {p} is not UTF-8 text (byte {exc.start}); move it away to start fresh"
+        ) from None
 
 
 def _file_kind(mode: int) -> str:
@@ -199,6 +201,17 @@ def validate(p: Path, state: Mapping[str, Any], template: Mapping[str, Any]) -> 
     _check(p, state, template, "")
 
 
+# What a leaf of the snapshot may hold, by the type of the fresh device's value (None: a setting
+# that starts unset). bool before int: a bool is an int to isinstance.
+_LEAVES: list[tuple[type | None, tuple[type, ...], str]] = [
+    (None, (str, int, float, type(None)), "text, a number or null"),
+    (bool, (bool,), "true or false"),
+    (int, (int,), "an integer"),
+    (float, (int, float), "a number"),
+    (str, (str,), "text"),
+]
+
+
 def _check(p: Path, value: Any, template: Any, path: str) -> None:
     def bad(expected: str) -> StateFileError:
         return StateFileError(f"state file {p}: {path or 'state'} is {_kind(value)}; expected {expected}")
@@ -216,21 +229,12 @@ def _check(p: Path, value: Any, template: Any, path: str) -> None:
         return
     if isinstance(value, _BadNumber):
         raise bad("a finite number of sensible size (no NaN, Infinity, 1e400 or huge integers)")
-    if template is None:  # a setting that starts unset: any plain value
-        if not (value is None or isinstance(value, (str, int, float))):
-            raise bad("text, a number or null")
-    elif isinstance(template, bool):
-        if not isinstance(value, bool):
-            raise bad("true or false")
-    elif isinstance(template, int):
-        if not isinstance(value, int) or isinstance(value, bool):
-            raise bad("an integer")
-    elif isinstance(template, float):
-        if not isinstance(value, (int, float)) or isinstance(value, bool):
-            raise bad("a number")
-    elif isinstance(template, str):
-        if not isinstance(value, str):
-            raise bad("text")
+    for kind, accepted, expected in _LEAVES:
+        if template is None if kind is None else isinstance(template, kind):
+            # bool is an int to Python, not to a state file
+            if not isinstance(value, accepted) or (isinstance(value, bool) and kind is not bool):
+                raise bad(expected)
+            break
     if isinstance(value, int) and not -MAX_INT <= value < MAX_INT:
         raise bad("an integer within +-2**63")
     if isinstance(value, str) and len(value) > MAX_TEXT:
@@ -287,7 +291,7 @@ def remove_stale_temps(path: str | Path) -> list[str]:
     """Delete temporaries of this state file left by a crash (our naming pattern only)."""
     p = Path(path)
     pattern = _temp_pattern(p)
-    removed = []
+    removed: list[str] = []
     try:
         entries = list(os.scandir(p.parent))
     except OSError:

@@ -109,7 +109,7 @@ class UdpPeer:
     """A UDP host: replies go to the address the request came from. One object per address while
     the server remembers it; a forgotten peer's sends are dropped."""
 
-    __slots__ = ("endpoint", "addr", "heard", "gone")
+    __slots__ = ("addr", "endpoint", "gone", "heard")
 
     def __init__(self, endpoint: UdpServer, addr: tuple[Any, ...], heard: float) -> None:
         self.endpoint = endpoint
@@ -129,7 +129,9 @@ class UdpServer:
     """One UDP socket read and written directly (no asyncio transport: it would queue sends
     without bound and hides which address an ICMP error is about)."""
 
-    def __init__(self, sink: Sink, forget: Forget, limits: Limits | None = None, clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(
+        self, sink: Sink, forget: Forget, limits: Limits | None = None, clock: Callable[[], float] = time.monotonic
+    ) -> None:
         self.sink = sink
         self.forget = forget
         self.limits = limits or Limits()
@@ -155,7 +157,9 @@ class UdpServer:
             sock.close()
             raise listen_error("udp", host, port, exc) from None
         if ERRQUEUE:
-            level, opt = (socket.IPPROTO_IPV6, IPV6_RECVERR) if family == socket.AF_INET6 else (socket.IPPROTO_IP, IP_RECVERR)
+            level, opt = (
+                (socket.IPPROTO_IPV6, IPV6_RECVERR) if family == socket.AF_INET6 else (socket.IPPROTO_IP, IP_RECVERR)
+            )
             try:
                 sock.setsockopt(level, opt, 1)
             except OSError:
