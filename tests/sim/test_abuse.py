@@ -141,16 +141,16 @@ async def test_a_tcp_client_that_never_reads_is_dropped_at_the_buffer_limit(capl
         deaf.setblocking(False)
         try:
             assert await until(lambda: sim.peers["tcp"] == 2)
+            deaf.send(req("C20", "GAA", rate_hz=100))
             flood = req("C20", "GAC", read=True) * 200  # replies outgrow every buffer: nobody reads them
             for _ in range(200):
                 try:
                     deaf.send(flood)
                 except (BlockingIOError, ConnectionError):
-                    break
+                    break  # the simulator stopped reading this client's requests: its replies backed up
                 await asyncio.sleep(0)
-                if sim.server_counts["tcp_overflow_dropped"]:
-                    break
-            assert await until(lambda: sim.server_counts["tcp_overflow_dropped"] == 1)
+            # Then its attitude stream alone fills the rest of the buffer: dropped.
+            assert await until(lambda: sim.server_counts["tcp_overflow_dropped"] == 1, timeout_s=30)
             assert await until(lambda: sim.peers["tcp"] == 1)
             # What the simulator held for it never passed the limit plus one frame.
             assert 8192 < sim._tcp[0].max_unsent <= 8192 + 64

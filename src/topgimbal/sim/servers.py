@@ -34,6 +34,8 @@ BAUD = 115200
 LOOPBACK = "127.0.0.1"
 MAX_DATAGRAM = 2048  # the longest TOP frame is ~270 bytes; several may share one datagram
 READ_BATCH = 64  # datagrams read per wake-up: one selector round trip serves a burst
+TCP_READ_CHUNK = 2048  # bytes taken from one TCP client per turn (several frames)
+TCP_PAUSE_READING_BYTES = 4096  # replies backed up beyond this: stop reading that client's requests
 
 log = logging.getLogger("topgimbal.sim")
 
@@ -313,25 +315,39 @@ def _fmt(addr: tuple[Any, ...]) -> str:
 # -- TCP -------------------------------------------------------------------------------------------
 
 
-class TcpPeer(asyncio.Protocol):
-    """One TCP connection: a byte stream, replies and streams go back on it."""
+class TcpPeer(asyncio.BufferedProtocol):
+    """One TCP connection: a byte stream, replies and streams go back on it.
+
+    Fair and bounded: each read takes at most READ_CHUNK bytes, so one flooding client cannot hold
+    the event loop for more than a few frames' work before the others get their turn; a client
+    whose replies back up in user space gets no further requests read until they drain (TCP's own
+    back-pressure reaches it), and is dropped once they pass the limit."""
 
     def __init__(self, server: TcpServer) -> None:
         self.server = server
         self.transport: asyncio.Transport | None = None
         self.name = "tcp client"
+        self._buf = bytearray(TCP_READ_CHUNK)
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         self.transport = transport  # type: ignore[assignment]
         self.name = f"tcp client {_fmt(transport.get_extra_info('peername') or ('?', 0))}"
         self.server.opened(self)
 
-    def data_received(self, data: bytes) -> None:
-        self.server.sink(self, data, False)
+    def get_buffer(self, sizehint: int) -> bytearray:
+        return self._buf
+
+    def buffer_updated(self, nbytes: int) -> None:
+        self.server.sink(self, bytes(self._buf[:nbytes]), False)
 
     def pause_writing(self) -> None:
-        # Called from inside transport.write() once the unsent bytes pass the high-water mark.
-        self.server.overflowed(self)
+        # Replies are backing up: take no more requests from this client until they drain.
+        if self.transport is not None and not self.transport.is_closing():
+            self.transport.pause_reading()
+
+    def resume_writing(self) -> None:
+        if self.transport is not None and not self.transport.is_closing():
+            self.transport.resume_reading()
 
     def connection_lost(self, exc: Exception | None) -> None:
         self.server.closed(self)
@@ -340,6 +356,8 @@ class TcpPeer(asyncio.Protocol):
         t = self.transport
         if t is not None and not t.is_closing():
             t.write(data)
+            if t.get_write_buffer_size() > self.server.limits.tcp_buffer_bytes:
+                self.server.overflowed(self)
 
     def close(self) -> None:
         if self.transport is not None:
@@ -386,7 +404,7 @@ class TcpServer:
                 sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, self.limits.tcp_sndbuf_bytes)
             except OSError:
                 pass
-        t.set_write_buffer_limits(high=self.limits.tcp_buffer_bytes)
+        t.set_write_buffer_limits(high=min(TCP_PAUSE_READING_BYTES, self.limits.tcp_buffer_bytes), low=0)
         self.peers.add(peer)
 
     def overflowed(self, peer: TcpPeer) -> None:
