@@ -7,6 +7,11 @@ doubles N until a step fails, then bisects, within a fixed time budget. Figures 
 asserted. CPU time per stream frame is printed too, with the number of cameras one core's worth of
 it would serve: on a shared machine the search's figure moves with the load, that one hardly.
 
+First it prints where a stream frame's CPU goes, each part timed alone in this process: the
+device core (`Device.tick`: physics, sampling, catalog encoding), the simulator's shell around it
+(`Simulator.pump` and re-arming the timer, less the device), the UDP send (one `sendto` syscall),
+and an asyncio timer firing.
+
     .venv/bin/python bench/sim.py [--budget 110] [--window 10] [--cameras N]
 """
 
@@ -21,7 +26,7 @@ import time
 from typing import Any
 
 from topgimbal.protocol import get_dialect
-from topgimbal.sim import Simulator
+from topgimbal.sim import FakeClock, Simulator
 
 RATE_HZ = 100
 TOLERANCE = 0.01
@@ -54,6 +59,77 @@ def receiver(ports: list[int], warmup: float, window: float, out: Any) -> None:
     for p in ports:
         s.sendto(stop, (LOOP, p))
     out.put(counts)
+
+
+def cpu_us(fn: Any, n: int) -> float:
+    t0 = time.process_time()
+    for _ in range(n):
+        fn()
+    return 1e6 * (time.process_time() - t0) / n
+
+
+class NullPeer:
+    def send(self, data: bytes) -> None:
+        pass
+
+
+async def breakdown(n: int = 20000) -> dict[str, float]:
+    """CPU microseconds per stream frame, part by part."""
+    gaa = get_dialect("skydroid").encode("GAA", rate_hz=RATE_HZ).to_bytes()
+    clock = FakeClock()
+    sim = Simulator("C12", clock=clock)
+    sim.device.receive("host", gaa)
+
+    def device_frame() -> None:
+        clock.advance(1 / RATE_HZ)
+        assert len(sim.device.tick()) == 1
+
+    out: dict[str, float] = {"device": cpu_us(device_frame, n)}
+    shell = Simulator("C12", clock=clock)
+    await shell.start(udp=[(LOOP, 0)])
+    shell.device.receive(NullPeer(), gaa)
+
+    def pump_frame() -> None:
+        clock.advance(1 / RATE_HZ)
+        shell.pump()
+        shell._next_due()  # what _schedule computes before re-arming
+
+    out["shell"] = max(0.0, cpu_us(pump_frame, n) - out["device"])
+    await shell.stop()
+    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rx.bind((LOOP, 0))
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    frame = sim.device.tick() or b"#TPGUCrGAC000000000000AB"
+    data = frame[0].data if isinstance(frame, list) else frame
+    addr = rx.getsockname()
+
+    def send() -> None:
+        tx.sendto(data, addr)
+        try:
+            rx.recv(2048, socket.MSG_DONTWAIT)
+        except BlockingIOError:
+            pass
+
+    out["send"] = cpu_us(send, n) - cpu_us(lambda: None, n)
+    tx.close()
+    rx.close()
+    loop = asyncio.get_running_loop()
+    fired = 0
+    done = loop.create_future()
+
+    def tick() -> None:
+        nonlocal fired
+        fired += 1
+        if fired < n:
+            loop.call_at(loop.time(), tick)
+        else:
+            done.set_result(None)
+
+    t0 = time.process_time()
+    loop.call_at(loop.time(), tick)
+    await done
+    out["timer"] = 1e6 * (time.process_time() - t0) / n
+    return out
 
 
 async def step(n: int, warmup: float, window: float) -> dict[str, float]:
@@ -100,6 +176,14 @@ async def main(budget: float, window: float, warmup: float, cameras: int | None)
     print(
         f"bench/sim.py: C12 simulators on UDP, GAA {RATE_HZ} Hz, pass = every camera within {100 * TOLERANCE:g} %; "
         f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs"
+    )
+    parts = await breakdown()
+    total = sum(parts.values())
+    print(
+        f"CPU per stream frame, parts timed alone: {total:.1f} us = "
+        + ", ".join(f"{k} {v:.1f} ({100 * v / total:.0f} %)" for k, v in parts.items())
+        + f"; one core's worth: {int(1e6 / (total * RATE_HZ))} cameras",
+        flush=True,
     )
     t0 = time.monotonic()
     if cameras:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import json
 import os
 from pathlib import Path
@@ -287,3 +288,20 @@ async def test_a_failed_write_withholds_the_reply(
         finally:
             c.close()
         monkeypatch.undo()
+
+
+async def test_group_commit_bounds_what_it_holds(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    writes = GatedWrites(monkeypatch)
+    state = {"n": 0}
+    released: list[int] = []
+    dropped: list[int] = []
+    gc = persist.GroupCommit(tmp_path / "s.json", lambda: dict(state), released.extend, dropped.extend, max_held=3)
+    for i in range(1, 11):
+        state["n"] = i
+        gc.submit([i], dirty=True)
+    assert released == [] and dropped == [4, 5, 6, 7, 8, 9, 10] and gc.overflowed == 7
+    writes.gate.set()
+    await asyncio.wait_for(gc.drain(), 10)
+    gc.close()
+    assert released == [1, 2, 3] and writes.writes == 2
+    assert json.loads((tmp_path / "s.json").read_text())["state"] == {"n": 10}  # every change is on disk

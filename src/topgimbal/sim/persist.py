@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 from ..errors import TopGimbalError
+from .servers import Throttled
 
 FORMAT = "topgimbal-sim-state"
 VERSION = 1
@@ -314,7 +315,9 @@ class GroupCommit(Generic[T]):
     the items must not overtake items held before them: they go out with the next release. One
     write is in flight at a time; everything submitted meanwhile shares the next one. A failed
     write drops its items (an acknowledgement is never sent for a change that is not on disk),
-    logs one line and is retried with the next change.
+    logs one line and is retried with the next change. At most `max_held` items wait at once (a
+    flood of changes during a slow fsync): beyond that, items are dropped unsent (the change is
+    still written, with the next batch; only its acknowledgement is lost, as on a lossy link).
     """
 
     def __init__(
@@ -323,8 +326,12 @@ class GroupCommit(Generic[T]):
         snapshot: Callable[[], Mapping[str, Any]],
         release: Callable[[list[T]], None],
         drop: Callable[[list[T]], None] | None = None,
+        max_held: int = 4096,
     ) -> None:
         self.path = path
+        self.max_held = max_held
+        self.overflowed = 0
+        self._throttled = Throttled()
         self.snapshot = snapshot
         self.release = release
         self.drop = drop or (lambda items: None)
@@ -345,8 +352,17 @@ class GroupCommit(Generic[T]):
         if not dirty and not self.busy:
             self.release(items)
             return
-        self._next.extend(items)
         self._next_dirty = self._next_dirty or dirty
+        if len(self._next) + len(items) + len(self._inflight or ()) > self.max_held:
+            self.overflowed += len(items)
+            self._throttled.warning(
+                "held", f"state file {self.path}: {self.max_held} replies already wait for the disk: replies dropped"
+            )
+            self.drop(items)
+            if self._inflight is None:
+                self._start()
+            return
+        self._next.extend(items)
         if self._inflight is None:
             self._start()
 

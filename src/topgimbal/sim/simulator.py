@@ -273,6 +273,7 @@ class Simulator:
             self._fault_out.forget(peer)
         if self._fault_in is not None:
             self._fault_in.forget((peer, False))
+            self._fault_in.forget((peer, True))
 
     def _deliver(self, key: Hashable, data: bytes) -> None:
         peer, datagram = cast("tuple[Hashable, bool]", key)
