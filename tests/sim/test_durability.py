@@ -86,6 +86,11 @@ def kill_and_wait(pid: int) -> None:
     raise AssertionError(f"simulator {pid} survived kill -9")
 
 
+def acked(data: bytes) -> list[int]:
+    """The write numbers a datagram acknowledges."""
+    return [counter(f.data.decode()) for f in frames(data) if f.ident == "IPV"]
+
+
 def ask_ip(sock: socket.socket, port: int) -> str:
     for _ in range(5):
         sock.sendto(req("C12", "IPV", read=True), (LOOP, port))
@@ -127,22 +132,18 @@ def test_acknowledged_writes_survive_kill_9(tmp_path: Path) -> None:
                     while last_sent - last_acked < WINDOW:
                         last_sent += 1
                         sock.sendto(req("C12", "IPV", address=address(last_sent)), (LOOP, port))
-                    for f in frames(sock.recv(200)):
-                        if f.ident == "IPV":
-                            last_acked = max(last_acked, counter(f.data.decode()))
-                            acks += 1
+                    got = acked(sock.recv(200))
+                    last_acked = max([last_acked, *got])
+                    acks += len(got)
                 time.sleep(rng.random() * 0.003)
                 kill_and_wait(pid)
                 rounds += 1
                 sock.setblocking(False)  # acknowledgements that left before the kill count too
                 while True:
                     try:
-                        data = sock.recv(200)
+                        last_acked = max([last_acked, *acked(sock.recv(200))])
                     except BlockingIOError:
                         break
-                    for f in frames(data):
-                        if f.ident == "IPV":
-                            last_acked = max(last_acked, counter(f.data.decode()))
     finally:
         forker.close()
     assert rounds == ROUNDS and lost == 0

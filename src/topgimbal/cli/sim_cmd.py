@@ -114,28 +114,20 @@ def register(subparsers: Any) -> None:
         help=f"forget a UDP host and stop its streams after S seconds without a datagram from it "
         f"(default {d.udp_lease_s:g}; 0 = never)",
     )
-    p.add_argument(
-        "--max-udp-peers",
-        type=_count,
-        default=d.max_udp_peers,
-        metavar="N",
-        help=f"UDP hosts remembered per endpoint; the least recently heard is forgotten (default {d.max_udp_peers})",
-    )
-    p.add_argument(
-        "--max-tcp-clients",
-        type=_count,
-        default=d.max_tcp_clients,
-        metavar="N",
-        help=f"TCP connections per endpoint; more are closed at once (default {d.max_tcp_clients})",
-    )
-    p.add_argument(
-        "--tcp-buffer-kib",
-        type=_count,
-        default=d.tcp_buffer_bytes // 1024,
-        metavar="KIB",
-        help=f"unsent data a TCP client may have before it is dropped as not reading "
-        f"(default {d.tcp_buffer_bytes // 1024})",
-    )
+    for flag, default, help_text in (
+        (
+            "--max-udp-peers",
+            d.max_udp_peers,
+            "UDP hosts remembered per endpoint; the least recently heard is forgotten",
+        ),
+        ("--max-tcp-clients", d.max_tcp_clients, "TCP connections per endpoint; more are closed at once"),
+        (
+            "--tcp-buffer-kib",
+            d.tcp_buffer_bytes // 1024,
+            "KiB unsent to a TCP client before it is dropped as not reading",
+        ),
+    ):
+        p.add_argument(flag, type=_count, default=default, metavar="N", help=f"{help_text} (default {default})")
     p.add_argument("--allow-any-address", action="store_true", help=argparse.SUPPRESS)
     p.set_defaults(func=run)
 
