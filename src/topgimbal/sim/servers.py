@@ -338,7 +338,8 @@ class TcpPeer(asyncio.BufferedProtocol):
         return self._buf
 
     def buffer_updated(self, nbytes: int) -> None:
-        self.server.sink(self, bytes(self._buf[:nbytes]), False)
+        if self in self.server.peers:  # not a connection refused at the cap
+            self.server.sink(self, bytes(self._buf[:nbytes]), False)
 
     def pause_writing(self) -> None:
         # Replies are backing up: take no more requests from this client until they drain.
