@@ -1,6 +1,7 @@
 """How many simulated cameras one process serves at 100 Hz attitude output with < 1 % rate error.
 
-Each step starts N C12 simulators (UDP, 127.0.0.1, ephemeral ports) in this process; a separate
+Each step starts N C12 simulators (UDP, 127.0.0.1, ephemeral ports) in this process (or split
+over `--procs K` processes: a fleet is one core's worth per process); a separate
 receiver process asks every one for `GAA` at 100 Hz and counts the GAC frames each sends during a
 measuring window. A step passes when every camera's rate is within 1 % of 100 Hz. The search
 doubles N until a step fails, then bisects, within a fixed time budget. Figures are printed, not
@@ -132,12 +133,42 @@ async def breakdown(n: int = 20000) -> dict[str, float]:
     return out
 
 
-async def step(n: int, warmup: float, window: float) -> dict[str, float]:
-    sims = [Simulator("C12", seed=i) for i in range(n)]
-    for sim in sims:
-        await sim.start(udp=[(LOOP, 0)])
-    ports = [sim.addresses["udp"][0][1] for sim in sims]
+def worker(first: int, n: int, ports_out: Any, stop: Any, cpu_out: Any) -> None:
+    """One simulator process of a fleet split over --procs processes."""
+
+    async def serve() -> None:
+        sims = [Simulator("C12", seed=first + i) for i in range(n)]
+        for sim in sims:
+            await sim.start(udp=[(LOOP, 0)])
+        ports_out.put([sim.addresses["udp"][0][1] for sim in sims])
+        cpu0 = time.process_time()
+        while not stop.is_set():
+            await asyncio.sleep(0.05)
+        cpu_out.put(time.process_time() - cpu0)
+        for sim in sims:
+            await sim.stop()
+
+    asyncio.run(serve())
+
+
+async def step(n: int, warmup: float, window: float, procs: int = 1) -> dict[str, float]:
     q: Any = mp.Queue()
+    if procs > 1:
+        ports_q: Any = mp.Queue()
+        cpu_q: Any = mp.Queue()
+        stop = mp.Event()
+        shares = [n // procs + (i < n % procs) for i in range(procs)]
+        workers = [
+            mp.Process(target=worker, args=(sum(shares[:i]), k, ports_q, stop, cpu_q)) for i, k in enumerate(shares)
+        ]
+        for w in workers:
+            w.start()
+        ports = [p for _ in workers for p in ports_q.get()]
+    else:
+        sims = [Simulator("C12", seed=i) for i in range(n)]
+        for sim in sims:
+            await sim.start(udp=[(LOOP, 0)])
+        ports = [sim.addresses["udp"][0][1] for sim in sims]
     proc = mp.Process(target=receiver, args=(ports, warmup, window, q))
     cpu0 = time.process_time()
     proc.start()
@@ -146,8 +177,14 @@ async def step(n: int, warmup: float, window: float) -> dict[str, float]:
     counts = q.get()
     cpu = time.process_time() - cpu0
     proc.join()
-    for sim in sims:
-        await sim.stop()
+    if procs > 1:
+        stop.set()
+        cpu = sum(cpu_q.get() for _ in workers)
+        for w in workers:
+            w.join()
+    else:
+        for sim in sims:
+            await sim.stop()
     rates = [counts.get(p, 0) / window for p in ports]
     errors = [abs(r - RATE_HZ) / RATE_HZ for r in rates]
     frames = sum(counts.get(p, 0) for p in ports) * (warmup + window) / window
@@ -166,16 +203,16 @@ def show(r: dict[str, float]) -> None:
     ok = "pass" if r["worst_error"] < TOLERANCE else "FAIL"
     print(
         f"  {int(r['n']):5d} cameras: mean {r['mean_hz']:7.2f} Hz, min {r['min_hz']:7.2f}, max {r['max_hz']:7.2f}, "
-        f"worst error {100 * r['worst_error']:5.2f} %, simulator CPU {100 * r['cpu_share']:5.1f} % "
+        f"worst error {100 * r['worst_error']:5.2f} %, simulator CPU {100 * r['cpu_share']:5.1f} % of one core "
         f"({r['us_per_frame']:.0f} us/frame)  {ok}",
         flush=True,
     )
 
 
-async def main(budget: float, window: float, warmup: float, cameras: int | None) -> None:
+async def main(budget: float, window: float, warmup: float, cameras: int | None, procs: int) -> None:
     print(
         f"bench/sim.py: C12 simulators on UDP, GAA {RATE_HZ} Hz, pass = every camera within {100 * TOLERANCE:g} %; "
-        f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs"
+        f"{procs} simulator process(es); load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs"
     )
     parts = await breakdown()
     total = sum(parts.values())
@@ -187,7 +224,7 @@ async def main(budget: float, window: float, warmup: float, cameras: int | None)
     )
     t0 = time.monotonic()
     if cameras:
-        r = await step(cameras, warmup, window)
+        r = await step(cameras, warmup, window, procs)
         show(r)
         print(
             f"CPU per stream frame {r['us_per_frame']:.0f} us: one core's worth is {capacity(r)} cameras at {RATE_HZ} Hz"
@@ -197,7 +234,7 @@ async def main(budget: float, window: float, warmup: float, cameras: int | None)
     costs = []
     per_step = window + warmup + 1.0
     while time.monotonic() - t0 + per_step * (1 + n / 400) < budget:
-        r = await step(n, warmup, window)
+        r = await step(n, warmup, window, procs)
         show(r)
         costs.append(r)
         if r["worst_error"] < TOLERANCE:
@@ -232,5 +269,6 @@ if __name__ == "__main__":
     ap.add_argument("--window", type=float, default=10.0, help="measuring window per step, s (default 10)")
     ap.add_argument("--warmup", type=float, default=1.0, help="seconds before measuring (default 1)")
     ap.add_argument("--cameras", type=int, help="measure this many cameras once instead of searching")
+    ap.add_argument("--procs", type=int, default=1, help="split the cameras over this many processes (default 1)")
     a = ap.parse_args()
-    asyncio.run(main(a.budget, a.window, a.warmup, a.cameras))
+    asyncio.run(main(a.budget, a.window, a.warmup, a.cameras, a.procs))
