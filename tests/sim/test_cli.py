@@ -78,3 +78,89 @@ def test_non_loopback_address_refused() -> None:
     from topgimbal.cli.main import main
 
     assert main(["sim", "--udp", "0.0.0.0:0"]) == 1
+
+
+@pytest.mark.parametrize("kind", ["udp", "tcp"])
+def test_a_taken_port_is_named_with_the_way_out(kind: str, capsys: pytest.CaptureFixture[str]) -> None:
+    from topgimbal.cli.main import main
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM if kind == "udp" else socket.SOCK_STREAM) as s:
+        s.bind((LOOP, 0))
+        if kind == "tcp":
+            s.listen()
+        port = s.getsockname()[1]
+        assert main(["sim", f"--{kind}", f"{LOOP}:{port}"]) == 1
+    err = capsys.readouterr().err
+    assert err == (
+        f"topgimbal: error: cannot listen on {kind} {LOOP}:{port}: address already in use "
+        f"(another program (or simulator) has it; use {LOOP}:0 for any free port)\n"
+    )
+
+
+def test_console_on_a_taken_port_falls_back_like_make_demo() -> None:
+    pytest.importorskip("aiohttp")
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind((LOOP, 0))
+        s.listen()
+        taken = s.getsockname()[1]
+        out = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "topgimbal.cli.main",
+                "console",
+                "--sim",
+                "C12",
+                "--port",
+                str(taken),
+                "--seconds",
+                "1",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+    assert out.returncode == 0, out.stderr
+    first = out.stdout.splitlines()[0]
+    assert first.startswith(f"topgimbal console: port {taken} is taken: using ")
+    used = int(first.rsplit(" ", 1)[1])
+    assert used != taken and f"http://127.0.0.1:{used}/" in out.stdout
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["sim", "--udp-lease", "-1"], "'-1' is not seconds: expected a number >= 0 (0 = no lease)"),
+        (["sim", "--udp-lease", "inf"], "'inf' is not seconds"),
+        (["sim", "--max-udp-peers", "0"], "'0' is not a count: expected a whole number, 1 or more"),
+        (["sim", "--max-tcp-clients", "x"], "'x' is not a count"),
+        (["sim", "--tcp-buffer-kib", "-4"], "'-4' is not a count"),
+    ],
+)
+def test_bad_limits_name_what_is_allowed(argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(argv)
+    assert message in capsys.readouterr().err
+
+
+def test_limits_reach_the_simulator(monkeypatch: pytest.MonkeyPatch) -> None:
+    from topgimbal.cli import sim_cmd
+
+    seen = {}
+
+    async def fake_serve(sim: object, listen: object) -> int:
+        seen["limits"] = sim.limits  # type: ignore[attr-defined]
+        return 0
+
+    monkeypatch.setattr(sim_cmd, "_serve", fake_serve)
+    args = build_parser().parse_args(
+        ["sim", "--udp-lease", "0", "--max-udp-peers", "3", "--max-tcp-clients", "2", "--tcp-buffer-kib", "16"]
+    )
+    assert sim_cmd.run(args) == 0
+    limits = seen["limits"]
+    assert (limits.udp_lease_s, limits.max_udp_peers, limits.max_tcp_clients, limits.tcp_buffer_bytes) == (
+        0.0,
+        3,
+        2,
+        16384,
+    )

@@ -10,6 +10,8 @@ import sys
 from ..protocol import all_models
 from .args import _model_name
 
+DEFAULT_PORT = 8080
+
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = subparsers.add_parser(
@@ -37,7 +39,13 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     p.add_argument("--seed", type=int, default=0, help="simulator seed (with --sim)")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
-    p.add_argument("--port", type=int, default=8080, help="port to listen on (default 8080; 0 = any free port)")
+    p.add_argument(
+        "--port",
+        type=int,
+        default=DEFAULT_PORT,
+        help=f"port to listen on (default {DEFAULT_PORT}; 0 = any free port); when it is taken a free one is "
+        "used and printed, as `make demo` does",
+    )
     p.add_argument("--token", help="access token; required (else generated) when --host is not a loopback address")
     p.add_argument(
         "--allow-host",
@@ -50,6 +58,17 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--attitude-hz", type=float, default=50.0, help="attitude push rate to the page, at most 50")
     p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=run)
+
+
+def choose_port(host: str, port: int) -> tuple[int, int | None]:
+    """The port to bind, and the port asked for when that one is taken. The console's rule, the same
+    as `make demo`'s: a page's port is read off the printed URL, so a taken one falls back to a
+    free one. (A camera's port is never moved: `topgimbal sim` stops with an error instead.)"""
+    from ..tools.demo import port_free
+
+    if port == 0 or port_free(port, host):
+        return port, None
+    return 0, port
 
 
 def build_server(args: argparse.Namespace) -> object:
@@ -75,12 +94,14 @@ def build_server(args: argparse.Namespace) -> object:
     )
 
 
-async def _serve(server: object, seconds: float | None) -> None:
+async def _serve(server: object, seconds: float | None, taken: int | None = None) -> None:
     from ..console import ConsoleServer
 
     assert isinstance(server, ConsoleServer)
     await server.start()
     try:
+        if taken is not None:
+            print(f"topgimbal console: port {taken} is taken: using {server.bound_port}", flush=True)
         print(server.banner(), flush=True)
         await server.serve_forever(seconds)
     finally:
@@ -93,7 +114,8 @@ def run(args: argparse.Namespace) -> int:
     except ImportError:
         print("topgimbal: error: the console needs aiohttp: pip install 'topgimbal[console]'", file=sys.stderr)
         return 1
+    args.port, taken = choose_port(args.host, args.port)
     server = build_server(args)
     with contextlib.suppress(KeyboardInterrupt):
-        asyncio.run(_serve(server, args.seconds))
+        asyncio.run(_serve(server, args.seconds, taken))
     return 0

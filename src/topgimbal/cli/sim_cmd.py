@@ -3,13 +3,16 @@
     topgimbal sim --model C12                 # the model's documented endpoints on 127.0.0.1
     topgimbal sim --model SIP --udp 127.0.0.1:0 --serial pty --faults drop=0.1 --seed 3
 
-Prints one line per bound endpoint (its URL), then serves; state is flushed on exit.
+Prints one line per bound endpoint (its URL), then serves; state is flushed on exit. A camera port
+that is taken (given or documented) stops it with one line naming the address and suggesting port 0:
+clients are configured with a camera's port, so it is never moved silently.
 """
 
 from __future__ import annotations
 
 import argparse
 import asyncio
+import logging
 import signal
 import sys
 from typing import Any
@@ -17,6 +20,7 @@ from typing import Any
 from ..protocol import all_models
 from ..sim import FaultPlan, Simulator
 from ..sim import quirks as quirk_table
+from ..sim.servers import Limits
 from ..video import cli as video_cli
 
 
@@ -39,6 +43,22 @@ def _quirks(text: str) -> dict[str, bool]:
         return quirk_table.parse(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _count(text: str) -> int:
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a count: expected a whole number, 1 or more")
+    return int(text)
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not 0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r} is not seconds: expected a number >= 0 (0 = no lease)")
+    return value
 
 
 def _model(text: str) -> str:
@@ -67,7 +87,11 @@ def register(subparsers: Any) -> None:
         metavar="DEVICE",
         help="serve a serial device at 115200 8N1, or 'pty' for a new pseudo-terminal whose path is printed",
     )
-    p.add_argument("--state", metavar="FILE", help="keep persistent settings in FILE (atomic writes)")
+    p.add_argument(
+        "--state",
+        metavar="FILE",
+        help="keep persistent settings in FILE (a change is on disk before its reply is sent)",
+    )
     p.add_argument(
         "--faults",
         type=_faults,
@@ -82,6 +106,29 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("--seed", type=int, default=0, help="seed for every random choice (default 0)")
     p.add_argument("--stream-hz", type=float, default=10.0, help="TOPOTEK GAA/GIA stream rate (default 10)")
+    d = Limits()
+    p.add_argument(
+        "--udp-lease",
+        type=_seconds,
+        default=d.udp_lease_s,
+        metavar="S",
+        help=f"forget a UDP host and stop its streams after S seconds without a datagram from it "
+        f"(default {d.udp_lease_s:g}; 0 = never)",
+    )
+    for flag, default, help_text in (
+        (
+            "--max-udp-peers",
+            d.max_udp_peers,
+            "UDP hosts remembered per endpoint; the least recently heard is forgotten",
+        ),
+        ("--max-tcp-clients", d.max_tcp_clients, "TCP connections per endpoint; more are closed at once"),
+        (
+            "--tcp-buffer-kib",
+            d.tcp_buffer_bytes // 1024,
+            "KiB unsent to a TCP client before it is dropped as not reading",
+        ),
+    ):
+        p.add_argument(flag, type=_count, default=default, metavar="N", help=f"{help_text} (default {default})")
     p.add_argument("--allow-any-address", action="store_true", help=argparse.SUPPRESS)
     video_cli.add_arguments(p)  # --video, --video-port, ... (topgimbal.video)
     p.set_defaults(func=run)
@@ -103,11 +150,28 @@ def run(args: argparse.Namespace) -> int:
         state_file=args.state,
         quirks=args.quirks,
         topotek_stream_hz=args.stream_hz,
+        limits=Limits(
+            udp_lease_s=args.udp_lease,
+            max_udp_peers=args.max_udp_peers,
+            max_tcp_clients=args.max_tcp_clients,
+            tcp_buffer_bytes=args.tcp_buffer_kib * 1024,
+        ),
     )
     listen: dict[str, Any] = {}
     if args.udp or args.tcp or args.serial:
         listen = {"udp": args.udp or [], "tcp": args.tcp or [], "serial": args.serial or []}
+    _log_to_stderr()
     return asyncio.run(_serve(sim, listen, args))
+
+
+def _log_to_stderr() -> None:
+    """The servers' limit and state-file lines, one per event, prefixed like the banner."""
+    logger = logging.getLogger("topgimbal.sim")
+    if not logger.handlers:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("topgimbal sim: %(message)s"))
+        logger.addHandler(handler)
+        logger.setLevel(logging.INFO)
 
 
 async def _serve(sim: Simulator, listen: dict[str, Any], args: argparse.Namespace | None = None) -> int:
@@ -120,6 +184,7 @@ async def _serve(sim: Simulator, listen: dict[str, Any], args: argparse.Namespac
         except (NotImplementedError, RuntimeError):  # pragma: no cover - not on the main thread
             pass
     print(f"topgimbal sim: {sim.model} ({sim.dialect.name}), seed {sim.seed}", file=sys.stderr)
+
     for _kind, url in sim.endpoints:
         print(url, flush=True)
     video = None

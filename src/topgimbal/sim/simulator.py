@@ -26,7 +26,7 @@ from . import persist
 from .clock import Clock, FakeClock, MonotonicClock
 from .device import TOPOTEK_STREAM_HZ, Device, Outgoing
 from .faults import FaultInjector, FaultPlan
-from .servers import LOOPBACK, SerialPeer, TcpServer, UdpServer
+from .servers import LOOPBACK, Limits, SerialPeer, TcpServer, UdpServer
 
 Address = tuple[str, int]
 
@@ -41,6 +41,10 @@ def _addresses(items: Iterable[Any] | None) -> list[Address]:
             host, port = item
             out.append((str(host), int(port)))
     return out
+
+
+def _url_host(host: str) -> str:
+    return f"[{host}]" if ":" in host else host
 
 
 # How far ahead of its due time a real-time stream frame may leave (see Device.tick).
@@ -59,6 +63,7 @@ class Simulator:
         clock: Clock | None = None,
         listen: Mapping[str, Any] | None = None,
         topotek_stream_hz: float = TOPOTEK_STREAM_HZ,
+        limits: Limits | None = None,
     ) -> None:
         self.clock: Clock = clock if clock is not None else MonotonicClock()
         self.device = Device(
@@ -68,6 +73,7 @@ class Simulator:
         self.faults = faults or FaultPlan()
         self.state_file = Path(state_file) if state_file is not None else None
         self.listen = dict(listen or {})
+        self.limits = limits or Limits()
         self.endpoints: list[tuple[str, str]] = []
         self.addresses: dict[str, list[Address]] = {"udp": [], "tcp": []}
         self._udp: list[UdpServer] = []
@@ -79,10 +85,14 @@ class Simulator:
         self._fault_in: FaultInjector | None = None
         self._fault_out: FaultInjector | None = None
         self.started = False
+        self._commit: persist.GroupCommit[Outgoing] | None = None
+        self._held: dict[Hashable, int] = {}  # peers with replies waiting for the state file
         if self.state_file is not None:
-            saved = persist.load(self.state_file)
+            persist.remove_stale_temps(self.state_file)
+            saved = persist.load(self.state_file, template=self.device.snapshot())
             if saved is not None:
                 self.device.restore(saved)
+            self._commit = persist.GroupCommit(self.state_file, self.device.snapshot, self._commit_done, self._released)
 
     # -- state the tests read ----------------------------------------------------------------------
 
@@ -146,7 +156,8 @@ class Simulator:
         serial: Iterable[str] | str | None = None,
     ) -> Simulator:
         """Listen. With no arguments at all: the model's documented endpoints on 127.0.0.1 (a pty
-        for a documented serial line)."""
+        for a documented serial line). A taken address raises ListenError naming it (a camera's
+        port is never moved: clients are configured with it)."""
         if self.started:
             raise RuntimeError("the simulator is already started")
         self._loop = asyncio.get_running_loop()
@@ -160,19 +171,19 @@ class Simulator:
         self._fault_out = FaultInjector(self.faults, "out", random.Random(f"{self.seed}/out"), now)
         try:
             for host, port in _addresses(udp):
-                proto = UdpServer(self._input)
-                await self._loop.create_datagram_endpoint(lambda p=proto: p, local_addr=(host, port))  # type: ignore[misc]
+                proto = UdpServer(self._input, self._forget, self.limits, clock=self.clock.now)
+                await proto.start(host, port)
                 self._udp.append(proto)
                 h, p = proto.address
                 self.addresses["udp"].append((h, p))
-                self.endpoints.append(("udp", f"udp://{h}:{p}"))
+                self.endpoints.append(("udp", f"udp://{_url_host(h)}:{p}"))
             for host, port in _addresses(tcp):
-                server = TcpServer(self._input, self._forget)
+                server = TcpServer(self._input, self._forget, self.limits)
                 await server.start(host, port)
                 self._tcp.append(server)
                 h, p = server.address
                 self.addresses["tcp"].append((h, p))
-                self.endpoints.append(("tcp", f"tcp://{h}:{p}"))
+                self.endpoints.append(("tcp", f"tcp://{_url_host(h)}:{p}"))
             for dev in serial or ():
                 line = SerialPeer(self._input, dev)
                 line.start()
@@ -204,6 +215,9 @@ class Simulator:
         for s in self._serial:
             s.close()
         self._udp, self._tcp, self._serial = [], [], []
+        if self._commit is not None:
+            await self._commit.drain()
+            self._commit.close()
         self.flush(force=True)
         self.started = False
 
@@ -216,10 +230,32 @@ class Simulator:
         await self.stop()
 
     def flush(self, force: bool = False) -> None:
-        """Write the persistent state if it changed (always with `force`)."""
+        """Write the persistent state now if it changed (always with `force`), synchronously."""
         if self.state_file is not None and (self.device.dirty or force):
             persist.save(self.state_file, self.device.snapshot())
             self.device.dirty = False
+
+    @property
+    def peers(self) -> dict[str, int]:
+        """How many remote ends each kind of server holds now (UDP peers, TCP clients)."""
+        return {"udp": sum(len(u.peers) for u in self._udp), "tcp": sum(len(t.peers) for t in self._tcp)}
+
+    @property
+    def server_counts(self) -> dict[str, int]:
+        """What the limits did so far: peers forgotten and why, clients refused or dropped."""
+        out = {"udp_sent": 0, "udp_send_dropped": 0, "tcp_refused": 0, "tcp_overflow_dropped": 0}
+        for u in self._udp:
+            out["udp_sent"] += u.sent
+            out["udp_send_dropped"] += u.dropped
+            for why, n in u.forgotten.items():
+                out[f"udp_forgotten_{why}"] = out.get(f"udp_forgotten_{why}", 0) + n
+        for t in self._tcp:
+            out["tcp_refused"] += t.refused
+            out["tcp_overflow_dropped"] += t.overflows
+        if self._commit is not None:
+            out["state_commits"] = self._commit.commits
+            out["state_write_failures"] = self._commit.failures
+        return out
 
     # -- traffic -----------------------------------------------------------------------------------
 
@@ -230,18 +266,44 @@ class Simulator:
         self._schedule()
 
     def _forget(self, peer: Hashable) -> None:
-        """A TCP connection closed: its streams, parser state and queued packets go with it."""
+        """A peer went away (TCP closed; UDP unreachable, unheard for a lease or evicted at the
+        cap): its streams, parser state and queued packets go with it."""
         self.device.forget(peer)
         if self._fault_out is not None:
             self._fault_out.forget(peer)
         if self._fault_in is not None:
             self._fault_in.forget((peer, False))
+            self._fault_in.forget((peer, True))
 
     def _deliver(self, key: Hashable, data: bytes) -> None:
         peer, datagram = cast("tuple[Hashable, bool]", key)
-        self._send(self.device.receive(peer, data, datagram=datagram))
-        if self.device.dirty:
-            self.flush()
+        outs = self.device.receive(peer, data, datagram=datagram)
+        dirty = self.device.dirty
+        if self._commit is None or not (dirty or peer in self._held):
+            self._send(outs)
+            return
+        # Write-ahead: a state-changing request is answered once its state is on disk; later
+        # replies to the same peer wait with it, so they cannot overtake it.
+        self.device.dirty = False
+        for o in outs:
+            self._held[o.peer] = self._held.get(o.peer, 0) + 1
+        self._held.setdefault(peer, 0)
+        self._commit.submit(outs, dirty=dirty)
+        if not self._held[peer]:
+            del self._held[peer]
+
+    def _released(self, outs: list[Outgoing]) -> None:
+        """The state file holds what these replies acknowledge (or the write failed: dropped)."""
+        for o in outs:
+            n = self._held.get(o.peer, 0) - 1
+            if n > 0:
+                self._held[o.peer] = n
+            else:
+                self._held.pop(o.peer, None)
+
+    def _commit_done(self, outs: list[Outgoing]) -> None:
+        self._released(outs)
+        self._send(outs)
 
     def _send(self, outs: list[Outgoing]) -> None:
         fo = self._fault_out
@@ -264,8 +326,9 @@ class Simulator:
         if self._fault_out is not None:
             for peer, data in self._fault_out.due(now):
                 peer.send(data)  # type: ignore[attr-defined]
-        if self.device.dirty:
-            self.flush()
+        if self.device.dirty and self._commit is not None:
+            self.device.dirty = False
+            self._commit.submit([], dirty=True)
 
     def advance(self, dt: float) -> None:
         """Fake clock only: move time by `dt` seconds, sending what falls due on the way, in order."""
