@@ -148,7 +148,7 @@ def test_limits_reach_the_simulator(monkeypatch: pytest.MonkeyPatch) -> None:
 
     seen = {}
 
-    async def fake_serve(sim: object, listen: object) -> int:
+    async def fake_serve(sim: object, listen: object, args: object = None) -> int:
         seen["limits"] = sim.limits  # type: ignore[attr-defined]
         return 0
 
