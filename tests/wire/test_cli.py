@@ -78,7 +78,8 @@ def test_decode_pcap_human_and_filters(tmp_path, capsys):
     _session(path)
     main(["decode", "--pcap", str(path), "--port", "9003"])
     out = capsys.readouterr().out
-    assert out.count("ok") == 1 and "topotek GAC attitude" in out and "PTZ" not in out
+    assert out.count("ok") == 1 and "GAC attitude" in out and "decoded by the topotek dialect" in out
+    assert "PTZ" not in out
     main(["decode", "--pcap", str(path), "--address", "127.0.0.2"])
     assert capsys.readouterr().out == ""
     main(["decode", "--pcap", str(path), "--dialect", "topotek", "--json", "--port", "5000"])
