@@ -18,11 +18,11 @@ import pytest
 
 import topgimbal
 from topgimbal.client.traffic import read_log
-from topgimbal.protocol import Frame, FrameParser, get_dialect
+from topgimbal.protocol import Frame, FrameParser, decode_any, get_dialect, get_model
 from topgimbal.sim import Simulator
 from topgimbal.wire import CaptureRecord, read_capture
+from topgimbal.wire import proxy as proxy_module
 from topgimbal.wire.capture import WireFrame, frames_in_capture
-from topgimbal.wire.ports import decode_frame
 from topgimbal.wire.proxy import Proxy, ProxyEvent
 
 from .tshark import top_layers, values
@@ -141,6 +141,65 @@ async def test_bytes_pass_unchanged_with_garbage_and_several_frames(tmp_path):
     kinds = [(e.direction, e.item.ident if isinstance(e.item, Frame) else e.item.kind) for e in events]
     assert kinds[:3] == [("out", "PTZ"), ("out", "PTZ"), ("in", "garbage")]  # a reversed frame is garbage
     assert ("out", "garbage") in kinds and ("out", "GAC") in kinds
+
+
+async def test_each_frame_is_decoded_once_and_the_files_fill_while_running(tmp_path, monkeypatch):
+    """The proxy decodes a frame once, as `decode_any` does with its dialect preferred (a model's
+    own: the C11 counts rates in 0.5 deg/s; a frame that dialect cannot decode by the other one),
+    and the log, every subscriber and the pcap reuse it; the batched pcap and log reach their files
+    on the flush timer while the proxy runs, not only at stop."""
+    loop = asyncio.get_running_loop()
+
+    class Echo(asyncio.DatagramProtocol):
+        def connection_made(self, transport: Any) -> None:
+            self.t = transport
+
+        def datagram_received(self, data: bytes, addr: Any) -> None:
+            self.t.sendto(data, addr)
+
+    dev, _ = await loop.create_datagram_endpoint(Echo, local_addr=("127.0.0.1", 0))
+    port = dev.get_extra_info("sockname")[1]
+    pcap, log = tmp_path / "c11.pcap", tmp_path / "c11.jsonl"
+    proxy = Proxy("udp://127.0.0.1:0", f"udp://127.0.0.1:{port}", model="C11", pcap=pcap, log_path=log)
+    events: list[ProxyEvent] = []
+    proxy.subscribe(events.append)
+    calls = {"decode": 0}
+    real_decode = proxy_module.decode_any
+
+    def counting(frame: Frame, prefer: Any = None) -> Any:
+        calls["decode"] += 1
+        return real_decode(frame, prefer=prefer)
+
+    monkeypatch.setattr(proxy_module, "decode_any", counting)
+    c11, _ = get_model("C11")
+    rate = c11.encode("GSY", yaw_rate_deg_s=10.0)  # 0x14 steps of 0.5 deg/s
+    topotek_only = get_dialect("topotek").encode("GIC", read=True)
+    await proxy.start()
+    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    client.setblocking(False)
+    try:
+        for frame in (rate, topotek_only):
+            await loop.sock_sendto(client, frame.to_bytes(), ("127.0.0.1", proxy.listen_address[1]))  # type: ignore[index]
+            await asyncio.wait_for(loop.sock_recv(client, 1024), 2)
+        for _ in range(100):  # the flush timer hands them to the files while the proxy runs
+            await asyncio.sleep(0.05)
+            frames = [r for r in read_capture(pcap) if isinstance(r, CaptureRecord)]
+            if len(frames) == 4 and len(list(read_log(log))) == 4:
+                break
+        assert len(frames) == 4 and len(list(read_log(log))) == 4
+    finally:
+        client.close()
+        await proxy.stop()
+        dev.close()
+    assert [e.message.fields for e in events if e.item == rate] == [{"yaw_rate_deg_s": 10.0}] * 2  # type: ignore[union-attr]
+    assert all(e.dialect is c11 for e in events if e.item == rate)
+    assert [(e.dialect.name, e.message.dialect) for e in events if e.item == topotek_only] == [
+        ("topotek", "topotek")
+    ] * 2  # type: ignore[union-attr]
+    for e in events:
+        assert e.message == decode_any(e.item, prefer=c11)  # type: ignore[arg-type]
+    assert calls["decode"] == 2  # the GIC frames only: C11's own dialect decoded the GSY frames at once
+    assert [r.decoded for r in read_log(log)] == [e.message.to_dict() for e in events]  # type: ignore[union-attr]
 
 
 async def test_stream_client_to_datagram_device_sends_whole_frames():
@@ -269,12 +328,6 @@ def test_proxy_pcap_is_readable_while_it_is_written(tmp_path):
     assert [type(r) for r in read_capture(path)] == [CaptureRecord]
     w.close()
     assert Path(path).stat().st_size > 24
-
-
-def test_decode_frame_prefers_the_given_dialect():
-    frame = get_dialect("topotek").encode("GAC", read=True)
-    assert decode_frame(frame, "topotek")[0].name == "topotek"
-    assert decode_frame(frame, None)[0].name == "skydroid"  # the frame alone says nothing
 
 
 async def test_a_tcp_client_that_stops_reading_is_closed(caplog):

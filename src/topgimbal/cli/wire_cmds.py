@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import datetime
 import gc
 import ipaddress
@@ -19,13 +20,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ..protocol import Diagnostic, Dialect, Frame, get_dialect
+from ..protocol import Diagnostic, Dialect, Frame, Message, dissect, get_dialect
 from ..protocol.frame import DEVICE_ADDRESSES, HOST_ADDRESSES
 from ..wire import CaptureProblem, PacketNote, WireFrame, frames_in_capture, generate_dissector
 from ..wire.export import log_to_pcap
-from ..wire.proxy import MAX_CLIENTS, Proxy, ProxyEvent
+from ..wire.proxy import FLUSH_S, MAX_CLIENTS, Proxy, ProxyEvent
 from .args import add_dialect_argument, add_json_argument
-from .protocol_cmds import _dialect_from_args, _human, decode_line
+from .protocol_cmds import _dialect_from_args, _human, dissection_record
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -82,9 +83,11 @@ def _ep(ep: tuple[str, int]) -> str:
     return f"[{ep[0]}]:{ep[1]}" if ":" in ep[0] else f"{ep[0]}:{ep[1]}"
 
 
-def _record(raw: bytes, item: Frame | Diagnostic, dialect: Dialect | None) -> dict[str, Any]:
-    """`decode --json`'s record of one frame or diagnostic."""
-    rec = decode_line(raw.hex(), as_hex=True, dialect=dialect)
+def _record(
+    raw: bytes, item: Frame | Diagnostic, dialect: Dialect | None, message: Message | None = None
+) -> dict[str, Any]:
+    """`decode --json`'s record of one frame or diagnostic (`message`: the frame already decoded)."""
+    rec = dissection_record(dissect(raw), dialect, message if isinstance(item, Frame) else None)
     if isinstance(item, Diagnostic) and item.kind != "bad_checksum":
         rec["ok"] = False
         rec["error"] = f"{item.detail} ({item.kind})"
@@ -190,7 +193,7 @@ def _live_line(event: ProxyEvent, as_json: bool) -> str:
     item = event.item
     raw = item.to_bytes() if isinstance(item, Frame) else item.raw
     if as_json:
-        rec = _record(raw, item, event.dialect)
+        rec = _record(raw, item, event.dialect, event.message)
         rec.update(time=round(event.t, 6), dir=event.direction, client=event.client)
         return json.dumps(rec, ensure_ascii=False)
     stamp = datetime.datetime.fromtimestamp(event.t).strftime("%H:%M:%S.%f")
@@ -215,6 +218,36 @@ def _value(v: Any) -> str:
     return v.isoformat() if isinstance(v, datetime.datetime) else str(v)
 
 
+class _Printer:
+    """The live lines, written to `stream` in one call per FLUSH_S (and at exit) rather than one
+    system call per frame; a stream that goes away (`| head`) ends the printing, not the proxy."""
+
+    MAX_LINES = 512
+
+    def __init__(self, stream: Any, as_json: bool) -> None:
+        self.stream = stream
+        self.as_json = as_json
+        self.lines: list[str] = []
+
+    def __call__(self, event: ProxyEvent) -> None:
+        if self.stream is None:
+            return
+        self.lines.append(_live_line(event, self.as_json))
+        if len(self.lines) >= self.MAX_LINES:
+            self.flush()
+
+    def flush(self) -> None:
+        if not self.lines or self.stream is None:
+            return
+        text = "\n".join(self.lines) + "\n"
+        self.lines.clear()
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except (OSError, ValueError):
+            self.stream = None
+
+
 def cmd_proxy(args: argparse.Namespace) -> int:
     dialect = args.dialect if args.dialect not in (None, "auto") else None
     proxy = Proxy(
@@ -226,16 +259,14 @@ def cmd_proxy(args: argparse.Namespace) -> int:
         log_path=args.traffic_log,
         max_clients=args.max_clients,
     )
+    printer = None
     if not args.quiet:
-
-        def show(event: ProxyEvent) -> None:
-            print(_live_line(event, args.json), flush=True)
-
-        proxy.subscribe(show)
-    return asyncio.run(_serve(proxy))
+        printer = _Printer(sys.stdout, args.json)
+        proxy.subscribe(printer)
+    return asyncio.run(_serve(proxy, printer))
 
 
-async def _serve(proxy: Proxy) -> int:
+async def _serve(proxy: Proxy, printer: _Printer | None) -> int:
     await proxy.start()
     # Everything alive now (the catalog, modules) lives for the whole run: keep the collector from
     # walking it again and again (a full collection would stall forwarding for milliseconds).
@@ -250,8 +281,14 @@ async def _serve(proxy: Proxy) -> int:
     name = proxy.dialect.name if proxy.dialect else "auto"
     print(f"topgimbal proxy: {proxy.url} -> {proxy.to} (dialect {name})", file=sys.stderr, flush=True)
     try:
-        await stop.wait()
+        while not stop.is_set():
+            with contextlib.suppress(asyncio.TimeoutError):
+                await asyncio.wait_for(stop.wait(), FLUSH_S)
+            if printer is not None:
+                printer.flush()
     finally:
         await proxy.stop()
+        if printer is not None:
+            printer.flush()  # what the last drain published
         print(f"topgimbal proxy: {json.dumps(proxy.stats.as_dict())}", file=sys.stderr, flush=True)
     return 0

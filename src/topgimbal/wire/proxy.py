@@ -38,12 +38,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..client.traffic import TrafficLog
 from ..errors import TopGimbalError, TransportError
-from ..protocol import Diagnostic, Dialect, Frame, FrameParser, Message, get_dialect, get_model
+from ..protocol import Diagnostic, Dialect, Frame, FrameParser, Message, decode_any, get_dialect, get_model
 from ..transport import Transport, TransportURL, open_transport, parse_url
+from .batchlog import BatchedTrafficLog
 from .packets import Endpoint
-from .ports import decode_frame, dialect_for_ports, documented_ports
+from .ports import dialect_for_ports, documented_ports
 from .synth import CaptureWriter
 from .udplink import UdpSocket
 
@@ -57,6 +57,7 @@ STREAM_FLUSH_S = 0.05
 MAX_BACKLOG = 1024 * 1024  # bytes forwarded but not yet decoded (decoding fell behind the link)
 DEFER_S = 0.001  # decoding starts this long after a chunk is forwarded (its reply goes first)
 PROCESS_SLICE_S = 0.0005  # decoding runs at most this long before the loop polls sockets again
+FLUSH_S = 0.2  # the pcap and the log are handed to the files this often (and at stop)
 OUT, IN = "out", "in"  # client -> device, device -> client (the traffic log's words)
 CLOSED = "closed"  # a session's end, queued behind its last bytes
 SERIAL_CLIENT: Endpoint = ("127.0.0.1", 40000)
@@ -74,8 +75,8 @@ class ProxyEvent:
     direction: str  # "out": client -> device; "in": device -> client
     client: str  # which client ("udp 127.0.0.1:53012", "tcp ...", "serial ...")
     item: Frame | Diagnostic
-    dialect: Dialect | None
-    message: Message | None  # None for diagnostics
+    dialect: Dialect | None  # the dialect that decoded the frame (None for diagnostics)
+    message: Message | None  # the frame decoded once, by `decode_any` (None for diagnostics)
 
 
 Subscriber = Callable[[ProxyEvent], None]
@@ -286,7 +287,10 @@ class Proxy:
         self._poll = select.poll()
         self._drain_handle: asyncio.TimerHandle | None = None
         self._pcap: CaptureWriter | None = None
-        self._log: TrafficLog | None = None
+        self._log: BatchedTrafficLog | None = None
+        self._flusher: asyncio.TimerHandle | None = None
+        # dialects a frame may be decoded by, by name (the preferred one keeps a model's options)
+        self._dialects: dict[str, Dialect] = {self.dialect.name: self.dialect} if self.dialect else {}
         self._udp: UdpSocket | None = None
         self._server: asyncio.AbstractServer | None = None
         self._serial: Transport | None = None
@@ -329,9 +333,9 @@ class Proxy:
         self._device_ep = await self._device_endpoint()
         try:
             if self.pcap_path:
-                self._pcap = CaptureWriter(self.pcap_path)
+                self._pcap = CaptureWriter(self.pcap_path, flush_each=False)
             if self.log_path:
-                self._log = TrafficLog(
+                self._log = BatchedTrafficLog(
                     self.log_path,
                     url=self.to.text,
                     model=self.model or "",
@@ -339,6 +343,8 @@ class Proxy:
                 )
         except OSError as exc:
             raise ProxyError(f"cannot write {exc.filename}: {exc.strerror}") from None
+        if self._pcap is not None or self._log is not None:
+            self._flusher = loop.call_later(FLUSH_S, self._flush_timer)
         try:
             if self.listen.scheme == "udp":
                 self._udp = await UdpSocket.bind(self.listen.host, self.listen.port or 0, self._udp_datagram)
@@ -362,6 +368,9 @@ class Proxy:
     async def stop(self) -> None:
         if self._sweeper is not None:
             self._sweeper.cancel()
+        if self._flusher is not None:
+            self._flusher.cancel()
+            self._flusher = None
         self.drain()
         for session in list(self._sessions.values()):
             await session.close()
@@ -374,12 +383,13 @@ class Proxy:
         if self._serial is not None:
             await self._serial.close()
         self.drain()
-        if self._pcap is not None:
-            self._pcap.close()
-            self._pcap = None
-        if self._log is not None:
-            self._log.close()
-            self._log = None
+        for name, writer in (("pcap", self._pcap), ("log", self._log)):
+            if writer is not None:
+                try:
+                    writer.close()  # writes what waits
+                except OSError as exc:
+                    log.error("proxy: %s: the end of the file could not be written: %s", name, exc)
+        self._pcap = self._log = None
 
     async def __aenter__(self) -> Proxy:
         await self.start()
@@ -551,6 +561,25 @@ class Proxy:
         while self._backlog:
             self._process(*self._take())
 
+    def flush(self) -> None:
+        """Hand what the pcap and the log hold to their files (a timer does this every FLUSH_S)."""
+        if self._pcap is not None:
+            try:
+                self._pcap.flush()
+            except OSError as exc:
+                log.error("proxy: pcap %s: %s; no longer written", self.pcap_path, exc)
+                self._pcap = None
+        if self._log is not None:
+            try:
+                self._log.flush()
+            except OSError as exc:
+                log.error("proxy: log %s: %s; no longer written", self.log_path, exc)
+                self._log = None
+
+    def _flush_timer(self) -> None:
+        self.flush()
+        self._flusher = asyncio.get_running_loop().call_later(FLUSH_S, self._flush_timer)
+
     def _take(self) -> _Work:
         work = self._backlog.popleft()
         self._backlog_bytes -= len(work[3]) + 64
@@ -592,18 +621,41 @@ class Proxy:
             log.error("proxy: pcap %s: %s; no longer written", self.pcap_path, exc)
             self._pcap = None
 
+    def _decode(self, frame: Frame) -> Message:
+        """`decode_any` with the proxy's dialect preferred. It tries that dialect first anyway;
+        asking it here first skips ranking the others when it decodes the frame (nearly always)."""
+        if self.dialect is not None:
+            msg = self.dialect.decode(frame)
+            if msg.fields is not None:
+                return msg
+        return decode_any(frame, prefer=self.dialect)
+
+    def _dialect_of(self, msg: Message) -> Dialect | None:
+        if msg.dialect is None:
+            return self.dialect
+        d = self._dialects.get(msg.dialect)
+        if d is None:
+            d = self._dialects[msg.dialect] = get_dialect(msg.dialect)
+        return d
+
     def _publish(self, t: float, session: _Session, direction: str, items: list[Frame | Diagnostic]) -> None:
+        """Each frame decoded once; the log, every subscriber (the CLI's printed line) reuse it."""
         for item in items:
             dialect: Dialect | None = None
             message: Message | None = None
             if isinstance(item, Frame):
-                dialect, message = decode_frame(item, self.dialect)
+                message = self._decode(item)
+                dialect = self._dialect_of(message)
                 if direction == OUT:
                     self.stats.frames_out += 1
                 else:
                     self.stats.frames_in += 1
                 if self._log is not None:
-                    self._log.record(direction, item, message)
+                    try:
+                        self._log.record(direction, item, message)
+                    except OSError as exc:
+                        log.error("proxy: log %s: %s; no longer written", self.log_path, exc)
+                        self._log = None
             event = ProxyEvent(t, direction, session.label, item, dialect, message)
             for callback in list(self._subscribers):
                 try:
