@@ -4,6 +4,7 @@ them: the reference the Wireshark dissector is compared with."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -11,6 +12,8 @@ from topgimbal.errors import TopGimbalError
 from topgimbal.protocol import REQUEST, Dialect, Form, Frame, decode_any, guess_dialects, make_frame
 from topgimbal.protocol.examples import example_values
 from topgimbal.wire.ports import documented_ports
+
+from .tshark import values
 
 HOST = ("127.0.0.1", 40000)
 ANY_PORT = ("127.0.0.1", 7777)  # documented for no dialect: the frame decides
@@ -65,9 +68,9 @@ def form_frames(d: Dialect, port: int | None = None) -> list[FormFrame]:
     for ident in sorted(d.commands):
         spec = d.commands[ident]
         for k, form in enumerate(spec.forms):
-            for values in _value_sets(form):
+            for sample in _value_sets(form):
                 try:
-                    data = form.encode(values, ident)
+                    data = form.encode(sample, ident)
                 except TopGimbalError:
                     continue
                 host = d.host_addresses[0]
@@ -76,4 +79,37 @@ def form_frames(d: Dialect, port: int | None = None) -> list[FormFrame]:
                 frame = make_frame(ident, data, src=src, dst=dst, rw=form.rw, header=header)
                 a, b = (HOST, device) if form.direction == REQUEST else (device, HOST)
                 out.append(FormFrame(d.name, ident, k, frame, a, b, expected(frame, prefer)))
+    return out
+
+
+def mismatches(node: dict[str, Any], expected: dict[str, Any]) -> list[str]:
+    """What the dissector shows differently from the Python decoder for one frame."""
+    out = []
+    if values(node, "top.id") != [expected["id"]]:
+        out.append(f"id {values(node, 'top.id')}")
+    if values(node, "top.dialect") != [expected["dialect"]]:
+        out.append(f"dialect {values(node, 'top.dialect')} != {expected['dialect']}")
+    if values(node, "top.dialect.tried") != expected["tried"]:
+        out.append(f"tried first {values(node, 'top.dialect.tried')} != {expected['tried']}")
+    want_form = [expected["form"]] if expected["form"] else []
+    if values(node, "top.form") != want_form:
+        out.append(f"form {values(node, 'top.form')} != {want_form}")
+    if expected["name"] is not None and (expected["fields"] is None) != bool(values(node, "top.fields_error")):
+        out.append(f"fields error {values(node, 'top.fields_error')} vs {expected['error']!r}")
+    nulls = values(node, "top.field_null")
+    for name, want in (expected["fields"] or {}).items():
+        got = values(node, f"top.field.{name}")
+        if want is None:
+            if name not in nulls:
+                out.append(f"{name}: null expected, got {got}")
+        elif isinstance(want, (int, float)) and not isinstance(want, bool):
+            ok = len(got) == 1 and (
+                (math.isnan(want) and got[0].lower() == "nan")
+                or (math.isinf(want) and float(got[0]) == want)
+                or abs(float(got[0]) - want) <= 1e-9 * max(1.0, abs(want))
+            )
+            if not ok:
+                out.append(f"{name}: {want!r} != {got}")
+        elif got != [want]:
+            out.append(f"{name}: {want!r} != {got}")
     return out

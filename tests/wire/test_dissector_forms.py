@@ -3,10 +3,8 @@ every command in the catalog, plus thousands of mutated frames that probe each c
 
 from __future__ import annotations
 
-import math
 import random
 from pathlib import Path
-from typing import Any
 
 import pytest
 
@@ -14,46 +12,13 @@ from topgimbal.protocol import DIALECT_NAMES, get_dialect, get_model
 from topgimbal.wire import CaptureWriter
 from topgimbal.wire.dissector import catalog_tables
 
-from .forms import ANY_PORT, FormFrame, device_port, expected, form_frames
-from .tshark import top_layers, values
+from .forms import ANY_PORT, FormFrame, device_port, expected, form_frames, mismatches
+from .tshark import top_layers
 
 
 @pytest.fixture(scope="module")
 def every_form() -> list[FormFrame]:
     return [f for name in DIALECT_NAMES for f in form_frames(get_dialect(name))]
-
-
-def _mismatches(node: dict[str, Any], expected: dict[str, Any]) -> list[str]:
-    """What the dissector shows differently from the Python decoder for one frame."""
-    out = []
-    if values(node, "top.id") != [expected["id"]]:
-        out.append(f"id {values(node, 'top.id')}")
-    if values(node, "top.dialect") != [expected["dialect"]]:
-        out.append(f"dialect {values(node, 'top.dialect')} != {expected['dialect']}")
-    if values(node, "top.dialect.tried") != expected["tried"]:
-        out.append(f"tried first {values(node, 'top.dialect.tried')} != {expected['tried']}")
-    want_form = [expected["form"]] if expected["form"] else []
-    if values(node, "top.form") != want_form:
-        out.append(f"form {values(node, 'top.form')} != {want_form}")
-    if expected["name"] is not None and (expected["fields"] is None) != bool(values(node, "top.fields_error")):
-        out.append(f"fields error {values(node, 'top.fields_error')} vs {expected['error']!r}")
-    nulls = values(node, "top.field_null")
-    for name, want in (expected["fields"] or {}).items():
-        got = values(node, f"top.field.{name}")
-        if want is None:
-            if name not in nulls:
-                out.append(f"{name}: null expected, got {got}")
-        elif isinstance(want, (int, float)) and not isinstance(want, bool):
-            ok = len(got) == 1 and (
-                (math.isnan(want) and got[0].lower() == "nan")
-                or (math.isinf(want) and float(got[0]) == want)
-                or abs(float(got[0]) - want) <= 1e-9 * max(1.0, abs(want))
-            )
-            if not ok:
-                out.append(f"{name}: {want!r} != {got}")
-        elif got != [want]:
-            out.append(f"{name}: {want!r} != {got}")
-    return out
 
 
 def _compare(dissector: Path, capture: Path, cases: list[FormFrame], *args: str) -> None:
@@ -65,7 +30,7 @@ def _compare(dissector: Path, capture: Path, cases: list[FormFrame], *args: str)
     problems = []
     for f, frames in zip(cases, packets, strict=True):
         assert len(frames) == 1, f.frame
-        bad = _mismatches(frames[0], f.expected)
+        bad = mismatches(frames[0], f.expected)
         if bad:
             problems.append(f"{f.dialect} {f.frame.text()} ({f.src[1]}->{f.dst[1]}): {'; '.join(bad)}")
     assert not problems, "\n".join(problems[:40])

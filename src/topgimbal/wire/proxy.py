@@ -33,7 +33,7 @@ import select
 import socket
 import time
 from collections import OrderedDict, deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -55,7 +55,7 @@ MAX_QUEUED = 64 * 1024  # bytes waiting for a client's device link to open, or u
 MAX_SUBSCRIBERS = 32
 STREAM_FLUSH_S = 0.05
 MAX_BACKLOG = 1024 * 1024  # bytes forwarded but not yet decoded (decoding fell behind the link)
-DEFER_S = 0.001  # decoding starts this long after a chunk is forwarded (its reply goes first)
+DEFER_S = 0.0002  # decoding starts this long after a chunk is forwarded (a loopback reply goes first)
 PROCESS_SLICE_S = 0.0005  # decoding runs at most this long before the loop polls sockets again
 FLUSH_S = 0.2  # the pcap and the log are handed to the files this often (and at stop)
 OUT, IN = "out", "in"  # client -> device, device -> client (the traffic log's words)
@@ -286,6 +286,7 @@ class Proxy:
         self._backlog_bytes = 0
         self._poll = select.poll()
         self._drain_handle: asyncio.TimerHandle | None = None
+        self._current: Iterator[bool] | None = None  # the chunk being worked off, step by step
         self._pcap: CaptureWriter | None = None
         self._log: BatchedTrafficLog | None = None
         self._flusher: asyncio.TimerHandle | None = None
@@ -532,19 +533,29 @@ class Proxy:
     def _drain(self) -> None:
         self._drain_handle = None
         end = time.perf_counter() + PROCESS_SLICE_S
-        while self._backlog:
-            self._process(*self._take())
-            if time.perf_counter() > end or self._bytes_waiting():
+        while not self._bytes_waiting():
+            if self._current is None:
+                if not self._backlog:
+                    break
+                self._current = self._steps(*self._take())
+            if next(self._current, None) is None:
+                self._current = None
+            if time.perf_counter() > end:
                 break
-        if self._backlog:
-            self._drain_handle = asyncio.get_running_loop().call_soon(self._drain)  # type: ignore[assignment]
+        if self._backlog or self._current is not None:
+            # A timer, not call_soon: asyncio runs the callbacks of sockets found readable before
+            # the timers that fell due, so a waiting datagram is forwarded before decoding goes on
+            # (a call_soon callback would run first and decode one more chunk).
+            self._drain_handle = asyncio.get_running_loop().call_later(0, self._drain)
 
     def _bytes_waiting(self) -> bool:
         """Whether a UDP socket of the proxy has a datagram to forward (then decoding yields)."""
         try:
-            return bool(self._poll.poll(0))
-        except OSError:  # pragma: no cover - a socket closed under us: let the loop sort it out
-            return True
+            # POLLIN or POLLERR (the loop's reader consumes both); never POLLNVAL, which a closed
+            # descriptor would report forever and so stall decoding for good
+            return any(ev & (select.POLLIN | select.POLLERR) for _, ev in self._poll.poll(0))
+        except OSError:  # pragma: no cover - poll itself failed: decode on, the loop sorts sockets out
+            return False
 
     def _watch(self, sock: UdpSocket, on: bool = True) -> None:
         with contextlib.suppress(KeyError, ValueError, OSError):
@@ -558,8 +569,13 @@ class Proxy:
         if self._drain_handle is not None:
             self._drain_handle.cancel()
             self._drain_handle = None
+        if self._current is not None:
+            for _ in self._current:
+                pass
+            self._current = None
         while self._backlog:
-            self._process(*self._take())
+            for _ in self._steps(*self._take()):
+                pass
 
     def flush(self) -> None:
         """Hand what the pcap and the log hold to their files (a timer does this every FLUSH_S)."""
@@ -585,9 +601,11 @@ class Proxy:
         self._backlog_bytes -= len(work[3]) + 64
         return work
 
-    def _process(
+    def _steps(
         self, t: float, session: _Session, direction: str, data: bytes, items: list[Frame | Diagnostic] | None
-    ) -> None:
+    ) -> Iterator[bool]:
+        """One chunk's work in steps of a few tens of microseconds; the drain looks for waiting
+        datagrams between steps, so forwarding waits for at most one step, not a whole chunk."""
         if direction == CLOSED:
             if self._pcap is not None:
                 self._pcap.close_tcp(session.endpoint, self._device_ep, t)
@@ -597,7 +615,16 @@ class Proxy:
             items = d.parser.feed_datagram(data) if d.from_datagram else d.parser.feed(data)
         if data:
             self._record(t, session, direction, data)
-        self._publish(t, session, direction, items)
+        for item in items:
+            yield True
+            event = self._event(t, session, direction, item)
+            for callback in list(self._subscribers):
+                yield True
+                try:
+                    callback(event)
+                except Exception:
+                    self.stats.subscriber_errors += 1
+                    log.exception("proxy: subscriber %r failed", callback)
 
     def _closed(self, session: _Session) -> None:
         """A session ended: its TCP connection in the pcap ends too, after what it sent."""
@@ -638,31 +665,24 @@ class Proxy:
             d = self._dialects[msg.dialect] = get_dialect(msg.dialect)
         return d
 
-    def _publish(self, t: float, session: _Session, direction: str, items: list[Frame | Diagnostic]) -> None:
-        """Each frame decoded once; the log, every subscriber (the CLI's printed line) reuse it."""
-        for item in items:
-            dialect: Dialect | None = None
-            message: Message | None = None
-            if isinstance(item, Frame):
-                message = self._decode(item)
-                dialect = self._dialect_of(message)
-                if direction == OUT:
-                    self.stats.frames_out += 1
-                else:
-                    self.stats.frames_in += 1
-                if self._log is not None:
-                    try:
-                        self._log.record(direction, item, message)
-                    except OSError as exc:
-                        log.error("proxy: log %s: %s; no longer written", self.log_path, exc)
-                        self._log = None
-            event = ProxyEvent(t, direction, session.label, item, dialect, message)
-            for callback in list(self._subscribers):
+    def _event(self, t: float, session: _Session, direction: str, item: Frame | Diagnostic) -> ProxyEvent:
+        """A frame decoded once (the log and every subscriber reuse it), or a diagnostic."""
+        dialect: Dialect | None = None
+        message: Message | None = None
+        if isinstance(item, Frame):
+            message = self._decode(item)
+            dialect = self._dialect_of(message)
+            if direction == OUT:
+                self.stats.frames_out += 1
+            else:
+                self.stats.frames_in += 1
+            if self._log is not None:
                 try:
-                    callback(event)
-                except Exception:
-                    self.stats.subscriber_errors += 1
-                    log.exception("proxy: subscriber %r failed", callback)
+                    self._log.record(direction, item, message)
+                except OSError as exc:
+                    log.error("proxy: log %s: %s; no longer written", self.log_path, exc)
+                    self._log = None
+        return ProxyEvent(t, direction, session.label, item, dialect, message)
 
 
 def _ep_text(addr: tuple[Any, ...]) -> str:
