@@ -579,18 +579,22 @@ class Proxy:
 
     def flush(self) -> None:
         """Hand what the pcap and the log hold to their files (a timer does this every FLUSH_S)."""
-        if self._pcap is not None:
-            try:
-                self._pcap.flush()
-            except OSError as exc:
-                log.error("proxy: pcap %s: %s; no longer written", self.pcap_path, exc)
-                self._pcap = None
-        if self._log is not None:
-            try:
-                self._log.flush()
-            except OSError as exc:
-                log.error("proxy: log %s: %s; no longer written", self.log_path, exc)
-                self._log = None
+        for which, writer in (("pcap", self._pcap), ("log", self._log)):
+            if writer is not None:
+                try:
+                    writer.flush()
+                except OSError as exc:
+                    self._lost(which, exc)
+
+    def _lost(self, which: str, exc: Exception) -> None:
+        """Writing the pcap or the log failed: say so once and stop writing it (forwarding goes on)."""
+        log.error(
+            "proxy: %s %s: %s; no longer written", which, self.pcap_path if which == "pcap" else self.log_path, exc
+        )
+        if which == "pcap":
+            self._pcap = None
+        else:
+            self._log = None
 
     def _flush_timer(self) -> None:
         self.flush()
@@ -645,8 +649,7 @@ class Proxy:
             else:
                 self._pcap.udp(a, b, data, t)
         except (OSError, ValueError) as exc:
-            log.error("proxy: pcap %s: %s; no longer written", self.pcap_path, exc)
-            self._pcap = None
+            self._lost("pcap", exc)
 
     def _decode(self, frame: Frame) -> Message:
         """`decode_any` with the proxy's dialect preferred. It tries that dialect first anyway;
@@ -680,8 +683,7 @@ class Proxy:
                 try:
                     self._log.record(direction, item, message)
                 except OSError as exc:
-                    log.error("proxy: log %s: %s; no longer written", self.log_path, exc)
-                    self._log = None
+                    self._lost("log", exc)
         return ProxyEvent(t, direction, session.label, item, dialect, message)
 
 
