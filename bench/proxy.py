@@ -3,15 +3,15 @@
 The proxy runs in its own process exactly as a user runs it, between this client and a UDP echo
 "camera" (another process, with a 4 MiB receive buffer so the echo is never what drops frames):
   full   `topgimbal proxy --json --pcap --log` (its output to /dev/null): decoding, printing,
-         capturing and logging every frame;
-  bare   `topgimbal proxy --quiet`: forwarding alone.
+         capturing and logging every frame (in its watcher process);
+  bare   `topgimbal proxy --quiet`: forwarding (and counting frames) alone.
 For each mode it prints
   1. round trip one frame at a time, alternating direct-to-echo and through-the-proxy samples
      (--ping-rate pairs/s): p50/p99 of each and what the proxy adds;
   2. a stream at --rate frames/s (each echoed, so twice that many cross the proxy) for --seconds,
      direct and through the proxy: frames lost (target 0), round-trip p50/p99 and what the proxy
      adds at that rate (target: p99 <= 1 ms), what it wrote (pcap packets, log lines) and the CPU
-     time it used per frame crossing it.
+     time its forwarding process and its watcher process used per frame crossing it.
 Each frame crosses the proxy twice per round trip, so the added figures are for both crossings.
 The machine's load average is printed with every figure: on a machine shared with other work the
 p99 figures measure the scheduler as much as the proxy (the CPU per frame much less so).
@@ -78,10 +78,17 @@ class ProxyProcess:
             raise RuntimeError(f"the proxy did not start: {line!r}")
         self.port = int(m.group(1))
 
-    def cpu_s(self) -> float:
-        """CPU time (user + system) the proxy process has used so far."""
-        fields = Path(f"/proc/{self.proc.pid}/stat").read_text().rsplit(")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / TICKS_S
+    def cpu_s(self) -> tuple[float, float]:
+        """CPU time (user + system) used so far by the forwarding process and by its watcher
+        process (the child that decodes, prints and writes; 0 when there is none)."""
+
+        def used(pid: int) -> float:
+            fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+            return (int(fields[11]) + int(fields[12])) / TICKS_S
+
+        pid = self.proc.pid
+        children = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
+        return used(pid), sum(used(int(c)) for c in children)
 
     def stop(self) -> str:
         self.proc.terminate()
@@ -179,14 +186,15 @@ def run(mode: str, echo_port: int, args: argparse.Namespace) -> None:
         )
         print(f"  stream at {args.rate:g} frames/s for {args.seconds:g} s ({n} frames each way)")
         runs = []
-        cpu = 0.0
+        cpu = (0.0, 0.0)
         for name, sock, base in (
             ("direct to the echo", direct, 10_000_000),
             ("through the proxy", proxied, 20_000_000),
         ):
             before = proxy.cpu_s()
             got, rtts, achieved = stream(sock, n, args.rate, base)
-            cpu = proxy.cpu_s() - before
+            after = proxy.cpu_s()
+            cpu = (after[0] - before[0], after[1] - before[1])
             runs.append((got, rtts))
             print(
                 f"    {name:22s} sent {n} at {achieved:.1f}/s, echoed back {got}, lost {n - got}"
@@ -199,7 +207,11 @@ def run(mode: str, echo_port: int, args: argparse.Namespace) -> None:
             f"lost {n - got} (target 0)"
         )
         crossings = n + got
-        print(f"    proxy CPU: {cpu:.2f} s for {crossings} frame crossings = {cpu / crossings * 1e6:.0f} us per frame")
+        print(
+            f"    CPU for {crossings} frame crossings: forwarding process {cpu[0]:.2f} s"
+            f" ({cpu[0] / crossings * 1e6:.0f} us per frame), watcher process {cpu[1]:.2f} s"
+            f" ({cpu[1] / crossings * 1e6:.0f} us per frame)"
+        )
     finally:
         direct.close()
         proxied.close()

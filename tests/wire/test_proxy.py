@@ -10,6 +10,7 @@ import contextlib
 import json
 import os
 import socket
+import sys
 import tty
 from pathlib import Path
 from typing import Any
@@ -21,9 +22,10 @@ from topgimbal.client.traffic import read_log
 from topgimbal.protocol import Frame, FrameParser, decode_any, get_dialect, get_model
 from topgimbal.sim import Simulator
 from topgimbal.wire import CaptureRecord, read_capture
-from topgimbal.wire import proxy as proxy_module
+from topgimbal.wire import watcher as watcher_module
 from topgimbal.wire.capture import WireFrame, frames_in_capture
-from topgimbal.wire.proxy import Proxy, ProxyEvent
+from topgimbal.wire.offload import WatcherProcess
+from topgimbal.wire.proxy import Proxy, ProxyError, ProxyEvent
 
 from .tshark import top_layers, values
 
@@ -164,13 +166,13 @@ async def test_each_frame_is_decoded_once_and_the_files_fill_while_running(tmp_p
     events: list[ProxyEvent] = []
     proxy.subscribe(events.append)
     calls = {"decode": 0}
-    real_decode = proxy_module.decode_any
+    real_decode = watcher_module.decode_any
 
     def counting(frame: Frame, prefer: Any = None) -> Any:
         calls["decode"] += 1
         return real_decode(frame, prefer=prefer)
 
-    monkeypatch.setattr(proxy_module, "decode_any", counting)
+    monkeypatch.setattr(watcher_module, "decode_any", counting)
     c11, _ = get_model("C11")
     rate = c11.encode("GSY", yaw_rate_deg_s=10.0)  # 0x14 steps of 0.5 deg/s
     topotek_only = get_dialect("topotek").encode("GIC", read=True)
@@ -361,3 +363,81 @@ async def test_a_tcp_client_that_stops_reading_is_closed(caplog):
         client.close()
         await proxy.stop()
         server.close()
+
+
+WATCHER = [sys.executable, "-c", "from topgimbal.cli.wire_cmds import watch_main; watch_main()", "quiet"]
+
+
+async def test_offloaded_watching_sees_every_frame(tmp_path):
+    """With a watcher process the proxy forwards, and the other process captures and logs every
+    frame, decoded with the proxy's model; its counters come back at stop."""
+    loop = asyncio.get_running_loop()
+
+    class Echo(asyncio.DatagramProtocol):
+        def connection_made(self, transport: Any) -> None:
+            self.t = transport
+
+        def datagram_received(self, data: bytes, addr: Any) -> None:
+            self.t.sendto(data, addr)
+
+    dev, _ = await loop.create_datagram_endpoint(Echo, local_addr=("127.0.0.1", 0))
+    port = dev.get_extra_info("sockname")[1]
+    pcap, log = tmp_path / "off.pcapng", tmp_path / "off.jsonl"
+    proxy = Proxy(
+        "udp://127.0.0.1:0",
+        f"udp://127.0.0.1:{port}",
+        model="C11",
+        pcap=pcap,
+        log_path=log,
+        offload=WatcherProcess(WATCHER),
+    )
+    with pytest.raises(ProxyError, match="watcher process"):
+        proxy.subscribe(print)
+    await proxy.start()
+    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    client.setblocking(False)
+    rate = get_model("C11")[0].encode("GSY", yaw_rate_deg_s=10.0)
+    try:
+        for _ in range(50):
+            await loop.sock_sendto(client, rate.to_bytes() + b"\r\n", ("127.0.0.1", proxy.listen_address[1]))  # type: ignore[index]
+            assert await asyncio.wait_for(loop.sock_recv(client, 1024), 2) == rate.to_bytes() + b"\r\n"
+    finally:
+        client.close()
+        await proxy.stop()
+        dev.close()
+    assert (proxy.stats.frames_out, proxy.stats.frames_in, proxy.stats.bytes_out) == (50, 50, 50 * (len(rate.to_bytes()) + 2))
+    logged = list(read_log(log))
+    assert len(logged) == 100 and all(r.decoded["fields"] == {"yaw_rate_deg_s": 10.0} for r in logged)  # type: ignore[index]
+    assert sum(isinstance(r, CaptureRecord) for r in read_capture(pcap)) == 100
+
+
+async def test_a_watcher_process_that_dies_does_not_stop_forwarding(caplog):
+    loop = asyncio.get_running_loop()
+
+    class Echo(asyncio.DatagramProtocol):
+        def connection_made(self, transport: Any) -> None:
+            self.t = transport
+
+        def datagram_received(self, data: bytes, addr: Any) -> None:
+            self.t.sendto(data, addr)
+
+    dev, _ = await loop.create_datagram_endpoint(Echo, local_addr=("127.0.0.1", 0))
+    port = dev.get_extra_info("sockname")[1]
+    dies = WatcherProcess([sys.executable, "-c", "import sys; sys.exit(3)"])
+    proxy = Proxy("udp://127.0.0.1:0", f"udp://127.0.0.1:{port}", offload=dies)
+    await proxy.start()
+    assert dies.proc is not None
+    await asyncio.to_thread(dies.proc.wait, 10)
+    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    client.setblocking(False)
+    try:
+        for i in range(200):  # enough to fill the pipe if nobody noticed the reader is gone
+            payload = PTZ + b"%04d" % i
+            await loop.sock_sendto(client, payload, ("127.0.0.1", proxy.listen_address[1]))  # type: ignore[index]
+            assert await asyncio.wait_for(loop.sock_recv(client, 1024), 2) == payload
+    finally:
+        client.close()
+        await proxy.stop()
+        dev.close()
+    assert "watcher process stopped" in caplog.text
+    assert proxy.stats.frames_out == 0  # nothing was watched; everything was forwarded

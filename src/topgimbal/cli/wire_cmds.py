@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import contextlib
 import datetime
 import gc
 import ipaddress
@@ -20,11 +19,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ..protocol import Diagnostic, Dialect, Frame, Message, dissect, get_dialect
+from ..protocol import Diagnostic, Dialect, Frame, Message, dissect, get_dialect, get_model
 from ..protocol.frame import DEVICE_ADDRESSES, HOST_ADDRESSES
 from ..wire import CaptureProblem, PacketNote, WireFrame, frames_in_capture, generate_dissector
 from ..wire.export import log_to_pcap
-from ..wire.proxy import FLUSH_S, MAX_CLIENTS, Proxy, ProxyEvent
+from ..wire.offload import WatcherProcess, read_config, serve
+from ..wire.proxy import MAX_CLIENTS, Proxy, ProxyEvent
+from ..wire.watcher import Watcher
 from .args import add_dialect_argument, add_json_argument
 from .protocol_cmds import _dialect_from_args, _human, dissection_record
 
@@ -248,8 +249,22 @@ class _Printer:
             self.stream = None
 
 
+WATCHER_CODE = "from topgimbal.cli.wire_cmds import watch_main; watch_main()"
+
+
 def cmd_proxy(args: argparse.Namespace) -> int:
     dialect = args.dialect if args.dialect not in (None, "auto") else None
+    for path in (args.pcap, args.traffic_log):
+        if path:  # the watcher process writes them: say now, not later, when one cannot be written
+            try:
+                Path(path).open("ab").close()
+            except OSError as exc:
+                print(f"topgimbal: cannot write {path}: {exc.strerror or exc}", file=sys.stderr)
+                return 2
+    offload = None
+    if not args.quiet or args.pcap or args.traffic_log:
+        mode = "quiet" if args.quiet else "json" if args.json else "human"
+        offload = WatcherProcess([sys.executable, "-c", WATCHER_CODE, mode])
     proxy = Proxy(
         args.listen,
         args.to,
@@ -258,15 +273,12 @@ def cmd_proxy(args: argparse.Namespace) -> int:
         pcap=args.pcap,
         log_path=args.traffic_log,
         max_clients=args.max_clients,
+        offload=offload,
     )
-    printer = None
-    if not args.quiet:
-        printer = _Printer(sys.stdout, args.json)
-        proxy.subscribe(printer)
-    return asyncio.run(_serve(proxy, printer))
+    return asyncio.run(_serve(proxy))
 
 
-async def _serve(proxy: Proxy, printer: _Printer | None) -> int:
+async def _serve(proxy: Proxy) -> int:
     await proxy.start()
     # Everything alive now (the catalog, modules) lives for the whole run: keep the collector from
     # walking it again and again (a full collection would stall forwarding for milliseconds).
@@ -281,14 +293,34 @@ async def _serve(proxy: Proxy, printer: _Printer | None) -> int:
     name = proxy.dialect.name if proxy.dialect else "auto"
     print(f"topgimbal proxy: {proxy.url} -> {proxy.to} (dialect {name})", file=sys.stderr, flush=True)
     try:
-        while not stop.is_set():
-            with contextlib.suppress(asyncio.TimeoutError):
-                await asyncio.wait_for(stop.wait(), FLUSH_S)
-            if printer is not None:
-                printer.flush()
+        await stop.wait()
     finally:
         await proxy.stop()
-        if printer is not None:
-            printer.flush()  # what the last drain published
         print(f"topgimbal proxy: {json.dumps(proxy.stats.as_dict())}", file=sys.stderr, flush=True)
     return 0
+
+
+def watch_main() -> None:
+    """`topgimbal proxy`'s watcher process (the proxy starts it: argv is the print mode and the
+    descriptor for its counters): decode, capture, log and print what the proxy forwarded."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole group; the proxy says when to end
+    mode = sys.argv[1]
+    config = read_config(0)
+    if config["model"]:
+        dialect: Dialect | None = get_model(config["model"])[0]
+    else:
+        dialect = get_dialect(config["dialect"]) if config["dialect"] else None
+    watcher = Watcher(
+        dialect=dialect,
+        device=tuple(config["device"]),  # type: ignore[arg-type]
+        transport=config["transport"],
+        pcap=config["pcap"],
+        log_path=config["log_path"],
+        log_header=config["log_header"],
+    )
+    watcher.open()
+    printer = _Printer(sys.stdout, mode == "json") if mode != "quiet" else None
+    if printer is not None:
+        watcher.subscribe(printer)
+    gc.freeze()
+    serve(watcher, printer.flush if printer is not None else lambda: None)
