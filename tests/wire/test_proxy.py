@@ -405,7 +405,8 @@ async def test_offloaded_watching_sees_every_frame(tmp_path):
         client.close()
         await proxy.stop()
         dev.close()
-    assert (proxy.stats.frames_out, proxy.stats.frames_in, proxy.stats.bytes_out) == (50, 50, 50 * (len(rate.to_bytes()) + 2))
+    size = len(rate.to_bytes()) + 2
+    assert (proxy.stats.frames_out, proxy.stats.frames_in, proxy.stats.bytes_out) == (50, 50, 50 * size)
     logged = list(read_log(log))
     assert len(logged) == 100 and all(r.decoded["fields"] == {"yaw_rate_deg_s": 10.0} for r in logged)  # type: ignore[index]
     assert sum(isinstance(r, CaptureRecord) for r in read_capture(pcap)) == 100
