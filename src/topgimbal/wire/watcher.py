@@ -149,6 +149,13 @@ class Watcher:
         if data:
             self._record(t, endpoint, direction, data)
         for item in items:
+            if isinstance(item, Frame):
+                if direction == OUT:
+                    self.stats.frames_out += 1
+                else:
+                    self.stats.frames_in += 1
+            if not self.subscribers and self._log is None:
+                continue  # nobody reads the decoding (`proxy --quiet`): counting is all
             yield True
             event = self._event(t, client, direction, item)
             for callback in list(self.subscribers):
@@ -204,10 +211,6 @@ class Watcher:
         if isinstance(item, Frame):
             message = self.decode(item)
             dialect = self._dialect_of(message)
-            if direction == OUT:
-                self.stats.frames_out += 1
-            else:
-                self.stats.frames_in += 1
             if self._log is not None:
                 try:
                     self._log.record(direction, item, message)
