@@ -44,6 +44,22 @@ def _url(sim: Simulator, kind: str) -> str:
     return dict(sim.endpoints)[kind]
 
 
+async def _echo_device(seen: list[bytes] | None = None, reverse: bool = False) -> tuple[Any, int]:
+    """A raw UDP 'camera' on loopback that sends every datagram back (reversed if asked)."""
+
+    class Echo(asyncio.DatagramProtocol):
+        def connection_made(self, transport: Any) -> None:
+            self.t = transport
+
+        def datagram_received(self, data: bytes, addr: Any) -> None:
+            if seen is not None:
+                seen.append(data)
+            self.t.sendto(data[::-1] if reverse else data, addr)
+
+    dev, _ = await asyncio.get_running_loop().create_datagram_endpoint(Echo, local_addr=("127.0.0.1", 0))
+    return dev, dev.get_extra_info("sockname")[1]
+
+
 async def test_sdk_through_a_udp_proxy(tmp_path, dissector):
     sim = await _sim("SIP", udp=[("127.0.0.1", 0)])
     pcap, log = tmp_path / "sip.pcap", tmp_path / "sip.jsonl"
@@ -112,17 +128,7 @@ async def test_bytes_pass_unchanged_with_garbage_and_several_frames(tmp_path):
     """A raw UDP 'device' that echoes: what arrives on each side is exactly what was sent."""
     loop = asyncio.get_running_loop()
     got_device: list[bytes] = []
-
-    class Echo(asyncio.DatagramProtocol):
-        def connection_made(self, transport: Any) -> None:
-            self.t = transport
-
-        def datagram_received(self, data: bytes, addr: Any) -> None:
-            got_device.append(data)
-            self.t.sendto(data[::-1], addr)
-
-    dev, _ = await loop.create_datagram_endpoint(Echo, local_addr=("127.0.0.1", 0))
-    port = dev.get_extra_info("sockname")[1]
+    dev, port = await _echo_device(got_device, reverse=True)
     events: list[ProxyEvent] = []
     proxy = Proxy("udp://127.0.0.1:0", f"udp://127.0.0.1:{port}")
     proxy.subscribe(events.append)
@@ -151,16 +157,7 @@ async def test_each_frame_is_decoded_once_and_the_files_fill_while_running(tmp_p
     and the log, every subscriber and the pcap reuse it; the batched pcap and log reach their files
     on the flush timer while the proxy runs, not only at stop."""
     loop = asyncio.get_running_loop()
-
-    class Echo(asyncio.DatagramProtocol):
-        def connection_made(self, transport: Any) -> None:
-            self.t = transport
-
-        def datagram_received(self, data: bytes, addr: Any) -> None:
-            self.t.sendto(data, addr)
-
-    dev, _ = await loop.create_datagram_endpoint(Echo, local_addr=("127.0.0.1", 0))
-    port = dev.get_extra_info("sockname")[1]
+    dev, port = await _echo_device()
     pcap, log = tmp_path / "c11.pcap", tmp_path / "c11.jsonl"
     proxy = Proxy("udp://127.0.0.1:0", f"udp://127.0.0.1:{port}", model="C11", pcap=pcap, log_path=log)
     events: list[ProxyEvent] = []
@@ -372,16 +369,7 @@ async def test_offloaded_watching_sees_every_frame(tmp_path):
     """With a watcher process the proxy forwards, and the other process captures and logs every
     frame, decoded with the proxy's model; its counters come back at stop."""
     loop = asyncio.get_running_loop()
-
-    class Echo(asyncio.DatagramProtocol):
-        def connection_made(self, transport: Any) -> None:
-            self.t = transport
-
-        def datagram_received(self, data: bytes, addr: Any) -> None:
-            self.t.sendto(data, addr)
-
-    dev, _ = await loop.create_datagram_endpoint(Echo, local_addr=("127.0.0.1", 0))
-    port = dev.get_extra_info("sockname")[1]
+    dev, port = await _echo_device()
     pcap, log = tmp_path / "off.pcapng", tmp_path / "off.jsonl"
     proxy = Proxy(
         "udp://127.0.0.1:0",
@@ -414,16 +402,7 @@ async def test_offloaded_watching_sees_every_frame(tmp_path):
 
 async def test_a_watcher_process_that_dies_does_not_stop_forwarding(caplog):
     loop = asyncio.get_running_loop()
-
-    class Echo(asyncio.DatagramProtocol):
-        def connection_made(self, transport: Any) -> None:
-            self.t = transport
-
-        def datagram_received(self, data: bytes, addr: Any) -> None:
-            self.t.sendto(data, addr)
-
-    dev, _ = await loop.create_datagram_endpoint(Echo, local_addr=("127.0.0.1", 0))
-    port = dev.get_extra_info("sockname")[1]
+    dev, port = await _echo_device()
     dies = WatcherProcess([sys.executable, "-c", "import sys; sys.exit(3)"])
     proxy = Proxy("udp://127.0.0.1:0", f"udp://127.0.0.1:{port}", offload=dies)
     await proxy.start()

@@ -222,10 +222,18 @@ class Watcher:
 
     def flush(self) -> None:
         """Hand what the pcap and the log hold to their files."""
+        self._files("flush")
+
+    def close(self) -> None:
+        """Write what waits and close the files."""
+        self._files("close")
+        self._pcap = self._log = None
+
+    def _files(self, action: str) -> None:
         for which, writer in (("pcap", self._pcap), ("log", self._log)):
             if writer is not None:
                 try:
-                    writer.flush()
+                    getattr(writer, action)()
                 except OSError as exc:
                     self._lost(which, exc)
 
@@ -238,13 +246,3 @@ class Watcher:
             self._pcap = None
         else:
             self._log = None
-
-    def close(self) -> None:
-        """Write what waits and close the files."""
-        for name, writer in (("pcap", self._pcap), ("log", self._log)):
-            if writer is not None:
-                try:
-                    writer.close()
-                except OSError as exc:
-                    log.error("proxy: %s: the end of the file could not be written: %s", name, exc)
-        self._pcap = self._log = None
