@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import re
+import signal
 import socket
 import subprocess
 import sys
@@ -14,7 +15,7 @@ import pytest
 
 from topgimbal.cli.main import main
 from topgimbal.cli.protocol_cmds import RECORD_KEYS
-from topgimbal.wire import CaptureWriter, generate_dissector
+from topgimbal.wire import CaptureRecord, CaptureWriter, generate_dissector, read_capture
 
 from .tshark import top_layers, values
 
@@ -78,7 +79,8 @@ def test_decode_pcap_human_and_filters(tmp_path, capsys):
     _session(path)
     main(["decode", "--pcap", str(path), "--port", "9003"])
     out = capsys.readouterr().out
-    assert out.count("ok") == 1 and "topotek GAC attitude" in out and "PTZ" not in out
+    assert out.count("ok") == 1 and "GAC attitude" in out and "decoded by the topotek dialect" in out
+    assert "PTZ" not in out
     main(["decode", "--pcap", str(path), "--address", "127.0.0.2"])
     assert capsys.readouterr().out == ""
     main(["decode", "--pcap", str(path), "--dialect", "topotek", "--json", "--port", "5000"])
@@ -135,14 +137,16 @@ def test_log_over_tcp_to_pcap(tmp_path, capsys):
 
 
 @pytest.mark.integration
-@pytest.mark.parametrize("as_json", [True, False])
-def test_proxy_command_prints_each_frame(tmp_path, as_json):
-    """`topgimbal proxy` in its own process between a socket client and a socket 'camera'."""
+@pytest.mark.parametrize(("as_json", "stop"), [(True, signal.SIGTERM), (False, signal.SIGINT)])
+def test_proxy_command_prints_each_frame(tmp_path, as_json, stop):
+    """`topgimbal proxy` in its own process between a socket client and a socket 'camera'; what it
+    prints, logs and captures in batches is all there after SIGTERM or Ctrl-C."""
     camera = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     camera.bind(("127.0.0.1", 0))
     camera.settimeout(10)
     argv = [sys.executable, "-m", "topgimbal.cli.main", "proxy", "--listen", "udp://127.0.0.1:0"]
     argv += ["--to", f"udp://127.0.0.1:{camera.getsockname()[1]}", "--log", str(tmp_path / "p.jsonl")]
+    argv += ["--pcap", str(tmp_path / "p.pcap")]
     argv += ["--json"] if as_json else []
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -159,7 +163,7 @@ def test_proxy_command_prints_each_frame(tmp_path, as_json):
     finally:
         client.close()
         camera.close()
-        proc.terminate()
+        proc.send_signal(stop)
         out, err = proc.communicate(timeout=10)
     lines = out.splitlines()
     assert len(lines) == 3, out
@@ -178,3 +182,31 @@ def test_proxy_command_prints_each_frame(tmp_path, as_json):
         assert "! garbage" in lines[2] and "junk" in lines[2]
     assert '"frames_out": 1, "frames_in": 1' in err
     assert len((tmp_path / "p.jsonl").read_text().splitlines()) == 3  # header + 2 frames
+    assert sum(isinstance(r, CaptureRecord) for r in read_capture(tmp_path / "p.pcap")) == 2
+
+
+def test_the_live_json_line_reuses_the_proxys_decoding(monkeypatch):
+    """`proxy --json` prints decode --json's record for every form of the catalog without decoding
+    the frame again: the Message the proxy decoded is passed along."""
+    from topgimbal.cli import protocol_cmds, wire_cmds
+    from topgimbal.protocol import DIALECT_NAMES, Frame, FrameParser, decode_any, get_dialect
+    from topgimbal.wire.proxy import ProxyEvent
+
+    from .forms import form_frames
+
+    cases = [(f.frame, get_dialect(n)) for n in DIALECT_NAMES for f in form_frames(get_dialect(n))]
+    c12_version = FrameParser().feed_datagram(b"#tpDU3rVER0105025A")  # a recovered length: an anomaly
+    cases += [(x, get_dialect("skydroid")) for x in c12_version if isinstance(x, Frame)]
+    wanted = [protocol_cmds.decode_line(frame.to_bytes().hex(), as_hex=True, dialect=d) for frame, d in cases]
+    assert any(w["anomaly"] for w in wanted)
+
+    def no_second_decoding(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the frame was decoded again")
+
+    monkeypatch.setattr(protocol_cmds, "decode_with", no_second_decoding)
+    for (frame, d), want in zip(cases, wanted, strict=True):
+        msg = decode_any(frame, prefer=d)
+        event = ProxyEvent(12.5, "in", "udp 127.0.0.1:1", frame, get_dialect(msg.dialect or d.name), msg)
+        line = json.loads(wire_cmds._live_line(event, as_json=True))
+        assert {k: line[k] for k in RECORD_KEYS} == want
+        assert (line["time"], line["dir"], line["client"]) == (12.5, "in", "udp 127.0.0.1:1")

@@ -59,6 +59,23 @@ def test_writer_reader_round_trip(tmp_path, cls):
     assert {r.linktype for r in recs} == {LINKTYPE_ETHERNET}
 
 
+@pytest.mark.parametrize("name", ["b.pcap", "b.pcapng"])
+def test_buffered_writer_holds_packets_until_flush(tmp_path, name):
+    """flush_each=False (the proxy's pcap): packets wait for flush(); the file is a valid, empty
+    capture meanwhile, and close() writes what waits."""
+    path = tmp_path / name
+    w = CaptureWriter(path, flush_each=False)
+    assert _records(path) == []  # the file header was written at once
+    for i in range(3):
+        w.udp(("127.0.0.1", 40000), ("127.0.0.1", 5000), PTZ, ts=100.0 + i)
+    assert _records(path) == []
+    w.flush()
+    assert len(_records(path)) == 3
+    w.udp(("127.0.0.1", 5000), ("127.0.0.1", 40000), GAC, ts=104.0)
+    w.close()
+    assert [r.number for r in _records(path)] == [1, 2, 3, 4]
+
+
 def _editcap(src: Path, dst: Path, fmt: str) -> None:
     editcap = shutil.which("editcap")
     assert editcap, "editcap comes with tshark: run `make tshark-deps`"

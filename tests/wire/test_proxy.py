@@ -10,6 +10,7 @@ import contextlib
 import json
 import os
 import socket
+import sys
 import tty
 from pathlib import Path
 from typing import Any
@@ -18,12 +19,13 @@ import pytest
 
 import topgimbal
 from topgimbal.client.traffic import read_log
-from topgimbal.protocol import Frame, FrameParser, get_dialect
+from topgimbal.protocol import Frame, FrameParser, decode_any, get_dialect, get_model
 from topgimbal.sim import Simulator
 from topgimbal.wire import CaptureRecord, read_capture
+from topgimbal.wire import watcher as watcher_module
 from topgimbal.wire.capture import WireFrame, frames_in_capture
-from topgimbal.wire.ports import decode_frame
-from topgimbal.wire.proxy import Proxy, ProxyEvent
+from topgimbal.wire.offload import WatcherProcess
+from topgimbal.wire.proxy import Proxy, ProxyError, ProxyEvent
 
 from .tshark import top_layers, values
 
@@ -40,6 +42,22 @@ async def _sim(model: str, **listen: Any) -> Simulator:
 
 def _url(sim: Simulator, kind: str) -> str:
     return dict(sim.endpoints)[kind]
+
+
+async def _echo_device(seen: list[bytes] | None = None, reverse: bool = False) -> tuple[Any, int]:
+    """A raw UDP 'camera' on loopback that sends every datagram back (reversed if asked)."""
+
+    class Echo(asyncio.DatagramProtocol):
+        def connection_made(self, transport: Any) -> None:
+            self.t = transport
+
+        def datagram_received(self, data: bytes, addr: Any) -> None:
+            if seen is not None:
+                seen.append(data)
+            self.t.sendto(data[::-1] if reverse else data, addr)
+
+    dev, _ = await asyncio.get_running_loop().create_datagram_endpoint(Echo, local_addr=("127.0.0.1", 0))
+    return dev, dev.get_extra_info("sockname")[1]
 
 
 async def test_sdk_through_a_udp_proxy(tmp_path, dissector):
@@ -74,12 +92,13 @@ async def test_sdk_through_a_udp_proxy(tmp_path, dissector):
     # the pcap: our reader, and tshark with the dissector, see exactly those frames
     in_pcap = [x for x in frames_in_capture(pcap) if isinstance(x, WireFrame)]
     assert [x.item for x in in_pcap] == [e.item for e in frames]
-    packets = top_layers(dissector, pcap, "-o", "top.dialect:topotek")
+    packets = top_layers(dissector, pcap, "-o", "top.model:SIP")  # what the proxy was told
     shown = [f for p in packets for f in p]
     assert len(shown) == len(frames)
     for node, e in zip(shown, frames, strict=True):
-        msg = get_dialect("topotek").decode(e.item)  # type: ignore[arg-type]
-        assert values(node, "top.id") == [msg.frame.ident]
+        msg = e.message  # the proxy's own decoding of the frame
+        assert msg is not None and values(node, "top.id") == [msg.frame.ident]
+        assert values(node, "top.dialect") == [msg.dialect]
         for name, value in (msg.to_dict()["fields"] or {}).items():
             got = values(node, f"top.field.{name}")
             if isinstance(value, (int, float)):
@@ -110,17 +129,7 @@ async def test_bytes_pass_unchanged_with_garbage_and_several_frames(tmp_path):
     """A raw UDP 'device' that echoes: what arrives on each side is exactly what was sent."""
     loop = asyncio.get_running_loop()
     got_device: list[bytes] = []
-
-    class Echo(asyncio.DatagramProtocol):
-        def connection_made(self, transport: Any) -> None:
-            self.t = transport
-
-        def datagram_received(self, data: bytes, addr: Any) -> None:
-            got_device.append(data)
-            self.t.sendto(data[::-1], addr)
-
-    dev, _ = await loop.create_datagram_endpoint(Echo, local_addr=("127.0.0.1", 0))
-    port = dev.get_extra_info("sockname")[1]
+    dev, port = await _echo_device(got_device, reverse=True)
     events: list[ProxyEvent] = []
     proxy = Proxy("udp://127.0.0.1:0", f"udp://127.0.0.1:{port}")
     proxy.subscribe(events.append)
@@ -141,6 +150,56 @@ async def test_bytes_pass_unchanged_with_garbage_and_several_frames(tmp_path):
     kinds = [(e.direction, e.item.ident if isinstance(e.item, Frame) else e.item.kind) for e in events]
     assert kinds[:3] == [("out", "PTZ"), ("out", "PTZ"), ("in", "garbage")]  # a reversed frame is garbage
     assert ("out", "garbage") in kinds and ("out", "GAC") in kinds
+
+
+async def test_each_frame_is_decoded_once_and_the_files_fill_while_running(tmp_path, monkeypatch):
+    """The proxy decodes a frame once, as `decode_any` does with its dialect preferred (a model's
+    own: the C11 counts rates in 0.5 deg/s; a frame that dialect cannot decode by the other one),
+    and the log, every subscriber and the pcap reuse it; the batched pcap and log reach their files
+    on the flush timer while the proxy runs, not only at stop."""
+    loop = asyncio.get_running_loop()
+    dev, port = await _echo_device()
+    pcap, log = tmp_path / "c11.pcap", tmp_path / "c11.jsonl"
+    proxy = Proxy("udp://127.0.0.1:0", f"udp://127.0.0.1:{port}", model="C11", pcap=pcap, log_path=log)
+    events: list[ProxyEvent] = []
+    proxy.subscribe(events.append)
+    calls = {"decode": 0}
+    real_decode = watcher_module.decode_any
+
+    def counting(frame: Frame, prefer: Any = None) -> Any:
+        calls["decode"] += 1
+        return real_decode(frame, prefer=prefer)
+
+    monkeypatch.setattr(watcher_module, "decode_any", counting)
+    c11, _ = get_model("C11")
+    rate = c11.encode("GSY", yaw_rate_deg_s=10.0)  # 0x14 steps of 0.5 deg/s
+    topotek_only = get_dialect("topotek").encode("GIC", read=True)
+    await proxy.start()
+    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    client.setblocking(False)
+    try:
+        for frame in (rate, topotek_only):
+            await loop.sock_sendto(client, frame.to_bytes(), ("127.0.0.1", proxy.listen_address[1]))  # type: ignore[index]
+            await asyncio.wait_for(loop.sock_recv(client, 1024), 2)
+        for _ in range(100):  # the flush timer hands them to the files while the proxy runs
+            await asyncio.sleep(0.05)
+            frames = [r for r in read_capture(pcap) if isinstance(r, CaptureRecord)]
+            if len(frames) == 4 and len(list(read_log(log))) == 4:
+                break
+        assert len(frames) == 4 and len(list(read_log(log))) == 4
+    finally:
+        client.close()
+        await proxy.stop()
+        dev.close()
+    assert [e.message.fields for e in events if e.item == rate] == [{"yaw_rate_deg_s": 10.0}] * 2  # type: ignore[union-attr]
+    assert all(e.dialect is c11 for e in events if e.item == rate)
+    assert [(e.dialect.name, e.message.dialect) for e in events if e.item == topotek_only] == [
+        ("topotek", "topotek")
+    ] * 2  # type: ignore[union-attr]
+    for e in events:
+        assert e.message == decode_any(e.item, prefer=c11)  # type: ignore[arg-type]
+    assert calls["decode"] == 2  # the GIC frames only: C11's own dialect decoded the GSY frames at once
+    assert [r.decoded for r in read_log(log)] == [e.message.to_dict() for e in events]  # type: ignore[union-attr]
 
 
 async def test_stream_client_to_datagram_device_sends_whole_frames():
@@ -271,12 +330,6 @@ def test_proxy_pcap_is_readable_while_it_is_written(tmp_path):
     assert Path(path).stat().st_size > 24
 
 
-def test_decode_frame_prefers_the_given_dialect():
-    frame = get_dialect("topotek").encode("GAC", read=True)
-    assert decode_frame(frame, "topotek")[0].name == "topotek"
-    assert decode_frame(frame, None)[0].name == "skydroid"  # the frame alone says nothing
-
-
 async def test_a_tcp_client_that_stops_reading_is_closed(caplog):
     """The camera floods; the client never reads: the proxy drops the client instead of buffering."""
     chunk = b"#TPGUCrGAC00000000000023" * 40_000  # ~1 MB
@@ -308,3 +361,64 @@ async def test_a_tcp_client_that_stops_reading_is_closed(caplog):
         client.close()
         await proxy.stop()
         server.close()
+
+
+WATCHER = [sys.executable, "-c", "from topgimbal.cli.wire_cmds import watch_main; watch_main()", "quiet"]
+
+
+async def test_offloaded_watching_sees_every_frame(tmp_path):
+    """With a watcher process the proxy forwards, and the other process captures and logs every
+    frame, decoded with the proxy's model; its counters come back at stop."""
+    loop = asyncio.get_running_loop()
+    dev, port = await _echo_device()
+    pcap, log = tmp_path / "off.pcapng", tmp_path / "off.jsonl"
+    proxy = Proxy(
+        "udp://127.0.0.1:0",
+        f"udp://127.0.0.1:{port}",
+        model="C11",
+        pcap=pcap,
+        log_path=log,
+        offload=WatcherProcess(WATCHER),
+    )
+    with pytest.raises(ProxyError, match="watcher process"):
+        proxy.subscribe(print)
+    await proxy.start()
+    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    client.setblocking(False)
+    rate = get_model("C11")[0].encode("GSY", yaw_rate_deg_s=10.0)
+    try:
+        for _ in range(50):
+            await loop.sock_sendto(client, rate.to_bytes() + b"\r\n", ("127.0.0.1", proxy.listen_address[1]))  # type: ignore[index]
+            assert await asyncio.wait_for(loop.sock_recv(client, 1024), 2) == rate.to_bytes() + b"\r\n"
+    finally:
+        client.close()
+        await proxy.stop()
+        dev.close()
+    size = len(rate.to_bytes()) + 2
+    assert (proxy.stats.frames_out, proxy.stats.frames_in, proxy.stats.bytes_out) == (50, 50, 50 * size)
+    logged = list(read_log(log))
+    assert len(logged) == 100 and all(r.decoded["fields"] == {"yaw_rate_deg_s": 10.0} for r in logged)  # type: ignore[index]
+    assert sum(isinstance(r, CaptureRecord) for r in read_capture(pcap)) == 100
+
+
+async def test_a_watcher_process_that_dies_does_not_stop_forwarding(caplog):
+    loop = asyncio.get_running_loop()
+    dev, port = await _echo_device()
+    dies = WatcherProcess([sys.executable, "-c", "import sys; sys.exit(3)"])
+    proxy = Proxy("udp://127.0.0.1:0", f"udp://127.0.0.1:{port}", offload=dies)
+    await proxy.start()
+    assert dies.proc is not None
+    await asyncio.to_thread(dies.proc.wait, 10)
+    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    client.setblocking(False)
+    try:
+        for i in range(200):  # enough to fill the pipe if nobody noticed the reader is gone
+            payload = PTZ + b"%04d" % i
+            await loop.sock_sendto(client, payload, ("127.0.0.1", proxy.listen_address[1]))  # type: ignore[index]
+            assert await asyncio.wait_for(loop.sock_recv(client, 1024), 2) == payload
+    finally:
+        client.close()
+        await proxy.stop()
+        dev.close()
+    assert "watcher process stopped" in caplog.text
+    assert proxy.stats.frames_out == 0  # nothing was watched; everything was forwarded

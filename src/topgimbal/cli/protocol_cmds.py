@@ -9,7 +9,7 @@ from collections.abc import Iterable
 from typing import Any
 
 from ..errors import FieldValueError, UnknownCommandError
-from ..protocol import DIALECT_NAMES, Dialect, Message, decode_any, dissect, get_dialect, get_model
+from ..protocol import DIALECT_NAMES, Dialect, Dissection, Message, decode_any, dissect, get_dialect, get_model
 from ..protocol.catalog import REQUEST
 from ..protocol.frame import Frame
 from .args import add_dialect_argument, add_json_argument
@@ -94,7 +94,12 @@ def decode_line(line: str, *, as_hex: bool, dialect: Dialect | None) -> dict[str
         return _failed(text, f"not valid hex: {exc}")
     except UnicodeEncodeError:
         return _failed(text, "frames are ASCII; give binary frames with --hex")
-    d = dissect(raw)
+    return dissection_record(dissect(raw), dialect)
+
+
+def dissection_record(d: Dissection, dialect: Dialect | None, message: Message | None = None) -> dict[str, Any]:
+    """`decode --json`'s record of a dissected frame. `message`: the frame already decoded by the
+    caller (the proxy decodes each frame once and passes it), else it is decoded here."""
     out: dict[str, Any] = {
         "frame": _show_data(d.raw),
         "ok": d.ok,
@@ -122,8 +127,8 @@ def decode_line(line: str, *, as_hex: bool, dialect: Dialect | None) -> dict[str
         # debugging by hand (ok stays false).
         frame = Frame(d.header, d.src, d.dst, d.rw, d.ident, d.data)
     if frame is not None:
-        dia, msg = decode_with(frame, dialect)
-        out["dialect"] = dia.name if msg.fields is not None else None
+        msg = message if message is not None else decode_with(frame, dialect)[1]
+        out["dialect"] = msg.dialect if msg.fields is not None else None
         out["name"] = msg.spec.name if msg.spec else None
         out["fields"] = msg.to_dict()["fields"]
         out["units"] = {f.name: f.unit for f in msg.form.fields if f.unit} if msg.form else {}

@@ -19,13 +19,15 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ..protocol import Diagnostic, Dialect, Frame, get_dialect
+from ..protocol import Diagnostic, Dialect, Frame, Message, dissect, get_dialect, get_model
 from ..protocol.frame import DEVICE_ADDRESSES, HOST_ADDRESSES
 from ..wire import CaptureProblem, PacketNote, WireFrame, frames_in_capture, generate_dissector
 from ..wire.export import log_to_pcap
+from ..wire.offload import WatcherProcess, read_config, serve
 from ..wire.proxy import MAX_CLIENTS, Proxy, ProxyEvent
+from ..wire.watcher import Watcher
 from .args import add_dialect_argument, add_json_argument
-from .protocol_cmds import _dialect_from_args, _human, decode_line
+from .protocol_cmds import _dialect_from_args, _human, dissection_record
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -82,9 +84,11 @@ def _ep(ep: tuple[str, int]) -> str:
     return f"[{ep[0]}]:{ep[1]}" if ":" in ep[0] else f"{ep[0]}:{ep[1]}"
 
 
-def _record(raw: bytes, item: Frame | Diagnostic, dialect: Dialect | None) -> dict[str, Any]:
-    """`decode --json`'s record of one frame or diagnostic."""
-    rec = decode_line(raw.hex(), as_hex=True, dialect=dialect)
+def _record(
+    raw: bytes, item: Frame | Diagnostic, dialect: Dialect | None, message: Message | None = None
+) -> dict[str, Any]:
+    """`decode --json`'s record of one frame or diagnostic (`message`: the frame already decoded)."""
+    rec = dissection_record(dissect(raw), dialect, message if isinstance(item, Frame) else None)
     if isinstance(item, Diagnostic) and item.kind != "bad_checksum":
         rec["ok"] = False
         rec["error"] = f"{item.detail} ({item.kind})"
@@ -190,7 +194,7 @@ def _live_line(event: ProxyEvent, as_json: bool) -> str:
     item = event.item
     raw = item.to_bytes() if isinstance(item, Frame) else item.raw
     if as_json:
-        rec = _record(raw, item, event.dialect)
+        rec = _record(raw, item, event.dialect, event.message)
         rec.update(time=round(event.t, 6), dir=event.direction, client=event.client)
         return json.dumps(rec, ensure_ascii=False)
     stamp = datetime.datetime.fromtimestamp(event.t).strftime("%H:%M:%S.%f")
@@ -215,8 +219,52 @@ def _value(v: Any) -> str:
     return v.isoformat() if isinstance(v, datetime.datetime) else str(v)
 
 
+class _Printer:
+    """The live lines, written to `stream` in one call per FLUSH_S (and at exit) rather than one
+    system call per frame; a stream that goes away (`| head`) ends the printing, not the proxy."""
+
+    MAX_LINES = 512
+
+    def __init__(self, stream: Any, as_json: bool) -> None:
+        self.stream = stream
+        self.as_json = as_json
+        self.lines: list[str] = []
+
+    def __call__(self, event: ProxyEvent) -> None:
+        if self.stream is None:
+            return
+        self.lines.append(_live_line(event, self.as_json))
+        if len(self.lines) >= self.MAX_LINES:
+            self.flush()
+
+    def flush(self) -> None:
+        if not self.lines or self.stream is None:
+            return
+        text = "\n".join(self.lines) + "\n"
+        self.lines.clear()
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except (OSError, ValueError):
+            self.stream = None
+
+
+WATCHER_CODE = "from topgimbal.cli.wire_cmds import watch_main; watch_main()"
+
+
 def cmd_proxy(args: argparse.Namespace) -> int:
     dialect = args.dialect if args.dialect not in (None, "auto") else None
+    for path in (args.pcap, args.traffic_log):
+        if path:  # the watcher process writes them: say now, not later, when one cannot be written
+            try:
+                Path(path).open("ab").close()
+            except OSError as exc:
+                print(f"topgimbal: cannot write {path}: {exc.strerror or exc}", file=sys.stderr)
+                return 2
+    offload = None
+    if not args.quiet or args.pcap or args.traffic_log:
+        mode = "quiet" if args.quiet else "json" if args.json else "human"
+        offload = WatcherProcess([sys.executable, "-c", WATCHER_CODE, mode])
     proxy = Proxy(
         args.listen,
         args.to,
@@ -225,13 +273,8 @@ def cmd_proxy(args: argparse.Namespace) -> int:
         pcap=args.pcap,
         log_path=args.traffic_log,
         max_clients=args.max_clients,
+        offload=offload,
     )
-    if not args.quiet:
-
-        def show(event: ProxyEvent) -> None:
-            print(_live_line(event, args.json), flush=True)
-
-        proxy.subscribe(show)
     return asyncio.run(_serve(proxy))
 
 
@@ -255,3 +298,29 @@ async def _serve(proxy: Proxy) -> int:
         await proxy.stop()
         print(f"topgimbal proxy: {json.dumps(proxy.stats.as_dict())}", file=sys.stderr, flush=True)
     return 0
+
+
+def watch_main() -> None:
+    """`topgimbal proxy`'s watcher process (the proxy starts it: argv is the print mode and the
+    descriptor for its counters): decode, capture, log and print what the proxy forwarded."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole group; the proxy says when to end
+    mode = sys.argv[1]
+    config = read_config(0)
+    if config["model"]:
+        dialect: Dialect | None = get_model(config["model"])[0]
+    else:
+        dialect = get_dialect(config["dialect"]) if config["dialect"] else None
+    watcher = Watcher(
+        dialect=dialect,
+        device=tuple(config["device"]),  # type: ignore[arg-type]
+        transport=config["transport"],
+        pcap=config["pcap"],
+        log_path=config["log_path"],
+        log_header=config["log_header"],
+    )
+    watcher.open()
+    printer = _Printer(sys.stdout, mode == "json") if mode != "quiet" else None
+    if printer is not None:
+        watcher.subscribe(printer)
+    gc.freeze()
+    serve(watcher, printer.flush if printer is not None else lambda: None)

@@ -19,14 +19,26 @@ from importlib import resources
 from typing import Any
 
 from ..errors import TopGimbalError
-from ..protocol import DIALECT_NAMES, REQUEST, RESPONSE, CommandSpec, Dialect, FrameParser, get_dialect
+from ..protocol import (
+    DIALECT_NAMES,
+    REQUEST,
+    RESPONSE,
+    CommandSpec,
+    DeviceModel,
+    Dialect,
+    FrameParser,
+    all_models,
+    dialect_for,
+    get_dialect,
+)
 from ..protocol import frame as frame_module
 from ..protocol.fields import Codec
+from ..protocol.fields.base import decimals_of
 from ..protocol.frame import ADDRESS_NAMES, DEVICE_ADDRESSES, HOST_ADDRESSES, MAX_LENGTH
 from .ports import documented_ports
 
-# Codec classes whose decoded value is a number (their Wireshark fields are FT_DOUBLE).
-NUMERIC_CODECS = frozenset({"HexInt", "DecInt", "DecFloat", "BinInt", "Bitrate", "GeoDM", "GeoDeg"})
+# Codec kinds whose decoded value is a number (their Wireshark fields are FT_DOUBLE).
+NUMERIC_KINDS = frozenset({"number", "coordinate"})
 # strptime directives the runtime's timestamp decoder handles: (name, width). `%f2` is the
 # catalog's "hundredths of a second".
 _TIME_DIRECTIVES = {"%Y": 4, "%y": 2, "%m": 2, "%d": 2, "%H": 2, "%M": 2, "%S": 2, "%f2": 2}
@@ -126,13 +138,6 @@ def _wrap(parts: list[str], indent: str) -> str:
 # -- codecs ------------------------------------------------------------------------------------
 
 
-def _decimals(scale: float) -> int:
-    """Decimals a scaled value is rounded to; mirrors the codecs' own rounding rule."""
-    if scale >= 1 and float(scale).is_integer():
-        return 0
-    return max(0, -math.floor(math.log10(scale) + 1e-9)) if scale < 1 else 0
-
-
 def _exact_divisor(scale: float) -> int:
     """1/scale when that is a whole number (values are then divided, which is exact)."""
     inv = 1 / scale
@@ -158,56 +163,54 @@ def _time_segments(layout: str) -> list[Any]:
 def _enum_map(codec: Any) -> dict[bytes, Any]:
     table: dict[bytes, Any] = {}
     for v in codec.values:
-        entry = {"name": v.name, "label": v.label}
+        entry = {"name": v.name, "label": v.label, "term": v.vendor_term or None}
         table[v.raw.encode("latin-1")] = entry
         table.setdefault(v.raw.lower().encode("latin-1"), entry)  # some firmware spells hex in lower case
     return table
 
 
 def codec_entry(codec: Codec, where: str) -> dict[str, Any]:
-    """What the Lua runtime needs to decode one codec, from its public attributes."""
-    cls, kind = type(codec).__name__, codec.kind
+    """What the Lua runtime needs to decode one codec, from its public attributes (`describe()`
+    names the class; the families' stable attributes give the layout)."""
+    cls, kind = type(codec).__name__, codec.kind  # describe()["codec"] names the class the same way
     c: dict[str, Any] = {"unit": codec.unit}
-    num = cls in NUMERIC_CODECS
+    a: Any = codec  # the attributes read below are each family's documented public ones
     if cls == "HexInt" and kind == "number":
-        scale = codec.scale  # type: ignore[attr-defined]
-        c.update(k="hex", w=codec.width, signed=bool(codec.signed), scale=scale, div=_exact_divisor(scale))  # type: ignore[attr-defined]
-        c.update(dec=_decimals(scale), int=scale == 1, none=list(codec.none_tokens))  # type: ignore[attr-defined]
+        c.update(k="hex", w=a.width, signed=bool(a.signed), scale=a.scale, div=_exact_divisor(a.scale))
+        c.update(dec=decimals_of(a.scale), int=a.scale == 1, none=list(a.none_tokens))
     elif cls == "DecInt" and kind == "number":
-        scale = codec.scale  # type: ignore[attr-defined]
-        c.update(k="dec", w=codec.width, scale=scale, dec=_decimals(scale), int=scale == 1)
+        c.update(k="dec", w=a.width, scale=a.scale, dec=decimals_of(a.scale), int=a.scale == 1)
     elif cls == "DecFloat" and kind == "number":
-        c.update(k="float", w=codec.width, decimals=codec.decimals)  # type: ignore[attr-defined]
-        c.update(none=list(codec.none_tokens))  # type: ignore[attr-defined]
+        c.update(k="float", w=a.width, decimals=a.decimals, none=list(a.none_tokens))
     elif cls == "BinInt" and kind == "number":
-        scale = codec.scale  # type: ignore[attr-defined]
-        c.update(k="bin", w=codec.width, signed=bool(codec.signed), little=codec.byteorder == "little")  # type: ignore[attr-defined]
-        c.update(scale=scale, dec=_decimals(scale), int=scale == 1)
+        c.update(k="bin", w=a.width, signed=bool(a.signed), little=a.byteorder == "little")
+        c.update(scale=a.scale, dec=decimals_of(a.scale), int=a.scale == 1)
     elif cls == "Bitrate" and kind == "number":
-        c.update(k="bitrate", w=codec.width, int=True)
+        c.update(k="bitrate", int=True)
     elif cls == "Enum" and kind == "enum":
-        c.update(k="enum", w=codec.width, map=_enum_map(codec))
+        c.update(k="enum", w=a.width, map=_enum_map(a))
     elif cls == "OneOf" and kind == "enum_or_number":
-        tokens, number = codec.tokens, codec.number  # type: ignore[attr-defined]
-        c.update(k="oneof", w=codec.width, tokens=codec_entry(tokens, where), number=codec_entry(number, where))
+        c.update(k="oneof", w=a.width, tokens=codec_entry(a.tokens, where), number=codec_entry(a.number, where))
     elif cls == "Text" and kind == "text":
-        c.update(k="text", min=codec.min_width, max=codec.max_width)
+        c.update(k="text", min=a.min_width, max=a.max_width)
     elif cls == "IPv4Text" and kind == "ipv4":
         c.update(k="ipv4")
     elif cls == "RawData" and kind == "raw":
-        c.update(k="raw", w=codec.width)
+        c.update(k="raw", w=a.width)
     elif cls == "Literal" and kind == "literal":
-        c.update(k="literal", text=codec.text.encode("latin-1"))  # type: ignore[attr-defined]
-    elif cls in ("GeoDM", "GeoDeg") and kind == "coordinate":
-        c.update(k="geodm" if cls == "GeoDM" else "geodeg", axis=codec.axis)  # type: ignore[attr-defined]
+        c.update(k="literal", text=a.text.encode("latin-1"))
+    elif cls == "Geo" and kind == "coordinate":
+        if a.style not in ("dm", "deg") or a.axis not in ("lat", "lon"):
+            raise DissectorError(f"{where}: Geo style {a.style!r} axis {a.axis!r} is unknown to the dissector")
+        c.update(k="geo", axis=a.axis, style=a.style, limit=a.limit)
     elif cls == "Timestamp" and kind == "datetime":
-        c.update(k="time", segments=_time_segments(codec.layout))  # type: ignore[attr-defined]
+        c.update(k="time", segments=_time_segments(a.layout))
     else:
         raise DissectorError(
             f"{where}: codec {cls} (kind {kind!r}) is unknown to the dissector generator; "
             "teach topgimbal/wire/dissector.py and dissector_runtime.lua to decode it"
         )
-    c["numeric"] = num
+    c["numeric"] = kind in NUMERIC_KINDS
     return c
 
 
@@ -297,17 +300,53 @@ def _dialect(d: Dialect, codecs: _Codecs) -> dict[str, Any]:
         commands[ident] = _command(spec, codecs, d.name)
         for key, forms in _index(spec).items():
             index[f"{ident}|{key}"] = forms
-    return {"title": d.title, "commands": commands, "index": index}
+    return {
+        "title": d.title,
+        "headers": list(d.headers),
+        "hosts": d.host_addresses,
+        "commands": commands,
+        "index": index,
+    }
 
 
-def _field_types(dialects: list[Dialect]) -> dict[str, str]:
+def _variant(base: dict[str, Any], model: DeviceModel, codecs: _Codecs) -> dict[str, Any] | None:
+    """The commands a model's own dialect (its `dialect_options`: the C11's 0.5 deg/s rate step)
+    decodes differently from the document's defaults, or None when it decodes none differently."""
+    own = _dialect(dialect_for(model), codecs)
+    changed = sorted(i for i, cmd in own["commands"].items() if to_lua(cmd) != to_lua(base["commands"].get(i)))
+    if not changed:
+        return None
+    index = {k: v for k, v in own["index"].items() if k.split("|", 1)[0] in changed}
+    return {"commands": {i: own["commands"][i] for i in changed}, "index": index}
+
+
+def _models(tables: dict[str, Any], codecs: _Codecs) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """Every model (the Model preference) and the variants some models' dialects need: a model
+    with no variant decodes with its dialect's defaults."""
+    models: list[dict[str, Any]] = []
+    variants: dict[str, Any] = {}
+    seen: dict[str, str] = {}  # a variant's Lua text -> the first model that has it
+    for name, model in all_models().items():
+        if model.dialect not in tables:
+            continue
+        variant = _variant(tables[model.dialect], model, codecs)
+        key = None
+        if variant is not None:
+            text = to_lua(variant)
+            key = seen.setdefault(text, name)
+            variants.setdefault(key, variant)
+        models.append({"name": name, "dialect": model.dialect, "variant": key})
+    return models, variants
+
+
+def _field_types(tables: Iterable[dict[str, Any]], codecs: list[dict[str, Any]]) -> dict[str, str]:
     """Every field name -> "double" when all its codecs decode to numbers, else "string"."""
     kinds: dict[str, set[bool]] = {}
-    for d in dialects:
-        for spec in d.commands.values():
-            for form in spec.forms:
-                for f in form.fields:
-                    kinds.setdefault(f.name, set()).add(type(f.codec).__name__ in NUMERIC_CODECS)
+    for table in tables:
+        for cmd in table["commands"].values():
+            for form in cmd["forms"]:
+                for f in form["fields"]:
+                    kinds.setdefault(f["n"], set()).add(codecs[f["c"] - 1]["numeric"])
     return {name: ("double" if k == {True} else "string") for name, k in sorted(kinds.items())}
 
 
@@ -316,9 +355,11 @@ def catalog_tables(dialect_names: Iterable[str] = DIALECT_NAMES) -> dict[str, An
     dialects = [get_dialect(n) for n in dialect_names]
     codecs = _Codecs()
     tables = {d.name: _dialect(d, codecs) for d in dialects}
+    models, variants = _models(tables, codecs)
     ports: dict[str, dict[int, str]] = {"udp": {}, "tcp": {}}
     for (transport, port), name in sorted(documented_ports().items()):
-        ports[transport][port] = name
+        if name in tables:
+            ports[transport][port] = name
     return {
         # The parser takes only 3 ASCII letters or digits as an identifier (and lets a valid frame
         # starting inside a chance checksum match win) once protocol.frame has is_identifier.
@@ -330,29 +371,47 @@ def catalog_tables(dialect_names: Iterable[str] = DIALECT_NAMES) -> dict[str, An
         "max_ascii_length": MAX_LENGTH["#TP"],
         "max_data_length": FrameParser().max_data_length,
         "ports": ports,
-        "field_types": _field_types(dialects),
+        "field_types": _field_types([*tables.values(), *variants.values()], codecs.entries),
         "codecs": codecs.entries,
         "dialects": tables,
+        "models": models,
+        "variants": variants,
     }
 
 
 HEADER = """\
 -- topgimbal.lua: Wireshark dissector for the TOP gimbal-camera protocol
--- (SkyDroid C10/C10Pro/C12/C13/C20 and TOPOTEK SIP).
+-- (SkyDroid C10/C10Pro/C11/C12/C13/C20 and TOPOTEK SIP).
 --
 -- GENERATED by `topgimbal dissector` from the topgimbal catalog: do not edit by hand.
 -- Install: copy into your personal Lua plugins folder (see docs/wireshark.md), or run
 --   tshark -X lua_script:topgimbal.lua -r capture.pcap
 -- Filter fields start with `top.` (top.id == "GAC", top.checksum.status == 0, top.field.yaw_deg > 10).
+-- Preferences: top.model (a device model, e.g. C11), top.dialect (skydroid, topotek); both auto
+-- by default (documented port, else the frame). Runs on Lua 5.2, 5.3 and 5.4.
 """
 
 
+def _source(name: str) -> str:
+    return resources.files(__package__).joinpath(name).read_text(encoding="utf-8")
+
+
+def core_source() -> str:
+    """The pure Lua core (scanner, codec decoders, dialect choice): no Wireshark API, it expects
+    the generated `GEN` table before it and leaves its functions in the local table `CORE`."""
+    return _source("dissector_core.lua")
+
+
 def runtime_source() -> str:
-    """The fixed Lua runtime (shipped with the package)."""
-    return resources.files(__package__).joinpath("dissector_runtime.lua").read_text(encoding="utf-8")
+    """The fixed Lua runtime: the core followed by the Wireshark glue (shipped with the package)."""
+    return core_source() + "\n" + _source("dissector_runtime.lua")
+
+
+def generated_tables(dialect_names: Iterable[str] = DIALECT_NAMES) -> str:
+    """`local GEN = {...}`: the catalog as the Lua runtime reads it."""
+    return "local GEN = " + to_lua(catalog_tables(dialect_names)) + "\n"
 
 
 def generate_dissector(dialect_names: Iterable[str] = DIALECT_NAMES) -> str:
     """The whole dissector: generated tables followed by the runtime."""
-    tables = catalog_tables(dialect_names)
-    return HEADER + "\nlocal GEN = " + to_lua(tables) + "\n\n" + runtime_source()
+    return HEADER + "\n" + generated_tables(dialect_names) + "\n" + runtime_source()

@@ -238,19 +238,27 @@ def _packet(btype: int, body: bytes, order: str, interfaces: list[_Interface]) -
 
 
 class PcapWriter:
-    """Writes a classic pcap file (microsecond timestamps, little-endian). Every record is
-    flushed as written, so a reader (or Wireshark) sees packets while the capture runs."""
+    """Writes a classic pcap file (microsecond timestamps, little-endian). By default every record
+    is flushed as written, so a reader (or Wireshark) sees packets while the capture runs; with
+    `flush_each=False` records wait in a `BUFFER`-byte buffer until `flush()` (or the buffer fills),
+    one write for many packets: for a writer on a busy path that flushes on a timer."""
 
-    def __init__(self, dest: str | Path | IO[bytes], linktype: int = LINKTYPE_ETHERNET) -> None:
+    BUFFER = 64 * 1024
+
+    def __init__(
+        self, dest: str | Path | IO[bytes], linktype: int = LINKTYPE_ETHERNET, *, flush_each: bool = True
+    ) -> None:
         self.linktype = linktype
+        self.flush_each = flush_each
         self._own = isinstance(dest, (str, Path))
         self._fh: IO[bytes] | None
         if isinstance(dest, (str, Path)):
-            self._fh = Path(dest).open("wb")  # noqa: SIM115 - owned; closed by close()
+            self._fh = Path(dest).open("wb", buffering=self.BUFFER)  # noqa: SIM115 - owned; closed by close()
         else:
             self._fh = dest
         self.packets = 0
         self._start()
+        self.flush()  # the file header at once: the file is a valid (empty) capture from the start
 
     def _start(self) -> None:
         self._out(struct.pack("<IHHiIII", _PCAP_MAGIC_US, 2, 4, 0, 0, SNAPLEN, self.linktype))
@@ -260,14 +268,22 @@ class PcapWriter:
             raise CaptureError("the capture file is closed")
         self._fh.write(data)
 
+    def _record(self, data: bytes) -> None:
+        self._out(data)
+        self.packets += 1
+        if self.flush_each:
+            self.flush()
+
     def write(self, ts: float, packet: bytes) -> None:
         """Append one packet captured at `ts` (seconds since the epoch)."""
         micros = round(ts * 1_000_000)
         sec, usec = divmod(micros, 1_000_000)
-        self._out(struct.pack("<IIII", sec, usec, len(packet), len(packet)) + packet)
-        self.packets += 1
-        assert self._fh is not None
-        self._fh.flush()
+        self._record(struct.pack("<IIII", sec, usec, len(packet), len(packet)) + packet)
+
+    def flush(self) -> None:
+        """Hand what waits to the operating system (a reader then sees whole records)."""
+        if self._fh is not None:
+            self._fh.flush()
 
     def close(self) -> None:
         if self._fh is not None:
@@ -289,28 +305,25 @@ class PcapngWriter(PcapWriter):
 
     def _start(self) -> None:
         shb = struct.pack("<IHHq", _PCAPNG_BOM, 1, 0, -1)
-        self._block(_PCAPNG_SHB, shb)
-        self._block(_IDB, struct.pack("<HHI", self.linktype, 0, SNAPLEN))
+        self._out(self._block(_PCAPNG_SHB, shb))
+        self._out(self._block(_IDB, struct.pack("<HHI", self.linktype, 0, SNAPLEN)))
 
-    def _block(self, btype: int, body: bytes) -> None:
+    def _block(self, btype: int, body: bytes) -> bytes:
         body += b"\0" * (-len(body) % 4)
         length = len(body) + 12
-        self._out(struct.pack("<II", btype, length) + body + struct.pack("<I", length))
+        return struct.pack("<II", btype, length) + body + struct.pack("<I", length)
 
     def write(self, ts: float, packet: bytes) -> None:
         micros = round(ts * 1_000_000)
         head = struct.pack("<IIIII", 0, micros >> 32, micros & 0xFFFFFFFF, len(packet), len(packet))
-        self._block(_EPB, head + packet)
-        self.packets += 1
-        assert self._fh is not None
-        self._fh.flush()
+        self._record(self._block(_EPB, head + packet))
 
 
-def open_writer(path: str | Path, linktype: int = LINKTYPE_ETHERNET) -> PcapWriter:
+def open_writer(path: str | Path, linktype: int = LINKTYPE_ETHERNET, *, flush_each: bool = True) -> PcapWriter:
     """A pcapng writer for `*.pcapng`, a pcap writer otherwise."""
     try:
         if str(path).lower().endswith(".pcapng"):
-            return PcapngWriter(path, linktype)
-        return PcapWriter(path, linktype)
+            return PcapngWriter(path, linktype, flush_each=flush_each)
+        return PcapWriter(path, linktype, flush_each=flush_each)
     except OSError as exc:
         raise CaptureError(f"{path}: {exc.strerror or exc}") from None

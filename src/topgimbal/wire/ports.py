@@ -1,5 +1,8 @@
-"""Which dialect a conversation speaks, decided as everywhere else in topgimbal: by the model
-when the user names one, by a documented port when the traffic uses one, else by the frame.
+"""Which dialect a conversation's port implies: the documented ports of the catalog's models.
+
+A port only says which dialect to try first: decoding itself is `protocol.decode_any(frame,
+prefer=...)` everywhere (the proxy, `decode --pcap`, and the Lua dissector, which ports the same
+rule), so a frame the port's dialect cannot decode is decoded by the other one.
 
 The port table comes from the catalog's device models (their documented endpoints); the only
 addition is TOPOTEK's client port 9004, which its document gives as the port a host listens on
@@ -10,7 +13,7 @@ from __future__ import annotations
 
 from functools import cache
 
-from ..protocol import DIALECT_NAMES, Dialect, Frame, Message, get_dialect
+from ..protocol import DIALECT_NAMES, get_dialect
 
 # (transport, port) -> dialect for ports a host, not a device, uses by convention.
 CLIENT_PORTS: dict[tuple[str, int], str] = {("udp", 9004): "topotek"}
@@ -39,28 +42,3 @@ def dialect_for_ports(transport: str, *ports: int) -> str | None:
         if name is not None:
             return name
     return None
-
-
-def frame_candidates(frame: Frame) -> list[Dialect]:
-    """Dialects to try for a frame when nothing else says: TOPOTEK-only traits (the network host
-    address P, the #tP/#Tp headers) put TOPOTEK first, otherwise SkyDroid is tried first (the CLI's
-    `decode` does the same)."""
-    order = list(DIALECT_NAMES)
-    if "P" in (frame.src, frame.dst) or frame.header in ("#tP", "#Tp"):
-        order = ["topotek", "skydroid"]
-    return [get_dialect(n) for n in order]
-
-
-def decode_frame(frame: Frame, dialect: Dialect | str | None) -> tuple[Dialect, Message]:
-    """The frame decoded in `dialect`, or in the first candidate dialect whose forms fit it."""
-    if dialect is not None:
-        d = get_dialect(dialect)
-        return d, d.decode(frame)
-    first: tuple[Dialect, Message] | None = None
-    for d in frame_candidates(frame):
-        msg = d.decode(frame)
-        first = first or (d, msg)
-        if msg.fields is not None:
-            return d, msg
-    assert first is not None
-    return first

@@ -5,8 +5,11 @@ ways unchanged, and decodes what passes.
     unsubscribe = proxy.subscribe(lambda event: print(event.direction, event.item))
     await proxy.start(); ...; await proxy.stop()
 
-Forwarding comes first: a chunk is sent on before it is decoded, logged or shown, so watching
-costs the link no latency. Between a stream side (TCP, serial) and a datagram side (UDP) bytes are
+Forwarding comes first: a chunk is sent on before it is decoded, logged or shown. What happens
+after (`watcher.Watcher`: frames found, captured, decoded once, logged, published) runs either
+here, in steps between datagrams (subscribers run on this loop), or with `offload=` in a watcher
+process of its own (`offload.WatcherProcess`: `topgimbal proxy` does this, so the forwarding
+process stays as light as forwarding alone; subscribers are then not available). Between a stream side (TCP, serial) and a datagram side (UDP) bytes are
 sent on at frame boundaries (what the frame parser has consumed), so each datagram holds whole
 frames; bytes the parser still holds are sent as they are after `STREAM_FLUSH_S` of silence.
 
@@ -33,68 +36,42 @@ import select
 import socket
 import time
 from collections import OrderedDict, deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..client.traffic import TrafficLog
 from ..errors import TopGimbalError, TransportError
-from ..protocol import Diagnostic, Dialect, Frame, FrameParser, Message, get_dialect, get_model
+from ..protocol import Dialect, FrameParser, get_dialect, get_model
 from ..transport import Transport, TransportURL, open_transport, parse_url
+from .offload import WatcherProcess
 from .packets import Endpoint
-from .ports import decode_frame, dialect_for_ports, documented_ports
-from .synth import CaptureWriter
+from .ports import dialect_for_ports, documented_ports
 from .udplink import UdpSocket
+from .watcher import (
+    CLOSED,
+    IN,
+    MAX_SUBSCRIBERS,
+    OUT,
+    Chunk,
+    ProxyError,
+    ProxyEvent,
+    ProxyStats,
+    Subscriber,
+    Watcher,
+)
 
 log = logging.getLogger("topgimbal.proxy")
 
 MAX_CLIENTS = 8
 IDLE_TIMEOUT_S = 120.0
 MAX_QUEUED = 64 * 1024  # bytes waiting for a client's device link to open, or unread by a TCP client
-MAX_SUBSCRIBERS = 32
 STREAM_FLUSH_S = 0.05
 MAX_BACKLOG = 1024 * 1024  # bytes forwarded but not yet decoded (decoding fell behind the link)
-DEFER_S = 0.001  # decoding starts this long after a chunk is forwarded (its reply goes first)
+DEFER_S = 0.0002  # decoding starts this long after a chunk is forwarded (a loopback reply goes first)
 PROCESS_SLICE_S = 0.0005  # decoding runs at most this long before the loop polls sockets again
-OUT, IN = "out", "in"  # client -> device, device -> client (the traffic log's words)
-CLOSED = "closed"  # a session's end, queued behind its last bytes
+FLUSH_S = 0.2  # the pcap and the log are handed to the files this often (and at stop)
 SERIAL_CLIENT: Endpoint = ("127.0.0.1", 40000)
-
-
-class ProxyError(TopGimbalError):
-    """The proxy cannot start as asked."""
-
-
-@dataclass(frozen=True)
-class ProxyEvent:
-    """One frame (or what the parser says about bytes that are not one) that crossed the proxy."""
-
-    t: float  # wall clock, seconds
-    direction: str  # "out": client -> device; "in": device -> client
-    client: str  # which client ("udp 127.0.0.1:53012", "tcp ...", "serial ...")
-    item: Frame | Diagnostic
-    dialect: Dialect | None
-    message: Message | None  # None for diagnostics
-
-
-Subscriber = Callable[[ProxyEvent], None]
-_Work = tuple[float, "_Session", str, bytes, "list[Frame | Diagnostic] | None"]
-
-
-@dataclass
-class ProxyStats:
-    frames_out: int = 0
-    frames_in: int = 0
-    bytes_out: int = 0
-    bytes_in: int = 0
-    clients: int = 0
-    clients_dropped: int = 0
-    subscriber_errors: int = 0
-    backlog_dropped: int = 0
-
-    def as_dict(self) -> dict[str, int]:
-        return dict(self.__dict__)
 
 
 @dataclass
@@ -257,6 +234,7 @@ class Proxy:
         log_path: str | Path | None = None,
         max_clients: int = MAX_CLIENTS,
         idle_timeout_s: float = IDLE_TIMEOUT_S,
+        offload: WatcherProcess | None = None,
     ) -> None:
         self.listen: TransportURL = parse_url(listen)
         self.to: TransportURL = parse_url(to)
@@ -279,14 +257,13 @@ class Proxy:
         self.pcap_path = Path(pcap) if pcap else None
         self.log_path = Path(log_path) if log_path else None
         self.stats = ProxyStats()
-        self._subscribers: list[Subscriber] = []
         self._sessions: OrderedDict[Any, _Session] = OrderedDict()
-        self._backlog: deque[_Work] = deque()
+        self._backlog: deque[Chunk] = deque()
         self._backlog_bytes = 0
         self._poll = select.poll()
         self._drain_handle: asyncio.TimerHandle | None = None
-        self._pcap: CaptureWriter | None = None
-        self._log: TrafficLog | None = None
+        self._current: Iterator[bool] | None = None  # the chunk being worked off, step by step
+        self._flusher: asyncio.TimerHandle | None = None
         self._udp: UdpSocket | None = None
         self._server: asyncio.AbstractServer | None = None
         self._serial: Transport | None = None
@@ -296,22 +273,34 @@ class Proxy:
         if self._transport_kind == "serial":
             self._transport_kind = "udp"
         self.listen_address: tuple[str, int] | None = None
+        log_header = {
+            "url": self.to.text,
+            "model": self.model or "",
+            "dialect": self.dialect.name if self.dialect else "",
+        }
+        # what happens to traffic after it is forwarded: here (in steps between datagrams), or in
+        # a process of its own (`offload`, the CLI's choice: the forwarding process stays light)
+        self.watcher = Watcher(
+            dialect=self.dialect,
+            device=self._device_ep,
+            transport=self._transport_kind,
+            pcap=self.pcap_path,
+            log_path=self.log_path,
+            log_header=log_header,
+            stats=self.stats,
+        )
+        self.offload = offload
 
     # -- subscribers ------------------------------------------------------------------------------
 
     def subscribe(self, callback: Subscriber) -> Callable[[], None]:
         """Call `callback(event)` for every frame that crosses the proxy; returns the function that
         unsubscribes. Callbacks run on the proxy's event loop: keep them short. An exception in one
-        is logged and counted, never passed on."""
-        if len(self._subscribers) >= MAX_SUBSCRIBERS:
-            raise ProxyError(f"at most {MAX_SUBSCRIBERS} subscribers")
-        self._subscribers.append(callback)
-
-        def unsubscribe() -> None:
-            with contextlib.suppress(ValueError):
-                self._subscribers.remove(callback)
-
-        return unsubscribe
+        is logged and counted, never passed on. At most MAX_SUBSCRIBERS; not with `offload` (the
+        frames are decoded in another process)."""
+        if self.offload is not None:
+            raise ProxyError("subscribers run in the proxy's process; this proxy decodes in a watcher process")
+        return self.watcher.subscribe(callback)
 
     # -- lifecycle --------------------------------------------------------------------------------
 
@@ -326,19 +315,13 @@ class Proxy:
 
     async def start(self) -> None:
         loop = asyncio.get_running_loop()
-        self._device_ep = await self._device_endpoint()
-        try:
-            if self.pcap_path:
-                self._pcap = CaptureWriter(self.pcap_path)
-            if self.log_path:
-                self._log = TrafficLog(
-                    self.log_path,
-                    url=self.to.text,
-                    model=self.model or "",
-                    dialect=self.dialect.name if self.dialect else "",
-                )
-        except OSError as exc:
-            raise ProxyError(f"cannot write {exc.filename}: {exc.strerror}") from None
+        self._device_ep = self.watcher.device = await self._device_endpoint()
+        if self.offload is not None:
+            await self.offload.start(self._watcher_config())
+        else:
+            self.watcher.open()
+            if self.watcher.writes_files:
+                self._flusher = loop.call_later(FLUSH_S, self._flush_timer)
         try:
             if self.listen.scheme == "udp":
                 self._udp = await UdpSocket.bind(self.listen.host, self.listen.port or 0, self._udp_datagram)
@@ -362,6 +345,9 @@ class Proxy:
     async def stop(self) -> None:
         if self._sweeper is not None:
             self._sweeper.cancel()
+        if self._flusher is not None:
+            self._flusher.cancel()
+            self._flusher = None
         self.drain()
         for session in list(self._sessions.values()):
             await session.close()
@@ -374,12 +360,25 @@ class Proxy:
         if self._serial is not None:
             await self._serial.close()
         self.drain()
-        if self._pcap is not None:
-            self._pcap.close()
-            self._pcap = None
-        if self._log is not None:
-            self._log.close()
-            self._log = None
+        if self.offload is not None:
+            counted = await self.offload.stop()
+            self.stats.backlog_dropped += self.offload.dropped
+            for key in ("frames_out", "frames_in", "bytes_out", "bytes_in", "subscriber_errors"):
+                setattr(self.stats, key, getattr(self.stats, key) + int(counted.get(key, 0)))
+        self.watcher.close()  # writes what waits
+
+    def _watcher_config(self) -> dict[str, Any]:
+        """What a watcher process needs to do what `self.watcher` would do here."""
+        w = self.watcher
+        return {
+            "model": self.model,
+            "dialect": self.dialect.name if self.dialect else None,
+            "device": w.device,
+            "transport": w.transport,
+            "pcap": str(w.pcap_path) if w.pcap_path else None,
+            "log_path": str(w.log_path) if w.log_path else None,
+            "log_header": w.log_header,
+        }
 
     async def __aenter__(self) -> Proxy:
         await self.start()
@@ -481,7 +480,7 @@ class Proxy:
         t = time.time()
         if not (d.to_datagram and not d.from_datagram):
             send(data)
-            self._queue((t, session, direction, data, None))
+            self._queue(Chunk(t, session.label, session.endpoint, direction, data, d.from_datagram, None))
             return
         # stream -> datagram: send what the parser has consumed (whole frames), hold the rest
         items = d.parser.feed(data)
@@ -497,18 +496,23 @@ class Proxy:
             d.flush_timer = asyncio.get_running_loop().call_later(
                 STREAM_FLUSH_S, self._flush_held, session, direction, send
             )
-        self._queue((t, session, direction, held[:ready] if ready > 0 else b"", items))
+        self._queue(
+            Chunk(t, session.label, session.endpoint, direction, held[:ready] if ready > 0 else b"", False, items)
+        )
 
     def _flush_held(self, session: _Session, direction: str, send: Callable[[bytes], None]) -> None:
         d = session.dirs[direction]
         d.flush_timer = None
         if d.held and not session.closed:
             send(d.held)
-            self._queue((time.time(), session, direction, d.held, d.parser.flush()))
+            self._queue(Chunk(time.time(), session.label, session.endpoint, direction, d.held, False, d.parser.flush()))
             d.held = b""
 
-    def _queue(self, work: _Work) -> None:
-        size = len(work[3]) + 64  # an empty chunk (a session's end, a flush) still costs an entry
+    def _queue(self, work: Chunk) -> None:
+        if self.offload is not None:
+            self.offload.submit(work)
+            return
+        size = len(work.data) + 64  # an empty chunk (a session's end, a flush) still costs an entry
         if self._backlog_bytes + size > MAX_BACKLOG:
             self.stats.backlog_dropped += 1
             if self.stats.backlog_dropped == 1:
@@ -522,19 +526,29 @@ class Proxy:
     def _drain(self) -> None:
         self._drain_handle = None
         end = time.perf_counter() + PROCESS_SLICE_S
-        while self._backlog:
-            self._process(*self._take())
-            if time.perf_counter() > end or self._bytes_waiting():
+        while not self._bytes_waiting():
+            if self._current is None:
+                if not self._backlog:
+                    break
+                self._current = self.watcher.steps(self._take())
+            if next(self._current, None) is None:
+                self._current = None
+            if time.perf_counter() > end:
                 break
-        if self._backlog:
-            self._drain_handle = asyncio.get_running_loop().call_soon(self._drain)  # type: ignore[assignment]
+        if self._backlog or self._current is not None:
+            # A timer, not call_soon: asyncio runs the callbacks of sockets found readable before
+            # the timers that fell due, so a waiting datagram is forwarded before decoding goes on
+            # (a call_soon callback would run first and decode one more chunk).
+            self._drain_handle = asyncio.get_running_loop().call_later(0, self._drain)
 
     def _bytes_waiting(self) -> bool:
         """Whether a UDP socket of the proxy has a datagram to forward (then decoding yields)."""
         try:
-            return bool(self._poll.poll(0))
-        except OSError:  # pragma: no cover - a socket closed under us: let the loop sort it out
-            return True
+            # POLLIN or POLLERR (the loop's reader consumes both); never POLLNVAL, which a closed
+            # descriptor would report forever and so stall decoding for good
+            return any(ev & (select.POLLIN | select.POLLERR) for _, ev in self._poll.poll(0))
+        except OSError:  # pragma: no cover - poll itself failed: decode on, the loop sorts sockets out
+            return False
 
     def _watch(self, sock: UdpSocket, on: bool = True) -> None:
         with contextlib.suppress(KeyError, ValueError, OSError):
@@ -548,71 +562,44 @@ class Proxy:
         if self._drain_handle is not None:
             self._drain_handle.cancel()
             self._drain_handle = None
+        if self._current is not None:
+            for _ in self._current:
+                pass
+            self._current = None
         while self._backlog:
-            self._process(*self._take())
+            self.watcher.run(self._take())
 
-    def _take(self) -> _Work:
+    def flush(self) -> None:
+        """Hand what the pcap and the log hold to their files (a timer does this every FLUSH_S)."""
+        self.watcher.flush()
+
+    def _flush_timer(self) -> None:
+        self.flush()
+        self._flusher = asyncio.get_running_loop().call_later(FLUSH_S, self._flush_timer)
+
+    def _take(self) -> Chunk:
         work = self._backlog.popleft()
-        self._backlog_bytes -= len(work[3]) + 64
+        self._backlog_bytes -= len(work.data) + 64
         return work
 
-    def _process(
-        self, t: float, session: _Session, direction: str, data: bytes, items: list[Frame | Diagnostic] | None
-    ) -> None:
-        if direction == CLOSED:
-            if self._pcap is not None:
-                self._pcap.close_tcp(session.endpoint, self._device_ep, t)
-            return
-        if items is None:
-            d = session.dirs[direction]
-            items = d.parser.feed_datagram(data) if d.from_datagram else d.parser.feed(data)
-        if data:
-            self._record(t, session, direction, data)
-        self._publish(t, session, direction, items)
-
     def _closed(self, session: _Session) -> None:
-        """A session ended: its TCP connection in the pcap ends too, after what it sent."""
-        if self._transport_kind == "tcp":
-            self._queue((time.time(), session, CLOSED, b"", []))
-
-    def _record(self, t: float, session: _Session, direction: str, data: bytes) -> None:
-        if direction == OUT:
-            self.stats.bytes_out += len(data)
-        else:
-            self.stats.bytes_in += len(data)
-        if self._pcap is None:
-            return
-        a, b = (session.endpoint, self._device_ep) if direction == OUT else (self._device_ep, session.endpoint)
-        try:
-            if self._transport_kind == "tcp":
-                self._pcap.tcp(a, b, data, t, client=session.endpoint)
-            else:
-                self._pcap.udp(a, b, data, t)
-        except (OSError, ValueError) as exc:
-            log.error("proxy: pcap %s: %s; no longer written", self.pcap_path, exc)
-            self._pcap = None
-
-    def _publish(self, t: float, session: _Session, direction: str, items: list[Frame | Diagnostic]) -> None:
-        for item in items:
-            dialect: Dialect | None = None
-            message: Message | None = None
-            if isinstance(item, Frame):
-                dialect, message = decode_frame(item, self.dialect)
-                if direction == OUT:
-                    self.stats.frames_out += 1
-                else:
-                    self.stats.frames_in += 1
-                if self._log is not None:
-                    self._log.record(direction, item, message)
-            event = ProxyEvent(t, direction, session.label, item, dialect, message)
-            for callback in list(self._subscribers):
-                try:
-                    callback(event)
-                except Exception:
-                    self.stats.subscriber_errors += 1
-                    log.exception("proxy: subscriber %r failed", callback)
+        """A session ended: its parsers go, and its TCP connection in the pcap ends after what it sent."""
+        self._queue(Chunk(time.time(), session.label, session.endpoint, CLOSED, b"", False, []))
 
 
 def _ep_text(addr: tuple[Any, ...]) -> str:
     host, port = str(addr[0]), addr[1]
     return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+
+
+__all__ = [
+    "FLUSH_S",
+    "MAX_BACKLOG",
+    "MAX_CLIENTS",
+    "MAX_SUBSCRIBERS",
+    "Proxy",
+    "ProxyError",
+    "ProxyEvent",
+    "ProxyStats",
+    "Subscriber",
+]

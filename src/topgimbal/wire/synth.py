@@ -27,11 +27,12 @@ class _Tcp:
 
 class CaptureWriter:
     """Packets between endpoints, written to `path` (pcapng if it ends in .pcapng). Addresses
-    are IPv4 or IPv6 text; each call may pass `ts` (seconds since the epoch, default now)."""
+    are IPv4 or IPv6 text; each call may pass `ts` (seconds since the epoch, default now).
+    `flush_each=False`: packets wait in a buffer until `flush()` (see `PcapWriter`)."""
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, *, flush_each: bool = True) -> None:
         self.path = Path(path)
-        self._out: PcapWriter = open_writer(path, LINKTYPE_ETHERNET)
+        self._out: PcapWriter = open_writer(path, LINKTYPE_ETHERNET, flush_each=flush_each)
         self._tcp: dict[frozenset[Endpoint], _Tcp] = {}
         self._ident = 0
         self._last_ts: float | None = None
@@ -84,6 +85,9 @@ class CaptureWriter:
         self._write(ts, "tcp", src, dst, b"", seq=a, ack=b, flags=TCP_FIN | TCP_ACK)
         self._write(ts, "tcp", dst, src, b"", seq=b, ack=a + 1, flags=TCP_FIN | TCP_ACK)
         self._write(ts, "tcp", src, dst, b"", seq=a + 1, ack=b + 1, flags=TCP_ACK)
+
+    def flush(self) -> None:
+        self._out.flush()
 
     def close(self) -> None:
         """Close open TCP connections (FIN exchange) and the file."""
