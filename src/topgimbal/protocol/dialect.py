@@ -7,10 +7,11 @@ and what a received frame means (`decode`, which never raises)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import replace
 from typing import Any
 
+from .. import _speedups
 from ..errors import FieldValueError, UnknownCommandError, UnsupportedError
 from .commands import MANY_ROLES, ROLES, CommandSpec
 from .forms import REQUEST, RESPONSE, Form
@@ -234,6 +235,20 @@ class Dialect:
 
     def decode(self, frame: Frame) -> Message:
         """Name the fields of `frame` in user units (never raises; `error` says what did not fit)."""
+        return self.decoder()(frame)
+
+    def decoder(self) -> Callable[[Frame], Message]:
+        """The decoder behind `decode`: the C fast path's (built on first use, the same results) or
+        `_decode_py`. It becomes this dialect's `decode`, so later calls go straight to it, and
+        `FrameParser.feed_messages(data, dialect.decode)` decodes inside the C scan."""
+        dec = self.__dict__.get("decode")
+        if dec is None:
+            dec = _speedups.make_decoder(self, Message, self._decode_py) or self._decode_py
+            self.__dict__["decode"] = dec
+        return dec  # type: ignore[no-any-return]
+
+    def _decode_py(self, frame: Frame) -> Message:
+        """Dialect.decode in pure Python (the reference the fast path is tested against)."""
         spec = self.commands.get(frame.ident)
         if spec is None:
             return Message(frame, None, None, None, f"{frame.ident!r} is not in the {self.name} catalog", self.name)
