@@ -8,19 +8,14 @@
  * drive it, agree with the pure Python parser frame for frame. Keep the two side by side when
  * either changes; the differential tests compare them.
  */
-#include "topgimbal.h"
+#include "tg_internal.h"
 
 #define ASCII_MAX_TOTAL (12 + 15)
 #define END_INVALID (-1L)
 #define END_NEED (-2L)
 #define END_OVERSIZE (-3L)
 
-static int hexval(uint8_t c) {
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-    return -1;
-}
+static int hexval(uint8_t c) { return tg_hexval[c]; }
 
 static int is_addr(uint8_t c) {
     return c == 'U' || c == 'M' || c == 'D' || c == 'E' || c == 'P' || c == 'G';
@@ -101,10 +96,20 @@ static long frame_end(const uint8_t *buf, size_t n, size_t i, uint32_t max_data)
     return (long)i + 12 + len;
 }
 
-/* Checksum as written (all upper or all lower case hex), the hot path's test. */
-static int crc_ok_exact(const uint8_t *buf, size_t start, size_t end) {
-    uint8_t s = sum8(buf + start, end - 2 - start);
-    uint8_t hi = hexdigit(s >> 4), lo = hexdigit(s & 15);
+/* Checksum as written (all upper or all lower case hex), the hot path's test; *hash_inside says
+ * whether a '#' follows the frame's own (the summing loop looks anyway). */
+static int crc_ok_exact(const uint8_t *buf, size_t start, size_t end, int *hash_inside) {
+    unsigned sum = buf[start], found = 0;
+    size_t k;
+    uint8_t s, hi, lo;
+    for (k = start + 1; k < end - 2; k++) {
+        sum += buf[k];
+        found |= buf[k] == '#';
+    }
+    *hash_inside = (int)found;
+    s = (uint8_t)sum;
+    hi = hexdigit(s >> 4);
+    lo = hexdigit(s & 15);
     uint8_t a = buf[end - 2], b = buf[end - 1];
     if (a == hi && b == lo) return 1;
     if (hi >= 'A') hi = (uint8_t)(hi + 32);
@@ -194,7 +199,7 @@ void tg_scan_step(const uint8_t *buf, size_t n, size_t pos, int final, const tg_
         wait(o, n, n + 1, 1);
         return;
     }
-    i = find_hash(buf, pos, n);
+    i = buf[pos] == '#' ? (long)pos : find_hash(buf, pos, n);
     if (i < 0) {
         set(o, TG_STEP_DISCARD, TG_DIAG_GARBAGE, TG_R_OUTSIDE, pos, n, n);
         return;
@@ -241,8 +246,9 @@ void tg_scan_step(const uint8_t *buf, size_t n, size_t pos, int final, const tg_
         set(o, TG_STEP_DISCARD, TG_DIAG_GARBAGE, TG_R_INCOMPLETE_FOLLOWED, (size_t)i, (size_t)j, (size_t)j);
         return;
     }
-    if (crc_ok_exact(buf, (size_t)i, (size_t)end)) {
-        j = inner_frame(buf, n, (size_t)i, (size_t)end, final, cfg->max_data);
+    if (crc_ok_exact(buf, (size_t)i, (size_t)end, &r)) {
+        /* the checksum characters matched hex digits: a '#' inside can only be in the data */
+        j = r ? inner_frame(buf, n, (size_t)i, (size_t)end, final, cfg->max_data) : -1;
         if (j == -2) { /* the one documented wait: a '#' and a header inside binary data */
             wait(o, (size_t)i, n + 1, 1);
             return;
