@@ -24,6 +24,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
+from zlib import adler32 as _adler32
 
 from .. import _speedups
 from .frame import Frame, checksum_text
@@ -42,6 +43,11 @@ _HDR = {b"TP": "#TP", b"tp": "#tp", b"tP": "#tP", b"Tp": "#Tp"}
 _ASCII_HDR = frozenset((b"TP", b"tp"))
 _SEPARATORS = frozenset(b"\r\n")
 _HEX2 = [b"%02X" % i for i in range(256)]
+# A frame's ten header bytes -> (declared data length, the Frame's first five items): headers repeat
+# (the same command, addresses and length), so a valid one is judged once. Bounded: cleared when full.
+_HEADERS: dict[bytes, tuple[int, tuple[str, str, str, str, str]]] = {}
+_HEADERS_MAX = 4096
+_new_tuple = tuple.__new__
 _HEX2_LOWER = [b"%02x" % i for i in range(256)]
 _ASCII_MAX_TOTAL = 12 + 15
 # Why bytes were discarded, by the C scanner's reason codes (enum tg_reason in c/include/topgimbal.h):
@@ -122,22 +128,58 @@ class FrameParser:
     def _feed_py(self, data: bytes, final: bool, decode: Callable[[Frame], Any] | None) -> list[Any]:
         """feed / feed_datagram / flush / feed_messages in pure Python. With the fast path in use,
         those four methods are the C scanner's, which give the same events and statistics."""
-        self.stats.bytes += len(data)
+        stats = self.stats
+        stats.bytes += len(data)
         buf = self._buf + data if self._buf else bytes(data)
+        n_buf = len(buf)
         out: list[Any] = []
-        pos = self._scan(buf, 0, out, final=False)
-        if final:  # the rest as if the stream ended here
-            pos = self._scan(buf, pos, out, final=True)
-            if pos < len(buf):
-                self._discard(buf[pos:], out, _WHY[END_OF_STREAM])
-            pos = len(buf)
-        self._buf = buf[pos:]
-        if decode is not None:
-            return [decode(e) if type(e) is Frame else e for e in out]
-        return out
+        append = out.append
+        max_data = self.max_data_length
+        # The common case inline: good frames back to back (line ends between them are no news),
+        # each with a header seen before. Anything else goes to the full scan from where it is.
+        pos = 0
+        while pos < n_buf:
+            if buf[pos] != 0x23:
+                # line ends are skipped only before a '#' or the end (else they belong to the bytes
+                # the full scan discards, and its diagnostic shows them)
+                after = pos + 1
+                while after < n_buf and buf[after] in _SEPARATORS:
+                    after += 1
+                if buf[pos] in _SEPARATORS and (after == n_buf or buf[after] == 0x23):
+                    pos = after
+                    continue
+                break
+            head = _HEADERS.get(buf[pos : pos + 10])
+            if head is None or head[0] > max_data:
+                break
+            end = pos + 12 + head[0]
+            if end > n_buf:
+                break
+            crc = buf[end - 2 : end]
+            # adler32's low half is 1 + the byte sum while that sum stays below 65520 (at most 256
+            # bytes before the checksum): the checksum in one C call
+            s = ((_adler32(buf[pos : end - 2]) & 0xFFFF) - 1 if end - pos <= 258 else sum(buf[pos : end - 2])) & 0xFF
+            if not (crc == _HEX2[s] or crc == _HEX2_LOWER[s]) or buf.find(b"#", pos + 1, end) >= 0:
+                break
+            append(_new_tuple(Frame, head[1] + (buf[pos + 10 : end - 2], None)))
+            pos = end
+        stats.frames += len(out)
+        if pos < n_buf:
+            pos = self._scan(buf, pos, out, final=False)
+            if final:  # the rest as if the stream ended here
+                pos = self._scan(buf, pos, out, final=True)
+                if pos < n_buf:
+                    self._discard(buf[pos:], out, _WHY[END_OF_STREAM])
+                pos = n_buf
+            self._buf = buf[pos:]
+            if decode is not None:
+                return [decode(e) if type(e) is Frame else e for e in out]
+            return out
+        self._buf = b""
+        return out if decode is None else list(map(decode, out))
 
     def _discard(self, raw: bytes, out: list[Any], why: str, kind: str = "garbage") -> None:
-        junk = bytes(b for b in raw if b not in _SEPARATORS)
+        junk = raw.translate(None, b"\r\n")  # line ends between frames are no news
         if not junk:
             return
         self.stats.bytes_discarded += len(junk)
@@ -231,7 +273,13 @@ class FrameParser:
             if i > pos:
                 self._discard(buf[pos:i], out, _WHY[OUTSIDE])
                 pos = i
-            end = self._frame_end(buf, i)
+            head = _HEADERS.get(buf[i : i + 10])
+            if head is not None:
+                end = i + 12 + head[0] if head[0] <= self.max_data_length else -3
+            else:
+                end = self._frame_end(buf, i)
+                if end >= 0:
+                    head = _remember_header(buf, i, end - i - 12)
             if end == -2:
                 return i  # too few bytes to judge the header yet (flush() discards them)
             if end == -1:
@@ -269,16 +317,9 @@ class FrameParser:
                     self._discard(buf[i:inner], out, _WHY[INNER_FRAME])
                     pos = inner
                     continue
-                ident = buf[i + 7 : i + 10].decode("ascii")
-                hdr = buf[i + 1 : i + 3]
-                if hdr == b"Tp":
-                    frame = Frame("#Tp", chr(buf[i + 3]), chr(buf[i + 4]), "", ident, buf[i + 10 : end - 2])
-                else:
-                    frame = Frame(
-                        _HDR[hdr], chr(buf[i + 3]), chr(buf[i + 4]), chr(buf[i + 6]), ident, buf[i + 10 : end - 2]
-                    )
+                assert head is not None  # set with every end >= 0
                 stats.frames += 1
-                out.append(frame)
+                out.append(_new_tuple(Frame, head[1] + (buf[i + 10 : end - 2], None)))
                 pos = end
                 continue
             # Bad checksum at the declared length.
@@ -353,6 +394,17 @@ class FrameParser:
             declared,
         )
         return frame, end
+
+
+def _remember_header(buf: bytes, i: int, n: int) -> tuple[int, tuple[str, str, str, str, str]]:
+    """The header at `i` (valid, declaring `n` data bytes) as _HEADERS keeps it."""
+    hdr = buf[i + 1 : i + 3]
+    rw = "" if hdr == b"Tp" else chr(buf[i + 6])
+    head = (n, (_HDR[hdr], chr(buf[i + 3]), chr(buf[i + 4]), rw, buf[i + 7 : i + 10].decode("ascii")))
+    if len(_HEADERS) >= _HEADERS_MAX:
+        _HEADERS.clear()
+    _HEADERS[buf[i : i + 10]] = head
+    return head
 
 
 def _bad_prefix(buf: bytes, i: int, n_buf: int) -> bool:

@@ -23,8 +23,9 @@ from typing import Any
 
 from .._speedups.spec import CodecSpec, codec_spec
 from ..errors import TopGimbalError
-from ..protocol import Diagnostic, Frame, FrameParser, make_frame
+from ..protocol import Diagnostic, Frame, make_frame
 from ..protocol.catalog import REQUEST, CommandSpec, Dialect, Form
+from ..protocol.parser import PureFrameParser
 
 DIAG = {
     "garbage": 1,
@@ -123,7 +124,7 @@ def _frame_tokens(f: Frame) -> str:
 
 
 def _events(stream: bytes, max_data: int, bytewise: bool) -> list[str]:
-    p = FrameParser(max_data_length=max_data)
+    p = PureFrameParser(max_data_length=max_data)
     out: list[Frame | Diagnostic] = []
     if bytewise:
         for i in range(len(stream)):
