@@ -18,6 +18,10 @@ RESPONSE = "response"
 FORM_ROLES = ("", "echo")  # "echo": the device's copy of a write; answers and reports leave it empty
 
 
+def _no_fields(data: bytes) -> dict[str, Any]:
+    return {}
+
+
 @dataclass(frozen=True)
 class Form:
     """One data layout of a command: control, direction, fields (or constant data).
@@ -39,7 +43,7 @@ class Form:
     _slices: tuple[tuple[str, Codec, int, int], ...] = field(init=False, repr=False, compare=False, default=())
     _min_len: int = field(init=False, repr=False, compare=False, default=0)
     _max_len: int = field(init=False, repr=False, compare=False, default=0)
-    _decoder: Callable[[bytes], dict[str, Any]] = field(init=False, repr=False, compare=False, default=dict)
+    _decoder: Callable[[bytes], dict[str, Any]] = field(init=False, repr=False, compare=False, default=_no_fields)
 
     def __post_init__(self) -> None:
         if self.rw not in ("r", "w") or self.direction not in (REQUEST, RESPONSE) or self.role not in FORM_ROLES:
