@@ -58,8 +58,11 @@ docs-check: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.gendocs --check docs/protocol.md
 	$(BIN)/topgimbal dissector --check contrib/wireshark/topgimbal.lua
 
+# The whole suite on the C fast path, then the protocol, client and fast-path tests again on the pure
+# Python path (what runs where no compiler built the extension; tests/speedups compares the two).
 pytest: $(STAMP) browser-deps tshark-deps video-deps
 	$(BIN)/python -m pytest -q
+	TOPGIMBAL_PURE=1 $(BIN)/python -m pytest -q tests/protocol tests/client tests/speedups
 
 # libtopgimbal (c/): clang with libFuzzer and sanitizer runtimes, installed only when missing.
 c-deps:

@@ -12,7 +12,7 @@ setup(
             "topgimbal._speedups._ctop",
             sources=["src/topgimbal/_speedups/_ctop.c", "c/src/tg_scan.c", "c/src/tg_codec.c"],
             include_dirs=["c/include", "c/generated"],
-            depends=["c/include/topgimbal.h", "c/generated/tg_limits.h"],
+            depends=["c/include/topgimbal.h", "c/src/tg_internal.h", "c/generated/tg_limits.h"],
             extra_compile_args=["-O2"],
             optional=True,
         )

@@ -12,7 +12,7 @@ PKG = Path(__file__).resolve().parents[1] / "src" / "topgimbal"
 # What each layer may import from inside topgimbal (besides itself and errors).
 ALLOWED = {
     "_speedups": set(),  # the optional C fast path: a leaf the protocol core may use
-    "protocol": set(),
+    "protocol": {"_speedups"},  # the fast path, used only where it is built (stdlib-only without it)
     "transport": {"protocol"},
     "client": {"protocol", "transport", "video"},  # video.lens only (the stream table; tests/video checks)
     "sim": {"protocol"},

@@ -8,11 +8,10 @@
 
 size_t shim_size(void) { return sizeof(tg_parser); }
 
-void shim_init(tg_parser *p, unsigned flags, unsigned max_data) {
+void shim_init(tg_parser *p, unsigned recover_length, unsigned max_data) {
     tg_scan_cfg cfg;
     cfg.max_data = max_data;
-    cfg.recover_length = 1;
-    cfg.flags = (uint8_t)flags;
+    cfg.recover_length = (uint8_t)recover_length;
     tg_parser_init(p, &cfg);
 }
 

@@ -85,21 +85,14 @@ enum tg_reason {
     TG_R_OVERSIZE,            /* declared length above the bound */
     TG_R_INCOMPLETE_FOLLOWED, /* incomplete frame followed by a good one */
     TG_R_END_OF_STREAM,       /* incomplete frame at end of stream */
-    TG_R_OVERLAP,             /* checksum matched by chance: overlaps the next frame */
+    TG_R_INNER_FRAME,         /* checksum matched by chance: a frame starts inside */
     TG_R_BAD_CHECKSUM,        /* checksum wrong */
     TG_R_LENGTH_MISMATCH      /* length character wrong; checksum proves the real length */
 };
 
-/* Scanner rules. Both are on by default (the protocol core's current rules); they exist so the
- * differential tests can follow a Python parser that predates them. */
-#define TG_SCAN_STRICT_IDENT 0x01u  /* an identifier is 3 ASCII letters/digits */
-#define TG_SCAN_OVERLAP_GUARD 0x02u /* a good frame never swallows one starting inside it */
-#define TG_SCAN_DEFAULT (TG_SCAN_STRICT_IDENT | TG_SCAN_OVERLAP_GUARD)
-
 typedef struct tg_scan_cfg {
     uint32_t max_data;      /* bound on the declared data length */
     uint8_t recover_length; /* accept a wrong ASCII length character when the checksum proves it */
-    uint8_t flags;          /* TG_SCAN_* */
 } tg_scan_cfg;
 
 enum tg_step_kind {
@@ -157,8 +150,8 @@ typedef struct tg_parser {
     uint8_t buf[TG_PARSER_BUF];
 } tg_parser;
 
-/* cfg NULL: bound TG_PARSER_MAX_DATA, length recovery on, TG_SCAN_DEFAULT. A larger max_data
- * is clamped to TG_PARSER_MAX_DATA. */
+/* cfg NULL: bound TG_PARSER_MAX_DATA, length recovery on. A larger max_data is clamped to
+ * TG_PARSER_MAX_DATA. */
 void tg_parser_init(tg_parser *p, const tg_scan_cfg *cfg);
 void tg_parser_reset(tg_parser *p);
 /* Room for tg_parser_feed right now. */
@@ -214,7 +207,7 @@ typedef struct tg_codec {
     uint8_t kind;        /* enum tg_kind */
     uint8_t width;       /* fixed width, 0 when variable */
     uint8_t min_width, max_width;
-    uint8_t is_signed, little, lat, pyfloat;
+    uint8_t is_signed, little, lat, binary, pyfloat; /* binary: raw data may hold '#', CR, LF */
     int8_t exp10;
     uint8_t decimals, pad;
     uint8_t n_values, n_spellings, n_none;

@@ -7,7 +7,7 @@
  * rejects the bytes too. Adding a codec kind: a case in tg_codec_decode and tg_codec_encode, and
  * a handler in src/topgimbal/_speedups/spec.py.
  */
-#include "topgimbal.h"
+#include "tg_internal.h"
 
 #define MAX_TEXT 32
 
@@ -31,12 +31,27 @@ static const int64_t POW10[19] = {1LL,
                                   100000000000000000LL,
                                   1000000000000000000LL};
 
-static int hexval(uint8_t c) {
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-    return -1;
-}
+/* Hex digit values, -1 for anything else (a table: the scanner and hex fields read it per byte). */
+const int8_t tg_hexval[256] = {
+    -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+    -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+    -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+     0,  1,  2,  3,  4,  5,  6,  7,  8,  9, -1, -1, -1, -1, -1, -1,
+    -1, 10, 11, 12, 13, 14, 15, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+    -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+    -1, 10, 11, 12, 13, 14, 15, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+    -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+    -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+    -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+    -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+    -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+    -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+    -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+    -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+    -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+};
+
+static int hexval(uint8_t c) { return tg_hexval[c]; }
 
 static int is_digit(uint8_t c) { return c >= '0' && c <= '9'; }
 
@@ -183,8 +198,7 @@ static int parse_decimal(const uint8_t *p, size_t n, unsigned decimals, int64_t 
     if (!digits) return TG_E_UNSURE;
     if (frac < 0) frac = 0;
     if ((unsigned)frac > decimals) return TG_E_UNSURE; /* Python rounds the binary value */
-    if (neg && v == 0) return TG_E_UNSURE;            /* Python keeps the sign of -0.0 */
-    v *= POW10[decimals - (unsigned)frac];
+    v *= POW10[decimals - (unsigned)frac];             /* -0 is 0: the codecs add 0.0 */
     *m = neg ? -v : v;
     return TG_OK;
 }
@@ -228,13 +242,14 @@ static int64_t digits_value(const uint8_t *p, size_t n) {
     return v;
 }
 
+/* 0M0000 or Kddddd (kbps), also 0M or M as some answers spell Mbps (errata E23). */
 static int dec_bitrate(const tg_codec *c, const uint8_t *raw, size_t len, tg_value *out) {
     (void)c;
     if (len == 6 && (raw[0] == 'K' || raw[0] == 'k') && all_digits(raw + 1, 5)) {
         set_num(out, digits_value(raw + 1, 5), 0);
         return TG_OK;
     }
-    if ((len == 2 || len == 6) && all_digits(raw, 2)) {
+    if ((len == 2 || len == 6) && raw[0] == '0' && all_digits(raw + 1, len - 1)) {
         set_num(out, (raw[1] - '0') * 1000, 0);
         return TG_OK;
     }
@@ -326,7 +341,9 @@ static int dec_geodm(const tg_codec *c, const uint8_t *raw, size_t len, tg_value
     for (k = 1; k < n; k++)
         if (k - 1 != dot && !is_digit(t[k])) return TG_E_INVALID;
     deg = digits_value(t + 1, (size_t)(dot - 2));
-    f = n - 1 - dot - 1; /* minute fraction digits */
+    f = n - 1 - dot - 1; /* minute fraction digits: 1..4 in a 10- or 11-character field */
+    if (f < 1) return TG_E_INVALID;
+    if (f > 4) return TG_E_UNSURE; /* wider than the catalog's fields: the tie argument needs f <= 4 */
     minutes = digits_value(t + 1 + dot - 2, 2) * POW10[f] + digits_value(t + 2 + dot, (size_t)f);
     if (minutes >= 60 * POW10[f]) return TG_E_INVALID;
     /* deg + minutes / (60 * 10^f), rounded to 7 decimals (never a tie: see docs/c.md) */
@@ -335,7 +352,8 @@ static int dec_geodm(const tg_codec *c, const uint8_t *raw, size_t len, tg_value
     r = num % 60;
     if (2 * r > 60 || (2 * r == 60 && (q & 1))) q++;
     num = deg * 10000000LL + q;
-    if (num == 0 && sign < 0) return TG_E_UNSURE;
+    /* beyond the limit: with at most 4 minute decimals, v > limit exactly when num > limit */
+    if (num > (c->lat ? 90 : 180) * 10000000LL) return TG_E_INVALID;
     set_num(out, sign * num, -7);
     return TG_OK;
 }
@@ -346,10 +364,11 @@ static int dec_geodeg(const tg_codec *c, const uint8_t *raw, size_t len, tg_valu
     int64_t m;
     if (n < 0) return TG_E_INVALID;
     for (k = 1; k < n; k++)
-        if (k - 1 != dot && !is_digit(t[k])) return TG_E_UNSURE; /* float() may still read it */
+        if (k - 1 != dot && !is_digit(t[k])) return TG_E_INVALID;
+    if (n - 1 - dot - 1 < 1) return TG_E_INVALID; /* at least one decimal */
     r = parse_decimal(t + 1, (size_t)(n - 1), 7, &m);
     if (r != TG_OK) return TG_E_UNSURE;
-    if (m == 0 && sign < 0) return TG_E_UNSURE;
+    if (m > (c->lat ? 90 : 180) * 10000000LL) return TG_E_INVALID;
     set_num(out, sign * m, -7);
     return TG_OK;
 }
@@ -572,7 +591,6 @@ static int enc_decfloat(const tg_codec *c, const tg_value *v, uint8_t *out, size
 static int enc_bitrate(const tg_codec *c, const tg_value *v, uint8_t *out, size_t cap) {
     int64_t kbps;
     tg_value exact;
-    (void)c;
     if (v->type != TG_V_NUM) return TG_E_TYPE;
     if (tg_value_rescale(v, 0, &kbps) != TG_OK) return TG_E_RANGE;
     exact = *v;
@@ -582,7 +600,7 @@ static int enc_bitrate(const tg_codec *c, const tg_value *v, uint8_t *out, size_
         int64_t back;
         if (tg_value_rescale(&exact, v->exp10, &back) != TG_OK || back != v->num) return TG_E_RANGE; /* whole kbps */
     }
-    if (kbps < 50 || kbps > 99999) return TG_E_RANGE;
+    if (kbps < c->lo || kbps > c->hi) return TG_E_RANGE;
     if (cap < 6) return TG_E_SPACE;
     if (kbps % 1000 == 0 && kbps / 1000 >= 1 && kbps / 1000 <= 8) {
         out[0] = '0';
@@ -610,8 +628,18 @@ static int enc_text(const tg_codec *c, const tg_value *v, uint8_t *out, size_t c
     unsigned k;
     if (v->type != TG_V_TEXT) return TG_E_TYPE;
     if (v->len < c->min_width || v->len > c->max_width) return TG_E_RANGE;
-    for (k = 0; k < v->len; k++)
-        if (v->ptr[k] < 0x20 || v->ptr[k] >= 0x7F) return TG_E_RANGE;
+    for (k = 0; k < v->len; k++) /* printable ASCII without '#': no frame can be injected */
+        if (v->ptr[k] < 0x20 || v->ptr[k] >= 0x7F || v->ptr[k] == '#') return TG_E_RANGE;
+    return enc_span(v, out, cap);
+}
+
+static int enc_raw(const tg_codec *c, const tg_value *v, uint8_t *out, size_t cap) {
+    unsigned k;
+    if (v->type != TG_V_BYTES) return TG_E_TYPE;
+    if (v->len < c->min_width || v->len > c->max_width) return TG_E_RANGE;
+    if (!c->binary) /* '#', CR, LF would split the frame on a stream */
+        for (k = 0; k < v->len; k++)
+            if (v->ptr[k] == '#' || v->ptr[k] == '\r' || v->ptr[k] == '\n') return TG_E_RANGE;
     return enc_span(v, out, cap);
 }
 
@@ -636,13 +664,16 @@ static int enc_ipv4(const tg_value *v, uint8_t *out, size_t cap) {
     return n;
 }
 
+static uint8_t hemisphere_letter(const tg_codec *c, int negative) {
+    return (uint8_t)(c->lat ? (negative ? 'S' : 'N') : (negative ? 'W' : 'E'));
+}
+
 static int enc_geodm(const tg_codec *c, const tg_value *v, uint8_t *out, size_t cap) {
     int64_t m, a, deg, frac, mins;
     int n = 0, r;
     r = grid_value(c, v, &m);
     if (r != TG_OK) return r;
     if (cap < c->width) return TG_E_SPACE;
-    out[n++] = (uint8_t)(c->lat ? (m >= 0 ? 'N' : 'S') : (m >= 0 ? 'E' : 'W'));
     a = m < 0 ? -m : m;
     deg = a / 10000000LL;
     frac = a % 10000000LL;
@@ -651,6 +682,7 @@ static int enc_geodm(const tg_codec *c, const tg_value *v, uint8_t *out, size_t 
         deg++;
         mins = 0;
     }
+    out[n++] = hemisphere_letter(c, m < 0 && (deg || mins)); /* what rounds to 0 is N / E */
     r = put_uint((uint64_t)deg, c->lat ? 2u : 3u, out + n, cap - (size_t)n);
     if (r < 0) return r;
     n += r;
@@ -665,13 +697,13 @@ static int enc_geodeg(const tg_codec *c, const tg_value *v, uint8_t *out, size_t
     r = grid_value(c, v, &m);
     if (r != TG_OK) return r;
     if (cap < 1) return TG_E_SPACE;
-    out[0] = (uint8_t)(c->lat ? (m >= 0 ? 'N' : 'S') : (m >= 0 ? 'E' : 'W'));
     {
         tg_value deg6 = *v;
         int64_t d6;
         deg6.num = m < 0 ? -m : m;
         deg6.exp10 = -7;
         if (tg_value_rescale(&deg6, -6, &d6) != TG_OK) return TG_E_RANGE;
+        out[0] = hemisphere_letter(c, m < 0 && d6);
         r = put_fixed(d6, 6, c->width - 1u, out + 1, cap - 1);
     }
     return r < 0 ? r : r + 1;
@@ -724,10 +756,7 @@ int tg_codec_encode(const tg_codec *c, const tg_value *v, uint8_t *out, size_t c
     case TG_K_ONEOF: return v->type == TG_V_ENUM ? enc_enum(c, v, out, cap) : tg_codec_encode(c->sub, v, out, cap);
     case TG_K_TEXT: return enc_text(c, v, out, cap);
     case TG_K_IPV4: return enc_ipv4(v, out, cap);
-    case TG_K_RAW:
-        if (v->type != TG_V_BYTES) return TG_E_TYPE;
-        if (c->width && v->len != c->width) return TG_E_RANGE;
-        return enc_span(v, out, cap);
+    case TG_K_RAW: return enc_raw(c, v, out, cap);
     case TG_K_LITERAL:
         if (v->type == TG_V_TEXT && !equals(v->ptr, v->len, c->text)) return TG_E_RANGE;
         if (v->type != TG_V_TEXT && v->type != TG_V_NULL && v->type != TG_V_ABSENT) return TG_E_TYPE;

@@ -13,7 +13,6 @@ void tg_parser_init(tg_parser *p, const tg_scan_cfg *cfg) {
     } else {
         p->cfg.max_data = TG_PARSER_MAX_DATA;
         p->cfg.recover_length = 1;
-        p->cfg.flags = TG_SCAN_DEFAULT;
     }
     if (p->cfg.max_data > TG_PARSER_MAX_DATA) p->cfg.max_data = TG_PARSER_MAX_DATA;
 }

@@ -1,25 +1,21 @@
 /*
  * The frame scanner: one step of topgimbal.protocol.FrameParser._scan as a pure function.
  *
- * It mirrors the Python parser branch for branch (resync at '#', a good frame never held back by
- * garbage before it, exact-fit length recovery for a wrong ASCII length character, a bound on the
- * declared length), so the streaming parser (tg_parser.c) and the Python fast path, which both
+ * It mirrors the Python parser branch for branch (resync at '#', an identifier of 3 ASCII letters or
+ * digits, a good frame never held back by garbage before it, a frame whose checksum matched by
+ * chance yielding to the first valid frame that starts inside it, exact-fit length recovery for a
+ * wrong ASCII length character, a bound on the declared length), so the streaming parser (tg_parser.c) and the Python fast path, which both
  * drive it, agree with the pure Python parser frame for frame. Keep the two side by side when
  * either changes; the differential tests compare them.
  */
-#include "topgimbal.h"
+#include "tg_internal.h"
 
 #define ASCII_MAX_TOTAL (12 + 15)
 #define END_INVALID (-1L)
 #define END_NEED (-2L)
 #define END_OVERSIZE (-3L)
 
-static int hexval(uint8_t c) {
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-    return -1;
-}
+static int hexval(uint8_t c) { return tg_hexval[c]; }
 
 static int is_addr(uint8_t c) {
     return c == 'U' || c == 'M' || c == 'D' || c == 'E' || c == 'P' || c == 'G';
@@ -77,23 +73,15 @@ static int bad_prefix(const uint8_t *buf, size_t n, size_t i) {
     return 0;
 }
 
-/* End offset of a frame starting at i by its declared length; END_* otherwise. */
-static long frame_end(const uint8_t *buf, size_t n, size_t i, const tg_scan_cfg *cfg) {
+/* End offset of a frame starting at i by its declared length; END_* otherwise (the Python
+ * parser's _frame_end). */
+static long frame_end(const uint8_t *buf, size_t n, size_t i, uint32_t max_data) {
     uint8_t hdr;
     long len;
-    if (cfg->flags & TG_SCAN_STRICT_IDENT) {
-        if (n < i + 10) return bad_prefix(buf, n, i) ? END_INVALID : END_NEED;
-    } else if (n < i + 7) {
-        size_t k;
-        if (n > i + 2 && header_code(buf[i + 1], buf[i + 2]) == TG_HDR_NONE) return END_INVALID;
-        for (k = 3; k <= 4; k++)
-            if (n > i + k && !is_addr(buf[i + k])) return END_INVALID;
-        return END_NEED;
-    }
+    if (n < i + 10) return bad_prefix(buf, n, i) ? END_INVALID : END_NEED;
     hdr = header_code(buf[i + 1], buf[i + 2]);
-    if (hdr == TG_HDR_NONE || !is_addr(buf[i + 3]) || !is_addr(buf[i + 4])) return END_INVALID;
-    if ((cfg->flags & TG_SCAN_STRICT_IDENT) &&
-        (!is_ident(buf[i + 7]) || !is_ident(buf[i + 8]) || !is_ident(buf[i + 9])))
+    if (hdr == TG_HDR_NONE || !is_addr(buf[i + 3]) || !is_addr(buf[i + 4]) || !is_ident(buf[i + 7]) ||
+        !is_ident(buf[i + 8]) || !is_ident(buf[i + 9]))
         return END_INVALID;
     if (hdr == TG_HDR_TP || hdr == TG_HDR_tp) {
         len = hexval(buf[i + 5]);
@@ -104,14 +92,24 @@ static long frame_end(const uint8_t *buf, size_t n, size_t i, const tg_scan_cfg 
     } else {
         len = ((long)buf[i + 5] << 8) | buf[i + 6];
     }
-    if ((unsigned long)len > cfg->max_data) return END_OVERSIZE;
+    if ((unsigned long)len > max_data) return END_OVERSIZE;
     return (long)i + 12 + len;
 }
 
-/* Checksum as written (all upper or all lower case hex), the hot path's test. */
-static int crc_ok_exact(const uint8_t *buf, size_t start, size_t end) {
-    uint8_t s = sum8(buf + start, end - 2 - start);
-    uint8_t hi = hexdigit(s >> 4), lo = hexdigit(s & 15);
+/* Checksum as written (all upper or all lower case hex), the hot path's test; *hash_inside says
+ * whether a '#' follows the frame's own (the summing loop looks anyway). */
+static int crc_ok_exact(const uint8_t *buf, size_t start, size_t end, int *hash_inside) {
+    unsigned sum = buf[start], found = 0;
+    size_t k;
+    uint8_t s, hi, lo;
+    for (k = start + 1; k < end - 2; k++) {
+        sum += buf[k];
+        found |= buf[k] == '#';
+    }
+    *hash_inside = (int)found;
+    s = (uint8_t)sum;
+    hi = hexdigit(s >> 4);
+    lo = hexdigit(s & 15);
     uint8_t a = buf[end - 2], b = buf[end - 1];
     if (a == hi && b == lo) return 1;
     if (hi >= 'A') hi = (uint8_t)(hi + 32);
@@ -125,8 +123,8 @@ static int crc_ok_upper(const uint8_t *buf, size_t start, size_t end) {
     return upper(buf[end - 2]) == hexdigit(s >> 4) && upper(buf[end - 1]) == hexdigit(s & 15);
 }
 
-static int valid_complete_at(const uint8_t *buf, size_t n, size_t j, const tg_scan_cfg *cfg) {
-    long end = frame_end(buf, n, j, cfg);
+static int valid_complete_at(const uint8_t *buf, size_t n, size_t j, uint32_t max_data) {
+    long end = frame_end(buf, n, j, max_data);
     if (end < 0 || (size_t)end > n) return 0;
     return crc_ok_upper(buf, j, (size_t)end);
 }
@@ -159,15 +157,16 @@ static int recover(const uint8_t *buf, size_t n, size_t i, int final, size_t *re
     return 1;
 }
 
-/* Python _overlapped_by: start of a valid frame beginning inside [i, end) and ending after it;
- * -1 none, -2 bytes to come decide. */
-static long overlapped_by(const uint8_t *buf, size_t n, size_t i, size_t end, int final, const tg_scan_cfg *cfg) {
+/* Python _inner_frame, for a frame [i, end) whose checksum is right: the start of the first valid
+ * frame that begins inside it (then the outer one matched by chance and yields), -1 when there is
+ * none, -2 when bytes still to come decide (a candidate inside runs past the buffer). */
+static long inner_frame(const uint8_t *buf, size_t n, size_t i, size_t end, int final, uint32_t max_data) {
     long j = find_hash(buf, i + 1, end);
     while (j >= 0) {
-        long e = frame_end(buf, n, (size_t)j, cfg);
+        long e = frame_end(buf, n, (size_t)j, max_data);
         if (e == END_NEED || e > (long)n) {
             if (!final) return -2;
-        } else if (e > (long)end && valid_complete_at(buf, n, (size_t)j, cfg)) {
+        } else if (e > 0 && crc_ok_upper(buf, (size_t)j, (size_t)e)) {
             return j;
         }
         j = find_hash(buf, (size_t)j + 1, end);
@@ -200,7 +199,7 @@ void tg_scan_step(const uint8_t *buf, size_t n, size_t pos, int final, const tg_
         wait(o, n, n + 1, 1);
         return;
     }
-    i = find_hash(buf, pos, n);
+    i = buf[pos] == '#' ? (long)pos : find_hash(buf, pos, n);
     if (i < 0) {
         set(o, TG_STEP_DISCARD, TG_DIAG_GARBAGE, TG_R_OUTSIDE, pos, n, n);
         return;
@@ -209,7 +208,7 @@ void tg_scan_step(const uint8_t *buf, size_t n, size_t pos, int final, const tg_
         set(o, TG_STEP_DISCARD, TG_DIAG_GARBAGE, TG_R_OUTSIDE, pos, (size_t)i, (size_t)i);
         return;
     }
-    end = frame_end(buf, n, (size_t)i, cfg);
+    end = frame_end(buf, n, (size_t)i, cfg->max_data);
     if (end == END_NEED) {
         wait(o, (size_t)i, n + 1, 1);
         return;
@@ -228,7 +227,7 @@ void tg_scan_step(const uint8_t *buf, size_t n, size_t pos, int final, const tg_
         /* Incomplete: wait, unless a complete good frame already follows. */
         long first = find_hash(buf, (size_t)i + 1, n);
         j = first;
-        while (j >= 0 && !valid_complete_at(buf, n, (size_t)j, cfg)) j = find_hash(buf, (size_t)j + 1, n);
+        while (j >= 0 && !valid_complete_at(buf, n, (size_t)j, cfg->max_data)) j = find_hash(buf, (size_t)j + 1, n);
         if (j < 0) {
             /* Nothing changes before the declared end unless a '#' starts a frame after i. */
             if (first >= 0)
@@ -247,17 +246,16 @@ void tg_scan_step(const uint8_t *buf, size_t n, size_t pos, int final, const tg_
         set(o, TG_STEP_DISCARD, TG_DIAG_GARBAGE, TG_R_INCOMPLETE_FOLLOWED, (size_t)i, (size_t)j, (size_t)j);
         return;
     }
-    if (crc_ok_exact(buf, (size_t)i, (size_t)end)) {
-        if (cfg->flags & TG_SCAN_OVERLAP_GUARD) {
-            j = overlapped_by(buf, n, (size_t)i, (size_t)end, final, cfg);
-            if (j == -2) {
-                wait(o, (size_t)i, n + 1, 1);
-                return;
-            }
-            if (j >= 0) {
-                set(o, TG_STEP_DISCARD, TG_DIAG_GARBAGE, TG_R_OVERLAP, (size_t)i, (size_t)j, (size_t)j);
-                return;
-            }
+    if (crc_ok_exact(buf, (size_t)i, (size_t)end, &r)) {
+        /* the checksum characters matched hex digits: a '#' inside can only be in the data */
+        j = r ? inner_frame(buf, n, (size_t)i, (size_t)end, final, cfg->max_data) : -1;
+        if (j == -2) { /* the one documented wait: a '#' and a header inside binary data */
+            wait(o, (size_t)i, n + 1, 1);
+            return;
+        }
+        if (j >= 0) {
+            set(o, TG_STEP_DISCARD, TG_DIAG_GARBAGE, TG_R_INNER_FRAME, (size_t)i, (size_t)j, (size_t)j);
+            return;
         }
         set(o, TG_STEP_FRAME, 0, TG_R_NONE, (size_t)i, (size_t)end, (size_t)end);
         return;

@@ -13,7 +13,6 @@
 #define MAX_EVENTS 256
 
 static unsigned passed, failed;
-static unsigned scan_flags = TG_SCAN_DEFAULT;
 
 static const tg_dialect *dialect_named(const char *name) {
     if (strcmp(name, "skydroid") == 0) return &tg_skydroid;
@@ -119,9 +118,8 @@ static void describe(const tg_value *v, char *out, size_t cap) {
 /* ---- M: decode ---------------------------------------------------------------------------- */
 
 static int one_frame(const uint8_t *raw, size_t n, tg_frame *f) {
-    tg_scan_cfg cfg = {TG_CATALOG_MAX_DATA, 1, 0};
+    tg_scan_cfg cfg = {TG_CATALOG_MAX_DATA, 1};
     tg_step st;
-    cfg.flags = (uint8_t)scan_flags;
     tg_scan_step(raw, n, 0, 1, &cfg, &st);
     if ((st.kind != TG_STEP_FRAME && st.kind != TG_STEP_RECOVERED) || st.end != n) return -1;
     tg_step_frame(raw, &st, f);
@@ -229,9 +227,8 @@ static int check_stream(unsigned line, const uint8_t *stream, size_t n, char (*w
     static char got[MAX_EVENTS][1200];
     int ng = 0, k;
     size_t i;
-    tg_scan_cfg cfg = {TG_CATALOG_MAX_DATA, 1, 0};
+    tg_scan_cfg cfg = {TG_CATALOG_MAX_DATA, 1};
     char msg[2600];
-    cfg.flags = (uint8_t)scan_flags;
     tg_parser_init(&parser, &cfg);
     if (bytewise) {
         for (i = 0; i < n; i++) {
@@ -305,9 +302,7 @@ int main(int argc, char **argv) {
         }
         ntok = split(buf, tok, 64);
         if (ntok < 1) continue;
-        if (strcmp(tok[0], "P") == 0 && ntok == 2) {
-            scan_flags = (unsigned)atoi(tok[1]);
-        } else if (strcmp(tok[0], "M") == 0) {
+        if (strcmp(tok[0], "M") == 0) {
             check_decode(line, tok, ntok);
         } else if (strcmp(tok[0], "N") == 0) {
             check_encode(line, tok, ntok);

@@ -1,37 +1,36 @@
 """The optional C fast path (libtopgimbal's scanner and codecs, compiled at install time).
 
 A leaf below `protocol/`: it imports nothing from topgimbal; the protocol layer hands it its own
-classes (`Frame`, `Diagnostic`, `Message`) and dialects. Everything here falls back to None when
-the extension is not built (no compiler at install), stale, or disabled with `TOPGIMBAL_PURE=1`;
-callers then keep the pure Python path. Both paths give identical results (tests/speedups/).
+classes (`Frame`, `Message`) and dialects. Everything here gives None when the extension is not
+built (no compiler at install), stale, or disabled with `TOPGIMBAL_PURE=1`; callers then keep the
+pure Python path. Both paths give identical results (tests/speedups/).
 
-    make_scan(Frame, Diagnostic)            -> a drop-in for FrameParser._scan, or None
-    make_decoder(dialect, Message, pure)    -> a drop-in for Dialect.decode, or None
+    parser_methods(Frame, pure)            -> C versions of FrameParser's feed methods, or None
+    make_decoder(dialect, Message, pure)   -> a drop-in for Dialect.decode, or None
+    make_any_decoder(prefer, dialects, pure) -> a drop-in for decode_any(frame, prefer), or None
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from .spec import decoder_tables
 
-ABI_VERSION = 1  # must match _ctop.c
-SCAN_STRICT_IDENT = 0x01
-SCAN_OVERLAP_GUARD = 0x02
-SCAN_DEFAULT = SCAN_STRICT_IDENT | SCAN_OVERLAP_GUARD
+ABI_VERSION = 2  # must match _ctop.c
+PARSER_METHODS = ("feed", "feed_datagram", "flush", "feed_messages")  # _ctop.c: M_FEED ... M_MESSAGES
 
-# FrameParser's diagnostic texts by scanner reason (enum tg_reason in c/include/topgimbal.h).
-# They must read exactly as protocol/parser.py words them; tests/speedups compare the two paths.
-REASONS = {
-    1: "bytes outside a frame",
-    2: "'#' not followed by a valid header/address/length",
-    4: "incomplete frame followed by a good one",
-    5: "incomplete frame at end of stream",
-    6: "checksum matched by chance: overlaps the next frame",
-}
-_OVERSIZE = 3
+
+def load_extension() -> Any:
+    """The compiled extension whatever TOPGIMBAL_PURE says (the differential tests compare it with
+    the pure path in both test runs); ImportError when it is not built or stale."""
+    from . import _ctop  # type: ignore[attr-defined]
+
+    if getattr(_ctop, "ABI_VERSION", None) != ABI_VERSION:
+        raise ImportError("stale build of topgimbal._speedups._ctop (rebuild: pip install -e .)")
+    return _ctop
+
 
 _ext: Any = None
 _status = ""
@@ -39,15 +38,11 @@ if os.environ.get("TOPGIMBAL_PURE", "") not in ("", "0"):
     _status = "disabled by TOPGIMBAL_PURE"
 else:
     try:
-        from . import _ctop as _loaded  # type: ignore[attr-defined]
+        _ext = load_extension()
     except ImportError as exc:
-        _status = f"not built ({exc})"
+        _status = f"not built ({exc})" if "stale" not in str(exc) else str(exc)
     else:
-        if getattr(_loaded, "ABI_VERSION", None) != ABI_VERSION:
-            _status = "stale build (rebuild: pip install -e .)"
-        else:
-            _ext = _loaded
-            _status = "enabled"
+        _status = "enabled"
 
 
 def enabled() -> bool:
@@ -60,82 +55,46 @@ def status() -> str:
     return _status
 
 
-def scan_flags(parser_cls: Any) -> int:
-    """Which optional scanner rules a FrameParser class follows (probed on crafted input), so the
-    fast scan can match a parser written before or after those rules."""
-    flags = 0
-
-    def frame(header: bytes, ident: bytes, data: bytes, rw: bytes = b"w", addr: bytes = b"UG") -> bytes:
-        length = b"%X" % len(data) if header in (b"#TP", b"#tp") else bytes([len(data)])
-        body = header + addr + length + rw + ident + data
-        return body + b"%02X" % (sum(body) & 0xFF)
-
-    if not any(type(e).__name__ == "Frame" for e in parser_cls().feed_datagram(frame(b"#TP", b"G!C", b"00"))):
-        flags |= SCAN_STRICT_IDENT
-    # A frame whose checksum matches by chance, swallowing the start of a real frame that runs past
-    # it: the outer frame's checksum characters are the real frame's first data characters.
-    inner = frame(b"#tP", b"GAC", b"3A" + b"0" * 14, addr=b"GU")
-    need = (0x3A - sum(b"#tpUGFwABCX" + inner[:10])) % 256
-    total = need if need >= 4 * 0x30 else need + 256
-    pad = b""
-    for k in range(4):
-        c = min(0x7E, total - 0x30 * (3 - k))
-        pad += bytes([c])
-        total -= c
-    events = parser_cls().feed_datagram(b"#tpUGFwABCX" + pad + inner)
-    if any(type(e).__name__ == "Frame" and e.ident == "GAC" for e in events):
-        flags |= SCAN_OVERLAP_GUARD
-    return flags
-
-
-def make_scan(frame_cls: type, diagnostic_cls: type, flags: int = SCAN_DEFAULT) -> Callable[..., int] | None:
-    """A FrameParser._scan replacement `(self, buf, pos, out, final) -> pos`, or None.
-
-    Good frames are built in C; the rare events go through the parser's own `_discard` and
-    `_emit_recovered`, so diagnostics and statistics are the pure parser's."""
-    if _ext is None:
+def parser_methods(
+    frame_cls: type, pure: Mapping[str, Callable[..., Any]], *, ext: Any = None
+) -> dict[str, Any] | None:
+    """C versions of FrameParser's `feed`, `feed_datagram`, `flush` and `feed_messages` (method
+    descriptors: `parser.feed(data)` goes straight into C), or None. `pure` maps each name to the
+    pure method it stands for (docs and signature). Rare events go back to the parser's
+    `_c_event`, so diagnostics and statistics are the pure parser's. `ext`: an extension from
+    `load_extension()` instead of the one in use (tests)."""
+    ext = ext or _ext
+    if ext is None:
         return None
-    c_scan = _ext.scan
-
-    def _scan(self: Any, buf: bytes, pos: int, out: list[Any], final: bool) -> int:
-        pos, items, nframes = c_scan(buf, pos, final, self.max_data_length, self.recover_length, flags, frame_cls)
-        stats = self.stats
-        if nframes == len(items):
-            out += items
-            stats.frames += nframes
-            return pos  # type: ignore[no-any-return]
-        for item in items:
-            if type(item) is not tuple:
-                out.append(item)
-                stats.frames += 1
-            elif item[0] == "D":
-                _, start, end, kind, reason = item
-                if reason == _OVERSIZE:
-                    stats.oversize += 1
-                    why = f"declared length above the {self.max_data_length}-byte bound"
-                else:
-                    why = REASONS[reason]
-                self._discard(buf[start:end], out, why, kind)
-            elif item[0] == "C":
-                _, start, end, nxt = item
-                stats.bad_checksums += 1
-                stats.bytes_discarded += nxt - start
-                stats.resyncs += 1
-                crc = buf[end - 2 : end].decode("latin-1")
-                expected = "%02X" % (sum(buf[start : end - 2]) & 0xFF)
-                out.append(diagnostic_cls("bad_checksum", f"checksum {crc!r}, expected {expected!r}", buf[start:end]))
-            else:  # "R": a frame with a wrong length character, recovered
-                _, start, end, frame = item
-                self._emit_recovered((frame, end), buf, start, out)
-        return pos  # type: ignore[no-any-return]
-
-    return _scan
+    return {name: ext.ParserMethod(kind, frame_cls, pure[name]) for kind, name in enumerate(PARSER_METHODS)}
 
 
-def make_decoder(dialect: Any, message_cls: type, pure: Callable[[Any], Any]) -> Any:
+def make_decoder(dialect: Any, message_cls: type, pure: Callable[[Any], Any], *, ext: Any = None) -> Any:
     """A Dialect.decode replacement for `dialect` (callable frame -> Message, with
     `.decode_many(frames)`), or None. `pure` is the pure decoder it hands frames to whenever the C
     core is not sure, and whose words every error keeps."""
-    if _ext is None:
+    ext = ext or _ext
+    if ext is None:
         return None
-    return _ext.Decoder(decoder_tables(dialect.commands.values()), message_cls, pure)
+    return ext.Decoder(
+        decoder_tables(dialect.commands.values()),
+        message_cls,
+        pure,
+        dialect.name,
+        tuple(dialect.headers),
+        dialect.host_addresses,
+    )
+
+
+def make_any_decoder(prefer: Any, candidates: Sequence[Any], pure: Callable[[Any], Any], *, ext: Any = None) -> Any:
+    """decode_any with a fixed preference: `prefer`'s decoder (or None) first, then the
+    `candidates`' (the default dialects' C decoders, in their default order) ranked per frame as
+    guess_dialects ranks them; `pure` (the pure decode_any) answers every frame none of them
+    decodes natively. None when any of them is not a C decoder."""
+    ext = ext or _ext
+    if ext is None:
+        return None
+    decoders = (prefer, *candidates) if prefer is not None else tuple(candidates)
+    if not all(isinstance(d, ext.Decoder) for d in decoders):
+        return None
+    return ext.AnyDecoder(prefer, tuple(candidates), pure)

@@ -2,21 +2,55 @@
  * topgimbal._speedups._ctop: the Python fast path, built from libtopgimbal's own sources
  * (c/src/tg_scan.c, c/src/tg_codec.c).
  *
- * scan():    one call of FrameParser._scan over a bytes buffer; good frames come back as Frame
- *            objects, everything rare (diagnostics, recovered frames) as small tuples that the
- *            Python wrapper turns into exactly what the pure parser produces.
+ * ParserMethod: FrameParser.feed / feed_datagram / flush / feed_messages in one C call each: the
+ *            scanner runs over the bytes, good frames become Frame objects here, and every rare
+ *            event (diagnostics, recovered frames) goes to the parser's own Python helper
+ *            (`_c_event`), so diagnostics and statistics are the pure parser's by construction.
+ *            With a decoder of this module as `decode`, frames become Messages in the same call.
  * Decoder:   Dialect.decode for the forms the C codecs handle natively; fields of other codecs go
  *            to their Python codec, and any frame the C core is not sure about goes to the pure
- *            decoder whole, so results are identical to the pure path by construction.
+ *            decoder whole, so results are identical to the pure path.
+ * AnyDecoder: decode_any (the preferred dialect, then the others in guess_dialects' order), with
+ *            the pure decode_any for every frame no dialect decodes natively.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
 #include "topgimbal.h"
 
-#define ABI_VERSION 1
+#define ABI_VERSION 2
 
 static PyObject *headers[5]; /* "#TP" ... by tg_header code */
+static PyObject *s_buf, *s_stats, *s_bytes, *s_frames, *s_max_data, *s_recover, *s_c_event, *s_final, *s_decode;
+
+/* ---- frames ------------------------------------------------------------------------------- */
+
+/* Identifiers repeat: one str object per identifier (a bounded cache), which also keeps their
+ * hashes for the catalog's dictionary lookups. */
+#define IDENT_SLOTS 1024
+static struct {
+    uint32_t key;
+    PyObject *str;
+} ident_cache[IDENT_SLOTS];
+
+static uint32_t ident_key(const unsigned char *p) {
+    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16);
+}
+
+static PyObject *ident_str(const char *p) {
+    uint32_t key = ident_key((const unsigned char *)p), slot = (key * 2654435761u) >> 22;
+    PyObject *s;
+    if (ident_cache[slot].str && ident_cache[slot].key == key) {
+        Py_INCREF(ident_cache[slot].str);
+        return ident_cache[slot].str;
+    }
+    s = PyUnicode_DecodeLatin1(p, 3, NULL);
+    if (!s) return NULL;
+    Py_XSETREF(ident_cache[slot].str, s);
+    ident_cache[slot].key = key;
+    Py_INCREF(s);
+    return s;
+}
 
 static PyObject *new_tuple_of(PyTypeObject *cls, Py_ssize_t n) {
     /* A NamedTuple instance is a plain tuple of its type: what tuple.__new__(cls, items) builds. */
@@ -25,114 +59,34 @@ static PyObject *new_tuple_of(PyTypeObject *cls, Py_ssize_t n) {
 
 static PyObject *make_frame(PyTypeObject *frame_cls, const uint8_t *buf, const tg_step *st) {
     tg_frame f;
-    PyObject *obj, *ident, *data, *rw;
+    PyObject *obj, *ident, *data, *rw, *declared;
     tg_step_frame(buf, st, &f);
-    ident = PyUnicode_DecodeLatin1(f.ident, 3, NULL);
+    ident = ident_str(f.ident);
     data = PyBytes_FromStringAndSize((const char *)f.data, f.len);
     rw = f.rw ? PyUnicode_FromOrdinal((unsigned char)f.rw) : PyUnicode_FromStringAndSize("", 0);
+    declared = f.declared >= 0 ? PyLong_FromLong(f.declared) : (Py_INCREF(Py_None), Py_None);
     obj = new_tuple_of(frame_cls, 7);
-    if (!ident || !data || !rw || !obj) {
+    if (!ident || !data || !rw || !declared || !obj) {
         Py_XDECREF(ident);
         Py_XDECREF(data);
         Py_XDECREF(rw);
+        Py_XDECREF(declared);
         Py_XDECREF(obj);
         return NULL;
     }
     Py_INCREF(headers[f.header]);
     PyTuple_SET_ITEM(obj, 0, headers[f.header]);
-    PyTuple_SET_ITEM(obj, 1, PyUnicode_FromOrdinal((unsigned char)f.src));
+    PyTuple_SET_ITEM(obj, 1, PyUnicode_FromOrdinal((unsigned char)f.src)); /* latin-1 singletons */
     PyTuple_SET_ITEM(obj, 2, PyUnicode_FromOrdinal((unsigned char)f.dst));
     PyTuple_SET_ITEM(obj, 3, rw);
     PyTuple_SET_ITEM(obj, 4, ident);
     PyTuple_SET_ITEM(obj, 5, data);
-    if (f.declared >= 0) {
-        PyTuple_SET_ITEM(obj, 6, PyLong_FromLong(f.declared));
-    } else {
-        Py_INCREF(Py_None);
-        PyTuple_SET_ITEM(obj, 6, Py_None);
-    }
-    if (!PyTuple_GET_ITEM(obj, 1) || !PyTuple_GET_ITEM(obj, 2) || !PyTuple_GET_ITEM(obj, 6)) {
+    PyTuple_SET_ITEM(obj, 6, declared);
+    if (!PyTuple_GET_ITEM(obj, 1) || !PyTuple_GET_ITEM(obj, 2)) {
         Py_DECREF(obj);
         return NULL;
     }
     return obj;
-}
-
-static const char *diag_name(uint8_t diag) {
-    switch (diag) {
-    case TG_DIAG_GARBAGE: return "garbage";
-    case TG_DIAG_BAD_HEADER: return "bad_header";
-    case TG_DIAG_BAD_LENGTH: return "bad_length";
-    case TG_DIAG_OVERSIZE: return "oversize";
-    case TG_DIAG_BAD_CHECKSUM: return "bad_checksum";
-    default: return "length_mismatch";
-    }
-}
-
-/* scan(buf, pos, final, max_data, recover, flags, frame_cls) -> (pos, items, nframes) */
-static PyObject *ctop_scan(PyObject *self, PyObject *args) {
-    Py_buffer view;
-    Py_ssize_t pos, max_data;
-    int final, recover, flags;
-    PyObject *frame_cls, *items, *item;
-    tg_scan_cfg cfg;
-    tg_step st;
-    Py_ssize_t nframes = 0;
-    (void)self;
-    if (!PyArg_ParseTuple(args, "y*npnpiO", &view, &pos, &final, &max_data, &recover, &flags, &frame_cls)) return NULL;
-    if (!PyType_Check(frame_cls) || !PyType_IsSubtype((PyTypeObject *)frame_cls, &PyTuple_Type)) {
-        PyBuffer_Release(&view);
-        PyErr_SetString(PyExc_TypeError, "frame_cls must be a tuple subclass (Frame)");
-        return NULL;
-    }
-    cfg.max_data = max_data < 0 ? 0 : (max_data > 0xFFFF ? 0xFFFF : (uint32_t)max_data);
-    cfg.recover_length = (uint8_t)recover;
-    cfg.flags = (uint8_t)flags;
-    items = PyList_New(0);
-    if (!items) {
-        PyBuffer_Release(&view);
-        return NULL;
-    }
-    for (;;) {
-        const uint8_t *buf = (const uint8_t *)view.buf;
-        tg_scan_step(buf, (size_t)view.len, (size_t)pos, final, &cfg, &st);
-        item = NULL;
-        switch (st.kind) {
-        case TG_STEP_WAIT: {
-            PyObject *r = Py_BuildValue("(nNn)", (Py_ssize_t)st.next, items, nframes);
-            PyBuffer_Release(&view);
-            return r;
-        }
-        case TG_STEP_FRAME:
-            item = make_frame((PyTypeObject *)frame_cls, buf, &st);
-            nframes++;
-            break;
-        case TG_STEP_RECOVERED: {
-            PyObject *fr = make_frame((PyTypeObject *)frame_cls, buf, &st);
-            if (fr) item = Py_BuildValue("(snnN)", "R", (Py_ssize_t)st.start, (Py_ssize_t)st.end, fr);
-            break;
-        }
-        case TG_STEP_BAD_CHECKSUM:
-            item = Py_BuildValue("(snnn)", "C", (Py_ssize_t)st.start, (Py_ssize_t)st.end, (Py_ssize_t)st.next);
-            break;
-        default:
-            item = Py_BuildValue("(snnsi)", "D", (Py_ssize_t)st.start, (Py_ssize_t)st.end, diag_name(st.diag),
-                                 (int)st.reason);
-        }
-        if (!item || PyList_Append(items, item) < 0) {
-            Py_XDECREF(item);
-            Py_DECREF(items);
-            PyBuffer_Release(&view);
-            return NULL;
-        }
-        Py_DECREF(item);
-        pos = (Py_ssize_t)st.next;
-        if (st.kind == TG_STEP_DISCARD && st.next >= (size_t)view.len) {
-            PyObject *r = Py_BuildValue("(nNn)", (Py_ssize_t)st.next, items, nframes);
-            PyBuffer_Release(&view);
-            return r;
-        }
-    }
 }
 
 /* ---- decoder ------------------------------------------------------------------------------ */
@@ -147,14 +101,14 @@ typedef struct {
 } dfield;
 
 typedef struct {
-    PyObject *form;      /* the catalog Form */
+    PyObject *form;       /* the catalog Form */
     PyObject *const_data; /* bytes or NULL */
     Py_ssize_t min_len, max_len, n_fields;
     dfield *fields;
 } dform;
 
 typedef struct {
-    uint32_t key;       /* 3 identifier bytes, 0 = empty slot */
+    uint32_t key; /* 3 identifier bytes, 0 = empty slot */
     PyObject *spec;
     Py_ssize_t n_forms;
     dform *forms;
@@ -164,14 +118,18 @@ typedef struct {
 
 typedef struct {
     PyObject_HEAD
+    vectorcallfunc vectorcall;
     PyObject *message_cls;
     PyObject *fallback;
-    PyObject *keep;        /* objects whose memory the tables point into */
-    Py_ssize_t n_slots;    /* power of two */
+    PyObject *name;     /* the dialect's name (Message.dialect) */
+    PyObject *keep;     /* objects whose memory the tables point into */
+    unsigned headers;   /* bit (1 << tg_header) per header of the dialect */
+    unsigned hosts;     /* bit 1: U, bit 2: P among its host addresses */
+    Py_ssize_t n_slots; /* power of two */
     dcommand *slots;
 } Decoder;
 
-static uint32_t ident_key(const unsigned char *p) { return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16); }
+static PyTypeObject DecoderType;
 
 static uint32_t slot_of(uint32_t key, Py_ssize_t n_slots) { return ((key * 2654435761u) >> 16) & (uint32_t)(n_slots - 1); }
 
@@ -184,25 +142,29 @@ static void free_codec(tg_codec *c) {
     PyMem_Free(c);
 }
 
-static void Decoder_dealloc(Decoder *self) {
-    Py_ssize_t s, f, k;
+static void free_command(dcommand *c) {
+    Py_ssize_t f, k;
     int a, b;
+    for (f = 0; f < c->n_forms && c->forms; f++) {
+        if (c->forms[f].fields)
+            for (k = 0; k < c->forms[f].n_fields; k++) free_codec(c->forms[f].fields[k].codec);
+        PyMem_Free(c->forms[f].fields);
+    }
+    PyMem_Free(c->forms);
+    for (a = 0; a < 2; a++)
+        for (b = 0; b < 2; b++) PyMem_Free(c->order[a][b]);
+}
+
+static void Decoder_dealloc(Decoder *self) {
+    Py_ssize_t s;
     if (self->slots) {
-        for (s = 0; s < self->n_slots; s++) {
-            dcommand *c = &self->slots[s];
-            if (!c->key) continue;
-            for (f = 0; f < c->n_forms; f++) {
-                for (k = 0; k < c->forms[f].n_fields; k++) free_codec(c->forms[f].fields[k].codec);
-                PyMem_Free(c->forms[f].fields);
-            }
-            PyMem_Free(c->forms);
-            for (a = 0; a < 2; a++)
-                for (b = 0; b < 2; b++) PyMem_Free(c->order[a][b]);
-        }
+        for (s = 0; s < self->n_slots; s++)
+            if (self->slots[s].key) free_command(&self->slots[s]);
         PyMem_Free(self->slots);
     }
     Py_XDECREF(self->message_cls);
     Py_XDECREF(self->fallback);
+    Py_XDECREF(self->name);
     Py_XDECREF(self->keep);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
@@ -221,16 +183,16 @@ static const char *bytes_str(Decoder *d, PyObject *b) {
     return PyBytes_AS_STRING(b); /* NUL-terminated */
 }
 
-/* A codec descriptor tuple from speedups.py (see _codec_tuple there) -> tg_codec. */
+/* A codec descriptor tuple from spec.py (codec_tuple there) -> tg_codec. */
 static tg_codec *build_codec(Decoder *d, PyObject *t) {
     tg_codec *c;
     PyObject *raws, *spell, *nones, *text, *sub;
-    int kind, width, minw, maxw, sgn, little, lat, pyfloat, exp10, decimals, pad;
+    int kind, width, minw, maxw, sgn, little, lat, binary, pyfloat, exp10, decimals, pad;
     long mul;
     long long lo, hi;
     Py_ssize_t k;
-    if (!PyArg_ParseTuple(t, "iiiiiiiiiiilLLOOOOO", &kind, &width, &minw, &maxw, &sgn, &little, &lat, &pyfloat,
-                          &exp10, &decimals, &pad, &mul, &lo, &hi, &raws, &spell, &nones, &text, &sub))
+    if (!PyArg_ParseTuple(t, "iiiiiiiiiiiilLLOOOOO", &kind, &width, &minw, &maxw, &sgn, &little, &lat, &binary,
+                          &pyfloat, &exp10, &decimals, &pad, &mul, &lo, &hi, &raws, &spell, &nones, &text, &sub))
         return NULL;
     c = PyMem_Calloc(1, sizeof *c);
     if (!c) return (tg_codec *)PyErr_NoMemory();
@@ -241,6 +203,7 @@ static tg_codec *build_codec(Decoder *d, PyObject *t) {
     c->is_signed = (uint8_t)sgn;
     c->little = (uint8_t)little;
     c->lat = (uint8_t)lat;
+    c->binary = (uint8_t)binary;
     c->pyfloat = (uint8_t)pyfloat;
     c->exp10 = (int8_t)exp10;
     c->decimals = (uint8_t)decimals;
@@ -338,18 +301,36 @@ static int build_command(Decoder *d, PyObject *t, dcommand *c) {
     return 0;
 }
 
-/* Decoder(commands, message_cls, fallback); commands: tuple of
- * (ident bytes, spec, forms, ((r_req, r_rsp), (w_req, w_rsp))) */
+static int header_code_of(PyObject *h) {
+    int k;
+    for (k = 1; k < 5; k++)
+        if (h == headers[k]) return k;
+    if (!PyUnicode_Check(h)) return 0;
+    for (k = 1; k < 5; k++)
+        if (PyUnicode_Compare(h, headers[k]) == 0) return k;
+    if (PyErr_Occurred()) PyErr_Clear();
+    return 0;
+}
+
+/* Decoder(commands, message_cls, fallback, name, headers, host_addresses); commands: tuple of
+ * (ident bytes, spec, forms, ((r_req, r_rsp), (w_req, w_rsp))) from spec.decoder_tables. */
 static int Decoder_init(Decoder *self, PyObject *args, PyObject *kw) {
-    PyObject *commands;
+    PyObject *commands, *hdrs;
+    const char *hosts;
     Py_ssize_t n, k;
     (void)kw;
-    if (!PyArg_ParseTuple(args, "O!OO", &PyTuple_Type, &commands, &self->message_cls, &self->fallback)) return -1;
+    if (self->slots) return PyErr_SetString(PyExc_TypeError, "a Decoder is built once"), -1;
+    if (!PyArg_ParseTuple(args, "O!OOUO!s", &PyTuple_Type, &commands, &self->message_cls, &self->fallback,
+                          &self->name, &PyTuple_Type, &hdrs, &hosts))
+        return -1;
     Py_INCREF(self->message_cls);
     Py_INCREF(self->fallback);
-    if (!PyType_Check(self->message_cls) ||
-        !PyType_IsSubtype((PyTypeObject *)self->message_cls, &PyTuple_Type))
+    Py_INCREF(self->name);
+    if (!PyType_Check(self->message_cls) || !PyType_IsSubtype((PyTypeObject *)self->message_cls, &PyTuple_Type))
         return PyErr_SetString(PyExc_TypeError, "message_cls must be a tuple subclass"), -1;
+    for (k = 0; k < PyTuple_GET_SIZE(hdrs); k++) self->headers |= 1u << header_code_of(PyTuple_GET_ITEM(hdrs, k));
+    self->headers &= ~1u;
+    self->hosts = (strchr(hosts, 'U') ? 1u : 0u) | (strchr(hosts, 'P') ? 2u : 0u);
     self->keep = PyList_New(0);
     if (!self->keep) return -1;
     n = PyTuple_GET_SIZE(commands);
@@ -362,17 +343,7 @@ static int Decoder_init(Decoder *self, PyObject *args, PyObject *kw) {
         uint32_t s;
         memset(&tmp, 0, sizeof tmp);
         if (build_command(self, PyTuple_GET_ITEM(commands, k), &tmp) < 0) {
-            /* free what the half-built command owns */
-            Py_ssize_t f, j;
-            int a, b;
-            for (f = 0; f < tmp.n_forms && tmp.forms; f++) {
-                if (tmp.forms[f].fields)
-                    for (j = 0; j < tmp.forms[f].n_fields; j++) free_codec(tmp.forms[f].fields[j].codec);
-                PyMem_Free(tmp.forms[f].fields);
-            }
-            PyMem_Free(tmp.forms);
-            for (a = 0; a < 2; a++)
-                for (b = 0; b < 2; b++) PyMem_Free(tmp.order[a][b]);
+            free_command(&tmp);
             return -1;
         }
         s = slot_of(tmp.key, self->n_slots);
@@ -420,6 +391,7 @@ static PyObject *py_value(const dfield *f, const tg_codec *c, const tg_value *v)
         int pyfloat = c->pyfloat;
         if (c->kind == TG_K_ONEOF && c->sub) pyfloat = c->sub->pyfloat;
         if (!pyfloat) return PyLong_FromLongLong(v->num);
+        /* the decimal's nearest double, as Python's division by an exact power of ten / round() */
         if (v->exp10 < 0) return PyFloat_FromDouble((double)v->num / POW10D[-v->exp10]);
         return PyFloat_FromDouble((double)v->num * POW10D[v->exp10]);
     }
@@ -466,9 +438,9 @@ static int decode_form(const dform *form, const uint8_t *data, Py_ssize_t len, P
                 Py_DECREF(dict);
                 return FORM_ERROR;
             }
-            value = PyObject_CallMethod(f->pycodec, "decode", "O", slice);
+            value = PyObject_CallMethodOneArg(f->pycodec, s_decode, slice);
             Py_DECREF(slice);
-            if (!value && (PyErr_ExceptionMatches(PyExc_ValueError) || PyErr_ExceptionMatches(PyExc_UnicodeDecodeError))) {
+            if (!value && PyErr_ExceptionMatches(PyExc_ValueError)) { /* UnicodeDecodeError included */
                 PyErr_Clear();
                 Py_DECREF(dict);
                 return FORM_FAIL;
@@ -485,17 +457,18 @@ static int decode_form(const dform *form, const uint8_t *data, Py_ssize_t len, P
     return FORM_OK;
 }
 
-static int is_device(Py_UCS4 a) { return a == 'M' || a == 'D' || a == 'E' || a == 'G'; }
-static int is_host(Py_UCS4 a) { return a == 'U' || a == 'P'; }
-
+/* Address letter of a one-character str, 0 otherwise. */
 static Py_UCS4 one_char(PyObject *s) {
     if (!PyUnicode_Check(s) || PyUnicode_GET_LENGTH(s) != 1) return 0;
     return PyUnicode_READ_CHAR(s, 0);
 }
 
-static PyObject *message(Decoder *self, PyObject *frame, PyObject *spec, PyObject *form, PyObject *fields,
+static int is_device(Py_UCS4 a) { return a == 'M' || a == 'D' || a == 'E' || a == 'G'; }
+static int is_host(Py_UCS4 a) { return a == 'U' || a == 'P'; }
+
+static PyObject *message(const Decoder *d, PyObject *frame, PyObject *spec, PyObject *form, PyObject *fields,
                          PyObject *error) {
-    PyObject *msg = new_tuple_of((PyTypeObject *)self->message_cls, 5);
+    PyObject *msg = new_tuple_of((PyTypeObject *)d->message_cls, 6);
     if (!msg) {
         Py_XDECREF(fields);
         Py_XDECREF(error);
@@ -504,6 +477,7 @@ static PyObject *message(Decoder *self, PyObject *frame, PyObject *spec, PyObjec
     Py_INCREF(frame);
     Py_INCREF(spec);
     Py_INCREF(form);
+    Py_INCREF(d->name);
     if (!fields) fields = (Py_INCREF(Py_None), Py_None);
     if (!error) error = (Py_INCREF(Py_None), Py_None);
     PyTuple_SET_ITEM(msg, 0, frame);
@@ -511,11 +485,12 @@ static PyObject *message(Decoder *self, PyObject *frame, PyObject *spec, PyObjec
     PyTuple_SET_ITEM(msg, 2, form);
     PyTuple_SET_ITEM(msg, 3, fields);
     PyTuple_SET_ITEM(msg, 4, error);
+    PyTuple_SET_ITEM(msg, 5, d->name);
     return msg;
 }
 
 /* Dialect.decode's words when no form takes the data's length (the common failure: a frame
- * given to the other dialect); NULL with no exception set when another wording applies. */
+ * given to the other dialect). */
 static PyObject *length_error(const dcommand *c, int w, int dir, Py_ssize_t len, const char *ident) {
     PyObject *parts = PyList_New(0), *sep, *joined, *err;
     Py_ssize_t k;
@@ -541,54 +516,99 @@ static PyObject *length_error(const dcommand *c, int w, int dir, Py_ssize_t len,
     return err;
 }
 
-static PyObject *decode_one(Decoder *self, PyObject *frame) {
-    PyObject *ident, *data, *rw, *fields = NULL;
-    const dcommand *c;
-    const uint8_t *ip;
-    int w, dir, last_was_length = 0;
-    Py_ssize_t k, len;
-    if (!PyTuple_Check(frame) || PyTuple_GET_SIZE(frame) < 6) goto fallback;
-    ident = PyTuple_GET_ITEM(frame, 4);
-    data = PyTuple_GET_ITEM(frame, 5);
+/* What the C core makes of a frame for one dialect. */
+enum { NATIVE_ERROR = -1, NATIVE_OK = 0, NATIVE_NO_FORM, NATIVE_BY_LENGTH, NATIVE_UNSURE };
+
+typedef struct {
+    PyObject *ident, *data;
+    Py_UCS4 src, dst;
+    int w;       /* 0 r, 1 w */
+    uint32_t key;
+} frame_view;
+
+/* The parts of a Frame the decoder reads; 0 when it is not a frame the C core can judge (then the
+ * pure decoder answers). */
+static int view_of(PyObject *frame, frame_view *v) {
+    PyObject *rw;
+    Py_UCS4 c;
+    if (!PyTuple_Check(frame) || PyTuple_GET_SIZE(frame) < 6) return 0;
+    v->ident = PyTuple_GET_ITEM(frame, 4);
+    v->data = PyTuple_GET_ITEM(frame, 5);
     rw = PyTuple_GET_ITEM(frame, 3);
-    if (!PyUnicode_Check(ident) || PyUnicode_GET_LENGTH(ident) != 3 || PyUnicode_KIND(ident) != PyUnicode_1BYTE_KIND ||
-        !PyBytes_Check(data) || !PyUnicode_Check(rw))
-        goto fallback;
-    ip = PyUnicode_1BYTE_DATA(ident);
-    c = lookup(self, ident_key(ip));
-    if (!c) goto fallback;
-    dir = is_device(one_char(PyTuple_GET_ITEM(frame, 1))) && is_host(one_char(PyTuple_GET_ITEM(frame, 2)));
-    w = one_char(rw) != 'r';
-    len = PyBytes_GET_SIZE(data);
-    for (k = 0; k < c->n_order[w][dir]; k++) {
-        const dform *form = &c->forms[c->order[w][dir][k]];
-        int r;
-        if (len < form->min_len || len > form->max_len) {
-            last_was_length = 1;
-            continue;
-        }
-        last_was_length = 0;
-        r = decode_form(form, (const uint8_t *)PyBytes_AS_STRING(data), len, data, &fields);
-        if (r == FORM_ERROR) return NULL;
-        if (r == FORM_UNSURE) goto fallback;
-        if (r == FORM_OK) return message(self, frame, c->spec, form->form, fields, NULL);
+    if (!PyUnicode_Check(v->ident) || PyUnicode_GET_LENGTH(v->ident) != 3 ||
+        PyUnicode_KIND(v->ident) != PyUnicode_1BYTE_KIND || !PyBytes_Check(v->data) || !PyUnicode_Check(rw))
+        return 0;
+    v->src = one_char(PyTuple_GET_ITEM(frame, 1));
+    v->dst = one_char(PyTuple_GET_ITEM(frame, 2));
+    if (!v->src || !v->dst) return 0;
+    if (PyUnicode_GET_LENGTH(rw) == 0) {
+        v->w = 1; /* #Tp: no control character, decoded as a write */
+    } else {
+        c = one_char(rw);
+        if (c != 'r' && c != 'w') return 0;
+        v->w = c == 'w';
     }
-    if (last_was_length) {
-        PyObject *err = length_error(c, w, dir, len, (const char *)ip);
+    v->key = ident_key(PyUnicode_1BYTE_DATA(v->ident));
+    return 1;
+}
+
+static int decode_native(const Decoder *d, PyObject *frame, const frame_view *v, PyObject **msg) {
+    const dcommand *c = lookup(d, v->key);
+    PyObject *fields = NULL;
+    const uint8_t *data;
+    int dir, tried = 0;
+    Py_ssize_t k, len;
+    if (!c) return NATIVE_NO_FORM;
+    dir = is_device(v->src) && is_host(v->dst);
+    len = PyBytes_GET_SIZE(v->data);
+    data = (const uint8_t *)PyBytes_AS_STRING(v->data);
+    for (k = 0; k < c->n_order[v->w][dir]; k++) {
+        const dform *form = &c->forms[c->order[v->w][dir][k]];
+        int r;
+        if (len < form->min_len || len > form->max_len) continue;
+        tried = 1;
+        r = decode_form(form, data, len, v->data, &fields);
+        if (r == FORM_ERROR) return NATIVE_ERROR;
+        if (r == FORM_UNSURE) return NATIVE_UNSURE;
+        if (r == FORM_OK) {
+            *msg = message(d, frame, c->spec, form->form, fields, NULL);
+            return *msg ? NATIVE_OK : NATIVE_ERROR;
+        }
+    }
+    return tried || c->n_order[v->w][dir] == 0 ? NATIVE_NO_FORM : NATIVE_BY_LENGTH;
+}
+
+static PyObject *decoder_decode(Decoder *self, PyObject *frame) {
+    frame_view v;
+    PyObject *msg = NULL;
+    int r;
+    if (!view_of(frame, &v)) return PyObject_CallOneArg(self->fallback, frame);
+    r = decode_native(self, frame, &v, &msg);
+    if (r == NATIVE_OK || r == NATIVE_ERROR) return msg;
+    if (r == NATIVE_BY_LENGTH) { /* the pure decoder's words, without the trip */
+        const dcommand *c = lookup(self, v.key);
+        int dir = is_device(v.src) && is_host(v.dst);
+        PyObject *err = length_error(c, v.w, dir, PyBytes_GET_SIZE(v.data), (const char *)PyUnicode_1BYTE_DATA(v.ident));
         if (!err) return NULL;
         return message(self, frame, c->spec, Py_None, NULL, err);
     }
-fallback:
-    /* Unknown identifier, no form fits (the pure decoder words the error), or a spelling only
-     * Python reads: the pure decoder answers. */
+    /* Unknown identifier, content no form takes (the pure decoder words the error), or a spelling
+     * only Python reads: the pure decoder answers. */
     return PyObject_CallOneArg(self->fallback, frame);
 }
 
-static PyObject *Decoder_call(Decoder *self, PyObject *args, PyObject *kw) {
-    PyObject *frame;
-    (void)kw;
-    if (!PyArg_ParseTuple(args, "O", &frame)) return NULL;
-    return decode_one(self, frame);
+static PyObject *Decoder_vectorcall(PyObject *self, PyObject *const *args, size_t nargsf, PyObject *kwnames) {
+    if (PyVectorcall_NARGS(nargsf) != 1 || (kwnames && PyTuple_GET_SIZE(kwnames))) {
+        PyErr_SetString(PyExc_TypeError, "decode(frame) takes one frame");
+        return NULL;
+    }
+    return decoder_decode((Decoder *)self, args[0]);
+}
+
+static PyObject *Decoder_new(PyTypeObject *type, PyObject *args, PyObject *kw) {
+    Decoder *self = (Decoder *)PyType_GenericNew(type, args, kw);
+    if (self) self->vectorcall = Decoder_vectorcall;
+    return (PyObject *)self;
 }
 
 static PyObject *Decoder_decode_many(Decoder *self, PyObject *frames) {
@@ -602,7 +622,7 @@ static PyObject *Decoder_decode_many(Decoder *self, PyObject *frames) {
         return NULL;
     }
     for (k = 0; k < n; k++) {
-        PyObject *m = decode_one(self, PySequence_Fast_GET_ITEM(seq, k));
+        PyObject *m = decoder_decode(self, PySequence_Fast_GET_ITEM(seq, k));
         if (!m) {
             Py_DECREF(out);
             Py_DECREF(seq);
@@ -614,42 +634,494 @@ static PyObject *Decoder_decode_many(Decoder *self, PyObject *frames) {
     return out;
 }
 
+static PyObject *Decoder_get_name(Decoder *self, void *closure) {
+    (void)closure;
+    Py_INCREF(self->name);
+    return self->name;
+}
+
 static PyMethodDef Decoder_methods[] = {
     {"decode_many", (PyCFunction)Decoder_decode_many, METH_O, "Decode a sequence of frames -> list of Message."},
     {NULL, NULL, 0, NULL}};
+
+static PyGetSetDef Decoder_getset[] = {{"dialect", (getter)Decoder_get_name, NULL, "the dialect's name", NULL},
+                                       {NULL, NULL, NULL, NULL, NULL}};
+
+/* ---- decoding across dialects ------------------------------------------------------------- */
+
+#define MAX_CANDIDATES 8
+
+typedef struct {
+    PyObject_HEAD
+    vectorcallfunc vectorcall;
+    Decoder *prefer;                       /* tried first, or NULL */
+    Decoder *cands[MAX_CANDIDATES];        /* the default dialects, in their default order */
+    int excluded[MAX_CANDIDATES];          /* same name as `prefer`: not tried again */
+    Py_ssize_t n;
+    PyObject *fallback;                    /* the pure decode_any with the same preference */
+} AnyDecoder;
+
+static PyTypeObject AnyDecoderType;
+
+static void AnyDecoder_dealloc(AnyDecoder *self) {
+    Py_ssize_t k;
+    Py_XDECREF(self->prefer);
+    for (k = 0; k < self->n; k++) Py_XDECREF(self->cands[k]);
+    Py_XDECREF(self->fallback);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyObject *any_decode(AnyDecoder *self, PyObject *frame);
+
+static PyObject *AnyDecoder_vectorcall(PyObject *self, PyObject *const *args, size_t nargsf, PyObject *kwnames) {
+    if (PyVectorcall_NARGS(nargsf) != 1 || (kwnames && PyTuple_GET_SIZE(kwnames))) {
+        PyErr_SetString(PyExc_TypeError, "decode(frame) takes one frame");
+        return NULL;
+    }
+    return any_decode((AnyDecoder *)self, args[0]);
+}
+
+/* AnyDecoder(prefer: Decoder | None, candidates: tuple[Decoder, ...], fallback) */
+static PyObject *AnyDecoder_new(PyTypeObject *type, PyObject *args, PyObject *kw) {
+    PyObject *prefer, *cands, *fallback;
+    AnyDecoder *self;
+    Py_ssize_t k;
+    (void)kw;
+    if (!PyArg_ParseTuple(args, "OO!O", &prefer, &PyTuple_Type, &cands, &fallback)) return NULL;
+    if ((prefer != Py_None && !PyObject_TypeCheck(prefer, &DecoderType)) || PyTuple_GET_SIZE(cands) > MAX_CANDIDATES)
+        return PyErr_Format(PyExc_TypeError, "AnyDecoder(prefer Decoder or None, up to %d Decoders, fallback)",
+                            MAX_CANDIDATES);
+    self = (AnyDecoder *)type->tp_alloc(type, 0);
+    if (!self) return NULL;
+    self->vectorcall = AnyDecoder_vectorcall;
+    if (prefer != Py_None) {
+        Py_INCREF(prefer);
+        self->prefer = (Decoder *)prefer;
+    }
+    for (k = 0; k < PyTuple_GET_SIZE(cands); k++) {
+        PyObject *c = PyTuple_GET_ITEM(cands, k);
+        if (!PyObject_TypeCheck(c, &DecoderType)) {
+            Py_DECREF(self);
+            return PyErr_Format(PyExc_TypeError, "candidates must be Decoders");
+        }
+        Py_INCREF(c);
+        self->cands[self->n++] = (Decoder *)c;
+        if (self->prefer) {
+            int same = PyUnicode_Compare(self->prefer->name, ((Decoder *)c)->name);
+            if (same == -1 && PyErr_Occurred()) {
+                Py_DECREF(self);
+                return NULL;
+            }
+            self->excluded[k] = same == 0;
+        }
+    }
+    Py_INCREF(fallback);
+    self->fallback = fallback;
+    return (PyObject *)self;
+}
+
+/* guess_dialects' score: the identifier in the catalog (4), the header among the dialect's (2),
+ * the frame's host side among its host addresses (1). */
+static int guess_score(const Decoder *d, PyObject *frame, const frame_view *v) {
+    unsigned host = (v->src == 'U' || v->dst == 'U' ? 1u : 0u) | (v->src == 'P' || v->dst == 'P' ? 2u : 0u);
+    int hdr = header_code_of(PyTuple_GET_ITEM(frame, 0));
+    return (lookup(d, v->key) != NULL) * 4 + ((d->headers >> hdr) & 1u) * 2 + (host && (host & ~d->hosts) == 0);
+}
+
+static PyObject *any_decode(AnyDecoder *self, PyObject *frame) {
+    frame_view v;
+    PyObject *msg = NULL;
+    Decoder *order[MAX_CANDIDATES + 1];
+    int score[MAX_CANDIDATES];
+    Py_ssize_t n = 0, k, j;
+    int r;
+    if (!view_of(frame, &v)) return PyObject_CallOneArg(self->fallback, frame);
+    if (self->prefer) order[n++] = self->prefer;
+    for (k = 0; k < self->n; k++) { /* stable insertion by descending score */
+        int s;
+        if (self->excluded[k]) continue;
+        s = guess_score(self->cands[k], frame, &v);
+        j = n;
+        while (j > (self->prefer ? 1 : 0) && score[j - 1] < s) {
+            order[j] = order[j - 1];
+            score[j] = score[j - 1];
+            j--;
+        }
+        order[j] = self->cands[k];
+        score[j] = s;
+        n++;
+    }
+    for (k = 0; k < n; k++) {
+        r = decode_native(order[k], frame, &v, &msg);
+        if (r == NATIVE_OK || r == NATIVE_ERROR) return msg;
+        if (r == NATIVE_UNSURE) break;
+    }
+    /* No dialect decodes it natively (the pure path words every reason), or one is unsure. */
+    return PyObject_CallOneArg(self->fallback, frame);
+}
+
+/* ---- the parser --------------------------------------------------------------------------- */
+
+static int only_separators(const uint8_t *p, size_t n) {
+    size_t k;
+    for (k = 0; k < n; k++)
+        if (p[k] != '\r' && p[k] != '\n') return 0;
+    return 1;
+}
+
+/* A rare event: the parser's own _c_event(buf, out, code, start, end, next, frame) words it. */
+static int rare_event(PyObject *parser, PyObject *buf, PyObject *out, int code, const tg_step *st, PyObject *frame) {
+    PyObject *args = Py_BuildValue("(OOinnnO)", buf, out, code, (Py_ssize_t)st->start, (Py_ssize_t)st->end,
+                                   (Py_ssize_t)st->next, frame ? frame : Py_None);
+    PyObject *meth = args ? PyObject_GetAttr(parser, s_c_event) : NULL, *r;
+    r = meth ? PyObject_Call(meth, args, NULL) : NULL;
+    Py_XDECREF(meth);
+    Py_XDECREF(args);
+    Py_XDECREF(r);
+    return r ? 0 : -1;
+}
+
+/* Scan buf from pos; frames and rare events go to out in wire order. Returns where scanning
+ * stopped (waiting for bytes), -1 on error; *nframes counts the good frames appended here. */
+static Py_ssize_t scan_into(PyObject *parser, PyObject *buf, Py_ssize_t pos, int final, const tg_scan_cfg *cfg,
+                            PyTypeObject *frame_cls, PyObject *out, Py_ssize_t *nframes) {
+    const uint8_t *p = (const uint8_t *)PyBytes_AS_STRING(buf);
+    size_t n = (size_t)PyBytes_GET_SIZE(buf);
+    tg_step st;
+    for (;;) {
+        PyObject *item = NULL;
+        tg_scan_step(p, n, (size_t)pos, final, cfg, &st);
+        switch (st.kind) {
+        case TG_STEP_WAIT: return (Py_ssize_t)st.next;
+        case TG_STEP_FRAME:
+            item = make_frame(frame_cls, p, &st);
+            if (!item || PyList_Append(out, item) < 0) {
+                Py_XDECREF(item);
+                return -1;
+            }
+            Py_DECREF(item);
+            (*nframes)++;
+            break;
+        case TG_STEP_RECOVERED:
+            item = make_frame(frame_cls, p, &st);
+            if (!item || rare_event(parser, buf, out, TG_R_LENGTH_MISMATCH, &st, item) < 0) {
+                Py_XDECREF(item);
+                return -1;
+            }
+            Py_DECREF(item);
+            break;
+        case TG_STEP_BAD_CHECKSUM:
+            if (rare_event(parser, buf, out, TG_R_BAD_CHECKSUM, &st, NULL) < 0) return -1;
+            break;
+        default: /* DISCARD: line ends between frames are no news */
+            if ((st.reason == TG_R_OVERSIZE || !only_separators(p + st.start, st.end - st.start)) &&
+                rare_event(parser, buf, out, st.reason, &st, NULL) < 0)
+                return -1;
+        }
+        pos = (Py_ssize_t)st.next;
+    }
+}
+
+static int add_to_stat(PyObject *stats, PyObject *name, Py_ssize_t n) {
+    PyObject *v, *sum, *inc;
+    int r;
+    if (!n) return 0;
+    v = PyObject_GetAttr(stats, name);
+    if (!v) return -1;
+    inc = PyLong_FromSsize_t(n);
+    sum = inc ? PyNumber_Add(v, inc) : NULL;
+    Py_DECREF(v);
+    Py_XDECREF(inc);
+    if (!sum) return -1;
+    r = PyObject_SetAttr(stats, name, sum);
+    Py_DECREF(sum);
+    return r;
+}
+
+/* Decode every frame of out in place (after the scan, as the pure path does). */
+static int decode_items(PyObject *out, PyObject *decode, PyTypeObject *frame_cls) {
+    Py_ssize_t k, n = PyList_GET_SIZE(out);
+    for (k = 0; k < n; k++) {
+        PyObject *item = PyList_GET_ITEM(out, k), *m;
+        if (Py_TYPE(item) != frame_cls) continue;
+        if (Py_IS_TYPE(decode, &DecoderType))
+            m = decoder_decode((Decoder *)decode, item);
+        else if (Py_IS_TYPE(decode, &AnyDecoderType))
+            m = any_decode((AnyDecoder *)decode, item);
+        else
+            m = PyObject_CallOneArg(decode, item);
+        if (!m) return -1;
+        PyList_SET_ITEM(out, k, m); /* steals m */
+        Py_DECREF(item);
+    }
+    return 0;
+}
+
+/* FrameParser._feed_py in C: the same events, statistics and buffer. */
+static PyObject *feed(PyObject *parser, PyObject *data, int final, PyObject *decode, PyTypeObject *frame_cls) {
+    PyObject *old = NULL, *buf = NULL, *out = NULL, *v, *rest, *stats;
+    Py_ssize_t dlen, pos, nframes = 0, maxd;
+    tg_scan_cfg cfg;
+    int recover;
+    if (PyBytes_CheckExact(data)) {
+        Py_INCREF(data);
+    } else if (!(data = PyObject_CallOneArg((PyObject *)&PyBytes_Type, data))) { /* bytes(data), as the pure path */
+        return NULL;
+    }
+    dlen = PyBytes_GET_SIZE(data);
+    old = PyObject_GetAttr(parser, s_buf);
+    if (!old) goto error;
+    if (!PyBytes_Check(old)) {
+        PyErr_SetString(PyExc_TypeError, "FrameParser._buf must be bytes");
+        goto error;
+    }
+    if (PyBytes_GET_SIZE(old) == 0) {
+        buf = data;
+        Py_INCREF(buf);
+    } else {
+        buf = old;
+        Py_INCREF(buf);
+        PyBytes_Concat(&buf, data); /* a new object: `old` keeps its own reference */
+        if (!buf) goto error;
+    }
+    v = PyObject_GetAttr(parser, s_max_data);
+    maxd = v ? PyLong_AsSsize_t(v) : -1;
+    Py_XDECREF(v);
+    if (maxd == -1 && PyErr_Occurred()) goto error;
+    v = PyObject_GetAttr(parser, s_recover);
+    recover = v ? PyObject_IsTrue(v) : -1;
+    Py_XDECREF(v);
+    if (recover < 0) goto error;
+    cfg.max_data = maxd < 0 ? 0 : (maxd > 0xFFFF ? 0xFFFF : (uint32_t)maxd);
+    cfg.recover_length = (uint8_t)recover;
+    stats = PyObject_GetAttr(parser, s_stats);
+    if (!stats) goto error;
+    if (add_to_stat(stats, s_bytes, dlen) < 0) {
+        Py_DECREF(stats);
+        goto error;
+    }
+    out = PyList_New(0);
+    if (!out) {
+        Py_DECREF(stats);
+        goto error;
+    }
+    pos = scan_into(parser, buf, 0, 0, &cfg, frame_cls, out, &nframes);
+    if (pos >= 0 && final) { /* the rest as if the stream ended here */
+        pos = scan_into(parser, buf, pos, 1, &cfg, frame_cls, out, &nframes);
+        if (pos >= 0 && pos < PyBytes_GET_SIZE(buf)) {
+            tg_step st;
+            memset(&st, 0, sizeof st);
+            st.start = (size_t)pos;
+            st.end = st.next = (size_t)PyBytes_GET_SIZE(buf);
+            if (!only_separators((const uint8_t *)PyBytes_AS_STRING(buf) + pos, st.end - st.start) &&
+                rare_event(parser, buf, out, TG_R_END_OF_STREAM, &st, NULL) < 0)
+                pos = -1;
+            else
+                pos = PyBytes_GET_SIZE(buf);
+        }
+    }
+    if (pos < 0 || add_to_stat(stats, s_frames, nframes) < 0) {
+        Py_DECREF(stats);
+        goto error;
+    }
+    Py_DECREF(stats);
+    rest = pos == 0 ? (Py_INCREF(buf), buf)
+                    : PyBytes_FromStringAndSize(PyBytes_AS_STRING(buf) + pos, PyBytes_GET_SIZE(buf) - pos);
+    if (!rest || PyObject_SetAttr(parser, s_buf, rest) < 0) {
+        Py_XDECREF(rest);
+        goto error;
+    }
+    Py_DECREF(rest);
+    Py_DECREF(old);
+    Py_DECREF(buf);
+    Py_DECREF(data);
+    if (decode && decode != Py_None && decode_items(out, decode, frame_cls) < 0) {
+        Py_DECREF(out);
+        return NULL;
+    }
+    return out;
+error:
+    Py_XDECREF(out);
+    Py_XDECREF(old);
+    Py_XDECREF(buf);
+    Py_DECREF(data);
+    return NULL;
+}
+
+/* FrameParser's feed / feed_datagram / flush / feed_messages as C methods (a method descriptor:
+ * `parser.feed(data)` calls straight into C with the parser as first argument). */
+enum { M_FEED = 0, M_DATAGRAM, M_FLUSH, M_MESSAGES };
+
+typedef struct {
+    PyObject_HEAD
+    vectorcallfunc vectorcall;
+    int kind;
+    PyTypeObject *frame_cls;
+    PyObject *wrapped; /* the pure method it stands for (docs, signature) */
+} ParserMethod;
+
+static PyTypeObject ParserMethodType;
+
+static PyObject *ParserMethod_vectorcall(PyObject *callable, PyObject *const *args, size_t nargsf, PyObject *kwnames) {
+    ParserMethod *m = (ParserMethod *)callable;
+    Py_ssize_t nargs = PyVectorcall_NARGS(nargsf), nkw = kwnames ? PyTuple_GET_SIZE(kwnames) : 0;
+    static const Py_ssize_t want[4] = {2, 2, 1, 3};
+    int final = m->kind == M_DATAGRAM || m->kind == M_FLUSH;
+    if (m->kind == M_MESSAGES) {
+        if (nkw > 1 || (nkw == 1 && PyUnicode_Compare(PyTuple_GET_ITEM(kwnames, 0), s_final) != 0) ||
+            nargs != 3) {
+            if (!PyErr_Occurred())
+                PyErr_SetString(PyExc_TypeError, "feed_messages(data, decode, *, final=False)");
+            return NULL;
+        }
+        if (nkw == 1 && (final = PyObject_IsTrue(args[nargs])) < 0) return NULL;
+        return feed(args[0], args[1], final, args[2], m->frame_cls);
+    }
+    if (nargs != want[m->kind] || nkw) {
+        PyErr_SetString(PyExc_TypeError, m->kind == M_FLUSH ? "flush() takes no arguments" : "takes one argument: data");
+        return NULL;
+    }
+    if (m->kind == M_FLUSH) {
+        PyObject *empty = PyBytes_FromStringAndSize("", 0), *r;
+        if (!empty) return NULL;
+        r = feed(args[0], empty, 1, NULL, m->frame_cls);
+        Py_DECREF(empty);
+        return r;
+    }
+    return feed(args[0], args[1], final, NULL, m->frame_cls);
+}
+
+static PyObject *ParserMethod_get(PyObject *self, PyObject *obj, PyObject *type) {
+    (void)type;
+    if (obj == NULL || obj == Py_None) {
+        Py_INCREF(self);
+        return self;
+    }
+    return PyMethod_New(self, obj);
+}
+
+static PyObject *ParserMethod_new(PyTypeObject *type, PyObject *args, PyObject *kw) {
+    int kind;
+    PyObject *frame_cls, *wrapped;
+    ParserMethod *self;
+    (void)kw;
+    if (!PyArg_ParseTuple(args, "iO!O", &kind, &PyType_Type, &frame_cls, &wrapped)) return NULL;
+    if (kind < M_FEED || kind > M_MESSAGES || !PyType_IsSubtype((PyTypeObject *)frame_cls, &PyTuple_Type))
+        return PyErr_Format(PyExc_ValueError, "ParserMethod(kind 0..3, a tuple subclass, the pure method)");
+    self = (ParserMethod *)type->tp_alloc(type, 0);
+    if (!self) return NULL;
+    self->vectorcall = ParserMethod_vectorcall;
+    self->kind = kind;
+    Py_INCREF(frame_cls);
+    self->frame_cls = (PyTypeObject *)frame_cls;
+    Py_INCREF(wrapped);
+    self->wrapped = wrapped;
+    return (PyObject *)self;
+}
+
+static void ParserMethod_dealloc(ParserMethod *self) {
+    Py_XDECREF(self->frame_cls);
+    Py_XDECREF(self->wrapped);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyObject *ParserMethod_getattro(PyObject *self, PyObject *name) {
+    /* __doc__, __name__, __wrapped__ ... of the pure method it stands for */
+    PyObject *r = PyObject_GenericGetAttr(self, name);
+    if (r || !PyErr_ExceptionMatches(PyExc_AttributeError)) return r;
+    PyErr_Clear();
+    return PyObject_GetAttr(((ParserMethod *)self)->wrapped, name);
+}
+
+static PyObject *ParserMethod_wrapped(ParserMethod *self, void *closure) {
+    (void)closure;
+    Py_INCREF(self->wrapped);
+    return self->wrapped;
+}
+
+static PyObject *ParserMethod_doc(ParserMethod *self, void *closure) {
+    (void)closure;
+    return PyObject_GetAttrString(self->wrapped, "__doc__");
+}
+
+static PyGetSetDef ParserMethod_getset[] = {
+    {"__wrapped__", (getter)ParserMethod_wrapped, NULL, "the pure Python method", NULL},
+    {"__doc__", (getter)ParserMethod_doc, NULL, NULL, NULL},
+    {NULL, NULL, NULL, NULL, NULL}};
+
+/* ---- module ------------------------------------------------------------------------------- */
 
 static PyTypeObject DecoderType = {
     PyVarObject_HEAD_INIT(NULL, 0).tp_name = "topgimbal._speedups._ctop.Decoder",
     .tp_basicsize = sizeof(Decoder),
     .tp_dealloc = (destructor)Decoder_dealloc,
-    .tp_call = (ternaryfunc)Decoder_call,
-    .tp_flags = Py_TPFLAGS_DEFAULT,
-    .tp_doc = "Decoder(commands, message_cls, fallback): Dialect.decode in C (see speedups.py).",
+    .tp_vectorcall_offset = offsetof(Decoder, vectorcall),
+    .tp_call = PyVectorcall_Call,
+    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_VECTORCALL,
+    .tp_doc = "Decoder(commands, message_cls, fallback, name, headers, host_addresses): Dialect.decode in C.",
     .tp_methods = Decoder_methods,
+    .tp_getset = Decoder_getset,
     .tp_init = (initproc)Decoder_init,
-    .tp_new = PyType_GenericNew,
+    .tp_new = Decoder_new,
 };
 
-static PyMethodDef methods[] = {
-    {"scan", ctop_scan, METH_VARARGS, "scan(buf, pos, final, max_data, recover, flags, frame_cls) -> (pos, items, nframes)"},
-    {NULL, NULL, 0, NULL}};
+static PyTypeObject AnyDecoderType = {
+    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "topgimbal._speedups._ctop.AnyDecoder",
+    .tp_basicsize = sizeof(AnyDecoder),
+    .tp_dealloc = (destructor)AnyDecoder_dealloc,
+    .tp_vectorcall_offset = offsetof(AnyDecoder, vectorcall),
+    .tp_call = PyVectorcall_Call,
+    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_VECTORCALL,
+    .tp_doc = "AnyDecoder(prefer, candidates, fallback): decode_any in C.",
+    .tp_new = AnyDecoder_new,
+};
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_ctop", "libtopgimbal fast path", -1, methods,
+static PyTypeObject ParserMethodType = {
+    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "topgimbal._speedups._ctop.ParserMethod",
+    .tp_basicsize = sizeof(ParserMethod),
+    .tp_dealloc = (destructor)ParserMethod_dealloc,
+    .tp_vectorcall_offset = offsetof(ParserMethod, vectorcall),
+    .tp_call = PyVectorcall_Call,
+    .tp_getattro = ParserMethod_getattro,
+    .tp_descr_get = ParserMethod_get,
+    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_VECTORCALL | Py_TPFLAGS_METHOD_DESCRIPTOR,
+    .tp_doc = "ParserMethod(kind, frame_cls, pure): a FrameParser method in C.",
+    .tp_getset = ParserMethod_getset,
+    .tp_new = ParserMethod_new,
+};
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_ctop", "libtopgimbal fast path", -1, NULL,
                                     NULL, NULL, NULL, NULL};
 
 PyMODINIT_FUNC PyInit__ctop(void) {
     PyObject *m;
     static const char *const texts[5] = {"", "#TP", "#tp", "#tP", "#Tp"};
     int k;
-    if (PyType_Ready(&DecoderType) < 0) return NULL;
+    if (PyType_Ready(&DecoderType) < 0 || PyType_Ready(&AnyDecoderType) < 0 || PyType_Ready(&ParserMethodType) < 0)
+        return NULL;
     for (k = 0; k < 5; k++)
         if (!headers[k] && !(headers[k] = PyUnicode_InternFromString(texts[k]))) return NULL;
+#define INTERN(var, text) \
+    if (!var && !(var = PyUnicode_InternFromString(text))) return NULL
+    INTERN(s_buf, "_buf");
+    INTERN(s_stats, "stats");
+    INTERN(s_bytes, "bytes");
+    INTERN(s_frames, "frames");
+    INTERN(s_max_data, "max_data_length");
+    INTERN(s_recover, "recover_length");
+    INTERN(s_c_event, "_c_event");
+    INTERN(s_final, "final");
+    INTERN(s_decode, "decode");
+#undef INTERN
     m = PyModule_Create(&module);
     if (!m) return NULL;
     Py_INCREF(&DecoderType);
+    Py_INCREF(&AnyDecoderType);
+    Py_INCREF(&ParserMethodType);
     if (PyModule_AddObject(m, "Decoder", (PyObject *)&DecoderType) < 0 ||
-        PyModule_AddIntConstant(m, "ABI_VERSION", ABI_VERSION) < 0 ||
-        PyModule_AddIntConstant(m, "SCAN_DEFAULT", TG_SCAN_DEFAULT) < 0) {
+        PyModule_AddObject(m, "AnyDecoder", (PyObject *)&AnyDecoderType) < 0 ||
+        PyModule_AddObject(m, "ParserMethod", (PyObject *)&ParserMethodType) < 0 ||
+        PyModule_AddIntConstant(m, "ABI_VERSION", ABI_VERSION) < 0) {
         Py_DECREF(m);
         return NULL;
     }

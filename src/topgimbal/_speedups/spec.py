@@ -72,6 +72,7 @@ class CodecSpec:
     spellings: tuple[tuple[bytes, int], ...] = ()  # enum: accepted spelling -> value index
     text: bytes = b""  # literal text, or timestamp layout
     lat: bool = False  # geo: latitude (else longitude)
+    binary: bool = False  # raw: any byte allowed (else '#', CR and LF are refused on encode)
     sub: CodecSpec | None = None  # oneof: the number codec
     extra: dict[str, Any] = field(default_factory=dict, compare=False)
 
@@ -168,8 +169,9 @@ def _decfloat(c: Any, where: str) -> CodecSpec:
 
 
 def _bitrate(c: Any, where: str) -> CodecSpec:
-    # Bitrate's range is stated in words only (allowed()); the C encoder knows 50..99999 kbps.
-    return CodecSpec("bitrate", c.width, c.min_width, c.width, lo=50, hi=99999)
+    if getattr(c, "scale", 1) != 1:
+        raise CodecSpecError(f"{where}: a Bitrate scale of {c.scale!r} (the C core counts whole kbps)")
+    return CodecSpec("bitrate", c.width, c.min_width, c.max_width, lo=int(c.min), hi=int(c.max))
 
 
 def _enum_tables(c: Any, where: str) -> dict[str, Any]:
@@ -212,7 +214,7 @@ def _ipv4(c: Any, where: str) -> CodecSpec:
 
 
 def _raw(c: Any, where: str) -> CodecSpec:
-    return CodecSpec("raw", c.width, c.min_width, c.max_width)
+    return CodecSpec("raw", c.width, c.min_width, c.max_width, binary=bool(getattr(c, "binary", False)))
 
 
 def _literal(c: Any, where: str) -> CodecSpec:
@@ -220,17 +222,18 @@ def _literal(c: Any, where: str) -> CodecSpec:
     return CodecSpec("literal", len(t), len(t), len(t), text=t)
 
 
-def _geo(kind: str) -> Callable[[Any, str], CodecSpec]:
-    def build(c: Any, where: str) -> CodecSpec:
-        if c.axis not in ("lat", "lon"):
-            raise CodecSpecError(f"{where}: axis {c.axis!r}")
-        lat = c.axis == "lat"
-        lim = 90 if lat else 180
-        return CodecSpec(
-            kind, c.width, c.width, c.width, exp10=-7, lo=-lim * 10**7, hi=lim * 10**7, pyfloat=True, lat=lat
-        )
+GEO_STYLES = {"dm": "geodm", "deg": "geodeg"}  # Geo(axis, style): the C kind of each style
 
-    return build
+
+def _geo(c: Any, where: str) -> CodecSpec:
+    kind = GEO_STYLES.get(c.style)
+    if c.axis not in ("lat", "lon") or kind is None:
+        raise CodecSpecError(f"{where}: Geo axis {c.axis!r} style {c.style!r} (the C core knows lat|lon, dm|deg)")
+    lat = c.axis == "lat"
+    lim = 90 if lat else 180
+    if c.width != (10 if lat else 11):
+        raise CodecSpecError(f"{where}: a {c.axis} coordinate of {c.width} characters")
+    return CodecSpec(kind, c.width, c.width, c.width, exp10=-7, lo=-lim * 10**7, hi=lim * 10**7, pyfloat=True, lat=lat)
 
 
 _LAYOUT_FIELDS = {"%Y": 4, "%y": 2, "%m": 2, "%d": 2, "%H": 2, "%M": 2, "%S": 2, "%f2": 2}
@@ -268,8 +271,7 @@ HANDLERS: dict[str, Callable[[Any, str], CodecSpec]] = {
     "IPv4Text": _ipv4,
     "RawData": _raw,
     "Literal": _literal,
-    "GeoDM": _geo("geodm"),
-    "GeoDeg": _geo("geodeg"),
+    "Geo": _geo,
     "Timestamp": _timestamp,
 }
 
@@ -304,6 +306,7 @@ def codec_tuple(spec: CodecSpec) -> tuple[Any, ...]:
         int(spec.signed),
         int(spec.little),
         int(spec.lat),
+        int(spec.binary),
         int(spec.pyfloat),
         spec.exp10,
         spec.decimals,

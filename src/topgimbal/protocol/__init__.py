@@ -22,7 +22,16 @@ from .catalog import (
     direction_of,
     factory_values,
 )
-from .dialects import DIALECT_NAMES, all_models, decode_any, dialect_for, get_dialect, get_model, guess_dialects
+from .dialects import (
+    DIALECT_NAMES,
+    all_models,
+    any_decoder,
+    decode_any,
+    dialect_for,
+    get_dialect,
+    get_model,
+    guess_dialects,
+)
 from .fields import Field
 from .frame import Dissection, Frame, checksum, dissect, make_frame, parse_frame
 from .parser import Diagnostic, FrameParser, ParserStats
@@ -66,6 +75,7 @@ __all__ = [
     "ParserStats",
     "VideoStream",
     "all_models",
+    "any_decoder",
     "checksum",
     "decode",
     "decode_any",

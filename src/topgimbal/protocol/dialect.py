@@ -7,10 +7,11 @@ and what a received frame means (`decode`, which never raises)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import replace
 from typing import Any
 
+from .. import _speedups
 from ..errors import FieldValueError, UnknownCommandError, UnsupportedError
 from .commands import MANY_ROLES, ROLES, CommandSpec
 from .forms import REQUEST, RESPONSE, Form
@@ -19,6 +20,8 @@ from .message import Message
 from .models import DeviceModel
 
 NO_CONTROL_HEADER = "#Tp"  # its control position carries length: such a frame has no r/w
+_HotForm = tuple[Form, int, int, Callable[[bytes], dict[str, Any]]]
+_new_tuple = tuple.__new__
 
 
 class Dialect:
@@ -88,6 +91,19 @@ class Dialect:
                 for direction, other in ((REQUEST, RESPONSE), (RESPONSE, REQUEST)):
                     index[(c.ident, rw, direction)] = tuple(c.forms_for(rw, direction)) + tuple(c.forms_for(rw, other))
         self._decode_index = index
+        # The same index for the decode hot path: identifier -> (spec, {control: (forms of a request,
+        # forms of a response)}), each form with its length range and field decoder.
+        self._hot: dict[str, tuple[CommandSpec, dict[str, tuple[tuple[_HotForm, ...], ...]]]] = {}
+        for c in cmds.values():
+            by_rw = {
+                rw: tuple(
+                    tuple((f, f.min_length, f.max_length, f.decoder) for f in index[(c.ident, rw, direction)])
+                    for direction in (REQUEST, RESPONSE)
+                )
+                for rw in ("r", "w")
+            }
+            by_rw[""] = by_rw["w"]  # a #Tp frame has no control character: decoded as a write
+            self._hot[c.ident] = (c, by_rw)
 
     def __repr__(self) -> str:
         return f"<Dialect {self.name}: {len(self.commands)} commands, models {', '.join(self.models)}>"
@@ -234,6 +250,37 @@ class Dialect:
 
     def decode(self, frame: Frame) -> Message:
         """Name the fields of `frame` in user units (never raises; `error` says what did not fit)."""
+        return self.decoder()(frame)
+
+    def decoder(self) -> Callable[[Frame], Message]:
+        """The decoder behind `decode`: the C fast path's (built on first use, the same results) or
+        `_decode_py`. It becomes this dialect's `decode`, so later calls go straight to it, and
+        `FrameParser.feed_messages(data, dialect.decode)` decodes inside the C scan."""
+        dec = self.__dict__.get("decode")
+        if dec is None:
+            dec = _speedups.make_decoder(self, Message, self._decode_py) or self._decode_py
+            self.__dict__["decode"] = dec
+        return dec  # type: ignore[no-any-return]
+
+    def _decode_py(self, frame: Frame) -> Message:
+        """Dialect.decode in pure Python (the reference the fast path is tested against)."""
+        hot = self._hot.get(frame[4])
+        if hot is not None:
+            per_direction = hot[1].get(frame[3])
+            if per_direction is not None:
+                data = frame[5]
+                n = len(data)
+                # frame.src in DEVICE_ADDRESSES and frame.dst in HOST_ADDRESSES: a response
+                for form, lo, hi, decoder in per_direction[frame[1] in "MDEG" and frame[2] in "UP"]:
+                    if lo <= n <= hi:
+                        try:
+                            return _new_tuple(Message, (frame, hot[0], form, decoder(data), None, self.name))
+                        except ValueError:
+                            break  # the full path below says which field
+        return self._decode_explained(frame)
+
+    def _decode_explained(self, frame: Frame) -> Message:
+        """Dialect.decode, every case with its error text (what the hot path above falls back to)."""
         spec = self.commands.get(frame.ident)
         if spec is None:
             return Message(frame, None, None, None, f"{frame.ident!r} is not in the {self.name} catalog", self.name)

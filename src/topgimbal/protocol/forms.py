@@ -6,7 +6,7 @@ A form is either a sequence of fields (only the last may have a variable width) 
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -16,6 +16,10 @@ from .fields import Codec, Field
 REQUEST = "request"
 RESPONSE = "response"
 FORM_ROLES = ("", "echo")  # "echo": the device's copy of a write; answers and reports leave it empty
+
+
+def _no_fields(data: bytes) -> dict[str, Any]:
+    return {}
 
 
 @dataclass(frozen=True)
@@ -39,6 +43,7 @@ class Form:
     _slices: tuple[tuple[str, Codec, int, int], ...] = field(init=False, repr=False, compare=False, default=())
     _min_len: int = field(init=False, repr=False, compare=False, default=0)
     _max_len: int = field(init=False, repr=False, compare=False, default=0)
+    _decoder: Callable[[bytes], dict[str, Any]] = field(init=False, repr=False, compare=False, default=_no_fields)
 
     def __post_init__(self) -> None:
         if self.rw not in ("r", "w") or self.direction not in (REQUEST, RESPONSE) or self.role not in FORM_ROLES:
@@ -72,6 +77,37 @@ class Form:
         set_(self, "_slices", tuple(slices))
         set_(self, "_min_len", lo)
         set_(self, "_max_len", hi)
+        set_(self, "_decoder", self._build_decoder())
+
+    def _build_decoder(self) -> Callable[[bytes], dict[str, Any]]:
+        """`decoder`: one function per form that calls each field's codec on its slice and builds
+        the dict in one expression (no per-field loop or comprehension frame on the hot path)."""
+        if self.const is not None:
+            const = self.const
+
+            def decode_const(data: bytes) -> dict[str, Any]:
+                if data != const:
+                    raise FieldValueError("data", data, f"exactly {const!r}")
+                return {}
+
+            return decode_const
+        namespace: dict[str, Any] = {}
+        items = []
+        for k, (name, codec, a, b) in enumerate(self._slices):
+            namespace[f"_d{k}"] = codec.decode
+            items.append(f"{name!r}: _d{k}(data[{a:d}:{b:d}])")
+        if self._variable is not None:
+            namespace["_dv"] = self._variable.decode
+            items.append(f"{self.fields[-1].name!r}: _dv(data[{self._fixed:d}:])")
+        # Built from field names (as literals) and slice bounds (ints) only.
+        exec(f"def decode(data):\n    return {{{', '.join(items)}}}\n", namespace)
+        return namespace["decode"]  # type: ignore[no-any-return]
+
+    @property
+    def decoder(self) -> Callable[[bytes], dict[str, Any]]:
+        """The fields of data already of an accepted length, or ValueError (what `decode` does
+        after its length check, without naming the field)."""
+        return self._decoder
 
     @property
     def min_length(self) -> int:
@@ -134,13 +170,10 @@ class Form:
         if not self._min_len <= n <= self._max_len:
             raise FieldValueError("data", data, f"{self._min_len}..{self._max_len} data bytes, not {n}")
         try:
-            out = {name: codec.decode(data[a:b]) for name, codec, a, b in self._slices}
-            if self._variable is not None:
-                out[self.fields[-1].name] = self._variable.decode(data[self._fixed :])
+            return self._decoder(data)
         except ValueError:
             self._raise_for_field(data)
             raise
-        return out
 
     def _raise_for_field(self, data: bytes) -> None:
         """Which field's bytes failed, as a FieldValueError naming it (only on the error path)."""

@@ -21,8 +21,12 @@ recovered frame is therefore delivered when the next frame or line end arrives.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
+from zlib import adler32 as _adler32
 
+from .. import _speedups
 from .frame import Frame, checksum_text
 
 _HEXVAL = [-1] * 256
@@ -39,8 +43,23 @@ _HDR = {b"TP": "#TP", b"tp": "#tp", b"tP": "#tP", b"Tp": "#Tp"}
 _ASCII_HDR = frozenset((b"TP", b"tp"))
 _SEPARATORS = frozenset(b"\r\n")
 _HEX2 = [b"%02X" % i for i in range(256)]
+# A frame's ten header bytes -> (declared data length, the Frame's first five items): headers repeat
+# (the same command, addresses and length), so a valid one is judged once. Bounded: cleared when full.
+_HEADERS: dict[bytes, tuple[int, tuple[str, str, str, str, str]]] = {}
+_HEADERS_MAX = 4096
+_new_tuple = tuple.__new__
 _HEX2_LOWER = [b"%02x" % i for i in range(256)]
 _ASCII_MAX_TOTAL = 12 + 15
+# Why bytes were discarded, by the C scanner's reason codes (enum tg_reason in c/include/topgimbal.h):
+# the pure scan words its diagnostics with the same table, so both paths read the same.
+OUTSIDE, BAD_HEADER, OVERSIZE, INCOMPLETE_FOLLOWED, END_OF_STREAM, INNER_FRAME, BAD_CHECKSUM, RECOVERED = range(1, 9)
+_WHY = {
+    OUTSIDE: "bytes outside a frame",
+    BAD_HEADER: "'#' not followed by a valid header/address/length",
+    INCOMPLETE_FOLLOWED: "incomplete frame followed by a good one",
+    END_OF_STREAM: "incomplete frame at end of stream",
+    INNER_FRAME: "checksum matched by chance: a frame starts inside",
+}
 
 
 @dataclass(frozen=True)
@@ -86,36 +105,112 @@ class FrameParser:
 
     def feed(self, data: bytes) -> list[Frame | Diagnostic]:
         """Add bytes; return the frames (and diagnostics) they complete, in wire order."""
-        self.stats.bytes += len(data)
-        buf = self._buf + data if self._buf else bytes(data)
-        out: list[Frame | Diagnostic] = []
-        pos = self._scan(buf, 0, out, final=False)
-        self._buf = buf[pos:]
-        return out
+        return self._feed_py(data, False, None)
 
     def feed_datagram(self, data: bytes) -> list[Frame | Diagnostic]:
         """Feed one whole datagram (UDP): its end is a frame boundary, so nothing is kept for the
         next one and a frame with a wrong length character that ends the datagram is recovered."""
-        return self.feed(data) + self.flush()
+        return self._feed_py(data, True, None)
 
     def flush(self) -> list[Frame | Diagnostic]:
         """Resolve whatever is buffered as if the stream ended here (end of a datagram or file)."""
-        buf, self._buf = self._buf, b""
-        out: list[Frame | Diagnostic] = []
-        pos = self._scan(buf, 0, out, final=True)
-        if pos < len(buf):
-            self._discard(buf[pos:], out, "incomplete frame at end of stream")
-        return out
+        return self._feed_py(b"", True, None)
+
+    def feed_messages(self, data: bytes, decode: Callable[[Frame], Any], *, final: bool = False) -> list[Any]:
+        """`feed` (or `feed_datagram` when `final`) with every frame replaced by `decode(frame)`, in
+        one pass: `parser.feed_messages(datagram, dialect.decode, final=True)` gives the Messages
+        and Diagnostics of a datagram in wire order. With the C fast path and a decoder of the
+        catalog (`Dialect.decode`, `any_decoder()`), bytes to Messages is a single C call."""
+        return self._feed_py(data, final, decode)
 
     # -- internals -------------------------------------------------------------------------
 
-    def _discard(self, raw: bytes, out: list[Frame | Diagnostic], why: str, kind: str = "garbage") -> None:
-        junk = bytes(b for b in raw if b not in _SEPARATORS)
+    def _feed_py(self, data: bytes, final: bool, decode: Callable[[Frame], Any] | None) -> list[Any]:
+        """feed / feed_datagram / flush / feed_messages in pure Python. With the fast path in use,
+        those four methods are the C scanner's, which give the same events and statistics."""
+        stats = self.stats
+        stats.bytes += len(data)
+        buf = self._buf + data if self._buf else bytes(data)
+        n_buf = len(buf)
+        out: list[Any] = []
+        append = out.append
+        max_data = self.max_data_length
+        # The common case inline: good frames back to back (line ends between them are no news),
+        # each with a header seen before. Anything else goes to the full scan from where it is.
+        pos = 0
+        while pos < n_buf:
+            if buf[pos] != 0x23:
+                # line ends are skipped only before a '#' or the end (else they belong to the bytes
+                # the full scan discards, and its diagnostic shows them)
+                after = pos + 1
+                while after < n_buf and buf[after] in _SEPARATORS:
+                    after += 1
+                if buf[pos] in _SEPARATORS and (after == n_buf or buf[after] == 0x23):
+                    pos = after
+                    continue
+                break
+            head = _HEADERS.get(buf[pos : pos + 10])
+            if head is None or head[0] > max_data:
+                break
+            end = pos + 12 + head[0]
+            if end > n_buf:
+                break
+            crc = buf[end - 2 : end]
+            # adler32's low half is 1 + the byte sum while that sum stays below 65520 (at most 256
+            # bytes before the checksum): the checksum in one C call
+            s = ((_adler32(buf[pos : end - 2]) & 0xFFFF) - 1 if end - pos <= 258 else sum(buf[pos : end - 2])) & 0xFF
+            if not (crc == _HEX2[s] or crc == _HEX2_LOWER[s]) or buf.find(b"#", pos + 1, end) >= 0:
+                break
+            append(_new_tuple(Frame, head[1] + (buf[pos + 10 : end - 2], None)))
+            pos = end
+        stats.frames += len(out)
+        if pos < n_buf:
+            pos = self._scan(buf, pos, out, final=False)
+            if final:  # the rest as if the stream ended here
+                pos = self._scan(buf, pos, out, final=True)
+                if pos < n_buf:
+                    self._discard(buf[pos:], out, _WHY[END_OF_STREAM])
+                pos = n_buf
+            self._buf = buf[pos:]
+            if decode is not None:
+                return [decode(e) if type(e) is Frame else e for e in out]
+            return out
+        self._buf = b""
+        return out if decode is None else list(map(decode, out))
+
+    def _discard(self, raw: bytes, out: list[Any], why: str, kind: str = "garbage") -> None:
+        junk = raw.translate(None, b"\r\n")  # line ends between frames are no news
         if not junk:
             return
         self.stats.bytes_discarded += len(junk)
         self.stats.resyncs += 1
         out.append(Diagnostic(kind, why, raw))
+
+    def _oversize(self, buf: bytes, i: int, out: list[Any]) -> None:
+        self.stats.oversize += 1
+        self._discard(buf[i : i + 1], out, f"declared length above the {self.max_data_length}-byte bound", "oversize")
+
+    def _bad_checksum(self, buf: bytes, i: int, end: int, nxt: int, out: list[Any]) -> None:
+        """Drop the frame [i, end) whose checksum is wrong; scanning resumes at `nxt`."""
+        stats = self.stats
+        stats.bad_checksums += 1
+        stats.bytes_discarded += nxt - i
+        stats.resyncs += 1
+        crc = buf[end - 2 : end]
+        expected = checksum_text(buf[i : end - 2]).decode()
+        out.append(Diagnostic("bad_checksum", f"checksum {crc.decode('latin-1')!r}, expected {expected!r}", buf[i:end]))
+
+    def _c_event(self, buf: bytes, out: list[Any], code: int, start: int, end: int, nxt: int, frame: Any) -> None:
+        """A rare event of the C scanner (anything but a good frame), turned into exactly the
+        diagnostics and statistics the pure scan gives."""
+        if code == OVERSIZE:
+            self._oversize(buf, start, out)
+        elif code == BAD_CHECKSUM:
+            self._bad_checksum(buf, start, end, nxt, out)
+        elif code == RECOVERED:
+            self._emit_recovered((frame, end), buf, start, out)
+        else:
+            self._discard(buf[start:end], out, _WHY[code], "bad_header" if code == BAD_HEADER else "garbage")
 
     def _frame_end(self, buf: bytes, i: int) -> int:
         """End offset of a frame starting at `i` (by its declared length), -1 if it cannot be a
@@ -167,29 +262,32 @@ class FrameParser:
             j = buf.find(b"#", j + 1, end)
         return -1
 
-    def _scan(self, buf: bytes, pos: int, out: list[Frame | Diagnostic], final: bool) -> int:
+    def _scan(self, buf: bytes, pos: int, out: list[Any], final: bool) -> int:
         n_buf = len(buf)
         stats = self.stats
         while pos < n_buf:
             i = buf.find(b"#", pos)
             if i < 0:
-                self._discard(buf[pos:], out, "bytes outside a frame")
+                self._discard(buf[pos:], out, _WHY[OUTSIDE])
                 return n_buf
             if i > pos:
-                self._discard(buf[pos:i], out, "bytes outside a frame")
+                self._discard(buf[pos:i], out, _WHY[OUTSIDE])
                 pos = i
-            end = self._frame_end(buf, i)
+            head = _HEADERS.get(buf[i : i + 10])
+            if head is not None:
+                end = i + 12 + head[0] if head[0] <= self.max_data_length else -3
+            else:
+                end = self._frame_end(buf, i)
+                if end >= 0:
+                    head = _remember_header(buf, i, end - i - 12)
             if end == -2:
                 return i  # too few bytes to judge the header yet (flush() discards them)
             if end == -1:
-                self._discard(buf[i : i + 1], out, "'#' not followed by a valid header/address/length", "bad_header")
+                self._discard(buf[i : i + 1], out, _WHY[BAD_HEADER], "bad_header")
                 pos = i + 1
                 continue
             if end == -3:
-                stats.oversize += 1
-                self._discard(
-                    buf[i : i + 1], out, f"declared length above the {self.max_data_length}-byte bound", "oversize"
-                )
+                self._oversize(buf, i, out)
                 pos = i + 1
                 continue
             if end > n_buf:
@@ -206,7 +304,7 @@ class FrameParser:
                     if isinstance(rec, tuple):
                         pos = self._emit_recovered(rec, buf, i, out)
                         continue
-                self._discard(buf[i:j], out, "incomplete frame followed by a good one")
+                self._discard(buf[i:j], out, _WHY[INCOMPLETE_FOLLOWED])
                 pos = j
                 continue
             crc = buf[end - 2 : end]
@@ -216,19 +314,12 @@ class FrameParser:
                 if inner is None:
                     return i  # a frame that starts inside this one is still arriving
                 if inner >= 0:
-                    self._discard(buf[i:inner], out, "checksum matched by chance: a frame starts inside")
+                    self._discard(buf[i:inner], out, _WHY[INNER_FRAME])
                     pos = inner
                     continue
-                ident = buf[i + 7 : i + 10].decode("ascii")
-                hdr = buf[i + 1 : i + 3]
-                if hdr == b"Tp":
-                    frame = Frame("#Tp", chr(buf[i + 3]), chr(buf[i + 4]), "", ident, buf[i + 10 : end - 2])
-                else:
-                    frame = Frame(
-                        _HDR[hdr], chr(buf[i + 3]), chr(buf[i + 4]), chr(buf[i + 6]), ident, buf[i + 10 : end - 2]
-                    )
+                assert head is not None  # set with every end >= 0
                 stats.frames += 1
-                out.append(frame)
+                out.append(_new_tuple(Frame, head[1] + (buf[i + 10 : end - 2], None)))
                 pos = end
                 continue
             # Bad checksum at the declared length.
@@ -243,17 +334,11 @@ class FrameParser:
             nxt = buf.find(b"#", i + 1, end)
             if nxt < 0:
                 nxt = end
-            stats.bad_checksums += 1
-            stats.bytes_discarded += nxt - i
-            stats.resyncs += 1
-            expected = checksum_text(buf[i : end - 2]).decode()
-            out.append(
-                Diagnostic("bad_checksum", f"checksum {crc.decode('latin-1')!r}, expected {expected!r}", buf[i:end])
-            )
+            self._bad_checksum(buf, i, end, nxt, out)
             pos = nxt
         return pos
 
-    def _emit_recovered(self, rec: tuple[Frame, int], buf: bytes, i: int, out: list[Frame | Diagnostic]) -> int:
+    def _emit_recovered(self, rec: tuple[Frame, int], buf: bytes, i: int, out: list[Any]) -> int:
         frame, rec_end = rec
         self.stats.frames += 1
         self.stats.length_recoveries += 1
@@ -311,6 +396,17 @@ class FrameParser:
         return frame, end
 
 
+def _remember_header(buf: bytes, i: int, n: int) -> tuple[int, tuple[str, str, str, str, str]]:
+    """The header at `i` (valid, declaring `n` data bytes) as _HEADERS keeps it."""
+    hdr = buf[i + 1 : i + 3]
+    rw = "" if hdr == b"Tp" else chr(buf[i + 6])
+    head = (n, (_HDR[hdr], chr(buf[i + 3]), chr(buf[i + 4]), rw, buf[i + 7 : i + 10].decode("ascii")))
+    if len(_HEADERS) >= _HEADERS_MAX:
+        _HEADERS.clear()
+    _HEADERS[buf[i : i + 10]] = head
+    return head
+
+
 def _bad_prefix(buf: bytes, i: int, n_buf: int) -> bool:
     """True if the bytes already after the '#' at `i` rule out a frame (so garbage is dropped at
     once instead of being held waiting for bytes that cannot make it a frame)."""
@@ -327,3 +423,19 @@ def _bad_prefix(buf: bytes, i: int, n_buf: int) -> bool:
     if n_buf > i + 6 and hdr != b"Tp" and buf[i + 6] not in _RW:
         return True
     return any(n_buf > i + k and buf[i + k] not in _IDENT for k in (7, 8, 9))
+
+
+class PureFrameParser(FrameParser):
+    """FrameParser on the pure Python path whatever is installed (differential tests, benchmarks)."""
+
+    feed = FrameParser.feed
+    feed_datagram = FrameParser.feed_datagram
+    flush = FrameParser.flush
+    feed_messages = FrameParser.feed_messages
+
+
+# The fast path: the same four methods in C (the pure ones above stay the reference).
+_fast = _speedups.parser_methods(Frame, {name: getattr(FrameParser, name) for name in _speedups.PARSER_METHODS})
+if _fast is not None:
+    for _name, _method in _fast.items():
+        setattr(FrameParser, _name, _method)

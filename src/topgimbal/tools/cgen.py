@@ -105,7 +105,7 @@ class Emitter:
             raise CGenError(f"codec {spec.kind} too wide for the C tables")
         out.append(
             f"static const tg_codec {name} = {{{kind}, {width}, {spec.min_width}, {spec.max_width}, "
-            f"{int(spec.signed)}, {int(spec.little)}, {int(spec.lat)}, {int(spec.pyfloat)}, {spec.exp10}, "
+            f"{int(spec.signed)}, {int(spec.little)}, {int(spec.lat)}, {int(spec.binary)}, {int(spec.pyfloat)}, {spec.exp10}, "
             f"{spec.decimals}, {spec.pad}, {len(spec.names)}, {len(spec.spellings)}, {len(spec.none_tokens)}, "
             f"{spec.mul}, {spec.lo}LL, {spec.hi}LL, {names}, {raws}, {idem}, {spell}, {nones}, {text}, "
             f"{'&' + sub if sub else 'NULL'}}};"
