@@ -22,6 +22,7 @@ import heapq
 import logging
 from collections.abc import Hashable, Mapping
 from dataclasses import dataclass, field, replace
+from datetime import datetime
 from typing import Any
 
 from ..errors import TopGimbalError
@@ -169,6 +170,11 @@ class Device:
     @property
     def now(self) -> float:
         return self._last
+
+    def camera_time(self) -> datetime | None:
+        """The camera's clock now: what a host set with TIM / UTC, moved on; before that, on a
+        camera without a clock (no_clock quirk), 1970-01-01 plus the time since power-on."""
+        return self.state.camera.clock(self._last, has_clock=not self.quirks["no_clock"])
 
     # -- input -----------------------------------------------------------------------------------
 

@@ -9,7 +9,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
+from functools import cache
 from typing import Any
+
+from ..protocol import DIALECT_NAMES, QUERY, get_dialect
+from ..protocol.commands import stored_form
 
 # Zoom motor position range. The documents give zoom positions as signed 16-bit values without a
 # scale; the simulator maps 0..ZOOM_POS_MAX linearly onto 1x..optical_zoom_max.
@@ -35,14 +39,30 @@ class Position:
     speed_m_s: float = 0.0
 
 
+NETWORK_KEY = "network."
+
+
+@cache
+def network_factory(key: str) -> str:
+    """The catalog's factory value of a network setting (`ip`, `gateway`...), found by its state
+    key; both dialects build these rows alike."""
+    for name in DIALECT_NAMES:
+        for spec in get_dialect(name).commands.values():
+            for f in (stored_form(spec) or QUERY).fields:
+                if f.state_key == NETWORK_KEY + key and f.factory is not None:
+                    return str(f.factory)
+    return "0.0.0.0"
+
+
 @dataclass
 class NetworkState:
-    """Stored and answered, never bound: the simulator always listens on loopback."""
+    """Stored and answered, never bound: the simulator always listens on loopback. A new camera's
+    values are the catalog's factory values."""
 
-    ip: str = "192.168.144.108"
-    gateway: str = "192.168.144.10"
-    dns: str = "192.168.144.10"
-    backup_dns: str = "8.8.8.8"
+    ip: str = field(default_factory=lambda: network_factory("ip"))
+    gateway: str = field(default_factory=lambda: network_factory("gateway"))
+    dns: str = field(default_factory=lambda: network_factory("dns"))
+    backup_dns: str = field(default_factory=lambda: network_factory("backup_dns"))
 
     def snapshot(self) -> dict[str, Any]:
         return dict(self.__dict__)

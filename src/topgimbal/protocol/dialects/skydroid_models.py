@@ -82,8 +82,16 @@ MODELS: tuple[DeviceModel, ...] = (
         host_feeds={"FAI": 10.0, "TIM": 1.0},
         host_setup=(("FAE", {"state": "on"}),),
         identity={"version": "V1.0.78", "model_name": "C11", "hardware_version": "H1.0"},
-        quirks={"ignored_commands": True, "needs_video_output": True, "no_clock": True, "frame_size_limit": True,
-                "fixed_stream_rate": True, "wire_signs": True, "speed_unit": True, "strict_destinations": True},
+        quirks={
+            "ignored_commands": True,
+            "needs_video_output": True,
+            "no_clock": True,
+            "frame_size_limit": True,
+            "fixed_stream_rate": True,
+            "wire_signs": True,
+            "speed_unit": True,
+            "strict_destinations": True,
+        },
         video=_video(60.0),
         sources=(ARDUPILOT,),
         notes="Absolute angles (GAM, GAY, GAP) and GSM are ignored: point by closing the loop over GSY / GSP "

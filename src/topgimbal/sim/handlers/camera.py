@@ -99,7 +99,8 @@ def identity(state: SimState, msg: Message, req: Request) -> dict[str, Any]:
         text = state.identity(role, req.frame.dst) or (state.model.name if role == "model_name" else "")
     if not text:
         raise RefusedError(f"the {state.model.name} profile names no {role}")
-    if role == "version" and state.quirks.get("version_digits_only"):
+    own = f"{role}@{req.frame.dst}" in state.model.identity  # another part's version (SIP lens)
+    if role == "version" and state.quirks.get("version_digits_only") and not own:
         text = re.sub(r"\D", "", text) or text
     return {spec.forms_for("r", RESPONSE)[0].fields[0].name: text}
 

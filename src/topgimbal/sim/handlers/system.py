@@ -8,16 +8,14 @@ from typing import Any
 
 from ...protocol import Message
 from ..context import RefusedError, Request, SimState
-from ..state import NetworkState
+from ..state import NETWORK_KEY, NetworkState
 from .common import fields
-
-NETWORK_KEY = "network."
 
 
 def _attribute(msg: Message) -> str:
     assert msg.spec is not None
     key = msg.spec.state_keys.get("address", "")
-    if not key.startswith(NETWORK_KEY) or not hasattr(NetworkState, key[len(NETWORK_KEY) :]):
+    if not key.startswith(NETWORK_KEY) or key[len(NETWORK_KEY) :] not in NetworkState.__dataclass_fields__:
         raise RefusedError(f"{msg.spec.ident} names no network setting")
     return key[len(NETWORK_KEY) :]
 
