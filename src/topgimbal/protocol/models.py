@@ -69,7 +69,8 @@ QUIRKS: dict[str, str] = {
     "lowercase_header": "frames that would start #TP (replies, streams, errors) start #tp instead, as seen from "
     "TOPOTEK firmware",
     "crlf": "every frame the device sends ends with CR LF (some firmware does)",
-    "no_motion_echo": "motion commands (the profile's no_echo set) are obeyed but not echoed",
+    "no_motion_echo": "motion commands (the profile's no_echo set; every motion command where it names "
+    "none) are obeyed but not echoed",
     "ver_wrong_length": "the VER reply's length character says 3 although it carries 6 characters (a real C12: "
     "#tpDU3rVER0105025A; the checksum covers all 6)",
     "ignored_commands": "the commands in the profile's ignored set are dropped: no effect and no echo",
