@@ -45,6 +45,7 @@ MAX_RECEIVED = 10000
 STREAM_CATCH_UP_S = 1.0
 MOTOR_STEP_S = 0.05  # while motors run, wake this often so end-of-travel reports go out on time
 FRAME_OVERHEAD = 12  # header, addresses, length, control, identifier, checksum
+MAX_CACHED_ANSWERS = 512  # encoded answers kept for repeated queries (cleared when full)
 
 log = logging.getLogger("topgimbal.sim")
 
@@ -94,6 +95,7 @@ class Device:
         self._gap_s = model.min_command_gap_s if q["command_pacing"] else 0.0
         self._lowercase, self._crlf, self._ver_length = q["lowercase_header"], q["crlf"], q["ver_wrong_length"]
         self._errors: dict[tuple[str, str], Frame] = {}
+        self._answers: dict[Hashable, bytes] = {}
         self._versions = frozenset(i for i, e in self._entries.items() if e.spec.role == "version")
 
     # -- the state, as the simulator and tests read it --------------------------------------------
@@ -223,8 +225,9 @@ class Device:
         if reply is None:
             out = []
         else:
-            data = self.encode(reply)
-            if entry is not None and entry.slow and reply.ident != "ERE":
+            refused = isinstance(reply, Frame) and reply.ident == "ERE"
+            data = reply if isinstance(reply, bytes) else self.encode(reply)
+            if entry is not None and entry.slow and not refused:
                 self._answer_late(Outgoing(peer, data), now)
                 out = []
             else:
@@ -240,7 +243,7 @@ class Device:
             frame = self._errors[key] = make_frame("ERE", b"!!", src=request.dst, dst=request.src, header="#TP")
         return frame
 
-    def _dispatch(self, entry: Entry | None, frame: Frame, req: Request) -> Frame | None:
+    def _dispatch(self, entry: Entry | None, frame: Frame, req: Request) -> Frame | bytes | None:
         d = self.dialect
         if entry is None or not entry.supported or frame.src not in d.host_addresses:
             return self.error_frame(frame)
@@ -257,7 +260,7 @@ class Device:
                 return None  # the firmware drops it: no effect, no echo
             if entry.needs_video and frame.rw == "w" and not self.state.camera.video_output:
                 return frame.swapped()  # acknowledged, but the camera does nothing yet
-            if entry.signed:
+            if entry.signed and msg.fields:
                 # Handlers work in the API convention; wire signs are applied here, once, both ways.
                 msg = msg._replace(fields=flip(spec, msg.fields, self.signs))
             result = entry.handler(self.state, msg, req)
@@ -266,15 +269,15 @@ class Device:
                     return None
                 if result.values is None:
                     return frame.swapped()
-                return d.response(frame, rw=result.rw, **self._wire(entry, result.values))
+                return self._answer(entry, frame, result.values, result.rw)
             if frame.rw == "r":
                 if result is None:
                     raise RefusedError(f"{frame.ident} query has no answer")
-                return d.response(frame, **self._wire(entry, result))
+                return self._answer(entry, frame, result)
             if entry.silent_motion:
                 return None
             if result is not None and entry.echo_form:
-                return d.response(frame, **self._wire(entry, result))
+                return self._answer(entry, frame, result)
             return frame.swapped()
         except (RefusedError, TopGimbalError, ValueError):
             req.notes.clear()
@@ -291,8 +294,22 @@ class Device:
             req.notes.clear()
             return self.error_frame(frame)
 
-    def _wire(self, entry: Entry, values: dict[str, Any]) -> dict[str, Any]:
-        return flip(entry.spec, values, self.signs) if entry.signed else values
+    def _answer(self, entry: Entry, request: Frame, values: dict[str, Any], rw: str | None = None) -> bytes:
+        """The answer's bytes. Answers repeat (a gimbal at rest, a stored setting): the bytes for
+        the same request and values are kept, so a repeated query costs no encoding."""
+        try:
+            key: Hashable = (request.ident, request.src, request.dst, rw or request.rw, *values.items())
+            data = self._answers.get(key)
+        except TypeError:  # an unhashable value: encode every time
+            key, data = None, None
+        if data is None:
+            wire = flip(entry.spec, values, self.signs) if entry.signed else values
+            data = self.encode(self.dialect.response(request, rw=rw, **wire))
+            if key is not None:
+                if len(self._answers) >= MAX_CACHED_ANSWERS:
+                    self._answers.clear()
+                self._answers[key] = data
+        return data
 
     def _answer_late(self, out: Outgoing, now: float) -> None:
         delay = self.quirk_values.get("late_answers")
