@@ -135,3 +135,24 @@ def test_new_dzm_forms_and_slr_limit_no_longer_fail() -> None:
     request = d.encode("SLR", limit_m=20.0)
     [o] = dev.receive("host", request.to_bytes())
     assert o.data == request.swapped().to_bytes() and dev.settings["SLR"]["limit_m"] == 20.0
+
+
+def test_a_failing_stream_report_ends_that_stream_and_logs_once(caplog: pytest.LogCaptureFixture) -> None:
+    clock = FakeClock()
+    dev = Device("SIP", clock=clock)
+    d = dev.dialect
+    dev.receive("a", d.encode("GIA", src="P", state="on").to_bytes())
+    dev.receive("b", d.encode("GAA", src="P", state="on").to_bytes())
+    [gia] = [s for s in dev.streams.values() if s.ident == "GIA"]
+
+    def broken(state: SimState, s: object) -> list[Frame]:
+        raise ValueError("no frame")
+
+    gia.report = broken
+    with caplog.at_level(logging.WARNING, logger="topgimbal.sim"):
+        clock.advance(1.0)
+        out = dev.tick()
+    assert {o.peer for o in out} == {"b"} and len(out) == 10  # the other stream goes on
+    assert list(dev.streams) == [("b", "GAC")] and dev.errors == 1
+    [record] = caplog.records
+    assert "GIA" in record.getMessage()

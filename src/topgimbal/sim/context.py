@@ -29,7 +29,7 @@ from ..protocol.commands import factory_values, stored_form
 from ..protocol.signs import flip
 from .physics import Gimbal
 from .state import CameraState, NetworkState, Position
-from .streams import ReportFn, Streams
+from .streams import Key, ReportFn, Stream, Streams
 
 # Roles whose commands are reports, not settings a device stores.
 NOT_STORED = frozenset({"error", "attitude", "earth_attitude"})
@@ -94,7 +94,6 @@ class SimState:
     zoom_host: tuple[Hashable, str] | None = None  # who moved the zoom last (ZMP goes there)
     coast_until: float | None = None  # when a stop that has not taken yet takes (stop_coasts quirk)
     coast_axes: tuple[str, ...] = ()  # the axes that stop then
-    pending: list[tuple[Frame, Hashable]] = field(default_factory=list)  # frames for the next tick
     rng: random.Random = field(default_factory=random.Random)
 
     def report(self, ident: str, *, dst: str, src: str | None = None, rw: str | None = None, **values: Any) -> Frame:
@@ -171,6 +170,58 @@ class SimState:
             self.gimbal.trims.update({k: float(v) for k, v in g["trims"].items() if k in self.gimbal.trims})
 
 
+class StateView:
+    """The device's state as the simulator, the video package and tests read it (`sim.gimbal`,
+    `sim.camera`, `sim.settings`...): attributes of its `SimState`."""
+
+    state: SimState
+
+    @property
+    def gimbal(self) -> Gimbal:
+        return self.state.gimbal
+
+    @property
+    def camera(self) -> CameraState:
+        return self.state.camera
+
+    @property
+    def position(self) -> Position:
+        return self.state.position
+
+    @property
+    def network(self) -> NetworkState:
+        return self.state.network
+
+    @property
+    def uid(self) -> int:
+        return self.state.uid
+
+    @property
+    def serial(self) -> str:
+        return self.state.serial
+
+    @property
+    def reboots(self) -> int:
+        return self.state.reboots
+
+    @property
+    def settings(self) -> dict[str, dict[str, Any]]:
+        return self.state.settings
+
+    @property
+    def streams(self) -> dict[Key, Stream]:
+        """Subscriptions by (peer, identifier)."""
+        return self.state.streams.by_key
+
+    @property
+    def dirty(self) -> bool:
+        return self.state.dirty
+
+    @dirty.setter
+    def dirty(self, value: bool) -> None:
+        self.state.dirty = value
+
+
 DEFAULT_STREAM_HZ = 10.0  # an on / off stream whose rate neither the profile nor the host gives
 
 
@@ -224,6 +275,7 @@ __all__ = [
     "Request",
     "Result",
     "SimState",
+    "StateView",
     "new_state",
     "serial_for",
 ]

@@ -31,13 +31,10 @@ from ..protocol.frame import DEVICE_ADDRESSES
 from ..protocol.signs import flip, resolve_signs
 from . import quirks as quirk_table
 from .clock import Clock, MonotonicClock
-from .context import Handler, RefusedError, Reply, Request, SimState, new_state
+from .context import Handler, RefusedError, Reply, Request, SimState, StateView, new_state
 from .entries import Entry, build_entries
 from .handlers import handler_table
 from .handlers.lens import zoom_report
-from .physics import Gimbal
-from .state import CameraState, NetworkState, Position
-from .streams import Key, Stream
 
 # TOPOTEK's GAA / GIA switch a stream on without a rate; this is the simulator's (documented) rate.
 TOPOTEK_STREAM_HZ = 10.0
@@ -58,7 +55,7 @@ class Outgoing:
 
 
 @dataclass
-class Device:
+class Device(StateView):
     model_name: str | DeviceModel
     seed: int = 0
     clock: Clock = field(default_factory=MonotonicClock)
@@ -97,53 +94,6 @@ class Device:
         self._errors: dict[tuple[str, str], Frame] = {}
         self._answers: dict[Hashable, bytes] = {}
         self._versions = frozenset(i for i, e in self._entries.items() if e.spec.role == "version")
-
-    # -- the state, as the simulator and tests read it --------------------------------------------
-
-    @property
-    def gimbal(self) -> Gimbal:
-        return self.state.gimbal
-
-    @property
-    def camera(self) -> CameraState:
-        return self.state.camera
-
-    @property
-    def position(self) -> Position:
-        return self.state.position
-
-    @property
-    def network(self) -> NetworkState:
-        return self.state.network
-
-    @property
-    def uid(self) -> int:
-        return self.state.uid
-
-    @property
-    def serial(self) -> str:
-        return self.state.serial
-
-    @property
-    def reboots(self) -> int:
-        return self.state.reboots
-
-    @property
-    def settings(self) -> dict[str, dict[str, Any]]:
-        return self.state.settings
-
-    @property
-    def streams(self) -> dict[Key, Stream]:
-        """Subscriptions by (peer, identifier)."""
-        return self.state.streams.by_key
-
-    @property
-    def dirty(self) -> bool:
-        return self.state.dirty
-
-    @dirty.setter
-    def dirty(self, value: bool) -> None:
-        self.state.dirty = value
 
     # -- time ------------------------------------------------------------------------------------
 
@@ -362,9 +312,16 @@ class Device:
         limit = now + early_s + 1e-9
         while (s := streams.pop_due(limit)) is not None:
             self.sync(s.next_due)
-            frames = s.report(state, s)
-            if frames is not s.last_frames:
-                s.last_frames, s.last_data = frames, [self.encode(f) for f in frames]
+            try:
+                frames = s.report(state, s)
+                if frames is not s.last_frames:
+                    s.last_frames, s.last_data = frames, [self.encode(f) for f in frames]
+            except Exception as exc:  # a report that cannot be built ends its stream, not the device
+                self.errors += 1
+                what = f"{type(exc).__name__}: {exc}"
+                log.warning("%s: the %s stream failed (%s) and was stopped", self.model.name, s.ident, what)
+                streams.by_key.pop((s.peer, s.ident), None)
+                continue
             for data in s.last_data:
                 out.append(Outgoing(s.peer, data, reply=False))
             s.next_due += s.period
@@ -375,9 +332,6 @@ class Device:
             if streams.alive(s):
                 streams.push(s)
         self.sync(now)
-        if state.pending:
-            out += [Outgoing(peer, self.encode(f), reply=False) for f, peer in state.pending]
-            state.pending.clear()
         if state.camera.events:
             self._zoom_events(out)
         while self._late and self._late[0][0] <= now:
