@@ -8,23 +8,7 @@ from datetime import datetime
 from typing import Any
 
 from topgimbal.protocol import Form
-from topgimbal.protocol.fields import (
-    BinInt,
-    Bitrate,
-    Codec,
-    DecFloat,
-    DecInt,
-    Enum,
-    Field,
-    Geo,
-    HexInt,
-    IPv4Text,
-    Literal,
-    OneOf,
-    RawData,
-    Text,
-    Timestamp,
-)
+from topgimbal.protocol.fields import Codec, Field
 
 
 def base_value(f: Field) -> Any:
@@ -36,34 +20,38 @@ def base_value(f: Field) -> Any:
     return f.codec.neutral()
 
 
+def _numbers(d: dict[str, Any]) -> list[Any]:
+    lo, hi = d["min"], d["max"]
+    if d.get("step", 1) >= 1:
+        lo, hi = math.ceil(lo - 1e-9), math.floor(hi + 1e-9)
+    return [lo, hi]
+
+
 def codec_values(codec: Codec) -> list[Any]:
-    """Values worth sending: the range's ends, every table value, a typical text."""
-    if isinstance(codec, Enum):
-        return [v.name for v in codec.values]
-    if isinstance(codec, OneOf):
-        return codec_values(codec.tokens) + codec_values(codec.number)
-    if isinstance(codec, (HexInt, BinInt, DecInt, DecFloat, Bitrate)):
-        lo, hi = codec.min, codec.max
-        assert lo is not None and hi is not None, codec
-        if getattr(codec, "scale", 1) == 1 and not isinstance(codec, DecFloat):
-            lo, hi = math.ceil(lo), math.floor(hi)
-        out = [lo, hi]
-        if getattr(codec, "none_tokens", ()):
-            out.append(None)
-        return out
-    if isinstance(codec, Geo):
-        return [-float(codec.limit), float(codec.limit), 22.5]
-    if isinstance(codec, IPv4Text):
+    """Values worth sending, read from the codec's own description: the range's ends, every table
+    value, a typical text of each length limit, "no value" where the codec has a spelling for it."""
+    d = codec.describe()
+    kind = d["kind"]
+    if kind == "enum":
+        return [v["name"] for v in d["values"]]
+    if kind == "enum_or_number":
+        return [v["name"] for v in d["tokens"]] + _numbers(d["number"])
+    if kind == "number":
+        return _numbers(d) + ([None] if getattr(codec, "none_tokens", ()) else [])
+    if kind == "coordinate":
+        limit = float(getattr(codec, "limit", 90))
+        return [-limit, limit, 22.5]
+    if kind == "ipv4":
         return ["127.0.0.1", "255.255.255.255"]
-    if isinstance(codec, RawData):
+    if kind == "raw":
         return ["00" * max(1, codec.min_width), "AB" * min(codec.max_width, 15)]
-    if isinstance(codec, Text):
-        return ["V" * max(1, codec.min_len), "V1.2-" * (codec.max_len // 5)]
-    if isinstance(codec, Timestamp):
+    if kind == "text":
+        return ["V" * max(1, codec.min_width), "V1.2-" * (codec.max_width // 5)]
+    if kind == "datetime":
         return [datetime(2025, 5, 29, 12, 34, 56), datetime(2031, 12, 31, 23, 59, 59)]
-    if isinstance(codec, Literal):
-        return [codec.text]
-    raise AssertionError(f"no sample values for {codec!r}")
+    if kind == "literal":
+        return [codec.neutral()]
+    raise AssertionError(f"no sample values for a {kind} codec ({d['codec']})")
 
 
 def samples(form: Form) -> list[dict[str, Any]]:
@@ -82,11 +70,9 @@ def samples(form: Form) -> list[dict[str, Any]]:
 
 def step_of(codec: Codec) -> float:
     """Half a step of the codec: how far a decoded number may be from what was sent."""
-    if isinstance(codec, OneOf):
-        return step_of(codec.number)
-    if isinstance(codec, Geo):
-        return codec.step / 2 + 1e-7
-    return float(getattr(codec, "scale", 1)) / 2 + 1e-9
+    d = codec.describe()
+    step = d.get("number", d).get("step", 1e-6 if d["kind"] == "coordinate" else 1)
+    return float(step) / 2 + 1e-7
 
 
 def same(codec: Codec, sent: Any, got: Any) -> bool:
@@ -95,7 +81,7 @@ def same(codec: Codec, sent: Any, got: Any) -> bool:
         return abs(float(sent) - float(got)) <= step_of(codec)
     if isinstance(sent, datetime) and isinstance(got, datetime):
         return abs((sent - got).total_seconds()) < 1
-    if isinstance(codec, RawData) and isinstance(sent, str) and isinstance(got, str):
+    if codec.kind == "raw" and isinstance(sent, str) and isinstance(got, str):
         return sent.upper() == got.upper()
     return bool(sent == got)
 
