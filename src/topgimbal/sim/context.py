@@ -128,8 +128,9 @@ class SimState:
         for spec in self.dialect.supported(self.model):
             if spec.role not in NOT_STORED and stored_form(spec) is not None:
                 out[spec.ident] = factory_values(spec)
-        if "UID" in out:
-            out["UID"]["uid"] = self.uid
+        uid = self.dialect.by_role("uid", self.model)
+        if uid is not None and uid.ident in out:
+            out[uid.ident]["uid"] = self.uid
         return out
 
     def factory_reset(self) -> None:

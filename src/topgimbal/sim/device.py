@@ -26,7 +26,7 @@ from datetime import datetime
 from typing import Any
 
 from ..errors import TopGimbalError
-from ..protocol import REQUEST, DeviceModel, Diagnostic, Frame, FrameParser, get_dialect, get_model, make_frame
+from ..protocol import REQUEST, DeviceModel, Diagnostic, Frame, FrameParser, get_dialect, get_model
 from ..protocol.frame import DEVICE_ADDRESSES
 from ..protocol.signs import flip, resolve_signs
 from . import quirks as quirk_table
@@ -92,6 +92,7 @@ class Device(StateView):
         self._gap_s = model.min_command_gap_s if q["command_pacing"] else 0.0
         self._lowercase, self._crlf, self._ver_length = q["lowercase_header"], q["crlf"], q["ver_wrong_length"]
         self._errors: dict[tuple[str, str], Frame] = {}
+        self._error_ident = dialect.require_role("error").ident  # the protocol's ERE
         self._answers: dict[Hashable, bytes] = {}
         self._versions = frozenset(i for i, e in self._entries.items() if e.spec.role == "version")
 
@@ -175,7 +176,7 @@ class Device(StateView):
         if reply is None:
             out = []
         else:
-            refused = isinstance(reply, Frame) and reply.ident == "ERE"
+            refused = isinstance(reply, Frame) and reply.ident == self._error_ident
             data = reply if isinstance(reply, bytes) else self.encode(reply)
             if entry is not None and entry.slow and not refused:
                 self._answer_late(Outgoing(peer, data), now)
@@ -190,7 +191,9 @@ class Device(StateView):
         key = (request.dst, request.src)
         frame = self._errors.get(key)
         if frame is None:
-            frame = self._errors[key] = make_frame("ERE", b"!!", src=request.dst, dst=request.src, header="#TP")
+            frame = self._errors[key] = self.dialect.notification(
+                self._error_ident, src=request.dst, dst=request.src, header="#TP", error="!!"
+            )
         return frame
 
     def _dispatch(self, entry: Entry | None, frame: Frame, req: Request) -> Frame | bytes | None:

@@ -44,7 +44,7 @@ def build_entries(
         out[ident] = Entry(
             spec=spec,
             handler=handler,
-            supported=ident != "ERE" and dialect.supports(model, ident),
+            supported=spec.role != "error" and dialect.supports(model, ident),
             signed=bool(spec.wire_sign_fields),
             limits=tuple((f, lo, hi) for (i, f), (lo, hi) in model.limits.items() if i == ident),
             ignored=bool(quirks.get("ignored_commands")) and ident in model.ignored,
