@@ -66,3 +66,136 @@ def test_protocol_core_is_standard_library_only() -> None:
             if top != "topgimbal" and top not in stdlib and top != "__future__":
                 bad.append(f"{path.relative_to(PKG)} imports {mod}")
     assert not bad, "\n".join(bad)
+
+
+# -- no import circles inside a package -------------------------------------------------------------
+
+# Packages whose modules import each other in a circle today, named here so the check holds for every
+# other package; each entry is a debt to pay off, not a licence (the lead closes this list).
+CIRCLE_EXCEPTIONS: frozenset[str] = frozenset()
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(PKG.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _is_type_checking(node: ast.If) -> bool:
+    test = node.test
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
+
+
+def _module_level_imports(path: Path, modules: set[str]) -> set[str]:
+    """Modules of `modules` that `path` imports when it is imported: statements at module level
+    (also inside module-level if / try blocks), not inside functions, not under TYPE_CHECKING. A
+    `from package import name` counts for the package and, when `name` is a module, for it too."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    here = _module_name(path).split(".")
+    package = here if path.name == "__init__.py" else here[:-1]
+    out: set[str] = set()
+
+    def visit(body: list[ast.stmt]) -> None:
+        for node in body:
+            if isinstance(node, ast.If):
+                if not _is_type_checking(node):
+                    visit(node.body)
+                visit(node.orelse)
+            elif isinstance(node, ast.Try):
+                for block in (node.body, node.orelse, node.finalbody, *(h.body for h in node.handlers)):
+                    visit(block)
+            elif isinstance(node, ast.Import):
+                out.update(a.name for a in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                base = package[: len(package) - node.level + 1] if node.level else []
+                mod = ".".join([*base, *(node.module.split(".") if node.module else [])])
+                for a in node.names:
+                    # A submodule named in the import is what it imports; a name defined in the
+                    # package's __init__ imports the package (whose parents load first anyway).
+                    out.add(f"{mod}.{a.name}" if f"{mod}.{a.name}" in modules else mod)
+
+    visit(tree.body)
+    out.discard(_module_name(path))  # `from . import x` in a package's __init__
+    return out & modules
+
+
+def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+
+    def strongconnect(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                strongconnect(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            strongconnect(v)
+    return found
+
+
+def _package_circles() -> dict[str, list[list[str]]]:
+    out: dict[str, list[list[str]]] = {}
+    for package in sorted(p for p in PKG.iterdir() if (p / "__init__.py").exists()):
+        files = list(package.rglob("*.py"))
+        modules = {_module_name(f) for f in files}
+        graph = {_module_name(f): _module_level_imports(f, modules) for f in files}
+        circles = _circles(graph)
+        if circles:
+            out[package.name] = circles
+    return out
+
+
+def test_no_import_circles_inside_a_package() -> None:
+    circles = _package_circles()
+    bad = {name: c for name, c in circles.items() if name not in CIRCLE_EXCEPTIONS}
+    assert not bad, "\n".join(f"{name}: {' -> '.join(c)}" for name, cs in bad.items() for c in cs)
+    paid = sorted(CIRCLE_EXCEPTIONS - circles.keys())
+    assert not paid, f"no circle left in {', '.join(paid)}: take it off CIRCLE_EXCEPTIONS"
+
+
+def test_the_circle_check_finds_a_circle(tmp_path: Path) -> None:
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("from .b import x\n")
+    (pkg / "b.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .c import y\nx = 1\n")
+    (pkg / "c.py").write_text("from . import a\n\ndef f():\n    from . import b\n")
+    files = list(pkg.rglob("*.py"))
+
+    def name(f: Path) -> str:
+        parts = list(f.relative_to(tmp_path).with_suffix("").parts)
+        return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+    global PKG
+    saved, PKG = PKG, tmp_path / "pkg"  # _module_name reads names relative to PKG's parent
+    try:
+        modules = {name(f) for f in files}
+        graph = {name(f): _module_level_imports(f, modules) for f in files}
+    finally:
+        PKG = saved
+    assert graph == {"pkg": set(), "pkg.a": {"pkg.b"}, "pkg.b": set(), "pkg.c": {"pkg.a"}}
+    assert _circles(graph) == []
+    graph["pkg.b"].add("pkg.c")  # b importing c at module level closes a -> b -> c -> a
+    assert _circles(graph) == [["pkg.a", "pkg.b", "pkg.c"]]

@@ -29,8 +29,9 @@ Fields (all optional beyond the first four):
     gimbal_header             header G-class frames must carry (C13: "#TP"; None: the dialect's rule)
     max_frame_bytes           longest frame the firmware takes (C11: 28 bytes); None: no known limit
     identity                  what the device reports, by role: {"version": "V1.2.0",
-                              "model_name": "C12", "hardware_version": ...}
-    ignored                   commands the firmware accepts and echoes but silently ignores
+                              "model_name": "C12", "hardware_version": ...}; "role@ADDRESS" for
+                              what one address answers differently (SIP "version@M": the lens)
+    ignored                   commands the firmware silently drops: no effect, no echo
                               (C11: GAM, GSM, GAY, GAP: point by closing the loop over rates)
     no_echo                   writes the firmware often does not acknowledge: do not wait for an echo
     echo_rules                {ident: form title}: the form a write is answered with instead of a
@@ -68,10 +69,11 @@ QUIRKS: dict[str, str] = {
     "lowercase_header": "frames that would start #TP (replies, streams, errors) start #tp instead, as seen from "
     "TOPOTEK firmware",
     "crlf": "every frame the device sends ends with CR LF (some firmware does)",
-    "no_motion_echo": "motion commands (the profile's no_echo set) are obeyed but not echoed",
+    "no_motion_echo": "motion commands (the profile's no_echo set; every motion command where it names "
+    "none) are obeyed but not echoed",
     "ver_wrong_length": "the VER reply's length character says 3 although it carries 6 characters (a real C12: "
     "#tpDU3rVER0105025A; the checksum covers all 6)",
-    "ignored_commands": "the commands in the profile's ignored set are echoed but have no effect",
+    "ignored_commands": "the commands in the profile's ignored set are dropped: no effect and no echo",
     "stop_coasts": "a single stop is sometimes missed and the gimbal coasts on; a repeated stop halts it "
     "(the profile's stop_repeats)",
     "late_answers": "queries in the profile's slow_answers set are answered minutes late or not at all",
@@ -80,6 +82,15 @@ QUIRKS: dict[str, str] = {
     "gimbal_header_required": "G-class frames with another header than the profile's gimbal_header are ignored",
     "command_pacing": "commands closer together than the profile's min_command_gap_s are dropped",
     "frame_size_limit": "frames longer than the profile's max_frame_bytes are dropped",
+    "fixed_stream_rate": "streams go out at the profile's stream_rates_hz whatever rate the host asked for "
+    "(C11: GAC at 50 Hz)",
+    "wire_signs": "the profile's wire_signs apply (C11 / C12 / C13 GSY yaw inverted, SIP pitch down-positive); "
+    "off: every value is signed as the document says",
+    "speed_unit": "rate commands count in the profile's speed_unit_deg_s dialect option (C11: 0.5 deg/s per step, "
+    "the document's table); off: the document text's 0.1 deg/s",
+    "strict_destinations": "commands the profile's destinations move elsewhere (C11: DZM to M) are ignored when "
+    "sent to the documented address",
+    "version_digits_only": "the version is answered as digits only (123 for 1.2.3), as some firmware does",
 }
 
 TRANSPORTS = ("udp", "tcp", "serial")

@@ -2,40 +2,52 @@
 
 `Device.receive(peer, data)` takes what a host sent (one datagram, or a chunk of a byte stream)
 and returns the frames to send back, each addressed to a peer. `Device.tick()` returns what is due
-on its own (attitude streams, ZMP after a zoom, rangefinder results). Peers are opaque hashable
-objects owned by the servers; the device only uses them as addresses and subscription keys.
+on its own (attitude streams, ZMP after a zoom, rangefinder results, late answers). Peers are
+opaque hashable objects owned by the servers; the device only uses them as addresses and
+subscription keys.
 
 Rules (both documents, §2.3): a control command is echoed with swapped addresses; a query is
 answered with data; an unknown identifier, malformed data, or a command the model does not
-support gets the error frame; a frame with a bad checksum is ignored.
+support gets the error frame; a frame with a bad checksum is ignored. The model profile's quirks
+(`protocol.QUIRKS`, switched by `quirks.resolve`) bend these rules the way real firmware does.
+
+The device dispatches on a handler table (`handlers.handler_table(dialect)`, or the caller's),
+precomputed per model into one entry per identifier, so a request costs one dictionary lookup
+before its handler runs. Handlers see only `context.SimState`.
 """
 
 from __future__ import annotations
 
-import random
+import heapq
+import logging
 from collections.abc import Hashable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from datetime import datetime
 from typing import Any
 
-from ..errors import CatalogError, TopGimbalError
-from ..protocol import Diagnostic, Frame, FrameParser, Message, get_model, make_frame
-from ..protocol.catalog import RESPONSE
+from ..errors import TopGimbalError
+from ..protocol import REQUEST, DeviceModel, Diagnostic, Frame, FrameParser, get_dialect, get_model
 from ..protocol.frame import DEVICE_ADDRESSES
 from ..protocol.signs import flip, resolve_signs
-from . import handlers as _handlers
 from . import quirks as quirk_table
 from .clock import Clock, MonotonicClock
-from .dispatch import DEFAULTS, HANDLERS, Ctx, Refuse, Reply, default_value
-from .physics import Gimbal
-from .state import CameraState, NetworkState
+from .context import Handler, RefusedError, Reply, Request, SimState, StateView, new_state
+from .entries import Entry, build_entries
+from .handlers import handler_table
+from .handlers.lens import zoom_report
 
 # TOPOTEK's GAA / GIA switch a stream on without a rate; this is the simulator's (documented) rate.
 TOPOTEK_STREAM_HZ = 10.0
 MAX_RECEIVED = 10000
 STREAM_CATCH_UP_S = 1.0
+MOTOR_STEP_S = 0.05  # while motors run, wake this often so end-of-travel reports go out on time
+FRAME_OVERHEAD = 12  # header, addresses, length, control, identifier, checksum
+MAX_CACHED_ANSWERS = 512  # encoded answers kept for repeated queries (cleared when full)
+
+log = logging.getLogger("topgimbal.sim")
 
 
-@dataclass
+@dataclass(slots=True)
 class Outgoing:
     peer: Hashable
     data: bytes
@@ -43,96 +55,79 @@ class Outgoing:
 
 
 @dataclass
-class Stream:
-    """One host's subscription to a periodic report."""
-
-    peer: Hashable
-    ident: str  # identifier of the frames sent (GAC, GIA, LRF, TMP)
-    host: str  # address letter of the host (U or P)
-    period: float
-    next_due: float
-
-
-@dataclass
-class Position:
-    """What the host tells the camera about the vehicle (LAT/LON/ALT/AZI/GPS)."""
-
-    lat_deg: float | None = None
-    lon_deg: float | None = None
-    alt_m: float | None = None
-    azimuth_deg: float | None = None
-    speed_m_s: float = 0.0
-
-
-@dataclass
-class Device:
-    model_name: str
+class Device(StateView):
+    model_name: str | DeviceModel
     seed: int = 0
     clock: Clock = field(default_factory=MonotonicClock)
-    quirk_overrides: Mapping[str, bool] | None = None
-    topotek_stream_hz: float = TOPOTEK_STREAM_HZ
+    quirk_overrides: Mapping[str, quirk_table.Override] | None = None
+    topotek_stream_hz: float | None = None  # rate of on / off streams; None: the profile's
+    handlers: Mapping[str, Handler] | None = None  # replaces / adds to the dialect's table
 
     def __post_init__(self) -> None:
-        self.dialect, self.model = get_model(self.model_name)
-        self.model_name = self.model.name
-        self.quirks = quirk_table.resolve(self.model.name, self.quirk_overrides)
-        self.rng = random.Random(self.seed)
-        m = self.model
-        self.signs = resolve_signs(m)
-        self.gimbal = Gimbal.for_limits(
-            m.yaw_range_deg, m.pitch_range_deg, m.roll_range_deg, m.max_rate_deg_s, m.max_accel_deg_s2
+        dialect, model = get_model(self.model_name)
+        self.model_name = model.name
+        self.quirks, self.quirk_values = quirk_table.resolve(model, self.quirk_overrides)
+        if "speed_unit_deg_s" in model.dialect_options and not self.quirks["speed_unit"]:
+            options = {k: v for k, v in model.dialect_options.items() if k != "speed_unit_deg_s"}
+            dialect = get_dialect(model.dialect, **options, destinations=dict(model.destinations) or None)
+        self.dialect, self.model = dialect, model
+        signs = resolve_signs(model) if self.quirks["wire_signs"] else resolve_signs(_no_signs(model))
+        self.signs = signs
+        self.state: SimState = new_state(
+            model, dialect, signs=signs, quirks=self.quirks, seed=self.seed, stream_hz=self.topotek_stream_hz
         )
-        self.camera = CameraState(optical_zoom_max=m.optical_zoom_max, digital_zoom_max=m.digital_zoom_max)
-        self.network = NetworkState()
-        self.uid = self.rng.getrandbits(32)
-        self.serial = f"{m.name[:3].upper()}{self.rng.randrange(10**11):011d}"[:14]
-        self.settings = self.default_settings()
-        self.position = Position()
-        self.vehicle_input = self.dialect.name == "topotek"  # SkyDroid: FAE switches FAI on
-        self.streams: dict[tuple[Hashable, str], Stream] = {}
+        self.table = handler_table(dialect, self.handlers)
+        self._entries: dict[str, Entry] = build_entries(dialect, model, self.table, self.quirks)
         self.received: list[Frame] = []
-        self.dirty = False
-        self.reboots = 0
+        self.dropped: dict[str, int] = {}  # frames a quirk dropped, by quirk name
+        self.errors = 0  # handler failures answered with the error frame
         self._parsers: dict[Hashable, FrameParser] = {}
         self._last = self.clock.now()
-        self._zoom_peer: tuple[Hashable, str] | None = None
-        self._extra: list[tuple[Frame, Hashable]] = []
-
-    # -- settings --------------------------------------------------------------------------------
-
-    def default_settings(self) -> dict[str, dict[str, Any]]:
-        """Factory values of every stored setting the model has, from the catalog's read forms."""
-        out: dict[str, dict[str, Any]] = {}
-        for spec in self.dialect.supported(self.model):
-            forms = spec.forms_for("r", RESPONSE) or spec.forms_for("w", "request")
-            if not forms or spec.ident in ("GAC", "GIC", "ERE"):
-                continue
-            values = {f.name: default_value(f.codec) for f in forms[0].fields}
-            values.update({k: v for k, v in DEFAULTS.get(spec.ident, {}).items() if k in values or not forms[0].fields})
-            out[spec.ident] = values
-        if "UID" in out:
-            out["UID"]["uid"] = self.uid
-        return out
-
-    def report(self, ident: str, *, src: str, dst: str, rw: str | None = None, **values: Any) -> Frame:
-        """An unsolicited frame from API-convention values (wire signs applied here)."""
-        spec = self.dialect.command(ident)
-        return self.dialect.notification(ident, src=src, dst=dst, rw=rw, **flip(spec, values, self.signs))
+        self.state.camera.booted_at = self._last
+        self._late: list[tuple[float, int, Outgoing]] = []
+        self._late_seq = 0
+        self._last_command: float | None = None
+        q = self.quirks
+        self._max_frame = model.max_frame_bytes if q["frame_size_limit"] else None
+        self._gap_s = model.min_command_gap_s if q["command_pacing"] else 0.0
+        self._lowercase, self._crlf, self._ver_length = q["lowercase_header"], q["crlf"], q["ver_wrong_length"]
+        self._errors: dict[tuple[str, str], Frame] = {}
+        self._error_ident = dialect.require_role("error").ident  # the protocol's ERE
+        self._answers: dict[Hashable, bytes] = {}
+        self._versions = frozenset(i for i, e in self._entries.items() if e.spec.role == "version")
 
     # -- time ------------------------------------------------------------------------------------
 
     def sync(self, t: float | None = None) -> None:
         """Bring physics and motors up to time `t` (never backwards)."""
         t = self.clock.now() if t is None else t
-        dt = t - self._last
-        if dt > 0:
-            self.gimbal.advance(dt)
-            self.camera.advance(dt)
-            self._last = t
+        if t <= self._last:
+            return
+        state = self.state
+        if state.coast_until is not None and state.coast_until <= t:
+            # A coasting stop takes now: move up to that moment, then stop.
+            if state.coast_until > self._last:
+                self._advance(state.coast_until - self._last)
+                self._last = state.coast_until
+            for axis in state.coast_axes:
+                if state.gimbal.axis(axis).mode == "rate":
+                    state.gimbal.rate(axis, 0.0)
+            state.coast_until, state.coast_axes = None, ()
+        self._advance(t - self._last)
+        self._last = t
+
+    def _advance(self, dt: float) -> None:
+        self.state.gimbal.advance(dt)
+        self.state.camera.advance(dt)
 
     @property
     def now(self) -> float:
         return self._last
+
+    def camera_time(self) -> datetime | None:
+        """The camera's clock now: what a host set with TIM / UTC, moved on; before that, on a
+        camera without a clock (no_clock quirk), 1970-01-01 plus the time since power-on."""
+        return self.state.camera.clock(self._last, has_clock=not self.quirks["no_clock"])
 
     # -- input -----------------------------------------------------------------------------------
 
@@ -142,102 +137,171 @@ class Device:
         parser = self._parsers.get(peer)
         if parser is None:
             parser = self._parsers[peer] = FrameParser(max_data_length=0xFF)
-        # A datagram's end is a frame boundary: nothing is kept for the next one.
         items = parser.feed_datagram(data) if datagram else parser.feed(data)
+        if len(items) == 1 and not isinstance(items[0], Diagnostic):
+            return self.handle(peer, items[0])
         out: list[Outgoing] = []
         for item in items:
-            if isinstance(item, Diagnostic):
-                continue  # bad checksum / garbage: ignored, as a device does
-            out.extend(self.handle(peer, item))
+            if not isinstance(item, Diagnostic):  # bad checksum / garbage: ignored, as a device does
+                out.extend(self.handle(peer, item))
         return out
+
+    def _drop(self, quirk: str) -> list[Outgoing]:
+        self.dropped[quirk] = self.dropped.get(quirk, 0) + 1
+        return []
 
     def handle(self, peer: Hashable, frame: Frame) -> list[Outgoing]:
         if frame.dst not in DEVICE_ADDRESSES or frame.src in DEVICE_ADDRESSES:
             return []  # not addressed to a device (a reply looping back): nothing to do
+        if self._max_frame is not None and FRAME_OVERHEAD + len(frame.data) > self._max_frame:
+            return self._drop("frame_size_limit")
+        entry = self._entries.get(frame.ident)
+        if entry is not None:
+            if entry.header is not None and frame.header != entry.header:
+                return self._drop("gimbal_header_required")
+            if entry.destination is not None and frame.dst != entry.destination:
+                return self._drop("strict_destinations")
         self.sync()
+        now = self._last
+        if self._gap_s:
+            if self._last_command is not None and now - self._last_command < self._gap_s:
+                return self._drop("command_pacing")
+            self._last_command = now
         if len(self.received) >= MAX_RECEIVED:
             del self.received[: MAX_RECEIVED // 2]
         self.received.append(frame)
-        ctx = Ctx(peer, frame, self.now)
-        reply = self._dispatch(frame, ctx)
-        out = [] if reply is None else [Outgoing(peer, self.encode(reply))]
-        out.extend(Outgoing(peer, self.encode(f)) for f in ctx.notes)
+        req = Request(peer, frame, now)
+        reply = self._dispatch(entry, frame, req)
+        out: list[Outgoing]
+        if reply is None:
+            out = []
+        else:
+            refused = isinstance(reply, Frame) and reply.ident == self._error_ident
+            data = reply if isinstance(reply, bytes) else self.encode(reply)
+            if entry is not None and entry.slow and not refused:
+                self._answer_late(Outgoing(peer, data), now)
+                out = []
+            else:
+                out = [Outgoing(peer, data)]
+        if req.notes:
+            out.extend(Outgoing(peer, self.encode(f)) for f in req.notes)
         return out
 
     def error_frame(self, request: Frame) -> Frame:
-        return make_frame("ERE", b"!!", src=request.dst, dst=request.src, header="#TP")
+        key = (request.dst, request.src)
+        frame = self._errors.get(key)
+        if frame is None:
+            frame = self._errors[key] = self.dialect.notification(
+                self._error_ident, src=request.dst, dst=request.src, header="#TP", error="!!"
+            )
+        return frame
 
-    def _dispatch(self, frame: Frame, ctx: Ctx) -> Frame | None:
+    def _dispatch(self, entry: Entry | None, frame: Frame, req: Request) -> Frame | bytes | None:
         d = self.dialect
-        if frame.src not in d.host_addresses:
-            return self.error_frame(frame)
-        if not d.supports(self.model, frame.ident) or frame.ident == "ERE":
+        if entry is None or not entry.supported or frame.src not in d.host_addresses:
             return self.error_frame(frame)
         msg = d.decode(frame)
-        if msg.fields is None or msg.form is None or msg.spec is None or msg.form.direction != "request":
+        if msg.fields is None or msg.form is None or msg.form.direction != REQUEST:
             return self.error_frame(frame)
-        spec = msg.spec
+        spec = entry.spec
         try:
-            d.check_values(self.model, frame.ident, msg.fields)
-            # Handlers work in the API convention; wire signs are applied here, once, both ways.
-            msg = msg._replace(fields=flip(spec, msg.fields, self.signs))
-            handler = HANDLERS.get(frame.ident, _generic)
-            result = handler(self, msg, ctx)
+            for name, lo, hi in entry.limits:
+                value = msg.fields.get(name)
+                if isinstance(value, (int, float)) and not isinstance(value, bool) and not lo <= value <= hi:
+                    raise RefusedError(f"{name} {value} outside {lo:g}..{hi:g} on the {self.model.name}")
+            if entry.ignored:
+                return None  # the firmware drops it: no effect, no echo
+            if entry.needs_video and frame.rw == "w" and not self.state.camera.video_output:
+                return frame.swapped()  # acknowledged, but the camera does nothing yet
+            if entry.signed and msg.fields:
+                # Handlers work in the API convention; wire signs are applied here, once, both ways.
+                msg = msg._replace(fields=flip(spec, msg.fields, self.signs))
+            result = entry.handler(self.state, msg, req)
             if isinstance(result, Reply):
                 if not result.send:
                     return None
                 if result.values is None:
-                    return self._echo(frame)
-                return d.response(frame, rw=result.rw, **flip(spec, result.values, self.signs))
-            if result is None:
-                if frame.rw == "r":
-                    raise Refuse(f"{frame.ident} query has no answer")
-                if self.quirks["no_motion_echo"] and spec.motion:
-                    return None
-                return self._echo(frame)
-            return d.response(frame, **flip(spec, result, self.signs))
-        except (Refuse, CatalogError, TopGimbalError, ValueError):
-            ctx.notes.clear()
+                    return frame.swapped()
+                return self._answer(entry, frame, result.values, result.rw)
+            if frame.rw == "r":
+                if result is None:
+                    raise RefusedError(f"{frame.ident} query has no answer")
+                return self._answer(entry, frame, result)
+            if entry.silent_motion:
+                return None
+            if result is not None and entry.echo_form:
+                return self._answer(entry, frame, result)
+            return frame.swapped()
+        except (RefusedError, TopGimbalError, ValueError):
+            req.notes.clear()
+            return self.error_frame(frame)
+        except Exception as exc:  # a handler bug must not take the simulator down
+            self.errors += 1
+            log.warning(
+                "%s: %s raised %s: %s; answered with the error frame",
+                self.model.name,
+                frame.text(),
+                type(exc).__name__,
+                exc,
+            )
+            req.notes.clear()
             return self.error_frame(frame)
 
-    def _echo(self, frame: Frame) -> Frame:
-        return frame.swapped()
+    def _answer(self, entry: Entry, request: Frame, values: dict[str, Any], rw: str | None = None) -> bytes:
+        """The answer's bytes. Answers repeat (a gimbal at rest, a stored setting): the bytes for
+        the same request and values are kept, so a repeated query costs no encoding."""
+        try:
+            key: Hashable = (request.ident, request.src, request.dst, rw or request.rw, *values.items())
+            data = self._answers.get(key)
+        except TypeError:  # an unhashable value: encode every time
+            key, data = None, None
+        if data is None:
+            wire = flip(entry.spec, values, self.signs) if entry.signed else values
+            data = self.encode(self.dialect.response(request, rw=rw, **wire))
+            if key is not None:
+                if len(self._answers) >= MAX_CACHED_ANSWERS:
+                    self._answers.clear()
+                self._answers[key] = data
+        return data
+
+    def _answer_late(self, out: Outgoing, now: float) -> None:
+        delay = self.quirk_values.get("late_answers")
+        if delay is None:
+            self.dropped["late_answers"] = self.dropped.get("late_answers", 0) + 1
+            return  # never answered
+        self._late_seq += 1
+        heapq.heappush(self._late, (now + delay, self._late_seq, out))
 
     def encode(self, frame: Frame) -> bytes:
         """Frame -> bytes with this model's output quirks."""
-        if self.quirks["lowercase_header"] and frame.header == "#TP":
+        if self._lowercase and frame.header == "#TP":
             frame = frame._replace(header="#tp")
-        if self.quirks["ver_wrong_length"] and frame.ident == "VER" and frame.rw == "r" and len(frame.data) == 6:
+        if self._ver_length and frame.rw == "r" and len(frame.data) == 6 and frame.ident in self._versions:
             frame = frame._replace(declared_length=3)
         data = frame.to_bytes()
-        return data + b"\r\n" if self.quirks["crlf"] else data
+        return data + b"\r\n" if self._crlf else data
 
-    # -- streams ---------------------------------------------------------------------------------
-
-    def subscribe(self, ctx: Ctx, ident: str, rate_hz: float) -> None:
-        key = (ctx.peer, ident)
-        if rate_hz <= 0:
-            self.streams.pop(key, None)
-            return
-        period = 1.0 / rate_hz
-        old = self.streams.get(key)
-        first = ctx.now + period if old is None else min(old.next_due, ctx.now + period)
-        self.streams[key] = Stream(ctx.peer, ident, ctx.host, period, first)
+    # -- streams and reports ---------------------------------------------------------------------
 
     def subscribed(self, peer: Hashable, ident: str) -> bool:
-        return (peer, ident) in self.streams
+        return self.state.streams.subscribed(peer, ident)
 
     def forget(self, peer: Hashable) -> None:
         """A peer went away (TCP connection closed): drop its parser and subscriptions."""
         self._parsers.pop(peer, None)
-        for key in [k for k in self.streams if k[0] == peer]:
-            del self.streams[key]
+        self.state.streams.forget(peer)
 
     def next_due(self) -> float | None:
-        times = [s.next_due for s in self.streams.values()]
-        if self.camera.moving or self.gimbal.moving:
-            times.append(self._last + 0.05)  # keep motors integrating so ZMP goes out on time
-        return min(times) if times else None
+        state = self.state
+        t = state.streams.next_due()
+        for other in (
+            self._last + MOTOR_STEP_S if state.camera.moving or state.gimbal.moving else None,
+            state.coast_until,
+            self._late[0][0] if self._late else None,
+        ):
+            if other is not None and (t is None or other < t):
+                t = other
+        return t
 
     def tick(self, early_s: float = 0.0) -> list[Outgoing]:
         """Everything due up to now (stream frames up to `early_s` ahead), in time order, each
@@ -246,65 +310,61 @@ class Device:
         here, so frames leave within [due - early_s, due] instead of up to 2 ms late."""
         now = self.clock.now()
         out: list[Outgoing] = []
-        while True:
-            due = [s for s in self.streams.values() if s.next_due <= now + early_s + 1e-9]
-            if not due:
-                break
-            s = min(due, key=lambda s: s.next_due)
+        state = self.state
+        streams = state.streams
+        limit = now + early_s + 1e-9
+        while (s := streams.pop_due(limit)) is not None:
             self.sync(s.next_due)
-            frame = _handlers.stream_frame(self, s)
-            if frame is not None:
-                out.append(Outgoing(s.peer, self.encode(frame), reply=False))
+            try:
+                frames = s.report(state, s)
+                if frames is not s.last_frames:
+                    s.last_frames, s.last_data = frames, [self.encode(f) for f in frames]
+            except Exception as exc:  # a report that cannot be built ends its stream, not the device
+                self.errors += 1
+                what = f"{type(exc).__name__}: {exc}"
+                log.warning("%s: the %s stream failed (%s) and was stopped", self.model.name, s.ident, what)
+                streams.by_key.pop((s.peer, s.ident), None)
+                continue
+            for data in s.last_data:
+                out.append(Outgoing(s.peer, data, reply=False))
             s.next_due += s.period
             if s.next_due < now - STREAM_CATCH_UP_S:
                 # Fell far behind (a suspended process): resynchronise rather than burst. Shorter
                 # stalls are caught up, so the mean rate stays what the host asked for.
                 s.next_due = now
-            if (s.peer, s.ident) not in self.streams:
-                continue
+            if streams.alive(s):
+                streams.push(s)
         self.sync(now)
-        for frame, peer in _handlers.pending_reports(self):
-            out.append(Outgoing(peer, self.encode(frame), reply=False))
+        if state.camera.events:
+            self._zoom_events(out)
+        while self._late and self._late[0][0] <= now:
+            out.append(heapq.heappop(self._late)[2])
         return out
+
+    def _zoom_events(self, out: list[Outgoing]) -> None:
+        stopped = "zoom_stopped" in self.state.camera.events
+        self.state.camera.events.clear()
+        if stopped and self.state.zoom_host is not None:
+            peer, host = self.state.zoom_host
+            frame = zoom_report(self.state, host)
+            if frame is not None:
+                out.append(Outgoing(peer, self.encode(frame), reply=False))
 
     # -- persistence -----------------------------------------------------------------------------
 
     def snapshot(self) -> dict[str, Any]:
-        g = self.gimbal
-        return {
-            "model": self.model.name,
-            "network": self.network.snapshot(),
-            "uid": self.uid,
-            "settings": self.settings,
-            "camera": self.camera.snapshot(),
-            "gimbal": {"mode": g.mode, "mount": g.mount, "trims": dict(g.trims)},
-        }
+        return self.state.snapshot()
 
     def restore(self, state: Mapping[str, Any]) -> None:
-        self.network.restore(state.get("network") or {})
-        if isinstance(state.get("uid"), int):
-            self.uid = state["uid"]
-        for ident, values in (state.get("settings") or {}).items():
-            if ident in self.settings and isinstance(values, dict):
-                self.settings[ident].update({k: v for k, v in values.items() if k in self.settings[ident]})
-        self.camera.restore(state.get("camera") or {})
-        g = state.get("gimbal") or {}
-        if g.get("mode") in ("follow", "lock"):
-            self.gimbal.mode = g["mode"]
-        if g.get("mount") in ("hanging", "inverted"):
-            self.gimbal.mount = g["mount"]
-        if isinstance(g.get("trims"), dict):
-            self.gimbal.trims.update({k: float(v) for k, v in g["trims"].items() if k in self.gimbal.trims})
+        self.state.restore(state)
 
     def factory_reset(self) -> None:
-        uid_rng = random.Random(self.seed)
-        self.network = NetworkState()
-        self.uid = uid_rng.getrandbits(32)
-        self.settings = self.default_settings()
-        self.gimbal.mode, self.gimbal.mount = "follow", "hanging"
-        self.gimbal.trims = {"x": 0.0, "y": 0.0, "z": 0.0}
-        self.dirty = True
+        self.state.factory_reset()
 
 
-def _generic(dev: Device, msg: Message, ctx: Ctx) -> Any:
-    return _handlers.setting(dev, msg, ctx)
+def _no_signs(model: DeviceModel) -> DeviceModel:
+    """`model` with every value signed as its document says (the wire_signs quirk off)."""
+    return replace(model, wire_signs={})
+
+
+__all__ = ["TOPOTEK_STREAM_HZ", "Device", "Outgoing"]

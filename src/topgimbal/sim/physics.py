@@ -63,6 +63,17 @@ class Axis:
         cap = self.limits.max_rate if speed is None or speed <= 0 else speed
         self.speed = min(cap, self.limits.max_rate)
 
+    def at_rest(self, vehicle: float) -> bool:
+        """Holding still on its target: nothing to integrate (checked on every stream frame, so
+        written out rather than through `body_target`)."""
+        if self.mode != "angle" or self.vel != 0.0:
+            return False
+        t = self.target
+        if self.frame == "earth":
+            t = wrap180(t - vehicle) if self.name == "yaw" else t - vehicle
+        lim = self.limits
+        return self.pos == (lim.lo if t < lim.lo else lim.hi if t > lim.hi else t)
+
     def body_target(self, vehicle: float) -> float:
         """The target in the body frame, clamped to the range (never overshoot the stops)."""
         t = self.target
@@ -178,7 +189,8 @@ class Gimbal:
 
     @property
     def moving(self) -> bool:
-        return any(a.vel != 0.0 or a.mode == "rate" for a in (self.yaw_axis, self.pitch_axis, self.roll_axis))
+        y, p, r = self.yaw_axis, self.pitch_axis, self.roll_axis
+        return bool(y.vel or p.vel or r.vel) or "rate" in (y.mode, p.mode, r.mode)
 
     # -- commands ------------------------------------------------------------------------------
 
@@ -222,13 +234,13 @@ class Gimbal:
     def advance(self, dt: float) -> None:
         if dt <= 0 or not self.motors_on:
             return
-        axes = [(self.axis(name), self.vehicle.get(name), self.hold_frame(name)) for name in AXES]
-        if all(ax.mode == "angle" and ax.vel == 0.0 and ax.pos == ax.body_target(veh) for ax, veh, _ in axes):
+        v = self.vehicle
+        if self.yaw_axis.at_rest(v.yaw) and self.pitch_axis.at_rest(v.pitch) and self.roll_axis.at_rest(v.roll):
             return  # at rest on every target: nothing to integrate, however long it has been idle
+        axes = [(self.axis(name), v.get(name), self.hold_frame(name)) for name in AXES]
         n = max(1, math.ceil(dt / MAX_STEP_S - 1e-9))
         h = dt / n
         for _ in range(n):
             for ax, veh, hold in axes:
-                if ax.mode == "angle" and ax.vel == 0.0 and ax.pos == ax.body_target(veh):
-                    continue  # at rest on target: nothing to integrate
-                ax.step(h, veh, hold)
+                if not ax.at_rest(veh):
+                    ax.step(h, veh, hold)

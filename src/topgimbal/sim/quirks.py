@@ -1,51 +1,80 @@
-"""Known real-device quirks, switchable per simulator. Each is off unless its model's default or the
-caller turns it on; `resolve()` rejects names it does not know, listing the ones it does."""
+"""Quirk switches: a thin reader of the model profile. The names and what they mean are the
+protocol's `QUIRKS`; which are on for a model is its profile's `quirks`; a caller turns any on or
+off (`--quirks crlf,-ver_wrong_length`). A few take a value (`late_answers=30` answers slow queries
+30 s late, `late_answers=never` never)."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
-QUIRKS: dict[str, str] = {
-    "lowercase_header": "frames that would start #TP (replies, streams, errors) start #tp instead, as seen from TOPOTEK firmware",
-    "crlf": "every frame the simulator sends ends with CR LF (some firmware does)",
-    "no_motion_echo": "motion commands (PTZ, GS*, RPS, YPR, GA*, GI*) are obeyed but not echoed",
-    "ver_wrong_length": "the VER reply's length character says 3 although it carries 6 characters "
-    "(a real C12: #tpDU3rVER0105025A; the checksum covers all 6)",
-}
+from ..protocol import QUIRKS, DeviceModel
 
-# What each model does by default. The C12's VER reply is documented from a real unit; every other
-# quirk is off so that a client written against the documents works unchanged.
-MODEL_DEFAULTS: dict[str, frozenset[str]] = {
-    "C12": frozenset({"ver_wrong_length"}),
-}
+# Quirks that take a value, with its default when only switched on. None means "never".
+PARAMETERS: dict[str, float | None] = {"late_answers": 120.0}
+NEVER = ("never", "none")
+Override = bool | float | None
 
 
-def resolve(model: str, overrides: Mapping[str, bool] | None = None) -> dict[str, bool]:
-    """The quirk switches for `model`: its defaults, then `overrides`."""
-    on = MODEL_DEFAULTS.get(model, frozenset())
-    out = {name: name in on for name in QUIRKS}
+def resolve(
+    model: DeviceModel, overrides: Mapping[str, Override] | None = None
+) -> tuple[dict[str, bool], dict[str, float | None]]:
+    """The quirk switches for `model` (its profile's, then `overrides`), and the values of the
+    quirks that take one."""
+    on = model.quirk_defaults()
+    values = dict(PARAMETERS)
     for name, value in (overrides or {}).items():
         if name not in QUIRKS:
             raise ValueError(f"unknown quirk {name!r}; known: {', '.join(QUIRKS)}")
-        out[name] = bool(value)
-    return out
+        if isinstance(value, bool):
+            on[name] = value
+        elif name in PARAMETERS and (value is None or isinstance(value, (int, float))):
+            on[name] = True
+            values[name] = None if value is None else float(value)
+        else:
+            raise ValueError(f"quirk {name}: expected on / off{_value_hint(name)}, not {value!r}")
+    return on, values
 
 
-def parse(text: str) -> dict[str, bool]:
-    """CLI form: `lowercase_header,crlf,-ver_wrong_length` (a leading - or no- turns one off)."""
-    out: dict[str, bool] = {}
+def _value_hint(name: str) -> str:
+    return " or seconds / never" if name in PARAMETERS else ""
+
+
+def parse(text: str) -> dict[str, Any]:
+    """CLI form: `lowercase_header,crlf,-ver_wrong_length,late_answers=30` (a leading - or no-
+    turns one off; NAME=on/off; a quirk that takes a value: NAME=SECONDS or NAME=never)."""
+    out: dict[str, Any] = {}  # bool, or a quirk's value (seconds, None for never)
     for item in filter(None, (p.strip() for p in text.split(","))):
-        name, value = item, True
+        name = item
+        parsed: Override = True
         if item.startswith("-"):
-            name, value = item[1:], False
+            name, parsed = item[1:], False
         elif item.startswith("no-"):
-            name, value = item[3:], False
+            name, parsed = item[3:], False
         elif "=" in item:
             name, _, raw = item.partition("=")
-            if raw.lower() not in ("1", "0", "on", "off", "true", "false", "yes", "no"):
-                raise ValueError(f"quirk {item!r}: expected NAME, -NAME or NAME=on/off")
-            value = raw.lower() in ("1", "on", "true", "yes")
+            parsed = _value(name, raw.strip().lower(), item)
         if name not in QUIRKS:
             raise ValueError(f"unknown quirk {name!r}; known: {', '.join(QUIRKS)}")
-        out[name] = value
+        out[name] = parsed
     return out
+
+
+def _value(name: str, raw: str, item: str) -> Override:
+    if raw in ("1", "on", "true", "yes"):
+        return True
+    if raw in ("0", "off", "false", "no"):
+        return False
+    if name in PARAMETERS:
+        if raw in NEVER:
+            return None
+        try:
+            seconds = float(raw.removesuffix("s"))
+        except ValueError:
+            seconds = -1.0
+        if seconds >= 0 and seconds == seconds and seconds != float("inf"):
+            return seconds
+    raise ValueError(f"quirk {item!r}: expected NAME, -NAME or NAME=on/off{_value_hint(name)}")
+
+
+__all__ = ["NEVER", "PARAMETERS", "QUIRKS", "parse", "resolve"]

@@ -8,8 +8,12 @@ give the persistent part as JSON-ready dicts.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from datetime import datetime
+from datetime import datetime, timedelta
+from functools import cache
 from typing import Any
+
+from ..protocol import DIALECT_NAMES, QUERY, get_dialect
+from ..protocol.commands import stored_form
 
 # Zoom motor position range. The documents give zoom positions as signed 16-bit values without a
 # scale; the simulator maps 0..ZOOM_POS_MAX linearly onto 1x..optical_zoom_max.
@@ -20,16 +24,45 @@ FOCUS_RATE = 500.0  # focus positions per second while FCC +/- runs
 DIGITAL_ZOOM_RATE = 1.0  # x per second while TOPOTEK DZM 0C / 0D runs
 PHOTO_MB = 6
 SD_TOTAL_MB = 30436  # a 32 GB card as the camera reports it
+# A camera without a clock (the no_clock quirk) starts here at power-on and counts from there.
+NO_CLOCK_EPOCH = datetime(1970, 1, 1)
+
+
+@dataclass
+class Position:
+    """What the host tells the camera about the vehicle (LAT/LON/ALT/AZI/GPS)."""
+
+    lat_deg: float | None = None
+    lon_deg: float | None = None
+    alt_m: float | None = None
+    azimuth_deg: float | None = None
+    speed_m_s: float = 0.0
+
+
+NETWORK_KEY = "network."
+
+
+@cache
+def network_factory(key: str) -> str:
+    """The catalog's factory value of a network setting (`ip`, `gateway`...), found by its state
+    key; both dialects build these rows alike."""
+    for name in DIALECT_NAMES:
+        for spec in get_dialect(name).commands.values():
+            for f in (stored_form(spec) or QUERY).fields:
+                if f.state_key == NETWORK_KEY + key and f.factory is not None:
+                    return str(f.factory)
+    return "0.0.0.0"
 
 
 @dataclass
 class NetworkState:
-    """Stored and answered, never bound: the simulator always listens on loopback."""
+    """Stored and answered, never bound: the simulator always listens on loopback. A new camera's
+    values are the catalog's factory values."""
 
-    ip: str = "192.168.144.108"
-    gateway: str = "192.168.144.10"
-    dns: str = "192.168.144.10"
-    backup_dns: str = "8.8.8.8"
+    ip: str = field(default_factory=lambda: network_factory("ip"))
+    gateway: str = field(default_factory=lambda: network_factory("gateway"))
+    dns: str = field(default_factory=lambda: network_factory("dns"))
+    backup_dns: str = field(default_factory=lambda: network_factory("backup_dns"))
 
     def snapshot(self) -> dict[str, Any]:
         return dict(self.__dict__)
@@ -64,6 +97,10 @@ class CameraState:
     day_night: str = "day"
     time_set: datetime | None = None
     time_set_at: float = 0.0
+    # Whether video output has started: VOM output on, or a video client playing (the video
+    # package sets it). Camera commands wait for it on models with the needs_video_output quirk.
+    video_output: bool = False
+    booted_at: float = 0.0  # device time of power-on (the no-clock camera counts from it)
     tracking: str = "stopped"
     rangefinder: str = "stop"
     events: list[str] = field(default_factory=list)  # "zoom_stopped" etc., consumed by the device
@@ -83,6 +120,14 @@ class CameraState:
         x = max(1.0, min(self.optical_zoom_max, x))
         span = self.optical_zoom_max - 1.0
         self.zoom_pos = 0.0 if span <= 0 else (x - 1.0) / span * ZOOM_POS_MAX
+
+    def clock(self, now: float, *, has_clock: bool = True) -> datetime | None:
+        """The camera's time at device time `now`: what the host last set (TIM / UTC) moved on by
+        the time since; before that the 1970 epoch plus uptime on a camera without a clock, None
+        (the real time, which the simulator does not model) on one with."""
+        if self.time_set is not None:
+            return self.time_set + timedelta(seconds=max(0.0, now - self.time_set_at))
+        return NO_CLOCK_EPOCH + timedelta(seconds=max(0.0, now - self.booted_at)) if not has_clock else None
 
     @property
     def sd_remaining_mb(self) -> int:

@@ -144,9 +144,19 @@ def lens_commands(section: dict[str, str]) -> list[CommandSpec]:
     ]
 
 
+# A new camera's network settings: TOPOTEK §五.7 gives the address and gateway RST restores; the
+# DNS servers are our assumption (the gateway, and a public resolver), documented in errata E34.
+NETWORK_FACTORY = {
+    "ip": "192.168.144.108",
+    "gateway": "192.168.144.10",
+    "dns": "192.168.144.10",
+    "backup_dns": "8.8.8.8",
+}
+
+
 def network_commands(section: dict[str, str], *, dns: bool = True) -> list[CommandSpec]:
     def ip(key: str) -> list[Field]:
-        return [F("address", IPv4Text(), state_key=f"network.{key}")]
+        return [F("address", IPv4Text(), state_key=f"network.{key}", factory=NETWORK_FACTORY[key])]
 
     def addr(ident: str, name: str, title: str, key: str, notes: str = "") -> CommandSpec:
         return command(

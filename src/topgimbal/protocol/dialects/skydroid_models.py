@@ -82,7 +82,16 @@ MODELS: tuple[DeviceModel, ...] = (
         host_feeds={"FAI": 10.0, "TIM": 1.0},
         host_setup=(("FAE", {"state": "on"}),),
         identity={"version": "V1.0.78", "model_name": "C11", "hardware_version": "H1.0"},
-        quirks={"ignored_commands": True, "needs_video_output": True, "no_clock": True, "frame_size_limit": True},
+        quirks={
+            "ignored_commands": True,
+            "needs_video_output": True,
+            "no_clock": True,
+            "frame_size_limit": True,
+            "fixed_stream_rate": True,
+            "wire_signs": True,
+            "speed_unit": True,
+            "strict_destinations": True,
+        },
         video=_video(60.0),
         sources=(ARDUPILOT,),
         notes="Absolute angles (GAM, GAY, GAP) and GSM are ignored: point by closing the loop over GSY / GSP "
@@ -108,7 +117,7 @@ MODELS: tuple[DeviceModel, ...] = (
         min_command_gap_s=0.04,
         slow_answers=frozenset({"MOD"}),
         identity={"version": "010502", "model_name": "C12", "hardware_version": "H1.0"},
-        quirks={"ver_wrong_length": True, "late_answers": False, "command_pacing": False},
+        quirks={"ver_wrong_length": True, "wire_signs": True, "late_answers": False, "command_pacing": False},
         video=_video(60.0, 1.0, thermal_hfov=45.0),
         sources=(DOC, GROUND_STATIONS),
         notes="GAY's yaw sign is opposite to GSY's (here: GSY inverted as on the C11 / C13; GAY and GAC as "
@@ -130,7 +139,7 @@ MODELS: tuple[DeviceModel, ...] = (
         no_echo=C13_MOTION,
         stop_repeats=3,
         identity={"version": "V1.1.0", "model_name": "C13", "hardware_version": "H1.0"},
-        quirks={"no_motion_echo": True, "stop_coasts": True, "gimbal_header_required": True},
+        quirks={"no_motion_echo": True, "stop_coasts": True, "gimbal_header_required": True, "wire_signs": True},
         video=_video(60.0, thermal_hfov=32.0),
         sources=(DOC, ARDUPILOT),
         notes="Motion commands are often not acknowledged and a stop may coast: send stops 3 times. G-class frames "

@@ -32,7 +32,10 @@ MODELS: tuple[DeviceModel, ...] = (
         wire_signs={"yaw": 1, "pitch": -1, "roll": 1},
         stream_rates_hz={"GAA": 10.0, "GIA": 10.0},
         echo_rules={"REC": "feedback with file index", "CAP": "feedback with file index"},
-        identity={"version": "1.2.3", "model_name": "SIP", "serial_number": "SIP00000000001"},
+        quirks={"wire_signs": True, "version_digits_only": False},
+        # "version@M": what the lens answers when VSN goes to M (TOPOTEK §三.8); the system's (§五.16)
+        # is "version".
+        identity={"version": "1.2.3", "version@M": "M3326", "model_name": "SIP", "serial_number": "SIP00000000001"},
         video=(
             VideoStream("main", "rtsp://{host}:554/stream=0", "visible", 56.0, (1.0, 10.0), FOV_ASSUMED),
             VideoStream("sub", "rtsp://{host}:554/stream=1", "thermal", 32.0, (1.0, 1.0), FOV_ASSUMED),

@@ -1,10 +1,8 @@
-"""What each identifier does, grouped by subsystem. Importing this package fills
-`dispatch.HANDLERS`; identifiers without a handler of their own are stored settings (`setting`)."""
+"""What each identifier does, one module per subsystem, and the tables that say which handler
+answers which identifier of a dialect (`handler_table`). Handlers see only `context.SimState`."""
 
 from __future__ import annotations
 
-from . import camera, gimbal, ranging, system, thermal  # noqa: F401  (register handlers)
-from .common import setting
-from .reports import pending_reports, stream_frame
+from .tables import BY_ROLE, DIALECT_TABLES, handler_table
 
-__all__ = ["pending_reports", "setting", "stream_frame"]
+__all__ = ["BY_ROLE", "DIALECT_TABLES", "handler_table"]

@@ -1,226 +1,115 @@
-"""D and M class camera functions: recording, photos, SD card, zoom, focus, digital zoom, day/night,
-time, versions, model name, UID."""
+"""Camera functions: recording, photos, SD card, video output and bitrate, time, identity. What a
+reply carries comes from the catalog: the answer form's fields and their state keys, and the
+profile's identity strings and echo rules."""
 
 from __future__ import annotations
 
+import re
 from datetime import datetime
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from ...protocol import Message
-from ..dispatch import Ctx, Refuse, handles
-from ..state import FOCUS_POS_MAX, PHOTO_MB, ZOOM_POS_MAX
+from ...protocol import RESPONSE, Message
+from ..context import RefusedError, Request, SimState
+from ..state import PHOTO_MB
 from .common import fields, setting
 
-if TYPE_CHECKING:
-    from ..device import Device
 
-
-@handles("REC")
-def rec(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any] | None:
-    cam = dev.camera
-    if msg.frame.rw == "r":
+def recording(state: SimState, msg: Message, req: Request) -> dict[str, Any] | None:
+    """Start / stop / toggle; the values are the TOPOTEK feedback (`echo_rules`), else echoed."""
+    cam = state.camera
+    if req.frame.rw == "r":
         return {"state": "recording" if cam.recording else "stopped"}
     action = fields(msg)["action"]
     start = {"start": True, "stop": False, "toggle": not cam.recording}[action]
     if start and not cam.recording:
         if not cam.sd_present or cam.sd_remaining_mb <= 0:
-            raise Refuse("no SD card / card full")
+            raise RefusedError("no SD card / card full")
         cam.recording = True
-        cam.record_started = ctx.now
+        cam.record_started = req.now
         cam.record_index += 1
-        dev.dirty = True
+        state.dirty = True
     elif not start:
         cam.recording = False
-    if dev.dialect.name == "topotek":
-        # §五.1: #tpDUAwREC11xxxxxxxx (started) / 00xxxxxxxx (stopped), file stream_0_<idx>.h264
-        return {"state": "started" if cam.recording else "stopped", "file_index": cam.record_index}
-    return None
+    # TOPOTEK §五.1: #tpDUAwREC11xxxxxxxx (started) / 00xxxxxxxx (stopped), file stream_0_<idx>.h264
+    return {"state": "started" if cam.recording else "stopped", "file_index": cam.record_index}
 
 
-@handles("CAP")
-def cap(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any] | None:
-    cam = dev.camera
+def photo(state: SimState, msg: Message, req: Request) -> dict[str, Any]:
+    cam = state.camera
     if not cam.sd_present or cam.sd_remaining_mb < PHOTO_MB:
-        raise Refuse("no SD card / card full")
+        raise RefusedError("no SD card / card full")
     cam.photos_taken += 1
     cam.photo_index += 1
     cam.sd_used_mb += PHOTO_MB
-    dev.dirty = True
-    if dev.dialect.name == "topotek":
-        return {"state": "taken", "file_index": cam.photo_index}
-    return None
+    state.dirty = True
+    return {"state": "taken", "file_index": cam.photo_index}
 
 
-@handles("SDC")
-def sdc(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any]:
-    cam = dev.camera
-    if dev.dialect.name == "topotek":
-        # §五.5: NNNNN = no card
-        if not cam.sd_present:
-            return {"capacity_mb": None}
-        which = fields(msg).get("which", "remaining")
-        return {"capacity_mb": min(0xFFFFF, cam.sd_total_mb if which == "total" else cam.sd_remaining_mb)}
-    # SkyDroid §4.4: remaining and total, all zero = no card
-    if not cam.sd_present:
-        return {"remaining_mb": 0, "total_mb": 0}
-    return {"remaining_mb": min(0xFFFFF, cam.sd_remaining_mb), "total_mb": min(0xFFFFF, cam.sd_total_mb)}
+def sd_card(state: SimState, msg: Message, req: Request) -> dict[str, Any]:
+    """Answered field by field from the answer form's state keys. No card: a field that has a
+    "none" spelling says so (TOPOTEK NNNNN), the others read 0 (SkyDroid all zeros)."""
+    assert msg.spec is not None
+    cam = state.camera
+    total = cam.sd_total_mb if cam.sd_present else 0
+    which = fields(msg).get("which", "remaining")
+    known = {
+        "sd.remaining_mb": cam.sd_remaining_mb,
+        "sd.total_mb": total,
+        "sd.capacity_mb": total if which == "total" else cam.sd_remaining_mb,
+    }
+    out: dict[str, Any] = {}
+    for f in msg.spec.forms_for("r", RESPONSE)[0].fields:
+        none = getattr(f.codec, "none_tokens", ())
+        value = known.get(f.state_key or "", 0)
+        out[f.name] = None if none and not cam.sd_present else min(value, 16 ** (f.codec.width or 1) - 1)
+    return out
 
 
-def zmp_report(dev: Device, ctx: Ctx) -> None:
-    """TOPOTEK §三.4: magnification and zoom position go out after each zoom change."""
-    if dev.dialect.name != "topotek":
-        return
-    cam = dev.camera
-    ctx.notify(
-        dev.dialect.notification(
-            "ZMP", src="M", dst=ctx.host, magnification_x=min(99.9, cam.optical_zoom_x), zoom_pos=round(cam.zoom_pos)
-        )
-    )
-
-
-@handles("ZMC")
-def zmc(dev: Device, msg: Message, ctx: Ctx) -> None:
-    cam = dev.camera
-    action = fields(msg)["action"]
-    was = cam.zoom_dir
-    cam.zoom_dir = {"stop": 0, "zoom_in": 1, "zoom_out": -1}[action]
-    if cam.optical_zoom_max <= 1.0:
-        cam.zoom_dir = 0  # fixed lens: accepted, nothing moves
-    dev._zoom_peer = (ctx.peer, ctx.host)
-    if action == "stop" and was:
-        dev.dirty = True
-        zmp_report(dev, ctx)
-
-
-@handles("FCC")
-def fcc(dev: Device, msg: Message, ctx: Ctx) -> None:
-    cam = dev.camera
-    action = fields(msg)["action"]
-    if action in ("focus_plus", "focus_minus"):
-        cam.focus_dir = 1 if action == "focus_plus" else -1
-        cam.autofocus = False
-    elif action == "stop":
-        cam.focus_dir = 0
-    else:
-        cam.focus_dir = 0
-        cam.autofocus = action.startswith("auto")
-
-
-@handles("ZFP")
-def zfp(dev: Device, msg: Message, ctx: Ctx) -> None:
-    f = fields(msg)
-    cam = dev.camera
-    cam.zoom_dir = 0
-    cam.zoom_pos = float(max(0, min(ZOOM_POS_MAX, f["zoom_pos"]))) if cam.optical_zoom_max > 1 else 0.0
-    if f.get("focus_pos") is None:
-        cam.autofocus = True
-    else:
-        cam.focus_pos = float(max(0, min(FOCUS_POS_MAX, f["focus_pos"])))
-    dev.dirty = True
-    zmp_report(dev, ctx)
-
-
-@handles("ZOM")
-def zom(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any]:
-    return {"zoom_pos": round(dev.camera.zoom_pos)}
-
-
-@handles("FOC")
-def foc(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any]:
-    return {"focus_pos": round(dev.camera.focus_pos)}
-
-
-@handles("MUL")
-def mul(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any] | None:
-    cam = dev.camera
-    if msg.frame.rw == "r":
-        return {"magnification_x": cam.optical_zoom_x}
-    cam.zoom_dir = 0
-    cam.set_magnification(float(fields(msg)["magnification_x"]))
-    dev.dirty = True
-    zmp_report(dev, ctx)
-    return None
-
-
-@handles("IRC")
-def irc(dev: Device, msg: Message, ctx: Ctx) -> None:
-    mode = fields(msg)["mode"]
-    cam = dev.camera
-    cam.day_night = ("night" if cam.day_night == "day" else "day") if mode == "toggle" else mode
-    dev.dirty = True
-
-
-@handles("DZM")
-def dzm(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any] | None:
-    cam = dev.camera
-    f = fields(msg)
-    if dev.dialect.name == "skydroid":
-        # §4.7: 01..04 = 1..4x, 0A / 0B = one step in / out
-        if msg.frame.rw == "r":
-            return {"zoom": f"{max(1, min(4, round(cam.digital_zoom_x)))}x"}
-        z = f["zoom"]
-        if z == "zoom_in":
-            cam.digital_zoom_x = min(cam.digital_zoom_max, round(cam.digital_zoom_x) + 1.0)
-        elif z == "zoom_out":
-            cam.digital_zoom_x = max(1.0, round(cam.digital_zoom_x) - 1.0)
-        else:
-            cam.digital_zoom_x = min(cam.digital_zoom_max, float(z.rstrip("x")))
-        dev.dirty = True
-        return None
-    # TOPOTEK §五.14: lens 0 visible / 1 thermal; 00..80 = 0.1x steps; 0A/0B = +-0.5x; 0C/0D/0E run/stop
-    if msg.frame.rw == "r":
-        return {"thermal_zoom_x": min(9.9, cam.thermal_digital_zoom_x), "visible_zoom_x": min(9.9, cam.digital_zoom_x)}
-    z = f["zoom"]
-    thermal = f["lens"] == "thermal"
-    cur = cam.thermal_digital_zoom_x if thermal else cam.digital_zoom_x
-    if isinstance(z, str):
-        if z in ("zoom_in", "zoom_out", "stop"):
-            cam.digital_zoom_dir = {"zoom_in": 1, "zoom_out": -1, "stop": 0}[z]
-            return None
-        cur = cur + (0.5 if z == "step_in" else -0.5)
-    else:
-        cur = float(z)
-    cur = round(max(1.0, min(cam.digital_zoom_max, cur)), 1)
-    if thermal:
-        cam.thermal_digital_zoom_x = cur
-    else:
-        cam.digital_zoom_x = cur
-    dev.dirty = True
-    return None
-
-
-@handles("BIT")
-def bit(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any] | None:
-    result = setting(dev, msg, ctx)
-    dev.camera.bitrate_kbps = int(dev.settings["BIT"]["bitrate_kbps"])
+def video_output(state: SimState, msg: Message, req: Request) -> dict[str, Any] | None:
+    """VOM: a stored setting whose `output` switch starts or stops the video output."""
+    result = setting(state, msg, req)
+    assert msg.spec is not None
+    state.camera.video_output = state.settings[msg.spec.ident].get("output", "on") == "on"
     return result
 
 
-@handles("TIM", "UTC")
-def tim(dev: Device, msg: Message, ctx: Ctx) -> None:
+def bitrate(state: SimState, msg: Message, req: Request) -> dict[str, Any] | None:
+    result = setting(state, msg, req)
+    assert msg.spec is not None
+    state.camera.bitrate_kbps = int(state.settings[msg.spec.ident]["bitrate_kbps"])
+    return result
+
+
+def set_time(state: SimState, msg: Message, req: Request) -> None:
     t = fields(msg)["time"]
     if isinstance(t, datetime):
-        dev.camera.time_set = t
-        dev.camera.time_set_at = ctx.now
+        state.camera.time_set = t
+        state.camera.time_set_at = req.now
 
 
-@handles("VSN")
-def vsn(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any]:
-    # §三.8: the lens answers its version (M3326); §五.16: the system answers a short one. ArduPilot
-    # reads "1.2.3" or "123".
-    return {"version": "M3326" if msg.frame.dst == "M" else "1.2.3"}
+def identity(state: SimState, msg: Message, req: Request) -> dict[str, Any]:
+    """Version, model name, hardware version, serial number: the profile's identity strings (the
+    serial number is the simulator's own per seed). The answer's one field gets the text."""
+    spec = msg.spec
+    assert spec is not None
+    role = spec.role
+    if role == "serial_number":
+        text = state.serial
+    else:
+        text = state.identity(role, req.frame.dst) or (state.model.name if role == "model_name" else "")
+    if not text:
+        raise RefusedError(f"the {state.model.name} profile names no {role}")
+    own = f"{role}@{req.frame.dst}" in state.model.identity  # another part's version (SIP lens)
+    if role == "version" and state.quirks.get("version_digits_only") and not own:
+        text = re.sub(r"\D", "", text) or text
+    return {spec.forms_for("r", RESPONSE)[0].fields[0].name: text}
 
 
-@handles("PA2")
-def pa2(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any]:
-    return {"model": dev.model.name}
-
-
-@handles("UID")
-def uid(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any] | None:
-    if msg.frame.rw == "r":
-        return {"uid": dev.uid}
-    dev.uid = int(fields(msg)["uid"])
-    dev.settings["UID"]["uid"] = dev.uid
-    dev.dirty = True
+def uid(state: SimState, msg: Message, req: Request) -> dict[str, Any] | None:
+    assert msg.spec is not None
+    if req.frame.rw == "r":
+        return {"uid": state.uid}
+    state.uid = int(fields(msg)["uid"])
+    state.settings.setdefault(msg.spec.ident, {})["uid"] = state.uid
+    state.dirty = True
     return None

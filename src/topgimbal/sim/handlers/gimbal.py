@@ -1,20 +1,22 @@
-"""G class: PTZ codes, speed and angle commands, attitude queries and streams, motors, vehicle
-attitude input, tracking. Values are in the API sign convention (the device maps wire signs)."""
+"""G class: control codes, rate and angle commands, attitude answers and streams, motors, the
+vehicle's attitude, tracking. Values are in the API sign convention (the device maps wire signs).
+Which command does what comes from its catalog role; which axes it moves from its fields' `axis`."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from ...protocol import Message
-from ..dispatch import Ctx, Refuse, Reply, handles
-from ..physics import wrap180
+from ...protocol import Frame, Message
+from ..context import Reply, Request, SimState
+from ..physics import AXES, wrap180
+from ..streams import ReportFn, Stream
 from .common import fields
-
-if TYPE_CHECKING:
-    from ..device import Device
 
 NUDGE_FRACTION = 0.5  # PTZ up/down/left/right move at this fraction of the model's rate limit
 TRIM_STEP_DEG = 0.1
+# A missed stop (the stop_coasts quirk) lets the gimbal run on for a time drawn from this range,
+# from the device's seeded generator: the same seed and commands always coast the same way.
+COAST_S = (0.15, 0.5)
 
 
 def axis_fields(msg: Message) -> list[tuple[str, str]]:
@@ -23,14 +25,31 @@ def axis_fields(msg: Message) -> list[tuple[str, str]]:
     return [(f.axis, f.name) for f in msg.form.fields if f.axis]
 
 
-@handles("PTZ")
-def ptz(dev: Device, msg: Message, ctx: Ctx) -> None:
-    g = dev.gimbal
+def halt(state: SimState, req: Request, axes: tuple[str, ...] = AXES) -> None:
+    """A stop of `axes`. With the stop_coasts quirk the first stop of a move is missed for a short
+    while (the gimbal keeps its speed); a repeated stop halts it at once."""
+    g = state.gimbal
+    moving = any(g.axis(a).mode == "rate" and g.axis(a).rate_cmd for a in axes)
+    if state.quirks.get("stop_coasts") and moving and state.coast_until is None:
+        state.coast_until = req.now + state.rng.uniform(*COAST_S)
+        state.coast_axes = axes
+        return
+    state.coast_until, state.coast_axes = None, ()
+    for a in axes:
+        if g.axis(a).mode == "rate":
+            g.rate(a, 0.0)
+
+
+def control(state: SimState, msg: Message, req: Request) -> None:
+    """Control codes (PTZ): each dialect's table names them alike."""
+    g = state.gimbal
     action = fields(msg)["action"]
-    nudge = dev.model.max_rate_deg_s * NUDGE_FRACTION
+    nudge = state.model.max_rate_deg_s * NUDGE_FRACTION
     if action == "stop":
-        g.stop()
-    elif action in ("up", "down"):
+        halt(state, req)
+        return
+    state.coast_until = None
+    if action in ("up", "down"):
         g.rate("pitch", nudge if action == "up" else -nudge)
     elif action in ("left", "right"):
         g.rate("yaw", nudge if action == "right" else -nudge)
@@ -38,159 +57,151 @@ def ptz(dev: Device, msg: Message, ctx: Ctx) -> None:
         g.center()
     elif action in ("follow", "lock"):
         g.set_mode(action)
-        dev.dirty = True
+        state.dirty = True
     elif action == "toggle_follow_lock":
         g.set_mode("lock" if g.mode == "follow" else "follow")
-        dev.dirty = True
+        state.dirty = True
     elif action.startswith("calibrate"):
         g.calibrations += 1
         g.center()
     elif action == "look_down":
-        g.angle("pitch", max(-90.0, dev.model.pitch_range_deg[0]))
+        g.angle("pitch", max(-90.0, state.model.pitch_range_deg[0]))
         g.angle("yaw", 0.0)
-    elif action in ("mount_hanging", "mount_inverted"):
+    elif action.startswith("mount_"):
         g.mount = action.removeprefix("mount_")
-        dev.dirty = True
+        state.dirty = True
     elif action.startswith("trim_"):
         if action == "trim_clear":
             g.trims = {"x": 0.0, "y": 0.0, "z": 0.0}
         else:
             axis, sign = action[5], (1 if action.endswith("plus") else -1)
             g.trims[axis] = round(g.trims[axis] + sign * TRIM_STEP_DEG, 3)
-        dev.dirty = True
-    else:  # pragma: no cover - every catalog value is handled above
-        raise Refuse(f"PTZ {action}")
+        state.dirty = True
 
 
-@handles("GSY", "GSP", "GSR", "GSM", "RPS", "YPR")
-def rates(dev: Device, msg: Message, ctx: Ctx) -> None:
+def rates(state: SimState, msg: Message, req: Request) -> None:
     f = fields(msg)
-    for axis, name in axis_fields(msg):
-        dev.gimbal.rate(axis, float(f[name]))
+    moved = axis_fields(msg)
+    if all(not f[name] for _, name in moved):
+        halt(state, req, tuple(axis for axis, _ in moved))
+        return
+    state.coast_until = None
+    for axis, name in moved:
+        state.gimbal.rate(axis, float(f[name]))
 
 
-@handles("GAY", "GAP", "GAR", "GAM", "GIY", "GIP", "GIR", "GIM")
-def angles(dev: Device, msg: Message, ctx: Ctx) -> None:
+def angles(state: SimState, msg: Message, req: Request) -> None:
+    assert msg.spec is not None
     f = fields(msg)
-    ident = msg.frame.ident
-    frame = "earth" if ident.startswith("GI") else "body"
+    frame = "earth" if msg.spec.role == "earth_angle" else "body"
+    state.coast_until = None
     for axis, name in axis_fields(msg):
         speed = f.get("speed_deg_s", f.get(f"{axis}_speed_deg_s"))
-        dev.gimbal.angle(axis, float(f[name]), None if speed is None else float(speed), frame)
+        state.gimbal.angle(axis, float(f[name]), None if speed is None else float(speed), frame)
 
 
-def attitude(dev: Device, earth: bool) -> dict[str, Any]:
-    y, p, r = dev.gimbal.earth() if earth else dev.gimbal.body()
-    return {
-        "yaw_deg": round(y, 2),
-        "pitch_deg": round(p, 2),
-        "roll_deg": round(r, 2),
-    }
+def attitude(state: SimState, earth: bool) -> dict[str, float]:
+    y, p, r = state.gimbal.earth() if earth else state.gimbal.body()
+    return {"yaw_deg": round(y, 2), "pitch_deg": round(p, 2), "roll_deg": round(r, 2)}
 
 
-@handles("GAC")
-def gac(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any]:
-    return attitude(dev, earth=False)
+def body_attitude(state: SimState, msg: Message, req: Request) -> dict[str, Any]:
+    return attitude(state, earth=False)
 
 
-@handles("GIC")
-def gic(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any]:
-    return attitude(dev, earth=True)
+def earth_attitude(state: SimState, msg: Message, req: Request) -> dict[str, Any]:
+    return attitude(state, earth=True)
 
 
-@handles("GAA")
-def gaa(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any] | None:
+def attitude_report(ident: str, earth: bool) -> ReportFn:
+    """A stream of `ident` frames carrying the attitude; while the gimbal holds still the same
+    frame is sent again without encoding it anew."""
+
+    def report(state: SimState, s: Stream) -> list[Frame]:
+        y, p, r = state.gimbal.earth() if earth else state.gimbal.body()
+        key = (round(y, 2), round(p, 2), round(r, 2))
+        if key != s.memo_key or not s.memo_frames:
+            frame = state.report(ident, dst=s.host, rw="r", yaw_deg=key[0], pitch_deg=key[1], roll_deg=key[2])
+            s.memo_key, s.memo_frames = key, [frame]
+        return s.memo_frames
+
+    return report
+
+
+def _switch_stream(state: SimState, msg: Message, req: Request, ident: str, earth: bool) -> dict[str, Any] | None:
+    """Attitude output on / off (TOPOTEK) or at a rate (SkyDroid, 0 = off), for the host that asked."""
+    assert msg.spec is not None
+    if req.frame.rw == "r":
+        return {"state": "on" if state.streams.subscribed(req.peer, ident) else "off"}
     f = fields(msg)
-    if msg.frame.rw == "r":
-        return {"state": "on" if dev.subscribed(ctx.peer, "GAC") else "off"}
-    if "rate_hz" in f:  # SkyDroid: 1..100 Hz, 0 = off
-        dev.subscribe(ctx, "GAC", float(f["rate_hz"]))
+    if "rate_hz" in f:
+        asked = float(f["rate_hz"])
+        rate = state.stream_rate(msg.spec.ident, asked) if asked > 0 else 0.0
     else:
-        dev.subscribe(ctx, "GAC", dev.topotek_stream_hz if f["state"] == "on" else 0.0)
+        rate = state.stream_rate(msg.spec.ident, None) if f.get("state") == "on" else 0.0
+    state.subscribe(req, ident, rate, attitude_report(ident, earth))
     return None
 
 
-@handles("GIA")
-def gia(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any] | None:
-    f = fields(msg)
-    if msg.frame.rw == "r":
-        return {"state": "on" if dev.subscribed(ctx.peer, "GIA") else "off"}
-    dev.subscribe(ctx, "GIA", dev.topotek_stream_hz if f["state"] == "on" else 0.0)
+def attitude_stream(state: SimState, msg: Message, req: Request) -> dict[str, Any] | None:
+    """GAA: streams the body-frame attitude command's frames (GAC)."""
+    spec = state.dialect.require_role("attitude", state.model)
+    return _switch_stream(state, msg, req, spec.ident, earth=False)
+
+
+def earth_attitude_stream(state: SimState, msg: Message, req: Request) -> dict[str, Any] | None:
+    """TOPOTEK GIA: the switch and the stream are one identifier; ArduPilot reads the stream."""
+    assert msg.spec is not None
+    return _switch_stream(state, msg, req, msg.spec.ident, earth=True)
+
+
+def motors(state: SimState, msg: Message, req: Request) -> dict[str, Any] | None:
+    if req.frame.rw == "r":
+        return {"state": "on" if state.gimbal.motors_on else "off"}
+    state.gimbal.set_motors(fields(msg)["state"] == "on")
     return None
 
 
-@handles("GMS")
-def gms(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any] | None:
-    if msg.frame.rw == "r":
-        return {"state": "on" if dev.gimbal.motors_on else "off"}
-    dev.gimbal.set_motors(fields(msg)["state"] == "on")
-    return None
+def vehicle_attitude_enable(state: SimState, msg: Message, req: Request) -> None:
+    state.vehicle_input = fields(msg)["state"] == "on"
 
 
-@handles("FAE")
-def fae(dev: Device, msg: Message, ctx: Ctx) -> None:
-    dev.vehicle_input = fields(msg)["state"] == "on"
-
-
-@handles("FAI")
-def fai(dev: Device, msg: Message, ctx: Ctx) -> None:
-    """SkyDroid C12 vehicle attitude (the document gives GAC's convention: yaw right, pitch up)."""
+def vehicle_attitude(state: SimState, msg: Message, req: Request) -> None:
+    """The vehicle's attitude from the host (SkyDroid FAI after FAE; TOPOTEK UAV, whose pitch the
+    field's own sign metadata already turned into the API convention)."""
     f = fields(msg)
-    if dev.vehicle_input:
-        v = dev.gimbal.vehicle
-        v.yaw = wrap180(f["yaw_deg"])
-        v.pitch = float(f["pitch_deg"])
-        v.roll = float(f["roll_deg"])
-
-
-@handles("UAV")
-def uav(dev: Device, msg: Message, ctx: Ctx) -> None:
-    """TOPOTEK vehicle attitude struct: yaw 0..360; its pitch is down-positive on the wire, which
-    the field's sign metadata already undid (fields arrive in the API convention)."""
-    f = fields(msg)
-    v = dev.gimbal.vehicle
+    if not state.vehicle_input:
+        return
+    v = state.gimbal.vehicle
     v.yaw = wrap180(f["yaw_deg"])
     v.pitch = float(f["pitch_deg"])
     v.roll = float(f["roll_deg"])
-    dev.position.speed_m_s = float(f["speed_m_s"])
+    if "speed_m_s" in f:
+        state.position.speed_m_s = float(f["speed_m_s"])
 
 
-@handles("VER")
-def ver(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any]:
-    if dev.dialect.name == "topotek":
-        return {"serial": dev.serial}  # G class: serial number (14 characters)
-    return {"version": VERSIONS.get(dev.model.name, "V1.0.0")}
+def tracking_confirm(state: SimState, msg: Message, req: Request) -> None:
+    cam = state.camera
+    confirm = fields(msg)["action"] == "confirm" and cam.tracking != "stopped"
+    cam.tracking = "tracking" if confirm else "stopped"
 
 
-# The real C12 answers 010502 (and with a wrong length character; see quirks).
-VERSIONS = {"C12": "010502", "C10": "V1.2.0", "C10Pro": "V1.2.0", "C13": "V1.1.0", "C20": "V1.0.3"}
+def tracking_target(state: SimState, msg: Message, req: Request) -> None:
+    state.camera.tracking = "tracking"
 
 
-@handles("SUM")
-def sum_(dev: Device, msg: Message, ctx: Ctx) -> None:
-    dev.camera.tracking = (
-        "tracking" if fields(msg)["action"] == "confirm" and dev.camera.tracking != "stopped" else "stopped"
-    )
-
-
-@handles("GOT")
-def got(dev: Device, msg: Message, ctx: Ctx) -> None:
-    dev.camera.tracking = "tracking"
-
-
-@handles("TRC")
-def trc(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any] | Reply | None:
-    cam = dev.camera
-    if msg.frame.rw == "r":
+def tracking(state: SimState, msg: Message, req: Request) -> dict[str, Any] | Reply | None:
+    cam = state.camera
+    if req.frame.rw == "r":
         return {"reserved": "30", "state": cam.tracking}
     cam.tracking = "waiting" if fields(msg)["action"] == "start" else "stopped"
     return None
 
 
-@handles("LOC")
-def loc(dev: Device, msg: Message, ctx: Ctx) -> None:
-    if dev.camera.tracking == "stopped":
-        dev.camera.tracking = "waiting"
+def tracking_box(state: SimState, msg: Message, req: Request) -> None:
+    cam = state.camera
+    if cam.tracking == "stopped":
+        cam.tracking = "waiting"
     f = fields(msg)
     if f["width_px"] > 0 and f["height_px"] > 0:
-        dev.camera.tracking = "tracking"
+        cam.tracking = "tracking"

@@ -1,100 +1,116 @@
-"""Laser rangefinder and the vehicle's position: flat-ground range from the gimbal's earth-frame
-pitch and the altitude the host sent; TOPOTEK's target solution (§8.7) from position, heading,
-attitude and range."""
+"""Laser range and the vehicle's position: flat-ground range from the gimbal's earth-frame pitch and
+the altitude the host sent; the target solution (TOPOTEK §8.7) from position, heading, attitude and
+range. SkyDroid's SLR (a query) and TOPOTEK's LRF (control and reports) share the `range` role and
+little else: each has its handler in its dialect's table."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from ...protocol import Frame, Message
+from ...protocol import RESPONSE, Frame, Message
 from .. import scene
-from ..dispatch import Ctx, Refuse, handles
+from ..context import RefusedError, Request, SimState
+from ..streams import Stream
 from .common import fields
-
-if TYPE_CHECKING:
-    from ..device import Device
 
 CONTINUOUS_HZ = 1.0
 
 
-def measure(dev: Device) -> float | None:
-    """The distance the rangefinder reads now, or None (ERR) outside the model's range."""
-    _, pitch, _ = dev.gimbal.earth()
-    d = scene.slant_range(dev.position.alt_m, pitch)
-    lo, hi = dev.model.lrf_range_m or (0.0, 0.0)
+def measure(state: SimState, limit_m: float | None = None) -> float | None:
+    """The distance the rangefinder reads now, or None outside the model's range (or `limit_m`)."""
+    _, pitch, _ = state.gimbal.earth()
+    d = scene.slant_range(state.position.alt_m, pitch)
+    lo, hi = state.model.lrf_range_m or (0.0, 0.0)
+    if limit_m is not None:
+        hi = min(hi, limit_m)
     if d is None or not lo <= d <= hi:
         return None
     return round(d, 1)
 
 
-def target_frames(dev: Device, distance: float, host: str) -> list[Frame]:
+def target_frames(state: SimState, distance: float, host: str) -> list[Frame]:
     """§8.7: LAT / LON of the point the camera looks at (only once the host sent its position)."""
-    pos = dev.position
+    pos = state.position
     if pos.lat_deg is None or pos.lon_deg is None:
         return []
-    yaw_body, _, _ = dev.gimbal.body()
-    _, pitch, _ = dev.gimbal.earth()
-    heading = pos.azimuth_deg if pos.azimuth_deg is not None else dev.gimbal.vehicle.yaw
-    lat, lon = scene.target_position(pos.lat_deg, pos.lon_deg, heading + yaw_body, pitch, distance)
     out = []
-    for ident, name, value in (("LAT", "lat_deg", lat), ("LON", "lon_deg", lon)):
-        # notification() skips the echo form (ddmm.mmmm) and picks the §8.7 report (dd.dddddd).
-        values: dict[str, Any] = {name: value}
-        out.append(dev.dialect.notification(ident, src="D", dst=host, header="#tp", **values))
-    return out
+    for role in ("latitude", "longitude"):
+        spec = state.dialect.by_role(role, state.model)
+        if spec is None or not any(f.title == "target solution" for f in spec.forms):
+            return []
+        out.append(spec)
+    yaw_body, _, _ = state.gimbal.body()
+    _, pitch, _ = state.gimbal.earth()
+    heading = pos.azimuth_deg if pos.azimuth_deg is not None else state.gimbal.vehicle.yaw
+    lat, lon = scene.target_position(pos.lat_deg, pos.lon_deg, heading + yaw_body, pitch, distance)
+    # notification() passes the echo form (ddmm.mmmm) over and picks the §8.7 report (dd.dddddd).
+    return [
+        state.dialect.notification(out[0].ident, src="D", dst=host, header="#tp", lat_deg=lat),
+        state.dialect.notification(out[1].ident, src="D", dst=host, header="#tp", lon_deg=lon),
+    ]
 
 
-def result_frames(dev: Device, host: str) -> list[Frame]:
-    d = measure(dev)
-    frames = [dev.dialect.notification("LRF", src="D", dst=host, distance_m=d)]
+def result_frames(state: SimState, ident: str, host: str) -> list[Frame]:
+    d = measure(state)
+    frames = [state.dialect.notification(ident, src="D", dst=host, distance_m=d)]
     if d is not None:
-        frames += target_frames(dev, d, host)
+        frames += target_frames(state, d, host)
     return frames
 
 
-@handles("LRF")
-def lrf(dev: Device, msg: Message, ctx: Ctx) -> None:
-    if dev.model.lrf_range_m is None:
-        raise Refuse(f"the {dev.model.name} has no rangefinder")
+def result_report(state: SimState, s: Stream) -> list[Frame]:
+    return result_frames(state, s.ident, s.host)
+
+
+def rangefinder(state: SimState, msg: Message, req: Request) -> None:
+    """TOPOTEK LRF: 02 one result, 03 one a second until 00; results (and the target solution
+    after a good one) follow the echo."""
+    assert msg.spec is not None
+    if state.model.lrf_range_m is None:
+        raise RefusedError(f"the {state.model.name} has no rangefinder")
     action = fields(msg)["action"]
-    dev.camera.rangefinder = action
+    state.camera.rangefinder = action
     if action == "single":
-        for f in result_frames(dev, ctx.host):
-            ctx.notify(f)
-    dev.subscribe(ctx, "LRF", CONTINUOUS_HZ if action == "continuous" else 0.0)
+        for f in result_frames(state, msg.spec.ident, req.host):
+            req.notify(f)
+    state.subscribe(req, msg.spec.ident, CONTINUOUS_HZ if action == "continuous" else 0.0, result_report)
 
 
-@handles("SLR")
-def slr(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any]:
-    d = measure(dev)
+def laser_range(state: SimState, msg: Message, req: Request) -> dict[str, Any] | None:
+    """SkyDroid SLR: a query answers one measurement (no ERR token: out of range is the error
+    frame); a write sets the measuring range limit, which later queries honour."""
+    assert msg.spec is not None
+    if state.model.lrf_range_m is None:
+        raise RefusedError(f"the {state.model.name} has no rangefinder")
+    store = state.settings.setdefault(msg.spec.ident, {})
+    if req.frame.rw == "w":
+        store.update(fields(msg))
+        state.dirty = True
+        return None
+    d = measure(state, store.get("limit_m"))
     if d is None:
-        raise Refuse("out of range")  # SkyDroid's SLR has no ERR token: the error frame
-    return {"distance_m": d}
+        raise RefusedError("nothing in range")
+    return {msg.spec.forms_for("r", RESPONSE)[0].fields[0].name: d}
 
 
-@handles("LAT")
-def lat(dev: Device, msg: Message, ctx: Ctx) -> None:
-    dev.position.lat_deg = float(fields(msg)["lat_deg"])
+def latitude(state: SimState, msg: Message, req: Request) -> None:
+    state.position.lat_deg = float(fields(msg)["lat_deg"])
 
 
-@handles("LON")
-def lon(dev: Device, msg: Message, ctx: Ctx) -> None:
-    dev.position.lon_deg = float(fields(msg)["lon_deg"])
+def longitude(state: SimState, msg: Message, req: Request) -> None:
+    state.position.lon_deg = float(fields(msg)["lon_deg"])
 
 
-@handles("ALT")
-def alt(dev: Device, msg: Message, ctx: Ctx) -> None:
-    dev.position.alt_m = float(fields(msg)["alt_m"])
+def altitude(state: SimState, msg: Message, req: Request) -> None:
+    state.position.alt_m = float(fields(msg)["alt_m"])
 
 
-@handles("AZI")
-def azi(dev: Device, msg: Message, ctx: Ctx) -> None:
-    dev.position.azimuth_deg = float(fields(msg)["azimuth_deg"])
+def azimuth(state: SimState, msg: Message, req: Request) -> None:
+    state.position.azimuth_deg = float(fields(msg)["azimuth_deg"])
 
 
-@handles("GPS")
-def gps(dev: Device, msg: Message, ctx: Ctx) -> None:
+def vehicle_position(state: SimState, msg: Message, req: Request) -> None:
     f = fields(msg)
-    pos = dev.position
+    pos = state.position
     pos.lat_deg, pos.lon_deg, pos.alt_m = float(f["lat_deg"]), float(f["lon_deg"]), float(f["alt_m"])
     pos.azimuth_deg = float(f["heading_deg"]) % 360.0

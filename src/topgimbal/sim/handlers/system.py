@@ -1,43 +1,46 @@
 """Network settings and resets. Addresses are stored, answered and persisted; the simulator never
-binds them (it only ever listens where it was told to, loopback by default)."""
+binds them (it only ever listens where it was told to, loopback by default). Which address a
+command sets comes from its field's state key (`network.ip` -> `NetworkState.ip`)."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from ...protocol import Message
-from ..dispatch import Ctx, handles
-from ..state import NetworkState
+from ..context import RefusedError, Request, SimState
+from ..state import NETWORK_KEY, NetworkState
 from .common import fields
 
-if TYPE_CHECKING:
-    from ..device import Device
 
-NETWORK = {"IPV": "ip", "GTW": "gateway", "DNS": "dns", "BNS": "backup_dns"}
+def _attribute(msg: Message) -> str:
+    assert msg.spec is not None
+    key = msg.spec.state_keys.get("address", "")
+    if not key.startswith(NETWORK_KEY) or key[len(NETWORK_KEY) :] not in NetworkState.__dataclass_fields__:
+        raise RefusedError(f"{msg.spec.ident} names no network setting")
+    return key[len(NETWORK_KEY) :]
 
 
-@handles(*NETWORK)
-def address(dev: Device, msg: Message, ctx: Ctx) -> dict[str, Any] | None:
-    attr = NETWORK[msg.frame.ident]
-    if msg.frame.rw == "r":
-        return {"address": getattr(dev.network, attr)}
-    setattr(dev.network, attr, fields(msg)["address"])
-    dev.dirty = True
+def address(state: SimState, msg: Message, req: Request) -> dict[str, Any] | None:
+    attr = _attribute(msg)
+    if req.frame.rw == "r":
+        return {"address": getattr(state.network, attr)}
+    setattr(state.network, attr, fields(msg)["address"])
+    state.dirty = True
     return None
 
 
-@handles("RST")
-def rst(dev: Device, msg: Message, ctx: Ctx) -> None:
-    dev.network = NetworkState()
-    dev.dirty = True
+def network_reset(state: SimState, msg: Message, req: Request) -> None:
+    """01 resets the network settings; 00 (sent by some clients, meaning undocumented) keeps them."""
+    if fields(msg)["action"] == "reset":
+        state.network = NetworkState()
+        state.dirty = True
 
 
-@handles("RTF")
-def rtf(dev: Device, msg: Message, ctx: Ctx) -> None:
+def reboot(state: SimState, msg: Message, req: Request) -> None:
     """00 reboot: motion, streams and recording stop; 01 factory reset: settings too."""
-    dev.reboots += 1
-    dev.camera.recording = False
-    dev.streams.clear()
-    dev.gimbal.center()
+    state.reboots += 1
+    state.camera.recording = False
+    state.streams.clear()
+    state.gimbal.center()
     if fields(msg)["action"] == "factory_reset":
-        dev.factory_reset()
+        state.factory_reset()
