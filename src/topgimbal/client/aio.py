@@ -13,8 +13,8 @@ from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
 from ..errors import FieldValueError
-from ..protocol import CommandSpec, Message
-from . import checks
+from ..protocol import CommandSpec, DeviceModel, Message
+from . import checks, roles
 from .api_camera import CameraMethods
 from .api_core import CoreMethods, _rate
 from .api_motion import MotionMethods
@@ -25,7 +25,7 @@ from .streams import AttitudeStream
 class AsyncClient(ClientCore, CoreMethods, MotionMethods, CameraMethods):
     """A connection to one gimbal camera. Open with `await connect(url, model=...)`."""
 
-    def __init__(self, url: str, model: str = "C12", **options: Any) -> None:
+    def __init__(self, url: str, model: str | DeviceModel = "C12", **options: Any) -> None:
         super().__init__(url, model, **options)
         self.cmd = CommandNamespace(self)
 
@@ -106,7 +106,10 @@ class RateKeepAlive:
         for name, v in (("yaw_deg_s", yaw_deg_s), ("pitch_deg_s", pitch_deg_s), ("roll_deg_s", roll_deg_s)):
             if not checks.is_number(v):
                 raise FieldValueError(name, v, "a rate in deg/s")
-        self.client.build("GSM", yaw_rate_deg_s=yaw_deg_s, pitch_rate_deg_s=pitch_deg_s)  # validate now
+        wanted = {"yaw": yaw_deg_s, "pitch": pitch_deg_s, **({"roll": roll_deg_s} if roll_deg_s else {})}
+        c = self.client
+        for cmd in roles.motion_plan(c.dialect, c.model, "rate", wanted, combined=c.behaviour.combined):
+            c.build_from(cmd.spec.ident, cmd.values)  # validate now
         self.rates = (yaw_deg_s, pitch_deg_s, roll_deg_s)
 
     async def _run(self) -> None:
@@ -149,7 +152,7 @@ class _Connector:
 
 def connect(
     url: str,
-    model: str = "C12",
+    model: str | DeviceModel = "C12",
     *,
     timeout_s: float = 1.0,
     retries: int = 2,
@@ -158,9 +161,10 @@ def connect(
     **options: Any,
 ) -> _Connector:
     """Open a client: `cam = await connect(url, model="C12")` or
-    `async with connect(url, model="SIP") as cam: ...`. Options (see docs/client.md):
-    echo_motion, combined_motion, late_window_s, dup_window_s, stop_repeats, host_address,
-    link_timeout_s, reconnect_s."""
+    `async with connect(url, model="SIP") as cam: ...`. Options (see docs/client.md and
+    client/options.py; None takes the model profile's value): echo_motion, combined_motion,
+    late_window_s, dup_window_s, stop_repeats, host_address, link_timeout_s, reconnect_s,
+    min_command_gap_s, check_model, host_feeds, stream_renew_s."""
     return _Connector(
         AsyncClient(url, model, timeout_s=timeout_s, retries=retries, signs=signs, log_path=log_path, **options)
     )
