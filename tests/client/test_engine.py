@@ -22,7 +22,11 @@ class FakeClock:
 def sky():
     dialect, model = get_model("C12")
     clock = FakeClock()
-    return dialect, Engine(clock=clock, late_window_s=2.0, dup_window_s=0.05, model=model, dialect=dialect, min_gap_s=0), clock
+    return (
+        dialect,
+        Engine(clock=clock, late_window_s=2.0, dup_window_s=0.05, model=model, dialect=dialect, min_gap_s=0),
+        clock,
+    )
 
 
 def answer(dialect, request: Frame, **values):

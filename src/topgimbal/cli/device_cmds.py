@@ -9,7 +9,9 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import copy
 import json
+import logging
 import math
 import sys
 import time
@@ -17,6 +19,8 @@ from collections.abc import Awaitable, Callable
 from typing import Any
 
 from ..client import AsyncClient, connect
+from ..client.core import model_hint
+from ..client.identity import Verdict
 from ..client.roles import focus_actions, role_ident
 from ..errors import FieldValueError, RequestTimeoutError, TopGimbalError, TransportError
 from ..protocol import DIALECT_NAMES, all_models, get_dialect, get_model
@@ -69,6 +73,9 @@ def _command(sub: argparse._SubParsersAction, name: str, runner: Runner, help: s
 
 
 def _run(args: argparse.Namespace, runner: Runner) -> int:
+    client_log = logging.getLogger("topgimbal.client")
+    if not any(isinstance(f, _NoModelCheckRecords) for f in client_log.filters):
+        client_log.addFilter(_NoModelCheckRecords())
     if not args.url:
         raise TransportError("no device URL: pass --url URL (before the command) or set TOPGIMBAL_URL")
 
@@ -80,9 +87,16 @@ def _run(args: argparse.Namespace, runner: Runner) -> int:
             args.url, model=model, timeout_s=args.timeout, retries=args.retries, log_path=args.log
         ) as cam:
             try:
-                return await runner(cam, args)
-            finally:
-                await _warn_model(cam)
+                result = await runner(cam, args)
+            except TopGimbalError as exc:
+                verdict = await _verdict(cam)
+                if verdict is not None and verdict.message not in str(exc):
+                    raise _with_hint(exc, verdict.message, cam.model.name) from None
+                raise
+            verdict = await _verdict(cam)
+            if verdict is not None:
+                print(f"topgimbal: warning: {verdict.message}", file=sys.stderr, flush=True)
+            return result
 
     started = time.monotonic()
     try:
@@ -101,14 +115,26 @@ def _run(args: argparse.Namespace, runner: Runner) -> int:
     return 0
 
 
-async def _warn_model(cam: AsyncClient) -> None:
-    """One stderr line when the device says it is another model than --model (the check runs in
-    the background from connect; a command that finished first waits for it briefly)."""
+async def _verdict(cam: AsyncClient) -> Verdict | None:
+    """The model check's verdict when the device says it is another model than --model (the check
+    runs in the background from connect; a command that finished first waits for it briefly)."""
     if not cam.stats.frames_in:
-        return  # nothing has come at all: the command's own error says so
+        return None  # nothing has come at all: the command's own error says so
     verdict = await cam.wait_model_check(MODEL_CHECK_WAIT_S)
-    if verdict.status == "mismatch":
-        print(f"topgimbal: warning: {verdict.message}", file=sys.stderr, flush=True)
+    return verdict if verdict.status == "mismatch" else None
+
+
+def _with_hint(exc: TopGimbalError, hint: str, model: str) -> TopGimbalError:
+    new = copy.copy(exc)
+    new.args = (f"{str(exc).replace(model_hint(model), '')}; {hint}",)
+    return new
+
+
+class _NoModelCheckRecords(logging.Filter):
+    """The CLI says what the model check found in its own one line: the log record would repeat it."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not hasattr(record, "model_check")
 
 
 async def _detect(args: argparse.Namespace) -> str:

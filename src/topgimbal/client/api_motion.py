@@ -17,13 +17,14 @@ from .api_core import get_attitude, request, send_values
 from .core import ClientCore
 from .methods import api_method
 from .pointing import AxisLimits, RateLoop, stalled, within
-from .state import Attitude
+from .state import Attitude, attitude_of
 from .streams import AttitudeStream
 
 log = logging.getLogger("topgimbal.client")
 
 _REQUEST_OPTIONS = ("wait_reply", "timeout_s", "retries")
 STALL_S = 1.0  # an angle command after which nothing at all has moved for this long was ignored
+STALE_S = 0.2  # closed loop: no fresh attitude for this long stops the gimbal until one comes
 
 
 def _check_axis(core: ClientCore, axis: str, value: float | None) -> None:
@@ -126,15 +127,18 @@ async def set_mode(core: ClientCore, mode: str) -> None:
 
 
 async def _sample(core: ClientCore, after: float, wait_s: float) -> Attitude | None:
-    """The next attitude sample newer than `after`: from a running stream, else by asking."""
+    """The next attitude sample newer than `after`: from a running stream, else by asking (None
+    when neither comes within about `wait_s`)."""
     rate = core.streams.device_rate
     if rate is not None:
         with contextlib.suppress(RequestTimeoutError):
             return await core.streams.next_sample(newer_than=after, timeout_s=min(wait_s, max(0.25, 3.0 / rate)))
+    spec = roles.require(core.dialect, core.model, "attitude", "attitude query")
     try:
-        return await get_attitude(core)
+        m = await request(core, spec.ident, read=True, timeout_s=min(core.timeout_s, max(wait_s, 0.05)))
     except RequestTimeoutError:
         return None
+    return attitude_of(core.state.values_of(m), "attitude", m.ident)
 
 
 def _where(last: Attitude | None) -> str:
@@ -241,8 +245,11 @@ async def _closed_loop(
     moving = False
     try:
         while (remaining := deadline - loop.time()) > 0:
-            sample = await _sample(core, last.t if last else 0.0, remaining)
+            sample = await _sample(core, last.t if last else 0.0, min(remaining, STALE_S))
             if sample is None:
+                if moving:  # no feedback: never keep turning blind
+                    await _halt(core)
+                    moving = False
                 continue
             last = sample
             rates = control.step(sample, loop.time())

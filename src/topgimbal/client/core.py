@@ -14,7 +14,7 @@ import logging
 from collections.abc import Callable, Coroutine, Mapping
 from types import TracebackType
 
-from ..errors import DeviceError, FieldValueError, LinkLostError, TopGimbalError, TransportError
+from ..errors import DecodeError, DeviceError, FieldValueError, LinkLostError, TopGimbalError, TransportError
 from ..protocol import CommandSpec, DeviceModel, Dialect, Frame, FrameParser, Message, get_model
 from ..protocol.frame import DEVICE_ADDRESSES
 from ..transport import Transport, TransportURL, open_transport, parse_url
@@ -462,6 +462,7 @@ class ClientCore:
         exclusive: bool = False,
         fields: Mapping[str, object] | None = None,
         slow: bool = False,
+        lenient: bool = False,
     ) -> Message | None:
         """Hand one frame to the engine and wait for what it decides."""
         self._check_usable()
@@ -475,6 +476,7 @@ class ClientCore:
             exclusive=exclusive,
             fields=fields,
             slow=slow,
+            lenient=lenient,
         )
         if not expect_reply:
             self._drive()
@@ -505,8 +507,15 @@ class ClientCore:
         verdict = self.identity.verdict
         if isinstance(exc, (TimeoutError, DeviceError)) and verdict.status == identity.MISMATCH:
             text += f"; {verdict.message}"
+        elif isinstance(exc, DeviceError) and not isinstance(exc, DecodeError):
+            text += model_hint(self.model.name)
         if text == str(exc):
             return exc
         new = copy.copy(exc)  # keeps `request` (and a DecodeError's `answer`)
         new.args = (text,)
         return new
+
+
+def model_hint(model: str) -> str:
+    """What a refusal adds while the device's model is not known to be wrong."""
+    return f"; if the device is not a {model}, pass the right --model (connect(model=...))"

@@ -71,7 +71,8 @@ class Engine:
         self.late_window_s = late_window_s
         self.dup_window_s = dup_window_s
         self.stats = stats if stats is not None else LinkStats()
-        self.echo_matches: EchoRule = EchoPolicy(model)
+        self.echo_rules = EchoPolicy(model)
+        self.echo_matches: EchoRule = self.echo_rules
         self.recovered_ok = roles.recovered_ok(dialect, model) if model and dialect else frozenset()
         gap = min_gap_s if min_gap_s is not None else (model.min_command_gap_s if model is not None else 0.0)
         self.pacer = Pacer(gap)
@@ -96,16 +97,18 @@ class Engine:
         exclusive: bool = False,
         fields: Mapping[str, object] | None = None,
         slow: bool = False,
+        lenient: bool = False,
     ) -> Transaction:
         """Register a request (arguments already validated). Its frames come out of
         `take_frames()`; it ends up in `take_finished()`. `slow`: a query of a constant that the
-        device may answer very late or never (see the module docstring)."""
+        device may answer very late or never (see the module docstring). `lenient`: its answer
+        may come with a wrong length character (an identity probe in another model's dialect)."""
         now = self.clock()
         # Sent once, a non-idempotent request waits as long in all as a retried one would.
         wait_s = timeout_s * (retries + 1) if exclusive else timeout_s
         once = exclusive or not expect_reply or slow
         tx = Transaction(frame, wait_s, 0 if once else retries, expect_reply, exclusive)
-        tx.fields, tx.submitted_at, tx.slow = fields, now, slow
+        tx.fields, tx.submitted_at, tx.slow, tx.lenient = fields, now, slow, lenient
         self.stats.requests += 1
         if not expect_reply:
             self._send(tx, now)  # fire and forget: never live, so it queues behind nothing
@@ -192,8 +195,10 @@ class Engine:
             return self._on_error(message, now)
         rkey = (frame.ident, frame.src, frame.rw or "w")
         if frame.declared_length is not None and frame.ident not in self.recovered_ok:
-            self.stats.bad_frames += 1
-            return Inbound("ignored")
+            lenient = self.live.get((frame.ident, frame.src))
+            if lenient is None or not lenient.lenient:
+                self.stats.bad_frames += 1
+                return Inbound("ignored")
         last = self._last_frame.get(rkey)
         self._last_frame[rkey] = (now, frame.data)
         # Right behind an identical frame: perhaps a network copy, so it proves no other attempt answered.
@@ -221,7 +226,7 @@ class Engine:
                 # An identical frame sooner than any answer can come: a copy of the previous one.
                 self._copy_seen()
                 return Inbound("duplicate")
-        if live is not None and own and (not foreign or frame.rw == "w"):
+        if live is not None and own and (not foreign or frame.rw == "w" or live.slow):
             # Reads never have foreign attempts here (deferred until there are none); a write's
             # echo with the data sent proves the data were applied, whichever attempt it answers.
             return self._answer(live, own, message, now, sole=not foreign)
@@ -232,6 +237,8 @@ class Engine:
                 return Inbound("ambiguous")
             if not maybe_copy:
                 self._close_if_single_owner(foreign)
+            if all(not a.tx.expect_reply for a in foreign):
+                return Inbound("unawaited")  # the echo of a frame sent without waiting: not late
             self.stats.late_replies += 1
             return Inbound("late")
         # Fits an attempt that was answered already: another copy of that answer.
@@ -333,9 +340,14 @@ class Engine:
             return None
         until: float | None = None
         ledger = self._ledger.get(tx.rkey)
+        # A write's echo carries its data: an earlier write of other data cannot be taken for it
+        # (unless the profile says its acknowledgement is a report, which carries other data).
+        by_data = tx.frame.rw == "w" and tx.frame.ident not in self.echo_rules.rules
         if ledger is not None:
             window = now - self.late_window_s
             for a in ledger.open:
+                if by_data and a.tx.frame.data.upper() != tx.frame.data.upper():
+                    continue
                 if a.sent_at >= window and a.tx is not tx:
                     end = a.sent_at + self.late_window_s
                     until = end if until is None else max(until, end)

@@ -145,11 +145,17 @@ def best_guess(
 
 
 def _mismatch_text(expected: str, fits: list[str], evidence: str) -> str:
+    tail = "with the wrong model, signs and commands may be wrong"
     if not fits:
-        return f"the device does not look like a {expected} ({evidence})"
+        return f"the device does not look like a {expected} ({evidence}); check --model; {tail}"
+    if len(fits) > 2:  # only the dialect is known
+        return (
+            f"the device is not a {expected} ({evidence}): it is one of {', '.join(fits)}; pass --model with the "
+            f"right one (connect(model=...)); {tail}"
+        )
     one = fits[0]
-    others = f" (or {', '.join(fits[1:])})" if len(fits) > 1 else ""
+    others = f" (or {fits[1]})" if len(fits) > 1 else ""
     return (
         f"the device looks like a {one}{others}, not a {expected} ({evidence}): pass --model {one} "
-        f'(connect(model="{one}")); with the wrong model, signs and commands may be wrong'
+        f'(connect(model="{one}")); {tail}'
     )

@@ -49,7 +49,7 @@ class ModelChecker:
         self.verdict = verdict
         if verdict.status == identity.MISMATCH and not self._warned:
             self._warned = True
-            log.warning("%s: %s", self.core.url, verdict.message)
+            log.warning("%s: %s", self.core.url, verdict.message, extra={"model_check": verdict})
         if changed:
             for cb in list(self.listeners):
                 try:
@@ -58,11 +58,14 @@ class ModelChecker:
                     log.exception("model check callback %r failed", cb)
 
     def add(self, report: Report) -> None:
-        """Something the device said outside the check (a late model name, a foreign frame)."""
+        """Something the device said outside the check (a late model name, a foreign frame).
+        While the check runs it only collects; after, it may change the verdict."""
         self.reports.append(report)
-        if self.verdict.status in (identity.PENDING, identity.UNKNOWN, identity.OFF) or report.role == "model_name":
+        if not self.done.is_set():
+            return
+        if self.verdict.status in (identity.UNKNOWN, identity.OFF) or report.role == "model_name":
             verdict = identity.judge(self.core.model, self.reports)
-            if verdict.status != identity.UNKNOWN or self.verdict.status == identity.UNKNOWN:
+            if verdict.status != identity.UNKNOWN:
                 self._set(verdict)
 
     def on_model_name(self, text: object) -> None:
@@ -130,11 +133,15 @@ async def ask(
     queries.sort(key=lambda q: q[0] != "version")
     src = core.host_address if core.host_address in dialect.host_addresses else dialect.host_addresses[0]
     out: list[Report] = []
+    models = list(dialect.models.values()) if model is None else [model]
     for role, spec in queries:
-        slow = any(spec.ident in m.slow_answers for m in dialect.models.values())
+        slow = any(spec.ident in m.slow_answers for m in models)
+        lenient = any(spec.ident in roles.recovered_ok(dialect, m) for m in models)
         probe = dialect.encode(spec.ident, read=True, src=src)
         try:
-            reply = await core._request(probe, timeout_s=min(timeout_s, core.timeout_s), retries=0, slow=slow)
+            reply = await core._request(
+                probe, timeout_s=min(timeout_s, core.timeout_s), retries=0, slow=slow, lenient=lenient
+            )
         except DeviceError:
             out.append(Report(role, spec.ident, dialect.name, refused=True))
             continue

@@ -74,6 +74,7 @@ class Transaction:
     fields: Mapping[str, object] | None = None  # the request's values as on the wire (ack rules)
     submitted_at: float = 0.0
     slow: bool = False  # a constant the device may answer very late: never deferred or retried
+    lenient: bool = False  # taken even with a recovered length character (known firmware errors)
     id: int = field(default_factory=lambda: next(_ids))
     state: str = "queued"  # queued -> deferred -> paced -> sent -> done
     attempts: list[Attempt] = field(default_factory=list)
@@ -107,7 +108,8 @@ class Transaction:
 @dataclass(frozen=True)
 class Inbound:
     """What the engine made of one frame from the device. `kind`: answer, late, duplicate,
-    ambiguous, mismatch, error, unsolicited, ignored. `tx` is the request it finished."""
+    ambiguous, mismatch, error, unsolicited, unawaited (the echo of a frame sent without waiting),
+    ignored. `tx` is the request it finished."""
 
     kind: str
     tx: Transaction | None = None
@@ -118,9 +120,14 @@ class Inbound:
         return self.kind not in ("duplicate", "ignored")
 
 
+PACE_SLACK_S = 1e-6  # timers may fire a hair early; a microsecond is no pacing error
+
+
 class Pacer:
     """Frames out no closer together than `gap_s` (a model's `min_command_gap_s`), first come
-    first served; with no gap, everything goes at once."""
+    first served; with no gap, everything goes at once. A frame sent without waiting for an
+    answer replaces one still waiting on its key with other data (a newer set-point supersedes
+    it: a joystick or a pointing loop never builds a backlog); identical ones are kept (repeats)."""
 
     __slots__ = ("gap_s", "next_at", "queue")
 
@@ -130,9 +137,18 @@ class Pacer:
         self.queue: deque[Transaction] = deque()
 
     def ready(self, now: float) -> bool:
-        return not self.gap_s or (not self.queue and now >= self.next_at)
+        return not self.gap_s or (not self.queue and now >= self.next_at - PACE_SLACK_S)
 
     def hold(self, tx: Transaction) -> None:
+        if not tx.expect_reply:
+            for i in range(len(self.queue) - 1, -1, -1):  # the latest one on its key
+                old = self.queue[i]
+                if old.key == tx.key:
+                    if not old.expect_reply and old.frame.data != tx.frame.data:
+                        old.state = "done"  # superseded: never sent
+                        self.queue[i] = tx
+                        return
+                    break
         self.queue.append(tx)
 
     def sent(self, now: float) -> None:
@@ -141,7 +157,7 @@ class Pacer:
 
     def due(self, now: float) -> Transaction | None:
         """The next held request whose turn has come (requests given up meanwhile are dropped)."""
-        while self.queue and now >= self.next_at:
+        while self.queue and now >= self.next_at - PACE_SLACK_S:
             tx = self.queue.popleft()
             if tx.state == "paced":
                 return tx

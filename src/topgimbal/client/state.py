@@ -102,6 +102,11 @@ class StateCache:
             setattr(self, name, Stamped(value, now, wall))
         return keyed
 
+    @staticmethod
+    def values_of(message: Message) -> dict[str, object]:
+        """{state key: value} a decoded frame tells (nothing is stored)."""
+        return state_values(message)
+
     def as_dict(self) -> JSON:
         out: JSON = {
             "attitude": self.attitude.as_dict() if self.attitude else None,
