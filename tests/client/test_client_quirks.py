@@ -193,3 +193,26 @@ async def test_a_running_stream_renews_its_request(fake):
                     break
         gaa = [f for f in fake.received if f.ident == "GAA"]
         assert len(gaa) >= 4 and gaa[-1].data == b"00"  # on, renewed twice (or more), off
+
+
+@pytest.mark.parametrize("renew_s, forgotten", [(0.3, False), (None, True)], ids=["renewed", "not-renewed"])
+async def test_a_long_udp_stream_outlives_the_simulators_peer_lease(renew_s, forgotten):
+    """The simulator forgets a UDP peer it has not heard from for a lease (1.5 s here, 60 s by
+    default, like NAT and firewalls); the client's periodic stream request keeps it known."""
+    from topgimbal.sim import Simulator
+    from topgimbal.sim.servers import Limits
+
+    sim = Simulator("C12", limits=Limits(udp_lease_s=1.5))
+    await sim.start(udp=[("127.0.0.1", 0)])
+    try:
+        async with topgimbal.connect(sim.url, model="C12", timeout_s=0.3, stream_renew_s=renew_s) as cam:
+            got = 0
+            async with cam.attitude(20) as stream:
+                async for _ in stream:
+                    got += 1
+                    if got >= 80:  # 4 s at 20 Hz: more than two leases
+                        break
+            assert (cam.streams.renewals >= 5) is not forgotten
+        assert (sim.server_counts["udp_forgotten_lease"] > 0) is forgotten
+    finally:
+        await sim.stop()
