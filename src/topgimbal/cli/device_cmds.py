@@ -19,8 +19,8 @@ from collections.abc import Awaitable, Callable
 from typing import Any
 
 from ..client import AsyncClient, connect
-from ..client.core import model_hint
 from ..client.identity import Verdict
+from ..client.requesting import model_hint
 from ..client.roles import focus_actions, role_ident
 from ..errors import FieldValueError, RequestTimeoutError, TopGimbalError, TransportError
 from ..protocol import DIALECT_NAMES, all_models, get_dialect, get_model

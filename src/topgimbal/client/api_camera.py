@@ -135,7 +135,7 @@ async def range(core: ClientCore, *, timeout_s: float | None = None) -> float | 
     if spec.readable:  # a query answers with the distance (SkyDroid SLR)
         d = fields_of(await request(core, spec.ident, read=True, timeout_s=timeout_s)).get("distance_m")
         core.state.set("range_m", d)
-        return None if d is None else float(d)
+        return float(d) if isinstance(d, (int, float)) else None
     ident = spec.ident  # a control whose result comes as a report (TOPOTEK LRF)
     result: asyncio.Future[float | None] = asyncio.get_running_loop().create_future()
 

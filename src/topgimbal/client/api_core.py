@@ -5,9 +5,7 @@ method of `AsyncClient` and a blocking method of `Gimbal` (see methods.py)."""
 
 from __future__ import annotations
 
-import time
 from collections.abc import Mapping
-from typing import Any
 
 from ..errors import DecodeError, DeviceError, LinkLostError, RequestTimeoutError, TopGimbalError, UnsupportedError
 from ..protocol import Frame, Message, decode_any, parse_frame
@@ -16,10 +14,10 @@ from . import checks, identity, model_check, roles
 from .core import ClientCore
 from .methods import api_method
 from .signs import map_message
-from .state import Attitude
+from .state import Attitude, StateCache, attitude_of
 
 
-def fields_of(m: Message) -> dict[str, Any]:
+def fields_of(m: Message) -> dict[str, object]:
     """The fields of an answer, or DecodeError saying what it is (and, when another dialect reads
     it, which `--model` would fit)."""
     if m.fields is not None:
@@ -119,8 +117,11 @@ async def get_attitude(core: ClientCore, *, earth: bool = False) -> Attitude:
     role = "earth_attitude" if earth else "attitude"
     ident = roles.require_role(core.dialect, core.model, role, "earth-frame attitude" if earth else "attitude query")
     m = await request(core, ident, read=True)
-    f = fields_of(m)
-    return Attitude(f["yaw_deg"], f["pitch_deg"], f["roll_deg"], time.monotonic(), time.time(), m.frame.ident)
+    fields_of(m)  # a DecodeError for an answer that cannot be read
+    att = attitude_of(StateCache.values_of(m), role, m.frame.ident)
+    if att is None:
+        raise DecodeError(f"{m.frame.text()} carries no {role.replace('_', ' ')}", answer=m.frame)
+    return att
 
 
 async def wait_attitude(core: ClientCore, *, newer_than: float = 0.0, timeout_s: float | None = None) -> Attitude:
@@ -140,13 +141,13 @@ async def version(core: ClientCore) -> str:
     return str(fields_of(await request(core, ident, read=True))["version"])
 
 
-async def identify(core: ClientCore, *, timeout_s: float | None = None) -> dict[str, Any]:
+async def identify(core: ClientCore, *, timeout_s: float | None = None) -> dict[str, str | None]:
     """Ask the device who it is: its version, model name and hardware version where the model has
     such queries (a model name that comes late, as a C12's may, is not waited for beyond the
     timeout). Returns `{"dialect", "model", "version", "model_name", "hardware_version",
     "model_check"}` with None for parts it does not answer; raises when it answers nothing."""
     checks.positive_seconds("timeout_s", timeout_s)
-    out: dict[str, Any] = {"dialect": core.dialect.name, "model": core.model.name}
+    out: dict[str, str | None] = {"dialect": core.dialect.name, "model": core.model.name}
     errors: list[TopGimbalError] = []
     for role in ("version", "model_name", "hardware_version"):
         out[role] = None
@@ -160,7 +161,7 @@ async def identify(core: ClientCore, *, timeout_s: float | None = None) -> dict[
             errors.append(exc)
     if errors and all(out[r] is None for r in ("version", "model_name", "hardware_version")):
         raise errors[0]
-    verdict = core.model_check
+    verdict = core.identity.verdict
     out["model_check"] = verdict.status if verdict.status != "mismatch" else verdict.message
     return out
 

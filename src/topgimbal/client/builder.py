@@ -4,6 +4,7 @@ wire signs checked before anything is built (every failure a FieldValueError or 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 from ..errors import FieldValueError, TopGimbalError, UnknownCommandError, UnsupportedError
 from ..protocol import CommandSpec, DeviceModel, Dialect, Frame
@@ -44,7 +45,7 @@ class FrameBuilder:
             raise FieldValueError("dst", dst, f"a device address, one of {', '.join(DEVICE_ADDRESSES)}")
         try:
             self.dialect.check_values(self.model, spec.ident, values)
-            wire = map_values(spec, values, self.signs)
+            wire: dict[str, Any] = map_values(spec, values, self.signs)  # each codec checks its value
             frame = self.dialect.encode(spec.ident, read=read, src=self.host_address, dst=dst, **wire)
         except TopGimbalError:
             raise

@@ -1,35 +1,22 @@
 """The transaction engine: which frame answers which request. No I/O; an injected clock.
 
-The TOP protocol has no transaction id. An answer has the request's identifier and control
-(`r`/`w`), comes from the address the request went to, and (for a write) carries the data sent.
-Everything else the engine decides from timing. The reasoning is in docs/client.md; in short:
+The TOP protocol has no transaction id: an answer has the request's identifier and control, comes
+from the address the request went to and, for a write, carries the data sent (or, where the model
+profile says so, a report of the outcome: `acks.EchoPolicy`). The rest is timing. In short (the
+reasoning is in docs/client.md, "Matching"):
 
-- One live request per (identifier, device address); later ones wait in a FIFO.
-- Every send is an *attempt*, kept in a per-(identifier, address, control) ledger for
-  `late_window_s` (the longest a link may delay a frame) or until a frame is taken as its answer.
-- A reply to ANY attempt of the live request completes it. A frame that could also answer an
-  attempt of a request that has already finished is never taken by a read: before its first send,
-  a read waits (deferred) until no such attempt can still be answered. So whatever answers it was
-  produced by the device after the read began. A write is completed only by a frame carrying the
-  data sent (`acks.EchoPolicy`); an acknowledgement showing other data fails it with
-  DeviceError, unless an earlier attempt sent those data (then it is that one's late echo).
-- A non-idempotent write (photo, toggle, relative step) is sent once, after the key has been
-  quiet: no earlier attempt open, no frame for `dup_window_s` (network copies of an earlier
-  acknowledgement). Its acknowledgement is then its own. It waits as long in all as a retried
-  request would (timeout x (retries + 1)).
-- A frame arriving sooner after a read's first send than half the fastest round trip seen (at most
-  COPY_FLOOR_CAP_S) cannot answer it: it is a network copy of the previous answer. Once the link
-  has shown copies, a read too is sent only after `dup_window_s` without a frame on its key, so
-  a copy held back by the network cannot pass for its answer.
-- ERE names no command: it fails a request only when that request is the only one to that address
-  that it could answer; otherwise the request's error mentions it.
-- Frames the parser recovered with a wrong length character are answers only for the identifiers
-  real firmware gets wrong (`roles.recovered_ok`: the profile names the quirk).
-- Pacing: no two frames go out closer together than the model's `min_command_gap_s` (the C12
-  drops commands that come faster), whoever sends them; an attempt's clock starts when it goes out.
-- Slow answers (the profile's `slow_answers`: the C12 may answer MOD minutes late or never) are
-  constants, so any answer is right: such a query is never deferred, never retried, and blocks
-  nothing; an answer that comes after it gave up still reaches the state cache.
+- One live request per (identifier, device address); later ones wait in a FIFO. Every send is an
+  attempt, kept per (identifier, address, control) for `late_window_s` or until answered.
+- A reply to ANY attempt of the live request completes it. A read is deferred until no earlier
+  request's attempt can still be answered; a non-idempotent write (photo, toggle, step) is sent
+  once, on a quiet key. An echo with data no attempt sent fails the write (DeviceError).
+- A frame sooner after a read than half the fastest round trip is a network copy; ERE fails a
+  request only when it is the only one it can answer; frames with a recovered length character
+  answer only where the profile says the firmware gets it wrong (`roles.recovered_ok`).
+- Pacing: no two frames closer than the model's `min_command_gap_s` (C12: 40 ms), whoever sends
+  them; a set-point sent without waiting replaces one still waiting for its turn.
+- Slow answers (`slow_answers`, C12 MOD) are constants: never deferred, never retried, blocking
+  nothing; an answer after the request gave up still reaches the state cache.
 """
 
 from __future__ import annotations

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import TypedDict
 
 from ..errors import FieldValueError
 from ..protocol import CommandSpec, DeviceModel
@@ -57,6 +58,24 @@ class ClientOptions:
             raise FieldValueError("log_path", self.log_path, "a file path (text) or None")
         if self.signs is not None and not isinstance(self.signs, Mapping):
             raise FieldValueError("signs", self.signs, "a mapping such as {'yaw': -1}")
+
+
+class ConnectOptions(TypedDict, total=False):
+    """The keyword options of `connect()`, `AsyncClient` and `Gimbal` beyond timeout, retries,
+    signs and log_path (each as in `ClientOptions`)."""
+
+    echo_motion: bool | None
+    combined_motion: bool | None
+    late_window_s: float | None
+    dup_window_s: float
+    stop_repeats: int | None
+    host_address: str | None
+    link_timeout_s: float
+    reconnect_s: float | None
+    min_command_gap_s: float | None
+    check_model: bool
+    host_feeds: bool
+    stream_renew_s: float | None
 
 
 class Behaviour:
