@@ -149,3 +149,126 @@ async def sim_factory():
     yield make
     for sim in started:
         await sim.stop()
+
+
+class KinematicFake:
+    """A gimbal with physics on a `memory://` port for pointing tests (no sockets): rate commands
+    accelerate each axis (at most `accel`), angle commands slew to their target unless the model's
+    profile lists them as `ignored` (the C11) or `ignore_angles` says the firmware ignores them
+    silently; echoes writes (except the profile's `no_echo`); streams GAC at the model's fixed rate
+    or as asked; answers GAC queries. Values pass through the model's wire signs. Every position
+    is kept in `history` (to measure overshoot)."""
+
+    def __init__(self, model: str, *, ignore_angles: bool = False, accel: float = 300.0, tick_s: float = 0.005) -> None:
+        from topgimbal.protocol.signs import flip, resolve_signs
+
+        self.dialect, self.model = get_model(model)
+        self._flip, self.signs = flip, resolve_signs(self.model)
+        self.ignored = set(self.model.ignored) | ({"GAM", "GAY", "GAP"} if ignore_angles else set())
+        self.accel, self.tick_s = accel, tick_s
+        self.pos = {"yaw": 0.0, "pitch": 0.0}
+        self.vel = {"yaw": 0.0, "pitch": 0.0}
+        self.rate = {"yaw": 0.0, "pitch": 0.0}  # commanded rate
+        self.goal: dict[str, tuple[float, float]] = {}  # axis -> (angle, speed) of an angle command
+        self.received: list[Frame] = []
+        self.history: list[tuple[float, float, float]] = []
+        self.stream_hz = 0.0
+        self.port = MemoryPort.listen(f"kin-{next(_names)}")
+        self.port.on_bytes = self._on_bytes
+        self.url = self.port.url
+        self._tasks: list[asyncio.Task[None]] = []
+
+    def start(self) -> KinematicFake:
+        self._tasks.append(asyncio.ensure_future(self._physics()))
+        self._tasks.append(asyncio.ensure_future(self._stream()))
+        return self
+
+    def _on_bytes(self, data: bytes) -> None:
+        for frame in FrameParser().feed(data):
+            if isinstance(frame, Frame):
+                self.received.append(frame)
+                self._handle(frame)
+
+    def _handle(self, frame: Frame) -> None:
+        spec = self.dialect.commands.get(frame.ident)
+        msg = self.dialect.decode(frame)
+        if spec is None or msg.fields is None:
+            return
+        api = self._flip(spec, msg.fields, self.signs)
+        if frame.rw == "r":
+            if spec.role == "attitude":
+                y, p = self._wire_attitude()
+                self.port.send(self.dialect.response(frame, yaw_deg=y, pitch_deg=p, roll_deg=0.0).to_bytes())
+            return
+        if spec.role == "attitude_stream":
+            rate = float(api.get("rate_hz", 10 if api.get("state") == "on" else 0))
+            self.stream_hz = self.model.stream_rates_hz.get(frame.ident, rate) if rate else 0.0
+        elif frame.ident not in self.ignored and spec.role == "rate":
+            for f in spec.forms_for("w", "request")[0].fields:
+                if f.axis in self.rate:
+                    self.rate[f.axis] = float(api[f.name])
+                    self.goal.pop(f.axis, None)
+        elif frame.ident not in self.ignored and spec.role == "angle":
+            speed = next((float(v) for k, v in api.items() if k.endswith("speed_deg_s")), 9.9) or 9.9
+            for f in spec.forms_for("w", "request")[0].fields:
+                if f.axis in self.pos:
+                    self.goal[f.axis] = (float(api[f.name]), speed)
+        elif spec.role == "gimbal_control" and api.get("action") == "stop":
+            self.rate = {"yaw": 0.0, "pitch": 0.0}
+            self.goal.clear()
+        if frame.ident not in self.model.no_echo:
+            self.port.send(frame.swapped().to_bytes())
+
+    def _wire_attitude(self) -> tuple[float, float]:
+        spec = self.dialect.command("GAC")
+        wire = self._flip(
+            spec, {"yaw_deg": self.pos["yaw"], "pitch_deg": self.pos["pitch"], "roll_deg": 0.0}, self.signs
+        )
+        return round(wire["yaw_deg"], 2), round(wire["pitch_deg"], 2)
+
+    async def _physics(self) -> None:
+        loop = asyncio.get_running_loop()
+        last = loop.time()
+        while True:
+            await asyncio.sleep(self.tick_s)
+            now = loop.time()
+            dt, last = now - last, now
+            for axis in self.pos:
+                if axis in self.goal:
+                    target, speed = self.goal[axis]
+                    err = target - self.pos[axis]
+                    want = max(-speed, min(speed, err / max(dt, 1e-3)))
+                else:
+                    want = self.rate[axis]
+                dv = max(-self.accel * dt, min(self.accel * dt, want - self.vel[axis]))
+                self.vel[axis] += dv
+                self.pos[axis] += self.vel[axis] * dt
+            self.history.append((now, self.pos["yaw"], self.pos["pitch"]))
+
+    async def _stream(self) -> None:
+        while True:
+            await asyncio.sleep(1.0 / self.stream_hz if self.stream_hz else 0.02)
+            if self.stream_hz:
+                y, p = self._wire_attitude()
+                self.port.send(
+                    self.dialect.notification("GAC", src="G", rw="r", yaw_deg=y, pitch_deg=p, roll_deg=0.0).to_bytes()
+                )
+
+    async def stop(self) -> None:
+        for t in self._tasks:
+            t.cancel()
+        self.port.close()
+
+
+@pytest.fixture
+async def kinematic():
+    made: list[KinematicFake] = []
+
+    def make(model: str, **kw) -> KinematicFake:
+        dev = KinematicFake(model, **kw).start()
+        made.append(dev)
+        return dev
+
+    yield make
+    for dev in made:
+        await dev.stop()

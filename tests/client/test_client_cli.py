@@ -88,8 +88,20 @@ def test_every_command(bg, capsys, tmp_path, kind):
     assert code == 0 and "yaw / pitch / roll" in out and "frames in / out" in out
 
     log = tmp_path / "traffic.jsonl"
-    res = ok("log", str(log), "--seconds", "0.3", "--stream", "20")
+    cap = tmp_path / "traffic.pcapng"
+    res = ok("log", str(log), "--seconds", "0.3", "--stream", "20", "--pcap", str(cap))
     assert res["frames"] > 3 and log.exists()
+    # The capture holds exactly the frames of the log, as Wireshark will see them (topgimbal.wire).
+    from topgimbal.protocol import Frame
+    from topgimbal.wire import WireFrame, frames_in_capture
+
+    logged = [json.loads(line)["raw"] for line in log.read_text().splitlines()[1:]]
+    captured = [
+        w.item.to_bytes().decode("latin-1")
+        for w in frames_in_capture(cap)
+        if isinstance(w, WireFrame) and isinstance(w.item, Frame)
+    ]
+    assert res["pcap_frames"] == len(logged) and captured == logged
     rep = ok("replay", str(log), "--fast")
     assert rep["sent"] >= 2 and rep["replies"] >= 1
 

@@ -12,7 +12,7 @@ from topgimbal.errors import DeviceError, RequestTimeoutError
 async def test_a_lost_photo_says_it_may_have_been_taken_and_how_to_check(fake):
     url = fake.start_memory()
     fake.handler = lambda f: None if f.ident == "CAP" else fake.default(f)
-    async with topgimbal.connect(url, model="C12", timeout_s=0.1, retries=3) as cam:
+    async with topgimbal.connect(url, model="C12", timeout_s=0.1, retries=3, check_model=False) as cam:
         with pytest.raises(RequestTimeoutError) as err:
             await cam.photo()
     text = str(err.value)

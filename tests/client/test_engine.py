@@ -20,9 +20,13 @@ class FakeClock:
 
 @pytest.fixture
 def sky():
-    dialect, _model = get_model("C12")
+    dialect, model = get_model("C12")
     clock = FakeClock()
-    return dialect, Engine(clock=clock, late_window_s=2.0, dup_window_s=0.05), clock
+    return (
+        dialect,
+        Engine(clock=clock, late_window_s=2.0, dup_window_s=0.05, model=model, dialect=dialect, min_gap_s=0),
+        clock,
+    )
 
 
 def answer(dialect, request: Frame, **values):
@@ -231,9 +235,9 @@ def test_recovered_frames_answer_only_where_firmware_is_known_to_err(sky):
 
 
 def test_topotek_rec_and_cap_are_acknowledged_by_their_feedback():
-    d, _model = get_model("SIP")
+    d, model = get_model("SIP")
     clock = FakeClock()
-    e = Engine(clock=clock)
+    e = Engine(clock=clock, model=model, dialect=d)
     rec = d.encode("REC", action="start", src="P")
     tx = e.submit(rec, timeout_s=1.0, fields={"action": "start"})
     stopped = d.notification("REC", src="D", dst="P", state="stopped", file_index=3)

@@ -9,21 +9,27 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
-import datetime
+import copy
 import json
+import logging
 import math
 import sys
 import time
 from collections.abc import Awaitable, Callable
 from typing import Any
 
-from ..client import AsyncClient, connect, read_log
+from ..client import AsyncClient, connect
+from ..client.identity import Verdict
+from ..client.requesting import model_hint
 from ..client.roles import focus_actions, role_ident
 from ..errors import FieldValueError, RequestTimeoutError, TopGimbalError, TransportError
-from ..protocol import DIALECT_NAMES, Frame, Message, all_models, get_dialect, get_model
+from ..protocol import DIALECT_NAMES, all_models, get_dialect, get_model
+from . import device_session
 from .args import add_json_argument
+from .device_output import attitude_dict, ok, show
 
 Runner = Callable[[AsyncClient, argparse.Namespace], Awaitable[Any]]
+MODEL_CHECK_WAIT_S = 2.0  # at most this long after a command for the device to say what it is
 
 
 # -- plumbing ------------------------------------------------------------------------------------
@@ -67,6 +73,9 @@ def _command(sub: argparse._SubParsersAction, name: str, runner: Runner, help: s
 
 
 def _run(args: argparse.Namespace, runner: Runner) -> int:
+    client_log = logging.getLogger("topgimbal.client")
+    if not any(isinstance(f, _NoModelCheckRecords) for f in client_log.filters):
+        client_log.addFilter(_NoModelCheckRecords())
     if not args.url:
         raise TransportError("no device URL: pass --url URL (before the command) or set TOPGIMBAL_URL")
 
@@ -77,7 +86,17 @@ def _run(args: argparse.Namespace, runner: Runner) -> int:
         async with connect(
             args.url, model=model, timeout_s=args.timeout, retries=args.retries, log_path=args.log
         ) as cam:
-            return await runner(cam, args)
+            try:
+                result = await runner(cam, args)
+            except TopGimbalError as exc:
+                verdict = await _verdict(cam)
+                if verdict is not None and verdict.message not in str(exc):
+                    raise _with_hint(exc, verdict.message, cam.model.name) from None
+                raise
+            verdict = await _verdict(cam)
+            if verdict is not None:
+                print(f"topgimbal: warning: {verdict.message}", file=sys.stderr, flush=True)
+            return result
 
     started = time.monotonic()
     try:
@@ -92,76 +111,43 @@ def _run(args: argparse.Namespace, runner: Runner) -> int:
         ) from None
     if isinstance(result, int):
         return result
-    _print(args, result)
+    show(args, result)
     return 0
 
 
+async def _verdict(cam: AsyncClient) -> Verdict | None:
+    """The model check's verdict when the device says it is another model than --model (the check
+    runs in the background from connect; a command that finished first waits for it briefly)."""
+    if not cam.stats.frames_in:
+        return None  # nothing has come at all: the command's own error says so
+    verdict = await cam.wait_model_check(MODEL_CHECK_WAIT_S)
+    return verdict if verdict.status == "mismatch" else None
+
+
+def _with_hint(exc: TopGimbalError, hint: str, model: str) -> TopGimbalError:
+    new = copy.copy(exc)
+    new.args = (f"{str(exc).replace(model_hint(model), '')}; {hint}",)
+    return new
+
+
+class _NoModelCheckRecords(logging.Filter):
+    """The CLI says what the model check found in its own one line: the log record would repeat it."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not hasattr(record, "model_check")
+
+
 async def _detect(args: argparse.Namespace) -> str:
-    """No --model: ask the device which dialect it speaks (a model-name query, then a version)."""
-    async with connect(args.url, model="C12", timeout_s=min(args.timeout, 0.5), retries=1) as cam:
+    """No --model: ask the device what it is (version and model name, in every dialect)."""
+    async with connect(
+        args.url, model="C12", timeout_s=min(args.timeout, 0.5), retries=1, check_model=False, host_feeds=False
+    ) as cam:
         found = await cam.detect_model()
         heard = cam.stats.frames_in > 0
     if found is None:
         why = "it answered neither query" if heard else f"nothing at all came from {args.url}"
         raise TopGimbalError(f"no --model given and the device did not identify itself ({why}); pass --model")
     return found
-
-
-def _plain(value: Any) -> Any:
-    if hasattr(value, "as_dict"):
-        return value.as_dict()
-    if isinstance(value, Message):
-        return value.to_dict()
-    if isinstance(value, Frame):
-        return value.text()
-    return value
-
-
-def _print(args: argparse.Namespace, result: Any) -> None:
-    result = _plain(result)
-    if args.json:
-        print(json.dumps(result, default=str))
-        return
-    for line in _human(result):
-        print(line)
-
-
-def _human(value: Any, indent: str = "") -> list[str]:
-    """Readable lines: nested mappings indented, no Python reprs (None, {...}), times as dates."""
-    if isinstance(value, dict):
-        out = []
-        for k, v in value.items():
-            if v is None and k in ("error",):
-                continue  # "error: None" says nothing
-            if isinstance(v, dict) and v:
-                out.append(f"{indent}{k}:")
-                out += _human(v, indent + "  ")
-            else:
-                out.append(f"{indent}{k}: {_text(k, v)}")
-        return out
-    return [] if value is None else [f"{indent}{_text('', value)}"]
-
-
-def _text(key: str, v: Any) -> str:
-    if v is None:
-        return "-"
-    if isinstance(v, dict):
-        return "-"
-    if isinstance(v, (list, tuple)):
-        return ", ".join(_text("", x) for x in v) or "-"
-    if key in ("t", "wall") and isinstance(v, float) and v > 1e9:
-        return datetime.datetime.fromtimestamp(v).isoformat(sep=" ", timespec="milliseconds")
-    if isinstance(v, float):
-        return f"{v:g}"
-    return str(v)
-
-
-def _attitude_dict(att: Any) -> dict[str, Any]:
-    return {"yaw_deg": att.yaw_deg, "pitch_deg": att.pitch_deg, "roll_deg": att.roll_deg, "t": att.wall}
-
-
-def _ok(action: str, **extra: Any) -> dict[str, Any]:
-    return {"ok": True, "action": action, **extra}
 
 
 # -- commands ------------------------------------------------------------------------------------
@@ -174,10 +160,10 @@ async def _info(cam: AsyncClient, args: argparse.Namespace) -> Any:
 
 async def _attitude(cam: AsyncClient, args: argparse.Namespace) -> Any:
     if not args.watch:
-        return _attitude_dict(await cam.get_attitude())
+        return attitude_dict(await cam.get_attitude())
     n = 0
     async for att in cam.attitude(rate_hz=args.rate):
-        d = _attitude_dict(att)
+        d = attitude_dict(att)
         if args.json:
             print(json.dumps(d), flush=True)
         else:
@@ -210,7 +196,7 @@ async def _point(cam: AsyncClient, args: argparse.Namespace) -> Any:
         if option is None:
             raise
         raise FieldValueError(option, exc.value, exc.allowed) from None
-    return _attitude_dict(att)
+    return attitude_dict(att)
 
 
 async def _rate(cam: AsyncClient, args: argparse.Namespace) -> Any:
@@ -218,24 +204,24 @@ async def _rate(cam: AsyncClient, args: argparse.Namespace) -> Any:
         async with cam.rate_control(interval_s=0.1) as joy:
             joy.set(args.yaw_rate, args.pitch_rate, args.roll_rate)
             await asyncio.sleep(args.duration)
-        return _ok("rate", stopped=True)
+        return ok("rate", stopped=True)
     await cam.rates(args.yaw_rate, args.pitch_rate, args.roll_rate)
-    return _ok("rate")
+    return ok("rate")
 
 
 async def _stop(cam: AsyncClient, args: argparse.Namespace) -> Any:
     await cam.stop()
-    return _ok("stop")
+    return ok("stop")
 
 
 async def _center(cam: AsyncClient, args: argparse.Namespace) -> Any:
     await cam.center()
-    return _ok("center")
+    return ok("center")
 
 
 async def _mode(cam: AsyncClient, args: argparse.Namespace) -> Any:
     await cam.set_mode(args.mode)
-    return _ok("mode", mode=args.mode)
+    return ok("mode", mode=args.mode)
 
 
 async def _zoom(cam: AsyncClient, args: argparse.Namespace) -> Any:
@@ -243,17 +229,17 @@ async def _zoom(cam: AsyncClient, args: argparse.Namespace) -> Any:
         await cam.digital_zoom(args.value)
     else:
         await cam.zoom(args.value)
-    return _ok("zoom", value=args.value)
+    return ok("zoom", value=args.value)
 
 
 async def _focus(cam: AsyncClient, args: argparse.Namespace) -> Any:
     await cam.focus(args.action)
-    return _ok("focus", value=args.action)
+    return ok("focus", value=args.action)
 
 
 async def _photo(cam: AsyncClient, args: argparse.Namespace) -> Any:
     m = await cam.photo()
-    out = _ok("photo")
+    out = ok("photo")
     if m.fields and "file_index" in m.fields:
         out["file_index"] = m.fields["file_index"]
     return out
@@ -317,21 +303,14 @@ async def _net(cam: AsyncClient, args: argparse.Namespace) -> Any:
             {"ip": "IPV", "gateway": "GTW", "dns": "DNS", "backup_dns": "BNS"}[ident_name], address=changes[ident_name]
         )
     await cam.set_network(**changes)
-    return _ok("net set", **changes)
-
-
-async def _first_attitude(cam: AsyncClient, rate_hz: float) -> None:
-    """Start the stream and wait (briefly) for its first sample, so the first screen shows it."""
-    await cam.attitude_stream(rate_hz)
-    with contextlib.suppress(RequestTimeoutError):
-        await cam.wait_attitude(timeout_s=max(1.0, 3.0 / rate_hz))
+    return ok("net set", **changes)
 
 
 async def _raw(cam: AsyncClient, args: argparse.Namespace) -> Any:
     """A frame as given; without its checksum it is completed (as the console does)."""
     reply = await cam.send_raw(args.frame, wait_reply=not args.no_wait)
     if reply is None:
-        return _ok("raw")
+        return ok("raw")
     return {"reply": reply.frame.text(), **reply.to_dict()}
 
 
@@ -348,110 +327,6 @@ async def _command_generic(cam: AsyncClient, args: argparse.Namespace) -> Any:
         values[k] = codec.parse_text(v) if codec is not None and hasattr(codec, "parse_text") else v
     m = await cam.request(spec.ident, read=args.read, **values)
     return {"reply": m.frame.text(), **m.to_dict()}
-
-
-def _monitor_table(cam: AsyncClient) -> Any:
-    from rich.table import Table
-
-    table = Table(title=f"{cam.model.name} at {cam.url}", show_header=True, expand=False)
-    table.add_column("what")
-    table.add_column("value")
-    att = cam.state.attitude
-    if att is not None:
-        table.add_row("yaw / pitch / roll", f"{att.yaw_deg:8.2f}  {att.pitch_deg:8.2f}  {att.roll_deg:8.2f}")
-        table.add_row("attitude age", f"{(time.monotonic() - att.t) * 1000:.0f} ms")
-    else:
-        table.add_row("attitude", "-")
-    for name in ("zoom", "recording", "sd", "range_m", "mode", "version"):
-        s = getattr(cam.state, name)
-        table.add_row(name, "-" if s is None else str(_plain(s.value)))
-    st = cam.stats
-    table.add_row("frames in / out", f"{st.frames_in} / {st.frames_out}")
-    table.add_row("timeouts / retries / late", f"{st.timeouts} / {st.retries} / {st.late_replies}")
-    table.add_row("rtt last / avg", f"{st.rtt_ms_last or 0:.2f} / {st.rtt_ms_avg or 0:.2f} ms")
-    table.add_row("connected", str(st.connected))
-    return table
-
-
-async def _monitor(cam: AsyncClient, args: argparse.Namespace) -> Any:
-    """A live view; `--count N` renders N frames and exits (for scripts and tests)."""
-    from rich.console import Console
-    from rich.live import Live
-
-    await _first_attitude(cam, args.rate)
-    with contextlib.suppress(TopGimbalError):
-        await cam.recording()
-    with contextlib.suppress(TopGimbalError):
-        await cam.sd_card()
-    console = Console(force_terminal=None if not args.json else False)
-    frames = 0
-    interval = 1.0 / max(args.fps, 0.1)
-    if args.json:
-        while not args.count or frames < args.count:
-            await asyncio.sleep(interval)
-            print(json.dumps({"state": cam.state.as_dict(), "link": cam.stats.as_dict()}, default=str), flush=True)
-            frames += 1
-        return 0
-    with Live(_monitor_table(cam), console=console, refresh_per_second=args.fps, transient=False) as live:
-        while not args.count or frames < args.count:
-            await asyncio.sleep(interval)
-            live.update(_monitor_table(cam))
-            frames += 1
-    return 0
-
-
-async def _log(cam: AsyncClient, args: argparse.Namespace) -> Any:
-    """Record the traffic (with the attitude stream on, if asked) to a JSONL file."""
-    from ..client import TrafficLog
-
-    log = TrafficLog(args.file, url=cam.url, model=cam.model.name, dialect=cam.dialect.name)
-    count = 0
-
-    def record(direction: str, frame: Frame, message: Message | None) -> None:
-        nonlocal count
-        log.record(direction, frame, message)
-        count += 1
-
-    cam.on_traffic(record)
-    try:
-        if args.stream:
-            await cam.attitude_stream(args.stream)
-        await asyncio.sleep(args.seconds)
-        if args.stream:
-            await cam.stop_attitude_stream()
-    finally:
-        log.close()
-    if args.stream and cam.stats.frames_in == 0:
-        raise TopGimbalError(f"nothing came from the device in {args.seconds:g} s; {args.file} holds no answers")
-    return {"file": args.file, "frames": count}
-
-
-async def _replay(cam: AsyncClient, args: argparse.Namespace) -> Any:
-    """Send the host -> device frames of a log again, with their original spacing."""
-    records = [r for r in read_log(args.file) if r.direction == "out"]
-    sent = replies = 0
-    start = time.monotonic()
-    t0 = records[0].mono if records else 0.0
-    for r in records:
-        if not args.fast:
-            delay = (r.mono - t0) / args.speed - (time.monotonic() - start)
-            if delay > 0:
-                await asyncio.sleep(delay)
-        try:
-            reply = await cam.send_raw(r.frame, wait_reply=not args.no_wait)
-        except TopGimbalError as exc:
-            if not args.json:
-                print(f"{r.frame.text()} -> {exc}")
-            sent += 1
-            continue
-        sent += 1
-        if reply is not None:
-            replies += 1
-            if not args.json:
-                print(f"{r.frame.text()} -> {reply.frame.text()}")
-    if sent and not replies and not args.no_wait:
-        raise TopGimbalError(f"replay: the device answered none of the {sent} frames sent")
-    return {"file": args.file, "sent": sent, "replies": replies}
 
 
 # -- registration --------------------------------------------------------------------------------
@@ -539,19 +414,4 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("ident", help="identifier or catalog name")
     p.add_argument("values", nargs="*", help="name=value (user units)")
     p.add_argument("--read", action="store_true", help="send the query form")
-
-    p = _command(sub, "monitor", _monitor, "live view of attitude, camera state and link statistics")
-    p.add_argument("--rate", type=float, default=20.0, help="attitude stream rate in Hz (default 20)")
-    p.add_argument("--fps", type=float, default=5.0, help="screen refreshes per second (default 5)")
-    p.add_argument("--count", type=int, default=0, help="render N frames and exit")
-
-    p = _command(sub, "log", _log, "record the traffic to a JSONL file")
-    p.add_argument("file")
-    p.add_argument("--seconds", type=float, default=10.0)
-    p.add_argument("--stream", type=float, default=0.0, metavar="HZ", help="turn the attitude stream on while logging")
-
-    p = _command(sub, "replay", _replay, "send the host -> device frames of a JSONL log again")
-    p.add_argument("file")
-    p.add_argument("--speed", type=float, default=1.0, help="time scale (2 = twice as fast)")
-    p.add_argument("--fast", action="store_true", help="ignore the original timing")
-    p.add_argument("--no-wait", action="store_true", help="do not wait for replies")
+    device_session.register(sub, _command)

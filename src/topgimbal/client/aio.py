@@ -8,25 +8,36 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-from collections.abc import Generator, Mapping
+from collections.abc import Callable, Generator, Mapping
 from types import TracebackType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Unpack
 
 from ..errors import FieldValueError
-from ..protocol import CommandSpec, Message
-from . import checks
+from ..protocol import CommandSpec, DeviceModel, Message
+from . import checks, identity, roles
 from .api_camera import CameraMethods
 from .api_core import CoreMethods, _rate
 from .api_motion import MotionMethods
 from .core import ClientCore
+from .options import ConnectOptions
 from .streams import AttitudeStream
 
 
 class AsyncClient(ClientCore, CoreMethods, MotionMethods, CameraMethods):
     """A connection to one gimbal camera. Open with `await connect(url, model=...)`."""
 
-    def __init__(self, url: str, model: str = "C12", **options: Any) -> None:
-        super().__init__(url, model, **options)
+    def __init__(
+        self,
+        url: str,
+        model: str | DeviceModel = "C12",
+        *,
+        timeout_s: float = 1.0,
+        retries: int = 2,
+        signs: Mapping[str, int] | None = None,
+        log_path: str | None = None,
+        **options: Unpack[ConnectOptions],
+    ) -> None:
+        super().__init__(url, model, timeout_s=timeout_s, retries=retries, signs=signs, log_path=log_path, **options)
         self.cmd = CommandNamespace(self)
 
     async def open(self) -> AsyncClient:
@@ -35,6 +46,25 @@ class AsyncClient(ClientCore, CoreMethods, MotionMethods, CameraMethods):
 
     async def __aenter__(self) -> AsyncClient:
         return self
+
+    @property
+    def model_check(self) -> identity.Verdict:
+        """What the device said it is, against the model the client was told (`status`: pending,
+        ok, mismatch, unknown, off; `message`, `fits`)."""
+        return self.identity.verdict
+
+    def on_model_check(self, callback: Callable[[identity.Verdict], object]) -> Callable[[], None]:
+        """`callback(verdict)` whenever the model check's verdict changes; returns a remove function."""
+        self.identity.listeners.append(callback)
+        return lambda: self.identity.listeners.remove(callback) if callback in self.identity.listeners else None
+
+    async def wait_model_check(self, timeout_s: float = 2.0) -> identity.Verdict:
+        """The model check's verdict once it has one (or whatever it is after `timeout_s`)."""
+        try:
+            await asyncio.wait_for(self.identity.done.wait(), timeout_s)
+        except asyncio.TimeoutError:
+            pass
+        return self.identity.verdict
 
     def attitude(self, rate_hz: float = 50, *, abandon_after_s: float | None = None) -> AttitudeStream:
         """Attitude samples as they arrive, at most `rate_hz`: `async for att in
@@ -84,11 +114,11 @@ class CatalogCommand:
         self.spec = spec
         self.__doc__ = f"{spec.ident} {spec.title} ({spec.section})"
 
-    async def __call__(self, **values: Any) -> Message:
-        return await self.client.request(self.spec.ident, **values)
+    async def __call__(self, **values: object) -> Message:
+        return await self.client.send_request(self.client.build_from(self.spec.ident, values))
 
-    async def read(self, **values: Any) -> Message:
-        return await self.client.request(self.spec.ident, read=True, **values)
+    async def read(self, **values: object) -> Message:
+        return await self.client.send_request(self.client.build_from(self.spec.ident, values, read=True))
 
 
 class RateKeepAlive:
@@ -106,7 +136,10 @@ class RateKeepAlive:
         for name, v in (("yaw_deg_s", yaw_deg_s), ("pitch_deg_s", pitch_deg_s), ("roll_deg_s", roll_deg_s)):
             if not checks.is_number(v):
                 raise FieldValueError(name, v, "a rate in deg/s")
-        self.client.build("GSM", yaw_rate_deg_s=yaw_deg_s, pitch_rate_deg_s=pitch_deg_s)  # validate now
+        wanted = {"yaw": yaw_deg_s, "pitch": pitch_deg_s, **({"roll": roll_deg_s} if roll_deg_s else {})}
+        c = self.client
+        for cmd in roles.motion_plan(c.dialect, c.model, "rate", wanted, combined=c.behaviour.combined):
+            c.build_from(cmd.spec.ident, cmd.values)  # validate now
         self.rates = (yaw_deg_s, pitch_deg_s, roll_deg_s)
 
     async def _run(self) -> None:
@@ -135,7 +168,7 @@ class _Connector:
     def __init__(self, client: AsyncClient) -> None:
         self._client = client
 
-    def __await__(self) -> Generator[Any, None, AsyncClient]:
+    def __await__(self) -> Generator[object, None, AsyncClient]:
         return self._client.open().__await__()
 
     async def __aenter__(self) -> AsyncClient:
@@ -149,18 +182,19 @@ class _Connector:
 
 def connect(
     url: str,
-    model: str = "C12",
+    model: str | DeviceModel = "C12",
     *,
     timeout_s: float = 1.0,
     retries: int = 2,
     signs: Mapping[str, int] | None = None,
     log_path: str | None = None,
-    **options: Any,
+    **options: Unpack[ConnectOptions],
 ) -> _Connector:
     """Open a client: `cam = await connect(url, model="C12")` or
-    `async with connect(url, model="SIP") as cam: ...`. Options (see docs/client.md):
-    echo_motion, combined_motion, late_window_s, dup_window_s, stop_repeats, host_address,
-    link_timeout_s, reconnect_s."""
+    `async with connect(url, model="SIP") as cam: ...`. Options (see docs/client.md and
+    client/options.py; None takes the model profile's value): echo_motion, combined_motion,
+    late_window_s, dup_window_s, stop_repeats, host_address, link_timeout_s, reconnect_s,
+    min_command_gap_s, check_model, host_feeds, stream_renew_s."""
     return _Connector(
         AsyncClient(url, model, timeout_s=timeout_s, retries=retries, signs=signs, log_path=log_path, **options)
     )

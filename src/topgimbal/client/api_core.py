@@ -5,23 +5,34 @@ method of `AsyncClient` and a blocking method of `Gimbal` (see methods.py)."""
 
 from __future__ import annotations
 
-import time
-from typing import Any
+from collections.abc import Mapping
 
-from ..errors import DeviceError, LinkLostError, RequestTimeoutError, TopGimbalError, UnsupportedError
-from ..protocol import DIALECT_NAMES, Frame, Message, get_dialect, parse_frame
+from ..errors import DecodeError, DeviceError, LinkLostError, RequestTimeoutError, TopGimbalError, UnsupportedError
+from ..protocol import Frame, Message, decode_any, parse_frame
 from ..protocol.frame import complete_frame
-from . import checks, roles
+from . import checks, identity, model_check, roles
 from .core import ClientCore
 from .methods import api_method
 from .signs import map_message
-from .state import Attitude
+from .state import Attitude, StateCache, attitude_of
 
 
-def fields_of(m: Message) -> dict[str, Any]:
-    if m.fields is None:
-        raise DeviceError(f"cannot read the device's answer {m.frame.text()}: {m.error}")
-    return m.fields
+def fields_of(m: Message) -> dict[str, object]:
+    """The fields of an answer, or DecodeError saying what it is (and, when another dialect reads
+    it, which `--model` would fit)."""
+    if m.fields is not None:
+        return m.fields
+    text = f"cannot read the device's answer {m.frame.text()}: {m.error}"
+    other = decode_any(m.frame, prefer=m.dialect or None)
+    if other.fields is not None and other.dialect and other.dialect != m.dialect:
+        fits = identity.models_of_dialect(other.dialect, m.frame.ident)
+        text += (
+            f"; it reads as a {other.dialect} frame ({other.fields}): the device may be a "
+            f"{' or '.join(fits) or other.dialect} model, so pass --model {fits[0] if fits else '...'}"
+        )
+    else:
+        text += "; if the device is another model, pass --model (connect(model=...))"
+    raise DecodeError(text, answer=m.frame)
 
 
 async def request(
@@ -33,7 +44,7 @@ async def request(
     retries: int | None = None,
     wait_reply: bool | None = None,
     dst: str | None = None,
-    **values: Any,
+    **values: object,
 ) -> Message:
     """Send one catalog command and return the device's answer (fields in API units).
 
@@ -43,24 +54,13 @@ async def request(
     that does not carry the data sent), LinkLostError or TransportError."""
     checks.positive_seconds("timeout_s", timeout_s)
     checks.count("retries", retries)
-    frame = core.build(ident, read=read, dst=dst, **values)
-    spec = core.dialect.command(frame.ident)
-    if wait_reply is None:
-        wait_reply = read or (spec.echo and (core.echo_motion or not spec.motion))
-    exclusive = not spec.is_idempotent(frame)  # the engine sends it once (and waits as long in all)
-    n = core.retries if retries is None else retries
-    wire = core.dialect.decode(frame).fields if frame.ident in roles.ACK_REPORTS else None
-    reply = await core._request(
-        frame,
-        timeout_s=core.timeout_s if timeout_s is None else float(timeout_s),
-        retries=n,
-        expect_reply=wait_reply,
-        exclusive=exclusive,
-        fields=wire,
-    )
-    if reply is None:
-        return Message(frame, spec, None, None, "sent without waiting for a reply")
-    return reply  # already in the API convention (mapped on arrival)
+    frame = core.build_from(ident, values, read=read, dst=dst)
+    return await core.send_request(frame, timeout_s=timeout_s, retries=retries, wait_reply=wait_reply)
+
+
+async def send_values(core: ClientCore, ident: str, values: Mapping[str, object]) -> Message:
+    """`request(core, ident, **values)` for values held in a mapping."""
+    return await core.send_request(core.build_from(ident, values))
 
 
 async def send_raw(
@@ -73,7 +73,7 @@ async def send_raw(
         frame = parse_frame(complete_frame(frame))
     spec = core.dialect.commands.get(frame.ident)
     exclusive = spec is not None and not spec.is_idempotent(frame)
-    wire = core.dialect.decode(frame).fields if frame.ident in roles.ACK_REPORTS else None
+    wire = core.dialect.decode(frame).fields if frame.ident in core.model.echo_rules else None
     reply = await core._request(
         frame,
         timeout_s=core.timeout_s if timeout_s is None else float(timeout_s),
@@ -114,11 +114,14 @@ async def stop_attitude_stream(core: ClientCore) -> None:
 async def get_attitude(core: ClientCore, *, earth: bool = False) -> Attitude:
     """Query the attitude once (`earth=True`: the gyro's earth-frame reading, where there is one).
     While a stream runs, the query is answered by the first frame that comes after it."""
-    role = "attitude_earth" if earth else "attitude"
+    role = "earth_attitude" if earth else "attitude"
     ident = roles.require_role(core.dialect, core.model, role, "earth-frame attitude" if earth else "attitude query")
     m = await request(core, ident, read=True)
-    f = fields_of(m)
-    return Attitude(f["yaw_deg"], f["pitch_deg"], f["roll_deg"], time.monotonic(), time.time(), m.frame.ident)
+    fields_of(m)  # a DecodeError for an answer that cannot be read
+    att = attitude_of(StateCache.values_of(m), role, m.frame.ident)
+    if att is None:
+        raise DecodeError(f"{m.frame.text()} carries no {role.replace('_', ' ')}", answer=m.frame)
+    return att
 
 
 async def wait_attitude(core: ClientCore, *, newer_than: float = 0.0, timeout_s: float | None = None) -> Attitude:
@@ -138,51 +141,50 @@ async def version(core: ClientCore) -> str:
     return str(fields_of(await request(core, ident, read=True))["version"])
 
 
-async def identify(core: ClientCore, *, timeout_s: float | None = None) -> dict[str, Any]:
-    """Ask the device who it is (its version, and its model name where it has one). Returns
-    `{"dialect", "model", "version", "model_name"}` with None for parts it does not answer;
-    raises when it answers nothing at all (a silent device says so)."""
+async def identify(core: ClientCore, *, timeout_s: float | None = None) -> dict[str, str | None]:
+    """Ask the device who it is: its version, model name and hardware version where the model has
+    such queries (a model name that comes late, as a C12's may, is not waited for beyond the
+    timeout). Returns `{"dialect", "model", "version", "model_name", "hardware_version",
+    "model_check"}` with None for parts it does not answer; raises when it answers nothing."""
     checks.positive_seconds("timeout_s", timeout_s)
-    out: dict[str, Any] = {"dialect": core.dialect.name, "model": core.model.name, "version": None, "model_name": None}
+    out: dict[str, str | None] = {"dialect": core.dialect.name, "model": core.model.name}
     errors: list[TopGimbalError] = []
-    for role, key, field in (("version", "version", "version"), ("model_name", "model_name", "model")):
-        ident = roles.role_ident(core.dialect, core.model, role)
-        if ident is None:
+    for role in ("version", "model_name", "hardware_version"):
+        out[role] = None
+        spec = roles.readable(core.dialect, core.model, role)
+        if spec is None:
             continue
         try:
-            out[key] = fields_of(await request(core, ident, read=True, timeout_s=timeout_s))[field]
+            m = await request(core, spec.ident, read=True, timeout_s=timeout_s)
+            out[role] = roles.answer_text(spec, fields_of(m))
         except (RequestTimeoutError, DeviceError, UnsupportedError) as exc:
             errors.append(exc)
-    if errors and out["version"] is None and out["model_name"] is None:
+    if errors and all(out[r] is None for r in ("version", "model_name", "hardware_version")):
         raise errors[0]
-    if out["model_name"] is not None:
-        core.state.set("model_name", out["model_name"])
+    verdict = core.identity.verdict
+    out["model_check"] = verdict.status if verdict.status != "mismatch" else verdict.message
     return out
 
 
 async def detect_model(core: ClientCore, *, timeout_s: float = 0.5) -> str | None:
-    """Which dialect the device speaks, by asking what only one dialect answers (a model-name
-    query, then a version query). Returns a model name, or None if nothing answered."""
+    """Which model the device is, from its identity answers in every dialect (version, model name)
+    compared with the profiles' identity strings. Returns a model name (when the answers match no
+    profile, the dialect that answered gives its usual model), or None if nothing answered."""
     checks.positive_seconds("timeout_s", timeout_s, allow_none=False)
-    dialects = [get_dialect(name) for name in DIALECT_NAMES]
-    for role in ("model_name", "version"):
-        for d in dialects:
-            for model in d.models.values():
-                ident = roles.role_ident(d, model, role)
-                if ident is None:
-                    continue
-                src = core.host_address if core.host_address in d.host_addresses else d.host_addresses[0]
-                probe = d.encode(ident, read=True, src=src)
-                try:
-                    await core._request(probe, timeout_s=float(timeout_s), retries=1)
-                except (RequestTimeoutError, DeviceError):
-                    break  # this dialect's probe got no answer: try the next
-                except LinkLostError:
-                    return None  # nothing answered any probe for the link timeout
-                if d is core.dialect:
-                    return core.model.name
-                return roles.DETECTED_MODEL.get(ident, model.name)
-    return None
+    try:
+        return await model_check.detect(core, float(timeout_s), default="C12")
+    except LinkLostError:
+        return None  # nothing answered any probe for the link timeout
+
+
+async def vehicle_attitude(core: ClientCore, yaw_deg: float, pitch_deg: float, roll_deg: float) -> None:
+    """Give the gimbal the vehicle's attitude (degrees). Where the model's profile asks for it
+    continuously (C11: FAI at 10 Hz after FAE on), the client keeps sending the latest values in
+    the background; otherwise it is sent once and acknowledged."""
+    spec = roles.require(core.dialect, core.model, "vehicle_attitude", "vehicle attitude input")
+    names = {f.name for f in spec.forms_for("w", "request")[0].fields}
+    values = {k: v for k, v in (("yaw_deg", yaw_deg), ("pitch_deg", pitch_deg), ("roll_deg", roll_deg)) if k in names}
+    await core.feeds.vehicle_attitude(values)
 
 
 class CoreMethods:
@@ -195,3 +197,4 @@ class CoreMethods:
     version = api_method(version)
     identify = api_method(identify)
     detect_model = api_method(detect_model)
+    vehicle_attitude = api_method(vehicle_attitude)

@@ -32,7 +32,7 @@ class FrameBuilder:
             raise UnsupportedError(f"the {self.model.name} does not support {spec.ident} ({spec.title})")
         return spec
 
-    def build(self, ident: str, *, read: bool = False, dst: str | None = None, **values: Any) -> Frame:
+    def build(self, ident: str, values: Mapping[str, object], *, read: bool = False, dst: str | None = None) -> Frame:
         """The frame `request()` would send (values in API units and signs), validated."""
         if not isinstance(read, bool):
             raise FieldValueError("read", read, "True or False")
@@ -45,7 +45,7 @@ class FrameBuilder:
             raise FieldValueError("dst", dst, f"a device address, one of {', '.join(DEVICE_ADDRESSES)}")
         try:
             self.dialect.check_values(self.model, spec.ident, values)
-            wire = map_values(spec, values, self.signs)
+            wire: dict[str, Any] = map_values(spec, values, self.signs)  # each codec checks its value
             frame = self.dialect.encode(spec.ident, read=read, src=self.host_address, dst=dst, **wire)
         except TopGimbalError:
             raise
@@ -53,6 +53,16 @@ class FrameBuilder:
             # a codec that met a value of a kind it does not take: say which, never half-send
             bad = next(iter(values), "values")
             raise FieldValueError(bad, values.get(bad), f"values {spec.ident} accepts ({exc})") from None
+        limit = self.model.max_frame_bytes
+        if limit is not None and len(frame.to_bytes()) > limit:
+            # the firmware drops longer frames (C11: 28 bytes): say so rather than send in vain
+            bad = next(iter(values), "values")
+            raise FieldValueError(
+                bad,
+                values.get(bad),
+                f"values whose {spec.ident} frame fits the {self.model.name}'s {limit} bytes "
+                f"({frame.text()} has {len(frame.to_bytes())})",
+            )
         if not values and len(self._plain_frames) < 256 and isinstance(ident, str):
             self._plain_frames[(ident, read, dst)] = frame  # queries: frames are immutable
         return frame

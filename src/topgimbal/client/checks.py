@@ -4,7 +4,7 @@ FieldValueError (a ValueError and a TopGimbalError) naming the argument and what
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TypeGuard
 
 from ..errors import FieldValueError, UnknownCommandError
 
@@ -14,11 +14,11 @@ class CommandNameError(UnknownCommandError, ValueError):
     that is also a ValueError, like every other bad argument."""
 
 
-def is_number(v: Any) -> bool:
+def is_number(v: object) -> TypeGuard[float]:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
-def positive_seconds(name: str, value: Any, *, allow_none: bool = True, allow_zero: bool = False) -> None:
+def positive_seconds(name: str, value: object, *, allow_none: bool = True, allow_zero: bool = False) -> None:
     """Timeouts and intervals: a finite number of seconds above zero (or None for the default)."""
     if value is None and allow_none:
         return
@@ -26,7 +26,7 @@ def positive_seconds(name: str, value: Any, *, allow_none: bool = True, allow_ze
         raise FieldValueError(name, value, "a number of seconds above 0" + (" or None" if allow_none else ""))
 
 
-def count(name: str, value: Any, *, allow_none: bool = True, maximum: int = 100) -> None:
+def count(name: str, value: object, *, allow_none: bool = True, maximum: int = 100) -> None:
     if value is None and allow_none:
         return
     if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value <= maximum:

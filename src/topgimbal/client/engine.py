@@ -1,42 +1,34 @@
 """The transaction engine: which frame answers which request. No I/O; an injected clock.
 
-The TOP protocol has no transaction id. An answer has the request's identifier and control
-(`r`/`w`), comes from the address the request went to, and (for a write) carries the data sent.
-Everything else the engine decides from timing. The reasoning is in docs/client.md; in short:
+The TOP protocol has no transaction id: an answer has the request's identifier and control, comes
+from the address the request went to and, for a write, carries the data sent (or, where the model
+profile says so, a report of the outcome: `acks.EchoPolicy`). The rest is timing. In short (the
+reasoning is in docs/client.md, "Matching"):
 
-- One live request per (identifier, device address); later ones wait in a FIFO.
-- Every send is an *attempt*, kept in a per-(identifier, address, control) ledger for
-  `late_window_s` (the longest a link may delay a frame) or until a frame is taken as its answer.
-- A reply to ANY attempt of the live request completes it. A frame that could also answer an
-  attempt of a request that has already finished is never taken by a read: before its first send,
-  a read waits (deferred) until no such attempt can still be answered. So whatever answers it was
-  produced by the device after the read began. A write is completed only by a frame carrying the
-  data sent (`roles.echo_matches`); an acknowledgement showing other data fails it with
-  DeviceError, unless an earlier attempt sent those data (then it is that one's late echo).
-- A non-idempotent write (photo, toggle, relative step) is sent once, after the key has been
-  quiet: no earlier attempt open, no frame for `dup_window_s` (network copies of an earlier
-  acknowledgement). Its acknowledgement is then its own. It waits as long in all as a retried
-  request would (timeout x (retries + 1)).
-- A frame arriving sooner after a read's first send than half the fastest round trip seen (at most
-  COPY_FLOOR_CAP_S) cannot answer it: it is a network copy of the previous answer. Once the link
-  has shown copies, a read too is sent only after `dup_window_s` without a frame on its key, so
-  a copy held back by the network cannot pass for its answer.
-- ERE names no command: it fails a request only when that request is the only one to that address
-  that it could answer; otherwise the request's error mentions it.
-- Frames the parser recovered with a wrong length character are answers only for the identifiers
-  real firmware gets wrong (`roles.RECOVERED_LENGTH_OK`).
+- One live request per (identifier, device address); later ones wait in a FIFO. Every send is an
+  attempt, kept per (identifier, address, control) for `late_window_s` or until answered.
+- A reply to ANY attempt of the live request completes it. A read is deferred until no earlier
+  request's attempt can still be answered; a non-idempotent write (photo, toggle, step) is sent
+  once, on a quiet key. An echo with data no attempt sent fails the write (DeviceError).
+- A frame sooner after a read than half the fastest round trip is a network copy; ERE fails a
+  request only when it is the only one it can answer; frames with a recovered length character
+  answer only where the profile says the firmware gets it wrong (`roles.recovered_ok`).
+- Pacing: no two frames closer than the model's `min_command_gap_s` (C12: 40 ms), whoever sends
+  them; a set-point sent without waiting replaces one still waiting for its turn.
+- Slow answers (`slow_answers`, C12 MOD) are constants: never deferred, never retried, blocking
+  nothing; an answer after the request gave up still reaches the state cache.
 """
 
 from __future__ import annotations
 
 from collections import deque
 from collections.abc import Mapping
-from typing import Any
 
 from ..errors import DeviceError, RequestTimeoutError, TopGimbalError
-from ..protocol import Frame, Message
+from ..protocol import DeviceModel, Dialect, Frame, Message
 from . import roles
-from .records import Attempt, Clock, EchoRule, Inbound, Key, Ledger, RKey, Transaction
+from .acks import EchoPolicy, is_report
+from .records import Attempt, Clock, EchoRule, Inbound, Key, Ledger, Pacer, RKey, Transaction, timeout_text
 from .stats import LinkStats
 
 __all__ = ["Attempt", "Engine", "Inbound", "Key", "Ledger", "RKey", "Transaction"]
@@ -56,15 +48,21 @@ class Engine:
         late_window_s: float = 2.0,
         dup_window_s: float = 0.05,
         stats: LinkStats | None = None,
-        echo_matches: EchoRule = roles.echo_matches,
-        recovered_ok: frozenset[str] = roles.RECOVERED_LENGTH_OK,
+        model: DeviceModel | None = None,
+        dialect: Dialect | None = None,
+        min_gap_s: float | None = None,
     ) -> None:
+        """`model` (with its `dialect`) brings the profile's acknowledgement rules, the answers
+        known to come with a wrong length, and the pacing (`min_gap_s` overrides it)."""
         self.clock = clock
         self.late_window_s = late_window_s
         self.dup_window_s = dup_window_s
         self.stats = stats if stats is not None else LinkStats()
-        self.echo_matches = echo_matches
-        self.recovered_ok = recovered_ok
+        self.echo_rules = EchoPolicy(model)
+        self.echo_matches: EchoRule = self.echo_rules
+        self.recovered_ok = roles.recovered_ok(dialect, model) if model and dialect else frozenset()
+        gap = min_gap_s if min_gap_s is not None else (model.min_command_gap_s if model is not None else 0.0)
+        self.pacer = Pacer(gap)
         self.live: dict[Key, Transaction] = {}
         self._waiting: dict[Key, deque[Transaction]] = {}
         self._ledger: dict[RKey, Ledger] = {}
@@ -84,20 +82,23 @@ class Engine:
         retries: int = 0,
         expect_reply: bool = True,
         exclusive: bool = False,
-        fields: Mapping[str, Any] | None = None,
+        fields: Mapping[str, object] | None = None,
+        slow: bool = False,
+        lenient: bool = False,
     ) -> Transaction:
         """Register a request (arguments already validated). Its frames come out of
-        `take_frames()`; it ends up in `take_finished()`."""
+        `take_frames()`; it ends up in `take_finished()`. `slow`: a query of a constant that the
+        device may answer very late or never (see the module docstring). `lenient`: its answer
+        may come with a wrong length character (an identity probe in another model's dialect)."""
         now = self.clock()
         # Sent once, a non-idempotent request waits as long in all as a retried one would.
         wait_s = timeout_s * (retries + 1) if exclusive else timeout_s
-        tx = Transaction(frame, wait_s, 0 if exclusive or not expect_reply else retries, expect_reply, exclusive)
-        tx.fields, tx.submitted_at = fields, now
+        once = exclusive or not expect_reply or slow
+        tx = Transaction(frame, wait_s, 0 if once else retries, expect_reply, exclusive)
+        tx.fields, tx.submitted_at, tx.slow, tx.lenient = fields, now, slow, lenient
         self.stats.requests += 1
         if not expect_reply:
-            self._send(tx, now)
-            tx.state = "done"
-            tx.deadline = None
+            self._send(tx, now)  # fire and forget: never live, so it queues behind nothing
             return tx
         key = tx.key
         if key in self.live:
@@ -126,6 +127,7 @@ class Engine:
         failed = [*self.live.values(), *(t for q in self._waiting.values() for t in q)]
         self._waiting.clear()
         self.live.clear()
+        self.pacer.clear()
         for tx in failed:
             if not tx.done:
                 tx.state, tx.error, tx.deadline = "done", error, None
@@ -147,7 +149,7 @@ class Engine:
         return out
 
     def next_deadline(self) -> float | None:
-        best: float | None = None
+        best = self.pacer.next_deadline()
         for tx in self.live.values():
             d = tx.deadline
             if d is not None and (best is None or d < best):
@@ -155,8 +157,10 @@ class Engine:
         return best
 
     def on_tick(self) -> None:
-        """Retries, timeouts and the end of deferrals that are due now."""
+        """Paced frames, retries, timeouts and the end of deferrals that are due now."""
         now = self.clock()
+        while (paced := self.pacer.due(now)) is not None:
+            self._emit(paced, now)
         for tx in [t for t in self.live.values() if t.deadline is not None and t.deadline <= now]:
             if tx.state == "deferred":
                 self._start(tx, now)
@@ -166,7 +170,7 @@ class Engine:
                     self._send(tx, now)
                 else:
                     self.stats.timeouts += 1
-                    self._finish(tx, now, error=RequestTimeoutError(self._timeout_text(tx, now)))
+                    self._finish(tx, now, error=RequestTimeoutError(timeout_text(tx, now)))
 
     # -- incoming ---------------------------------------------------------------------------------
 
@@ -178,8 +182,10 @@ class Engine:
             return self._on_error(message, now)
         rkey = (frame.ident, frame.src, frame.rw or "w")
         if frame.declared_length is not None and frame.ident not in self.recovered_ok:
-            self.stats.bad_frames += 1
-            return Inbound("ignored")
+            lenient = self.live.get((frame.ident, frame.src))
+            if lenient is None or not lenient.lenient:
+                self.stats.bad_frames += 1
+                return Inbound("ignored")
         last = self._last_frame.get(rkey)
         self._last_frame[rkey] = (now, frame.data)
         # Right behind an identical frame: perhaps a network copy, so it proves no other attempt answered.
@@ -193,7 +199,7 @@ class Engine:
         window = now - self.late_window_s
         ledger.prune(window)
         if frame.rw == "r":
-            if roles.is_report(message):
+            if is_report(message):
                 return Inbound("unsolicited")  # a stream frame on a query's key
             fits = list(ledger.open)
         else:
@@ -207,7 +213,7 @@ class Engine:
                 # An identical frame sooner than any answer can come: a copy of the previous one.
                 self._copy_seen()
                 return Inbound("duplicate")
-        if live is not None and own and (not foreign or frame.rw == "w"):
+        if live is not None and own and (not foreign or frame.rw == "w" or live.slow):
             # Reads never have foreign attempts here (deferred until there are none); a write's
             # echo with the data sent proves the data were applied, whichever attempt it answers.
             return self._answer(live, own, message, now, sole=not foreign)
@@ -218,6 +224,8 @@ class Engine:
                 return Inbound("ambiguous")
             if not maybe_copy:
                 self._close_if_single_owner(foreign)
+            if all(not a.tx.expect_reply for a in foreign):
+                return Inbound("unawaited")  # the echo of a frame sent without waiting: not late
             self.stats.late_replies += 1
             return Inbound("late")
         # Fits an attempt that was answered already: another copy of that answer.
@@ -232,7 +240,7 @@ class Engine:
     def _unowned(self, message: Message, live: Transaction | None, now: float, *, known: bool) -> Inbound:
         """A frame that fits no open attempt: a report, a copy of an answer already taken, a
         mismatched echo, or a stray answer."""
-        if roles.is_report(message):
+        if is_report(message):
             return Inbound("unsolicited")
         if known:
             self._copy_seen()
@@ -315,13 +323,18 @@ class Engine:
 
     def _blocked_until(self, tx: Transaction, now: float) -> float | None:
         """When `tx` may be sent without an earlier request's answer passing for its own."""
-        if tx.frame.rw == "w" and not tx.exclusive:
+        if (tx.frame.rw == "w" and not tx.exclusive) or tx.slow:
             return None
         until: float | None = None
         ledger = self._ledger.get(tx.rkey)
+        # A write's echo carries its data: an earlier write of other data cannot be taken for it
+        # (unless the profile says its acknowledgement is a report, which carries other data).
+        by_data = tx.frame.rw == "w" and tx.frame.ident not in self.echo_rules.rules
         if ledger is not None:
             window = now - self.late_window_s
             for a in ledger.open:
+                if by_data and a.tx.frame.data.upper() != tx.frame.data.upper():
+                    continue
                 if a.sent_at >= window and a.tx is not tx:
                     end = a.sent_at + self.late_window_s
                     until = end if until is None else max(until, end)
@@ -340,6 +353,14 @@ class Engine:
             self._start(tx, self.clock())
 
     def _send(self, tx: Transaction, now: float) -> None:
+        if not self.pacer.ready(now):
+            tx.state, tx.deadline = "paced", None
+            self.pacer.hold(tx)
+            return
+        self._emit(tx, now)
+
+    def _emit(self, tx: Transaction, now: float) -> None:
+        self.pacer.sent(now)
         attempt = Attempt(tx, now)
         ledger = self._ledger.get(tx.rkey)
         if ledger is None:
@@ -350,9 +371,12 @@ class Engine:
         if tx.first_sent_at is None:
             tx.first_sent_at = now
         tx.last_sent_at = now
+        self._out.append(tx.frame)
+        if not tx.expect_reply:
+            tx.state, tx.deadline = "done", None
+            return
         tx.state = "sent"
         tx.deadline = now + tx.timeout_s
-        self._out.append(tx.frame)
 
     def _finish(
         self, tx: Transaction, now: float, *, reply: Message | None = None, error: Exception | None = None
@@ -368,21 +392,3 @@ class Engine:
                 if not queue:
                     del self._waiting[key]
                 self._start(nxt, now)
-
-    def _timeout_text(self, tx: Transaction, now: float) -> str:
-        n = len(tx.attempts)
-        sent_for = now - (tx.first_sent_at or now)
-        text = (
-            f"no reply to {tx.frame.ident} ({tx.frame.text()}) after {n} attempt{'s' if n != 1 else ''} "
-            f"in {sent_for:.2f} s"
-        )
-        if tx.waited_s >= 0.01:
-            text += (
-                f" ({now - tx.submitted_at:.2f} s in all: it first waited {tx.waited_s:.2f} s for earlier "
-                f"requests on {tx.frame.ident} to be answered or run out)"
-            )
-        if tx.exclusive:
-            text += f"; {tx.frame.ident} acts on every copy, so it is never retried"
-        if tx.notes:
-            text += "; " + "; ".join(dict.fromkeys(tx.notes))
-        return text

@@ -2,7 +2,7 @@
 
 UDP has no connection: the link is *up* while frames come and goes *down* when nothing has come
 for `timeout_s` while something was expected (a request in flight, a stream on). A byte stream
-(TCP, serial) goes down the moment it closes. Any frame brings the link back up. While something is
+(TCP, serial) goes down the moment it closes. A frame from the device brings the link back up. While something is
 expected and the line is quiet for `ping_after_s`, the client asks the device something harmless, so
 that a stalled stream is told apart from a dead device and a returning device is noticed."""
 

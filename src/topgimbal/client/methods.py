@@ -14,10 +14,11 @@ wrong type raises FieldValueError (a ValueError and a TopGimbalError) naming the
 from __future__ import annotations
 
 import functools
+import inspect
 import types
 import typing
 from collections.abc import Callable, Coroutine, Mapping
-from typing import TYPE_CHECKING, Any, Concatenate, Generic, Literal, ParamSpec, TypeVar, Union, overload
+from typing import TYPE_CHECKING, Concatenate, Generic, Literal, ParamSpec, TypeVar, Union, overload
 
 from ..errors import FieldValueError
 from .checks import is_number as _is_number
@@ -27,6 +28,7 @@ if TYPE_CHECKING:
 
 P = ParamSpec("P")
 R = TypeVar("R")
+Check = tuple[str, int, "Callable[[object], bool]", str]  # argument, position, predicate, what is allowed
 
 
 class SyncDriver:
@@ -35,17 +37,17 @@ class SyncDriver:
     def _core(self) -> ClientCore:
         raise NotImplementedError
 
-    def _run(self, coro: Coroutine[Any, Any, R]) -> R:
+    def _run(self, coro: Coroutine[object, object, R]) -> R:
         raise NotImplementedError
 
 
 class api_method(Generic[P, R]):  # noqa: N801 - used as a decorator, like property
-    def __init__(self, fn: Callable[Concatenate[ClientCore, P], Coroutine[Any, Any, R]]) -> None:
+    def __init__(self, fn: Callable[Concatenate[ClientCore, P], Coroutine[object, object, R]]) -> None:
         self.fn = fn
         self.__doc__ = fn.__doc__
         self.__name__ = fn.__name__
         self.__wrapped__ = fn
-        self._checks: list[tuple[str, int, Callable[[Any], bool], str]] | None = None
+        self._checks: list[Check] | None = None
 
     def __set_name__(self, owner: type, name: str) -> None:
         self.__name__ = name
@@ -55,22 +57,24 @@ class api_method(Generic[P, R]):  # noqa: N801 - used as a decorator, like prope
     @overload
     def __get__(self, obj: SyncDriver, owner: type) -> Callable[P, R]: ...
     @overload
-    def __get__(self, obj: ClientCore, owner: type) -> Callable[P, Coroutine[Any, Any, R]]: ...
-    def __get__(self, obj: Any, owner: type) -> Any:
+    def __get__(self, obj: ClientCore, owner: type) -> Callable[P, Coroutine[object, object, R]]: ...
+    def __get__(self, obj: object, owner: type) -> object:
         if obj is None:
             return self
-        fn, check = self.fn, self.check
-        bound: Callable[..., Any]
+        # The wrappers pass whatever they are given on: `check` has vetted it against `fn`'s hints.
+        fn: Callable[..., Coroutine[object, object, object]] = self.fn
+        check = self.check
+        bound: Callable[..., object]
         if isinstance(obj, SyncDriver):
             core, run = obj._core(), obj._run
 
-            def bound(*args: Any, **kwargs: Any) -> Any:
+            def bound(*args: object, **kwargs: object) -> object:
                 check(args, kwargs)
                 return run(fn(core, *args, **kwargs))
 
         else:
 
-            async def bound(*args: Any, **kwargs: Any) -> Any:
+            async def bound(*args: object, **kwargs: object) -> object:
                 check(args, kwargs)
                 return await fn(obj, *args, **kwargs)
 
@@ -82,7 +86,7 @@ class api_method(Generic[P, R]):  # noqa: N801 - used as a decorator, like prope
 
     # -- argument checks from the annotations --------------------------------------------------
 
-    def check(self, args: tuple[Any, ...], kwargs: Mapping[str, Any]) -> None:
+    def check(self, args: tuple[object, ...], kwargs: Mapping[str, object]) -> None:
         checks = self._checks if self._checks is not None else self._compile()
         for name, position, ok, expected in checks:
             if position < len(args):
@@ -94,9 +98,7 @@ class api_method(Generic[P, R]):  # noqa: N801 - used as a decorator, like prope
             if not ok(value):
                 raise FieldValueError(name, value, expected)
 
-    def _compile(self) -> list[tuple[str, int, Callable[[Any], bool], str]]:
-        import inspect
-
+    def _compile(self) -> list[Check]:
         hints = typing.get_type_hints(self.fn)
         out = []
         params = list(inspect.signature(self.fn).parameters.values())[1:]  # the core
@@ -112,16 +114,14 @@ class api_method(Generic[P, R]):  # noqa: N801 - used as a decorator, like prope
 
 
 @functools.cache
-def _public_signature(fn: Callable[..., Any]) -> Any:
-    import inspect
-
+def _public_signature(fn: Callable[..., object]) -> inspect.Signature:
     sig = inspect.signature(fn)
     return sig.replace(parameters=list(sig.parameters.values())[1:])
 
 
-def _checker(tp: Any) -> tuple[Callable[[Any], bool] | None, str]:
+def _checker(tp: object) -> tuple[Callable[[object], bool] | None, str]:
     """A predicate for values of annotation `tp` and its description; None: not checked."""
-    if tp is Any or tp is object:
+    if tp is typing.Any or tp is object:
         return None, ""
     origin = typing.get_origin(tp)
     if origin in (Union, types.UnionType):

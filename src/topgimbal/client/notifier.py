@@ -9,7 +9,7 @@ import contextlib
 import inspect
 import logging
 from collections.abc import Awaitable, Callable
-from typing import Any
+from typing import TypeVar
 
 from ..errors import FieldValueError, TopGimbalError
 from ..protocol import Frame, Message
@@ -19,6 +19,7 @@ log = logging.getLogger("topgimbal.client")
 MessageCallback = Callable[[Message], "Awaitable[None] | None"]
 TrafficCallback = Callable[[str, Frame, "Message | None"], "Awaitable[None] | None"]
 LinkCallback = Callable[[bool, str], "Awaitable[None] | None"]
+C = TypeVar("C")
 
 MAX_CALLBACKS = 1024  # per kind: a leak in the caller shows up as an error, not as memory growth
 
@@ -28,7 +29,7 @@ class Notifier:
         self._subs: dict[str | None, list[MessageCallback]] = {}
         self._traffic: list[TrafficCallback] = []
         self._link: list[LinkCallback] = []
-        self._tasks: set[asyncio.Task[Any]] = set()
+        self._tasks: set[asyncio.Task[object]] = set()
 
     @property
     def wants_traffic(self) -> bool:
@@ -52,7 +53,7 @@ class Notifier:
             raise FieldValueError("callback", callback, "a function taking (up, reason)")
         return self._add(self._link, callback)
 
-    def _add(self, bucket: list[Any], callback: Any) -> Callable[[], None]:
+    def _add(self, bucket: list[C], callback: C) -> Callable[[], None]:
         if len(bucket) >= MAX_CALLBACKS:
             raise TopGimbalError(f"{MAX_CALLBACKS} callbacks already registered here; unsubscribe old ones")
         bucket.append(callback)
@@ -82,7 +83,7 @@ class Notifier:
         for cb in list(self._link):
             self._call(cb, up, reason)
 
-    def _call(self, cb: Callable[..., Any], *args: Any) -> None:
+    def _call(self, cb: Callable[..., object], *args: object) -> None:
         try:
             result = cb(*args)
         except Exception:
@@ -93,7 +94,7 @@ class Notifier:
             self._tasks.add(task)
             task.add_done_callback(self._task_done)
 
-    def _task_done(self, task: asyncio.Task[Any]) -> None:
+    def _task_done(self, task: asyncio.Task[object]) -> None:
         self._tasks.discard(task)
         if not task.cancelled() and task.exception() is not None:
             log.error("async callback failed", exc_info=task.exception())

@@ -1,21 +1,26 @@
 """What the transaction engine keeps: requests (`Transaction`), their sends (`Attempt`), the
-attempts on one key (`Ledger`), and what it made of a frame (`Inbound`). Plain data; the rules are
-in engine.py."""
+attempts on one key (`Ledger`), the frames waiting for their turn (`Pacer`), and what it made of a
+frame (`Inbound`). Plain data; the rules are in engine.py."""
 
 from __future__ import annotations
 
 import contextlib
 import itertools
+import math
+from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING
 
 from ..protocol import Frame, Message
+
+if TYPE_CHECKING:
+    from asyncio import Future
 
 Key = tuple[str, str]  # (identifier, device address): one live request at a time
 RKey = tuple[str, str, str]  # (identifier, device address, control): where its answers land
 Clock = Callable[[], float]
-EchoRule = Callable[[Frame, "Mapping[str, Any] | None", Message], bool]
+EchoRule = Callable[[Frame, "Mapping[str, object] | None", Message], bool]
 
 MAX_LEDGER = 1024  # attempts remembered per key (only an absurd send rate reaches it)
 
@@ -66,10 +71,12 @@ class Transaction:
     retries: int
     expect_reply: bool = True
     exclusive: bool = False  # non-idempotent: sent once, on a quiet key
-    fields: Mapping[str, Any] | None = None  # the request's values as on the wire (ack rules)
+    fields: Mapping[str, object] | None = None  # the request's values as on the wire (ack rules)
     submitted_at: float = 0.0
+    slow: bool = False  # a constant the device may answer very late: never deferred or retried
+    lenient: bool = False  # taken even with a recovered length character (known firmware errors)
     id: int = field(default_factory=lambda: next(_ids))
-    state: str = "queued"  # queued -> deferred -> sent -> done
+    state: str = "queued"  # queued -> deferred -> paced -> sent -> done
     attempts: list[Attempt] = field(default_factory=list)
     first_sent_at: float | None = None
     last_sent_at: float | None = None
@@ -77,7 +84,7 @@ class Transaction:
     reply: Message | None = None
     error: Exception | None = None
     notes: list[str] = field(default_factory=list)
-    waiter: Any = None
+    waiter: Future[Message | None] | None = None  # the I/O layer's slot
 
     @property
     def key(self) -> Key:
@@ -101,7 +108,8 @@ class Transaction:
 @dataclass(frozen=True)
 class Inbound:
     """What the engine made of one frame from the device. `kind`: answer, late, duplicate,
-    ambiguous, mismatch, error, unsolicited, ignored. `tx` is the request it finished."""
+    ambiguous, mismatch, error, unsolicited, unawaited (the echo of a frame sent without waiting),
+    ignored. `tx` is the request it finished."""
 
     kind: str
     tx: Transaction | None = None
@@ -110,3 +118,77 @@ class Inbound:
     def dispatch(self) -> bool:
         """Whether subscribers and the state cache should see the frame."""
         return self.kind not in ("duplicate", "ignored")
+
+
+PACE_SLACK_S = 1e-6  # timers may fire a hair early; a microsecond is no pacing error
+
+
+class Pacer:
+    """Frames out no closer together than `gap_s` (a model's `min_command_gap_s`), first come
+    first served; with no gap, everything goes at once. A frame sent without waiting for an
+    answer replaces one still waiting on its key with other data (a newer set-point supersedes
+    it: a joystick or a pointing loop never builds a backlog); identical ones are kept (repeats)."""
+
+    __slots__ = ("gap_s", "next_at", "queue")
+
+    def __init__(self, gap_s: float = 0.0) -> None:
+        self.gap_s = gap_s
+        self.next_at = -math.inf
+        self.queue: deque[Transaction] = deque()
+
+    def ready(self, now: float) -> bool:
+        return not self.gap_s or (not self.queue and now >= self.next_at - PACE_SLACK_S)
+
+    def hold(self, tx: Transaction) -> None:
+        if not tx.expect_reply:
+            for i in range(len(self.queue) - 1, -1, -1):  # the latest one on its key
+                old = self.queue[i]
+                if old.key == tx.key:
+                    if not old.expect_reply and old.frame.data != tx.frame.data:
+                        old.state = "done"  # superseded: never sent
+                        self.queue[i] = tx
+                        return
+                    break
+        self.queue.append(tx)
+
+    def sent(self, now: float) -> None:
+        if self.gap_s:
+            self.next_at = now + self.gap_s
+
+    def due(self, now: float) -> Transaction | None:
+        """The next held request whose turn has come (requests given up meanwhile are dropped)."""
+        while self.queue and now >= self.next_at - PACE_SLACK_S:
+            tx = self.queue.popleft()
+            if tx.state == "paced":
+                return tx
+        return None
+
+    def next_deadline(self) -> float | None:
+        return self.next_at if self.queue else None
+
+    def clear(self) -> None:
+        for tx in self.queue:
+            if not tx.expect_reply:
+                tx.state = "done"
+        self.queue.clear()
+
+
+def timeout_text(tx: Transaction, now: float) -> str:
+    """Why a request failed for want of an answer, with the true elapsed times."""
+    n = len(tx.attempts)
+    sent_for = now - (tx.first_sent_at or now)
+    text = (
+        f"no reply to {tx.frame.ident} ({tx.frame.text()}) after {n} attempt{'s' if n != 1 else ''} in {sent_for:.2f} s"
+    )
+    if tx.waited_s >= 0.01:
+        text += (
+            f" ({now - tx.submitted_at:.2f} s in all: it first waited {tx.waited_s:.2f} s for earlier "
+            f"requests on {tx.frame.ident} to be answered or run out)"
+        )
+    if tx.exclusive:
+        text += f"; {tx.frame.ident} acts on every copy, so it is never retried"
+    if tx.slow:
+        text += f"; this model may answer {tx.frame.ident} very late or never (its answer still reaches cam.state)"
+    if tx.notes:
+        text += "; " + "; ".join(dict.fromkeys(tx.notes))
+    return text

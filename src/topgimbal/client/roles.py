@@ -1,111 +1,193 @@
-"""Which catalog command plays which role for the client, and what the client keeps from each frame.
+"""Which catalog command plays which role on the connected model, read from the catalog's metadata.
 
-The one place in the client that knows facts the catalog does not state yet as metadata (a command's
-role, a field's state key, acknowledgements that differ from the data sent, answers whose length
-character is known to be wrong). Everything is derived from the catalog's structure or keyed by
-identifier and field name: no branch on a dialect's name. When the catalog gains `role` /
-`state_key` metadata, this module is the only one to change.
+The catalog states what each command is for (`CommandSpec.role`, from the closed set
+`protocol.ROLES`), which axes a motion command's fields move (`Field.axis`), and the model profile
+says which commands the firmware ignores. This module only asks those questions: there is no
+dialect name and no table of identifiers here. Where the two dialects lay a role out differently
+(one SD card answer or one query per figure, rate-controlled or on/off streams), the layout is read
+from the command's fields.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 from ..errors import FieldValueError, UnsupportedError
-from ..protocol import CommandSpec, DeviceModel, Dialect, Frame, Message
+from ..protocol import CommandSpec, DeviceModel, Dialect, Form
 
-# -- roles -----------------------------------------------------------------------------------------
-
-# role -> (candidate identifiers, a field the read answer must have)
-ROLES: dict[str, tuple[tuple[str, ...], str]] = {
-    "version": (("VER", "VSN"), "version"),
-    "model_name": (("PA2",), "model"),
-    "sd_card": (("SDC",), ""),
-    "attitude": (("GAC",), "yaw_deg"),
-    "attitude_earth": (("GIC",), "yaw_deg"),
-    "attitude_stream": (("GAA",), ""),
-    "range_query": (("SLR",), "distance_m"),
-    "rangefinder": (("LRF",), ""),
-    "optical_zoom": (("MUL",), "magnification_x"),
-    "digital_zoom": (("DZM",), ""),
-    "altitude": (("ALT",), ""),
-}
-
-# What `detect_model()` assumes when a probe is answered and the dialect has several models.
-DETECTED_MODEL = {"PA2": "SIP", "VER": "C12", "VSN": "SIP"}
-
-# Frames that report the gimbal's attitude (answers and streams look alike).
-ATTITUDE_IDENTS = frozenset({"GAC", "GIC", "GIA"})
-
-# Answers whose length character real firmware gets wrong (the checksum still covers the data):
-# a real C12 answers VER with length 3 and 6 data characters. Other frames the parser had to
-# recover are not trusted as answers (a truncated frame can pass an 8-bit checksum).
-RECOVERED_LENGTH_OK = frozenset({"VER"})
-
-# Idents whose query answers are what the device reads, not what it was told: the attitude.
-TELEMETRY_IDENTS = ATTITUDE_IDENTS
+# -- roles ---------------------------------------------------------------------------------------
 
 
-def _read_fields(spec: CommandSpec) -> set[str]:
-    return {f.name for form in spec.forms_for("r", "response") for f in form.fields}
+def command(dialect: Dialect, model: DeviceModel, role: str) -> CommandSpec | None:
+    """The command that plays `role` on `model` (None: the model has none)."""
+    return dialect.by_role(role, model)
+
+
+def require(dialect: Dialect, model: DeviceModel, role: str, what: str) -> CommandSpec:
+    """`command`, or UnsupportedError naming the model and what it lacks."""
+    spec = dialect.by_role(role, model)
+    if spec is None:
+        raise UnsupportedError(f"the {model.name} has no {what}")
+    return spec
 
 
 def role_ident(dialect: Dialect, model: DeviceModel, role: str) -> str | None:
-    """The identifier that plays `role` on `model`, or None when the model has none."""
-    candidates, needs = ROLES[role]
-    for ident in candidates:
-        spec = dialect.commands.get(ident)
-        if spec is None or not dialect.supports(model, ident):
-            continue
-        if needs and needs not in _read_fields(spec):
-            continue
-        return ident
-    return None
+    spec = dialect.by_role(role, model)
+    return None if spec is None else spec.ident
 
 
 def require_role(dialect: Dialect, model: DeviceModel, role: str, what: str) -> str:
-    ident = role_ident(dialect, model, role)
-    if ident is None:
-        raise UnsupportedError(f"the {model.name} has no {what}")
-    return ident
+    return require(dialect, model, role, what).ident
+
+
+def readable(dialect: Dialect, model: DeviceModel, role: str) -> CommandSpec | None:
+    """The command of `role` if it can be queried."""
+    spec = dialect.by_role(role, model)
+    return spec if spec is not None and spec.readable else None
 
 
 def ping_ident(dialect: Dialect, model: DeviceModel) -> str | None:
-    """A harmless query every model of the dialect answers (the link check)."""
-    for role in ("version", "model_name", "attitude", "sd_card"):
-        ident = role_ident(dialect, model, role)
-        if ident is not None and dialect.commands[ident].readable:
-            return ident
+    """A harmless query the model answers quickly (the link check). Slow answers are no use."""
+    for role in ("version", "attitude", "sd_capacity", "model_name"):
+        spec = readable(dialect, model, role)
+        if spec is not None and spec.ident not in model.slow_answers:
+            return spec.ident
     return None
+
+
+# Identity roles a device answers about itself, in the order worth asking.
+IDENTITY_ROLES = ("model_name", "version", "hardware_version", "serial_number")
+
+
+def identity_queries(dialect: Dialect, model: DeviceModel | None = None) -> list[tuple[str, CommandSpec]]:
+    """(role, command) for each identity question the dialect (or `model`) can ask."""
+    out = []
+    for role in IDENTITY_ROLES:
+        spec = dialect.by_role(role, model)
+        if spec is not None and spec.readable:
+            out.append((role, spec))
+    return out
+
+
+def answer_text(spec: CommandSpec, fields: Mapping[str, object]) -> str | None:
+    """The text an identity answer carries (its one field with a state key, else its first)."""
+    keyed = [name for name in spec.state_keys if name in fields]
+    name = keyed[0] if keyed else next(iter(fields), None)
+    value = None if name is None else fields.get(name)
+    return None if value is None else str(value).strip()
+
+
+# -- motion: commands by role and axes -------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class AxisCommand:
+    """One motion frame to send: a command and its values (API units)."""
+
+    spec: CommandSpec
+    values: dict[str, object]
+
+
+def _request_form(spec: CommandSpec) -> Form:
+    return spec.forms_for("w", "request")[0]
+
+
+def motion_plan(
+    dialect: Dialect,
+    model: DeviceModel,
+    role: str,
+    wanted: Mapping[str, float],
+    *,
+    combined: bool = True,
+    speed_deg_s: float | None = None,
+) -> list[AxisCommand]:
+    """The frames that set `wanted` ({axis: value}) with commands of `role` (`rate`, `angle`,
+    `earth_angle`): the fewest commands whose axes are all wanted (one axis per frame when not
+    `combined`), never one the model's firmware ignores. UnsupportedError when an axis cannot be
+    set that way."""
+    candidates = [
+        s
+        for s in dialect.commands_with_role(role, model)
+        if s.writable and s.axes and s.ident not in model.ignored and (combined or len(s.axes) == 1)
+    ]
+    candidates.sort(key=lambda s: -len(s.axes))
+    left = dict(wanted)
+    plan: list[AxisCommand] = []
+    while left:
+        spec = next((s for s in candidates if set(s.axes) <= left.keys()), None)
+        if spec is None:
+            axes = ", ".join(sorted(left))
+            text = f"the {model.name} takes no {role.replace('_', ' ')} command for {axes}"
+            ignored = sorted(s.ident for s in dialect.commands_with_role(role, model) if s.ident in model.ignored)
+            if ignored:
+                text += f" (its firmware ignores {', '.join(ignored)}"
+                text += ": point() closes the loop over rate commands)" if role == "angle" else ")"
+            raise UnsupportedError(text)
+        values: dict[str, object] = {}
+        for f in _request_form(spec).fields:
+            if f.axis in left:
+                values[f.name] = left[f.axis]
+            elif speed_deg_s is not None and f.name.endswith("speed_deg_s"):
+                values[f.name] = speed_deg_s
+        for axis in spec.axes:
+            left.pop(axis, None)
+        plan.append(AxisCommand(spec, values))
+    return plan
+
+
+def can_move(dialect: Dialect, model: DeviceModel, role: str, axes: Sequence[str]) -> bool:
+    """Whether commands of `role` the firmware obeys cover `axes` (one axis per frame)."""
+    covered = {
+        a
+        for s in dialect.commands_with_role(role, model)
+        if s.writable and s.ident not in model.ignored
+        for a in s.axes
+    }
+    return set(axes) <= covered
+
+
+def rate_limits(dialect: Dialect, model: DeviceModel, axis: str) -> tuple[float, float]:
+    """(largest, smallest non-zero) rate in deg/s a single-axis rate command sends on `axis`."""
+    for s in dialect.commands_with_role("rate", model):
+        if s.axes == (axis,) and s.ident not in model.ignored:
+            info = _request_form(s).fields[0].codec.describe()
+            hi = min(float(info.get("max", model.max_rate_deg_s)), model.max_rate_deg_s)
+            return hi, float(info.get("step") or 0.1)
+    raise UnsupportedError(f"the {model.name} takes no rate command for {axis}")
 
 
 # -- layouts that differ between dialects ------------------------------------------------------------
 
 
-def sd_card_queries(spec: CommandSpec) -> list[dict[str, Any]]:
-    """The SDC queries to send: one answer with both figures, or one query per figure."""
-    request_fields = {f.name for form in spec.forms_for("r", "request") for f in form.fields}
-    if "which" in request_fields:
+def _field_names(spec: CommandSpec, rw: str, direction: str) -> set[str]:
+    return {f.name for form in spec.forms_for(rw, direction) for f in form.fields}
+
+
+def sd_card_queries(spec: CommandSpec) -> list[dict[str, object]]:
+    """The SD card queries to send: one answer with both figures, or one query per figure."""
+    if "which" in _field_names(spec, "r", "request"):
         return [{"which": "remaining"}, {"which": "total"}]
     return [{}]
 
 
-def sd_card_figures(answers: Sequence[Mapping[str, Any]]) -> tuple[bool, int | None, int | None]:
+def sd_card_figures(answers: Sequence[Mapping[str, object]]) -> tuple[bool, int | None, int | None]:
     """(present, remaining_mb, total_mb) from the answers to `sd_card_queries`."""
+
+    def mb(v: object) -> int | None:
+        return int(v) if isinstance(v, (int, float)) else None
+
     if len(answers) == 1:
-        total, remaining = answers[0].get("total_mb"), answers[0].get("remaining_mb")
+        total, remaining = mb(answers[0].get("total_mb")), mb(answers[0].get("remaining_mb"))
         return bool(total), (remaining if total else None), (total or None)
-    remaining, total = answers[0].get("capacity_mb"), answers[1].get("capacity_mb")
+    remaining, total = mb(answers[0].get("capacity_mb")), mb(answers[1].get("capacity_mb"))
     return remaining is not None and total is not None, remaining, total
 
 
-def stream_values(spec: CommandSpec, rate_hz: float | None) -> dict[str, Any]:
+def stream_values(spec: CommandSpec, rate_hz: float | None) -> dict[str, object]:
     """The attitude-stream command's values for `rate_hz` (None: off). Rate-controlled streams
     take 1..100 Hz; on/off streams run at the device's own rate."""
-    fields = {f.name for form in spec.forms_for("w", "request") for f in form.fields}
-    if "rate_hz" in fields:
+    if "rate_hz" in _field_names(spec, "w", "request"):
         if rate_hz is None:
             return {"rate_hz": 0}
         rate = round(rate_hz)
@@ -117,17 +199,18 @@ def stream_values(spec: CommandSpec, rate_hz: float | None) -> dict[str, Any]:
 
 def digital_zoom_values(
     spec: CommandSpec, model: DeviceModel, level_or_action: str | float, lens: str
-) -> dict[str, Any]:
-    """DZM values: per-lens 0.1x levels and steps, or whole levels 1..4x and steps."""
-    fields = {f.name for form in spec.forms_for("w", "request") for f in form.fields}
-    value: Any = level_or_action
-    words = isinstance(value, str) and not is_number_text(value)
-    if "lens" in fields:
-        value = {"in": "step_in", "out": "step_out"}.get(value, value) if words else float(value)
-        return {"lens": lens, "zoom": value}
+) -> dict[str, object]:
+    """Digital zoom values: per-lens 0.1x levels and steps, or whole levels 1..4x and steps."""
+    words = isinstance(level_or_action, str) and not is_number_text(level_or_action)
+    if "lens" in _field_names(spec, "w", "request"):
+        if words:
+            action = str(level_or_action)
+            return {"lens": lens, "zoom": {"in": "step_in", "out": "step_out"}.get(action, action)}
+        return {"lens": lens, "zoom": float(level_or_action)}
     if words:
-        return {"zoom": {"in": "zoom_in", "out": "zoom_out"}.get(value, value)}
-    f = float(value)
+        action = str(level_or_action)
+        return {"zoom": {"in": "zoom_in", "out": "zoom_out"}.get(action, action)}
+    f = float(level_or_action)
     if f != int(f) or not 1 <= f <= 4:
         raise FieldValueError("zoom", level_or_action, f"1, 2, 3 or 4 (x) on the {model.name}")
     return {"zoom": f"{int(f)}x"}
@@ -145,7 +228,13 @@ def is_number_text(text: str) -> bool:
 
 FOCUS_ALIASES = {"plus": "focus_plus", "+": "focus_plus", "minus": "focus_minus", "-": "focus_minus"}
 ZOOM_ALIASES = {"in": "zoom_in", "out": "zoom_out"}
-THERMAL_ALIASES = {"palette": "IMG", "scene": "TSM", "shutter": "TAS", "range": "TMR"}
+# Short setting names of `thermal()` -> the catalog role of the command that holds them.
+THERMAL_ROLES = {
+    "palette": "palette",
+    "scene": "thermal_scene",
+    "shutter": "thermal_shutter",
+    "range": "temperature_range",
+}
 
 
 def enum_names(spec: CommandSpec, field: str) -> list[str]:
@@ -158,129 +247,37 @@ def enum_names(spec: CommandSpec, field: str) -> list[str]:
 
 def focus_actions(dialect: Dialect) -> list[str]:
     """What `focus()` and `topgimbal focus` accept: the short aliases, then the catalog's names."""
-    names = enum_names(dialect.command("FCC"), "action")
+    spec = dialect.by_role("focus_control")
+    names = enum_names(spec, "action") if spec is not None else []
     short = [a for a, full in FOCUS_ALIASES.items() if full in names and a.isalpha()]
     return short + [n for n in names if n not in FOCUS_ALIASES.values()]
 
 
-def thermal_ident(dialect: Dialect, setting: str) -> str:
-    ident = THERMAL_ALIASES.get(setting)
-    if ident is not None:
-        return ident
+def thermal_ident(dialect: Dialect, model: DeviceModel, setting: str) -> str:
+    role = THERMAL_ROLES.get(setting)
+    if role is not None:
+        spec = dialect.by_role(role, model) or dialect.by_role(role)
+        if spec is not None:
+            return spec.ident
     for spec in dialect.commands.values():
         if spec.name in (setting, f"thermal_{setting}") or spec.ident == setting.upper():
             return spec.ident
     known = [
-        *THERMAL_ALIASES,
+        *THERMAL_ROLES,
         *(s.name.removeprefix("thermal_") for s in dialect.commands.values() if s.name.startswith("thermal_")),
     ]
     raise FieldValueError("setting", setting, "one of " + ", ".join(dict.fromkeys(known)))
 
 
-# -- acknowledgements ---------------------------------------------------------------------------------
-
-# A write whose acknowledgement is a report rather than a copy of the data sent (TOPOTEK REC and
-# CAP answer with the new state and a file index): request field -> {request value: acceptable
-# report states}. `None` as request value: any.
-ACK_REPORTS: dict[str, tuple[str, Mapping[Any, frozenset[str]]]] = {
-    "REC": (
-        "action",
-        {
-            "start": frozenset({"started", "recording"}),
-            "stop": frozenset({"stopped"}),
-            "toggle": frozenset({"started", "recording", "stopped"}),
-        },
-    ),
-    "CAP": ("mode", {None: frozenset({"taken"})}),
-}
+# -- what the parser may have recovered ---------------------------------------------------------------
 
 
-def is_report(message: Message) -> bool:
-    """A device -> host form that is neither a write's echo nor a query's (first) answer."""
-    form, spec = message.form, message.spec
-    if form is None or spec is None:
-        return False
-    if message.frame.rw == "w":
-        return form.role != "echo"
-    answers = spec.forms_for("r", "response")
-    return bool(answers) and form is not answers[0]
-
-
-def echo_matches(request: Frame, request_fields: Mapping[str, Any] | None, reply: Message) -> bool:
-    """Whether `reply` acknowledges the write `request`: the same data (whatever its length, hex
-    case aside), or for the commands in ACK_REPORTS a report stating the requested outcome."""
-    if reply.frame.data.upper() == request.data.upper():
-        return True
-    rule = ACK_REPORTS.get(request.ident)
-    if rule is None or reply.fields is None or not is_report(reply):
-        return False
-    field, outcomes = rule
-    wanted = outcomes.get((request_fields or {}).get(field), outcomes.get(None))
-    return wanted is not None and reply.fields.get("state") in wanted
-
-
-# -- the state cache: identifier -> what it tells ---------------------------------------------------
-
-
-@dataclass(frozen=True)
-class StateRule:
-    key: str
-    value: Callable[[Message], Any]  # returns _SKIP when the frame says nothing about `key`
-    reads_only: bool = False
-
-
-_SKIP = object()
-
-
-def _field(*names: str, convert: Callable[[Any], Any] = lambda v: v) -> Callable[[Message], Any]:
-    def get(m: Message) -> Any:
-        f = m.fields or {}
-        for n in names:
-            if n in f:
-                return convert(f[n])
-        return _SKIP
-
-    return get
-
-
-def _recording(value: Any) -> Any:
-    if value in ("recording", "started", "start"):
-        return True
-    if value in ("stopped", "stop"):
-        return False
-    return _SKIP
-
-
-def _sd(m: Message) -> Any:
-    f = m.fields or {}
-    if "total_mb" not in f:
-        return _SKIP  # one figure per answer: sd_card() puts the two together
-    from .state import SdCard
-
-    present, remaining, total = sd_card_figures([f])
-    return SdCard(present, remaining, total)
-
-
-STATE_RULES: dict[str, StateRule] = {
-    "REC": StateRule("recording", _field("state", "action", convert=_recording)),
-    "SDC": StateRule("sd", _sd),
-    "ZMP": StateRule("zoom", _field("magnification_x")),
-    "MUL": StateRule("zoom", _field("magnification_x")),
-    "DZM": StateRule("zoom", _field("zoom", "visible_zoom_x"), reads_only=True),
-    "LRF": StateRule("range_m", _field("distance_m")),
-    "SLR": StateRule("range_m", _field("distance_m")),
-    "VER": StateRule("version", _field("version")),
-    "VSN": StateRule("version", _field("version")),
-    "PA2": StateRule("model_name", _field("model")),
-    "TMP": StateRule("temperature", lambda m: m.fields if m.fields else _SKIP),
-    "CAP": StateRule("last_photo_index", _field("file_index")),
-}
-
-
-def state_updates(message: Message) -> list[tuple[str, Any]]:
-    """(state key, value) pairs that `message` (decoded, API convention) tells."""
-    rule = STATE_RULES.get(message.frame.ident)
-    if rule is None or message.fields is None or (rule.reads_only and message.frame.rw != "r"):
-        return []
-    value = rule.value(message)
-    return [] if value is _SKIP else [(rule.key, value)]
+def recovered_ok(dialect: Dialect, model: DeviceModel) -> frozenset[str]:
+    """Answers taken even when the parser had to recover their length character: the version
+    answer of a model whose profile names the `ver_wrong_length` quirk (a real C12 answers with
+    length 3 and 6 data characters; the checksum covers them). Other recovered frames are not
+    trusted as answers: a truncated frame can pass an 8-bit checksum."""
+    if "ver_wrong_length" not in model.quirks:
+        return frozenset()
+    spec = dialect.by_role("version", model)
+    return frozenset() if spec is None else frozenset({spec.ident})

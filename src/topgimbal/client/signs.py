@@ -5,7 +5,6 @@ right-positive, pitch up-positive, whatever the device's wire says."""
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
 
 from ..protocol import CommandSpec, Message
 from ..protocol.signs import AXES, flip, resolve_signs
@@ -13,7 +12,7 @@ from ..protocol.signs import AXES, flip, resolve_signs
 __all__ = ["AXES", "map_message", "map_values", "resolve_signs"]
 
 
-def map_values(spec: CommandSpec, values: Mapping[str, Any], signs: Mapping[str, int]) -> dict[str, Any]:
+def map_values(spec: CommandSpec, values: Mapping[str, object], signs: Mapping[str, int]) -> dict[str, object]:
     """API values -> wire values for `spec` (the mapping is its own inverse)."""
     return flip(spec, values, signs)
 

@@ -1,10 +1,21 @@
-"""What the client last heard from the device: typed values with the time they arrived."""
+"""What the client last heard from the device: typed values with the time they arrived.
+
+Which frame tells what is catalog metadata: a field's `state_key` (`attitude.yaw_deg`, `version`,
+`sd.remaining_mb`, `zoom.optical_x`, `range_m`...). Every keyed value lands in `StateCache.values`
+under its key; the typed entries (`attitude`, `zoom`, `recording`, `sd`...) are derived from those
+keys by their first part, so no table of identifiers is kept here."""
 
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
-from typing import Any
+
+from ..protocol import Message
+from .acks import is_report
+from .roles import sd_card_figures
+
+JSON = dict[str, object]
 
 
 @dataclass(frozen=True)
@@ -19,7 +30,7 @@ class Attitude:
     wall: float = 0.0
     source: str = "GAC"
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> JSON:
         return asdict(self)
 
 
@@ -29,7 +40,7 @@ class SdCard:
     remaining_mb: int | None
     total_mb: int | None
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> JSON:
         return asdict(self)
 
 
@@ -37,9 +48,17 @@ class SdCard:
 class Stamped:
     """A value and when it arrived (monotonic `t`, wall-clock `wall`)."""
 
-    value: Any
+    value: object
     t: float
     wall: float
+
+    def as_dict(self) -> JSON:
+        v = self.value
+        as_dict = getattr(v, "as_dict", None)
+        return {"value": as_dict() if callable(as_dict) else v, "t": self.t, "wall": self.wall}
+
+
+TYPED = ("zoom", "recording", "sd", "range_m", "version", "model_name", "temperature", "mode")
 
 
 @dataclass
@@ -47,6 +66,7 @@ class StateCache:
     """Last known device state. Each entry is None until the device has said something about it."""
 
     attitude: Attitude | None = None
+    earth_attitude: Attitude | None = None  # the gyro's earth-frame reading (TOPOTEK GIC / GIA)
     zoom: Stamped | None = None  # optical magnification (x) or digital zoom
     recording: Stamped | None = None  # bool
     sd: Stamped | None = None  # SdCard
@@ -56,23 +76,87 @@ class StateCache:
     temperature: Stamped | None = None
     mode: Stamped | None = None  # "follow" / "lock" as last commanded
     extra: dict[str, Stamped] = field(default_factory=dict)
+    values: dict[str, Stamped] = field(default_factory=dict)  # every catalog state key heard
 
-    def set(self, name: str, value: Any) -> None:
+    def set(self, name: str, value: object) -> None:
         stamped = Stamped(value, time.monotonic(), time.time())
-        if name in self.__dataclass_fields__ and name not in ("attitude", "extra"):
+        if name in TYPED:
             setattr(self, name, stamped)
         else:
             self.extra[name] = stamped
 
-    def as_dict(self) -> dict[str, Any]:
-        def plain(v: Any) -> Any:
-            if hasattr(v, "as_dict"):
-                return v.as_dict()
-            return v
+    def get(self, key: str) -> object:
+        """The last value under a catalog state key (`"network.ip"`), or None."""
+        s = self.values.get(key)
+        return None if s is None else s.value
 
-        out: dict[str, Any] = {"attitude": self.attitude.as_dict() if self.attitude else None}
-        for name in ("zoom", "recording", "sd", "range_m", "version", "model_name", "temperature", "mode"):
+    def apply(self, message: Message) -> dict[str, object]:
+        """Take what a decoded frame (API convention) tells; returns {state key: value} it set."""
+        keyed = state_values(message)
+        if not keyed:
+            return keyed
+        now, wall = time.monotonic(), time.time()
+        for key, value in keyed.items():
+            self.values[key] = Stamped(value, now, wall)
+        for name, value in _typed(keyed, message).items():
+            setattr(self, name, Stamped(value, now, wall))
+        return keyed
+
+    @staticmethod
+    def values_of(message: Message) -> dict[str, object]:
+        """{state key: value} a decoded frame tells (nothing is stored)."""
+        return state_values(message)
+
+    def as_dict(self) -> JSON:
+        out: JSON = {
+            "attitude": self.attitude.as_dict() if self.attitude else None,
+            "earth_attitude": self.earth_attitude.as_dict() if self.earth_attitude else None,
+        }
+        for name in TYPED:
             s: Stamped | None = getattr(self, name)
-            out[name] = None if s is None else {"value": plain(s.value), "t": s.t, "wall": s.wall}
-        out["extra"] = {k: {"value": plain(s.value), "t": s.t, "wall": s.wall} for k, s in self.extra.items()}
+            out[name] = None if s is None else s.as_dict()
+        out["extra"] = {k: s.as_dict() for k, s in self.extra.items()}
+        out["values"] = {k: s.as_dict() for k, s in self.values.items()}
         return out
+
+
+def state_values(message: Message) -> dict[str, object]:
+    """{state key: value} that a decoded frame tells: its form's keyed fields; for a device report
+    (REC feedback...), the command's keys by field name."""
+    fields, form, spec = message.fields, message.form, message.spec
+    if fields is None or form is None or spec is None or message.is_error:
+        return {}
+    keys: Mapping[str, str] = {f.name: f.state_key for f in form.fields if f.state_key}
+    if not keys and is_report(message):
+        keys = spec.state_keys
+    return {key: fields[name] for name, key in keys.items() if name in fields}
+
+
+def attitude_of(keyed: Mapping[str, object], prefix: str, source: str) -> Attitude | None:
+    """An Attitude from `<prefix>.yaw_deg` / `pitch_deg` / `roll_deg` values, when all are there."""
+    found = [keyed.get(f"{prefix}.{a}") for a in ("yaw_deg", "pitch_deg", "roll_deg")]
+    nums = [float(v) for v in found if isinstance(v, (int, float))]
+    if len(nums) != 3:
+        return None
+    return Attitude(nums[0], nums[1], nums[2], time.monotonic(), time.time(), source)
+
+
+_RECORDING = {"recording": True, "started": True, "start": True, "stopped": False, "stop": False}
+
+
+def _typed(keyed: Mapping[str, object], message: Message) -> dict[str, object]:
+    """The typed entries a frame's keyed values update (attitudes are taken by the client core)."""
+    out: dict[str, object] = {}
+    for key, value in keyed.items():
+        head = key.split(".", 1)[0]
+        if head == "recording" and isinstance(value, str) and value in _RECORDING:
+            out["recording"] = _RECORDING[value]
+        elif head == "zoom" and key != "zoom.position" and "thermal" not in key:
+            out["zoom"] = value
+        elif head in ("range_m", "version", "model_name"):
+            out[head] = value
+        elif head == "temperature":
+            out["temperature"] = message.fields
+    if "sd.total_mb" in keyed:
+        out["sd"] = SdCard(*sd_card_figures([{k.split(".", 1)[1]: v for k, v in keyed.items()}]))
+    return out

@@ -4,7 +4,6 @@ console and `monitor` show."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 
 @dataclass
@@ -37,7 +36,7 @@ class LinkStats:
         self.rtt_ms_avg = ms if self.rtt_ms_avg is None else self.rtt_ms_avg * 0.9 + ms * 0.1
         self.rtt_ms_min = ms if self.rtt_ms_min is None else min(self.rtt_ms_min, ms)
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> dict[str, float | int | bool | None]:
         d = dict(self.__dict__)
         for k in ("rtt_ms_last", "rtt_ms_avg", "rtt_ms_min"):
             if d[k] is not None:

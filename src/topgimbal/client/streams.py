@@ -10,6 +10,11 @@ for a sample for `abandon_after_s`; a consumer that comes back later simply star
 
 One reconciler task brings the device to the wanted state (the highest rate any consumer or
 `attitude_stream()` asked for, or off), so starts and stops from several consumers never race.
+
+Over UDP a device (and every NAT or firewall between) forgets a peer it has not heard from for a
+while (the simulator after 60 s), and a stream to a forgotten peer stops. While a stream runs and
+the client would otherwise say nothing, it sends the stream's request again every
+`stream_renew_s` (default 20 s; harmless on devices that do not need it).
 """
 
 from __future__ import annotations
@@ -41,6 +46,8 @@ class StreamControl:
         self.device_rate: float | None = None  # what the device was last told; None: off or unknown
         self._listeners: list[tuple[float, asyncio.Future[Attitude]]] = []
         self._task: asyncio.Task[None] | None = None
+        self._renewer: asyncio.Task[None] | None = None
+        self.renewals = 0  # stream requests sent again to keep a UDP peer's lease
 
     @property
     def active(self) -> bool:
@@ -77,7 +84,7 @@ class StreamControl:
         """Start bringing the device to the wanted state, unless that is under way."""
         if self._task is None or self._task.done():
             loop = self.core._loop
-            if loop is None or loop.is_closed() or self.core._closed:
+            if loop is None or loop.is_closed() or self.core.closed:
                 return
             if self.wanted() == self.device_rate:
                 return
@@ -100,9 +107,33 @@ class StreamControl:
         ident = roles.require_role(core.dialect, core.model, "attitude_stream", "attitude stream")
         spec = core.dialect.command(ident)
         while (want := self.wanted()) != self.device_rate:
-            frame = core.build(ident, **roles.stream_values(spec, want))
+            frame = core.build_from(ident, roles.stream_values(spec, want))
             await core._request(frame, timeout_s=core.timeout_s, retries=core.retries)
             self.device_rate = want
+        self._keep_renewing()
+
+    def _keep_renewing(self) -> None:
+        renew = self.core.options.stream_renew_s
+        if renew is None or not self.core.datagram or self.device_rate is None:
+            return
+        if self._renewer is None or self._renewer.done():
+            self._renewer = asyncio.ensure_future(self._renew(renew))
+            self._renewer.add_done_callback(_consume_error)
+
+    async def _renew(self, every_s: float) -> None:
+        """Send the running stream's request again every `every_s` while it runs."""
+        core = self.core
+        ident = roles.require_role(core.dialect, core.model, "attitude_stream", "attitude stream")
+        spec = core.dialect.command(ident)
+        while self.device_rate is not None and not core.closed:
+            await asyncio.sleep(every_s)
+            rate = self.device_rate
+            if rate is None or self.wanted() != rate or core.closed or not core.connected:
+                continue
+            with contextlib.suppress(TopGimbalError):
+                await core._request(core.build_from(ident, roles.stream_values(spec, rate)), timeout_s=core.timeout_s,
+                                    retries=core.retries)  # fmt: skip
+                self.renewals += 1
 
     def resume(self) -> None:
         """The device is there again: it may have forgotten its stream."""
@@ -116,13 +147,15 @@ class StreamControl:
             c._end(None)
         self.consumers.clear()
         self.manual_rate = None
+        if self._renewer is not None:
+            self._renewer.cancel()
         if self.device_rate is None:
             return
         core = self.core
         ident = roles.role_ident(core.dialect, core.model, "attitude_stream")
         if ident is None:
             return
-        off = core.build(ident, **roles.stream_values(core.dialect.command(ident), None))
+        off = core.build_from(ident, roles.stream_values(core.dialect.command(ident), None))
         with contextlib.suppress(TopGimbalError, asyncio.TimeoutError):
             await asyncio.wait_for(core._request(off, timeout_s=timeout_s, retries=0), timeout_s * 2)
             self.device_rate = None

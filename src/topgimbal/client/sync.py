@@ -12,7 +12,7 @@ import contextlib
 import threading
 from collections.abc import Callable, Coroutine, Iterator, Mapping
 from types import TracebackType
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, TypeVar, Unpack
 
 from ..errors import TopGimbalError
 from ..protocol import CommandSpec, DeviceModel, Dialect, Message
@@ -20,7 +20,11 @@ from .aio import AsyncClient
 from .api_camera import CameraMethods
 from .api_core import CoreMethods
 from .api_motion import MotionMethods
+from .core import LinkState
+from .identity import Verdict
 from .methods import SyncDriver
+from .notifier import LinkCallback, MessageCallback, TrafficCallback
+from .options import ConnectOptions
 from .state import Attitude, StateCache
 from .stats import LinkStats
 from .streams import AttitudeStream
@@ -47,7 +51,7 @@ class ThreadLoop:
         self.loop.call_soon(self._ready.set)
         self.loop.run_forever()
 
-    def run(self, coro: Coroutine[Any, Any, T], timeout: float | None = None) -> T:
+    def run(self, coro: Coroutine[object, object, T], timeout: float | None = None) -> T:
         if threading.current_thread() is self.thread:
             coro.close()
             raise LoopThreadError(
@@ -79,7 +83,7 @@ class Gimbal(SyncDriver, CoreMethods, MotionMethods, CameraMethods):
         retries: int = 2,
         signs: Mapping[str, int] | None = None,
         log_path: str | None = None,
-        **options: Any,
+        **options: Unpack[ConnectOptions],
     ) -> None:
         self._thread = ThreadLoop()
         try:
@@ -97,7 +101,7 @@ class Gimbal(SyncDriver, CoreMethods, MotionMethods, CameraMethods):
     def _core(self) -> AsyncClient:
         return self.aio
 
-    def _run(self, coro: Coroutine[Any, Any, T]) -> T:
+    def _run(self, coro: Coroutine[object, object, T]) -> T:
         return self._thread.run(coro)
 
     def close(self) -> None:
@@ -141,21 +145,32 @@ class Gimbal(SyncDriver, CoreMethods, MotionMethods, CameraMethods):
         return self.aio.connected
 
     @property
-    def link_state(self) -> dict[str, Any]:
+    def link_state(self) -> LinkState:
         return self.aio.link_state
 
     def commands(self) -> list[CommandSpec]:
         return self.aio.commands()
 
-    def subscribe(self, callback: Callable[[Message], Any], ident: str | None = None) -> Callable[[], None]:
+    @property
+    def model_check(self) -> Verdict:
+        """What the device said it is, against the model given (see AsyncClient.model_check)."""
+        return self.aio.model_check
+
+    def on_model_check(self, callback: Callable[[Verdict], object]) -> Callable[[], None]:
+        return self._run(_call(self.aio.on_model_check, callback))
+
+    def wait_model_check(self, timeout_s: float = 2.0) -> Verdict:
+        return self._run(self.aio.wait_model_check(timeout_s))
+
+    def subscribe(self, callback: MessageCallback, ident: str | None = None) -> Callable[[], None]:
         """As AsyncClient.subscribe; the callback runs on the loop thread (keep it short, and do
         not call blocking Gimbal methods from it)."""
         return self._run(_call(self.aio.subscribe, callback, ident))
 
-    def on_traffic(self, callback: Callable[..., Any]) -> Callable[[], None]:
+    def on_traffic(self, callback: TrafficCallback) -> Callable[[], None]:
         return self._run(_call(self.aio.on_traffic, callback))
 
-    def on_link_change(self, callback: Callable[[bool, str], Any]) -> Callable[[], None]:
+    def on_link_change(self, callback: LinkCallback) -> Callable[[], None]:
         return self._run(_call(self.aio.on_link_change, callback))
 
     def video_url(self, lens: str = "visible", *, host: str | None = None, port: int | None = None) -> str:
@@ -209,7 +224,7 @@ async def _anext(stream: AttitudeStream) -> Attitude:
     return await stream.__anext__()
 
 
-async def _call(fn: Callable[..., T], *args: Any) -> T:
+async def _call(fn: Callable[..., T], *args: object) -> T:
     return fn(*args)
 
 
@@ -234,11 +249,13 @@ class SyncCatalogCommand:
         self.spec = spec
         self.__doc__ = f"{spec.ident} {spec.title} ({spec.section})"
 
-    def __call__(self, **values: Any) -> Message:
-        return self._g.request(self.spec.ident, **values)
+    def __call__(self, **values: object) -> Message:
+        aio = self._g.aio
+        return self._g._run(aio.send_request(aio.build_from(self.spec.ident, values)))
 
-    def read(self, **values: Any) -> Message:
-        return self._g.request(self.spec.ident, read=True, **values)
+    def read(self, **values: object) -> Message:
+        aio = self._g.aio
+        return self._g._run(aio.send_request(aio.build_from(self.spec.ident, values, read=True)))
 
 
 if TYPE_CHECKING:

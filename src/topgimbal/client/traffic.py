@@ -12,7 +12,7 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import IO
 
 from ..protocol import Frame, Message, parse_frame
 
@@ -23,7 +23,7 @@ class LogRecord:
     mono: float
     direction: str
     frame: Frame
-    decoded: dict[str, Any] | None
+    decoded: dict[str, object] | None
 
 
 class TrafficLog:
@@ -34,7 +34,7 @@ class TrafficLog:
         self._fh: IO[str] | None = self.path.open("a", encoding="utf-8", buffering=1)
         self._write({"topgimbal_log": 1, "url": url, "model": model, "dialect": dialect, "t": time.time()})
 
-    def _write(self, obj: dict[str, Any]) -> None:
+    def _write(self, obj: dict[str, object]) -> None:
         if self._fh is not None:
             self._fh.write(json.dumps(obj, ensure_ascii=True) + "\n")
 

@@ -1,0 +1,158 @@
+"""Requests: a built frame handed to the engine, the connection's policy for it (retries, echoes,
+acknowledgement rules, slow answers), and errors that say why (a silent device, a wrong model).
+A part of the client core (`ClientCore` inherits it); kept apart so each module has one job."""
+
+from __future__ import annotations
+
+import asyncio
+import copy
+from collections.abc import Mapping
+
+from ..errors import DecodeError, DeviceError, LinkLostError, TopGimbalError, TransportError
+from ..protocol import DeviceModel, Dialect, Frame, Message
+from ..transport import Transport
+from . import identity
+from .engine import Engine, Transaction
+from .link import LinkMonitor
+from .model_check import ModelChecker
+from .options import Behaviour
+
+
+class Requests:
+    """The request half of `ClientCore` (its attributes are the core's)."""
+
+    url: str
+    dialect: Dialect
+    model: DeviceModel
+    behaviour: Behaviour
+    timeout_s: float
+    retries: int
+    closed: bool
+    link: LinkMonitor | None
+    identity: ModelChecker
+    _engine: Engine | None
+    _loop: asyncio.AbstractEventLoop | None
+    _transport: Transport | None
+
+    def _drive(self) -> None:
+        raise NotImplementedError
+
+    @property
+    def connected_transport(self) -> bool:
+        return not self.closed and self._transport is not None and self._transport.connected
+
+    @property
+    def link_state(self) -> dict[str, bool | str | float | None]:
+        raise NotImplementedError
+
+    def send_nowait(self, frame: Frame) -> None:
+        """Send without waiting for an answer (in the engine's order and pacing)."""
+        self._check_usable()
+        assert self._engine is not None
+        self._engine.submit(frame, timeout_s=self.timeout_s, expect_reply=False)
+        self._drive()
+
+    async def send_request(
+        self,
+        frame: Frame,
+        *,
+        timeout_s: float | None = None,
+        retries: int | None = None,
+        wait_reply: bool | None = None,
+    ) -> Message:
+        """A built request with this connection's policy: retried only when idempotent, awaited
+        where the model acknowledges it, compared with its acknowledgement as the profile says.
+        Returns the answer (API convention), or a reply-less Message when none is awaited."""
+        spec = self.dialect.command(frame.ident)
+        read = frame.rw == "r"
+        if wait_reply is None:
+            wait_reply = read or self.behaviour.expects_echo(spec)
+        exclusive = not spec.is_idempotent(frame)  # sent once (and waits as long in all)
+        reply = await self._request(
+            frame,
+            timeout_s=self.timeout_s if timeout_s is None else float(timeout_s),
+            retries=self.retries if retries is None else retries,
+            expect_reply=wait_reply,
+            exclusive=exclusive,
+            fields=self.dialect.decode(frame).fields if frame.ident in self.model.echo_rules else None,
+            slow=read and self.behaviour.is_slow(spec),
+        )
+        if reply is None:
+            return Message(frame, spec, None, None, "sent without waiting for a reply")
+        return reply  # already in the API convention (mapped on arrival)
+
+    def _check_usable(self) -> None:
+        if self.closed:
+            raise TransportError(f"{self.url}: the client is closed")
+        if self._engine is None or self._loop is None:
+            raise TransportError(f"{self.url}: not open (await connect(...) first)")
+        if not self.connected_transport:
+            raise LinkLostError(f"{self.url}: the link is down ({self.link_state['reason']}); reconnecting")
+
+    async def _request(
+        self,
+        frame: Frame,
+        *,
+        timeout_s: float,
+        retries: int,
+        expect_reply: bool = True,
+        exclusive: bool = False,
+        fields: Mapping[str, object] | None = None,
+        slow: bool = False,
+        lenient: bool = False,
+    ) -> Message | None:
+        """Hand one frame to the engine and wait for what it decides."""
+        self._check_usable()
+        engine, loop = self._engine, self._loop
+        assert engine is not None and loop is not None
+        tx: Transaction = engine.submit(
+            frame,
+            timeout_s=timeout_s,
+            retries=retries,
+            expect_reply=expect_reply,
+            exclusive=exclusive,
+            fields=fields,
+            slow=slow,
+            lenient=lenient,
+        )
+        if not expect_reply:
+            self._drive()
+            return None
+        tx.waiter = fut = loop.create_future()
+        self._drive()
+        try:
+            return await fut
+        except asyncio.CancelledError:
+            engine.cancel(tx)
+            self._drive()
+            raise
+        except TopGimbalError as exc:
+            raise self._explained(exc, timeout_s) from None
+
+    def _explained(self, exc: TopGimbalError, timeout_s: float) -> TopGimbalError:
+        """The error with what the client knows about why: a silent device, a wrong model."""
+        text = str(exc)
+        link = self.link
+        if isinstance(exc, TimeoutError) and link is not None:
+            if link.last_in is None:
+                text += (
+                    f"; nothing at all has come from {self.url} since the client opened: check the address, "
+                    f"the model (--model / model=, now {self.model.name}) and that the camera is on"
+                )
+            elif (silent := link.silent_for()) >= timeout_s:
+                text += f"; nothing has come from the device for {silent:.1f} s"
+        verdict = self.identity.verdict
+        if isinstance(exc, (TimeoutError, DeviceError)) and verdict.status == identity.MISMATCH:
+            text += f"; {verdict.message}"
+        elif isinstance(exc, DeviceError) and not isinstance(exc, DecodeError):
+            text += model_hint(self.model.name)
+        if text == str(exc):
+            return exc
+        new = copy.copy(exc)  # keeps `request` (and a DecodeError's `answer`)
+        new.args = (text,)
+        return new
+
+
+def model_hint(model: str) -> str:
+    """What a refusal adds while the device's model is not known to be wrong."""
+    return f"; if the device is not a {model}, pass the right --model (connect(model=...))"
