@@ -16,7 +16,6 @@ from topgimbal.console.capture import HOST_PORT, Link, Recorder, link_for
 from topgimbal.console.watch import client_endpoint
 from topgimbal.protocol import Frame, get_model
 from topgimbal.wire import WireFrame, frames_in_capture
-
 from wire.tshark import run_tshark
 
 pytestmark = pytest.mark.integration

@@ -104,6 +104,12 @@ class HttpLog(logging.LoggerAdapter):  # type: ignore[type-arg]
         super().log(level, msg, *args, **kwargs)
 
 
+async def _no_video(request: web.Request) -> web.Response:
+    """No video (a watched proxy, a model without video facts, no video extra): the page's video
+    module shows no panel, and the browser logs no failed request."""
+    return web.Response(status=204)
+
+
 def _dumps(obj: Any) -> str:
     import json
 
@@ -188,6 +194,8 @@ class ConsoleServer:
             if self.cam is not None:  # video needs a camera to point; a watched proxy has none of ours
                 # video routes sit behind the same Host/Origin guard middleware as every other route
                 self.video = await attach_video(self, self.app)  # topgimbal.video: streams, relay, routes
+            if self.video is None:  # (the reason is logged by topgimbal.video)
+                self.app.router.add_get("/api/video", _no_video)
             self._runner = web.AppRunner(
                 self.app, access_log=None, handle_signals=False, logger=HttpLog(logging.getLogger("aiohttp.server"))
             )

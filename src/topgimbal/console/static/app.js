@@ -253,7 +253,7 @@ let renderedSeq = 0;     // ... and of the newest item considered for the pane
 let renderedKey = null;  // the filter the pane was built with
 
 function trafficRow(it) {
-  const cls = `tr ${it.dir}${it.error ? " err" : ""}${it.id === "ERE" ? " ere" : ""}${it.poll ? " poll" : ""}`;
+  const cls = `tr ${it.dir}${it.error ? " err" : ""}${S.catalog?.commands[it.id]?.role === "error" ? " ere" : ""}${it.poll ? " poll" : ""}`;
   const t = new Date(it.t * 1000);
   const ts = t.toLocaleTimeString([], { hour12: false }) + "." + String(t.getMilliseconds()).padStart(3, "0");
   const meaning = meaningOf(it);

@@ -19,13 +19,14 @@ export function lockControls(reason) {
   for (const n of controls()) {
     if (reason) {
       if (n.disabled && !n.dataset[LOCK]) continue; // disabled for its own reason (unsupported)
-      if (!n.dataset[LOCK]) n.dataset.titleBefore = n.title || "";
+      if (!n.dataset[LOCK] && n.hasAttribute("title")) n.dataset.titleBefore = n.title;
       n.dataset[LOCK] = "link";
       n.disabled = true;
       n.title = reason;
     } else if (n.dataset[LOCK]) {
       n.disabled = false;
-      n.title = n.dataset.titleBefore || "";
+      if ("titleBefore" in n.dataset) n.title = n.dataset.titleBefore;
+      else n.removeAttribute("title");
       delete n.dataset[LOCK];
       delete n.dataset.titleBefore;
     }
