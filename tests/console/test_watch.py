@@ -187,7 +187,7 @@ def watched() -> Iterator[WatchConsole]:
 def test_the_page_watching_a_proxy(
     browser: Any, watched: WatchConsole, artifacts: Path, page_errors: list[str]
 ) -> None:
-    page = open_console_watching(browser, watched, page_errors)
+    page = open_console(browser, watched, page_errors, link="watching")
     try:
         banner = page.get_by_test_id("link-banner")
         assert banner.is_visible() and "Read-only" in banner.inner_text()
@@ -216,17 +216,3 @@ def test_the_page_watching_a_proxy(
     finally:
         page.context.close()
     assert page_errors == [], page_errors
-
-
-def open_console_watching(browser: Any, bg: BackgroundConsole, errors: list[str]) -> Any:
-    context = browser.new_context(viewport={"width": 1400, "height": 1100})
-    page = context.new_page()
-    page.on("pageerror", lambda exc: errors.append(str(exc)))
-    page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
-    page.goto(bg.url)
-    page.wait_for_selector("body[data-ready='1']", timeout=10_000)
-    page.wait_for_function("document.querySelector('[data-testid=link]').dataset.state === 'watching'")
-    return page
-
-
-__all__ = ["open_console"]

@@ -25,9 +25,9 @@ from typing import Any
 from ..client import CameraAPI
 from ..errors import LinkLostError
 from ..protocol import CommandSpec, Frame, Message
-from .capture import Recorder, link_for
+from .capture import link_for
 from .ops import OPS, describe_error, jsonable
-from .pages import MAX_OPS_IN_FLIGHT, MAX_PAGES, PageHub
+from .pages import MAX_OPS_IN_FLIGHT, PageHub
 
 log = logging.getLogger(__name__)
 
@@ -46,24 +46,12 @@ class Hub(PageHub):
         *,
         url: str = "",
         attitude_hz: float = 50.0,
-        status_interval_s: float = 0.5,
-        traffic_interval_s: float = 0.1,
         sd_interval_s: float = 5.0,
-        max_pages: int = MAX_PAGES,
-        peer_limits: Mapping[str, int] | None = None,
-        recorder: Recorder | None = None,
+        **options: Any,
     ) -> None:
-        super().__init__(
-            dialect=cam.dialect,
-            model=cam.model,
-            url=url,
-            link=link_for(url, cam.model),
-            status_interval_s=status_interval_s,
-            traffic_interval_s=traffic_interval_s,
-            max_pages=max_pages,
-            peer_limits=peer_limits,
-            recorder=recorder,
-        )
+        """`options`: PageHub's (status_interval_s, traffic_interval_s, max_pages, peer_limits,
+        recorder)."""
+        super().__init__(dialect=cam.dialect, model=cam.model, url=url, link=link_for(url, cam.model), **options)
         self.cam = cam
         self.attitude_hz = min(max(attitude_hz, 1.0), 50.0)
         self.sd_interval_s = sd_interval_s

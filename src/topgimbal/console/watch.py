@@ -24,7 +24,7 @@ from ..wire.packets import Endpoint
 from ..wire.proxy import Proxy, ProxyEvent
 from .capture import Link, link_for
 from .ops import ReadOnlyError
-from .pages import MAX_PAGES, PageHub
+from .pages import PageHub
 
 log = logging.getLogger(__name__)
 
@@ -51,27 +51,11 @@ class WatchHub(PageHub):
     mode = "watch"
 
     def __init__(
-        self,
-        proxy: Proxy,
-        dialect: Dialect,
-        model: DeviceModel,
-        *,
-        attitude_hz: float = 50.0,
-        status_interval_s: float = 0.5,
-        traffic_interval_s: float = 0.1,
-        max_pages: int = MAX_PAGES,
-        peer_limits: Mapping[str, int] | None = None,
+        self, proxy: Proxy, dialect: Dialect, model: DeviceModel, *, attitude_hz: float = 50.0, **options: Any
     ) -> None:
-        super().__init__(
-            dialect=dialect,
-            model=model,
-            url=f"{proxy.url} -> {proxy.to.text}",
-            link=proxy_link(proxy, model),
-            status_interval_s=status_interval_s,
-            traffic_interval_s=traffic_interval_s,
-            max_pages=max_pages,
-            peer_limits=peer_limits,
-        )
+        """`options`: PageHub's (status_interval_s, traffic_interval_s, max_pages, peer_limits)."""
+        url = f"{proxy.url} -> {proxy.to.text}"
+        super().__init__(dialect=dialect, model=model, url=url, link=proxy_link(proxy, model), **options)
         self.proxy = proxy
         self.attitude_hz = min(max(attitude_hz, 1.0), 50.0)
         self._signs = resolve_signs(model)
