@@ -109,7 +109,10 @@ class Hub(PageHub):
                 self.lost_since = time.time()
             self.link_reason = reason
             log.warning("camera link lost: %s", reason)
-        self.broadcast(self.status())  # at once: a page must not show "up" for another push interval
+        try:  # at once: a page must not show "up" for another push interval
+            self.broadcast(self.status())
+        except Exception:  # called from the client's notifier: never let a status oddity reach it
+            log.exception("status after a link change failed")
 
     def link_status(self) -> dict[str, Any]:
         """The link as the page shows it: `up`, `waiting` (nothing heard yet) or `lost`."""
