@@ -16,7 +16,7 @@ ALLOWED = {
     "transport": {"protocol"},
     "client": {"protocol", "transport", "video"},  # video.lens only (the stream table; tests/video checks)
     "sim": {"protocol"},
-    "console": {"protocol", "client", "sim", "video"},  # sim only for `--sim` (in-process camera)
+    "console": {"protocol", "client", "sim", "video", "wire", "transport"},  # sim: `--sim`; wire: pcap, --proxy
     "video": {"protocol", "sim"},  # renders the simulator's state; relays any camera's RTSP
     "tools": {"protocol", "client", "sim", "console", "_speedups", "video"},
     "mavlink": {"protocol", "client"},

@@ -135,15 +135,15 @@ def page_errors() -> list[str]:
     return []
 
 
-def open_console(browser: Any, bg: BackgroundConsole, errors: list[str]) -> Any:
-    """A fresh page on the console, loaded and with its WebSocket up."""
+def open_console(browser: Any, bg: BackgroundConsole, errors: list[str], link: str = "up") -> Any:
+    """A fresh page on the console, loaded, its WebSocket open and the link badge at `link`."""
     context = browser.new_context(viewport={"width": 1400, "height": 1100})
     page = context.new_page()
     page.on("pageerror", lambda exc: errors.append(str(exc)))
     page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
     page.goto(bg.url)
     page.wait_for_selector("body[data-ready='1']", timeout=10_000)
-    page.wait_for_function("document.querySelector('[data-testid=link]').dataset.state === 'up'", timeout=10_000)
+    page.wait_for_function(f"document.querySelector('[data-testid=link]').dataset.state === '{link}'", timeout=10_000)
     return page
 
 

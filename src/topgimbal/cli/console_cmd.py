@@ -38,6 +38,23 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="run a simulated MODEL in this process on an ephemeral loopback port",
     )
     p.add_argument("--seed", type=int, default=0, help="simulator seed (with --sim)")
+    p.add_argument(
+        "--faults",
+        metavar="PLAN",
+        type=_fault_plan,
+        help="simulate a bad link (with --sim), as `topgimbal sim --faults`: e.g. silence=20-30 for a camera "
+        "that goes quiet from 20 s to 30 s after the start (the page shows LOST)",
+    )
+    p.add_argument(
+        "--proxy",
+        action="store_true",
+        help="watch a proxy instead of talking to a camera: forward --listen <-> --to in this process and show "
+        "the decoded traffic (read-only: the page sends nothing to the camera); needs --model",
+    )
+    p.add_argument(
+        "--listen", metavar="URL", help="with --proxy: where the ground station connects, e.g. udp://127.0.0.1:5600"
+    )
+    p.add_argument("--to", metavar="URL", help="with --proxy: the camera, e.g. udp://192.168.144.25:5000")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     p.add_argument(
         "--port",
@@ -56,8 +73,19 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "the --host address are always allowed, any other Host is refused as DNS rebinding)",
     )
     p.add_argument("--attitude-hz", type=float, default=50.0, help="attitude push rate to the page, at most 50")
-    p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
+    p.add_argument(
+        "--seconds", type=float, default=None, help="stop after this many seconds (default: run until Ctrl-C)"
+    )
     p.set_defaults(func=run)
+
+
+def _fault_plan(text: str) -> object:
+    from ..sim import FaultPlan, FaultPlanError
+
+    try:
+        return FaultPlan.parse(text)
+    except FaultPlanError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def choose_port(host: str, port: int) -> tuple[int, int | None]:
@@ -77,6 +105,21 @@ def build_server(args: argparse.Namespace) -> object:
 
     url = getattr(args, "url", None)
     model = getattr(args, "model", None)
+    if args.proxy or args.listen or args.to:
+        if not args.proxy:
+            raise ValueError("--listen and --to go with --proxy")
+        if args.sim is not None:
+            raise ValueError("--proxy watches the camera behind it: give --listen and --to, not --sim")
+        return ConsoleServer(
+            proxy_listen=args.listen or "",
+            proxy_to=args.to or "",
+            model=model,
+            host=args.host,
+            port=args.port,
+            token=args.token,
+            allow_hosts=args.allow_host,
+            attitude_hz=args.attitude_hz,
+        )
     if args.sim is None and url and not model:
         raise ValueError("give --model with --url (it picks the dialect), e.g. --model SIP")
     if args.sim is not None and url:
@@ -86,6 +129,7 @@ def build_server(args: argparse.Namespace) -> object:
         model=model if not args.sim else args.sim,
         sim_model=args.sim,
         sim_seed=args.seed,
+        sim_faults=args.faults,
         host=args.host,
         port=args.port,
         token=args.token,

@@ -15,7 +15,7 @@ from __future__ import annotations
 import unicodedata
 from typing import Any
 
-from ..protocol import CommandSpec, DeviceModel, Dialect
+from ..protocol import GROUPS, CommandSpec, DeviceModel, Dialect
 
 
 def _jsonable(value: Any) -> Any:
@@ -151,6 +151,8 @@ def catalog_json(dialect: Dialect, model: DeviceModel) -> dict[str, Any]:
             "title": c.title,
             "reason": unsupported_reason(dialect, model, c.ident),
             "section": c.section,
+            "role": c.role,
+            "group": c.group,
         }
         for c in dialect.commands.values()
         if c.ident not in supported
@@ -160,6 +162,7 @@ def catalog_json(dialect: Dialect, model: DeviceModel) -> dict[str, Any]:
         "dialect_title": dialect.title,
         "dialect_label": dialect_label(dialect),
         "model": model_json(model),
+        "groups": dict(GROUPS),
         "commands": supported,
         "unsupported": unsupported,
     }

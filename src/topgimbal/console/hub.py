@@ -1,11 +1,16 @@
-"""One camera session shared by every open page: pumps attitude, link statistics, traffic and
-errors to the WebSockets, and carries out the pages' ops through the client.
+"""One camera session shared by every open page: pumps attitude, link state, statistics, traffic and
+errors to the WebSockets, and carries out the pages' ops through the client (`CameraAPI`).
 
 Rates are bounded here, not in the browser: attitude goes out at most `attitude_hz` times a second
 (only the latest sample), traffic in batches every `traffic_interval_s`, status every
-`status_interval_s`. A page that cannot keep up loses periodic pushes, never acks; one that stops
-reading is disconnected (`peer.py`). At most `max_pages` pages and `MAX_OPS_IN_FLIGHT` ops per
-page; every message from a page is checked against `limits.py` first."""
+`status_interval_s`; a change of the link state is pushed at once.
+
+The link state is the client's (`cam.on_link_change`, `cam.link_state`): the page shows LOST, with
+the reason and since when, from the moment the client declares the link down until frames arrive
+again. The console always expects something from the camera, so that a silent camera is noticed
+over UDP too: the attitude stream where the model has one, else a harmless query whenever nothing
+has arrived for `KEEPALIVE_IDLE_S` (the client declares the link lost after `link_timeout_s` of
+silence while something is expected)."""
 
 from __future__ import annotations
 
@@ -13,166 +18,148 @@ import asyncio
 import contextlib
 import logging
 import time
-from collections import Counter, deque
-from collections.abc import Mapping
+from collections import Counter
+from collections.abc import Coroutine, Iterator, Mapping
 from typing import Any
 
-from aiohttp import WSMsgType, web
-
-from .catalog_api import model_json
-from .limits import MAX_FRAME_BYTES, MAX_OPS_PER_S, OPS_BURST, MessageError, OpRate, parse_message
-from .ops import OPS, OpError, describe_error, jsonable, short
-from .peer import Peer
+from ..client import CameraAPI
+from ..errors import LinkLostError
+from ..protocol import CommandSpec, Frame, Message
+from .capture import link_for
+from .ops import OPS, describe_error, jsonable
+from .pages import MAX_OPS_IN_FLIGHT, PageHub
 
 log = logging.getLogger(__name__)
 
-TRAFFIC_HISTORY = 400
-MAX_PAGES = 16  # open WebSockets; one more is refused with 503 and a log line
-MAX_OPS_IN_FLIGHT = 32  # per page; one more is answered with an error
 MOTION_OPS = frozenset({"point", "rates", "stop", "center", "mode", "ptz"})
+KEEPALIVE_IDLE_S = 2.0  # ask something when nothing has come for this long
+KEEPALIVE_TIMEOUT_S = 1.0  # per attempt of the link check ...
+KEEPALIVE_RETRIES = 3  # ... so one check outlasts the client's link timeout (3 s) and a lost datagram
+# Queries the link check may use, best first (each must be a plain read).
+PING_ROLES = ("version", "model_name", "attitude", "sd_capacity", "ip_address")
 
 
-def _direction(direction: Any) -> str:
-    d = str(direction).lower()
-    return "in" if d.startswith(("in", "rx", "recv", "<")) else "out"
-
-
-class Hub:
+class Hub(PageHub):
     def __init__(
         self,
-        cam: Any,
+        cam: CameraAPI,
         *,
         url: str = "",
         attitude_hz: float = 50.0,
-        status_interval_s: float = 0.5,
-        traffic_interval_s: float = 0.1,
         sd_interval_s: float = 5.0,
-        max_pages: int = MAX_PAGES,
-        peer_limits: Mapping[str, int] | None = None,
+        **options: Any,
     ) -> None:
+        """`options`: PageHub's (status_interval_s, traffic_interval_s, max_pages, peer_limits,
+        recorder)."""
+        super().__init__(dialect=cam.dialect, model=cam.model, url=url, link=link_for(url, cam.model), **options)
         self.cam = cam
-        self.url = url
         self.attitude_hz = min(max(attitude_hz, 1.0), 50.0)
-        self.status_interval_s = status_interval_s
-        self.traffic_interval_s = traffic_interval_s
         self.sd_interval_s = sd_interval_s
-        self.max_pages = max_pages
-        self.peer_limits = dict(peer_limits or {})  # Peer keyword arguments (tests use small ones)
-        self.op_rate = (MAX_OPS_PER_S, OPS_BURST)  # messages a second per page, burst
-        self.peers: set[Peer] = set()
-        self._handshakes = 0
         self._polls: Counter[str] = Counter()  # identifiers of the console's own periodic queries
         # Motion ops from every page, one at a time and in arrival order: a drag's rates, the pad
         # release's stop and another page's stop share the client's GSM/PTZ requests.
         self._motion = asyncio.Lock()
         self.attitude: dict[str, float] | None = None
         self._attitude_seq = 0
-        self.traffic: deque[dict[str, Any]] = deque(maxlen=TRAFFIC_HISTORY)
-        self._pending: list[dict[str, Any]] = []
-        self.last_in: float | None = None
         self.recording_since: float | None = None
         self.recording: bool | None = None
         self.sd: dict[str, Any] | None = None
         self.version: Any = None
-        self.errors = 0
-        self._tasks: list[asyncio.Task[None]] = []
-        self._unsubscribe: list[Any] = []
-        self._quiet: dict[str, str] = {}  # background error kind -> last message (reported once)
+        self.lost_since: float | None = None  # wall clock of the client's "link down"
+        self.link_reason = ""
+
+    def role(self, role: str) -> CommandSpec | None:
+        """The command playing `role` on this model (None when it has none)."""
+        return self.dialect.by_role(role, self.model)
 
     # -- lifecycle ---------------------------------------------------------------------------
 
-    @property
-    def dialect(self) -> Any:
-        return self.cam.dialect
-
-    @property
-    def model(self) -> Any:
-        return self.cam.model
-
-    def supports(self, ident: str) -> bool:
-        return bool(self.dialect.supports(self.model, ident))
-
     async def start(self) -> None:
-        on_traffic = getattr(self.cam, "on_traffic", None)
-        if on_traffic is not None:
-            self._unsubscribe.append(on_traffic(self._on_traffic))
-        loops = [self._status_loop(), self._traffic_loop(), self._keepalive_loop()]
-        if self.supports("GAA"):
+        self._unsubscribe.append(self.cam.on_traffic(self._on_traffic))
+        self._unsubscribe.append(self.cam.on_link_change(self._on_link_change))
+        if not self.cam.link_state.get("up", True):
+            self._on_link_change(False, str(self.cam.link_state.get("reason") or "the link is down"))
+        await super().start()
+
+    def loops(self) -> list[Coroutine[Any, Any, None]]:
+        loops: list[Coroutine[Any, Any, None]] = [self._keepalive_loop()]
+        if self.role("attitude") is not None:
             loops += [self._attitude_loop(), self._attitude_ticker()]
-        if self.supports("SDC"):
+        if self.role("sd_capacity") is not None:
             loops.append(self._sd_loop())
-        if self.supports("VER") or self.supports("VSN"):
+        if self.role("version") is not None:
             loops.append(self._version_once())
-        self._tasks = [asyncio.create_task(c) for c in loops]
+        return loops
 
-    async def stop(self) -> None:
-        for unsub in self._unsubscribe:
-            with contextlib.suppress(Exception):
-                unsub()
-        for t in self._tasks:
-            t.cancel()
-        for t in self._tasks:
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await t
-        for p in list(self.peers):
-            p.close()
-            with contextlib.suppress(Exception):
-                await asyncio.wait_for(p.ws.close(), 2.0)
+    # -- what comes from the client ----------------------------------------------------------
 
-    # -- pushing -----------------------------------------------------------------------------
+    def _on_traffic(self, direction: str, frame: Frame, message: Message | None = None) -> None:
+        d = "in" if str(direction).lower().startswith(("in", "rx", "<")) else "out"
+        ident = getattr(frame, "ident", None)
+        # the page hides the console's own periodic queries (and the telemetry streams) by default
+        self.record(d, frame, message, poll=ident in self._polls)
 
-    def broadcast(self, obj: Mapping[str, Any], *, essential: bool = True) -> None:
-        for p in list(self.peers):
-            p.send(obj, essential=essential)
+    def _on_link_change(self, up: bool, reason: str) -> None:
+        if up:
+            if self.lost_since is not None:
+                log.info("camera link back after %.1f s: %s", time.time() - self.lost_since, reason)
+            self.lost_since, self.link_reason = None, ""
+        else:
+            if self.lost_since is None:
+                self.lost_since = time.time()
+            self.link_reason = reason
+            log.warning("camera link lost: %s", reason)
+        try:  # at once: a page must not show "up" for another push interval
+            self.broadcast(self.status())
+        except Exception:  # called from the client's notifier: never let a status oddity reach it
+            log.exception("status after a link change failed")
 
-    def report_error(
-        self, message: str, *, kind: str = "error", source: str = "camera", once: str | None = None
-    ) -> None:
-        """Push an error not tied to an op. With `once`, a repeat of the same message is not pushed
-        again until `clear_error(once)` (a poll that keeps timing out reports once)."""
-        if once is not None:
-            if self._quiet.get(once) == message:
-                return
-            self._quiet[once] = message
-        self.errors += 1
-        self.broadcast(
-            {"type": "error", "ref": None, "kind": kind, "source": source, "message": message, "t": time.time()}
-        )
+    def link_status(self) -> dict[str, Any]:
+        """The link as the page shows it: `up`, `waiting` (nothing heard yet) or `lost`."""
+        state = self.cam.link_state
+        up = bool(state.get("up", True))
+        if not up and self.lost_since is None:  # down before we were told (closed at start)
+            self.lost_since, self.link_reason = time.time(), str(state.get("reason") or "")
+        return {
+            "link": "lost" if not up else ("waiting" if self.last_in is None else "up"),
+            "link_reason": "" if up else (self.link_reason or str(state.get("reason") or "")),
+            "lost_since": None if up else self.lost_since,
+            "last_in": self.last_in,
+            "silent_s": state.get("silent_s"),
+        }
 
-    def clear_error(self, once: str) -> None:
-        if self._quiet.pop(once, None) is not None:
-            self.broadcast({"type": "recovered", "source": once, "t": time.time()})
+    def status(self) -> dict[str, Any]:
+        self._sync_recording()
+        return {
+            **super().status(),
+            **self.link_status(),
+            "stats": jsonable(self.cam.stats),
+            "state": jsonable(self.cam.state),
+            "recording": self.recording,
+            "recording_since": self.recording_since,
+            "sd": self.sd,
+            "version": self.version,
+        }
 
-    def _on_traffic(self, direction: Any, frame: Any, message: Any = None) -> None:
-        now = time.time()
-        d = _direction(direction)
-        if d == "in":
-            self.last_in = now
-        item: dict[str, Any] = {"t": now, "dir": d, "frame": _frame_text(frame)}
-        if message is not None:
-            try:
-                m = jsonable(message)
-            except Exception as exc:  # a decoding oddity must never break the link
-                m = {"error": str(exc)}
-            if isinstance(m, dict):
-                item.update(
-                    {"id": m.get("id"), "name": m.get("name"), "fields": m.get("fields"), "error": m.get("error")}
-                )
-        if "id" not in item or item.get("id") is None:
-            item["id"] = getattr(frame, "ident", None)
-        if item["id"] in self._polls:
-            item["poll"] = True  # the page hides the console's own periodic queries by default
-        self.traffic.append(item)
-        self._pending.append(item)
-        if len(self._pending) > 500:
-            del self._pending[:-500]
+    def hello(self) -> dict[str, Any]:
+        return {**super().hello(), "attitude_hz": self.attitude_hz}
 
-    async def _traffic_loop(self) -> None:
-        while True:
-            await asyncio.sleep(self.traffic_interval_s)
-            if self._pending:
-                items, self._pending = self._pending, []
-                self.broadcast({"type": "traffic", "items": items}, essential=False)
+    def _sync_recording(self) -> None:
+        """Recording as the client last heard it (REC answers, ours or another program's)."""
+        stamped = self.cam.state.recording
+        value = getattr(stamped, "value", None)
+        if isinstance(value, bool) and value != self.recording:
+            self.recording = value
+            self.recording_since = time.time() if value else None
+
+    def _background_failure(self, exc: Exception, what: str, source: str) -> None:
+        """Report a background job's failure once; a lost link is already shown as LOST."""
+        if isinstance(exc, LinkLostError) or not self.cam.connected:
+            return
+        kind, msg = describe_error(exc, what)
+        self.report_error(msg, kind=kind, source=source, once=source)
+
+    # -- background work ---------------------------------------------------------------------
 
     async def _attitude_loop(self) -> None:
         """Read the client's attitude stream; on failure report once and retry."""
@@ -183,15 +170,14 @@ class Hub:
                         "yaw": float(att.yaw_deg),
                         "pitch": float(att.pitch_deg),
                         "roll": float(att.roll_deg),
-                        "t": float(getattr(att, "wall", 0.0) or time.time()),
+                        "t": float(att.wall or time.time()),
                     }
                     self._attitude_seq += 1
                     self.clear_error("attitude")
             except asyncio.CancelledError:
                 raise
             except Exception as exc:
-                kind, msg = describe_error(exc, "the attitude stream")
-                self.report_error(msg, kind=kind, source="attitude", once="attitude")
+                self._background_failure(exc, "the attitude stream", "attitude")
             await asyncio.sleep(1.0)
 
     async def _attitude_ticker(self) -> None:
@@ -204,56 +190,8 @@ class Hub:
                 sent = self._attitude_seq
                 self.broadcast({"type": "attitude", **self.attitude}, essential=False)
 
-    def status(self) -> dict[str, Any]:
-        stats = jsonable(self.cam.stats) if getattr(self.cam, "stats", None) is not None else {}
-        state = jsonable(self.cam.state) if getattr(self.cam, "state", None) is not None else {}
-        now = time.time()
-        age = None if self.last_in is None else now - self.last_in
-        connected = stats.get("connected", True) if isinstance(stats, dict) else True
-        if not connected:
-            link = "down"
-        elif age is None:
-            link = "waiting"
-        elif age > 3.0:
-            link = "stale"
-        else:
-            link = "up"
-        self._sync_recording()
-        return {
-            "type": "status",
-            "now": now,
-            "link": link,
-            "last_in_age_s": age,
-            "stats": stats,
-            "state": state,
-            "recording": self.recording,
-            "recording_since": self.recording_since,
-            "sd": self.sd,
-            "version": self.version,
-            "errors": self.errors,
-            "pages": len(self.peers),
-        }
-
-    def _sync_recording(self) -> None:
-        """Recording as the client last heard it (REC answers, ours or another program's)."""
-        stamped = getattr(getattr(self.cam, "state", None), "recording", None)
-        value = getattr(stamped, "value", None)
-        if isinstance(value, bool) and value != self.recording:
-            self.recording = value
-            self.recording_since = time.time() if value else None
-
-    async def _status_loop(self) -> None:
-        while True:
-            await asyncio.sleep(self.status_interval_s)
-            if self.peers:
-                try:
-                    self.broadcast(self.status(), essential=False)
-                except Exception as exc:  # never let a status oddity kill the loop
-                    log.exception("status failed")
-                    self.report_error(f"status: {exc}", kind="internal", source="console", once="status")
-
     @contextlib.contextmanager
-    def _polling(self, ident: str) -> Any:
+    def _polling(self, ident: str) -> Iterator[None]:
         """Mark the frames of a periodic query (and its answer) as the console's own polls."""
         self._polls[ident] += 1
         try:
@@ -264,15 +202,15 @@ class Hub:
                 del self._polls[ident]
 
     async def refresh_sd(self, *, poll: bool = False) -> dict[str, Any] | None:
+        spec = self.role("sd_capacity")
         try:
-            with self._polling("SDC") if poll else contextlib.nullcontext():
+            with self._polling(spec.ident) if poll and spec is not None else contextlib.nullcontext():
                 self.sd = await OPS["sd"](self.cam, {})
             self.clear_error("sd")
         except asyncio.CancelledError:
             raise
         except Exception as exc:
-            kind, msg = describe_error(exc, "the SD card query")
-            self.report_error(msg, kind=kind, source="sd", once="sd")
+            self._background_failure(exc, "the SD card query", "sd")
         return self.sd
 
     async def _sd_loop(self) -> None:
@@ -281,91 +219,59 @@ class Hub:
             await asyncio.sleep(self.sd_interval_s)
 
     def _ping_ident(self) -> str | None:
-        for ident in ("VER", "VSN", "SDC", "IPV", "GAC"):
-            if self.supports(ident) and self.dialect.command(ident).readable:
-                return ident
+        for role in PING_ROLES:
+            spec = self.role(role)
+            if spec is not None and spec.readable and not spec.request_form("r").fields:
+                return spec.ident
         return None
 
-    async def _keepalive_loop(self, idle_s: float = 2.0) -> None:
-        """When nothing has come from the camera for `idle_s` (no attitude stream on this model,
-        or the stream stopped), ask it something harmless so the link state stays true."""
+    async def _keepalive_loop(self) -> None:
+        """When nothing has come from the camera for `KEEPALIVE_IDLE_S` (no attitude stream on
+        this model, the stream stopped, or the camera is gone), ask it something harmless: the
+        client then expects an answer, and declares the link lost when none comes."""
         ident = self._ping_ident()
         if ident is None:
             return
         while True:
-            await asyncio.sleep(idle_s)
-            if self.last_in is not None and time.time() - self.last_in < idle_s:
+            await asyncio.sleep(KEEPALIVE_IDLE_S / 4)
+            if self.last_in is not None and time.time() - self.last_in < KEEPALIVE_IDLE_S:
                 continue
             try:
                 with self._polling(ident):
-                    await self.cam.request(ident, read=True)
+                    await self.cam.request(ident, read=True, timeout_s=KEEPALIVE_TIMEOUT_S, retries=KEEPALIVE_RETRIES)
                 self.clear_error("link")
             except asyncio.CancelledError:
                 raise
             except Exception as exc:
-                kind, msg = describe_error(exc, f"the link check ({ident} query)")
-                self.report_error(msg, kind=kind, source="link", once="link")
+                self._background_failure(exc, f"the link check ({ident} query)", "link")
 
     async def _version_once(self) -> None:
-        try:
-            self.version = jsonable(await self.cam.version())
-        except asyncio.CancelledError:
-            raise
-        except Exception as exc:
-            kind, msg = describe_error(exc, "the version query")
-            self.report_error(msg, kind=kind, source="version", once="version")
+        while self.version is None:
+            try:
+                self.version = jsonable(await self.cam.version())
+                self.clear_error("version")
+            except asyncio.CancelledError:
+                raise
+            except Exception as exc:
+                self._background_failure(exc, "the version query", "version")
+                await asyncio.sleep(5.0)  # asked again: a camera that was off at start answers later
 
     # -- ops ---------------------------------------------------------------------------------
 
-    def hello(self) -> dict[str, Any]:
-        return {
-            "type": "hello",
-            "url": self.url,
-            "model": model_json(self.model),
-            "dialect": self.dialect.name,
-            "attitude_hz": self.attitude_hz,
-            "traffic": list(self.traffic)[-200:],
-            "status": self.status(),
-        }
+    async def carry_out(self, op: str, msg: Mapping[str, Any]) -> Any:
+        async with self._motion if self._is_motion(op, msg) else contextlib.nullcontext():
+            result = await OPS[op](self.cam, msg)
+        self._after(op, msg, result)
+        return result
 
-    async def execute(self, msg: Mapping[str, Any]) -> dict[str, Any]:
-        """Carry out one op; the `ack` or `error` reply (never raises)."""
-        ref = msg.get("ref")
-        op = msg.get("op")
-        handler = OPS.get(op) if isinstance(op, str) else None
-        if handler is None and op == "status":
-            return {"type": "ack", "ref": ref, "op": op, "result": self.status()}
-        if handler is None:
-            known = ", ".join(sorted([*OPS, "status"]))
-            return {
-                "type": "error",
-                "ref": ref,
-                "op": op,
-                "kind": "op",
-                "message": f"unknown op {short(op)}; known: {known}",
-            }
-        try:
-            async with self._motion if self._is_motion(msg) else contextlib.nullcontext():
-                result = await handler(self.cam, msg)
-        except asyncio.CancelledError:
-            raise
-        except Exception as exc:
-            kind, text = describe_error(exc, _what(msg))
-            if not isinstance(exc, OpError):
-                self.errors += 1
-            return {"type": "error", "ref": ref, "op": op, "kind": kind, "message": text}
-        self._after(str(op), msg, result)
-        return {"type": "ack", "ref": ref, "op": op, "result": jsonable(result)}
-
-    def _is_motion(self, msg: Mapping[str, Any]) -> bool:
-        op = msg.get("op")
+    def _is_motion(self, op: str, msg: Mapping[str, Any]) -> bool:
         if op in MOTION_OPS:
             return True
         ident = msg.get("id")
         if op != "request" or not isinstance(ident, str):
             return False
         spec = self.dialect.commands.get(ident)
-        return bool(spec is not None and (spec.motion or ident == "PTZ"))
+        return bool(spec is not None and (spec.motion or spec.role == "gimbal_control"))
 
     def _after(self, op: str, msg: Mapping[str, Any], result: Any) -> None:
         if op == "record":
@@ -382,122 +288,5 @@ class Hub:
         elif op == "sd" and isinstance(result, dict):
             self.sd = result
 
-    # -- the WebSocket -----------------------------------------------------------------------
 
-    async def handle_ws(self, request: web.Request) -> web.StreamResponse:
-        peername = request.transport.get_extra_info("peername") if request.transport is not None else None
-        name = f"{peername[0]}:{peername[1]}" if isinstance(peername, tuple) else (request.remote or "?")
-        if len(self.peers) + self._handshakes >= self.max_pages:
-            log.warning("refused page %s: %d pages are open (the limit)", name, len(self.peers))
-            return web.json_response(
-                {
-                    "error": "busy",
-                    "message": f"{len(self.peers)} pages are already open on this console (at most "
-                    f"{self.max_pages}); close one and reload",
-                },
-                status=503,
-            )
-        ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=MAX_FRAME_BYTES)
-        self._handshakes += 1  # counted against the limit while the handshake awaits
-        try:
-            await ws.prepare(request)
-        finally:
-            self._handshakes -= 1
-        peer = Peer(ws, name, transport=request.transport, **self.peer_limits)
-        self.peers.add(peer)
-        sender = asyncio.create_task(peer.run())
-        peer.send(self.hello())
-        running: set[asyncio.Task[None]] = set()
-        rate = OpRate(*self.op_rate)
-        loop = asyncio.get_running_loop()
-        try:
-            async for raw in ws:
-                if peer.closed or request.transport is None or request.transport.is_closing():
-                    break  # the page is gone: its buffered messages need no answer
-                # One message per turn of the loop, and at most the page's rate: buffered
-                # messages of a flooding page would otherwise be handled without yielding.
-                await asyncio.sleep(rate.delay_s(loop.time()))
-                if raw.type not in (WSMsgType.TEXT, WSMsgType.BINARY):
-                    continue
-                try:
-                    msg = parse_message(raw.data)
-                except MessageError as exc:
-                    peer.send({"type": "error", "ref": None, "op": None, "kind": "op", "message": str(exc)})
-                    continue
-                if len(running) >= MAX_OPS_IN_FLIGHT:
-                    peer.send(
-                        {
-                            "type": "error",
-                            "ref": msg.get("ref"),
-                            "op": msg.get("op"),
-                            "kind": "op",
-                            "message": f"too many ops in flight ({len(running)}, at most {MAX_OPS_IN_FLIGHT} "
-                            "per page): wait for their replies",
-                        }
-                    )
-                    continue
-                # Ops run concurrently (a slow query must not hold up stop), each acked.
-                task = asyncio.create_task(self._run_op(peer, msg))
-                running.add(task)
-                task.add_done_callback(running.discard)
-        finally:
-            self.peers.discard(peer)
-            for t in list(running):
-                t.cancel()
-            peer.close()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await sender
-            if peer.dropped:
-                log.info("page %s closed; %d periodic pushes were dropped for it", name, peer.dropped)
-        return ws
-
-    async def _run_op(self, peer: Peer, msg: Mapping[str, Any]) -> None:
-        reply = await self.execute(msg)
-        peer.send(reply)
-        if reply["type"] == "error" and reply.get("kind") != "op":
-            log.info("op %s failed: %s", short(msg.get("op")), reply["message"])
-
-
-OP_NAMES = {
-    "point": "the angle command",
-    "rates": "the rate command",
-    "stop": "stop",
-    "center": "center",
-    "mode": "the follow / lock command",
-    "ptz": "the gimbal control code",
-    "photo": "the photo command",
-    "record": "the recording command",
-    "recording": "the recording query",
-    "sd": "the SD card query",
-    "version": "the version query",
-    "range": "the range measurement",
-    "network": "the network query",
-    "set_network": "the network settings",
-}
-
-
-def _what(msg: Mapping[str, Any]) -> str:
-    op = msg.get("op")
-    if op == "request":
-        return f"{short(msg.get('id'), quote=False)} ({'read' if msg.get('read') else 'write'})"
-    if op == "raw":
-        return f"the raw frame {short(msg.get('frame'))}"
-    return OP_NAMES.get(str(op), short(op, quote=False))
-
-
-def _frame_text(frame: Any) -> str:
-    """The frame as printable text for the traffic pane (never raises: a frame the parser let
-    through must not break the link)."""
-    try:
-        if hasattr(frame, "text"):
-            text = str(frame.text())
-        elif isinstance(frame, (bytes, bytearray)):
-            text = bytes(frame).decode("latin-1")
-        else:
-            text = str(frame)
-    except Exception:
-        text = repr(getattr(frame, "raw", frame))
-    return text.rstrip("\r\n")
-
-
-__all__ = ["Hub", "OpError", "Peer"]
+__all__ = ["MAX_OPS_IN_FLIGHT", "Hub"]

@@ -10,6 +10,7 @@ import math
 from collections.abc import Awaitable, Callable, Mapping
 from typing import Any
 
+from ..client import CameraAPI
 from ..errors import (
     DeviceError,
     FieldValueError,
@@ -22,11 +23,15 @@ from ..errors import (
 )
 from ..protocol.frame import complete_frame
 
-OpHandler = Callable[[Any, Mapping[str, Any]], Awaitable[Any]]
+OpHandler = Callable[[CameraAPI, Mapping[str, Any]], Awaitable[Any]]
 
 
 class OpError(TopGimbalError, ValueError):
     """A malformed op from the page (missing or wrong argument)."""
+
+
+class ReadOnlyError(TopGimbalError):
+    """The console only watches (a proxy's traffic): it sends nothing to the camera."""
 
 
 def short(value: Any, limit: int = 40, *, quote: bool = True) -> str:
@@ -76,6 +81,8 @@ def describe_error(exc: BaseException, what: str = "") -> tuple[str, str]:
         return "link", f"Link error during {what}: {exc}"
     if isinstance(exc, OpError):
         return "op", str(exc)
+    if isinstance(exc, ReadOnlyError):
+        return "readonly", f"Not sent ({what}): {exc}"
     if isinstance(exc, TopGimbalError):
         return "error", f"{what}: {exc}"
     if isinstance(exc, (TypeError, ValueError)):
@@ -113,7 +120,7 @@ def _flag(args: Mapping[str, Any], name: str) -> bool:
     return v
 
 
-async def op_request(cam: Any, args: Mapping[str, Any]) -> Any:
+async def op_request(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     ident = _text(args, "id")
     values = args.get("values") or {}
     if not isinstance(values, Mapping):
@@ -121,7 +128,7 @@ async def op_request(cam: Any, args: Mapping[str, Any]) -> Any:
     return await cam.request(ident, read=_flag(args, "read"), **dict(values))
 
 
-async def op_raw(cam: Any, args: Mapping[str, Any]) -> Any:
+async def op_raw(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     """Send a hand-typed frame (its checksum appended when missing); answer with the reply's
     fields and the frame actually sent."""
     sent = complete_frame(_text(args, "frame"))
@@ -130,47 +137,45 @@ async def op_raw(cam: Any, args: Mapping[str, Any]) -> Any:
     return {**out, "sent": sent.decode("latin-1")}
 
 
-async def op_point(cam: Any, args: Mapping[str, Any]) -> Any:
+async def op_point(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     yaw = _num(args, "yaw", required=False)
     pitch = _num(args, "pitch", required=False)
     if yaw is None and pitch is None:
         raise OpError("give a yaw and/or a pitch angle")
-    kw: dict[str, float] = {}
-    if yaw is not None:
-        kw["yaw_deg"] = yaw
-    if pitch is not None:
-        kw["pitch_deg"] = pitch
-    return await cam.set_angles(**kw)
+    return await cam.set_angles(yaw_deg=yaw, pitch_deg=pitch)
 
 
-async def op_rates(cam: Any, args: Mapping[str, Any]) -> Any:
-    return await cam.rates(yaw_deg_s=_num(args, "yaw"), pitch_deg_s=_num(args, "pitch"))
+async def op_rates(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+    return await cam.rates(yaw_deg_s=_num(args, "yaw") or 0.0, pitch_deg_s=_num(args, "pitch") or 0.0)
 
 
-async def op_stop(cam: Any, args: Mapping[str, Any]) -> Any:
+async def op_stop(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     return await cam.stop()
 
 
-async def op_center(cam: Any, args: Mapping[str, Any]) -> Any:
+async def op_center(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     return await cam.center()
 
 
-async def op_mode(cam: Any, args: Mapping[str, Any]) -> Any:
+async def op_mode(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     mode = _text(args, "mode")
     if mode not in ("follow", "lock"):
         raise OpError(f"mode={short(mode)}: expected follow or lock")
     return await cam.set_mode(mode)
 
 
-async def op_ptz(cam: Any, args: Mapping[str, Any]) -> Any:
-    return await cam.request("PTZ", action=_text(args, "action"))
+async def op_ptz(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+    """A gimbal control code (calibrations, mount orientation, trims) by its catalog name."""
+    action = _text(args, "action")
+    spec = cam.dialect.require_role("gimbal_control", cam.model)
+    return await cam.request(spec.ident, action=action)
 
 
-async def op_photo(cam: Any, args: Mapping[str, Any]) -> Any:
+async def op_photo(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     return await cam.photo()
 
 
-async def op_record(cam: Any, args: Mapping[str, Any]) -> Any:
+async def op_record(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     action = _text(args, "action")
     if action == "start":
         return await cam.start_recording()
@@ -179,32 +184,28 @@ async def op_record(cam: Any, args: Mapping[str, Any]) -> Any:
     raise OpError(f"action={short(action)}: expected start or stop")
 
 
-async def op_recording(cam: Any, args: Mapping[str, Any]) -> Any:
+async def op_recording(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     return await cam.recording()
 
 
-async def op_sd(cam: Any, args: Mapping[str, Any]) -> Any:
+async def op_sd(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     sd = await cam.sd_card()
-    if isinstance(sd, tuple) and not hasattr(sd, "present"):
-        present, remaining, total = sd
-    else:
-        present, remaining, total = sd.present, sd.remaining_mb, sd.total_mb
-    return {"present": bool(present), "remaining_mb": remaining, "total_mb": total}
+    return {"present": bool(sd.present), "remaining_mb": sd.remaining_mb, "total_mb": sd.total_mb}
 
 
-async def op_version(cam: Any, args: Mapping[str, Any]) -> Any:
+async def op_version(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     return await cam.version()
 
 
-async def op_range(cam: Any, args: Mapping[str, Any]) -> Any:
+async def op_range(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     return await cam.range()
 
 
-async def op_network(cam: Any, args: Mapping[str, Any]) -> Any:
+async def op_network(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     return await cam.network()
 
 
-async def op_set_network(cam: Any, args: Mapping[str, Any]) -> Any:
+async def op_set_network(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     values = args.get("values") or {}
     if not isinstance(values, Mapping) or not values:
         raise OpError("values must name the settings to write (address, gateway, ...)")

@@ -11,31 +11,42 @@ import asyncio
 import contextlib
 import importlib.resources
 import logging
+import time
 from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from aiohttp import web
 from aiohttp.http_exceptions import HttpProcessingError
 
 from ..video.webconsole import attach as attach_video
 from .auth import needs_token, resolve_token, token_middleware
+from .capture import pcap
 from .catalog_api import catalog_json
 from .guard import HostGuard, default_allowed_hosts
 from .hub import Hub
+from .pages import PageHub
+
+if TYPE_CHECKING:
+    from ..client import AsyncClient
+    from ..sim import FaultPlan, Simulator
+    from ..wire.proxy import Proxy
 
 log = logging.getLogger(__name__)
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8080
-HUB_KEY = web.AppKey("hub", Hub)
+LINK_TIMEOUT_S = 3.0  # the client declares the camera's link lost after this long without a frame
+HUB_KEY = web.AppKey("hub", PageHub)
 
 
 def static_dir() -> Path:
     return Path(str(importlib.resources.files("topgimbal.console") / "static"))
 
 
-def create_app(hub: Hub, *, token: str | None = None, allowed_hosts: Iterable[str] | None = None) -> web.Application:
+def create_app(
+    hub: PageHub, *, token: str | None = None, allowed_hosts: Iterable[str] | None = None
+) -> web.Application:
     """The aiohttp app: `/` the page, `/static/*` its files, `/api/*` JSON, `/ws` the socket.
 
     Every request passes the Host/Origin allow-list first (`guard.py`; default: the loopback
@@ -57,9 +68,24 @@ def create_app(hub: Hub, *, token: str | None = None, allowed_hosts: Iterable[st
     async def ws(request: web.Request) -> web.StreamResponse:
         return await hub.handle_ws(request)
 
+    async def traffic_pcap(request: web.Request) -> web.Response:
+        frames = hub.recorder.frames()  # taken here, written in a thread (a temporary file)
+        data = await asyncio.to_thread(pcap, frames, hub.link)
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        return web.Response(
+            body=data,
+            content_type="application/vnd.tcpdump.pcap",
+            headers={
+                "Content-Disposition": f'attachment; filename="topgimbal-{hub.model.name}-{stamp}.pcap"',
+                "Cache-Control": "no-store",
+                "X-Topgimbal-Frames": str(len(frames)),
+            },
+        )
+
     app.router.add_get("/", index)
     app.router.add_get("/api/catalog", catalog)
     app.router.add_get("/api/status", status)
+    app.router.add_get("/api/traffic.pcap", traffic_pcap)
     app.router.add_get("/ws", ws)
     app.router.add_static("/static/", root, show_index=False)
     return app
@@ -78,6 +104,12 @@ class HttpLog(logging.LoggerAdapter):  # type: ignore[type-arg]
         super().log(level, msg, *args, **kwargs)
 
 
+async def _no_video(request: web.Request) -> web.Response:
+    """No video (a watched proxy, a model without video facts, no video extra): the page's video
+    module shows no panel, and the browser logs no failed request."""
+    return web.Response(status=204)
+
+
 def _dumps(obj: Any) -> str:
     import json
 
@@ -85,7 +117,8 @@ def _dumps(obj: Any) -> str:
 
 
 class ConsoleServer:
-    """Simulator (optional) + client + HTTP server, started and stopped together."""
+    """Simulator (optional) + client + HTTP server, started and stopped together; or, with
+    `proxy_listen` and `proxy_to`, a proxy in this process that the page watches (read-only)."""
 
     def __init__(
         self,
@@ -94,6 +127,9 @@ class ConsoleServer:
         model: str | None = None,
         sim_model: str | None = None,
         sim_seed: int = 0,
+        sim_faults: FaultPlan | None = None,
+        proxy_listen: str | None = None,
+        proxy_to: str | None = None,
         host: str = DEFAULT_HOST,
         port: int = DEFAULT_PORT,
         token: str | None = None,
@@ -101,15 +137,28 @@ class ConsoleServer:
         attitude_hz: float = 50.0,
         timeout_s: float = 1.0,
         retries: int = 2,
+        link_timeout_s: float = LINK_TIMEOUT_S,
     ) -> None:
-        if sim_model is None and not url:
+        watch = proxy_listen is not None or proxy_to is not None
+        if watch and not (proxy_listen and proxy_to):
+            raise ValueError("--proxy needs both --listen URL (where clients connect) and --to URL (the camera)")
+        if watch and (sim_model is not None or url):
+            raise ValueError("--proxy watches the camera behind it: give --listen and --to, not --url or --sim")
+        if watch and not model:
+            raise ValueError("give --model with --proxy: the page describes the camera's commands from its model")
+        if not watch and sim_model is None and not url:
             raise ValueError("give the camera's --url (and --model), or --sim MODEL to run a simulator")
         if sim_model is not None and url:
             raise ValueError("--sim runs its own simulator: give either --url or --sim, not both")
+        if sim_faults is not None and sim_model is None:
+            raise ValueError("--faults applies to the simulator: use it with --sim")
         self.url = url
         self.model = model or sim_model
         self.sim_model = sim_model
         self.sim_seed = sim_seed
+        self.sim_faults = sim_faults
+        self.proxy_listen = proxy_listen
+        self.proxy_to = proxy_to
         self.host = host
         self.port = port
         self.token, self.token_generated = resolve_token(host, token)
@@ -117,9 +166,11 @@ class ConsoleServer:
         self.attitude_hz = attitude_hz
         self.timeout_s = timeout_s
         self.retries = retries
-        self.sim: Any = None
-        self.cam: Any = None
-        self.hub: Hub | None = None
+        self.link_timeout_s = link_timeout_s
+        self.sim: Simulator | None = None
+        self.cam: AsyncClient | None = None  # the hub sees it as a CameraAPI
+        self.proxy: Proxy | None = None
+        self.hub: PageHub | None = None
         self.app: web.Application | None = None
         self._runner: web.AppRunner | None = None
         self.bound_port: int | None = None
@@ -136,24 +187,15 @@ class ConsoleServer:
         return self.base_url + (f"?token={self.token}" if self.token else "")
 
     async def start(self) -> None:
-        from .. import client as client_mod
-
         try:
-            if self.sim_model is not None:
-                from ..sim import Simulator
-
-                self.sim = Simulator(model=self.sim_model, seed=self.sim_seed)
-                await self.sim.start(udp=[("127.0.0.1", 0)])
-                self.url = self.sim.url
-            assert self.url is not None
-            self.cam = await client_mod.connect(
-                self.url, model=self.model or "C12", timeout_s=self.timeout_s, retries=self.retries
-            )
-            self.hub = Hub(self.cam, url=self.url, attitude_hz=self.attitude_hz)
+            self.hub = await (self._watch() if self.proxy_listen else self._connect())
             await self.hub.start()
             self.app = create_app(self.hub, token=self.token, allowed_hosts=self.allowed_hosts)
-            # video routes sit behind the same Host/Origin guard middleware as every other route
-            self.video = await attach_video(self, self.app)  # topgimbal.video: streams, relay, routes
+            if self.cam is not None:  # video needs a camera to point; a watched proxy has none of ours
+                # video routes sit behind the same Host/Origin guard middleware as every other route
+                self.video = await attach_video(self, self.app)  # topgimbal.video: streams, relay, routes
+            if self.video is None:  # (the reason is logged by topgimbal.video)
+                self.app.router.add_get("/api/video", _no_video)
             self._runner = web.AppRunner(
                 self.app, access_log=None, handle_signals=False, logger=HttpLog(logging.getLogger("aiohttp.server"))
             )
@@ -166,6 +208,37 @@ class ConsoleServer:
         except BaseException:
             await self.stop()
             raise
+
+    async def _connect(self) -> Hub:
+        from .. import client as client_mod
+
+        if self.sim_model is not None:
+            from ..sim import Simulator
+
+            self.sim = Simulator(model=self.sim_model, seed=self.sim_seed, faults=self.sim_faults)
+            await self.sim.start(udp=[("127.0.0.1", 0)])
+            self.url = self.sim.url
+        assert self.url is not None
+        self.cam = await client_mod.connect(
+            self.url,
+            model=self.model or "C12",
+            timeout_s=self.timeout_s,
+            retries=self.retries,
+            link_timeout_s=self.link_timeout_s,
+        )
+        return Hub(self.cam, url=self.url, attitude_hz=self.attitude_hz)
+
+    async def _watch(self) -> PageHub:
+        from ..protocol import get_model
+        from ..wire.proxy import Proxy
+        from .watch import WatchHub
+
+        assert self.proxy_listen and self.proxy_to and self.model
+        dialect, model = get_model(self.model)
+        self.proxy = Proxy(self.proxy_listen, self.proxy_to, model=self.model)
+        await self.proxy.start()
+        self.url = f"{self.proxy.url} -> {self.proxy.to.text}"
+        return WatchHub(self.proxy, dialect, model, attitude_hz=self.attitude_hz)
 
     async def stop(self) -> None:
         if self.video is not None:  # first: it ends the endless picture responses
@@ -182,6 +255,10 @@ class ConsoleServer:
             with contextlib.suppress(Exception):
                 await self.cam.close()
             self.cam = None
+        if self.proxy is not None:
+            with contextlib.suppress(Exception):
+                await self.proxy.stop()
+            self.proxy = None
         if self.sim is not None:
             with contextlib.suppress(Exception):
                 await self.sim.stop()
@@ -195,7 +272,8 @@ class ConsoleServer:
         await self.stop()
 
     def banner(self) -> str:
-        lines = [f"topgimbal console for {self.model} at {self.url}", f"open {self.page_url}"]
+        watching = " (watching the proxy: read-only)" if self.proxy is not None else ""
+        lines = [f"topgimbal console for {self.model} at {self.url}{watching}", f"open {self.page_url}"]
         if needs_token(self.host):
             lines.append(
                 f"(answers to the names {', '.join(sorted(self.allowed_hosts))} and to the address a "

@@ -1,10 +1,14 @@
 // topgimbal console page. Plain ES modules, no build step.
 // Data flow: /api/catalog (what the model supports, with field metadata) + /ws pushes
 // (hello, attitude, status, traffic, error) -> DOM; user actions -> ops over /ws, each acked.
+// The panels are built from the catalog's roles and groups (lib/panels.js, lib/catalog.js); the
+// link state (LOST, read-only) is the server's (lib/link.js).
 
-import { Conn, fetchJSON } from "./lib/conn.js";
+import { Conn, fetchJSON, withToken } from "./lib/conn.js";
 import { drawHeading, drawHorizon, drawNoAttitude } from "./lib/gauges.js";
-import { commandRow, describeFields, el, fieldInputs, formatFields, reasonFor as reasonOf, requestForm } from "./lib/fields.js";
+import { describeFields, el, formatFields } from "./lib/fields.js";
+import { lockControls, showLink } from "./lib/link.js";
+import { buildAttitude, buildBuilder, buildCamera, buildNetwork, buildPointing, buildRange, buildThermal, showReport } from "./lib/panels.js";
 
 const $ = (id) => document.getElementById(id);
 
@@ -24,8 +28,11 @@ const S = {
   recordingSince: null,
   recording: false,
   photos: 0,
-  netValues: {},
-  initialReads: [],
+  status: null,        // the newest status push (link state included)
+  lockReason: null,    // why the camera's controls are disabled (link lost, read-only), or null
+  range: { yaw: [-180, 180], pitch: [-90, 90] },
+  maxRate: 0,
+  ratesReason: null,   // why the model takes no rate commands, or null
 };
 
 // ---------------------------------------------------------------- messages and errors
@@ -68,7 +75,7 @@ function run(op, args = {}, okText = null) {
 
 const conn = new Conn({
   onState(state) {
-    if (state !== "open") setLink(state === "closed" ? "disconnected" : "connecting");
+    if (state !== "open") setPageLink(state === "closed" ? "disconnected" : "connecting");
   },
   onMessage(msg) {
     switch (msg.type) {
@@ -86,23 +93,50 @@ const conn = new Conn({
   },
 });
 
-// The link badge: the only place that decides its state and text (status pushes and the page's
-// own socket both come through here).
-function setLink(state, title = "") {
+// The page's own socket to the console server (not the camera's link): shown on the badge while
+// it is not open; the camera's link comes with every status (applyLink).
+function setPageLink(state) {
   const l = $("link");
   l.dataset.state = state;
   l.textContent = state;
-  l.title = title;
-  $("conn-link").textContent = state + (title ? ` (${title})` : "");
+  l.title = "the page's connection to the console server";
+  $("conn-link").textContent = `${state} (${l.title})`;
 }
+
+// The camera's link state from a status push: badge, LOST banner, controls, gauges.
+function applyLink(st) {
+  const reason = showLink(st, S.clockOffset);
+  if (reason !== S.lockReason || reason) {
+    const was = S.lockReason;
+    S.lockReason = reason;
+    if (S.catalog) lockControls(reason);   // the panels exist: (un)lock them now; main() does it otherwise
+    if (!was && reason && st.link === "lost") showLost();
+    $("panel-attitude").classList.toggle("lost", st.link === "lost");
+    if (was && !reason) toast("Camera link back: frames arrive again", "ok", 4000);
+  }
+}
+
+// The gauges while the link is lost: never the last attitude as if it were live.
+function showLost() {
+  if (!S.hasAttitude) return;
+  S.attitude = null;
+  drawNoAttitude($("horizon"), "link lost");
+  drawNoAttitude($("heading"), "link lost", S.target);
+  $("horizon").dataset.state = $("heading").dataset.state = "lost";
+}
+
+let helloResolve;
+const helloSeen = new Promise((resolve) => { helloResolve = resolve; });
 
 function onHello(msg) {
   $("camera-url").textContent = msg.url || "";
+  document.body.dataset.mode = msg.mode || "camera";
   S.traffic = [];
   renderedKey = null;
   onTraffic(msg.traffic || []);
   S.trafficDirty = true;
   if (msg.status) onStatus(msg.status);
+  helloResolve(msg);
 }
 
 const num = (v, d = 0) => (typeof v === "number" && Number.isFinite(v) ? v.toFixed(d) : "–");
@@ -114,8 +148,13 @@ function pick(obj, ...keys) {
 
 function onStatus(st) {
   S.clockOffset = Date.now() / 1000 - st.now;
-  const age = st.last_in_age_s;
-  setLink(st.link, age == null ? "no frame yet" : `last frame ${age.toFixed(1)} s ago`);
+  S.status = st;
+  applyLink(st);
+  if (st.recorded) {
+    const r = st.recorded;
+    $("traffic-pcap").title = `Download what the console recorded as pcap (Wireshark, tshark): the newest ${r.frames} frames ` +
+      `(${(r.bytes / 1024).toFixed(0)} KiB; it keeps at most ${r.max_frames} frames and ${(r.max_bytes / 1048576).toFixed(0)} MiB)`;
+  }
   const stats = st.stats || {};
   $("frames-in").textContent = pick(stats, "frames_in", "rx_frames") ?? 0;
   $("frames-out").textContent = pick(stats, "frames_out", "tx_frames") ?? 0;
@@ -147,7 +186,7 @@ function formatVersion(v) {
 // ---------------------------------------------------------------- attitude (rAF rendering)
 
 function frame() {
-  if (S.attitudeDirty && S.attitude) {
+  if (S.attitudeDirty && S.attitude && S.status?.link !== "lost") {
     S.attitudeDirty = false;
     const a = S.attitude;
     $("yaw").textContent = a.yaw.toFixed(2);
@@ -168,6 +207,7 @@ setInterval(() => {
   S.attRate = S.attCount;
   S.attCount = 0;
   $("conn-att-rate").textContent = `${S.attRate} Hz`;
+  if (S.status?.link === "lost") showLink(S.status, S.clockOffset); // "... (12 s ago)" keeps counting
 }, 1000);
 
 function clock(s) {
@@ -179,13 +219,11 @@ function clock(s) {
 
 // ---------------------------------------------------------------- traffic
 
-const ATTITUDE_IDS = new Set(["GAC", "GIA", "GIC"]);
-
 function onTraffic(items) {
   for (const it of items) {
     it.seq = ++trafficSeq;
     S.traffic.push(it);
-    if (it.dir === "in" && it.fields) onReport(it);
+    if (it.dir === "in" && it.fields && S.catalog) showReport(S.catalog, it);
   }
   if (S.traffic.length > 3000) S.traffic.splice(0, S.traffic.length - 3000);
   if (!$("traffic-pause").checked) S.trafficDirty = true;
@@ -193,7 +231,7 @@ function onTraffic(items) {
 
 function trafficMatches(it, q, dir, hideAtt) {
   if (dir !== "all" && it.dir !== dir) return false;
-  if (hideAtt && (ATTITUDE_IDS.has(it.id) || it.poll)) return false;
+  if (hideAtt && (it.stream || it.poll)) return false;
   if (!q) return true;
   it.hay ??= `${it.id || ""} ${it.name || ""} ${it.frame} ${formatFields(it.fields)} ${meaningOf(it)}`.toLowerCase();
   const hay = it.hay;
@@ -215,7 +253,7 @@ let renderedSeq = 0;     // ... and of the newest item considered for the pane
 let renderedKey = null;  // the filter the pane was built with
 
 function trafficRow(it) {
-  const cls = `tr ${it.dir}${it.error ? " err" : ""}${it.id === "ERE" ? " ere" : ""}${it.poll ? " poll" : ""}`;
+  const cls = `tr ${it.dir}${it.error ? " err" : ""}${S.catalog?.commands[it.id]?.role === "error" ? " ere" : ""}${it.poll ? " poll" : ""}`;
   const t = new Date(it.t * 1000);
   const ts = t.toLocaleTimeString([], { hour12: false }) + "." + String(t.getMilliseconds()).padStart(3, "0");
   const meaning = meaningOf(it);
@@ -261,18 +299,6 @@ for (const id of ["traffic-filter", "traffic-dir", "traffic-hide-att"]) {
 $("traffic-pause").addEventListener("change", () => { S.trafficDirty = true; });
 $("traffic-clear").addEventListener("click", () => { S.traffic = []; renderedKey = null; S.trafficDirty = true; });
 
-// Device -> host reports the page shows elsewhere (range, target position).
-function onReport(it) {
-  const f = it.fields;
-  if ((it.id === "LRF" || it.id === "SLR") && "distance_m" in f) {
-    $("range-distance").textContent = f.distance_m == null ? "no echo (out of range)" : `${f.distance_m.toFixed(1)} m`;
-  } else if (it.id === "LAT" && "lat_deg" in f) {
-    $("target-lat").textContent = `${f.lat_deg.toFixed(6)}°`;
-  } else if (it.id === "LON" && "lon_deg" in f) {
-    $("target-lon").textContent = `${f.lon_deg.toFixed(6)}°`;
-  }
-}
-
 // A command's answer in the builder's result line: English labels, raw fields as tooltip.
 function showAnswer(prefix, m) {
   const node = $("cmd-result");
@@ -299,17 +325,12 @@ $("raw-input").addEventListener("keydown", (e) => { if (e.key === "Enter") $("bt
 
 // ---------------------------------------------------------------- building the panels from the catalog
 
-const supported = (id) => !!S.catalog.commands[id];
-const reasonFor = (id) => reasonOf(S.catalog, id);
-const sectionOf = (...ids) => ids.map((id) => S.catalog.unsupported[id]?.section).filter(Boolean).join("; ");
-
 // A visible reason (no vendor section numbers in the text: they are in its tooltip).
-function showReason(node, text, ...ids) {
+function showReason(node, text, sections = "") {
   node.hidden = false;
   node.textContent = text;
-  node.title = sectionOf(...ids);
+  node.title = sections;
 }
-const ctx = { get catalog() { return S.catalog; }, run };
 
 function disable(node, reason) {
   node.disabled = true;
@@ -317,46 +338,13 @@ function disable(node, reason) {
   node.dataset.reason = reason;
 }
 
-function buildPointing() {
-  const m = S.model;
-  const haveAngles = supported("GAY") || supported("GAM");
-  const haveRates = supported("GSM") || supported("GSY");
-  if (!haveAngles && !haveRates && !supported("PTZ")) {
-    showReason($("pointing-reason"), `The ${m.name} has no gimbal: ${reasonFor("PTZ")}`, "PTZ");
-    $("panel-pointing").classList.add("disabled");
-    $("pad").dataset.reason = reasonFor("PTZ");
-    for (const b of $("panel-pointing").querySelectorAll("button, input, select")) disable(b, reasonFor("PTZ"));
-    return;
-  }
-  S.range = { yaw: angleRange("yaw"), pitch: angleRange("pitch") };
-  for (const axis of ["yaw", "pitch"]) {
-    const [lo, hi] = S.range[axis];
-    const input = $(`angle-${axis}`);
-    Object.assign(input, { min: lo, max: hi, title: `${lo}..${hi}° on the ${m.name}` + (axis === "pitch" ? " (up positive)" : "") });
-    input.addEventListener("input", () => checkAngle(axis));
-  }
-  if (!haveAngles) for (const id of ["btn-point", "angle-yaw", "angle-pitch"]) disable($(id), reasonFor("GAY"));
-  if (!supported("PTZ")) for (const id of ["btn-center", "btn-follow", "btn-lock", "btn-calib"]) disable($(id), reasonFor("PTZ"));
-  // calibrations / mount orientation / trims: the PTZ codes of this dialect, from its enum table
-  const ptz = requestForm(S.catalog.commands.PTZ, "w");
-  const codes = (ptz?.fields?.[0]?.values || []).filter((v) => /^(calibrate|mount_|trim_|look_down)/.test(v.name));
-  const sel = $("calib-select");
-  for (const v of codes) sel.append(el("option", { value: v.name, text: v.label || v.name }));
-  if (!codes.length) disable($("btn-calib"), `no calibration codes in the ${S.catalog.dialect_label}`);
-  S.maxRate = maxRate();
-  if (!haveRates) $("pad").dataset.reason = reasonFor("GSY");
-}
-
-// The range an angle input accepts: the model's range, narrowed by the angle command's field range.
-function angleRange(axis) {
-  let [lo, hi] = S.model[`${axis}_range_deg`];
-  for (const id of ["GAM", axis === "yaw" ? "GAY" : "GAP"]) {
-    const f = requestForm(S.catalog.commands[id], "w")?.fields?.find((x) => x.name === `${axis}_deg`);
-    if (f?.min != null) lo = Math.max(lo, f.min);
-    if (f?.max != null) hi = Math.min(hi, f.max);
-  }
-  return [lo, hi];
-}
+// What the panel builders get (lib/panels.js).
+const ui = {
+  get catalog() { return S.catalog; },
+  run, toast, showError, showReason, disable,
+  reads: [],
+  onReport: (it) => showReport(S.catalog, it),
+};
 
 // The problem with an angle input's value (null when fine); marks the input.
 function checkAngle(axis) {
@@ -373,172 +361,7 @@ function checkAngle(axis) {
   input.title = problem || `${lo}..${hi}° on the ${S.model.name}`;
   return problem;
 }
-
-function maxRate() {
-  const spec = S.catalog.commands.GSY || S.catalog.commands.GSM;
-  const f = requestForm(spec, "w")?.fields?.[0];
-  const fieldMax = f?.max ?? Infinity;
-  return Math.min(S.model.max_rate_deg_s || 30, fieldMax);
-}
-
-function buildAttitude() {
-  S.hasAttitude = supported("GAA") || supported("GAC");
-  if (!S.hasAttitude) {
-    showReason($("attitude-reason"), `No attitude on the ${S.model.name}: ${reasonFor("GAC")}`, "GAC", "GAA");
-    for (const id of ["yaw", "pitch", "roll"]) $(id).title = "this model reports no attitude";
-  }
-  if (!supported("VER") && !supported("VSN")) {
-    $("conn-version").textContent = "not available";
-    $("conn-version").title = reasonFor(S.catalog.dialect === "topotek" ? "VSN" : "VER");
-  }
-}
-
-function buildCamera() {
-  const missing = ["CAP", "REC"].filter((id) => !supported(id));
-  if (missing.length) showReason($("camera-reason"), missing.map(reasonFor).join("; "), ...missing);
-  if (!supported("CAP")) disable($("btn-photo"), reasonFor("CAP"));
-  if (!supported("REC")) disable($("btn-record"), reasonFor("REC"));
-  for (const b of document.querySelectorAll("[data-hold], [data-once]")) {
-    const id = b.dataset.hold || b.dataset.once;
-    if (!supported(id)) disable(b, reasonFor(id));
-  }
-  const box = $("camera-settings");
-  for (const [id, title] of [["DZM", "Digital zoom"], ["PIP", "Picture in picture"], ["VID", "Resolution"]]) {
-    box.append(commandRow(ctx, id, title));
-  }
-  if (!supported("SDC")) {
-    $("sd").textContent = "not available";
-    $("sd").title = reasonFor("SDC");
-  }
-}
-
-const THERMAL = ["IMG", "TSM", "TMR", "TAS", "TDI", "TIB", "TIC", "TAR", "TTR", "TGM"];
-
-function buildThermal() {
-  const box = $("thermal-settings");
-  const missing = $("thermal-unsupported");
-  if (!S.model.thermal) showReason($("thermal-reason"), `The ${S.model.name} (${S.model.title}) has no thermal camera.`);
-  let n = 0;
-  for (const id of THERMAL) {
-    // commands the dialect does not have at all are left out; the others show why they are off
-    if (supported(id)) {
-      const row = commandRow(ctx, id);
-      box.append(row);
-      if (row.read) S.initialReads.push(row.read);
-    }
-    else if (S.catalog.unsupported[id]) {
-      missing.append(commandRow(ctx, id));
-      n++;
-    }
-  }
-  if (n) {
-    $("thermal-missing").hidden = false;
-    $("thermal-missing-summary").textContent = `${n} thermal setting${n > 1 ? "s" : ""} not available on the ${S.model.name} (why)`;
-  }
-}
-
-function buildRange() {
-  const box = $("range-buttons");
-  if (supported("LRF")) {
-    for (const [action, text] of [["single", "Measure"], ["continuous", "Continuous"], ["stop", "Stop"]]) {
-      box.append(el("button", { "data-testid": `btn-range-${action}`, text,
-        onclick: () => run("request", { id: "LRF", values: { action } }) }));
-    }
-  } else if (supported("SLR")) {
-    box.append(el("button", { "data-testid": "btn-range-single", text: "Measure",
-      onclick: async () => {
-        const m = await run("request", { id: "SLR", read: true });
-        if (m?.fields) onReport({ id: "SLR", fields: m.fields });
-      } }));
-  } else {
-    const id = S.catalog.unsupported.SLR ? "SLR" : "LRF";
-    showReason($("range-reason"), `The ${S.model.name} has no laser rangefinder: ${reasonFor(id)}.`, id);
-    $("range-distance").textContent = "not available";
-  }
-  for (const id of ["ALT", "LAT", "LON", "AZI"]) {
-    if (supported(id)) $("vehicle-settings").append(commandRow(ctx, id));
-  }
-  if (!$("vehicle-settings").children.length) $("vehicle-box").hidden = true;
-  const lat = S.catalog.commands.LAT;
-  const hasTarget = lat?.forms?.some((f) => f.direction === "response" && f.title === "target solution");
-  if (!hasTarget) {
-    $("target-lat").textContent = $("target-lon").textContent = "not reported by this model";
-  }
-}
-
-const NET = [["IPV", "IP address"], ["GTW", "Gateway"], ["DNS", "DNS"], ["BNS", "Backup DNS"]];
-
-function buildNetwork() {
-  const box = $("network-fields");
-  const have = NET.filter(([id]) => supported(id));
-  if (!have.length) {
-    showReason($("network-reason"), reasonFor("IPV"), "IPV");
-    disable($("btn-net-read"), reasonFor("IPV"));
-    disable($("btn-net-write"), reasonFor("IPV"));
-    return;
-  }
-  for (const [id, label] of have) {
-    box.append(el("label", { for: `net-${id}`, text: label }),
-      el("input", { id: `net-${id}`, "data-testid": `net-${id}`, type: "text", placeholder: "read first", spellcheck: "false" }));
-  }
-}
-
-async function readNetwork() {
-  for (const [id] of NET.filter(([i]) => supported(i))) {
-    const m = await run("request", { id, read: true });
-    const v = m?.fields?.address;
-    if (v != null) {
-      S.netValues[id] = v;
-      $(`net-${id}`).value = v;
-    }
-  }
-}
-
-async function writeNetwork() {
-  const changes = NET.filter(([id]) => supported(id))
-    .map(([id, label]) => [id, label, $(`net-${id}`).value.trim()])
-    .filter(([id, , v]) => v && v !== S.netValues[id]);
-  if (!changes.length) return toast("Nothing to write: read the settings and change a value first.");
-  const list = changes.map(([, label, v]) => `${label}: ${v}`).join("\n");
-  const ip = changes.find(([id]) => id === "IPV");
-  const warning = ip
-    ? `The camera's address will change to ${ip[2]}. This console will lose contact with the camera; restart it with the new address.`
-    : "The camera's network configuration (and so its address) will change; this console may lose contact with it.";
-  if (!window.confirm(`Write these network settings?\n\n${list}\n\n${warning}`)) return toast("Network settings not written.");
-  for (const [id, label, v] of changes) {
-    const r = await run("request", { id, values: { address: v } }, `${label} written`);
-    if (r !== undefined) S.netValues[id] = v;
-  }
-}
-
-function buildBuilder() {
-  const sel = $("cmd-select");
-  const ids = Object.keys(S.catalog.commands).sort();
-  for (const id of ids) {
-    const c = S.catalog.commands[id];
-    if (!requestForm(c, "w") && !requestForm(c, "r")) continue;
-    sel.append(el("option", { value: id, text: `${id} — ${c.title}` }));
-  }
-  let inputs = null;
-  const refresh = () => {
-    const spec = S.catalog.commands[sel.value];
-    const rwSel = $("cmd-rw");
-    for (const o of rwSel.options) o.disabled = !requestForm(spec, o.value);
-    if (!requestForm(spec, rwSel.value)) rwSel.value = requestForm(spec, "w") ? "w" : "r";
-    const form = requestForm(spec, rwSel.value);
-    inputs = fieldInputs(form?.fields || [], { prefix: "cmd-" });
-    $("cmd-fields").replaceChildren(inputs.node);
-  };
-  sel.addEventListener("change", refresh);
-  $("cmd-rw").addEventListener("change", refresh);
-  $("btn-cmd-send").addEventListener("click", async () => {
-    const read = $("cmd-rw").value === "r";
-    const m = await run("request", { id: sel.value, read, values: inputs.get() });
-    if (m !== undefined) showAnswer("", m);
-  });
-  if (ids.includes("VER")) sel.value = "VER";
-  refresh();
-}
+for (const axis of ["yaw", "pitch"]) $(`angle-${axis}`).addEventListener("input", () => checkAngle(axis));
 
 // ---------------------------------------------------------------- camera actions
 
@@ -580,27 +403,28 @@ $("btn-record").addEventListener("click", async () => {
 });
 
 // hold-to-move buttons (zoom, focus): action while pressed, stop on release
-for (const b of document.querySelectorAll("[data-hold]")) {
+// (their command is the one playing `data-hold-role` / `data-once-role`, set by buildCamera)
+for (const b of document.querySelectorAll("[data-hold-role]")) {
   let held = false;
   const release = () => {
     if (!held) return;
     held = false;
     b.classList.remove("held");
-    run("request", { id: b.dataset.hold, values: { action: "stop" } });
+    run("request", { id: b.dataset.id, values: { action: "stop" } });
   };
   b.addEventListener("pointerdown", (e) => {
     if (b.disabled) return;
     held = true;
     b.setPointerCapture?.(e.pointerId);
     b.classList.add("held");
-    run("request", { id: b.dataset.hold, values: { action: b.dataset.action } });
+    run("request", { id: b.dataset.id, values: { action: b.dataset.action } });
   });
   b.addEventListener("pointerup", release);
   b.addEventListener("pointercancel", release);
   b.addEventListener("lostpointercapture", release);
 }
-for (const b of document.querySelectorAll("[data-once]")) {
-  b.addEventListener("click", () => run("request", { id: b.dataset.once, values: { action: b.dataset.action } }, `${b.textContent} sent`));
+for (const b of document.querySelectorAll("[data-once-role]")) {
+  b.addEventListener("click", () => run("request", { id: b.dataset.id, values: { action: b.dataset.action } }, `${b.textContent} sent`));
 }
 
 function showSD(sd) {
@@ -673,10 +497,8 @@ $("btn-lock").addEventListener("click", () => run("mode", { mode: "lock" }, "Loc
 $("btn-calib").addEventListener("click", () => {
   const sel = $("calib-select");
   const label = sel.selectedOptions[0]?.textContent || sel.value;
-  const mount = sel.value.startsWith("mount_");
-  const text = mount
-    ? `Change the mount orientation: "${label}"?\n\nThe gimbal re-orients its axes; only do this to match how the camera is mounted.`
-    : `Run "${label}" on the ${S.model.name}?\n\nThe gimbal may move on its own; keep it level and still until it finishes.`;
+  const text = `Send "${label}" to the ${S.model.name}?\n\nThe gimbal may move or re-orient its axes on its own ` +
+    "(calibrations, mount orientation, trims): keep it level and still until it finishes.";
   if (!window.confirm(text)) return toast(`${label}: cancelled`);
   return run("ptz", { action: sel.value }, `${label} sent`);
 });
@@ -725,7 +547,8 @@ function padMove(e) {
 }
 
 pad.addEventListener("pointerdown", (e) => {
-  if (pad.dataset.reason) return showError(pad.dataset.reason);
+  const why = pad.dataset.locked || S.ratesReason;
+  if (why) return showError(why);
   padActive = true;
   pad.setPointerCapture(e.pointerId);
   pad.classList.add("active");
@@ -754,7 +577,7 @@ function keyRates() {
 }
 
 document.addEventListener("keydown", (e) => {
-  if (!(e.key in KEYDIR) || !S.catalog || pad.dataset.reason) return;
+  if (!(e.key in KEYDIR) || !S.catalog || pad.dataset.locked || S.ratesReason) return;
   if (e.target.closest && e.target.closest("input, select, textarea")) return;
   e.preventDefault();
   if (keys.has(e.key)) return;
@@ -770,15 +593,7 @@ window.addEventListener("blur", () => { if (keys.size) { keys.clear(); stopRates
 
 // ---------------------------------------------------------------- start
 
-$("btn-net-read").addEventListener("click", readNetwork);
-$("btn-net-write").addEventListener("click", writeNetwork);
 
-function waitOpen() {
-  return new Promise((resolve) => {
-    const check = () => (conn.ws && conn.ws.readyState === WebSocket.OPEN ? resolve() : setTimeout(check, 50));
-    check();
-  });
-}
 
 async function main() {
   try {
@@ -788,28 +603,36 @@ async function main() {
     return;
   }
   S.model = S.catalog.model;
+  $("traffic-pcap").href = withToken("api/traffic.pcap");
   document.title = `${S.model.name} · topgimbal console`;
   $("model-name").textContent = `${S.model.name} · ${S.catalog.dialect}`;
   $("conn-model").textContent = S.model.title;
   $("conn-dialect").textContent = S.catalog.dialect_label;
   $("conn-dialect").title = S.catalog.dialect_title;
-  buildAttitude();
-  buildPointing();
-  buildCamera();
-  buildThermal();
-  buildRange();
-  buildNetwork();
-  buildBuilder();
-  // show the camera's current settings (once the socket is up); ready for automation afterwards
-  await waitOpen();
-  await Promise.all(S.initialReads.map((read) => read()));
-  document.body.dataset.ready = "1";
+  S.hasAttitude = buildAttitude(ui);
+  const pointing = buildPointing(ui);
+  Object.assign(S, { range: pointing.range, maxRate: pointing.maxRate, ratesReason: pointing.rates });
+  buildCamera(ui);
+  buildThermal(ui);
+  buildRange(ui);
+  buildNetwork(ui);
+  buildBuilder(ui, showAnswer);
   // never a level horizon and a heading of 0 as if live: say what is missing until samples come
   const text = S.hasAttitude ? "waiting for attitude" : "no attitude";
   const state = S.hasAttitude ? "waiting" : "none";
   drawNoAttitude($("horizon"), text);
   drawNoAttitude($("heading"), text);
   $("horizon").dataset.state = $("heading").dataset.state = state;
+  // show the camera's current settings (once the socket is up and the camera is there: a read
+  // of a lost or watched camera only fails); ready for automation afterwards
+  const hello = await helloSeen;
+  if (S.lockReason) {
+    lockControls(S.lockReason);
+    if (S.status?.link === "lost") showLost();
+  } else if (hello.mode !== "watch") {
+    await Promise.all(ui.reads.map((read) => read()));
+  }
+  document.body.dataset.ready = "1";
   requestAnimationFrame(frame);
 }
 

@@ -200,7 +200,9 @@ export function commandRow(ctx, ident, title) {
   }
   const wForm = requestForm(spec, "w");
   const rForm = requestForm(spec, "r");
-  const inputs = fieldInputs(wForm ? wForm.fields : [], { prefix: `${ident}-` });
+  // a query that takes arguments (and has no write) gets inputs for them
+  const asks = !wForm && (rForm?.fields || []).length > 0;
+  const inputs = fieldInputs(wForm ? wForm.fields : asks ? rForm.fields : [], { prefix: `${ident}-` });
   const result = el("span", { class: "small muted", "data-testid": `result-${ident}` });
   const acts = el("span", { class: "acts" });
   if (wForm) {
@@ -210,10 +212,9 @@ export function commandRow(ctx, ident, title) {
     }));
   }
   if (rForm) {
-    const readArgs = rForm.fields?.length ? {} : undefined;
-    row.read = () => ctx.run("request", { id: ident, read: true, values: readArgs }).then((m) => {
+    row.read = () => ctx.run("request", { id: ident, read: true, values: asks ? inputs.get() : undefined }).then((m) => {
       if (m?.fields) {
-        inputs.set(m.fields);
+        if (!asks) inputs.set(m.fields);
         showResult(result, spec, m.fields);
       }
     });
