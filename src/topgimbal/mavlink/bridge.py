@@ -53,7 +53,8 @@ class BridgeConfig:
     stream_hz: float = 50.0
     heartbeat_hz: float = 1.0
     range_hz: float = 1.0
-    video_urls: list[str] | None = None
+    video_urls: list[str] | None = None  # None: the model's streams at the camera's address
+    video_port: int | None = None  # the first stream's RTSP port when not the profile's (others keep the spacing)
     timeout_s: float = 1.0
     retries: int = 2
     silence_s: float = 3.0
@@ -78,6 +79,8 @@ class BridgeConfig:
             v = getattr(self, name)
             if not lo <= v <= hi:
                 raise BridgeConfigError(f"{name}={v:g}: expected {lo:g}..{hi:g}")
+        if self.video_port is not None and not 1 <= self.video_port <= 65535:
+            raise BridgeConfigError(f"video_port={self.video_port}: expected 1..65535")
         if not 1 <= self.max_peers <= 256:
             raise BridgeConfigError(f"max_peers={self.max_peers}: expected 1..256")
 
@@ -113,13 +116,17 @@ class Bridge:
         self.cameras: list[CameraComponent] = []
         if c.camera_compid is not None:
             gimbal_ref = c.compid if c.role in ("device", "both") else NON_MAVLINK_GIMBAL_ID
-            urls = c.video_urls if c.video_urls is not None else self.cam.profile.rtsp_urls(self.cam.camera_host)
             lenses = ["visible"] + (["thermal"] if c.thermal and self.cam.profile.thermal else [])
+            by_lens = self.cam.profile.rtsp_urls(self.cam.camera_host, port=c.video_port)
             for i, lens in enumerate(lenses):
                 comp = self.node.component(c.camera_compid + i, f"camera-{lens}")
                 svc = Services(comp, self.dispatcher, MAV_TYPE_CAMERA)
                 self.services.append(svc)
-                mine = urls if len(lenses) == 1 else urls[i : i + 1] if i < len(urls) else []
+                if c.video_urls is not None:  # given: the first to the visible camera, the second to the thermal one
+                    urls = c.video_urls
+                    mine = urls if len(lenses) == 1 else urls[i : i + 1] if i < len(urls) else []
+                else:
+                    mine = [by_lens[lens]] if lens in by_lens else []
                 self.cameras.append(CameraComponent(
                     svc, self.cam, self.vehicles, lens=lens, gimbal_device_id=gimbal_ref, video_urls=mine,
                     identity=self.identity, range_hz=c.range_hz))  # fmt: skip

@@ -16,6 +16,7 @@ import time
 from collections import OrderedDict
 from typing import Any
 
+from ..video.lens import hfov_at, vfov_for
 from ._mav import mavlink
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, rejected, unsupported
@@ -36,6 +37,7 @@ MAX_INTERVAL_S = 3600.0
 INT32_MAX = 2**31 - 1
 # Tracking picture size the TOPOTEK LOC box is given in (not documented; ArduPilot-style 1920x1080).
 TRACK_FRAME_PX = (1920, 1080)
+VIDEO_ENCODING = {"h264": 1, "h265": 2}  # VIDEO_STREAM_ENCODING
 
 
 class CameraComponent:
@@ -179,12 +181,15 @@ class CameraComponent:
         name = self.identity.get("model_name") or m.name
         if self.lens == "thermal":
             name = f"{name} thermal"
-        lens = self.profile.lens()
+        lens = self.profile.lens(self.lens)
+        # Focal length and sensor size are in no profile; the resolution only where the profile
+        # gives the stream's picture size (0 = unknown, as MAVLink says).
+        w, h = lens.size if lens is not None and lens.size_documented else (0, 0)
         return [mavlink().MAVLink_camera_information_message(
             self.comp.node.time_boot_ms(), list(_text(self.profile.vendor, 32).ljust(32, b"\0")),
             list(_text(name, 32).ljust(32, b"\0")), firmware_code(self.identity.get("version")),
-            lens.focal_length_mm if lens and self.lens == "visible" else 0.0, 0.0, 0.0, 0, 0,
-            0 if self.lens == "visible" else 1, self.cap_flags(), 0, b"", self.gimbal_device_id, 0)]  # fmt: skip
+            0.0, 0.0, 0.0, w, h, 0 if self.lens == "visible" else 1, self.cap_flags(), 0, b"",
+            self.gimbal_device_id, 0)]  # fmt: skip
 
     async def _settings(self, cmd: Command) -> list[Any]:
         return [self._settings_message()]
@@ -242,13 +247,17 @@ class CameraComponent:
 
     async def _video_info(self, cmd: Command) -> list[Any]:
         sid = int(cmd.p(2)) if cmd.has(2) else 0
+        lens = self.profile.lens(self.lens)
+        hfov = round(lens.hfov_deg) if lens is not None else 0
+        w, h = lens.size if lens is not None and lens.size_documented else (0, 0)
+        encoding = VIDEO_ENCODING.get(lens.codec, 0) if lens is not None and lens.codec_documented else 0
         out = []
         for i, url in enumerate(self.video_urls, start=1):
             if sid not in (0, i):
                 continue
             out.append(mavlink().MAVLink_video_stream_information_message(
-                i, len(self.video_urls), 0, self._stream_flags(), 0.0, 0, 0, 0, 0, 0,
-                _text(f"{self.lens} {i}", 32), _text(url, 160), 0, 0))  # fmt: skip
+                i, len(self.video_urls), 0, self._stream_flags(), 0.0, w, h, 0, 0, hfov,
+                _text(f"{self.lens} {i}", 32), _text(url, 160), encoding, 0))  # fmt: skip
         if not out:
             raise denied(f"no stream {sid} (streams 1..{len(self.video_urls)})")
         return out
@@ -497,15 +506,33 @@ class CameraComponent:
                 hit = ground_point(fix.position, att.yaw_deg + vyaw, att.pitch_deg, fix.home_alt_m)
                 if hit is not None:
                     lat_i, lon_i, alt_i = int(hit.lat_deg * 1e7), int(hit.lon_deg * 1e7), int(hit.alt_m * 1000)
-        lens = self.profile.lens()
-        zoom = self.cam.client.state.zoom.value if self.cam.client and self.cam.client.state.zoom else 1.0
-        zoom = zoom if isinstance(zoom, (int, float)) and zoom >= 1 else 1.0
-        hfov = lens.hfov_deg / zoom if lens else nan
-        vfov = lens.vfov_deg / zoom if lens else nan
+        hfov, vfov = self.fov_deg()
         q = self._earth_quaternion() if vyaw is not None else (nan, nan, nan, nan)
         return mavlink().MAVLink_camera_fov_status_message(
             self.comp.node.time_boot_ms(), lat_c, lon_c, alt_c, lat_i, lon_i, alt_i, list(q), hfov, vfov, 0
         )
+
+    def zoom_x(self) -> float:
+        """This lens's magnification as the camera last reported it (1 until it has)."""
+        client = self.cam.client
+        if client is None:
+            return 1.0
+        state = client.state
+        if self.lens == "thermal":
+            z = state.extra.get("zoom.thermal_digital_x")
+            value = z.value if z is not None else 1.0
+        else:
+            value = state.zoom.value if state.zoom is not None else 1.0
+        return float(value) if isinstance(value, (int, float)) and value >= 1 else 1.0
+
+    def fov_deg(self) -> tuple[float, float]:
+        """(horizontal, vertical) field of view now: the profile's at 1x through the pinhole
+        lens model at the current zoom; NaN when the model lists no stream for this lens."""
+        lens = self.profile.lens(self.lens)
+        if lens is None:
+            return float("nan"), float("nan")
+        hfov = hfov_at(lens.hfov_deg, self.zoom_x())
+        return hfov, vfov_for(hfov, *lens.size)
 
     async def _distance_now(self, cmd: Command) -> list[Any]:
         d = await self.cam.call(lambda c: c.range())

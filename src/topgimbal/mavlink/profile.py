@@ -1,19 +1,18 @@
 """What MAVLink needs to know about a camera model, derived from the catalog.
 
 Nothing here is a second model table: every fact is read from the dialect's command specs
-(`supports()`, `describe()`) and the `DeviceModel`. When the per-model profiles (RTSP URLs, lens
-data, version strings) land in `protocol/`, `rtsp_urls()` and `lens()` are the two functions to
-switch over; they already prefer such attributes when a model has them."""
+(`supports()`, `describe()`) and the model profile (`DeviceModel`: limits, identity, video
+streams). Streams and lenses are read through `video.lens` (pure), the one place that turns the
+profile's `VideoStream`s into URLs, ports and fields of view for the simulator, the SDK's
+`video_url()` and this bridge alike."""
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 from typing import Any
 
 from ..protocol import DeviceModel, Dialect
-
-_RTSP = re.compile(r"rtsp://[^\s,;)]+")
+from ..video.lens import StreamSpec, VideoError, stream_urls, streams_for
 
 
 def enum_names(dialect: Dialect, ident: str, field_name: str, rw: str = "w") -> frozenset[str]:
@@ -37,14 +36,6 @@ def field_names(dialect: Dialect, ident: str, rw: str = "w", direction: str = "r
     if spec is None:
         return frozenset()
     return frozenset(f.name for form in spec.forms_for(rw, direction) for f in form.fields)
-
-
-@dataclass(frozen=True)
-class Lens:
-    hfov_deg: float
-    vfov_deg: float
-    focal_length_mm: float = 0.0
-    resolution: tuple[int, int] = (0, 0)
 
 
 @dataclass(frozen=True)
@@ -151,41 +142,24 @@ class Profile:
     def thermal_photo_mode(self) -> str | None:
         return "thermal" if "thermal" in self.photo_modes else None
 
-    def rtsp_urls(self, camera_host: str | None) -> list[str]:
-        """The model's RTSP URLs (visible first), the camera's address filled in."""
-        urls = getattr(self.model, "rtsp_urls", None)
-        if not urls:
-            urls = _urls_in_notes(self.model.notes)
-        out = []
-        for u in urls:
-            u = u.rstrip(".")
-            if "<ip>" in u or "{host}" in u:
-                if not camera_host:
-                    continue
-                u = u.replace("<ip>", camera_host).replace("{host}", camera_host)
-            out.append(u)
-        return out
+    def streams(self) -> dict[str, StreamSpec]:
+        """The model's video streams by lens (visible first), from its profile."""
+        try:
+            return {s.lens: s for s in streams_for(self.model)}
+        except VideoError:
+            return {}
 
-    def lens(self) -> Lens | None:
-        """Field of view of the visible lens at 1x, when the model's profile gives it."""
-        h, v = getattr(self.model, "hfov_deg", None), getattr(self.model, "vfov_deg", None)
-        if h and v:
-            return Lens(float(h), float(v), float(getattr(self.model, "focal_length_mm", 0.0) or 0.0))
-        return None
+    def lens(self, which: str = "visible") -> StreamSpec | None:
+        """A lens's stream: field of view at 1x (horizontal from the profile, vertical derived
+        from the picture's aspect ratio), picture size, zoom range."""
+        return self.streams().get(which)
 
-
-def _urls_in_notes(notes: str) -> list[str]:
-    """`rtsp://<ip>:554/stream=0 and stream=1` -> both URLs (the notes' way of listing them)."""
-    urls = [u.rstrip(".") for u in _RTSP.findall(notes)]
-    if urls:
-        base, _, last = urls[0].rpartition("/")
-        key = last.split("=")[0] + "=" if "=" in last else None
-        if key:
-            for n in re.findall(re.escape(key) + r"(\d+)", notes):
-                u = f"{base}/{key}{n}"
-                if u not in urls:
-                    urls.append(u)
-    return urls
+    def rtsp_urls(self, camera_host: str | None, *, port: int | None = None) -> dict[str, str]:
+        """{lens: RTSP URL} at the camera's address (none without one: a serial link); `port`
+        moves the first stream's port and keeps the others' spacing, as `sim --video-port`."""
+        if not camera_host or not self.streams():
+            return {}
+        return stream_urls(self.model, camera_host, port=port)
 
 
 def profile_of(dialect: Dialect, model: DeviceModel) -> Profile:
