@@ -33,6 +33,7 @@ GIMBAL_COMPIDS = (154, 171, 172, 173, 174, 175)  # MAV_COMP_ID_GIMBAL, GIMBAL2..
 CAMERA_COMPIDS = (100, 101, 102, 103, 104, 105)  # MAV_COMP_ID_CAMERA..CAMERA6
 MAV_TYPE_GIMBAL, MAV_TYPE_CAMERA = 26, 30
 NON_MAVLINK_GIMBAL_ID = 1
+MAV_STATE_BOOT, MAV_STATE_ACTIVE, MAV_STATE_CRITICAL = 1, 4, 5
 
 
 class BridgeConfigError(TopGimbalError, ValueError):
@@ -136,6 +137,8 @@ class Bridge:
         if self.manager is not None:
             self.node.subscribe(self.manager.on_message)
         self.cam.on_health(self._on_health)
+        for svc in self.services:
+            svc.system_status = MAV_STATE_BOOT  # until the camera has answered (or is declared down)
         self._tasks: list[asyncio.Task[None]] = []
         self._closed = asyncio.Event()
         self.started = False
@@ -192,7 +195,7 @@ class Bridge:
 
     def _on_health(self, answering: bool) -> None:
         for svc in self.services:
-            svc.system_status = 4 if answering else 5  # MAV_STATE_ACTIVE / MAV_STATE_CRITICAL
+            svc.system_status = MAV_STATE_ACTIVE if answering else MAV_STATE_CRITICAL
         if answering:
             self._tasks.append(asyncio.ensure_future(self._identify()))
             self._tasks = [t for t in self._tasks if not t.done()]

@@ -81,6 +81,8 @@ class CameraLink:
         self.client_options = dict(client_options or {})
         self.client: AsyncClient | None = None
         self.answering = False
+        self.heard = False  # any frame since the bridge started (before: not yet known, not failed)
+        self.declared_down = False  # the client said the link is down (or it could not be opened)
         self.reason = "not opened yet"
         self.attitude: AttitudeSample | None = None
         self.last_frame_t = 0.0
@@ -151,7 +153,7 @@ class CameraLink:
             try:
                 await client.open()
             except (TopGimbalError, OSError) as exc:
-                self.reason = f"cannot open: {exc}"
+                self._set_answering(False, f"cannot open: {exc}", force=True)
                 log.warning("camera %s: cannot open (%s); retrying in %.1f s", self.url, exc, delay)
                 await asyncio.sleep(delay)
                 delay = min(REOPEN_MAX_S, delay * 2)
@@ -185,7 +187,7 @@ class CameraLink:
     def _on_link_change(self, up: bool, reason: str) -> None:
         self.link_changes += 1
         if not up:
-            self._set_answering(False, reason)
+            self._set_answering(False, reason, force=True)
         elif self.last_frame_t and reason != "reconnected":
             self._set_answering(True, reason)  # a frame came (a reconnected stream: wait for one)
 
@@ -215,9 +217,14 @@ class CameraLink:
             except Exception:
                 log.exception("attitude listener failed")
 
-    def _set_answering(self, value: bool, why: str) -> None:
+    def _set_answering(self, value: bool, why: str, *, force: bool = False) -> None:
+        """A change of `answering`; `force`: tell the listeners also when it stays false (the
+        camera was never heard and is now declared down: from "not yet known" to "failed")."""
         self.reason = "" if value else why
-        if value == self.answering:
+        first_down = force and not value and not self.declared_down
+        self.heard = self.heard or value
+        self.declared_down = not value and (self.declared_down or force)
+        if value == self.answering and not first_down:
             return
         self.answering = value
         log.warning("camera %s %s (%s)", self.url, "answers" if value else "stopped answering", why)
