@@ -42,7 +42,9 @@ async def test_a_camera_never_heard_is_never_reported_healthy() -> None:
             assert bridge.cam.declared_down and not bridge.cam.heard and not bridge.cam.answering
             ack = await peer.ack(GIMBAL, ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, -10, 0)
             assert ack.result == ml.MAV_RESULT_FAILED and ack.result_param2 == 3  # link down: nothing sent
-            assert not any(m.get_type() == "HEARTBEAT" and m.system_status == ml.MAV_STATE_ACTIVE for m in peer.messages)
+            assert not any(
+                m.get_type() == "HEARTBEAT" and m.system_status == ml.MAV_STATE_ACTIVE for m in peer.messages
+            )
         finally:
             peer.close()
             await bridge.close()
@@ -54,7 +56,9 @@ async def test_a_tcp_camera_that_goes_and_comes_back() -> None:
     port = sim.addresses["tcp"][0][1]
     bridge, peer = await _bridge(sim.url, "C20")
     try:
-        await peer.wait("HEARTBEAT", lambda m: m.get_srcComponent() == GIMBAL and m.system_status == ml.MAV_STATE_ACTIVE)
+        await peer.wait(
+            "HEARTBEAT", lambda m: m.get_srcComponent() == GIMBAL and m.system_status == ml.MAV_STATE_ACTIVE
+        )
         client = bridge.cam.client
         await sim.stop()  # the connection closes: the client says so at once
         await peer.wait("GIMBAL_DEVICE_ATTITUDE_STATUS", lambda m: m.failure_flags & COMMS_ERROR)
