@@ -169,8 +169,11 @@ async def test_sip_streams_thermal_camera_and_rangefinder(rig_factory) -> None:
     assert s.dialect.decode(cap).fields["mode"] == "thermal" and s.camera.photos_taken == before + 1
     assert (await p.ack(THERMAL, ml.MAV_CMD_SET_CAMERA_ZOOM, ml.ZOOM_TYPE_RANGE, 100)).result == 0
     assert s.camera.thermal_digital_zoom_x == 8.0
-    assert (await p.ack(CAMERA, ml.MAV_CMD_CAMERA_TRACK_RECTANGLE, 0.4, 0.4, 0.6, 0.6)).result == 0
+    assert (await p.ack(CAMERA, ml.MAV_CMD_CAMERA_TRACK_RECTANGLE, 0.3, 0.4, 0.6, 0.5)).result == 0
     assert s.camera.tracking == "tracking"
+    loc = s.dialect.decode([f for f in s.received if f.ident == "LOC"][-1]).fields
+    # the box as ArduPilot's TOPOTEK driver sends it: centre 0, edges +-1000
+    assert (loc["x_px"], loc["y_px"], loc["width_px"], loc["height_px"]) == (-100, -100, 600, 200)
     s.device.scene_height_m = 50.0 if hasattr(s.device, "scene_height_m") else None
     ack = await p.ack(CAMERA, 512, 132)
     assert ack.result in (ml.MAV_RESULT_ACCEPTED, ml.MAV_RESULT_TEMPORARILY_REJECTED)

@@ -250,3 +250,24 @@ def test_rendering_straight_into_ycbcr_gives_the_rgb_picture(lens: str, size: tu
     assert decode_stamp(back.astype(np.uint8)) == decode_stamp(rgb.astype(np.uint8)) is not None
     with pytest.raises(VideoError, match="even"):
         yuv420_frame(ycc[:-1])
+
+
+def test_tracking_requests_per_model() -> None:
+    from topgimbal.protocol import get_model
+    from topgimbal.video.lens import tracking_requests
+
+    c12, sip, c10 = get_model("C12"), get_model("SIP"), get_model("C10")
+    # SkyDroid: GOT at the point (or the box's centre) in the 1280x720 its catalog fields span
+    assert tracking_requests(*c12, 0.5, 0.25) == [("GOT", {"x_px": 640, "y_px": 180})]
+    assert tracking_requests(*c12, 0.2, 0.2, 0.4, 0.6) == [("GOT", {"x_px": 384, "y_px": 288})]
+    # TOPOTEK: LOC alone, centre 0 and edges +-1000 (ArduPilot's (px - 960) / 0.96 of 1920x1080)
+    ((ident, box),) = tracking_requests(*sip, 0.4, 0.4, 0.6, 0.6)
+    assert ident == "LOC" and box == {"x_px": 0, "y_px": 0, "width_px": 400, "height_px": 400, "reserved": "0001"}
+    ((_, corner),) = tracking_requests(*sip, 1.0, 0.0)  # a point: ArduPilot's 60 px box around it
+    assert (corner["x_px"], corner["y_px"], corner["width_px"], corner["height_px"]) == (1000, -1000, 62, 111)
+    assert tracking_requests(*sip, 0.6, 0.6, 0.4, 0.4) == tracking_requests(*sip, 0.4, 0.4, 0.6, 0.6)  # any corners
+    sip[0].encode("LOC", **box)  # the catalog takes it
+    with pytest.raises(VideoError, match="does not track"):
+        tracking_requests(*c10, 0.5, 0.5)
+    with pytest.raises(VideoError, match="fractions"):
+        tracking_requests(*sip, 1.5, 0.5)

@@ -16,7 +16,7 @@ import time
 from collections import OrderedDict
 from typing import Any
 
-from ..video.lens import hfov_at, vfov_for
+from ..video.lens import VideoError, hfov_at, tracking_requests, vfov_for
 from ._mav import mavlink
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, rejected, unsupported
@@ -35,8 +35,6 @@ log = logging.getLogger("topgimbal.mavlink")
 MAX_REMEMBERED_IMAGES = 64
 MAX_INTERVAL_S = 3600.0
 INT32_MAX = 2**31 - 1
-# Tracking picture size the TOPOTEK LOC box is given in (not documented; ArduPilot-style 1920x1080).
-TRACK_FRAME_PX = (1920, 1080)
 VIDEO_ENCODING = {"h264": 1, "h265": 2}  # VIDEO_STREAM_ENCODING
 
 
@@ -443,11 +441,7 @@ class CameraComponent:
         radius = cmd.p(3) if cmd.has(3) else 0.05
         if not (0 <= x <= 1 and 0 <= y <= 1):
             raise denied(f"point ({x:g}, {y:g}): expected 0..1 each")
-        if self.profile.has("GOT"):
-            w, h = _got_frame(self.profile)
-            await self.cam.call(lambda c: c.request("GOT", x_px=round(x * w), y_px=round(y * h)))
-        else:
-            await self._loc_box(x - radius, y - radius, x + radius, y + radius)
+        await self._track(x, y)
         self.tracking = (1, (x, y, radius))
         return Outcome()
 
@@ -455,19 +449,19 @@ class CameraComponent:
         x0, y0, x1, y1 = cmd.p(1), cmd.p(2), cmd.p(3), cmd.p(4)
         if not all(0 <= v <= 1 for v in (x0, y0, x1, y1)) or x1 <= x0 or y1 <= y0:
             raise denied("rectangle: expected 0 <= top-left < bottom-right <= 1")
-        await self._loc_box(x0, y0, x1, y1)
+        await self._track(x0, y0, x1, y1)
         self.tracking = (2, (x0, y0, x1, y1))
         return Outcome()
 
-    async def _loc_box(self, x0: float, y0: float, x1: float, y1: float) -> None:
-        w, h = TRACK_FRAME_PX
-        x0, y0, x1, y1 = (max(0.0, min(1.0, v)) for v in (x0, y0, x1, y1))
-        box = {
-            "x_px": round((x0 + x1) / 2 * w), "y_px": round((y0 + y1) / 2 * h),
-            "width_px": max(1, round((x1 - x0) * w)), "height_px": max(1, round((y1 - y0) * h)),
-        }  # fmt: skip
-        await self.cam.call(lambda c: c.request("TRC", action="start"))
-        await self.cam.call(lambda c: c.request("LOC", reserved="0000", **box))  # type: ignore[arg-type]
+    async def _track(self, x0: float, y0: float, x1: float | None = None, y1: float | None = None) -> None:
+        """The model's tracking request for this point or box (one helper for the console and
+        the bridge: `video.lens.tracking_requests`)."""
+        try:
+            requests = tracking_requests(self.profile.dialect, self.profile.model, x0, y0, x1, y1)
+        except VideoError as exc:
+            raise unsupported(str(exc)) from None
+        for ident, values in requests:
+            await self.cam.call(lambda c, ident=ident, values=values: c.request(ident, **values))
 
     async def _track_stop(self, cmd: Command) -> Outcome:
         if self.profile.has("SUM"):
@@ -561,10 +555,3 @@ class CameraComponent:
                 continue
             if d is not None and not math.isnan(d):
                 self.comp.send(self._distance_message(d))
-
-
-def _got_frame(profile: Any) -> tuple[int, int]:
-    """The picture size GOT coordinates are given in: the fields' maxima in the catalog."""
-    spec = profile.dialect.commands["GOT"]
-    sizes = {f["name"]: f.get("max") for form in spec.describe()["forms"] for f in form["fields"]}
-    return int(sizes.get("x_px") or 1280), int(sizes.get("y_px") or 720)
