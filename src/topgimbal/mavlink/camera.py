@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import logging
 import math
 import time
@@ -461,7 +462,7 @@ class CameraComponent:
         except VideoError as exc:
             raise unsupported(str(exc)) from None
         for ident, values in requests:
-            await self.cam.call(lambda c, ident=ident, values=values: c.request(ident, **values))
+            await self.cam.call(functools.partial(_request, ident=ident, values=values))
 
     async def _track_stop(self, cmd: Command) -> Outcome:
         if self.profile.has("SUM"):
@@ -555,3 +556,7 @@ class CameraComponent:
                 continue
             if d is not None and not math.isnan(d):
                 self.comp.send(self._distance_message(d))
+
+
+async def _request(client: Any, *, ident: str, values: dict[str, Any]) -> Any:
+    return await client.request(ident, **values)
