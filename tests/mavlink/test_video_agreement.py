@@ -72,17 +72,3 @@ async def test_bridge_refuses_a_bad_video_port() -> None:
 
     with pytest.raises(BridgeConfigError, match=r"video_port=70000: expected 1\.\.65535"):
         BridgeConfig(url="udp://127.0.0.1:5000", model="C12", endpoints=["udpin:127.0.0.1:0"], video_port=70000).check()
-
-
-def test_mavlink_reaches_only_the_pure_stream_table() -> None:
-    import ast
-    from pathlib import Path
-
-    pkg = Path(topgimbal.__file__).parent / "mavlink"
-    used = {
-        node.module
-        for path in pkg.glob("*.py")
-        for node in ast.walk(ast.parse(path.read_text()))
-        if isinstance(node, ast.ImportFrom) and node.module and "video" in node.module
-    }
-    assert used == {"video.lens"}  # URLs and fields of view from the profile, nothing of the renderer

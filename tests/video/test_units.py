@@ -190,14 +190,14 @@ def test_client_builds_video_urls_and_imports_only_the_stream_table() -> None:
     c12 = cam.model
     assert cam.video_url() == c12.video_stream("visible").url_for("127.0.0.1")
     assert cam.video_url("thermal", host="192.168.144.108") == c12.video_stream("thermal").url_for("192.168.144.108")
-    client_dir = Path(topgimbal.__file__).parent / "client"
-    used = {
-        node.module
-        for path in client_dir.glob("*.py")
-        for node in ast.walk(ast.parse(path.read_text()))
-        if isinstance(node, ast.ImportFrom) and node.module and "video" in node.module
-    }
-    assert used == {"video.lens"}  # the client layer reaches only the pure table, not the renderer
+    for layer in ("client", "mavlink"):  # both reach only the pure stream table, not the renderer
+        used = {
+            node.module
+            for path in (Path(topgimbal.__file__).parent / layer).glob("*.py")
+            for node in ast.walk(ast.parse(path.read_text()))
+            if isinstance(node, ast.ImportFrom) and node.module and "video" in node.module
+        }
+        assert used == {"video.lens"}, layer
 
 
 def test_sip_streams_follow_the_ent_codec_setting() -> None:
