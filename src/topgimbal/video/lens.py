@@ -269,10 +269,7 @@ LOC_HALF_SPAN = 1000
 POINT_BOX = (60 / 1920, 60 / 1080)  # fractions of the picture
 
 
-def _field_max(dialect: Any, ident: str, name: str) -> float | None:
-    spec = dialect.commands.get(ident)
-    if spec is None:
-        return None
+def _field_max(spec: Any, name: str) -> float | None:
     for form in spec.describe()["forms"]:
         for f in form["fields"]:
             if f["name"] == name and f.get("max") is not None:
@@ -284,19 +281,21 @@ def tracking_requests(
     dialect: Any, model: DeviceModel, x0: float, y0: float, x1: float | None = None, y1: float | None = None
 ) -> list[tuple[str, dict[str, Any]]]:
     """The requests that start tracking what is at a point (x0, y0) or in a box (x0, y0)-(x1, y1)
-    of the picture (fractions 0..1, top left 0, 0): SkyDroid GOT at the point or the box's centre,
-    in the picture the catalog's GOT fields span (1280x720); TOPOTEK LOC with the box (a point: a
-    small box around it). Raises VideoError for a model that does not track."""
+    of the picture (fractions 0..1, top left 0, 0), found by role: the `tracking_target` command
+    (SkyDroid GOT) at the point or the box's centre, in the picture its catalog fields span
+    (1280x720); else the `tracking_box` command (TOPOTEK LOC) with the box (a point: a small box
+    around it). Raises VideoError for a model that does not track."""
     if x1 is None or y1 is None:
         x1, y1 = x0, y0
     xa, xb, ya, yb = min(x0, x1), max(x0, x1), min(y0, y1), max(y0, y1)
     if not all(0.0 <= v <= 1.0 for v in (xa, xb, ya, yb)):
         raise VideoError("picture coordinates must be fractions from 0 to 1")
     cx, cy = (xa + xb) / 2, (ya + yb) / 2
-    if dialect.supports(model, "GOT"):
-        w, h = _field_max(dialect, "GOT", "x_px") or 1280.0, _field_max(dialect, "GOT", "y_px") or 720.0
-        return [("GOT", {"x_px": round(cx * w), "y_px": round(cy * h)})]
-    if dialect.supports(model, "LOC"):
+    target, box_spec = dialect.by_role("tracking_target", model), dialect.by_role("tracking_box", model)
+    if target is not None:
+        w, h = _field_max(target, "x_px") or 1280.0, _field_max(target, "y_px") or 720.0
+        return [(target.ident, {"x_px": round(cx * w), "y_px": round(cy * h)})]
+    if box_spec is not None:
         bw, bh = (xb - xa, yb - ya) if (xb > xa and yb > ya) else POINT_BOX
         s = LOC_HALF_SPAN
         box = {
