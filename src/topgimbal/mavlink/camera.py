@@ -131,7 +131,7 @@ class CameraComponent:
     def zoom_any(self) -> bool:
         p = self.profile
         if self.lens == "thermal":
-            return p.has("DZM") and p.digital_zoom_has_lens
+            return p.can("digital_zoom") and p.digital_zoom_has_lens
         return p.zoom_continuous or p.zoom_absolute
 
     @property
@@ -214,7 +214,7 @@ class CameraComponent:
             float("nan"), float("nan"), 2)]  # fmt: skip
 
     async def _capture_status(self, cmd: Command) -> list[Any]:
-        if self.can_record and self.profile.dialect.commands["REC"].readable:
+        if self.can_record and self.profile.dialect.require_role("recording", self.profile.model).readable:
             rec = await self.cam.call(lambda c: c.recording())
             self._recording_now(rec)
         return [self._capture_status_message()]
@@ -409,7 +409,7 @@ class CameraComponent:
             self.zoom_pct = value
             return Outcome(after=[self._settings_message()])
         if kind == 0:
-            if not p.has("DZM"):
+            if not p.can("digital_zoom"):
                 raise unsupported(f"the {p.model.name} has no zoom steps")
             await self.cam.call(lambda c: c.digital_zoom("in" if value > 0 else "out"))
             return Outcome()
@@ -419,7 +419,7 @@ class CameraComponent:
         if not 0 <= pct <= 100:
             raise denied(f"zoom range {pct:g} %: expected 0..100")
         level = 1.0 + (top - 1.0) * pct / 100.0
-        if not self.profile.has("MUL") and not self.profile.digital_zoom_has_lens:
+        if not self.profile.can("optical_zoom") and not self.profile.digital_zoom_has_lens:
             level = float(round(level))  # whole steps only (SkyDroid DZM 1x..4x)
         return round(level, 1)
 
@@ -465,10 +465,10 @@ class CameraComponent:
             await self.cam.call(functools.partial(_request, ident=ident, values=values))
 
     async def _track_stop(self, cmd: Command) -> Outcome:
-        if self.profile.has("SUM"):
-            await self.cam.call(lambda c: c.request("SUM", action="stop"))
-        elif self.profile.has("TRC"):
-            await self.cam.call(lambda c: c.request("TRC", action="stop"))
+        p = self.profile
+        role = "tracking_confirm" if p.can("tracking_confirm") else "tracking" if p.can("tracking") else None
+        if role is not None:
+            await self.cam.call(functools.partial(_request, ident=p.ident(role), values={"action": "stop"}))
         else:
             raise unsupported(f"the {self.profile.model.name} cannot stop tracking")
         self.tracking = (0, ())

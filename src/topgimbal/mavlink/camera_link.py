@@ -139,7 +139,7 @@ class CameraLink:
 
     @property
     def _streaming(self) -> bool:
-        return self.profile.has("GAA")
+        return self.profile.can("attitude_stream")
 
     # -- keeping the client --------------------------------------------------------------------
 

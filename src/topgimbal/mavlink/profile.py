@@ -1,7 +1,7 @@
 """What MAVLink needs to know about a camera model, derived from the catalog.
 
-Nothing here is a second model table: every fact is read from the dialect's command specs
-(`supports()`, `describe()`) and the model profile (`DeviceModel`: limits, identity, video
+Nothing here is a second model table: every fact is read from the dialect's command specs,
+found by role (`by_role()`, `describe()`, the fields' axes), and the model profile (`DeviceModel`: limits, identity, video
 streams). Streams and lenses are read through `video.lens` (pure), the one place that turns the
 profile's `VideoStream`s into URLs, ports and fields of view for the simulator, the SDK's
 `video_url()` and this bridge alike."""
@@ -50,24 +50,32 @@ class Profile:
     focus_actions: frozenset[str]
     digital_zoom_has_lens: bool
     stream_max_hz: float | None
+    roles: frozenset[str] = frozenset()  # roles of the commands the model supports (`protocol.ROLES`)
+    angle_axes: frozenset[str] = frozenset()  # axes the model's angle set-points cover
+    rate_axes: frozenset[str] = frozenset()  # axes its rate commands cover
     extra: dict[str, Any] = field(default_factory=dict)
 
-    def has(self, ident: str) -> bool:
-        return ident in self.supported
+    def can(self, role: str) -> bool:
+        """Whether the model supports a command holding `role` (found by role, never by name)."""
+        return role in self.roles
+
+    def ident(self, role: str) -> str:
+        """The identifier of the model's command for `role` (UnsupportedError when none)."""
+        return self.dialect.require_role(role, self.model).ident
 
     # -- gimbal ------------------------------------------------------------------------------------
 
     @property
     def has_yaw(self) -> bool:
-        return self.has("GAY") or self.has("GAM")
+        return "yaw" in self.angle_axes
 
     @property
     def has_pitch(self) -> bool:
-        return self.has("GAP") or self.has("GAM")
+        return "pitch" in self.angle_axes
 
     @property
     def has_roll(self) -> bool:
-        return self.has("GAR")
+        return "roll" in self.angle_axes
 
     @property
     def has_follow(self) -> bool:
@@ -83,33 +91,33 @@ class Profile:
 
     @property
     def earth_frame(self) -> bool:
-        return self.has("GIY")
+        return self.can("earth_angle")
 
     # -- camera ------------------------------------------------------------------------------------
 
     @property
     def can_photo(self) -> bool:
-        return self.has("CAP")
+        return self.can("photo")
 
     @property
     def can_record(self) -> bool:
-        return self.has("REC")
+        return self.can("recording")
 
     @property
     def has_sd(self) -> bool:
-        return self.has("SDC")
+        return self.can("sd_capacity")
 
     @property
     def zoom_continuous(self) -> bool:
-        return self.has("ZMC") and {"zoom_in", "zoom_out", "stop"} <= self.zoom_actions
+        return self.can("zoom_control") and {"zoom_in", "zoom_out", "stop"} <= self.zoom_actions
 
     @property
     def zoom_max_x(self) -> float:
         """Largest magnification an absolute zoom command reaches (optical where it can be set,
         else digital)."""
-        if self.has("MUL"):
+        if self.can("optical_zoom"):
             return max(1.0, self.model.optical_zoom_max)
-        if self.has("DZM"):
+        if self.can("digital_zoom"):
             return max(1.0, self.model.digital_zoom_max)
         return 1.0
 
@@ -119,19 +127,19 @@ class Profile:
 
     @property
     def can_focus(self) -> bool:
-        return self.has("FCC")
+        return self.can("focus_control")
 
     @property
     def track_point(self) -> bool:
-        return self.has("GOT") or (self.has("TRC") and self.has("LOC"))
+        return self.can("tracking_target") or self.track_rectangle
 
     @property
     def track_rectangle(self) -> bool:
-        return self.has("TRC") and self.has("LOC")
+        return self.can("tracking_box")
 
     @property
     def rangefinder(self) -> tuple[float, float] | None:
-        if self.model.lrf_range_m is None or not (self.has("SLR") or self.has("LRF")):
+        if self.model.lrf_range_m is None or not self.can("range"):
             return None
         return self.model.lrf_range_m
 
@@ -163,20 +171,39 @@ class Profile:
 
 
 def profile_of(dialect: Dialect, model: DeviceModel) -> Profile:
-    supported = frozenset(c.ident for c in dialect.supported(model))
-    rate_fields = {f["name"]: f for form in _forms(dialect, "GAA") for f in form["fields"]}
+    specs = dialect.supported(model)
+    supported = frozenset(c.ident for c in specs)
+    roles = frozenset(c.role for c in specs if c.role)
+
+    def ident(role: str) -> str:
+        spec = dialect.by_role(role, model)
+        return spec.ident if spec is not None else ""
+
+    def axes(role: str) -> frozenset[str]:
+        return frozenset(
+            f.axis
+            for spec in dialect.commands_with_role(role, model)
+            for form in spec.forms_for("w", "request")
+            for f in form.fields
+            if f.axis
+        )
+
+    rate_fields = {f["name"]: f for form in _forms(dialect, ident("attitude_stream")) for f in form["fields"]}
     stream_max = rate_fields["rate_hz"].get("max") if "rate_hz" in rate_fields else None
     return Profile(
         model=model,
         dialect=dialect,
         vendor=dialect.title.split()[0] if dialect.title else dialect.name,
         supported=supported,
-        ptz_actions=enum_names(dialect, "PTZ", "action") if "PTZ" in supported else frozenset(),
-        photo_modes=enum_names(dialect, "CAP", "mode") if "CAP" in supported else frozenset(),
-        zoom_actions=enum_names(dialect, "ZMC", "action") if "ZMC" in supported else frozenset(),
-        focus_actions=enum_names(dialect, "FCC", "action") if "FCC" in supported else frozenset(),
-        digital_zoom_has_lens="lens" in field_names(dialect, "DZM"),
+        ptz_actions=enum_names(dialect, ident("gimbal_control"), "action"),
+        photo_modes=enum_names(dialect, ident("photo"), "mode"),
+        zoom_actions=enum_names(dialect, ident("zoom_control"), "action"),
+        focus_actions=enum_names(dialect, ident("focus_control"), "action"),
+        digital_zoom_has_lens="lens" in field_names(dialect, ident("digital_zoom")),
         stream_max_hz=float(stream_max) if stream_max else None,
+        roles=roles,
+        angle_axes=axes("angle"),
+        rate_axes=axes("rate"),
     )
 
 
