@@ -237,19 +237,19 @@ def test_rendering_straight_into_ycbcr_gives_the_rgb_picture(lens: str, size: tu
     assert ycc_img.mode == "YCbCr" and ycc_img.size == size
     ycc = np.asarray(ycc_img)
     assert ycc[..., 0].min() >= 16 and ycc[..., 0].max() <= 235  # limited range, as H.264 expects
-    back = yuv420_frame(ycc).to_ndarray(format="rgb24").astype(int)
+    back = yuv420_frame(ycc_img).to_ndarray(format="rgb24").astype(int)
     diff = np.abs(back - rgb)
-    # Against what the RGB path gives (FFmpeg's own RGB -> yuv420p): as close on average; the
-    # worst pixels (coloured edges: chroma at every other pixel) within twice FFmpeg's.
+    # Against what the RGB path gives (FFmpeg's own RGB -> yuv420p): as close on average, and
+    # the worst pixels (coloured edges, where the chroma is shared by 2x2 pixels) as close too.
     import av
 
     ref = np.abs(av.VideoFrame.from_ndarray(rgb.astype(np.uint8), format="rgb24").reformat(format="yuv420p")
                  .to_ndarray(format="rgb24").astype(int) - rgb)  # fmt: skip
     assert diff.mean() <= ref.mean() + 0.5
-    assert np.percentile(diff, 99) <= 2 * np.percentile(ref, 99) + 2
+    assert np.percentile(diff, 99) <= np.percentile(ref, 99) + 5
     assert decode_stamp(back.astype(np.uint8)) == decode_stamp(rgb.astype(np.uint8)) is not None
     with pytest.raises(VideoError, match="even"):
-        yuv420_frame(ycc[:-1])
+        yuv420_frame(ycc_img.crop((0, 0, size[0] - 1, size[1])))
 
 
 def test_tracking_requests_per_model() -> None:

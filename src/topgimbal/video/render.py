@@ -10,8 +10,8 @@ right and up vectors. It is computed at a quarter of the resolution and scaled u
 
 A renderer draws in RGB (`mode="RGB"`, for people and tests) or straight in Y'CbCr
 (`mode="YCbCr"`: BT.601, limited range, what an H.264 stream carries): the shading tables, the
-palettes and every colour are converted once, so the encoder only subsamples the chroma instead
-of converting every pixel (bench/video.py: ~9 ms less per 720p picture).
+palettes and every colour are converted once, so the encoder only averages the chroma over 2x2
+pixels instead of converting every pixel from RGB (bench/video.py measures both paths).
 """
 
 from __future__ import annotations
