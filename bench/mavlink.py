@@ -6,6 +6,7 @@ assertions."""
 from __future__ import annotations
 
 import asyncio
+import os
 import statistics
 import time
 
@@ -83,6 +84,7 @@ async def main() -> None:
         f"client.set_angles direct:                     n={N} p50 {pct(rtt_direct, 50) * ms:.2f} ms  p99 {pct(rtt_direct, 99) * ms:.2f} ms"
     )
     print(f"mean bridge overhead: {(statistics.mean(rtt_bridge) - statistics.mean(rtt_direct)) * ms:.2f} ms")
+    print("load average (1/5/15 min): " + " / ".join(f"{x:.2f}" for x in os.getloadavg()))
 
 
 if __name__ == "__main__":

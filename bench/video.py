@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import os
 import resource
 import shutil
 import statistics
@@ -22,13 +23,19 @@ import sys
 import time
 from typing import Any
 
+import av
 import numpy as np
 
 from topgimbal.sim import Simulator
-from topgimbal.video.encode import Encoder
+from topgimbal.video.encode import Encoder, yuv420_frame
 from topgimbal.video.render import Renderer
 from topgimbal.video.simvideo import SimVideo, VideoOptions
 from topgimbal.video.snapshot import SceneState
+
+
+def load() -> str:
+    """The 1, 5 and 15 minute load averages (the figures depend on how busy the machine is)."""
+    return " / ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
 def cpu_s() -> float:
@@ -80,24 +87,62 @@ async def stream_cost(
 
 def encoder_figures(n: int = 60) -> list[str]:
     out = []
-    r = Renderer("visible", 1280, 720, 62.0)
-    pics = [
-        np.asarray(
-            r.render(SceneState("C12", 20 + i * 0.5, -5, 0, 1, 1, "white_hot", True, False, 0, "stopped", 1e9 + i, i))
-        )
+    states = [
+        SceneState("C12", 20 + i * 0.5, -5, 0, 1, 1, "white_hot", True, False, 0, "stopped", 1e9 + i, i)
         for i in range(n)
     ]
-    t0 = cpu_s()
-    for i in range(n):
-        r.render(SceneState("C12", 20 + i * 0.5, -5, 0, 1, 1, "white_hot", True, False, 0, "stopped", 1e9 + i, i))
-    out.append(f"render 1280x720 (numpy + Pillow): {(cpu_s() - t0) / n * 1000:.1f} ms/picture")
+
+    def per_picture(fn: Any) -> float:
+        fn(0)
+        t0 = cpu_s()
+        for i in range(n):
+            fn(i)
+        return (cpu_s() - t0) / n * 1000
+
+    def interleaved(*fns: Any) -> list[float]:
+        """CPU ms per call of each function, calls alternating (a busy machine slows all alike)."""
+        spent = [0.0] * len(fns)
+        for i in range(n):
+            for k, fn in enumerate(fns):
+                t0 = time.thread_time()
+                fn(i)
+                spent[k] += time.thread_time() - t0
+        return [x / n * 1000 for x in spent]
+
+    rgb, ycc = Renderer("visible", 1280, 720, 62.0), Renderer("visible", 1280, 720, 62.0, mode="YCbCr")
+    rgb_pics = [rgb.render(st) for st in states]
+    ycc_pics = [ycc.render(st) for st in states]
+    r_rgb, r_ycc, c_rgb, c_ycc = interleaved(
+        lambda i: rgb.render(states[i]),
+        lambda i: ycc.render(states[i]),
+        lambda i: av.VideoFrame.from_ndarray(np.asarray(rgb_pics[i]), format="rgb24").reformat(format="yuv420p"),
+        lambda i: yuv420_frame(ycc_pics[i]),
+    )
+    out.append(
+        f"render 1280x720 (numpy + Pillow): RGB {r_rgb:.1f} ms/picture, straight into Y'CbCr {r_ycc:.1f} ms/picture"
+    )
+    out.append(
+        f"to the encoder's yuv420p: from RGB (PyAV/FFmpeg swscale) {c_rgb:.1f} ms/picture, "
+        f"from Y'CbCr (Y copied, chroma averaged 2x2) {c_ycc:.1f} ms/picture"
+    )
+    out.append(
+        f"render + conversion: RGB path {r_rgb + c_rgb:.1f} ms, Y'CbCr path {r_ycc + c_ycc:.1f} ms per picture "
+        f"(= {(r_rgb + c_rgb - r_ycc - c_ycc) * 3:.0f} % of a core saved at 30 fps)"
+    )
+    frames = [yuv420_frame(p) for p in ycc_pics]
     for codec in ("h264", "h265"):
         e = Encoder(codec, 1280, 720, 30)
-        t0 = cpu_s()
-        size = sum(len(u.data) for i, p in enumerate(pics) for u in e.encode(p, i / 30))
-        ms = (cpu_s() - t0) / n * 1000
+        sizes: list[int] = []
+
+        def enc(i: int, e: Encoder = e, sizes: list[int] = sizes) -> None:
+            f = frames[i]
+            f.pts = i * 3000
+            sizes.extend(len(bytes(p)) for p in e._ctx.encode(f))
+
+        ms = per_picture(enc)
         out.append(
-            f"PyAV {codec} 1280x720 (incl. RGB->YUV): {ms:.1f} ms/picture = {ms * 3:.0f} % of a core at 30 fps, {size * 8 * 30 / n / 1000:.0f} kbit/s"
+            f"PyAV {codec} 1280x720 (encoder only): {ms:.1f} ms/picture = {ms * 3:.0f} % of a core at 30 fps, "
+            f"{sum(sizes) * 8 * 30 / max(1, len(sizes)) / 1000:.0f} kbit/s"
         )
     gst = (
         "import gi,resource;gi.require_version('Gst','1.0');from gi.repository import Gst;Gst.init(None)\n"
@@ -175,16 +220,7 @@ def summary(xs: list[float]) -> str:
     return f"median {statistics.median(s):.0f} ms, p90 {s[int(len(s) * 0.9)]:.0f} ms, max {s[-1]:.0f} ms ({len(s)} samples)"
 
 
-async def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seconds", type=float, default=8.0)
-    ap.add_argument("--skip-browser", action="store_true")
-    ap.add_argument("--skip-encoders", action="store_true")
-    args = ap.parse_args()
-    print("== encoders (one core, this machine)")
-    if not args.skip_encoders:
-        for line in encoder_figures():
-            print("  " + line)
+async def stream_figures(seconds: float) -> None:
     print("== simulated streams: CPU of the simulator process while one ffmpeg reads each stream")
     cases = [
         ("C12", ["visible"], (1280, 720), 30.0, "h264"),
@@ -195,18 +231,45 @@ async def main() -> None:
         ("SIP", ["visible"], (1280, 720), 30.0, "h265"),
     ]
     for model, lenses, size, fps, codec in cases:
-        r = await stream_cost(model, lenses, size, fps, codec, args.seconds)
+        r = await stream_cost(model, lenses, size, fps, codec, seconds)
         print(
             f"  {model} {'+'.join(lenses):15s} {size[0]}x{size[1]}@{fps:g} {codec}: {r['cpu_pct']:.0f} % of a core "
             f"({r['cpu_pct_nominal']:.0f} % at the full rate), "
             f"delivered fps {r['fps']}, sim loop lag p50 {r['loop_lag_ms_p50']:.2f} ms p99 {r['loop_lag_ms_p99']:.2f} ms"
+            f" (load {load()})"
         )
-    print("== glass-to-glass latency (burned-in wall-clock time vs. the clock when shown)")
+
+
+async def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=8.0)
+    ap.add_argument("--skip-browser", action="store_true")
+    ap.add_argument("--skip-encoders", action="store_true")
+    ap.add_argument("--latency-only", action="store_true", help="only the glass-to-glass figures")
+    ap.add_argument(
+        "--quiet-load", type=float, default=None, metavar="L",
+        help="before the latency figures, wait (at most --quiet-wait-s) for the 1-minute load average to fall below L",
+    )  # fmt: skip
+    ap.add_argument("--quiet-wait-s", type=float, default=600.0)
+    args = ap.parse_args()
+    print(f"load average at the start: {load()}")
+    if not args.skip_encoders and not args.latency_only:
+        print("== encoders (one core, this machine)")
+        for line in encoder_figures():
+            print("  " + line)
+    if not args.latency_only:
+        await stream_figures(args.seconds)
+    if args.quiet_load is not None:
+        end = time.monotonic() + args.quiet_wait_s
+        while os.getloadavg()[0] >= args.quiet_load and time.monotonic() < end:
+            await asyncio.sleep(5)
+    print(f"== glass-to-glass latency (burned-in wall-clock time vs. the clock when shown); load {load()}")
     print("  RTSP -> PyAV decoder (the SDK's frames()):", summary(await rtsp_latency(args.seconds)))
     if not args.skip_browser:
         lat, cpu = await asyncio.get_running_loop().run_in_executor(None, browser_latency, args.seconds)
         print("  RTSP -> console relay (MJPEG) -> chromium <img>:", summary(lat))
         print(f"  console process (simulator + video + relay) while the page plays both lenses: {cpu:.0f} % of a core")
+    print(f"  load average at the end: {load()}")
 
 
 if __name__ == "__main__":

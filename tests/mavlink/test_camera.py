@@ -5,11 +5,16 @@ from __future__ import annotations
 import asyncio
 import math
 
+import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from .conftest import eventually
 
 CAMERA, THERMAL, GIMBAL = 100, 101, 154
+
+
+def _vfov(hfov_deg: float, aspect: float) -> float:
+    return math.degrees(2 * math.atan(math.tan(math.radians(hfov_deg) / 2) / aspect))
 
 
 async def test_camera_information_is_true_to_the_model(rig) -> None:
@@ -18,7 +23,7 @@ async def test_camera_information_is_true_to_the_model(rig) -> None:
     assert f & ml.CAMERA_CAP_FLAGS_CAPTURE_IMAGE and f & ml.CAMERA_CAP_FLAGS_CAPTURE_VIDEO
     assert f & ml.CAMERA_CAP_FLAGS_HAS_BASIC_ZOOM and f & ml.CAMERA_CAP_FLAGS_HAS_BASIC_FOCUS
     assert f & ml.CAMERA_CAP_FLAGS_HAS_TRACKING_POINT and not f & ml.CAMERA_CAP_FLAGS_HAS_TRACKING_RECTANGLE
-    assert not f & ml.CAMERA_CAP_FLAGS_HAS_VIDEO_STREAM  # the C12's RTSP URL is not in its profile
+    assert f & ml.CAMERA_CAP_FLAGS_HAS_VIDEO_STREAM  # the C12 profile lists its RTSP streams
     assert bytes(info.vendor_name).rstrip(b"\0") == b"SkyDroid"
     assert info.gimbal_device_id == GIMBAL
     th = await rig.peer.request(THERMAL, 259, "CAMERA_INFORMATION")
@@ -164,8 +169,11 @@ async def test_sip_streams_thermal_camera_and_rangefinder(rig_factory) -> None:
     assert s.dialect.decode(cap).fields["mode"] == "thermal" and s.camera.photos_taken == before + 1
     assert (await p.ack(THERMAL, ml.MAV_CMD_SET_CAMERA_ZOOM, ml.ZOOM_TYPE_RANGE, 100)).result == 0
     assert s.camera.thermal_digital_zoom_x == 8.0
-    assert (await p.ack(CAMERA, ml.MAV_CMD_CAMERA_TRACK_RECTANGLE, 0.4, 0.4, 0.6, 0.6)).result == 0
+    assert (await p.ack(CAMERA, ml.MAV_CMD_CAMERA_TRACK_RECTANGLE, 0.3, 0.4, 0.6, 0.5)).result == 0
     assert s.camera.tracking == "tracking"
+    loc = s.dialect.decode([f for f in s.received if f.ident == "LOC"][-1]).fields
+    # the box as ArduPilot's TOPOTEK driver sends it: centre 0, edges +-1000
+    assert (loc["x_px"], loc["y_px"], loc["width_px"], loc["height_px"]) == (-100, -100, 600, 200)
     s.device.scene_height_m = 50.0 if hasattr(s.device, "scene_height_m") else None
     ack = await p.ack(CAMERA, 512, 132)
     assert ack.result in (ml.MAV_RESULT_ACCEPTED, ml.MAV_RESULT_TEMPORARILY_REJECTED)
@@ -185,6 +193,16 @@ async def test_fov_status_and_photo_position_with_a_vehicle(rig) -> None:
         autopilot.send(ml.MAVLink_global_position_int_message(0, 470000000, 80000000, 600000, 100000, 0, 0, 0, 0))
         fov = await p.request(CAMERA, 271, "CAMERA_FOV_STATUS")
         assert fov.lat_camera == 470000000 and fov.alt_camera == 600000
+        # The field of view is the profile's (1x: the C12 has no optical zoom), the vertical one
+        # that of a pinhole of the stream's aspect ratio; the thermal camera gives its own lens's.
+        visible, thermal = (rig.sim.device.model.video_stream(lens) for lens in ("visible", "thermal"))
+        assert fov.hfov == pytest.approx(visible.hfov_deg) and fov.vfov == pytest.approx(
+            _vfov(visible.hfov_deg, 16 / 9)
+        )
+        tfov = await p.request(THERMAL, 271, "CAMERA_FOV_STATUS")
+        assert tfov.hfov == pytest.approx(thermal.hfov_deg) and tfov.vfov == pytest.approx(
+            _vfov(thermal.hfov_deg, 5 / 4)
+        )
         # 100 m above home, looking 45 deg down to the north: the picture's centre is 100 m north
         assert abs((fov.lat_image - 470000000) / 1e7 * math.pi / 180 * 6371008.8 - 100.0) < 1.0
         assert fov.lon_image == 80000000 and fov.alt_image == 500000

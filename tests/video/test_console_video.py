@@ -136,4 +136,5 @@ def test_video_routes_refuse_bad_requests_with_the_reason() -> None:
         assert code == 400
         assert bg.call(lambda: bg.sim.gimbal.yaw_axis.target) == 0.0  # nothing was sent
         code, body = post(bg, "/api/video/point", {"lens": "visible", "x": 1.0, "y": 0.5})
-        assert code == 200 and body["yaw_deg"] == pytest.approx(31.0, abs=0.01)  # the right edge: half the 62 deg
+        hfov = bg.call(lambda: bg.sim.device.model.video_stream("visible").hfov_deg)  # the C10 profile's
+        assert code == 200 and body["yaw_deg"] == pytest.approx(hfov / 2, abs=0.01)  # the right edge: half of it

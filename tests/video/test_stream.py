@@ -253,3 +253,44 @@ def test_thermal_stream_follows_the_palette_and_the_osd_setting(c12: LiveSim) ->
         (plain,) = grab(url, (640, 512))
         assert np.abs(osd_on - plain[corner]).max() > 100  # the OSD text is gone
         assert c12.call(lambda: c12.sim.settings["EXT"]["osd"]) == "off"
+
+
+def test_ent_switches_the_codec_of_a_running_stream() -> None:
+    import socket
+
+    with LiveSim("SIP", fps=10.0, size=(320, 240)) as live:
+        visible, thermal = live.video.urls["visible"], live.video.urls["thermal"]
+        port = int(visible.rsplit(":", 1)[1].split("/")[0])
+        assert probe(visible)["codec_name"] == "h264"
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as player:
+            setup = f"SETUP {visible}/trackID=0 RTSP/1.0\r\nCSeq: 1\r\nTransport: RTP/AVP/TCP;unicast;interleaved=0-1\r\n\r\n"
+            answer = _rtsp(player, setup)
+            session = next(
+                x.split(":", 1)[1].split(";")[0].strip() for x in answer.split("\r\n") if x.startswith("Session")
+            )
+            assert _rtsp(player, f"PLAY {visible} RTSP/1.0\r\nCSeq: 2\r\nSession: {session}\r\n\r\n").startswith(
+                "RTSP/1.0 200"
+            )
+            assert player.recv(65536)  # RTP arrives
+            with topgimbal.Gimbal(live.url, model="SIP") as cam:
+                cam.request("ENT", stream="stream0", codec="h265")  # the main (visible) stream to H.265
+            # The encoder restarts: a player of the old codec is disconnected (its RTP session cannot
+            # change payload format); it reads what was in flight, then the end of the connection.
+            player.settimeout(10)
+            while player.recv(65536):
+                pass
+        assert probe(visible) == {"codec_name": "hevc", "width": 320, "height": 240}
+        assert probe(thermal)["codec_name"] == "h264"  # the sub stream keeps its codec
+        with topgimbal.Gimbal(live.url, model="SIP") as cam:
+            cam.request("ENT", stream="stream1", codec="h265")  # the last write names stream1 only ...
+        assert _eventually(lambda: probe(thermal)["codec_name"] == "hevc")
+        assert probe(visible)["codec_name"] == "hevc"  # ... and stream0 keeps what it was set to
+
+
+def _eventually(check: Any, timeout_s: float = 10.0) -> bool:
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        if check():
+            return True
+        time.sleep(0.2)
+    return False

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -15,17 +17,61 @@ from topgimbal.video.simvideo import VideoOptions, plan_ports
 from topgimbal.video.snapshot import SceneState
 
 
-@pytest.mark.parametrize(
-    ("model", "lens", "url"),
-    [
-        ("SIP", "visible", "rtsp://192.168.144.108:554/stream=0"),
-        ("SIP", "thermal", "rtsp://192.168.144.108:554/stream=1"),
-        ("C12", "visible", "rtsp://192.168.144.108:554/stream=1"),
-        ("C12", "thermal", "rtsp://192.168.144.108:555/stream=2"),
-    ],
-)
-def test_video_url_per_model_and_lens(model: str, lens: str, url: str) -> None:
-    assert video_url(model, "192.168.144.108", lens) == url
+def _two_port_c12() -> Any:
+    """A C12 whose thermal stream is on a port of its own (as public C13 probes report)."""
+    from topgimbal.protocol import VideoStream, get_model
+
+    c12 = get_model("C12")[1]
+    return dataclasses.replace(c12, video=(
+        dataclasses.replace(c12.video[0], url="rtsp://{host}:554/stream=1"),
+        VideoStream("thermal", "rtsp://{host}:555/stream=2", "thermal", 45.0),
+    ))  # fmt: skip
+
+
+def test_video_url_per_model_and_lens() -> None:
+    from topgimbal.protocol import all_models, get_model
+
+    model_names = list(all_models())
+
+    # TOPOTEK's document gives these two; every other URL is whatever the model's profile says.
+    assert video_url("SIP", "192.168.144.108", "visible") == "rtsp://192.168.144.108:554/stream=0"
+    assert video_url("SIP", "192.168.144.108", "thermal") == "rtsp://192.168.144.108:554/stream=1"
+    checked = 0
+    for name in model_names:
+        model = get_model(name)[1]
+        for lens in ("visible", "thermal"):
+            stream = model.video_stream(lens)
+            if stream is None:
+                with pytest.raises(VideoError, match=f"no '{lens}' stream"):
+                    video_url(name, "192.168.144.108", lens)
+            else:
+                assert video_url(name, "192.168.144.108", lens) == stream.url_for("192.168.144.108")
+                checked += 1
+    assert checked >= len(model_names)
+    assert video_url(_two_port_c12(), "10.0.0.2", "thermal") == "rtsp://10.0.0.2:555/stream=2"
+
+
+def test_streams_carry_the_profiles_lens_data() -> None:
+    from topgimbal.protocol import get_model
+    from topgimbal.video.lens import stream_urls, vfov_for
+
+    sip = get_model("SIP")[1]
+    visible, thermal = streams_for("SIP")
+    assert (visible.hfov_deg, thermal.hfov_deg) == (sip.video[0].hfov_deg, sip.video[1].hfov_deg)
+    assert (visible.port, visible.path, thermal.path) == (554, "/stream=0", "/stream=1")
+    # ENT numbers the streams in the profile's order: the catalog's stream0 / stream1
+    assert (visible.codec_setting, thermal.codec_setting) == ("stream0", "stream1")
+    assert streams_for("C12")[0].codec_setting is None  # SkyDroid has no encoding setting
+    # the vertical field of view of a pinhole with the picture's aspect ratio
+    w, h = visible.size
+    assert math.tan(math.radians(visible.vfov_deg) / 2) == pytest.approx(math.tan(math.radians(56.0) / 2) * h / w)
+    assert vfov_for(90.0, 100, 100) == pytest.approx(90.0)
+    assert stream_urls(_two_port_c12(), "127.0.0.1", port=9000) == {
+        "visible": "rtsp://127.0.0.1:9000/stream=1",
+        "thermal": "rtsp://127.0.0.1:9001/stream=2",
+    }
+    with pytest.raises(VideoError, match="no model 'X9'"):
+        streams_for("X9")
 
 
 def test_video_url_refuses_what_the_model_has_not() -> None:
@@ -58,7 +104,7 @@ def test_zoom_narrows_the_field_of_view_like_a_longer_focal_length() -> None:
 
 
 def test_ports_keep_the_documented_spacing() -> None:
-    c12 = streams_for("C12")
+    c12 = streams_for(_two_port_c12())
     assert plan_ports(c12, None) == {554: 554, 555: 555}
     assert plan_ports(c12, 8554) == {554: 8554, 555: 8555}
     assert plan_ports(c12, 0) == {554: 0, 555: 0}
@@ -141,16 +187,17 @@ def test_client_builds_video_urls_and_imports_only_the_stream_table() -> None:
     import topgimbal
 
     cam = topgimbal.AsyncClient("udp://127.0.0.1:5000", model="C12")
-    assert cam.video_url() == "rtsp://127.0.0.1:554/stream=1"
-    assert cam.video_url("thermal", host="192.168.144.108") == "rtsp://192.168.144.108:555/stream=2"
-    client_dir = Path(topgimbal.__file__).parent / "client"
-    used = {
-        node.module
-        for path in client_dir.glob("*.py")
-        for node in ast.walk(ast.parse(path.read_text()))
-        if isinstance(node, ast.ImportFrom) and node.module and "video" in node.module
-    }
-    assert used == {"video.lens"}  # the client layer reaches only the pure table, not the renderer
+    c12 = cam.model
+    assert cam.video_url() == c12.video_stream("visible").url_for("127.0.0.1")
+    assert cam.video_url("thermal", host="192.168.144.108") == c12.video_stream("thermal").url_for("192.168.144.108")
+    for layer in ("client", "mavlink"):  # both reach only the pure stream table, not the renderer
+        used = {
+            node.module
+            for path in (Path(topgimbal.__file__).parent / layer).glob("*.py")
+            for node in ast.walk(ast.parse(path.read_text()))
+            if isinstance(node, ast.ImportFrom) and node.module and "video" in node.module
+        }
+        assert used == {"video.lens"}, layer
 
 
 def test_sip_streams_follow_the_ent_codec_setting() -> None:
@@ -176,3 +223,51 @@ def test_lag_meter_measures_how_far_behind_the_camera_a_reader_is() -> None:
     lags = [meter.lag_s(SimpleNamespace(time=t)) for t in (0.0, 0.033, 0.066, 0.5)]
     assert lags == pytest.approx([0.0, 0.007, 0.434, 0.02])  # fell behind at the third, caught up by the fourth
     assert meter.lag_s(SimpleNamespace(time=None)) == 0.0  # no timestamps: no judgement
+
+
+@pytest.mark.parametrize(("lens", "size"), [("visible", (640, 360)), ("thermal", (320, 256))])
+def test_rendering_straight_into_ycbcr_gives_the_rgb_picture(lens: str, size: tuple[int, int]) -> None:
+    """The simulator renders in limited-range BT.601 Y'CbCr and only subsamples the chroma; the
+    decoder's view of that picture is the RGB rendering (as FFmpeg's RGB -> YUV would give it)."""
+    from topgimbal.video.encode import yuv420_frame
+
+    state = _state(yaw_deg=25.0, pitch_deg=-8.0, recording=True, palette="ironbow")
+    rgb = np.asarray(Renderer(lens, *size, 45.0).render(state)).astype(int)
+    ycc_img = Renderer(lens, *size, 45.0, mode="YCbCr").render(state)
+    assert ycc_img.mode == "YCbCr" and ycc_img.size == size
+    ycc = np.asarray(ycc_img)
+    assert ycc[..., 0].min() >= 16 and ycc[..., 0].max() <= 235  # limited range, as H.264 expects
+    back = yuv420_frame(ycc_img).to_ndarray(format="rgb24").astype(int)
+    diff = np.abs(back - rgb)
+    # Against what the RGB path gives (FFmpeg's own RGB -> yuv420p): as close on average, and
+    # the worst pixels (coloured edges, where the chroma is shared by 2x2 pixels) as close too.
+    import av
+
+    ref = np.abs(av.VideoFrame.from_ndarray(rgb.astype(np.uint8), format="rgb24").reformat(format="yuv420p")
+                 .to_ndarray(format="rgb24").astype(int) - rgb)  # fmt: skip
+    assert diff.mean() <= ref.mean() + 0.5
+    assert np.percentile(diff, 99) <= np.percentile(ref, 99) + 5
+    assert decode_stamp(back.astype(np.uint8)) == decode_stamp(rgb.astype(np.uint8)) is not None
+    with pytest.raises(VideoError, match="even"):
+        yuv420_frame(ycc_img.crop((0, 0, size[0] - 1, size[1])))
+
+
+def test_tracking_requests_per_model() -> None:
+    from topgimbal.protocol import get_model
+    from topgimbal.video.lens import tracking_requests
+
+    c12, sip, c10 = get_model("C12"), get_model("SIP"), get_model("C10")
+    # SkyDroid: GOT at the point (or the box's centre) in the 1280x720 its catalog fields span
+    assert tracking_requests(*c12, 0.5, 0.25) == [("GOT", {"x_px": 640, "y_px": 180})]
+    assert tracking_requests(*c12, 0.2, 0.2, 0.4, 0.6) == [("GOT", {"x_px": 384, "y_px": 288})]
+    # TOPOTEK: LOC alone, centre 0 and edges +-1000 (ArduPilot's (px - 960) / 0.96 of 1920x1080)
+    ((ident, box),) = tracking_requests(*sip, 0.4, 0.4, 0.6, 0.6)
+    assert ident == "LOC" and box == {"x_px": 0, "y_px": 0, "width_px": 400, "height_px": 400, "reserved": "0001"}
+    ((_, corner),) = tracking_requests(*sip, 1.0, 0.0)  # a point: ArduPilot's 60 px box around it
+    assert (corner["x_px"], corner["y_px"], corner["width_px"], corner["height_px"]) == (1000, -1000, 62, 111)
+    assert tracking_requests(*sip, 0.6, 0.6, 0.4, 0.4) == tracking_requests(*sip, 0.4, 0.4, 0.6, 0.6)  # any corners
+    sip[0].encode("LOC", **box)  # the catalog takes it
+    with pytest.raises(VideoError, match="does not track"):
+        tracking_requests(*c10, 0.5, 0.5)
+    with pytest.raises(VideoError, match="fractions"):
+        tracking_requests(*sip, 1.5, 0.5)

@@ -55,6 +55,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--stream-hz", type=float, default=50.0, help="attitude stream asked of the camera (default 50)")
     p.add_argument("--range-hz", type=float, default=1.0, help="rangefinder polling for DISTANCE_SENSOR (0: off)")
     p.add_argument("--video-url", action="append", help="RTSP URL to announce (repeatable; default: the model's)")
+    p.add_argument(
+        "--video-port",
+        type=int,
+        metavar="N",
+        help="the camera's first RTSP port when not the model's (as sim --video-port)",
+    )
     p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds")
     p.add_argument(
         "--silence", type=float, default=3.0, help="seconds without a frame before the camera counts as down"
@@ -84,6 +90,7 @@ def build_config(args: argparse.Namespace) -> object:
         stream_hz=args.stream_hz,
         range_hz=args.range_hz,
         video_urls=args.video_url,
+        video_port=args.video_port,
         timeout_s=args.timeout,
         silence_s=args.silence,
         max_peers=args.max_peers,

@@ -33,6 +33,7 @@ GIMBAL_COMPIDS = (154, 171, 172, 173, 174, 175)  # MAV_COMP_ID_GIMBAL, GIMBAL2..
 CAMERA_COMPIDS = (100, 101, 102, 103, 104, 105)  # MAV_COMP_ID_CAMERA..CAMERA6
 MAV_TYPE_GIMBAL, MAV_TYPE_CAMERA = 26, 30
 NON_MAVLINK_GIMBAL_ID = 1
+MAV_STATE_BOOT, MAV_STATE_ACTIVE, MAV_STATE_CRITICAL = 1, 4, 5
 
 
 class BridgeConfigError(TopGimbalError, ValueError):
@@ -53,7 +54,8 @@ class BridgeConfig:
     stream_hz: float = 50.0
     heartbeat_hz: float = 1.0
     range_hz: float = 1.0
-    video_urls: list[str] | None = None
+    video_urls: list[str] | None = None  # None: the model's streams at the camera's address
+    video_port: int | None = None  # the first stream's RTSP port when not the profile's (others keep the spacing)
     timeout_s: float = 1.0
     retries: int = 2
     silence_s: float = 3.0
@@ -78,6 +80,8 @@ class BridgeConfig:
             v = getattr(self, name)
             if not lo <= v <= hi:
                 raise BridgeConfigError(f"{name}={v:g}: expected {lo:g}..{hi:g}")
+        if self.video_port is not None and not 1 <= self.video_port <= 65535:
+            raise BridgeConfigError(f"video_port={self.video_port}: expected 1..65535")
         if not 1 <= self.max_peers <= 256:
             raise BridgeConfigError(f"max_peers={self.max_peers}: expected 1..256")
 
@@ -113,13 +117,17 @@ class Bridge:
         self.cameras: list[CameraComponent] = []
         if c.camera_compid is not None:
             gimbal_ref = c.compid if c.role in ("device", "both") else NON_MAVLINK_GIMBAL_ID
-            urls = c.video_urls if c.video_urls is not None else self.cam.profile.rtsp_urls(self.cam.camera_host)
             lenses = ["visible"] + (["thermal"] if c.thermal and self.cam.profile.thermal else [])
+            by_lens = self.cam.profile.rtsp_urls(self.cam.camera_host, port=c.video_port)
             for i, lens in enumerate(lenses):
                 comp = self.node.component(c.camera_compid + i, f"camera-{lens}")
                 svc = Services(comp, self.dispatcher, MAV_TYPE_CAMERA)
                 self.services.append(svc)
-                mine = urls if len(lenses) == 1 else urls[i : i + 1] if i < len(urls) else []
+                if c.video_urls is not None:  # given: the first to the visible camera, the second to the thermal one
+                    urls = c.video_urls
+                    mine = urls if len(lenses) == 1 else urls[i : i + 1] if i < len(urls) else []
+                else:
+                    mine = [by_lens[lens]] if lens in by_lens else []
                 self.cameras.append(CameraComponent(
                     svc, self.cam, self.vehicles, lens=lens, gimbal_device_id=gimbal_ref, video_urls=mine,
                     identity=self.identity, range_hz=c.range_hz))  # fmt: skip
@@ -129,6 +137,8 @@ class Bridge:
         if self.manager is not None:
             self.node.subscribe(self.manager.on_message)
         self.cam.on_health(self._on_health)
+        for svc in self.services:
+            svc.system_status = MAV_STATE_BOOT  # until the camera has answered (or is declared down)
         self._tasks: list[asyncio.Task[None]] = []
         self._closed = asyncio.Event()
         self.started = False
@@ -185,7 +195,7 @@ class Bridge:
 
     def _on_health(self, answering: bool) -> None:
         for svc in self.services:
-            svc.system_status = 4 if answering else 5  # MAV_STATE_ACTIVE / MAV_STATE_CRITICAL
+            svc.system_status = MAV_STATE_ACTIVE if answering else MAV_STATE_CRITICAL
         if answering:
             self._tasks.append(asyncio.ensure_future(self._identify()))
             self._tasks = [t for t in self._tasks if not t.done()]

@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import logging
 import math
 import time
 from collections import OrderedDict
 from typing import Any
 
+from ..video.lens import VideoError, hfov_at, tracking_requests, vfov_for
 from ._mav import mavlink
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, rejected, unsupported
@@ -34,8 +36,7 @@ log = logging.getLogger("topgimbal.mavlink")
 MAX_REMEMBERED_IMAGES = 64
 MAX_INTERVAL_S = 3600.0
 INT32_MAX = 2**31 - 1
-# Tracking picture size the TOPOTEK LOC box is given in (not documented; ArduPilot-style 1920x1080).
-TRACK_FRAME_PX = (1920, 1080)
+VIDEO_ENCODING = {"h264": 1, "h265": 2}  # VIDEO_STREAM_ENCODING
 
 
 class CameraComponent:
@@ -130,7 +131,7 @@ class CameraComponent:
     def zoom_any(self) -> bool:
         p = self.profile
         if self.lens == "thermal":
-            return p.has("DZM") and p.digital_zoom_has_lens
+            return p.can("digital_zoom") and p.digital_zoom_has_lens
         return p.zoom_continuous or p.zoom_absolute
 
     @property
@@ -179,12 +180,15 @@ class CameraComponent:
         name = self.identity.get("model_name") or m.name
         if self.lens == "thermal":
             name = f"{name} thermal"
-        lens = self.profile.lens()
+        lens = self.profile.lens(self.lens)
+        # Focal length and sensor size are in no profile; the resolution only where the profile
+        # gives the stream's picture size (0 = unknown, as MAVLink says).
+        w, h = lens.size if lens is not None and lens.size_documented else (0, 0)
         return [mavlink().MAVLink_camera_information_message(
             self.comp.node.time_boot_ms(), list(_text(self.profile.vendor, 32).ljust(32, b"\0")),
             list(_text(name, 32).ljust(32, b"\0")), firmware_code(self.identity.get("version")),
-            lens.focal_length_mm if lens and self.lens == "visible" else 0.0, 0.0, 0.0, 0, 0,
-            0 if self.lens == "visible" else 1, self.cap_flags(), 0, b"", self.gimbal_device_id, 0)]  # fmt: skip
+            0.0, 0.0, 0.0, w, h, 0 if self.lens == "visible" else 1, self.cap_flags(), 0, b"",
+            self.gimbal_device_id, 0)]  # fmt: skip
 
     async def _settings(self, cmd: Command) -> list[Any]:
         return [self._settings_message()]
@@ -210,7 +214,7 @@ class CameraComponent:
             float("nan"), float("nan"), 2)]  # fmt: skip
 
     async def _capture_status(self, cmd: Command) -> list[Any]:
-        if self.can_record and self.profile.dialect.commands["REC"].readable:
+        if self.can_record and self.profile.dialect.require_role("recording", self.profile.model).readable:
             rec = await self.cam.call(lambda c: c.recording())
             self._recording_now(rec)
         return [self._capture_status_message()]
@@ -242,13 +246,17 @@ class CameraComponent:
 
     async def _video_info(self, cmd: Command) -> list[Any]:
         sid = int(cmd.p(2)) if cmd.has(2) else 0
+        lens = self.profile.lens(self.lens)
+        hfov = round(lens.hfov_deg) if lens is not None else 0
+        w, h = lens.size if lens is not None and lens.size_documented else (0, 0)
+        encoding = VIDEO_ENCODING.get(lens.codec, 0) if lens is not None and lens.codec_documented else 0
         out = []
         for i, url in enumerate(self.video_urls, start=1):
             if sid not in (0, i):
                 continue
             out.append(mavlink().MAVLink_video_stream_information_message(
-                i, len(self.video_urls), 0, self._stream_flags(), 0.0, 0, 0, 0, 0, 0,
-                _text(f"{self.lens} {i}", 32), _text(url, 160), 0, 0))  # fmt: skip
+                i, len(self.video_urls), 0, self._stream_flags(), 0.0, w, h, 0, 0, hfov,
+                _text(f"{self.lens} {i}", 32), _text(url, 160), encoding, 0))  # fmt: skip
         if not out:
             raise denied(f"no stream {sid} (streams 1..{len(self.video_urls)})")
         return out
@@ -401,7 +409,7 @@ class CameraComponent:
             self.zoom_pct = value
             return Outcome(after=[self._settings_message()])
         if kind == 0:
-            if not p.has("DZM"):
+            if not p.can("digital_zoom"):
                 raise unsupported(f"the {p.model.name} has no zoom steps")
             await self.cam.call(lambda c: c.digital_zoom("in" if value > 0 else "out"))
             return Outcome()
@@ -411,7 +419,7 @@ class CameraComponent:
         if not 0 <= pct <= 100:
             raise denied(f"zoom range {pct:g} %: expected 0..100")
         level = 1.0 + (top - 1.0) * pct / 100.0
-        if not self.profile.has("MUL") and not self.profile.digital_zoom_has_lens:
+        if not self.profile.can("optical_zoom") and not self.profile.digital_zoom_has_lens:
             level = float(round(level))  # whole steps only (SkyDroid DZM 1x..4x)
         return round(level, 1)
 
@@ -434,11 +442,7 @@ class CameraComponent:
         radius = cmd.p(3) if cmd.has(3) else 0.05
         if not (0 <= x <= 1 and 0 <= y <= 1):
             raise denied(f"point ({x:g}, {y:g}): expected 0..1 each")
-        if self.profile.has("GOT"):
-            w, h = _got_frame(self.profile)
-            await self.cam.call(lambda c: c.request("GOT", x_px=round(x * w), y_px=round(y * h)))
-        else:
-            await self._loc_box(x - radius, y - radius, x + radius, y + radius)
+        await self._track(x, y)
         self.tracking = (1, (x, y, radius))
         return Outcome()
 
@@ -446,25 +450,25 @@ class CameraComponent:
         x0, y0, x1, y1 = cmd.p(1), cmd.p(2), cmd.p(3), cmd.p(4)
         if not all(0 <= v <= 1 for v in (x0, y0, x1, y1)) or x1 <= x0 or y1 <= y0:
             raise denied("rectangle: expected 0 <= top-left < bottom-right <= 1")
-        await self._loc_box(x0, y0, x1, y1)
+        await self._track(x0, y0, x1, y1)
         self.tracking = (2, (x0, y0, x1, y1))
         return Outcome()
 
-    async def _loc_box(self, x0: float, y0: float, x1: float, y1: float) -> None:
-        w, h = TRACK_FRAME_PX
-        x0, y0, x1, y1 = (max(0.0, min(1.0, v)) for v in (x0, y0, x1, y1))
-        box = {
-            "x_px": round((x0 + x1) / 2 * w), "y_px": round((y0 + y1) / 2 * h),
-            "width_px": max(1, round((x1 - x0) * w)), "height_px": max(1, round((y1 - y0) * h)),
-        }  # fmt: skip
-        await self.cam.call(lambda c: c.request("TRC", action="start"))
-        await self.cam.call(lambda c: c.request("LOC", reserved="0000", **box))  # type: ignore[arg-type]
+    async def _track(self, x0: float, y0: float, x1: float | None = None, y1: float | None = None) -> None:
+        """The model's tracking request for this point or box (one helper for the console and
+        the bridge: `video.lens.tracking_requests`)."""
+        try:
+            requests = tracking_requests(self.profile.dialect, self.profile.model, x0, y0, x1, y1)
+        except VideoError as exc:
+            raise unsupported(str(exc)) from None
+        for ident, values in requests:
+            await self.cam.call(functools.partial(_request, ident=ident, values=values))
 
     async def _track_stop(self, cmd: Command) -> Outcome:
-        if self.profile.has("SUM"):
-            await self.cam.call(lambda c: c.request("SUM", action="stop"))
-        elif self.profile.has("TRC"):
-            await self.cam.call(lambda c: c.request("TRC", action="stop"))
+        p = self.profile
+        role = "tracking_confirm" if p.can("tracking_confirm") else "tracking" if p.can("tracking") else None
+        if role is not None:
+            await self.cam.call(functools.partial(_request, ident=p.ident(role), values={"action": "stop"}))
         else:
             raise unsupported(f"the {self.profile.model.name} cannot stop tracking")
         self.tracking = (0, ())
@@ -497,15 +501,33 @@ class CameraComponent:
                 hit = ground_point(fix.position, att.yaw_deg + vyaw, att.pitch_deg, fix.home_alt_m)
                 if hit is not None:
                     lat_i, lon_i, alt_i = int(hit.lat_deg * 1e7), int(hit.lon_deg * 1e7), int(hit.alt_m * 1000)
-        lens = self.profile.lens()
-        zoom = self.cam.client.state.zoom.value if self.cam.client and self.cam.client.state.zoom else 1.0
-        zoom = zoom if isinstance(zoom, (int, float)) and zoom >= 1 else 1.0
-        hfov = lens.hfov_deg / zoom if lens else nan
-        vfov = lens.vfov_deg / zoom if lens else nan
+        hfov, vfov = self.fov_deg()
         q = self._earth_quaternion() if vyaw is not None else (nan, nan, nan, nan)
         return mavlink().MAVLink_camera_fov_status_message(
             self.comp.node.time_boot_ms(), lat_c, lon_c, alt_c, lat_i, lon_i, alt_i, list(q), hfov, vfov, 0
         )
+
+    def zoom_x(self) -> float:
+        """This lens's magnification as the camera last reported it (1 until it has)."""
+        client = self.cam.client
+        if client is None:
+            return 1.0
+        state = client.state
+        if self.lens == "thermal":
+            z = state.extra.get("zoom.thermal_digital_x")
+            value = z.value if z is not None else 1.0
+        else:
+            value = state.zoom.value if state.zoom is not None else 1.0
+        return float(value) if isinstance(value, (int, float)) and value >= 1 else 1.0
+
+    def fov_deg(self) -> tuple[float, float]:
+        """(horizontal, vertical) field of view now: the profile's at 1x through the pinhole
+        lens model at the current zoom; NaN when the model lists no stream for this lens."""
+        lens = self.profile.lens(self.lens)
+        if lens is None:
+            return float("nan"), float("nan")
+        hfov = hfov_at(lens.hfov_deg, self.zoom_x())
+        return hfov, vfov_for(hfov, *lens.size)
 
     async def _distance_now(self, cmd: Command) -> list[Any]:
         d = await self.cam.call(lambda c: c.range())
@@ -536,8 +558,5 @@ class CameraComponent:
                 self.comp.send(self._distance_message(d))
 
 
-def _got_frame(profile: Any) -> tuple[int, int]:
-    """The picture size GOT coordinates are given in: the fields' maxima in the catalog."""
-    spec = profile.dialect.commands["GOT"]
-    sizes = {f["name"]: f.get("max") for form in spec.describe()["forms"] for f in form["fields"]}
-    return int(sizes.get("x_px") or 1280), int(sizes.get("y_px") or 720)
+async def _request(client: Any, *, ident: str, values: dict[str, Any]) -> Any:
+    return await client.request(ident, **values)

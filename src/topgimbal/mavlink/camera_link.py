@@ -1,11 +1,19 @@
-"""The camera side of the bridge: one topgimbal client, kept open, and the answer to "is the
-camera answering?".
+"""The camera side of the bridge: one topgimbal client, kept open, and whether the camera answers.
 
-Until the client reports link changes itself, liveness is judged here, in one place: any frame
-from the camera means it answers; silence longer than `silence_s` (while the attitude stream
-should be running) or consecutive request timeouts mean it does not. A client whose transport
-closed (TCP, serial) is replaced by a new one, with back-off. When the camera comes back, its
-attitude stream is asked for again (a camera that rebooted has forgotten it)."""
+Liveness is the client's own judgement (its link monitor: `on_link_change`, `connected`,
+`LinkLostError`); this module only follows it. The client declares the link down after
+`silence_s` without a frame while it expects one (its attitude stream, a request in flight) or
+the moment a TCP / serial link closes; it reconnects byte streams itself, pings a quiet device,
+and asks for the attitude stream again when the device comes back (a camera that rebooted has
+forgotten it). Here: the first open is retried with back-off (a TCP camera that is not up yet, a
+serial adapter not plugged in), the attitude stream is asked for once (the client keeps it), and
+a model without an attitude stream is asked its version whenever it has been quiet for half of
+`silence_s`, so that its silence is noticed too.
+
+`answering` (what the MAVLink side reports: COMMS_ERROR, MAV_STATE_CRITICAL, stream flags) is
+the client's link state with one addition: it starts false and turns true with the first frame
+heard, so a camera that was never there is never reported healthy. Commands go through
+whenever the client's link is up (`call`)."""
 
 from __future__ import annotations
 
@@ -17,9 +25,10 @@ import time
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import Any, TypeVar
+from urllib.parse import urlsplit
 
 from ..client import AsyncClient
-from ..errors import RequestTimeoutError, TopGimbalError, TransportError
+from ..errors import LinkLostError, TopGimbalError
 from ..protocol import Message, get_model
 from .profile import Profile, profile_of
 
@@ -29,7 +38,6 @@ T = TypeVar("T")
 NAN = float("nan")
 REOPEN_MIN_S = 0.5
 REOPEN_MAX_S = 5.0
-TIMEOUTS_FOR_DOWN = 2
 
 
 @dataclass(frozen=True)
@@ -73,11 +81,12 @@ class CameraLink:
         self.client_options = dict(client_options or {})
         self.client: AsyncClient | None = None
         self.answering = False
+        self.heard = False  # any frame since the bridge started (before: not yet known, not failed)
+        self.declared_down = False  # the client said the link is down (or it could not be opened)
+        self.reason = "not opened yet"
         self.attitude: AttitudeSample | None = None
         self.last_frame_t = 0.0
-        self.reopened = 0
-        self._consecutive_timeouts = 0
-        self._last_probe = 0.0
+        self.link_changes = 0
         self._seen_att: object = None
         self._attitude_cbs: list[AttitudeCallback] = []
         self._health_cbs: list[HealthCallback] = []
@@ -95,24 +104,16 @@ class CameraLink:
 
     @property
     def camera_host(self) -> str | None:
-        from urllib.parse import urlsplit
-
         return urlsplit(self.url).hostname
 
     async def call(self, fn: Callable[[AsyncClient], Awaitable[T]]) -> T:
-        """Run one client operation; its failures feed the liveness judgement, then propagate."""
+        """Run one client operation. Its errors are the client's: LinkLostError while the link
+        is down (at once: nothing is sent), RequestTimeoutError, DeviceError..."""
         client = self.client
         if client is None or not client.connected:
-            raise TransportError(f"{self.url}: the camera link is down (reconnecting)")
-        try:
-            result = await fn(client)
-        except RequestTimeoutError:
-            self._consecutive_timeouts += 1
-            if self._consecutive_timeouts >= TIMEOUTS_FOR_DOWN:
-                self._set_answering(False, "requests time out")
-            raise
-        self._consecutive_timeouts = 0
-        return result
+            reason = client.link_state["reason"] if client is not None else self.reason
+            raise LinkLostError(f"{self.url}: the camera link is down ({reason})")
+        return await fn(client)
 
     async def start(self, wait_s: float = 0.0) -> None:
         self._task = asyncio.ensure_future(self._run())
@@ -131,85 +132,70 @@ class CameraLink:
                 await self.client.close()
             self.client = None
 
-    # -- the keeper ----------------------------------------------------------------------------
-
-    async def _run(self) -> None:
-        delay = REOPEN_MIN_S
-        while not self._closed:
-            try:
-                await self._open()
-            except (TopGimbalError, OSError) as exc:
-                log.warning("camera %s: cannot open (%s); retrying in %.1f s", self.url, exc, delay)
-                await asyncio.sleep(delay)
-                delay = min(REOPEN_MAX_S, delay * 2)
-                continue
-            delay = REOPEN_MIN_S
-            self._opened.set()
-            await self._watch()
-            if self._closed:
-                return
-            self._set_answering(False, "the link closed")
-            client, self.client = self.client, None
-            if client is not None:
-                with contextlib.suppress(Exception):
-                    await client.close()
-            self.reopened += 1
-            await asyncio.sleep(delay)
-
-    async def _open(self) -> None:
-        client = AsyncClient(
-            self.url, self.model_name, timeout_s=self.timeout_s, retries=self.retries, **self.client_options
-        )
-        await client.open()
-        client.subscribe(self._on_message)
-        self.client = client
-        self._last_probe = 0.0
-        await self._probe()
-
-    async def _watch(self) -> None:
-        """Until the client's transport closes: judge silence, ask for the stream again."""
-        period = max(0.1, min(0.5, self.silence_s / 4))
-        while not self._closed:
-            client = self.client
-            if client is None or not client.connected:
-                return
-            now = time.monotonic()
-            silent_for = now - self.last_frame_t
-            if self.answering and silent_for > self.silence_s and self._streaming:
-                self._set_answering(False, f"no frame for {silent_for:.1f} s")
-            if not self.answering and now - self._last_probe >= max(1.0, self.silence_s / 2):
-                await self._probe()
-            await asyncio.sleep(period)
-
-    @property
-    def _streaming(self) -> bool:
-        return self.profile.has("GAA")
-
-    async def _probe(self) -> None:
-        """Ask for something the camera answers: the attitude stream where the model has one
-        (which also restarts it after a reboot), else the version."""
-        self._last_probe = time.monotonic()
-        client = self.client
-        if client is None:
-            return
-        with contextlib.suppress(TopGimbalError, OSError):
-            if self._streaming:
-                await client.attitude_stream(self.stream_rate_hz)
-            else:
-                await client.version()
-
     @property
     def stream_rate_hz(self) -> float:
         top = self.profile.stream_max_hz
         return max(1.0, min(self.stream_hz, top)) if top else self.stream_hz
 
+    @property
+    def _streaming(self) -> bool:
+        return self.profile.can("attitude_stream")
+
+    # -- keeping the client --------------------------------------------------------------------
+
+    async def _run(self) -> None:
+        delay = REOPEN_MIN_S
+        while not self._closed:
+            client = AsyncClient(
+                self.url, self.model_name, timeout_s=self.timeout_s, retries=self.retries,
+                link_timeout_s=self.silence_s, **self.client_options,
+            )  # fmt: skip
+            try:
+                await client.open()
+            except (TopGimbalError, OSError) as exc:
+                self._set_answering(False, f"cannot open: {exc}", force=True)
+                log.warning("camera %s: cannot open (%s); retrying in %.1f s", self.url, exc, delay)
+                await asyncio.sleep(delay)
+                delay = min(REOPEN_MAX_S, delay * 2)
+                continue
+            client.subscribe(self._on_message)
+            client.on_link_change(self._on_link_change)
+            self.client = client
+            self.reason = "no frame from the camera yet"
+            self._opened.set()
+            await self._keep(client)
+            return
+
+    async def _keep(self, client: AsyncClient) -> None:
+        """Ask for the attitude stream once (the client resumes it after every outage); for a
+        model without one, ask the version whenever the camera has been quiet a while."""
+        if self._streaming:
+            # Recorded by the client even when this first request fails: it asks again itself
+            # once the camera answers (its ping, or a reconnected byte stream).
+            with contextlib.suppress(TopGimbalError, OSError):
+                await client.attitude_stream(self.stream_rate_hz)
+            return
+        period = max(0.1, self.silence_s / 2)
+        while not self._closed:
+            if time.monotonic() - self.last_frame_t >= period:
+                with contextlib.suppress(TopGimbalError, OSError):
+                    await client.version()
+            await asyncio.sleep(period)
+
+    # -- what the client reports ---------------------------------------------------------------
+
+    def _on_link_change(self, up: bool, reason: str) -> None:
+        self.link_changes += 1
+        if not up:
+            self._set_answering(False, reason, force=True)
+        elif self.last_frame_t and reason != "reconnected":
+            self._set_answering(True, reason)  # a frame came (a reconnected stream: wait for one)
+
     def _on_message(self, m: Message) -> None:
-        now = time.monotonic()
-        self.last_frame_t = now
-        self._consecutive_timeouts = 0
-        if not self.answering:
-            self._set_answering(True, f"frame {m.ident}")
+        self.last_frame_t = time.monotonic()
         client = self.client
+        if not self.answering and client is not None and client.connected:
+            self._set_answering(True, f"frame {m.frame.ident}")
         att = client.state.attitude if client is not None else None
         if att is None or att is self._seen_att:
             return
@@ -231,11 +217,17 @@ class CameraLink:
             except Exception:
                 log.exception("attitude listener failed")
 
-    def _set_answering(self, value: bool, why: str) -> None:
-        if value == self.answering:
+    def _set_answering(self, value: bool, why: str, *, force: bool = False) -> None:
+        """A change of `answering`; `force`: tell the listeners also when it stays false (the
+        camera was never heard and is now declared down: from "not yet known" to "failed")."""
+        self.reason = "" if value else why
+        first_down = force and not value and not self.declared_down
+        self.heard = self.heard or value
+        self.declared_down = not value and (self.declared_down or force)
+        if value == self.answering and not first_down:
             return
         self.answering = value
-        log.warning("camera %s %s (%s)", self.url, "answers again" if value else "stopped answering", why)
+        log.warning("camera %s %s (%s)", self.url, "answers" if value else "stopped answering", why)
         for cb in list(self._health_cbs):
             try:
                 cb(value)

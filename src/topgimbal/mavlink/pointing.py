@@ -82,9 +82,9 @@ class Pointer:
                 self.mode = want
         if sp.is_rate:
             yr, pr, rr = (self._rate(v, clamp) for v in (sp.yaw_rate_deg_s, sp.pitch_rate_deg_s, sp.roll_rate_deg_s))
-            if not self.profile.has("GSM") and not self.profile.has("GSY"):
+            if not self.profile.rate_axes:
                 raise rejected(f"the {self.profile.model.name} takes no rate commands")
-            await self.cam.call(lambda c: c.rates(yr, pr, rr if self.profile.has("GSR") else 0.0))
+            await self.cam.call(lambda c: c.rates(yr, pr, rr if "roll" in self.profile.rate_axes else 0.0))
         else:
             yaw, frame = self._body_yaw(sp)
             yaw = self._angle("yaw", yaw, clamp)

@@ -1,19 +1,18 @@
 """What MAVLink needs to know about a camera model, derived from the catalog.
 
-Nothing here is a second model table: every fact is read from the dialect's command specs
-(`supports()`, `describe()`) and the `DeviceModel`. When the per-model profiles (RTSP URLs, lens
-data, version strings) land in `protocol/`, `rtsp_urls()` and `lens()` are the two functions to
-switch over; they already prefer such attributes when a model has them."""
+Nothing here is a second model table: every fact is read from the dialect's command specs,
+found by role (`by_role()`, `describe()`, the fields' axes), and the model profile (`DeviceModel`: limits, identity, video
+streams). Streams and lenses are read through `video.lens` (pure), the one place that turns the
+profile's `VideoStream`s into URLs, ports and fields of view for the simulator, the SDK's
+`video_url()` and this bridge alike."""
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 from typing import Any
 
 from ..protocol import DeviceModel, Dialect
-
-_RTSP = re.compile(r"rtsp://[^\s,;)]+")
+from ..video.lens import StreamSpec, VideoError, stream_urls, streams_for
 
 
 def enum_names(dialect: Dialect, ident: str, field_name: str, rw: str = "w") -> frozenset[str]:
@@ -40,14 +39,6 @@ def field_names(dialect: Dialect, ident: str, rw: str = "w", direction: str = "r
 
 
 @dataclass(frozen=True)
-class Lens:
-    hfov_deg: float
-    vfov_deg: float
-    focal_length_mm: float = 0.0
-    resolution: tuple[int, int] = (0, 0)
-
-
-@dataclass(frozen=True)
 class Profile:
     model: DeviceModel
     dialect: Dialect
@@ -59,24 +50,32 @@ class Profile:
     focus_actions: frozenset[str]
     digital_zoom_has_lens: bool
     stream_max_hz: float | None
+    roles: frozenset[str] = frozenset()  # roles of the commands the model supports (`protocol.ROLES`)
+    angle_axes: frozenset[str] = frozenset()  # axes the model's angle set-points cover
+    rate_axes: frozenset[str] = frozenset()  # axes its rate commands cover
     extra: dict[str, Any] = field(default_factory=dict)
 
-    def has(self, ident: str) -> bool:
-        return ident in self.supported
+    def can(self, role: str) -> bool:
+        """Whether the model supports a command holding `role` (found by role, never by name)."""
+        return role in self.roles
+
+    def ident(self, role: str) -> str:
+        """The identifier of the model's command for `role` (UnsupportedError when none)."""
+        return self.dialect.require_role(role, self.model).ident
 
     # -- gimbal ------------------------------------------------------------------------------------
 
     @property
     def has_yaw(self) -> bool:
-        return self.has("GAY") or self.has("GAM")
+        return "yaw" in self.angle_axes
 
     @property
     def has_pitch(self) -> bool:
-        return self.has("GAP") or self.has("GAM")
+        return "pitch" in self.angle_axes
 
     @property
     def has_roll(self) -> bool:
-        return self.has("GAR")
+        return "roll" in self.angle_axes
 
     @property
     def has_follow(self) -> bool:
@@ -92,33 +91,33 @@ class Profile:
 
     @property
     def earth_frame(self) -> bool:
-        return self.has("GIY")
+        return self.can("earth_angle")
 
     # -- camera ------------------------------------------------------------------------------------
 
     @property
     def can_photo(self) -> bool:
-        return self.has("CAP")
+        return self.can("photo")
 
     @property
     def can_record(self) -> bool:
-        return self.has("REC")
+        return self.can("recording")
 
     @property
     def has_sd(self) -> bool:
-        return self.has("SDC")
+        return self.can("sd_capacity")
 
     @property
     def zoom_continuous(self) -> bool:
-        return self.has("ZMC") and {"zoom_in", "zoom_out", "stop"} <= self.zoom_actions
+        return self.can("zoom_control") and {"zoom_in", "zoom_out", "stop"} <= self.zoom_actions
 
     @property
     def zoom_max_x(self) -> float:
         """Largest magnification an absolute zoom command reaches (optical where it can be set,
         else digital)."""
-        if self.has("MUL"):
+        if self.can("optical_zoom"):
             return max(1.0, self.model.optical_zoom_max)
-        if self.has("DZM"):
+        if self.can("digital_zoom"):
             return max(1.0, self.model.digital_zoom_max)
         return 1.0
 
@@ -128,19 +127,19 @@ class Profile:
 
     @property
     def can_focus(self) -> bool:
-        return self.has("FCC")
+        return self.can("focus_control")
 
     @property
     def track_point(self) -> bool:
-        return self.has("GOT") or (self.has("TRC") and self.has("LOC"))
+        return self.can("tracking_target") or self.track_rectangle
 
     @property
     def track_rectangle(self) -> bool:
-        return self.has("TRC") and self.has("LOC")
+        return self.can("tracking_box")
 
     @property
     def rangefinder(self) -> tuple[float, float] | None:
-        if self.model.lrf_range_m is None or not (self.has("SLR") or self.has("LRF")):
+        if self.model.lrf_range_m is None or not self.can("range"):
             return None
         return self.model.lrf_range_m
 
@@ -151,58 +150,60 @@ class Profile:
     def thermal_photo_mode(self) -> str | None:
         return "thermal" if "thermal" in self.photo_modes else None
 
-    def rtsp_urls(self, camera_host: str | None) -> list[str]:
-        """The model's RTSP URLs (visible first), the camera's address filled in."""
-        urls = getattr(self.model, "rtsp_urls", None)
-        if not urls:
-            urls = _urls_in_notes(self.model.notes)
-        out = []
-        for u in urls:
-            u = u.rstrip(".")
-            if "<ip>" in u or "{host}" in u:
-                if not camera_host:
-                    continue
-                u = u.replace("<ip>", camera_host).replace("{host}", camera_host)
-            out.append(u)
-        return out
+    def streams(self) -> dict[str, StreamSpec]:
+        """The model's video streams by lens (visible first), from its profile."""
+        try:
+            return {s.lens: s for s in streams_for(self.model)}
+        except VideoError:
+            return {}
 
-    def lens(self) -> Lens | None:
-        """Field of view of the visible lens at 1x, when the model's profile gives it."""
-        h, v = getattr(self.model, "hfov_deg", None), getattr(self.model, "vfov_deg", None)
-        if h and v:
-            return Lens(float(h), float(v), float(getattr(self.model, "focal_length_mm", 0.0) or 0.0))
-        return None
+    def lens(self, which: str = "visible") -> StreamSpec | None:
+        """A lens's stream: field of view at 1x (horizontal from the profile, vertical derived
+        from the picture's aspect ratio), picture size, zoom range."""
+        return self.streams().get(which)
 
-
-def _urls_in_notes(notes: str) -> list[str]:
-    """`rtsp://<ip>:554/stream=0 and stream=1` -> both URLs (the notes' way of listing them)."""
-    urls = [u.rstrip(".") for u in _RTSP.findall(notes)]
-    if urls:
-        base, _, last = urls[0].rpartition("/")
-        key = last.split("=")[0] + "=" if "=" in last else None
-        if key:
-            for n in re.findall(re.escape(key) + r"(\d+)", notes):
-                u = f"{base}/{key}{n}"
-                if u not in urls:
-                    urls.append(u)
-    return urls
+    def rtsp_urls(self, camera_host: str | None, *, port: int | None = None) -> dict[str, str]:
+        """{lens: RTSP URL} at the camera's address (none without one: a serial link); `port`
+        moves the first stream's port and keeps the others' spacing, as `sim --video-port`."""
+        if not camera_host or not self.streams():
+            return {}
+        return stream_urls(self.model, camera_host, port=port)
 
 
 def profile_of(dialect: Dialect, model: DeviceModel) -> Profile:
-    supported = frozenset(c.ident for c in dialect.supported(model))
-    rate_fields = {f["name"]: f for form in _forms(dialect, "GAA") for f in form["fields"]}
+    specs = dialect.supported(model)
+    supported = frozenset(c.ident for c in specs)
+    roles = frozenset(c.role for c in specs if c.role)
+
+    def ident(role: str) -> str:
+        spec = dialect.by_role(role, model)
+        return spec.ident if spec is not None else ""
+
+    def axes(role: str) -> frozenset[str]:
+        return frozenset(
+            f.axis
+            for spec in dialect.commands_with_role(role, model)
+            for form in spec.forms_for("w", "request")
+            for f in form.fields
+            if f.axis
+        )
+
+    rate_fields = {f["name"]: f for form in _forms(dialect, ident("attitude_stream")) for f in form["fields"]}
     stream_max = rate_fields["rate_hz"].get("max") if "rate_hz" in rate_fields else None
     return Profile(
         model=model,
         dialect=dialect,
         vendor=dialect.title.split()[0] if dialect.title else dialect.name,
         supported=supported,
-        ptz_actions=enum_names(dialect, "PTZ", "action") if "PTZ" in supported else frozenset(),
-        photo_modes=enum_names(dialect, "CAP", "mode") if "CAP" in supported else frozenset(),
-        zoom_actions=enum_names(dialect, "ZMC", "action") if "ZMC" in supported else frozenset(),
-        focus_actions=enum_names(dialect, "FCC", "action") if "FCC" in supported else frozenset(),
-        digital_zoom_has_lens="lens" in field_names(dialect, "DZM"),
+        ptz_actions=enum_names(dialect, ident("gimbal_control"), "action"),
+        photo_modes=enum_names(dialect, ident("photo"), "mode"),
+        zoom_actions=enum_names(dialect, ident("zoom_control"), "action"),
+        focus_actions=enum_names(dialect, ident("focus_control"), "action"),
+        digital_zoom_has_lens="lens" in field_names(dialect, ident("digital_zoom")),
         stream_max_hz=float(stream_max) if stream_max else None,
+        roles=roles,
+        angle_axes=axes("angle"),
+        rate_axes=axes("rate"),
     )
 
 

@@ -1,27 +1,35 @@
-"""Per-model video facts and the lens model: stream URLs, field of view, pixel <-> angle.
+"""The model profile's video streams as the video code needs them, and the lens model: stream
+URLs, fields of view, pixel <-> angle.
 
-Pure (standard library only), so the client can build `video_url()` without importing the
-renderer or any media library.
-
-THE TABLE BELOW IS TEMPORARY: the model profiles (`protocol.DeviceModel`) will carry these facts;
-when they do, `streams_for()` reads the profile instead (one line) and the table goes.
-Sources: TOPOTEK §二 "码流（RTSP）" gives rtsp://IP:554/stream=0 (main) and stream=1 (sub); its
-recording names say stream 0 is the visible camera and stream 1 the thermal one, and ENT (§17)
-switches each between H.264 and H.265. The SkyDroid document gives no RTSP URL; public client code
-for the C12 and C13 uses rtsp://IP:554/stream=1 (visible) and rtsp://IP:555/stream=2 (thermal).
-Fields of view are not in either document: they are the simulator's choices (typical 1x wide
-lenses; the thermal one is sim/scene.py's, which the TMP reports already use).
+Pure (standard library and `protocol` only), so the client can build `video_url()` without
+importing the renderer or any media library. Every per-model fact comes from the model profile
+(`DeviceModel.video`: URL per lens, horizontal field of view at 1x, zoom range); nothing here is a
+second model table. What the profiles do not carry yet is derived or a documented default of this
+module, the same for every model:
+- picture size: the simulator renders visible streams at 1280x720 (the catalog's GOT frame and
+  SkyDroid's smallest VID resolution) and thermal ones at 640x512 (a common 640 thermal core);
+  a profile that gains `VideoStream.size_px` is read instead;
+- vertical field of view: from the horizontal one and the picture's aspect ratio (a pinhole);
+- codec: H.264 unless the profile's stream says `codec`; the setting that switches it (TOPOTEK
+  `ENT`, role `encoding`) numbers the streams in the profile's order (ENT 0 = stream=0, the main
+  stream; 1 = the sub stream), read from the catalog's own enum.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from urllib.parse import urlsplit
+from typing import Any
+from urllib.parse import urlsplit, urlunsplit
 
 from ..errors import TopGimbalError
+from ..protocol import DeviceModel, get_model
 
 LENSES = ("visible", "thermal")
+RTSP_DEFAULT_PORT = 554
+# Used only where a profile gives no field of view (every profile today gives one).
+ASSUMED_HFOV_DEG = 60.0
+DEFAULT_SIZE_PX = {"visible": (1280, 720), "thermal": (640, 512)}
 
 
 class VideoError(TopGimbalError):
@@ -30,60 +38,129 @@ class VideoError(TopGimbalError):
 
 @dataclass(frozen=True)
 class StreamSpec:
-    """One RTSP stream a camera serves."""
+    """One RTSP stream a camera serves, read from its model profile."""
 
-    lens: str  # "visible" or "thermal"
+    lens: str  # "visible" or "thermal" (the profile's VideoStream.lens)
     port: int
-    path: str  # with the leading slash, e.g. "/stream=0"
+    path: str  # with the leading slash and any query, e.g. "/stream=0"
     hfov_deg: float  # horizontal field of view at 1x
-    size: tuple[int, int]  # the simulator's default picture size (width, height)
+    size: tuple[int, int]  # picture size (width, height): the profile's, else DEFAULT_SIZE_PX
     codec: str = "h264"  # what the camera sends by default ("h264" or "h265")
-    codec_setting: str | None = None  # the ENT `stream` value that switches this stream's codec
+    codec_setting: str | None = None  # the encoding command's `stream` value that switches this stream
+    url_template: str = ""  # the profile's URL, "{host}" for the camera's address
+    name: str = ""  # the profile's stream name ("main", "sub", "thermal")
+    zoom_range_x: tuple[float, float] = (1.0, 1.0)
+    size_documented: bool = False  # `size` is the profile's (else this module's default)
+    codec_documented: bool = False  # `codec` is the profile's (else H.264 by default)
+
+    @property
+    def vfov_deg(self) -> float:
+        """Vertical field of view at 1x, from the horizontal one and the aspect ratio."""
+        return vfov_for(self.hfov_deg, *self.size)
+
+    def url(self, host: str, *, port: int | None = None) -> str:
+        """This stream's URL at `host` (IPv6 literals get brackets), optionally on another port."""
+        h = f"[{host}]" if ":" in host and not host.startswith("[") else host
+        parts = urlsplit(self.url_template.replace("{host}", h))
+        if port is None:
+            return urlunsplit(parts)
+        return urlunsplit(parts._replace(netloc=f"{h}:{port}"))
 
 
-# Thermal: the field of view sim/scene.py's temperature picture uses (32 x 26 deg at 640 x 512).
-_THERMAL_HFOV_DEG = 32.0
-_VISIBLE_HFOV_DEG = 62.0
-
-_SKYDROID_VISIBLE = StreamSpec("visible", 554, "/stream=1", _VISIBLE_HFOV_DEG, (1280, 720))
-_SKYDROID_THERMAL = StreamSpec("thermal", 555, "/stream=2", _THERMAL_HFOV_DEG, (640, 512))
-STREAMS: dict[str, tuple[StreamSpec, ...]] = {
-    "C10": (_SKYDROID_VISIBLE,),
-    "C10Pro": (_SKYDROID_VISIBLE,),
-    "C12": (_SKYDROID_VISIBLE, _SKYDROID_THERMAL),
-    "C13": (_SKYDROID_VISIBLE, _SKYDROID_THERMAL),
-    "C20": (_SKYDROID_VISIBLE,),
-    "SIP": (
-        StreamSpec("visible", 554, "/stream=0", _VISIBLE_HFOV_DEG, (1280, 720), codec_setting="stream0"),
-        StreamSpec("thermal", 554, "/stream=1", _THERMAL_HFOV_DEG, (640, 512), codec_setting="stream1"),
-    ),
-}
+def _model(model: str | DeviceModel) -> tuple[Any, DeviceModel]:
+    try:
+        return get_model(model)
+    except Exception as exc:  # an unknown name: say which are known
+        raise VideoError(f"no model {model!r}: {exc}") from None
 
 
-def streams_for(model: str) -> tuple[StreamSpec, ...]:
-    """The RTSP streams of a model (its documented ports and paths)."""
-    for name, streams in STREAMS.items():
-        if name.lower() == model.lower():
-            return streams
-    raise VideoError(f"no video facts for model {model!r}; known: {', '.join(STREAMS)}")
+def _codec_settings(dialect: Any, model: DeviceModel) -> list[str]:
+    """The encoding command's `stream` values in wire order ("stream0", "stream1", ...): the
+    n-th switches the profile's n-th stream."""
+    spec = dialect.by_role("encoding", model)
+    if spec is None:
+        return []
+    for form in spec.describe()["forms"]:
+        if form["rw"] == "w" and form["direction"] == "request":
+            for f in form["fields"]:
+                if f["name"] == "stream":
+                    return [v["name"] for v in sorted(f.get("values", ()), key=lambda v: v["raw"])]
+    return []
 
 
-def stream_for(model: str, lens: str = "visible") -> StreamSpec:
+def spec_of(model: DeviceModel, index: int, settings: list[str] | None = None) -> StreamSpec:
+    v = model.video[index]
+    parts = urlsplit(v.url.replace("{host}", "host"))
+    path = parts.path + (f"?{parts.query}" if parts.query else "")
+    size_px = getattr(v, "size_px", None)
+    codec = getattr(v, "codec", None)
+    size = size_px or DEFAULT_SIZE_PX.get(v.lens, DEFAULT_SIZE_PX["visible"])
+    settings = settings or []
+    return StreamSpec(
+        lens=v.lens,
+        port=parts.port or RTSP_DEFAULT_PORT,
+        path=path or "/",
+        hfov_deg=float(v.hfov_deg) if v.hfov_deg else ASSUMED_HFOV_DEG,
+        size=(int(size[0]), int(size[1])),
+        codec=str(codec or "h264"),
+        codec_setting=settings[index] if index < len(settings) else None,
+        url_template=v.url,
+        name=v.name,
+        zoom_range_x=tuple(v.zoom_range_x),  # type: ignore[arg-type]
+        size_documented=bool(size_px),
+        codec_documented=bool(codec),
+    )
+
+
+def streams_for(model: str | DeviceModel) -> tuple[StreamSpec, ...]:
+    """The RTSP streams of a model, from its profile (one per lens, in the profile's order)."""
+    dialect, m = _model(model)
+    if not m.video:
+        raise VideoError(f"the {m.name} profile lists no video stream")
+    settings = _codec_settings(dialect, m)
+    out: list[StreamSpec] = []
+    for i, v in enumerate(m.video):
+        if all(s.lens != v.lens for s in out):  # the first stream of each lens
+            out.append(spec_of(m, i, settings))
+    return tuple(out)
+
+
+def stream_for(model: str | DeviceModel, lens: str = "visible") -> StreamSpec:
     streams = streams_for(model)
     for s in streams:
         if s.lens == lens:
             return s
     have = ", ".join(s.lens for s in streams)
-    raise VideoError(f"the {model} has no {lens!r} stream; it has: {have}")
+    name = model if isinstance(model, str) else model.name
+    raise VideoError(f"the {name} has no {lens!r} stream; it has: {have}")
 
 
-def video_url(model: str, host: str, lens: str = "visible", *, port: int | None = None) -> str:
+def video_url(model: str | DeviceModel, host: str, lens: str = "visible", *, port: int | None = None) -> str:
     """The RTSP URL of a lens's stream on a camera at `host` (IPv6 literals get brackets)."""
     if lens not in LENSES:
         raise VideoError(f"lens must be one of {', '.join(LENSES)} (got {lens!r})")
-    s = stream_for(model, lens)
-    h = f"[{host}]" if ":" in host and not host.startswith("[") else host
-    return f"rtsp://{h}:{s.port if port is None else port}{s.path}"
+    return stream_for(model, lens).url(host, port=port)
+
+
+def plan_ports(specs: tuple[StreamSpec, ...], port: int | None) -> dict[int, int]:
+    """Documented port -> port to use. An override keeps the documented spacing (554/555 ->
+    N/N+1); 0 gives each documented port its own free port. The simulator binds these; the
+    MAVLink bridge announces them (`--video-port`)."""
+    documented = sorted({s.port for s in specs})
+    if port is None:
+        return {p: p for p in documented}
+    if port == 0:
+        return {p: 0 for p in documented}
+    return {p: port + (p - documented[0]) for p in documented}
+
+
+def stream_urls(model: str | DeviceModel, host: str, *, port: int | None = None) -> dict[str, str]:
+    """{lens: URL} of every stream at `host`; `port` moves the first stream's port there and
+    the others keep the documented spacing (a camera behind a port forward, a simulator on a
+    free port)."""
+    specs = streams_for(model)
+    ports = plan_ports(specs, port) if port else {s.port: s.port for s in specs}
+    return {s.lens: s.url(host, port=ports[s.port] if port else None) for s in specs}
 
 
 def host_of(url: str) -> str:
@@ -103,6 +180,11 @@ def hfov_at(hfov_1x_deg: float, zoom_x: float) -> float:
     """Horizontal field of view at a magnification (a pinhole: the focal length scales)."""
     z = max(1.0, float(zoom_x))
     return math.degrees(2.0 * math.atan(math.tan(math.radians(hfov_1x_deg) / 2.0) / z))
+
+
+def vfov_for(hfov_deg: float, width_px: int, height_px: int) -> float:
+    """Vertical field of view of a pinhole camera with this horizontal one and picture size."""
+    return math.degrees(2.0 * math.atan(math.tan(math.radians(hfov_deg) / 2.0) * height_px / width_px))
 
 
 def focal_px(width_px: int, hfov_deg: float) -> float:
@@ -174,3 +256,54 @@ def _dot(a: Vec, b: Vec) -> float:
 
 def wrap180(a: float) -> float:
     return (a + 180.0) % 360.0 - 180.0
+
+
+# -- tracking: picture fractions -> the model's tracking request ---------------------------------
+
+# TOPOTEK's LOC box, as ArduPilot's TOPOTEK driver (written with the vendor, fixed on hardware)
+# sends it: centre and size in a frame whose centre is 0 and whose edges are -1000 and +1000 on
+# each axis (its 1920x1080 picture: x = (px - 960) / 0.96), and LOC alone starts tracking. A point
+# is tracked as a box of TRACK_RANGE 60 px of that picture; the two bytes after the box are 0, 1.
+# (The catalog names the fields x_px... and "reserved" and gives no range: for protocol/ to settle.)
+LOC_HALF_SPAN = 1000
+POINT_BOX = (60 / 1920, 60 / 1080)  # fractions of the picture
+
+
+def _field_max(spec: Any, name: str) -> float | None:
+    for form in spec.describe()["forms"]:
+        for f in form["fields"]:
+            if f["name"] == name and f.get("max") is not None:
+                return float(f["max"])
+    return None
+
+
+def tracking_requests(
+    dialect: Any, model: DeviceModel, x0: float, y0: float, x1: float | None = None, y1: float | None = None
+) -> list[tuple[str, dict[str, Any]]]:
+    """The requests that start tracking what is at a point (x0, y0) or in a box (x0, y0)-(x1, y1)
+    of the picture (fractions 0..1, top left 0, 0), found by role: the `tracking_target` command
+    (SkyDroid GOT) at the point or the box's centre, in the picture its catalog fields span
+    (1280x720); else the `tracking_box` command (TOPOTEK LOC) with the box (a point: a small box
+    around it). Raises VideoError for a model that does not track."""
+    if x1 is None or y1 is None:
+        x1, y1 = x0, y0
+    xa, xb, ya, yb = min(x0, x1), max(x0, x1), min(y0, y1), max(y0, y1)
+    if not all(0.0 <= v <= 1.0 for v in (xa, xb, ya, yb)):
+        raise VideoError("picture coordinates must be fractions from 0 to 1")
+    cx, cy = (xa + xb) / 2, (ya + yb) / 2
+    target, box_spec = dialect.by_role("tracking_target", model), dialect.by_role("tracking_box", model)
+    if target is not None:
+        w, h = _field_max(target, "x_px") or 1280.0, _field_max(target, "y_px") or 720.0
+        return [(target.ident, {"x_px": round(cx * w), "y_px": round(cy * h)})]
+    if box_spec is not None:
+        bw, bh = (xb - xa, yb - ya) if (xb > xa and yb > ya) else POINT_BOX
+        s = LOC_HALF_SPAN
+        box = {
+            "x_px": round((2 * cx - 1) * s),
+            "y_px": round((2 * cy - 1) * s),
+            "width_px": max(1, round(bw * 2 * s)),
+            "height_px": max(1, round(bh * 2 * s)),
+            "reserved": "0001",
+        }  # fmt: skip  (ArduPilot's last two bytes: 0, 1)
+        return [("LOC", box)]
+    raise VideoError(f"the {model.name} does not track targets")

@@ -7,10 +7,16 @@ The shading is per pixel but needs no trigonometry per frame: for a pinhole came
 pixel's elevation is (f_z + a r_z + b u_z) / |(1, a, b)|, where (a, b) are the pixel's tangent-plane
 coordinates (fixed for a given field of view: precomputed), and f, r, u the camera's forward,
 right and up vectors. It is computed at a quarter of the resolution and scaled up.
+
+A renderer draws in RGB (`mode="RGB"`, for people and tests) or straight in Y'CbCr
+(`mode="YCbCr"`: BT.601, limited range, what an H.264 stream carries): the shading tables, the
+palettes and every colour are converted once, so the encoder only averages the chroma over 2x2
+pixels instead of converting every pixel from RGB (bench/video.py measures both paths).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from datetime import datetime
@@ -80,8 +86,22 @@ def _lut_thermal() -> np.ndarray:
     return np.clip(np.round((t - lo) / (hi - lo) * 255), 0, 255).astype(np.uint8)
 
 
+def ycc(rgb: Any) -> Any:
+    """RGB (0..255, ..., 3) -> BT.601 limited-range Y'CbCr (Y 16..235, Cb/Cr 16..240): what
+    FFmpeg's RGB -> yuv420p conversion gives, so pictures look the same either way. Takes one
+    colour (a tuple) or an array of them."""
+    a = np.asarray(rgb, np.float64)
+    m = np.array([[65.481, 128.553, 24.966], [-37.797, -74.203, 112.0], [112.0, -93.786, -18.214]]) / 255.0
+    out = np.clip(np.rint(a @ m.T + np.array([16.0, 128.0, 128.0])), 0, 255).astype(np.uint8)
+    if out.ndim == 1:
+        return tuple(int(v) for v in out)
+    return out
+
+
 _LUT_VISIBLE = _lut_visible()
+_LUT_VISIBLE_YCC = ycc(_LUT_VISIBLE)
 _LUT_THERMAL = _lut_thermal()
+MODES = ("RGB", "YCbCr")
 
 
 @dataclass
@@ -97,9 +117,13 @@ class _Grid:
 class Renderer:
     """Renders one lens's picture. Not thread-safe: one renderer per render thread."""
 
-    def __init__(self, lens: str, width: int, height: int, hfov_1x_deg: float) -> None:
+    def __init__(self, lens: str, width: int, height: int, hfov_1x_deg: float, *, mode: str = "RGB") -> None:
         if width < 64 or height < 48:
             raise ValueError(f"picture too small: {width}x{height} (at least 64x48)")
+        if mode not in MODES:
+            raise ValueError(f"mode must be one of {', '.join(MODES)} (got {mode!r})")
+        self.mode = mode
+        self._c: Any = functools.lru_cache(maxsize=64)(ycc) if mode == "YCbCr" else (lambda rgb: rgb)
         self.lens = lens
         self.width = width
         self.height = height
@@ -110,6 +134,7 @@ class Renderer:
         self._font_big: Any = ImageFont.load_default(size=int(size * 1.4))
         self._palette_name = ""
         self._palette: list[int] = []
+        self._palette_ycc: list[int] = []
         # Ground grid: every road as a segment between two points on the ground plane (north, east).
         n = int(world.GRID_HALF_EXTENT_M // world.GRID_SPACING_M)
         ext = world.GRID_HALF_EXTENT_M
@@ -148,7 +173,7 @@ class Renderer:
     # -- drawing ----------------------------------------------------------------------------------
 
     def render(self, state: SceneState) -> Image.Image:
-        """The picture (an RGB Pillow image of width x height)."""
+        """The picture: a Pillow image of width x height in the renderer's mode."""
         hfov = self.hfov(state)
         fwd, right, up = (np.array(v) for v in basis(state.yaw_deg, state.pitch_deg, state.roll_deg))
         f = focal_px(self.width, hfov)
@@ -173,7 +198,12 @@ class Renderer:
         sin_el = (fwd[2] + g.a[None, :] * right[2] + g.b[:, None] * up[2]) * g.inv_norm
         idx = ((sin_el + 1.0) * ((LUT_SIZE - 1) / 2.0)).astype(np.int32)
         np.clip(idx, 0, LUT_SIZE - 1, out=idx)
-        small = Image.fromarray(_LUT_THERMAL[idx], "L") if thermal else Image.fromarray(_LUT_VISIBLE[idx], "RGB")
+        if thermal:
+            small = Image.fromarray(_LUT_THERMAL[idx], "L")
+        elif self.mode == "YCbCr":
+            small = Image.fromarray(_LUT_VISIBLE_YCC[idx], "YCbCr")
+        else:
+            small = Image.fromarray(_LUT_VISIBLE[idx], "RGB")
         # Nearest is 10x cheaper than bilinear here; the steps it leaves are only visible at the
         # horizon, which _draw_horizon covers with a line.
         return small.resize((self.width, self.height), Image.Resampling.NEAREST)
@@ -182,7 +212,13 @@ class Renderer:
         if palette_name != self._palette_name:
             self._palette_name = palette_name
             self._palette = world.palette(palette_name)
+            self._palette_ycc = [int(v) for v in ycc(np.array(self._palette, np.uint8).reshape(-1, 3)).ravel()]
         p = Image.frombuffer("P", img.size, img.tobytes(), "raw", "P", 0, 1)
+        if self.mode == "YCbCr":
+            # Pillow's palette lookup, with Y'CbCr triples in the palette: the bytes are relabelled
+            # (no colour conversion by Pillow, whose own YCbCr is full range).
+            p.putpalette(self._palette_ycc)
+            return Image.frombuffer("YCbCr", img.size, p.convert("RGB").tobytes(), "raw", "YCbCr", 0, 1)
         p.putpalette(self._palette)
         return p.convert("RGB")
 
@@ -192,20 +228,24 @@ class Renderer:
         pts = [p for p in cam.points(np.array([world_dir(state.yaw_deg + d, 0.0) for d in (-45.0, 45.0)])) if p]
         if len(pts) == 2:
             (x0, y0), (x1, y1) = _clip_far(pts[0], pts[1], 4.0 * self.width, self.width, self.height)
-            colour: Any = int(_LUT_THERMAL[LUT_SIZE // 2]) if thermal else (185, 190, 185)
+            colour: Any = int(_LUT_THERMAL[LUT_SIZE // 2]) if thermal else self._c((185, 190, 185))
             draw.line((x0, y0, x1, y1), fill=colour, width=SHADE_DOWNSCALE + 2)
 
     def _draw_world_visible(self, draw: ImageDraw.ImageDraw, cam: Camera) -> None:
         w = max(1, self.width // 640)
+        c = self._c
+        road = c((70, 70, 70))
         for (x0, y0), (x1, y1) in cam.segments(self._roads):
-            draw.line((x0, y0, x1, y1), fill=(70, 70, 70), width=w)
-        self._draw_ticks(draw, cam, (30, 30, 30))
-        self._draw_marks(draw, cam, ((250, 250, 250), (200, 30, 30)), (255, 255, 0))
+            draw.line((x0, y0, x1, y1), fill=road, width=w)
+        self._draw_ticks(draw, cam, c((30, 30, 30)))
+        self._draw_marks(draw, cam, (c((250, 250, 250)), c((200, 30, 30))), c((255, 255, 0)))
         hot = cam.point(world_dir(*world.HOT_SPOT))
         if hot is not None:
             r = cam.radius_px(1.2)
             x, y = hot
-            draw.rectangle((x - r * 1.6, y - r * 0.8, x + r * 1.6, y + r * 0.8), fill=(180, 40, 30), outline=(0, 0, 0))
+            draw.rectangle(
+                (x - r * 1.6, y - r * 0.8, x + r * 1.6, y + r * 0.8), fill=c((180, 40, 30)), outline=c((0, 0, 0))
+            )
 
     def _draw_world_thermal(self, draw: ImageDraw.ImageDraw, cam: Camera) -> None:
         w = max(1, self.width // 320)
@@ -225,7 +265,7 @@ class Renderer:
                 r = cam.radius_px(max(0.3, radius_deg))
                 draw.ellipse((x - r, y - r, x + r, y + r), fill=world.temperature_level(world.GROUND_C + dt))
 
-    def _draw_ticks(self, draw: ImageDraw.ImageDraw, cam: Camera, colour: tuple[int, int, int]) -> None:
+    def _draw_ticks(self, draw: ImageDraw.ImageDraw, cam: Camera, colour: Any) -> None:
         pts = cam.points(self._tick_dirs)
         h = max(4, self.height // 60)
         for az, p in zip(self._ticks, pts, strict=False):
@@ -251,7 +291,7 @@ class Renderer:
             draw.text((x + r + 3, y - r - self._font_big.size), str(m.number), fill=text_fill, font=self._font_big)
 
     def _draw_osd(self, draw: ImageDraw.ImageDraw, state: SceneState, hfov: float) -> None:
-        fg, sh = (255, 255, 255), (0, 0, 0)
+        fg, sh = self._c((255, 255, 255)), self._c((0, 0, 0))
         fs = self._font.size
         zoom = state.thermal_zoom_x if self.lens == "thermal" else state.zoom_x
         lines = [
@@ -274,7 +314,7 @@ class Renderer:
             # Blinks at 1 Hz, as a camera's REC light does; the elapsed time stays.
             x = self.width - fs * 7
             if int(state.record_s * 2) % 2 == 0:
-                draw.ellipse((x, fs // 2, x + fs, fs // 2 + fs), fill=(230, 0, 0))
+                draw.ellipse((x, fs // 2, x + fs, fs // 2 + fs), fill=self._c((230, 0, 0)))
             m, s = divmod(int(state.record_s), 60)
             draw.text((x + int(fs * 1.4), fs // 2 - 2), f"REC {m:02d}:{s:02d}", fill=fg, font=self._font)
 
@@ -282,16 +322,17 @@ class Renderer:
         x0, y0, cell = stamp_layout(self.width, self.height)
         ms = int(state.wall_s * 1000) & ((1 << STAMP_BITS) - 1)
         bits = [1, 0] + [(ms >> (STAMP_BITS - 1 - i)) & 1 for i in range(STAMP_BITS)]
-        white, black = (255, 255, 255), (0, 0, 0)
+        white, black = self._c((255, 255, 255)), self._c((0, 0, 0))
         draw.rectangle(
-            (x0 - cell * 0.5, y0 - cell * 0.5, x0 + (len(bits) + 0.5) * cell, y0 + cell * 1.5), fill=(128, 128, 128)
+            (x0 - cell * 0.5, y0 - cell * 0.5, x0 + (len(bits) + 0.5) * cell, y0 + cell * 1.5),
+            fill=self._c((128, 128, 128)),
         )
         for i, bit in enumerate(bits):
             draw.rectangle((x0 + i * cell, y0, x0 + (i + 1) * cell - 1, y0 + cell - 1), fill=white if bit else black)
         t = datetime.fromtimestamp(state.wall_s).strftime("%H:%M:%S.%f")[:-3]
         text = f"{t}  #{state.frame}"
-        draw.text((x0 + 1, y0 - self._font.size - cell * 0.5), text, fill=(0, 0, 0), font=self._font)
-        draw.text((x0, y0 - self._font.size - cell * 0.5 - 1), text, fill=(255, 255, 255), font=self._font)
+        draw.text((x0 + 1, y0 - self._font.size - cell * 0.5), text, fill=black, font=self._font)
+        draw.text((x0, y0 - self._font.size - cell * 0.5 - 1), text, fill=white, font=self._font)
 
 
 def world_dir(az_deg: float, el_deg: float) -> tuple[float, float, float]:

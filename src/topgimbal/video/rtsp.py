@@ -54,6 +54,8 @@ class Stream:
 
     def publish(self, au: AccessUnit) -> None:
         """Send one access unit to every receiver (on the server's event loop)."""
+        if au.codec != self.codec:
+            return  # encoded before a codec change, delivered after it
         self.pictures += 1
         if au.keyframe:
             found = parameter_sets(self.codec, split_nals(au.data))
@@ -66,6 +68,19 @@ class Stream:
 
     def want_keyframe(self) -> None:
         self._want_key()
+
+    def restart(self, codec: str) -> None:
+        """The encoder restarts with another codec: forget the parameter sets (DESCRIBE waits
+        for the new ones) and disconnect every player (an RTP session cannot change its payload
+        format; players that reconnect get the new SDP)."""
+        self.codec = codec
+        self.params = {}
+        self.ready.clear()
+        for r in list(self.receivers):
+            log.info("RTSP %s: codec now %s: disconnecting %s", self.path, codec, r.conn.peer)
+            r.close()
+            if r.conn.transport is not None:
+                r.conn.transport.close()
 
     def now_rtp(self) -> int:
         return int(time.monotonic() * CLOCK_HZ) & 0xFFFFFFFF

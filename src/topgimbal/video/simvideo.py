@@ -10,12 +10,19 @@ DESCRIBE, which needs the parameter sets) (numpy, Pillow and FFmpeg release the 
 heavy work, so the simulator's event loop keeps its timing; bench/video.py measures it). Each
 picture starts with a snapshot of the simulator taken on the simulator's own loop thread, so the
 render thread never reads half-updated state.
+
+Streams, paths, ports, fields of view and the codec setting come from the model profile (through
+`lens.streams_for`). A codec change (TOPOTEK `ENT`) takes effect on a running stream as on a
+camera that restarts its encoder: the stream's players are disconnected (an RTP session cannot
+change its payload format), the encoder is rebuilt in the render thread, and the next DESCRIBE
+gives the new codec's SDP; players that reconnect (ffplay, VLC, the console's relay) go on.
 """
 
 from __future__ import annotations
 
 import asyncio
 import concurrent.futures
+import contextlib
 import logging
 import threading
 import time
@@ -23,7 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .encode import Encoder
-from .lens import StreamSpec, VideoError, streams_for
+from .lens import StreamSpec, VideoError, plan_ports, streams_for
 from .render import Renderer
 from .rtsp import RtspServer, Stream
 from .snapshot import SceneState, capture
@@ -33,6 +40,7 @@ log = logging.getLogger("topgimbal.video")
 DEFAULT_FPS = 30.0
 MAX_FPS = 60.0
 SNAPSHOT_TIMEOUT_S = 1.0
+CODEC_POLL_S = 0.2  # how often the codec setting is looked at (a change restarts the stream's encoder)
 
 
 @dataclass(frozen=True)
@@ -55,17 +63,6 @@ class VideoOptions:
             raise VideoError(f"codec must be h264 or h265 (got {self.codec!r})")
 
 
-def plan_ports(specs: tuple[StreamSpec, ...], port: int | None) -> dict[int, int]:
-    """Documented port -> port to bind. An override keeps the documented spacing (554/555 ->
-    N/N+1); 0 gives each documented port its own free port."""
-    documented = sorted({s.port for s in specs})
-    if port is None:
-        return {p: p for p in documented}
-    if port == 0:
-        return {p: 0 for p in documented}
-    return {p: port + (p - documented[0]) for p in documented}
-
-
 class SimVideo:
     def __init__(self, sim: Any, options: VideoOptions | None = None, **kw: Any) -> None:
         self.sim = sim
@@ -76,18 +73,27 @@ class SimVideo:
         self.urls: dict[str, str] = {}
         self._workers: list[_Worker] = []
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._watch: asyncio.Task[None] | None = None
+        # The simulator stores only the last encoding write (`stream`, `codec`): each stream's
+        # codec is remembered here as writes are seen; a factory reset (new settings) forgets.
+        self._ent_codecs: dict[str, str] = {}
+        self._ent_seen: tuple[int, Any, Any] | None = None
 
     def _codec(self, spec: StreamSpec) -> str:
+        """The codec a stream should send now: --video-codec, else the model's setting."""
         if self.options.codec:
             return self.options.codec
-        ent = self.sim.settings.get("ENT")
-        if (
-            spec.codec_setting
-            and ent
-            and ent.get("stream") == spec.codec_setting
-            and ent.get("codec") in ("h264", "h265")
-        ):
-            return str(ent["codec"])
+        settings = self.sim.settings
+        ent = settings.get("ENT") or {}
+        seen = (id(settings), ent.get("stream"), ent.get("codec"))
+        if self._ent_seen is None or seen[0] != self._ent_seen[0]:
+            self._ent_codecs.clear()
+        if seen != self._ent_seen:
+            self._ent_seen = seen
+            if ent.get("codec") in ("h264", "h265") and ent.get("stream"):
+                self._ent_codecs[str(ent["stream"])] = str(ent["codec"])
+        if spec.codec_setting:
+            return self._ent_codecs.get(spec.codec_setting, spec.codec)
         return spec.codec
 
     def _bitrate(self) -> int:
@@ -125,12 +131,34 @@ class SimVideo:
                     self.urls[spec.lens] = server.url(spec.path)
             for w in self._workers:
                 w.start()
+            if any(w.spec.codec_setting for w in self._workers) and not self.options.codec:
+                self._watch = asyncio.ensure_future(self._watch_codecs())
         except BaseException:
             await self.stop()
             raise
         return self
 
+    async def _watch_codecs(self) -> None:
+        """On the simulator's loop: restart a stream whose codec setting changed."""
+        while True:
+            await asyncio.sleep(CODEC_POLL_S)
+            for w in self._workers:
+                stream = w.stream
+                if stream is None:
+                    continue
+                wanted = self._codec(w.spec)
+                if wanted != stream.codec:
+                    log.info("video %s: codec %s -> %s: restarting the encoder; players reconnect",
+                             w.spec.lens, stream.codec, wanted)  # fmt: skip
+                    stream.restart(wanted)
+                    w.recodec()
+
     async def stop(self) -> None:
+        if self._watch is not None:
+            self._watch.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._watch
+            self._watch = None
         for w in self._workers:
             w.stop()
         for s in self.servers:
@@ -187,6 +215,7 @@ class _Worker:
         self.fps = opts.fps
         self._stop = threading.Event()
         self._key = threading.Event()
+        self._recodec = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"topgimbal-video-{spec.lens}", daemon=True)
         self.frames = 0
         self.skipped = 0
@@ -204,11 +233,16 @@ class _Worker:
     def want_keyframe(self) -> None:
         self._key.set()
 
+    def recodec(self) -> None:
+        """The stream's codec changed: rebuild the encoder before the next picture."""
+        self._recodec.set()
+        self._key.set()
+
     def _run(self) -> None:
         assert self.stream is not None
         w, h = self.size
         try:
-            renderer = Renderer(self.spec.lens, w, h, self.spec.hfov_deg)
+            renderer = Renderer(self.spec.lens, w, h, self.spec.hfov_deg, mode="YCbCr")
             encoder = Encoder(self.stream.codec, w, h, self.fps, bitrate_kbps=self.video._bitrate())
         except Exception:
             log.exception("video %s: cannot start the encoder", self.spec.lens)
@@ -226,6 +260,10 @@ class _Worker:
                     self.skipped += int((now - next_t) / period)
                     next_t = now
                 next_t += period
+                if self._recodec.is_set():
+                    self._recodec.clear()
+                    encoder.close()
+                    encoder = Encoder(self.stream.codec, w, h, self.fps, bitrate_kbps=self.video._bitrate())
                 if not self.stream.receivers and not self._key.is_set():
                     # Nobody watches: render nothing (a DESCRIBE or PLAY asks for a keyframe).
                     self._key.wait(period)

@@ -20,17 +20,16 @@ import logging
 from collections.abc import Callable
 from typing import Any
 
-from .lens import StreamSpec, VideoError, View, hfov_at, host_of, streams_for, video_url, wrap180
+from .lens import StreamSpec, VideoError, View, hfov_at, host_of, streams_for, tracking_requests, video_url, wrap180
 
 log = logging.getLogger("topgimbal.video.console")
 
 BOUNDARY = "topgimbalframe"
 ZOOM_STEP_S = 0.3  # one wheel notch runs the zoom motor this long
-TRACK_FRAME = (1280, 720)
 # The console's own simulated camera renders at this rate: it shares one process (and, on a
 # small machine, the CPU) with the console and the relay; 15 fps halves the cost of 30 (see
 # docs/video.md) and still shows motion. `topgimbal sim --video` keeps the camera's 30 fps.
-CONSOLE_SIM_FPS = 15.0  # SkyDroid GOT coordinates (§3.3.5); TOPOTEK LOC uses the same here
+CONSOLE_SIM_FPS = 15.0
 
 
 class ConsoleVideo:
@@ -192,21 +191,16 @@ class ConsoleVideo:
         except VideoError as exc:
             return _error(400, str(exc))
         cam = self.console.cam
-        fw, fh = TRACK_FRAME
-        cx, cy = round((x0 + x1) / 2 * fw), round((y0 + y1) / 2 * fh)
-        bw, bh = round(abs(x1 - x0) * fw), round(abs(y1 - y0) * fh)
-        d, m = cam.dialect, cam.model
         try:
-            if d.supports(m, "GOT"):
-                await cam.request("GOT", x_px=cx, y_px=cy)
-            elif d.supports(m, "LOC") and d.supports(m, "TRC"):
-                await cam.request("LOC", x_px=cx, y_px=cy, width_px=bw, height_px=bh)
-                await cam.request("TRC", action="start")
-            else:
-                return _error(409, f"the {m.name} does not track targets")
+            requests = tracking_requests(cam.dialect, cam.model, x0, y0, x1, y1)
+        except VideoError as exc:
+            return _error(409, str(exc))
+        try:
+            for ident, values in requests:
+                await cam.request(ident, **values)
         except Exception as exc:
             return _error(502, f"the camera refused: {exc}")
-        return web.json_response({"x_px": cx, "y_px": cy, "width_px": bw, "height_px": bh})
+        return web.json_response({"requests": [{"id": i, **v} for i, v in requests]})
 
     async def zoom(self, request: Any) -> Any:
         from aiohttp import web
