@@ -294,7 +294,9 @@ def public_figures(base: Path, rounds: int) -> list[str]:
         lines.append(f"  {who}")
         lines.append(f"    on {kind} frames, one per datagram ({understood}/200 decoded by it)")
         lines.append(f"    theirs {rate['theirs']:>12,.0f} frames/s")
-        lines.append(f"    ours, pure Python {rate['pure']:>12,.0f} frames/s = {rate['pure'] / rate['theirs']:5.2f}x theirs")
+        lines.append(
+            f"    ours, pure Python {rate['pure']:>12,.0f} frames/s = {rate['pure'] / rate['theirs']:5.2f}x theirs"
+        )
         if _speedups.enabled():
             lines.append(
                 f"    ours, fast path   {rate['fast']:>12,.0f} frames/s = {rate['fast'] / rate['theirs']:5.2f}x theirs"
@@ -312,7 +314,9 @@ def main() -> None:
     datagrams = mixed_stream(args.frames)
     total = sum(len(d) for d in datagrams)
     link_fps = LINK_BYTES_S / (total / args.frames)
-    print(f"mixed stream: {args.frames:,} frames in {len(datagrams):,} datagrams, {total / args.frames:.1f} bytes/frame")
+    print(
+        f"mixed stream: {args.frames:,} frames in {len(datagrams):,} datagrams, {total / args.frames:.1f} bytes/frame"
+    )
     print(f"saturated 115200-baud link: {link_fps:,.0f} frames/s")
     print(f"fast path: {_speedups.status()}; {load()} (CPU time, best of {args.rounds})")
     with tempfile.TemporaryDirectory(prefix="topgimbal-bench-") as tmp:
