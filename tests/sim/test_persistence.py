@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import json
 import os
+from datetime import datetime
 from pathlib import Path
 
 import pytest
@@ -88,7 +89,7 @@ GOOD = Simulator("C12").device.snapshot()
 def _with(path: str, value: str) -> str:
     """GOOD as JSON text with the value at a dotted path replaced by raw JSON text."""
     marker = "__REPLACE_ME__"
-    state = json.loads(json.dumps(GOOD))
+    state = json.loads(json.dumps(GOOD))  # the snapshot is plain JSON (a time as ISO text)
     *parents, last = path.split(".")
     node = state
     for key in parents:
@@ -195,13 +196,13 @@ def test_a_state_file_written_after_every_kind_of_change_loads_back(tmp_path: Pa
             for name, value in values.items():
                 if isinstance(value, (int, float)) and not isinstance(value, bool):
                     values[name] = value + 1
-        dev.settings.get("TIM", {})["time"] = "2026-01-02 03:04:05"
+        dev.settings.get("TIM", {})["time"] = datetime(2026, 1, 2, 3, 4, 5)
         dev.settings.get("LAT", {})["lat_deg"] = -33.5
         dev.camera.sd_used_mb = 123.456
         dev.gimbal.trims["x"] = 1.5
         sim.flush(force=True)
         again = Simulator(model, state_file=state)
-        assert again.device.snapshot() == json.loads(json.dumps(dev.snapshot(), default=str))
+        assert again.device.snapshot() == json.loads(json.dumps(dev.snapshot()))  # JSON as it is
 
 
 def test_stale_temporaries_of_our_pattern_are_removed_at_start(tmp_path: Path) -> None:

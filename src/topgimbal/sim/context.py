@@ -21,6 +21,7 @@ from __future__ import annotations
 import random
 from collections.abc import Callable, Hashable, Mapping
 from dataclasses import dataclass, field
+from datetime import datetime
 from typing import Any, Union
 
 from ..errors import TopGimbalError
@@ -149,7 +150,9 @@ class SimState:
             "model": self.model.name,
             "network": self.network.snapshot(),
             "uid": self.uid,
-            "settings": self.settings,
+            "settings": {
+                ident: {k: _jsonable(v) for k, v in values.items()} for ident, values in self.settings.items()
+            },
             "camera": self.camera.snapshot(),
             "gimbal": {"mode": g.mode, "mount": g.mount, "trims": dict(g.trims)},
         }
@@ -160,7 +163,8 @@ class SimState:
             self.uid = saved["uid"]
         for ident, values in (saved.get("settings") or {}).items():
             if ident in self.settings and isinstance(values, dict):
-                self.settings[ident].update({k: v for k, v in values.items() if k in self.settings[ident]})
+                store = self.settings[ident]
+                store.update({k: _restored(store[k], v) for k, v in values.items() if k in store})
         self.camera.restore(saved.get("camera") or {})
         g = saved.get("gimbal") or {}
         if g.get("mode") in ("follow", "lock"):
@@ -169,6 +173,22 @@ class SimState:
             self.gimbal.mount = g["mount"]
         if isinstance(g.get("trims"), dict):
             self.gimbal.trims.update({k: float(v) for k, v in g["trims"].items() if k in self.gimbal.trims})
+
+
+def _jsonable(value: Any) -> Any:
+    """A stored setting as the state file holds it: a time (TIM) as ISO 8601 text."""
+    return value.isoformat() if isinstance(value, datetime) else value
+
+
+def _restored(current: Any, saved: Any) -> Any:
+    """A saved setting back in the type the device keeps (a time from its ISO text); text that is
+    not a time leaves the factory value."""
+    if isinstance(current, datetime):
+        try:
+            return datetime.fromisoformat(saved) if isinstance(saved, str) else current
+        except ValueError:
+            return current
+    return saved
 
 
 class StateView:
