@@ -20,16 +20,21 @@ static void check(int ok) {
 
 static void check_frame(const tg_event *ev) {
     static const tg_dialect *const dialects[2] = {&tg_skydroid, &tg_topotek};
-    uint8_t out[TG_FRAME_MAX + 16], data[TG_FRAME_MAX];
+    /* A good frame after the one written: a frame recovered from a wrong length character ended
+     * where the next frame began, and alone it would wait for the bytes its length promises. */
+    static const uint8_t next[] = "#TPUD2wCAP013E";
+    uint8_t out[TG_FRAME_MAX + 16 + sizeof next], data[TG_FRAME_MAX];
     tg_frame f = ev->frame, g;
     tg_scan_cfg cfg = {TG_PARSER_MAX_DATA, 1};
     tg_step st;
     tg_message m, m2;
     int n, k, d;
-    n = tg_frame_write(&f, out, sizeof out);
+    n = tg_frame_write(&f, out, sizeof out - (sizeof next - 1));
     check(n == (int)ev->raw_len);
-    tg_scan_step(out, (size_t)n, 0, 1, &cfg, &st);
+    memcpy(out + n, next, sizeof next - 1);
+    tg_scan_step(out, (size_t)n + sizeof next - 1, 0, 1, &cfg, &st);
     check(st.kind == TG_STEP_FRAME || st.kind == TG_STEP_RECOVERED);
+    check(st.start == 0 && st.end == (size_t)n);
     tg_step_frame(out, &st, &g);
     check(g.len == f.len && memcmp(g.data, f.data, f.len) == 0 && memcmp(g.ident, f.ident, 3) == 0);
     for (d = 0; d < 2; d++) {
