@@ -116,13 +116,15 @@ def _settled(bg: BackgroundConsole) -> bool:
 
 def test_drag_pad_arrow_keys_and_stop(page: Any, c12: BackgroundConsole) -> None:
     center(c12, page)
+    page.get_by_test_id("pad").scroll_into_view_if_needed()
     box = page.get_by_test_id("pad").bounding_box()
     cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
     page.mouse.move(cx, cy)
     page.mouse.down()
     page.mouse.move(box["x"] + box["width"] - 4, cy, steps=5)  # full right: yaw rate only
     wait_for(lambda: gimbal(c12)[0] > 2.0, 10, what="the gimbal turning right while the pad is held")
-    assert "rate" in page.get_by_test_id("rate-readout").inner_text()
+    readout_text = page.get_by_test_id("rate-readout").inner_text()
+    assert re.fullmatch(r"rate [1-9][\d.]* / 0 °/s", readout_text), readout_text  # a level drag: no pitch rate
     page.mouse.up()
     wait_for(lambda: _settled(c12), 5, what="the gimbal stopping when the pad is released")
     assert abs(gimbal(c12)[1]) < 1.0  # the pitch did not move
