@@ -54,7 +54,7 @@ def test_backends_are_imported_lazily():
 async def test_request_reply_over_loopback(fake, kind):
     url = await (fake.start_udp() if kind == "udp" else fake.start_tcp())
     fake.answers["REC"] = {"state": "recording"}
-    async with topgimbal.connect(url, model="C12", timeout_s=0.5) as cam:
+    async with topgimbal.connect(url, model="C12", timeout_s=3) as cam:
         assert await cam.recording() is True
         assert cam.state.recording is not None and cam.state.recording.value is True
         assert cam.stats.frames_out == 1 and cam.stats.frames_in == 1 and cam.stats.connected
@@ -71,7 +71,7 @@ async def test_several_frames_per_datagram_crlf_and_lowercase(fake):
         return [att.to_bytes() + b"\r\n" + ans.to_bytes() + b"\r\n"]
 
     fake.handler = handler
-    async with topgimbal.connect(url, model="C12", timeout_s=0.5) as cam:
+    async with topgimbal.connect(url, model="C12", timeout_s=3) as cam:
         assert await cam.recording() is False
         assert cam.state.attitude is not None and cam.state.attitude.pitch_deg == 2.0
 
@@ -93,7 +93,7 @@ async def test_validation_happens_before_sending(fake):
 async def test_device_error_frame_raises(fake):
     url = await fake.start_udp()
     fake.handler = lambda f: [make_frame("ERE", b"!!", src=f.dst, dst=f.src, header="#TP").to_bytes()]
-    async with topgimbal.connect(url, model="C12", timeout_s=0.5) as cam:
+    async with topgimbal.connect(url, model="C12", timeout_s=3) as cam:
         with pytest.raises(DeviceError):
             await cam.sd_card()
 
@@ -156,7 +156,7 @@ async def test_subscribers_are_isolated_and_unsubscribe(fake):
     async def good_async(m):
         seen.append("async:" + m.ident)
 
-    async with topgimbal.connect(url, model="C12", timeout_s=0.5) as cam:
+    async with topgimbal.connect(url, model="C12", timeout_s=3) as cam:
         cam.subscribe(bad)
         un = cam.subscribe(lambda m: seen.append(m.ident), "CAP")
         cam.subscribe(good_async)
@@ -172,17 +172,17 @@ async def test_sign_mapping_topotek_pitch_and_override(fake):
     fake.dialect, fake.model = topgimbal.get_model("SIP")
     url = await fake.start_udp()
     fake.answers["GAC"] = {"yaw_deg": 10.0, "pitch_deg": 20.0, "roll_deg": 0.0}  # wire: pitch down-positive
-    async with topgimbal.connect(url, model="SIP", timeout_s=0.5, check_model=False) as cam:
+    async with topgimbal.connect(url, model="SIP", timeout_s=3, check_model=False) as cam:
         await cam.set_angles(pitch_deg=30)
         wire = fake.dialect.decode(fake.received[-1])
         assert wire.ident == "GAP" and wire.fields["pitch_deg"] == -30.0
         assert fake.received[-1].src == "P"  # TOPOTEK host address over the network
         att = await cam.get_attitude()
         assert (att.yaw_deg, att.pitch_deg) == (10.0, -20.0)
-    async with topgimbal.connect(url, model="SIP", timeout_s=0.5, signs={"pitch": 1, "yaw": -1}) as cam:
+    async with topgimbal.connect(url, model="SIP", timeout_s=3, signs={"pitch": 1, "yaw": -1}) as cam:
         att = await cam.get_attitude()
         assert (att.yaw_deg, att.pitch_deg) == (-10.0, 20.0)
-    async with topgimbal.connect(url, model="SIP", timeout_s=0.5) as cam:
+    async with topgimbal.connect(url, model="SIP", timeout_s=3) as cam:
         api = await cam.request("GAC", read=True)  # the API convention
         raw = await cam.send_raw(make_frame("GAC", "00", src="P", dst="G", rw="r"))  # the wire's values
         assert api.fields is not None and raw is not None and raw.fields is not None
@@ -199,7 +199,7 @@ def test_sync_facade_blocks_and_refuses_calls_from_its_loop(fake):
         url = asyncio.run_coroutine_threadsafe(fake.start_udp(), loop).result(5)
         fake.answers["REC"] = {"state": "stopped"}
         errors: list[BaseException] = []
-        with topgimbal.Gimbal(url, model="C12", timeout_s=0.5) as cam:
+        with topgimbal.Gimbal(url, model="C12", timeout_s=3) as cam:
             assert cam.recording() is False
 
             def callback(_m):
