@@ -294,3 +294,17 @@ def _eventually(check: Any, timeout_s: float = 10.0) -> bool:
             return True
         time.sleep(0.2)
     return False
+
+
+def test_a_receiver_playing_starts_the_c11s_video_output_and_its_photos_count() -> None:
+    """The C11 acts on camera commands only once its video output has started: in the simulator a
+    receiver playing the RTSP stream is what starts it (issue 10)."""
+    with LiveSim("C11", fps=10.0, size=(320, 240)) as c11:
+        assert not c11.call(lambda: c11.sim.camera.video_output)
+        with topgimbal.Gimbal(c11.url, model="C11") as cam:
+            cam.photo()  # acknowledged, not taken: no picture has been played yet
+            assert c11.call(lambda: c11.sim.camera.photos_taken) == 0
+            grab(c11.video.urls["visible"], (320, 240))
+            assert c11.call(lambda: c11.sim.camera.video_output)
+            cam.photo()
+            assert c11.call(lambda: c11.sim.camera.photos_taken) == 1

@@ -21,6 +21,7 @@ async def photo(core: ClientCore, **values: object) -> Message:
     """Take one photo. Sent once, never retried (a copy would take a second photo); when no
     acknowledgement comes, the error says the photo may or may not have been taken."""
     ident = roles.require_role(core.dialect, core.model, "photo", "photo command")
+    core.behaviour.note_camera_command("photo")
     try:
         return await send_values(core, ident, values)
     except RequestTimeoutError as exc:
@@ -37,6 +38,7 @@ def _rec(core: ClientCore) -> str:
 
 
 async def start_recording(core: ClientCore) -> None:
+    core.behaviour.note_camera_command("recording")
     await request(core, _rec(core), action="start")
     core.state.set("recording", True)
 

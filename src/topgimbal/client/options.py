@@ -7,6 +7,7 @@ connection (a device whose firmware differs from its profile)."""
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TypedDict
@@ -14,6 +15,8 @@ from typing import TypedDict
 from ..errors import FieldValueError
 from ..protocol import CommandSpec, DeviceModel
 from . import checks
+
+log = logging.getLogger("topgimbal.client")
 
 
 @dataclass(frozen=True)
@@ -87,6 +90,7 @@ class Behaviour:
         self.stop_repeats = options.stop_repeats or model.stop_repeats
         self.min_gap_s = model.min_command_gap_s if options.min_command_gap_s is None else options.min_command_gap_s
         self.combined = options.combined_motion is not False
+        self._video_note_given = False
 
     def expects_echo(self, spec: CommandSpec) -> bool:
         """Whether a write of `spec` is acknowledged: the protocol's rule, the profile's `no_echo`
@@ -100,3 +104,18 @@ class Behaviour:
     def is_slow(self, spec: CommandSpec) -> bool:
         """A query the model may answer very late or never (C12 MOD)."""
         return spec.ident in self.model.slow_answers
+
+    def note_camera_command(self, what: str) -> None:
+        """Models whose camera commands act only once their video output has started (the C11's
+        needs_video_output quirk) acknowledge them either way, so the acknowledgement cannot prove
+        the photo or recording happened: say so, once per connection."""
+        if self.model.quirks.get("needs_video_output") and not self._video_note_given:
+            self._video_note_given = True
+            log.warning(
+                "%s: the %s acknowledges camera commands but acts on them only once its video output has "
+                "started (a receiver playing its RTSP stream, e.g. cam.video_url()): start the video first, "
+                "or the acknowledged %s may not have happened",
+                what,
+                self.model.name,
+                what,
+            )

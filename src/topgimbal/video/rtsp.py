@@ -43,7 +43,14 @@ SERVER_NAME = "topgimbal-sim"
 class Stream:
     """One live stream (one path): the latest parameter sets and the receivers playing it."""
 
-    def __init__(self, path: str, codec: str, *, on_keyframe_wanted: Callable[[], None] | None = None) -> None:
+    def __init__(
+        self,
+        path: str,
+        codec: str,
+        *,
+        on_keyframe_wanted: Callable[[], None] | None = None,
+        on_play: Callable[[], None] | None = None,
+    ) -> None:
         self.path = path
         self.codec = codec
         self.params: dict[str, bytes] = {}
@@ -51,6 +58,7 @@ class Stream:
         self.receivers: set[_Session] = set()
         self.pictures = 0
         self._want_key = on_keyframe_wanted or (lambda: None)
+        self.on_play = on_play or (lambda: None)
 
     def publish(self, au: AccessUnit) -> None:
         """Send one access unit to every receiver (on the server's event loop)."""
@@ -362,6 +370,7 @@ class _Connection(asyncio.Protocol):
         s.waiting_key = True
         s.stream.receivers.add(s)
         s.stream.want_keyframe()  # so the new receiver starts now, not at the next GOP
+        s.stream.on_play()
         info = f"url={req.url.rstrip('/')}/trackID=0;seq={s.packetizer.seq};rtptime={s.stream.now_rtp()}"
         self.reply(req, 200, "OK", {"Session": s.id, "Range": "npt=0.000-", "RTP-Info": info})
 

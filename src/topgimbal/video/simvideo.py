@@ -96,6 +96,11 @@ class SimVideo:
             return self._ent_codecs.get(spec.codec_setting, spec.codec)
         return spec.codec
 
+    def _output_started(self) -> None:
+        """A receiver plays a stream: the camera's video output has started (a C11 acts on camera
+        commands only from then on: the needs_video_output quirk)."""
+        self.sim.camera.video_output = True
+
     def _bitrate(self) -> int:
         if self.options.bitrate_kbps:
             return self.options.bitrate_kbps
@@ -112,7 +117,9 @@ class SimVideo:
             by_port: dict[int, list[tuple[StreamSpec, Stream]]] = {}
             for spec in self.specs:
                 worker = _Worker(self, spec)
-                stream = Stream(spec.path, self._codec(spec), on_keyframe_wanted=worker.want_keyframe)
+                stream = Stream(
+                    spec.path, self._codec(spec), on_keyframe_wanted=worker.want_keyframe, on_play=self._output_started
+                )
                 worker.stream = stream
                 self.streams[spec.lens] = stream
                 self._workers.append(worker)
