@@ -26,6 +26,24 @@ def add_connection_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def accept_connection_arguments_after(top: argparse.ArgumentParser, command: argparse.ArgumentParser) -> None:
+    """`topgimbal proxy --model C12 ...` as well as `topgimbal --model C12 proxy ...`: the global
+    `--url` / `--model` also after the command (unless the command has its own). Given there, they
+    replace the global value; not given, they leave it (SUPPRESS: no default of their own)."""
+    taken = {opt for action in command._actions for opt in action.option_strings}
+    for action in top._actions:
+        if action.dest not in ("url", "model") or taken.intersection(action.option_strings):
+            continue
+        extra: dict[str, object] = {"choices": action.choices, "type": action.type} if action.dest == "model" else {}
+        command.add_argument(
+            *action.option_strings,
+            dest=action.dest,
+            default=argparse.SUPPRESS,
+            help=f"{action.help} (also accepted before the command)",
+            **extra,  # type: ignore[arg-type]
+        )
+
+
 def _model_name(text: str) -> str:
     for name in all_models():
         if name.lower() == text.lower():

@@ -30,6 +30,8 @@ def build_parser() -> argparse.ArgumentParser:
         if importlib.util.find_spec(modname) is None:
             continue  # subcommand not shipped in this build
         importlib.import_module(modname).register(sub)
+    for command in sub.choices.values():
+        common.accept_connection_arguments_after(parser, command)
     return parser
 
 
