@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+from typing import Any
 
 from ..protocol import DIALECT_NAMES, all_models
 
@@ -17,13 +18,31 @@ def add_connection_arguments(parser: argparse.ArgumentParser) -> None:
         help="camera address: udp://HOST:PORT, tcp://HOST:PORT or serial:///dev/ttyUSB0?baud=115200 "
         "(env TOPGIMBAL_URL)",
     )
-    parser.add_argument(
-        "--model",
+    add_model_argument(
+        parser,
         default=os.environ.get("TOPGIMBAL_MODEL"),
-        choices=sorted(all_models(), key=str.lower),
-        type=_model_name,
         help="device model; picks the dialect, limits and wire signs (env TOPGIMBAL_MODEL)",
     )
+
+
+def add_camera_subcommand(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+    name: str,
+    *,
+    model_help: str = "device model (picks the dialect)",
+    **kwargs: Any,
+) -> argparse.ArgumentParser:
+    """A subcommand that talks to one camera, with its own `--url` and `--model`: they also exist
+    on the main parser, and SUPPRESS keeps a value given there."""
+    parser = subparsers.add_parser(name, **kwargs)
+    parser.add_argument("--url", default=argparse.SUPPRESS, help="camera address, e.g. udp://HOST:5000")
+    add_model_argument(parser, default=argparse.SUPPRESS, help=model_help)
+    return parser
+
+
+def add_model_argument(parser: argparse.ArgumentParser, flag: str = "--model", **kwargs: Any) -> None:
+    """A model name option, matched case-insensitively against the catalog's models."""
+    parser.add_argument(flag, type=_model_name, choices=sorted(all_models(), key=str.lower), **kwargs)
 
 
 def _model_name(text: str) -> str:
