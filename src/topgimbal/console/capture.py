@@ -23,9 +23,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import TopGimbalError
 from ..protocol import DeviceModel
-from ..transport import parse_url
+from ..transport import network_address
 from ..wire import CaptureWriter
 from ..wire.packets import Endpoint
 from ..wire.ports import CLIENT_PORTS
@@ -115,13 +114,10 @@ def _client_port(transport: str, dialect: str) -> int:
 
 def link_for(url: str, model: DeviceModel) -> Link:
     """The console's link to the camera at `url` as the pcap shows it (see the module text)."""
-    try:
-        parsed = parse_url(url)
-    except TopGimbalError:
-        parsed = None
-    if parsed is not None and parsed.scheme in ("udp", "tcp") and parsed.port:
-        transport, port = parsed.scheme, parsed.port
-        device_ip, loopback = _loopback_for(parsed.host)
+    address = network_address(url)
+    if address is not None:
+        transport, host, port = address
+        device_ip, loopback = _loopback_for(host)
     else:
         documented = [e.port for e in model.endpoints if e.kind == "udp" and e.port is not None]
         transport, port, device_ip, loopback = "udp", (documented or [5000])[0], "127.0.0.1", "127.0.0.1"

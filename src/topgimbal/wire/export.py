@@ -17,8 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..errors import TopGimbalError
-from ..transport import parse_url
+from ..transport import network_address
 from .packets import Endpoint
 from .pcapfile import CaptureError
 from .ports import documented_ports
@@ -38,14 +37,11 @@ def _endpoints(header: dict[str, Any]) -> tuple[str, Endpoint, Endpoint]:
     dialect = str(header.get("dialect") or "")
     url_text = str(header.get("url") or "")
     transport, port, loopback = "udp", 0, "127.0.0.1"
-    try:
-        url = parse_url(url_text)
-    except TopGimbalError:
-        url = None
-    if url is not None and url.scheme in ("udp", "tcp") and url.port:
-        transport, port = url.scheme, url.port
+    address = network_address(url_text)
+    if address is not None:
+        transport, host, port = address
         try:
-            if ipaddress.ip_address(url.host).version == 6:
+            if ipaddress.ip_address(host).version == 6:
                 loopback = "::1"
         except ValueError:
             pass  # a host name: IPv4 loopback
