@@ -20,8 +20,10 @@ from typing import Any
 from ..transport import network_address
 from .packets import Endpoint
 from .pcapfile import CaptureError
-from .ports import documented_ports
+from .ports import CLIENT_PORTS, client_port, documented_ports
 from .synth import CaptureWriter
+
+HOST_PORT = 40000  # the host's side of a conversation when no convention gives one
 
 
 @dataclass
@@ -29,7 +31,7 @@ class ExportReport:
     frames: int = 0
     problems: list[str] = field(default_factory=list)
     transport: str = "udp"
-    host: Endpoint = ("127.0.0.1", 40000)
+    host: Endpoint = ("127.0.0.1", HOST_PORT)
     device: Endpoint = ("127.0.0.1", 5000)
 
 
@@ -46,10 +48,14 @@ def _endpoints(header: dict[str, Any]) -> tuple[str, Endpoint, Endpoint]:
         except ValueError:
             pass  # a host name: IPv4 loopback
     if not port:
-        ports = sorted(p for (t, p), d in documented_ports().items() if d == dialect and t == "udp" and p != 9004)
+        ports = sorted(
+            p for (t, p), d in documented_ports().items() if d == dialect and t == "udp" and (t, p) not in CLIENT_PORTS
+        )
         port = ports[0] if ports else 5000
-    client_port = 9004 if dialect == "topotek" and transport == "udp" and port != 9004 else 40000
-    return transport, (loopback, client_port), (loopback, port)
+    host_port = client_port(transport, dialect, HOST_PORT)
+    if host_port == port:  # the device on the host's conventional port: the host takes another
+        host_port = HOST_PORT
+    return transport, (loopback, host_port), (loopback, port)
 
 
 def log_to_pcap(log_path: str | Path, out_path: str | Path) -> ExportReport:
