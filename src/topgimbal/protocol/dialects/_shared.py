@@ -11,6 +11,7 @@ from typing import Any
 from ..commands import CommandSpec
 from ..dialect import Dialect
 from ..fields import DecFloat, DecInt, Enum, Field, Geo, HexInt, IPv4Text, Literal, OneOf, enum
+from ..fields.enums import EnumSpec
 from ..forms import Form
 from ..models import DeviceModel
 from ._build import F, command, place, rate, report, write_forms
@@ -50,7 +51,7 @@ BEYOND = "beyond the documents"
 REC_ACTION = enum(2, {"00": "stop", "01": "start", "0A": ("toggle", "Toggle")}, toggles="0A")
 REC_STATE = enum(2, {"00": ("stopped", "Not recording"), "01": ("recording", "Recording")})
 # PTZ codes both documents number alike; they swap 06 (follow / lock) and 07, and differ from 0A on.
-PTZ_SHARED: dict[str, str | tuple[str, ...]] = {
+PTZ_SHARED: dict[str, EnumSpec] = {
     "00": "stop",
     "01": ("up", "Nudge up"),
     "02": ("down", "Nudge down"),
@@ -62,7 +63,7 @@ PTZ_SHARED: dict[str, str | tuple[str, ...]] = {
 }
 
 
-def ptz_actions(own: dict[str, str | tuple[str, ...]], toggles: tuple[str, ...] = ()) -> Enum:
+def ptz_actions(own: dict[str, EnumSpec], toggles: tuple[str, ...] = ()) -> Enum:
     """The PTZ action table: the shared codes plus a document's own, in code order."""
     codes = dict(sorted({**PTZ_SHARED, **own}.items()))
     return enum(2, codes, toggles=("01", "02", "03", "04", "08", "09", *toggles))

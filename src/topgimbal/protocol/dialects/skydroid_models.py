@@ -61,7 +61,7 @@ MODELS: tuple[DeviceModel, ...] = (
         name="C10Pro",
         title="SkyDroid C10 Pro",
         endpoints=(UDP_5000,),
-        commands=C10.commands | {"EXT"},
+        commands=COMMON | GIMBAL | CAMERA | {"EXT"},
         identity={**C10.identity, "model_name": "C10Pro"},
     ),
     _model(
