@@ -597,12 +597,15 @@ static PyObject *decoder_decode(Decoder *self, PyObject *frame) {
     return PyObject_CallOneArg(self->fallback, frame);
 }
 
+/* Whether a decoder's call got what it takes, one frame and no keywords (else a TypeError). */
+static int one_frame(size_t nargsf, PyObject *kwnames) {
+    if (PyVectorcall_NARGS(nargsf) == 1 && !(kwnames && PyTuple_GET_SIZE(kwnames))) return 1;
+    PyErr_SetString(PyExc_TypeError, "decode(frame) takes one frame");
+    return 0;
+}
+
 static PyObject *Decoder_vectorcall(PyObject *self, PyObject *const *args, size_t nargsf, PyObject *kwnames) {
-    if (PyVectorcall_NARGS(nargsf) != 1 || (kwnames && PyTuple_GET_SIZE(kwnames))) {
-        PyErr_SetString(PyExc_TypeError, "decode(frame) takes one frame");
-        return NULL;
-    }
-    return decoder_decode((Decoder *)self, args[0]);
+    return one_frame(nargsf, kwnames) ? decoder_decode((Decoder *)self, args[0]) : NULL;
 }
 
 static PyObject *Decoder_new(PyTypeObject *type, PyObject *args, PyObject *kw) {
@@ -674,11 +677,7 @@ static void AnyDecoder_dealloc(AnyDecoder *self) {
 static PyObject *any_decode(AnyDecoder *self, PyObject *frame);
 
 static PyObject *AnyDecoder_vectorcall(PyObject *self, PyObject *const *args, size_t nargsf, PyObject *kwnames) {
-    if (PyVectorcall_NARGS(nargsf) != 1 || (kwnames && PyTuple_GET_SIZE(kwnames))) {
-        PyErr_SetString(PyExc_TypeError, "decode(frame) takes one frame");
-        return NULL;
-    }
-    return any_decode((AnyDecoder *)self, args[0]);
+    return one_frame(nargsf, kwnames) ? any_decode((AnyDecoder *)self, args[0]) : NULL;
 }
 
 /* AnyDecoder(prefer: Decoder | None, candidates: tuple[Decoder, ...], fallback) */

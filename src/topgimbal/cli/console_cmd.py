@@ -6,36 +6,24 @@ import argparse
 import asyncio
 import contextlib
 import sys
+from typing import Any
 
-from ..protocol import all_models
-from .args import _model_name
+from .args import add_camera_subcommand, add_model_argument
 
 DEFAULT_PORT = 8080
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    p = subparsers.add_parser(
+    p = add_camera_subcommand(
+        subparsers,
         "console",
         help="web console: live attitude, pointing, camera, thermal, traffic (aiohttp)",
         description="Serve the web console for a camera (--url and --model) or for a simulator started "
         "in this process (--sim MODEL). Listens on 127.0.0.1 by default; any other --host requires a "
         "token (given with --token, or generated and printed in the URL).",
     )
-    # --url/--model also exist on the main parser; SUPPRESS keeps a value given there.
-    p.add_argument("--url", default=argparse.SUPPRESS, help="camera address, e.g. udp://HOST:5000")
-    p.add_argument(
-        "--model",
-        default=argparse.SUPPRESS,
-        type=_model_name,
-        choices=sorted(all_models(), key=str.lower),
-        help="device model (picks the dialect)",
-    )
-    p.add_argument(
-        "--sim",
-        metavar="MODEL",
-        type=_model_name,
-        choices=sorted(all_models(), key=str.lower),
-        help="run a simulated MODEL in this process on an ephemeral loopback port",
+    add_model_argument(
+        p, "--sim", metavar="MODEL", help="run a simulated MODEL in this process on an ephemeral loopback port"
     )
     p.add_argument("--seed", type=int, default=0, help="simulator seed (with --sim)")
     p.add_argument(
@@ -105,21 +93,20 @@ def build_server(args: argparse.Namespace) -> object:
 
     url = getattr(args, "url", None)
     model = getattr(args, "model", None)
+    # How the page is served, whatever it shows.
+    page: dict[str, Any] = {
+        "host": args.host,
+        "port": args.port,
+        "token": args.token,
+        "allow_hosts": args.allow_host,
+        "attitude_hz": args.attitude_hz,
+    }
     if args.proxy or args.listen or args.to:
         if not args.proxy:
             raise ValueError("--listen and --to go with --proxy")
         if args.sim is not None:
             raise ValueError("--proxy watches the camera behind it: give --listen and --to, not --sim")
-        return ConsoleServer(
-            proxy_listen=args.listen or "",
-            proxy_to=args.to or "",
-            model=model,
-            host=args.host,
-            port=args.port,
-            token=args.token,
-            allow_hosts=args.allow_host,
-            attitude_hz=args.attitude_hz,
-        )
+        return ConsoleServer(proxy_listen=args.listen or "", proxy_to=args.to or "", model=model, **page)
     if args.sim is None and url and not model:
         raise ValueError("give --model with --url (it picks the dialect), e.g. --model SIP")
     if args.sim is not None and url:
@@ -130,11 +117,7 @@ def build_server(args: argparse.Namespace) -> object:
         sim_model=args.sim,
         sim_seed=args.seed,
         sim_faults=args.faults,
-        host=args.host,
-        port=args.port,
-        token=args.token,
-        allow_hosts=args.allow_host,
-        attitude_hz=args.attitude_hz,
+        **page,
     )
 
 

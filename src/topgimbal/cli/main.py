@@ -31,7 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
             continue  # subcommand not shipped in this build
         importlib.import_module(modname).register(sub)
     for command in sub.choices.values():
-        common.accept_connection_arguments_after(parser, command)
+        common.accept_connection_arguments_after(command)
     return parser
 
 

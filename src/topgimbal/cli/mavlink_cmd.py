@@ -4,33 +4,26 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import contextlib
 import logging
-import signal
 import sys
 
-from ..protocol import all_models
-from .args import _model_name
+from ..video.cli import add_video_port_argument
+from .args import add_camera_subcommand
+from .runtime import stop_on_signals, wait_stopped
 
 GIMBAL_COMPIDS = (154, 171, 172, 173, 174, 175)
 CAMERA_COMPIDS = (100, 101, 102, 103, 104)
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    p = subparsers.add_parser(
+    p = add_camera_subcommand(
+        subparsers,
         "mavlink",
+        model_help="device model (picks the dialect, limits and capabilities)",
         help="MAVLink bridge: the camera as a gimbal (protocol v2) and camera for QGC, MAVSDK, PX4, ArduPilot",
         description="Bridge a camera to MAVLink (pymavlink, MAVLink 2, common dialect). Endpoints use "
         "pymavlink's connection strings: udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, tcpin:HOST:PORT, "
         "or a serial DEVICE[,BAUD]; give --mavlink several times for several links. See docs/mavlink.md.",
-    )
-    p.add_argument("--url", default=argparse.SUPPRESS, help="camera address, e.g. udp://HOST:5000")
-    p.add_argument(
-        "--model",
-        default=argparse.SUPPRESS,
-        type=_model_name,
-        choices=sorted(all_models(), key=str.lower),
-        help="device model (picks the dialect, limits and capabilities)",
     )
     p.add_argument("--mavlink", action="append", required=True, metavar="ENDPOINT", help="MAVLink link (repeatable)")
     p.add_argument("--sysid", type=int, default=1, help="MAVLink system id (default 1: the vehicle's)")
@@ -55,12 +48,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--stream-hz", type=float, default=50.0, help="attitude stream asked of the camera (default 50)")
     p.add_argument("--range-hz", type=float, default=1.0, help="rangefinder polling for DISTANCE_SENSOR (0: off)")
     p.add_argument("--video-url", action="append", help="RTSP URL to announce (repeatable; default: the model's)")
-    p.add_argument(
-        "--video-port",
-        type=int,
-        metavar="N",
-        help="the camera's first RTSP port when not the model's (as sim --video-port)",
-    )
+    add_video_port_argument(p, "the camera's first RTSP port when not the model's (as sim --video-port)")
     p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds")
     p.add_argument(
         "--silence", type=float, default=3.0, help="seconds without a frame before the camera counts as down"
@@ -114,17 +102,9 @@ def run(args: argparse.Namespace) -> int:
         )
         print(f"mavlink bridge: {config.url} ({config.model}) <-> {addrs}, system {config.sysid}, "  # type: ignore[attr-defined]
               f"role {config.role}", flush=True)  # type: ignore[attr-defined]  # fmt: skip
-        stop = asyncio.Event()
-        loop = asyncio.get_running_loop()
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            with contextlib.suppress(NotImplementedError, RuntimeError):
-                loop.add_signal_handler(sig, stop.set)
+        stop = stop_on_signals()
         try:
-            if args.seconds is not None:
-                with contextlib.suppress(asyncio.TimeoutError):
-                    await asyncio.wait_for(stop.wait(), args.seconds)
-            else:
-                await stop.wait()
+            await wait_stopped(stop, args.seconds)
         finally:
             await bridge.close()
 

@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import asyncio
 import logging
-import signal
 import sys
 from typing import Any
 
@@ -22,6 +21,7 @@ from ..sim import FaultPlan, Simulator
 from ..sim import quirks as quirk_table
 from ..sim.servers import Limits
 from ..video import cli as video_cli
+from .runtime import stop_on_signals
 
 
 def _hostport(text: str) -> tuple[str, int]:
@@ -176,13 +176,7 @@ def _log_to_stderr() -> None:
 
 async def _serve(sim: Simulator, listen: dict[str, Any], args: argparse.Namespace | None = None) -> int:
     await sim.start(**listen)
-    stop = asyncio.Event()
-    loop = asyncio.get_running_loop()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        try:
-            loop.add_signal_handler(sig, stop.set)
-        except (NotImplementedError, RuntimeError):  # pragma: no cover - not on the main thread
-            pass
+    stop = stop_on_signals()
     print(f"topgimbal sim: {sim.model} ({sim.dialect.name}), seed {sim.seed}", file=sys.stderr)
 
     for _kind, url in sim.endpoints:

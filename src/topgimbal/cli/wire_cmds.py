@@ -28,6 +28,7 @@ from ..wire.proxy import MAX_CLIENTS, Proxy, ProxyEvent
 from ..wire.watcher import Watcher
 from .args import add_dialect_argument, add_json_argument
 from .protocol_cmds import _dialect_from_args, _human, dissection_record
+from .runtime import stop_on_signals
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -283,13 +284,7 @@ async def _serve(proxy: Proxy) -> int:
     # Everything alive now (the catalog, modules) lives for the whole run: keep the collector from
     # walking it again and again (a full collection would stall forwarding for milliseconds).
     gc.freeze()
-    stop = asyncio.Event()
-    loop = asyncio.get_running_loop()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        try:
-            loop.add_signal_handler(sig, stop.set)
-        except (NotImplementedError, RuntimeError):  # pragma: no cover - not on the main thread
-            pass
+    stop = stop_on_signals()
     name = proxy.dialect.name if proxy.dialect else "auto"
     print(f"topgimbal proxy: {proxy.url} -> {proxy.to} (dialect {name})", file=sys.stderr, flush=True)
     try:

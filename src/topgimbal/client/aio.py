@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-from collections.abc import Callable, Generator, Mapping
+from collections.abc import Callable, Generator
 from types import TracebackType
 from typing import TYPE_CHECKING, Unpack
 
@@ -26,18 +26,8 @@ from .streams import AttitudeStream
 class AsyncClient(ClientCore, CoreMethods, MotionMethods, CameraMethods):
     """A connection to one gimbal camera. Open with `await connect(url, model=...)`."""
 
-    def __init__(
-        self,
-        url: str,
-        model: str | DeviceModel = "C12",
-        *,
-        timeout_s: float = 1.0,
-        retries: int = 2,
-        signs: Mapping[str, int] | None = None,
-        log_path: str | None = None,
-        **options: Unpack[ConnectOptions],
-    ) -> None:
-        super().__init__(url, model, timeout_s=timeout_s, retries=retries, signs=signs, log_path=log_path, **options)
+    def __init__(self, url: str, model: str | DeviceModel = "C12", **options: Unpack[ConnectOptions]) -> None:
+        super().__init__(url, model, **options)
         self.cmd = CommandNamespace(self)
 
     async def open(self) -> AsyncClient:
@@ -180,24 +170,14 @@ class _Connector:
         await self._client.close()
 
 
-def connect(
-    url: str,
-    model: str | DeviceModel = "C12",
-    *,
-    timeout_s: float = 1.0,
-    retries: int = 2,
-    signs: Mapping[str, int] | None = None,
-    log_path: str | None = None,
-    **options: Unpack[ConnectOptions],
-) -> _Connector:
+def connect(url: str, model: str | DeviceModel = "C12", **options: Unpack[ConnectOptions]) -> _Connector:
     """Open a client: `cam = await connect(url, model="C12")` or
     `async with connect(url, model="SIP") as cam: ...`. Options (see docs/client.md and
     client/options.py; None takes the model profile's value): echo_motion, combined_motion,
     late_window_s, dup_window_s, stop_repeats, host_address, link_timeout_s, reconnect_s,
-    min_command_gap_s, check_model, host_feeds, stream_renew_s."""
-    return _Connector(
-        AsyncClient(url, model, timeout_s=timeout_s, retries=retries, signs=signs, log_path=log_path, **options)
-    )
+    min_command_gap_s, check_model, host_feeds, stream_renew_s; and timeout_s (per attempt, 1 s),
+    retries (2), signs (per-axis overrides), log_path (JSONL traffic log)."""
+    return _Connector(AsyncClient(url, model, **options))
 
 
 if TYPE_CHECKING:

@@ -64,9 +64,13 @@ class ClientOptions:
 
 
 class ConnectOptions(TypedDict, total=False):
-    """The keyword options of `connect()`, `AsyncClient` and `Gimbal` beyond timeout, retries,
-    signs and log_path (each as in `ClientOptions`)."""
+    """The keyword options of `connect()`, `AsyncClient` and `Gimbal`, each as in `ClientOptions`
+    (defaults there and in `ClientCore`)."""
 
+    timeout_s: float
+    retries: int
+    signs: Mapping[str, int] | None
+    log_path: str | None
     echo_motion: bool | None
     combined_motion: bool | None
     late_window_s: float | None

@@ -10,7 +10,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import threading
-from collections.abc import Callable, Coroutine, Iterator, Mapping
+from collections.abc import Callable, Coroutine, Iterator
 from types import TracebackType
 from typing import TYPE_CHECKING, TypeVar, Unpack
 
@@ -74,22 +74,10 @@ class Gimbal(SyncDriver, CoreMethods, MotionMethods, CameraMethods):
 
     The same typed methods as AsyncClient, blocking. Callbacks run on the loop thread."""
 
-    def __init__(
-        self,
-        url: str,
-        model: str = "C12",
-        *,
-        timeout_s: float = 1.0,
-        retries: int = 2,
-        signs: Mapping[str, int] | None = None,
-        log_path: str | None = None,
-        **options: Unpack[ConnectOptions],
-    ) -> None:
+    def __init__(self, url: str, model: str = "C12", **options: Unpack[ConnectOptions]) -> None:
         self._thread = ThreadLoop()
         try:
-            self.aio = AsyncClient(
-                url, model, timeout_s=timeout_s, retries=retries, signs=signs, log_path=log_path, **options
-            )
+            self.aio = AsyncClient(url, model, **options)
             self._thread.run(self.aio.open())
         except BaseException:
             self._thread.stop()

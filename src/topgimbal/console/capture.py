@@ -23,12 +23,11 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import TopGimbalError
 from ..protocol import DeviceModel
-from ..transport import parse_url
+from ..transport import network_address
 from ..wire import CaptureWriter
 from ..wire.packets import Endpoint
-from ..wire.ports import CLIENT_PORTS
+from ..wire.ports import client_port
 
 MAX_FRAMES = 10_000
 MAX_BYTES = 2 * 1024 * 1024
@@ -106,26 +105,16 @@ def _loopback_for(host: str) -> tuple[str, str]:
     return str(ip), "::1" if ip.version == 6 else "127.0.0.1"
 
 
-def _client_port(transport: str, dialect: str) -> int:
-    for (kind, port), name in sorted(CLIENT_PORTS.items()):
-        if kind == transport and name == dialect:
-            return port
-    return HOST_PORT
-
-
 def link_for(url: str, model: DeviceModel) -> Link:
     """The console's link to the camera at `url` as the pcap shows it (see the module text)."""
-    try:
-        parsed = parse_url(url)
-    except TopGimbalError:
-        parsed = None
-    if parsed is not None and parsed.scheme in ("udp", "tcp") and parsed.port:
-        transport, port = parsed.scheme, parsed.port
-        device_ip, loopback = _loopback_for(parsed.host)
+    address = network_address(url)
+    if address is not None:
+        transport, host, port = address
+        device_ip, loopback = _loopback_for(host)
     else:
         documented = [e.port for e in model.endpoints if e.kind == "udp" and e.port is not None]
         transport, port, device_ip, loopback = "udp", (documented or [5000])[0], "127.0.0.1", "127.0.0.1"
-    return Link(transport, (loopback, _client_port(transport, model.dialect)), (device_ip, port))
+    return Link(transport, (loopback, client_port(transport, model.dialect, HOST_PORT)), (device_ip, port))
 
 
 def pcap(frames: Iterable[Recorded], link: Link) -> bytes:

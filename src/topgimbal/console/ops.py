@@ -62,31 +62,30 @@ def jsonable(value: Any) -> Any:
     return str(value)
 
 
+# What an exception raised by an op tells the page: (types, kind, message, text when the exception
+# carries none). The first match wins, so subclasses come before their bases.
+ERROR_KINDS: tuple[tuple[type[BaseException] | tuple[type[BaseException], ...], str, str, str], ...] = (
+    (DeviceError, "device", "The camera refused {what}: {detail}", "it answered with its error frame (ERE)"),
+    ((RequestTimeoutError, asyncio.TimeoutError), "timeout", "No answer from the camera to {what}: {detail}",
+     "timed out"),
+    (FieldValueError, "value", "Invalid value for {what}: {detail}", ""),
+    (UnsupportedError, "unsupported", "Not supported ({what}): {detail}", ""),
+    (UnknownCommandError, "unknown", "{detail}", ""),
+    (FrameError, "frame", "Not a valid frame: {detail}", ""),
+    (TransportError, "link", "Link error during {what}: {detail}", ""),
+    (OpError, "op", "{detail}", ""),
+    (ReadOnlyError, "readonly", "Not sent ({what}): {detail}", ""),
+    (TopGimbalError, "error", "{what}: {detail}", ""),
+    ((TypeError, ValueError), "value", "Invalid arguments for {what}: {detail}", ""),
+)  # fmt: skip
+
+
 def describe_error(exc: BaseException, what: str = "") -> tuple[str, str]:
     """(kind, readable message) for an exception raised while carrying out an op on `what`."""
     what = what or "the command"
-    if isinstance(exc, DeviceError):
-        return "device", f"The camera refused {what}: {exc or 'it answered with its error frame (ERE)'}"
-    if isinstance(exc, (RequestTimeoutError, asyncio.TimeoutError)):
-        return "timeout", f"No answer from the camera to {what}: {exc or 'timed out'}"
-    if isinstance(exc, FieldValueError):
-        return "value", f"Invalid value for {what}: {exc}"
-    if isinstance(exc, UnsupportedError):
-        return "unsupported", f"Not supported ({what}): {exc}"
-    if isinstance(exc, UnknownCommandError):
-        return "unknown", str(exc)
-    if isinstance(exc, FrameError):
-        return "frame", f"Not a valid frame: {exc}"
-    if isinstance(exc, TransportError):
-        return "link", f"Link error during {what}: {exc}"
-    if isinstance(exc, OpError):
-        return "op", str(exc)
-    if isinstance(exc, ReadOnlyError):
-        return "readonly", f"Not sent ({what}): {exc}"
-    if isinstance(exc, TopGimbalError):
-        return "error", f"{what}: {exc}"
-    if isinstance(exc, (TypeError, ValueError)):
-        return "value", f"Invalid arguments for {what}: {exc}"
+    for types, kind, message, default in ERROR_KINDS:
+        if isinstance(exc, types):
+            return kind, message.format(what=what, detail=str(exc) or default)
     return "internal", f"{what} failed: {type(exc).__name__}: {exc}"
 
 

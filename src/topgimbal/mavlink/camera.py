@@ -22,7 +22,7 @@ from ._mav import mavlink
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, rejected, unsupported
 from .geo import ground_point
-from .gimbal_device import _text, firmware_code
+from .gimbal_device import _text, firmware_code, flag_bits
 from .quaternion import from_euler_deg
 from .services import Services
 from .vehicle import Vehicles
@@ -143,22 +143,12 @@ class CameraComponent:
         return self.lens == "visible" and self.profile.track_rectangle
 
     def cap_flags(self) -> int:
-        f = 0
-        if self.can_record:
-            f |= 1 | 16  # capture video, also in image mode
-        if self.photo_values is not None:
-            f |= 2 | 8  # capture images, also in video mode
-        if self.zoom_any:
-            f |= 64
-        if self.lens == "visible" and self.profile.can_focus:
-            f |= 128
-        if self.video_urls:
-            f |= 256
-        if self.tracks_point:
-            f |= 512
-        if self.tracks_rect:
-            f |= 1024
-        return f
+        """CAMERA_CAP_FLAGS: video (also in image mode) 1|16, images (also in video mode) 2|8, zoom
+        64, focus 128, video stream 256, point / rectangle tracking 512 / 1024."""
+        visible = self.lens == "visible"
+        record, photo = self.can_record, self.photo_values is not None
+        return flag_bits({1 | 16: record, 2 | 8: photo, 64: self.zoom_any, 128: visible and self.profile.can_focus,
+                          256: bool(self.video_urls), 512: self.tracks_point, 1024: self.tracks_rect})  # fmt: skip
 
     # -- lifecycle ------------------------------------------------------------------------------
 

@@ -12,6 +12,7 @@ import asyncio
 import contextlib
 import math
 import time
+from collections.abc import Mapping
 from typing import Any
 
 from ._mav import mavlink
@@ -35,22 +36,20 @@ E_AT_ROLL_LIMIT, E_AT_PITCH_LIMIT, E_AT_YAW_LIMIT, E_COMMS_ERROR, E_NO_MANAGER =
 def device_cap_flags(pointer: Pointer) -> int:
     """GIMBAL_DEVICE_CAP_FLAGS true to the model (the manager's flags share the low 16 bits)."""
     p = pointer.profile
-    flags = 0
-    if p.has_neutral:
-        flags |= 2
-    if p.has_roll:
-        flags |= 4 | 8  # roll axis, follows the horizon
-    if p.has_pitch:
-        flags |= 32 | 64  # pitch axis, pitch follow
-    if p.has_yaw:
-        flags |= 256
-        if p.has_follow:
-            flags |= 512
-        if p.has_lock:
-            flags |= 1024
-    if p.earth_frame:
-        flags |= 4096
-    return flags
+    yaw = p.has_yaw
+    # neutral 2, roll axis + horizon follow 4|8, pitch axis + follow 32|64, yaw axis 256, yaw follow
+    # 512, yaw lock 1024, earth frame 4096
+    return flag_bits({2: p.has_neutral, 4 | 8: p.has_roll, 32 | 64: p.has_pitch, 256: yaw,
+                      512: yaw and p.has_follow, 1024: yaw and p.has_lock, 4096: p.earth_frame})  # fmt: skip
+
+
+def flag_bits(bits: Mapping[int, object]) -> int:
+    """A MAVLink bit field: the OR of every bit (or group of bits) whose condition holds."""
+    out = 0
+    for bit, on in bits.items():
+        if on:
+            out |= bit
+    return out
 
 
 def firmware_code(version: str | None) -> int:

@@ -15,28 +15,21 @@ and device models; nothing here is global, two dialects live side by side.
 
 from __future__ import annotations
 
-from .commands import GROUPS, MANY_ROLES, ROLES, CommandSpec, factory_values, stored_form
-from .dialect import Dialect
-from .forms import QUERY, REQUEST, RESPONSE, Form
-from .message import Message, direction_of
-from .models import QUIRKS, DeviceModel, Endpoint, VideoStream
-
-__all__ = [
-    "GROUPS",
-    "MANY_ROLES",
-    "QUERY",
-    "QUIRKS",
-    "REQUEST",
-    "RESPONSE",
-    "ROLES",
-    "CommandSpec",
-    "DeviceModel",
-    "Dialect",
-    "Endpoint",
-    "Form",
-    "Message",
-    "VideoStream",
-    "direction_of",
-    "factory_values",
-    "stored_form",
-]
+# `X as X`: re-exported names (PEP 484), so no list of them here to keep in step with the imports.
+from .commands import GROUPS as GROUPS
+from .commands import MANY_ROLES as MANY_ROLES
+from .commands import ROLES as ROLES
+from .commands import CommandSpec as CommandSpec
+from .commands import factory_values as factory_values
+from .commands import stored_form as stored_form
+from .dialect import Dialect as Dialect
+from .forms import QUERY as QUERY
+from .forms import REQUEST as REQUEST
+from .forms import RESPONSE as RESPONSE
+from .forms import Form as Form
+from .message import Message as Message
+from .message import direction_of as direction_of
+from .models import QUIRKS as QUIRKS
+from .models import DeviceModel as DeviceModel
+from .models import Endpoint as Endpoint
+from .models import VideoStream as VideoStream

@@ -6,7 +6,7 @@ from __future__ import annotations
 import importlib
 
 from ..errors import TransportError
-from .base import BytesCallback, LostCallback, Transport, TransportURL, parse_url
+from .base import BytesCallback, LostCallback, Transport, TransportURL, network_address, parse_url
 
 BACKENDS: dict[str, tuple[str, str]] = {
     "udp": ("topgimbal.transport.udp", "UdpTransport"),
@@ -33,4 +33,13 @@ async def open_transport(url: str | TransportURL, on_bytes: BytesCallback, on_lo
     return transport
 
 
-__all__ = ["BACKENDS", "BytesCallback", "LostCallback", "Transport", "TransportURL", "open_transport", "parse_url"]
+__all__ = [
+    "BACKENDS",
+    "BytesCallback",
+    "LostCallback",
+    "Transport",
+    "TransportURL",
+    "network_address",
+    "open_transport",
+    "parse_url",
+]

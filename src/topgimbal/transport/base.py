@@ -11,7 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from urllib.parse import parse_qs, urlsplit
 
-from ..errors import TransportError
+from ..errors import TopGimbalError, TransportError
 
 BytesCallback = Callable[[bytes], None]
 LostCallback = Callable[["Exception | None"], None]
@@ -66,6 +66,18 @@ def parse_url(url: str) -> TransportURL:
             raise TransportError(f"{url!r}: a memory URL needs a port name (memory://NAME)")
         return TransportURL(scheme, parts.netloc, None, "", params, url)
     raise TransportError(f"{url!r}: unknown scheme {parts.scheme!r}; use udp://, tcp://, serial:// or memory://")
+
+
+def network_address(url: str) -> tuple[str, str, int] | None:
+    """(scheme, host, port) when `url` is a UDP or TCP address with a port; None for anything else
+    (a serial line, no port, not a URL): for code that only labels traffic with an address."""
+    try:
+        parsed = parse_url(url)
+    except TopGimbalError:
+        return None
+    if parsed.scheme not in ("udp", "tcp") or not parsed.port:
+        return None
+    return parsed.scheme, parsed.host, parsed.port
 
 
 class Transport(abc.ABC):

@@ -21,16 +21,18 @@ def _size(text: str) -> tuple[int, int]:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("video (needs the video extra: pip install 'topgimbal[video]')")
     g.add_argument("--video", action="store_true", help="serve the model's RTSP streams, rendered from the simulation")
-    g.add_argument(
-        "--video-port",
-        type=int,
-        metavar="N",
-        help="RTSP port instead of the documented one (554; SkyDroid thermal 555 becomes N+1); 0 picks free ports",
+    add_video_port_argument(
+        g, "RTSP port instead of the documented one (554; SkyDroid thermal 555 becomes N+1); 0 picks free ports"
     )
     g.add_argument("--video-host", metavar="ADDR", help="RTSP address (default: the simulator's loopback address)")
     g.add_argument("--video-fps", type=float, default=30.0, metavar="FPS", help="frame rate (default 30)")
     g.add_argument("--video-size", type=_size, metavar="WxH", help="visible picture size (default 1280x720)")
     g.add_argument("--video-codec", choices=("h264", "h265"), help="force a codec (default: the model's setting)")
+
+
+def add_video_port_argument(parser: argparse.ArgumentParser | argparse._ArgumentGroup, help_text: str) -> None:
+    """`--video-port N`: the first RTSP port when not the model's (the simulator's and the bridge's)."""
+    parser.add_argument("--video-port", type=int, metavar="N", help=help_text)
 
 
 def wants_video(args: argparse.Namespace) -> bool:

@@ -566,6 +566,15 @@ local function recover(buf, i, final)
     return { kind = "frame", a = i, b = boundary, declared = declared }
 end
 
+-- recover() for the headers whose frames it applies to (#TP, #tp), the frame found appended to
+-- out; false when there is none (or another header), nil as recover() says.
+local function take_recovered(buf, i, hdr, final, out)
+    if hdr ~= "TP" and hdr ~= "tp" then return false end
+    local rec = recover(buf, i, final)
+    if rec then out[#out + 1] = rec end
+    return rec
+end
+
 local function scan(buf, pos, out, final)
     local n_buf = #buf
     while pos < n_buf do
@@ -596,14 +605,8 @@ local function scan(buf, pos, out, final)
                 local j = find_hash(buf, i + 1)
                 while j >= 0 and not valid_complete_at(buf, j) do j = find_hash(buf, j + 1) end
                 if j < 0 then return i end
-                if hdr == "TP" or hdr == "tp" then
-                    local rec = recover(buf, i, true)
-                    if rec then
-                        out[#out + 1] = rec
-                        pos = rec.b
-                        break
-                    end
-                end
+                local rec = take_recovered(buf, i, hdr, true, out)
+                if rec then pos = rec.b; break end
                 discard(buf, i, j, out, "incomplete frame followed by a good one", "bad_length")
                 pos = j
                 break
@@ -621,15 +624,9 @@ local function scan(buf, pos, out, final)
                 pos = e
                 break
             end
-            if hdr == "TP" or hdr == "tp" then
-                local rec = recover(buf, i, final)
-                if rec == nil then return i end
-                if rec then
-                    out[#out + 1] = rec
-                    pos = rec.b
-                    break
-                end
-            end
+            local rec = take_recovered(buf, i, hdr, final, out)
+            if rec == nil then return i end
+            if rec then pos = rec.b; break end
             local nxt = find_hash(buf, i + 1, e)
             if nxt < 0 then nxt = e end
             out[#out + 1] = { kind = "bad_checksum", a = i, b = e }

@@ -17,12 +17,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..errors import TopGimbalError
-from ..transport import parse_url
+from ..transport import network_address
 from .packets import Endpoint
 from .pcapfile import CaptureError
-from .ports import documented_ports
+from .ports import CLIENT_PORTS, client_port, documented_ports
 from .synth import CaptureWriter
+
+HOST_PORT = 40000  # the host's side of a conversation when no convention gives one
 
 
 @dataclass
@@ -30,7 +31,7 @@ class ExportReport:
     frames: int = 0
     problems: list[str] = field(default_factory=list)
     transport: str = "udp"
-    host: Endpoint = ("127.0.0.1", 40000)
+    host: Endpoint = ("127.0.0.1", HOST_PORT)
     device: Endpoint = ("127.0.0.1", 5000)
 
 
@@ -38,22 +39,23 @@ def _endpoints(header: dict[str, Any]) -> tuple[str, Endpoint, Endpoint]:
     dialect = str(header.get("dialect") or "")
     url_text = str(header.get("url") or "")
     transport, port, loopback = "udp", 0, "127.0.0.1"
-    try:
-        url = parse_url(url_text)
-    except TopGimbalError:
-        url = None
-    if url is not None and url.scheme in ("udp", "tcp") and url.port:
-        transport, port = url.scheme, url.port
+    address = network_address(url_text)
+    if address is not None:
+        transport, host, port = address
         try:
-            if ipaddress.ip_address(url.host).version == 6:
+            if ipaddress.ip_address(host).version == 6:
                 loopback = "::1"
         except ValueError:
             pass  # a host name: IPv4 loopback
     if not port:
-        ports = sorted(p for (t, p), d in documented_ports().items() if d == dialect and t == "udp" and p != 9004)
+        ports = sorted(
+            p for (t, p), d in documented_ports().items() if d == dialect and t == "udp" and (t, p) not in CLIENT_PORTS
+        )
         port = ports[0] if ports else 5000
-    client_port = 9004 if dialect == "topotek" and transport == "udp" and port != 9004 else 40000
-    return transport, (loopback, client_port), (loopback, port)
+    host_port = client_port(transport, dialect, HOST_PORT)
+    if host_port == port:  # the device on the host's conventional port: the host takes another
+        host_port = HOST_PORT
+    return transport, (loopback, host_port), (loopback, port)
 
 
 def log_to_pcap(log_path: str | Path, out_path: str | Path) -> ExportReport:

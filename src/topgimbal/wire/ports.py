@@ -19,6 +19,14 @@ from ..protocol import DIALECT_NAMES, get_dialect
 CLIENT_PORTS: dict[tuple[str, int], str] = {("udp", 9004): "topotek"}
 
 
+def client_port(transport: str, dialect: str, default: int) -> int:
+    """The port a host speaking `dialect` listens on by convention (`CLIENT_PORTS`), else `default`."""
+    for (kind, port), name in sorted(CLIENT_PORTS.items()):
+        if kind == transport and name == dialect:
+            return port
+    return default
+
+
 @cache
 def documented_ports() -> dict[tuple[str, int], str]:
     """(transport, port) -> dialect name, for every documented device port and client port."""

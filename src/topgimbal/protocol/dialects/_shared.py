@@ -4,10 +4,17 @@ so each dialect cites its own document."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
+from dataclasses import replace
+from typing import Any
+
 from ..commands import CommandSpec
-from ..fields import Codec, DecFloat, DecInt, Enum, Field, Geo, HexInt, IPv4Text, Literal, OneOf, enum
+from ..dialect import Dialect
+from ..fields import DecFloat, DecInt, Enum, Field, Geo, HexInt, IPv4Text, Literal, OneOf, enum
+from ..fields.enums import EnumSpec
 from ..forms import Form
-from ._build import F, command, report, write_forms
+from ..models import DeviceModel
+from ._build import F, command, place, rate, report, write_forms
 
 ZOOM_CONTROL = enum(2, {"00": "stop", "01": ("zoom_out", "Zoom out (wide)"), "02": ("zoom_in", "Zoom in (tele)")})
 FOCUS_CONTROL = enum(
@@ -41,6 +48,25 @@ DZM_ACTIONS = enum(
 # tells the two documented layouts apart by that name keeps working.
 DZM_IMAGE = enum(2, {"00": "visible", "01": "thermal"})
 BEYOND = "beyond the documents"
+REC_ACTION = enum(2, {"00": "stop", "01": "start", "0A": ("toggle", "Toggle")}, toggles="0A")
+REC_STATE = enum(2, {"00": ("stopped", "Not recording"), "01": ("recording", "Recording")})
+# PTZ codes both documents number alike; they swap 06 (follow / lock) and 07, and differ from 0A on.
+PTZ_SHARED: dict[str, EnumSpec] = {
+    "00": "stop",
+    "01": ("up", "Nudge up"),
+    "02": ("down", "Nudge down"),
+    "03": ("left", "Nudge left"),
+    "04": ("right", "Nudge right"),
+    "05": ("center", "Centre", "回中"),
+    "08": ("toggle_follow_lock", "Toggle follow / lock"),
+    "09": ("calibrate", "Gimbal calibration"),
+}
+
+
+def ptz_actions(own: dict[str, EnumSpec], toggles: tuple[str, ...] = ()) -> Enum:
+    """The PTZ action table: the shared codes plus a document's own, in code order."""
+    codes = dict(sorted({**PTZ_SHARED, **own}.items()))
+    return enum(2, codes, toggles=("01", "02", "03", "04", "08", "09", *toggles))
 
 
 def dzm_zoom(description: str = "magnification step 0.1 (decimal 00..80), or an action") -> Field:
@@ -76,72 +102,65 @@ def palette_channel_forms(palettes: Enum) -> list[Form]:
     ]
 
 
+def rate_commands(
+    section: str, u: float, steps: int, notes: dict[str, str], *, gsm_notes: bool, **gsm: Any
+) -> list[CommandSpec]:
+    """GSY / GSP / GSR / GSM: one axis rate, or yaw and pitch together (`gsm`: more keywords of the
+    GSM row). `notes` per axis; `gsm_notes`: whether GSM's fields carry them too."""
+
+    def row(ident: str, name: str, title: str, fields: list[Field], **kw: Any) -> CommandSpec:
+        return command(ident=ident, name=name, title=title, section=section, role="rate", write=fields,
+                       motion=True, **place("G", "gimbal"), **kw)  # fmt: skip
+
+    def axis(name: str, noted: bool = True) -> Field:
+        return rate(name, u, steps, notes.get(name, "") if noted else "")
+
+    return [
+        row("GSY", "yaw_rate", "Yaw speed", [axis("yaw")]),
+        row("GSP", "pitch_rate", "Pitch speed", [axis("pitch")]),
+        row("GSR", "roll_rate", "Roll speed", [axis("roll")]),
+        row("GSM", "yaw_pitch_rate", "Yaw and pitch speed", [axis("yaw", gsm_notes), axis("pitch", gsm_notes)], **gsm),
+    ]
+
+
+def recording_command(section: str, extra_forms: list[Form] | None = None) -> CommandSpec:
+    return command(ident="REC", name="recording", title="Start / stop / toggle recording; query state",
+                   section=section, role="recording", write=[F("action", REC_ACTION)],
+                   read=[F("state", REC_STATE, state_key="recording")], extra_forms=extra_forms or (),
+                   **place("D", "camera"))  # fmt: skip
+
+
+def palette_command(section: str, palettes: Enum) -> CommandSpec:
+    return command(ident="IMG", name="palette", title="Thermal palette", section=section, role="palette",
+                   write=[F("palette", palettes)], read=[F("palette", palettes, state_key="palette", factory="white_hot")],
+                   extra_forms=palette_channel_forms(palettes), **place("D", "thermal"))  # fmt: skip
+
+
 def error_frame(section: str) -> CommandSpec:
-    return command(
-        ident="ERE",
-        name="error",
-        title="Error answer to an invalid command",
-        address="U",
-        section=section,
-        role="error",
-        group="system",
-        extra_forms=[report(F("error", Literal("!!"), "always '!!'"))],
-        notes="The device answers an invalid command with #TP<dst><src>2wERE!! and the checksum.",
-    )
+    return command(ident="ERE", name="error", title="Error answer to an invalid command", address="U", section=section,
+                   role="error", group="system", extra_forms=[report(F("error", Literal("!!"), "always '!!'"))],
+                   notes="The device answers an invalid command with #TP<dst><src>2wERE!! and the checksum.")  # fmt: skip
 
 
 def lens_commands(section: dict[str, str]) -> list[CommandSpec]:
-    """Zoom / focus / day-night (TOPOTEK §三; SkyDroid lists them in Appendix I only)."""
+    """Zoom / focus / day-night (TOPOTEK §三; SkyDroid lists them in Appendix I only), each a write
+    to the lens (M) whose role is its name."""
+
+    def row(ident: str, name: str, title: str, fields: list[Field], group: str = "lens") -> CommandSpec:
+        return command(ident=ident, name=name, title=title, address="M", section=section[ident], role=name,
+                       group=group, write=fields)  # fmt: skip
+
+    focus_pos = HexInt(4, signed=True, none_tokens=(b"NNNN",))
     return [
-        command(
-            ident="ZMC",
-            name="zoom_control",
-            title="Optical zoom: in / out / stop",
-            address="M",
-            section=section["ZMC"],
-            role="zoom_control",
-            group="lens",
-            write=[F("action", ZOOM_CONTROL, "in and out continue until stop")],
-        ),
-        command(
-            ident="FCC",
-            name="focus_control",
-            title="Focus: + / - / stop, auto or manual",
-            address="M",
-            section=section["FCC"],
-            role="focus_control",
-            group="lens",
-            write=[F("action", FOCUS_CONTROL, "+ and - continue until stop")],
-        ),
-        command(
-            ident="ZFP",
-            name="zoom_focus_position",
-            title="Set zoom and focus positions",
-            address="M",
-            section=section["ZFP"],
-            role="zoom_focus_position",
-            group="lens",
-            write=[
-                F("zoom_pos", POSITION, "zoom motor position"),
-                F(
-                    "focus_pos",
-                    HexInt(4, signed=True, none_tokens=(b"NNNN",)),
-                    "focus motor position; null = autofocus after the zoom",
-                    default=None,
-                ),
-            ],
-        ),
-        command(
-            ident="IRC",
-            name="day_night",
-            title="Day / night (IR cut) mode",
-            address="M",
-            section=section["IRC"],
-            role="day_night",
-            group="camera",
-            write=[F("mode", DAY_NIGHT)],
-        ),
-    ]
+        row("ZMC", "zoom_control", "Optical zoom: in / out / stop",
+            [F("action", ZOOM_CONTROL, "in and out continue until stop")]),
+        row("FCC", "focus_control", "Focus: + / - / stop, auto or manual",
+            [F("action", FOCUS_CONTROL, "+ and - continue until stop")]),
+        row("ZFP", "zoom_focus_position", "Set zoom and focus positions",
+            [F("zoom_pos", POSITION, "zoom motor position"),
+             F("focus_pos", focus_pos, "focus motor position; null = autofocus after the zoom", default=None)]),
+        row("IRC", "day_night", "Day / night (IR cut) mode", [F("mode", DAY_NIGHT)], group="camera"),
+    ]  # fmt: skip
 
 
 # A new camera's network settings: TOPOTEK §五.7 gives the address and gateway RST restores; the
@@ -155,64 +174,34 @@ NETWORK_FACTORY = {
 
 
 def network_commands(section: dict[str, str], *, dns: bool = True) -> list[CommandSpec]:
-    def ip(key: str) -> list[Field]:
-        return [F("address", IPv4Text(), state_key=f"network.{key}", factory=NETWORK_FACTORY[key])]
+    """Camera network settings (to the camera, D), each command's role its name."""
+
+    def row(ident: str, name: str, title: str, notes: str = "", **kw: Any) -> CommandSpec:
+        return command(ident=ident, name=name, title=title, address="D", section=section[ident], role=name,
+                       group="network", notes=notes, **kw)  # fmt: skip
 
     def addr(ident: str, name: str, title: str, key: str, notes: str = "") -> CommandSpec:
-        return command(
-            ident=ident,
-            name=name,
-            title=title,
-            address="D",
-            section=section[ident],
-            role=name,
-            group="network",
-            write=ip(key),
-            read=ip(key),
-            header="#tp",
-            notes=notes,
-        )
+        ip = [F("address", IPv4Text(), state_key=f"network.{key}", factory=NETWORK_FACTORY[key])]
+        return row(ident, name, title, notes, write=ip, read=ip, header="#tp")
 
+    reset = enum(2, {"01": ("reset", "Reset network settings"),
+                     "00": ("keep", "Keep the network settings (sent by some clients)")})  # fmt: skip
     out = [
-        addr(
-            "IPV",
-            "ip_address",
-            "Camera IP address",
-            "ip",
-            "Changing it moves the camera: a client must reconnect to the new address.",
-        ),
+        addr("IPV", "ip_address", "Camera IP address", "ip",
+             "Changing it moves the camera: a client must reconnect to the new address."),
         addr("GTW", "gateway", "Camera gateway", "gateway"),
-    ]
+    ]  # fmt: skip
     if dns:
         out += [
             addr("DNS", "dns", "Primary DNS server", "dns"),
             addr("BNS", "backup_dns", "Backup DNS server", "backup_dns"),
         ]
     out.append(
-        command(
-            ident="RST",
-            name="network_reset",
-            title="Reset the network configuration to defaults",
-            address="D",
-            section=section["RST"],
-            role="network_reset",
-            group="network",
-            write=[
-                F(
-                    "action",
-                    enum(
-                        2,
-                        {
-                            "01": ("reset", "Reset network settings"),
-                            "00": ("keep", "Keep the network settings (sent by some clients)"),
-                        },
-                    ),
-                )
-            ],
-            notes="TOPOTEK: defaults ip 192.168.144.108, gateway 192.168.144.10 (documented, never used in tests). "
+        row("RST", "network_reset", "Reset the network configuration to defaults",
+            "TOPOTEK: defaults ip 192.168.144.108, gateway 192.168.144.10 (documented, never used in tests). "
             "00 is sent by public clients; its meaning is not documented: treated as no reset (errata E30).",
-        ),
-    )
+            write=[F("action", reset)])
+    )  # fmt: skip
     return out
 
 
@@ -220,38 +209,43 @@ def position_commands(section: dict[str, str], *, target: bool = True) -> list[C
     """Vehicle position from the host (NMEA-style text), and the target solution from the device."""
     tgt = f"{section['LAT']} (target solution)"
 
-    def target_report(name: str, codec: Codec, what: str) -> list[Form]:
-        if not target:
-            return []
-        return [report(F(name, codec, f"target {what}"), title="target solution", section=tgt)]
+    def row(ident: str, name: str, title: str, **kw: Any) -> CommandSpec:
+        return command(ident=ident, name=name, title=title, address="D", section=section[ident], role=name,
+                       group="position", **kw)  # fmt: skip
 
     def coordinate(ident: str, axis: str, what: str, negative: str, pattern: str) -> CommandSpec:
-        return command(
-            ident=ident,
-            name=what,
-            title=f"Vehicle {what} ({pattern}); target {what} from the device",
-            address="D",
-            section=section[ident],
-            role=what,
-            group="position",
-            write=[F(f"{axis}_deg", Geo(axis, "dm"), f"vehicle {what}, {negative} negative")],
-            extra_forms=target_report(f"{axis}_deg", Geo(axis, "deg"), what),
-        )
+        answer = F(f"{axis}_deg", Geo(axis, "deg"), f"target {what}")
+        return row(ident, what, f"Vehicle {what} ({pattern}); target {what} from the device",
+                   write=[F(f"{axis}_deg", Geo(axis, "dm"), f"vehicle {what}, {negative} negative")],
+                   extra_forms=[report(answer, title="target solution", section=tgt)] if target else [])  # fmt: skip
 
+    altitude = F("alt_m", DecFloat(None, 1, "m", -9999.9, 9999.9, pad=8), "altitude above mean sea level")
     return [
         coordinate("LAT", "lat", "latitude", "south", "ddmm.mmmm"),
         coordinate("LON", "lon", "longitude", "west", "dddmm.mmmm"),
-        command(
-            ident="ALT",
-            name="altitude",
-            title="Vehicle altitude",
-            address="D",
-            section=section["ALT"],
-            role="altitude",
-            group="position",
-            write=[F("alt_m", DecFloat(None, 1, "m", -9999.9, 9999.9, pad=8), "altitude above mean sea level")],
-        ),
+        row("ALT", "altitude", "Vehicle altitude", write=[altitude]),
     ]
+
+
+def build_dialect(
+    name: str,
+    title: str,
+    commands: list[CommandSpec],
+    models: Iterable[DeviceModel],
+    *,
+    max_rate_deg_s: float,
+    options: dict[str, object],
+    destinations: Mapping[str, str] | None,
+    **kw: Any,
+) -> Dialect:
+    """A dialect with its builder's options. A profile's max rate follows the builder's speed unit
+    (`max_rate_deg_s`) unless the profile fixes the unit itself."""
+    models = [
+        m if "speed_unit_deg_s" in m.dialect_options else replace(m, max_rate_deg_s=max_rate_deg_s) for m in models
+    ]
+    if destinations:
+        options = {**options, "destinations": dict(destinations)}
+    return Dialect(name, title, commands, models, options=options, destinations=destinations, **kw)
 
 
 def on_off_codec() -> Enum:
@@ -261,6 +255,9 @@ def on_off_codec() -> Enum:
 __all__ = [
     "BEYOND",
     "DZM_ACTIONS",
+    "REC_ACTION",
+    "REC_STATE",
+    "build_dialect",
     "digital_zoom_client_forms",
     "dzm_zoom",
     "error_frame",
@@ -268,5 +265,9 @@ __all__ = [
     "network_commands",
     "on_off_codec",
     "palette_channel_forms",
+    "palette_command",
     "position_commands",
+    "ptz_actions",
+    "rate_commands",
+    "recording_command",
 ]

@@ -8,43 +8,24 @@ document names only in Appendix I take TOPOTEK's layout (errata E13).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import replace
 
 from ..commands import CommandSpec
 from ..dialect import Dialect
 from ..fields import Field, HexInt, RawData, Text, Timestamp, enum
-from ._build import F, angle, attitude_fields, command, level, place, rate, report, write_forms
-from ._shared import (
-    BEYOND,
-    digital_zoom_client_forms,
-    error_frame,
-    lens_commands,
-    network_commands,
-    on_off_codec,
-    palette_channel_forms,
-    position_commands,
-)
+from . import _shared as shared
+from ._build import F, angle, attitude_fields, command, level, place, report, write_forms
 from .skydroid_models import MODELS
 
 DOC = "SkyDroid"
 TITLE = 'SkyDroid "TOP 协议" V1.1.5'
 APPENDIX = f"{DOC} Appendix I (layout not given; TOPOTEK's assumed)"
-CLIENTS = f"{BEYOND} (public clients: ArduPilot's SkyDroid driver, ground stations)"
+CLIENTS = f"{shared.BEYOND} (public clients: ArduPilot's SkyDroid driver, ground stations)"
 RATE_STEPS = 127
 
-PTZ = enum(
-    2,
+PTZ = shared.ptz_actions(
     {
-        "00": "stop",
-        "01": ("up", "Nudge up"),
-        "02": ("down", "Nudge down"),
-        "03": ("left", "Nudge left"),
-        "04": ("right", "Nudge right"),
-        "05": ("center", "Centre", "回中"),
         "06": ("follow", "Follow", "跟随"),
         "07": ("lock", "Lock heading", "锁头"),
-        "08": ("toggle_follow_lock", "Toggle follow / lock"),
-        "09": ("calibrate", "Gimbal calibration"),
         "0A": ("mount_hanging", "Hanging (under-slung) mount", "吊装"),
         "0B": ("mount_inverted", "Inverted (upright) mount", "倒装"),
         "0C": ("calibrate_horizontal", "Horizontal calibration"),
@@ -57,7 +38,7 @@ PTZ = enum(
         "13": ("trim_z_minus", "Trim Z-"),
         "14": ("trim_clear", "Clear trims"),
     },
-    toggles=("01", "02", "03", "04", "08", "09", "0C", "0D", "0E", "0F", "10", "11", "12", "13"),
+    toggles=("0C", "0D", "0E", "0F", "10", "11", "12", "13"),
 )
 LENS_RES = enum(1, {"0": "720p", "1": "1080p", "2": "2k", "3": "4k", "N": ("null", "No change / no lens")})
 AWB = enum(
@@ -106,8 +87,6 @@ SCENES = enum(
     },
 )
 BIT1 = enum(1, {"0": "off", "1": "on"})
-REC_ACTION = enum(2, {"00": "stop", "01": "start", "0A": ("toggle", "Toggle")}, toggles="0A")
-REC_STATE = enum(2, {"00": ("stopped", "Not recording"), "01": ("recording", "Recording")})
 IQE_STYLE = enum(1, {"0": "custom", "1": "standard", "2": "bright", "3": "vivid"})
 DIGITAL_ZOOM = enum(
     2,
@@ -152,24 +131,18 @@ def commands(u: float) -> list[CommandSpec]:
     pitch = angle("pitch_deg", -90, 90, "pitch, up-positive")
     roll = angle("roll_deg", -90, 90, "roll (struck out in V1.0.7: not supported for now)")
     s33 = f"{DOC} §3.3.1"
-    on_off = on_off_codec()
+    on_off = shared.on_off_codec()
     raw = [F("data", RawData(None, max_bytes=15), "layout not documented")]
     gimbal = place("G", "gimbal")
     camera = place("D", "camera")
     thermal = place("D", "thermal")
     return [
-        error_frame(f"{DOC} §2.3.2"),
+        shared.error_frame(f"{DOC} §2.3.2"),
         # -- G class: gimbal ---------------------------------------------------------------------
         command(ident="PTZ", name="gimbal_control", title="Gimbal control codes", section=f"{DOC} §3.1",
                 role="gimbal_control", write=[F("action", PTZ)], motion=True, **gimbal),
-        command(ident="GSY", name="yaw_rate", title="Yaw speed", section=f"{DOC} §3.2", role="rate",
-                write=[rate("yaw", u, RATE_STEPS, "right positive")], motion=True, **gimbal),
-        command(ident="GSP", name="pitch_rate", title="Pitch speed", section=f"{DOC} §3.2", role="rate",
-                write=[rate("pitch", u, RATE_STEPS, "up positive")], motion=True, **gimbal),
-        command(ident="GSR", name="roll_rate", title="Roll speed", section=f"{DOC} §3.2", role="rate",
-                write=[rate("roll", u, RATE_STEPS)], motion=True, **gimbal),
-        command(ident="GSM", name="yaw_pitch_rate", title="Yaw and pitch speed", section=f"{DOC} §3.2", role="rate",
-                write=[rate("yaw", u, RATE_STEPS), rate("pitch", u, RATE_STEPS)], motion=True, **gimbal),
+        *shared.rate_commands(f"{DOC} §3.2", u, RATE_STEPS, {"yaw": "right positive", "pitch": "up positive"},
+                       gsm_notes=False),
         command(ident="GAY", name="yaw_angle", title="Yaw angle", section=s33, role="angle", write=[yaw, sp],
                 motion=True, **gimbal),
         command(ident="GAP", name="pitch_angle", title="Pitch angle", section=s33, role="angle", write=[pitch, sp],
@@ -200,9 +173,7 @@ def commands(u: float) -> list[CommandSpec]:
                 extra_forms=write_forms([*attitude_fields("vehicle"), F("flight_mode", FLIGHT_MODE)],
                                         "with flight mode", section=CLIENTS)),
         # -- D class: camera ---------------------------------------------------------------------
-        command(ident="REC", name="recording", title="Start / stop / toggle recording; query state",
-                section=f"{DOC} §4.1", role="recording", write=[F("action", REC_ACTION)],
-                read=[F("state", REC_STATE, state_key="recording")], **camera),
+        shared.recording_command(f"{DOC} §4.1"),
         command(ident="CAP", name="photo", title="Take a photo", section=f"{DOC} §4.2", role="photo",
                 write=[F("mode", enum(2, {"01": "photo"}), default="photo")], repeatable=False, **camera),
         command(ident="VID", name="resolution", title="Recording resolution per lens", section=f"{DOC} §4.3",
@@ -227,12 +198,9 @@ def commands(u: float) -> list[CommandSpec]:
                 role="digital_zoom", address="D", group="lens",
                 write=[F("zoom", DIGITAL_ZOOM)],
                 read=[F("zoom", enum(2, {"01": "1x", "02": "2x", "03": "3x", "04": "4x"}), state_key="zoom.digital")],
-                extra_forms=digital_zoom_client_forms(two_char=False)),
-        command(ident="IMG", name="palette", title="Thermal palette", section=f"{DOC} §4.8", role="palette",
-                write=[F("palette", PALETTES)],
-                read=[F("palette", PALETTES, state_key="palette", factory="white_hot")],
-                extra_forms=palette_channel_forms(PALETTES), **thermal),
-        *network_commands({
+                extra_forms=shared.digital_zoom_client_forms(two_char=False)),
+        shared.palette_command(f"{DOC} §4.8", PALETTES),
+        *shared.network_commands({
             "IPV": f"{DOC} §4.9.1", "GTW": f"{DOC} §4.9.2", "DNS": f"{DOC} §4.9 (table)",
             "BNS": f"{DOC} §4.9 (table)", "RST": f"{DOC} Appendix I (TOPOTEK §五.7 layout)",
         }),
@@ -279,8 +247,8 @@ def commands(u: float) -> list[CommandSpec]:
                        "measurement range limit, decimetres on the wire (0x32..0x2710)")],
                     "range limit", section=CLIENTS)),
         # -- Appendix I only ---------------------------------------------------------------------
-        *lens_commands({"ZMC": APPENDIX, "FCC": APPENDIX, "ZFP": APPENDIX, "IRC": APPENDIX}),
-        *position_commands({"LAT": APPENDIX, "LON": APPENDIX, "ALT": APPENDIX}, target=False),
+        *shared.lens_commands({"ZMC": APPENDIX, "FCC": APPENDIX, "ZFP": APPENDIX, "IRC": APPENDIX}),
+        *shared.position_commands({"LAT": APPENDIX, "LON": APPENDIX, "ALT": APPENDIX}, target=False),
         command(ident="MNU", name="menu", title="Menu (layout not documented)", section=f"{DOC} Appendix I",
                 role="menu", address="D", group="system", write=raw),
         command(ident="EVS", name="exposure_compensation", title="Exposure compensation (layout not documented)",
@@ -308,24 +276,17 @@ def skydroid(*, speed_unit_deg_s: float = 0.1, destinations: Mapping[str, str] |
     destinations: {ident: address} for firmware that wants a command elsewhere (C11 DZM to M).
     A profile's max_rate_deg_s follows its speed unit (127 steps) unless the profile fixes the unit.
     """
-    u = speed_unit_deg_s
-    models = [
-        m if "speed_unit_deg_s" in m.dialect_options else replace(m, max_rate_deg_s=round(RATE_STEPS * u, 6))
-        for m in MODELS
-    ]
-    options: dict[str, object] = {"speed_unit_deg_s": speed_unit_deg_s}
-    if destinations:
-        options["destinations"] = dict(destinations)
-    return Dialect(
+    return shared.build_dialect(
         "skydroid",
         TITLE,
-        commands(u),
-        models,
+        commands(speed_unit_deg_s),
+        MODELS,
+        max_rate_deg_s=round(RATE_STEPS * speed_unit_deg_s, 6),
+        options={"speed_unit_deg_s": speed_unit_deg_s},
+        destinations=destinations,
         host_addresses="U",
         headers=("#TP", "#tp"),
         gimbal_header="#TP",
-        options=options,
-        destinations=destinations,
     )
 
 

@@ -6,6 +6,9 @@ gimbal come from public reports (errata E27, E28). Facts from public reports nam
 
 from __future__ import annotations
 
+from dataclasses import replace
+from typing import Any
+
 from ..models import DeviceModel, Endpoint, VideoStream
 
 # Commands with no 支持 line apply to every model; HWV and MOD are asked of every model by clients.
@@ -38,35 +41,33 @@ def _video(hfov_visible: float, zoom_x: float = 1.0, thermal_hfov: float | None 
     return tuple(out)
 
 
+def _model(name: str, title: str, version: str, **kw: Any) -> DeviceModel:
+    """A SkyDroid profile. Identity answers: the firmware `version`, the name as MOD answers it and
+    H1.0 as HWV does on every unit seen; sources: the document unless given."""
+    kw.setdefault("sources", (DOC,))
+    identity = {"version": version, "model_name": name, "hardware_version": "H1.0"}
+    return DeviceModel(name=name, dialect="skydroid", title=f"SkyDroid {title}", identity=identity, **kw)
+
+
 UDP_5000 = Endpoint("udp", 5000)
+C10 = _model("C10", "C10", "V1.2.0", endpoints=(UDP_5000, Endpoint("tcp", 5000), Endpoint("udp", 9002)),
+             commands=COMMON | GIMBAL | CAMERA, optical_zoom_max=10.0, video=_video(60.0, 10.0))  # fmt: skip
 
 MODELS: tuple[DeviceModel, ...] = (
-    DeviceModel(
-        name="C10",
-        dialect="skydroid",
-        title="SkyDroid C10",
-        endpoints=(UDP_5000, Endpoint("tcp", 5000), Endpoint("udp", 9002)),
-        commands=COMMON | GIMBAL | CAMERA,
-        optical_zoom_max=10.0,
-        identity={"version": "V1.2.0", "model_name": "C10", "hardware_version": "H1.0"},
-        video=_video(60.0, 10.0),
-        sources=(DOC,),
-    ),
-    DeviceModel(
+    C10,
+    # The C10 Pro: a C10 with the extended settings (EXT), on UDP only.
+    replace(
+        C10,
         name="C10Pro",
-        dialect="skydroid",
         title="SkyDroid C10 Pro",
         endpoints=(UDP_5000,),
         commands=COMMON | GIMBAL | CAMERA | {"EXT"},
-        optical_zoom_max=10.0,
-        identity={"version": "V1.2.0", "model_name": "C10Pro", "hardware_version": "H1.0"},
-        video=_video(60.0, 10.0),
-        sources=(DOC,),
+        identity={**C10.identity, "model_name": "C10Pro"},
     ),
-    DeviceModel(
-        name="C11",
-        dialect="skydroid",
-        title="SkyDroid C11 (two-axis, visible; from public reports)",
+    _model(
+        "C11",
+        "C11 (two-axis, visible; from public reports)",
+        "V1.0.78",
         endpoints=(Endpoint("udp", 5000, "UDP only; the host's source address is always U"),),
         commands=C11,
         yaw_range_deg=(-90.0, 90.0),
@@ -81,7 +82,6 @@ MODELS: tuple[DeviceModel, ...] = (
         stream_rates_hz={"GAA": 50.0},
         host_feeds={"FAI": 10.0, "TIM": 1.0},
         host_setup=(("FAE", {"state": "on"}),),
-        identity={"version": "V1.0.78", "model_name": "C11", "hardware_version": "H1.0"},
         quirks={
             "ignored_commands": True,
             "needs_video_output": True,
@@ -98,10 +98,10 @@ MODELS: tuple[DeviceModel, ...] = (
         "rates fed by the GAC stream. PTZ 05 centres. Roll cannot be commanded. Send FAE 01, then FAI at 10 Hz; "
         "TIM at 1 Hz (no clock). Camera commands take effect only once video output has started.",
     ),
-    DeviceModel(
-        name="C12",
-        dialect="skydroid",
-        title="SkyDroid C12 (visible + thermal)",
+    _model(
+        "C12",
+        "C12 (visible + thermal)",
+        "010502",
         endpoints=(Endpoint("udp", 5000, "SkyDroid's assistant app uses this port too: close it on the same host"),),
         alternate_endpoints=(Endpoint("udp", 12580, "seen on some units"),),
         commands=COMMON | GIMBAL | CAMERA | C12_ONLY | {"EXT", "TAS"},
@@ -116,7 +116,6 @@ MODELS: tuple[DeviceModel, ...] = (
         wire_signs={"rate.yaw": -1},
         min_command_gap_s=0.04,
         slow_answers=frozenset({"MOD"}),
-        identity={"version": "010502", "model_name": "C12", "hardware_version": "H1.0"},
         quirks={"ver_wrong_length": True, "wire_signs": True, "late_answers": False, "command_pacing": False},
         video=_video(60.0, 1.0, thermal_hfov=45.0),
         sources=(DOC, GROUND_STATIONS),
@@ -124,10 +123,10 @@ MODELS: tuple[DeviceModel, ...] = (
         "documented). Leave 40 ms "
         "between commands. MOD may answer minutes late or never.",
     ),
-    DeviceModel(
-        name="C13",
-        dialect="skydroid",
-        title="SkyDroid C13 (thermal + laser range)",
+    _model(
+        "C13",
+        "C13 (thermal + laser range)",
+        "V1.1.0",
         endpoints=(UDP_5000,),
         commands=COMMON | C13_THERMAL | {"TAS"} | C13_MOTION,
         roll_range_deg=(-45.0, 45.0),
@@ -138,22 +137,19 @@ MODELS: tuple[DeviceModel, ...] = (
         gimbal_header="#TP",
         no_echo=C13_MOTION,
         stop_repeats=3,
-        identity={"version": "V1.1.0", "model_name": "C13", "hardware_version": "H1.0"},
         quirks={"no_motion_echo": True, "stop_coasts": True, "gimbal_header_required": True, "wire_signs": True},
         video=_video(60.0, thermal_hfov=32.0),
         sources=(DOC, ARDUPILOT),
         notes="Motion commands are often not acknowledged and a stop may coast: send stops 3 times. G-class frames "
         "must use #TP (#tp angle commands were ignored). GSY yaw is inverted.",
     ),
-    DeviceModel(
-        name="C20",
-        dialect="skydroid",
-        title="SkyDroid C20",
+    _model(
+        "C20",
+        "C20",
+        "V1.0.3",
         endpoints=(Endpoint("tcp", 5000),),
         commands=COMMON | GIMBAL,
-        identity={"version": "V1.0.3", "model_name": "C20", "hardware_version": "H1.0"},
         video=_video(60.0),
-        sources=(DOC,),
     ),
 )
 

@@ -7,47 +7,26 @@ here (the model profile's wire signs are applied by `protocol.signs`)."""
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import replace
 
 from ..commands import CommandSpec
 from ..dialect import Dialect
 from ..fields import BinInt, Bitrate, DecFloat, DecInt, Field, HexInt, OneOf, RawData, Text, Timestamp, enum
 from ..forms import REQUEST, Form
+from . import _shared as shared
 from ._build import F, angle, attitude_fields, command, place, rate, report, request
-from ._shared import (
-    BEYOND,
-    DZM_ACTIONS,
-    digital_zoom_client_forms,
-    error_frame,
-    lens_commands,
-    network_commands,
-    on_off_codec,
-    palette_channel_forms,
-    position_commands,
-)
 from .topotek_models import MODELS
 
 DOC = "TOPOTEK"
 TITLE = 'TOPOTEK "Udp&uart-Protocol" V1.1.3'
-CLIENTS = f"{BEYOND} (real clients: ArduPilot's TOPOTEK driver and others)"
+CLIENTS = f"{shared.BEYOND} (real clients: ArduPilot's TOPOTEK driver and others)"
 RATE_STEPS = 99
 
-PTZ = enum(
-    2,
+PTZ = shared.ptz_actions(
     {
-        "00": "stop",
-        "01": ("up", "Nudge up"),
-        "02": ("down", "Nudge down"),
-        "03": ("left", "Nudge left"),
-        "04": ("right", "Nudge right"),
-        "05": ("center", "Centre", "回中"),
         "06": ("lock", "Lock heading", "锁头"),
         "07": ("follow", "Follow", "跟随"),
-        "08": ("toggle_follow_lock", "Toggle follow / lock"),
-        "09": ("calibrate", "Gimbal calibration"),
         "0A": ("look_down", "One-key look down", "一键向下"),
-    },
-    toggles=("01", "02", "03", "04", "08", "09"),
+    }
 )
 PALETTES = enum(
     2,
@@ -79,8 +58,6 @@ PIP_MODE = enum(
     },
     toggles=("A", "B"),
 )
-REC_ACTION = enum(2, {"00": "stop", "01": "start", "0A": ("toggle", "Toggle")}, toggles="0A")
-REC_STATE = enum(2, {"00": ("stopped", "Not recording"), "01": ("recording", "Recording")})
 REC_FEEDBACK = enum(2, {"00": ("stopped", "Recording stopped"), "11": ("started", "Recording started")})
 FILE_INDEX = HexInt(8)
 PHOTO_MODE = enum(
@@ -141,7 +118,7 @@ def _temperature(scale: float) -> HexInt:
 def commands(u: float, bo: str) -> list[CommandSpec]:
     """Every TOPOTEK command, as data. `u`: the GS*/RPS/YPR rate step in deg/s (errata E8);
     `bo`: the GPS / UAV struct byte order (errata E18)."""
-    on_off = on_off_codec()
+    on_off = shared.on_off_codec()
     pos = F("zoom_pos", HexInt(4, signed=True), "zoom motor position", state_key="zoom.position")
     att = attitude_fields(state="attitude")
     earth = attitude_fields(state="earth_attitude")
@@ -153,9 +130,9 @@ def commands(u: float, bo: str) -> list[CommandSpec]:
     position = place("D", "position")
     tmp_sect = f"{DOC} §五.12"
     return [
-        error_frame(f"{DOC} §二 (response mechanism, as SkyDroid §2.3.2)"),
+        shared.error_frame(f"{DOC} §二 (response mechanism, as SkyDroid §2.3.2)"),
         # -- M class: lens -----------------------------------------------------------------------
-        *lens_commands({"ZMC": f"{DOC} §三.1.1", "FCC": f"{DOC} §三.2.1", "ZFP": f"{DOC} §三.3", "IRC": f"{DOC} §三.6"}),
+        *shared.lens_commands({"ZMC": f"{DOC} §三.1.1", "FCC": f"{DOC} §三.2.1", "ZFP": f"{DOC} §三.3", "IRC": f"{DOC} §三.6"}),
         command(ident="ZOM", name="zoom_position", title="Read the zoom position", section=f"{DOC} §三.1.2",
                 role="zoom_position", read=[pos], **lens),
         command(ident="FOC", name="focus_position", title="Read the focus position", section=f"{DOC} §三.2.2",
@@ -198,15 +175,7 @@ def commands(u: float, bo: str) -> list[CommandSpec]:
         # -- G class: gimbal ---------------------------------------------------------------------
         command(ident="PTZ", name="gimbal_control", title="Gimbal control codes", section=f"{DOC} §四.1",
                 role="gimbal_control", write=[F("action", PTZ)], motion=True, **gimbal),
-        command(ident="GSY", name="yaw_rate", title="Yaw speed", section=f"{DOC} §四.2", role="rate",
-                write=[rate("yaw", u, RATE_STEPS)], motion=True, **gimbal),
-        command(ident="GSP", name="pitch_rate", title="Pitch speed", section=f"{DOC} §四.2", role="rate",
-                write=[rate("pitch", u, RATE_STEPS, pitch_note)], motion=True, **gimbal),
-        command(ident="GSR", name="roll_rate", title="Roll speed", section=f"{DOC} §四.2", role="rate",
-                write=[rate("roll", u, RATE_STEPS)], motion=True, **gimbal),
-        command(ident="GSM", name="yaw_pitch_rate", title="Yaw and pitch speed", section=f"{DOC} §四.2", role="rate",
-                write=[rate("yaw", u, RATE_STEPS), rate("pitch", u, RATE_STEPS, pitch_note)], header="#tp",
-                motion=True, **gimbal),
+        *shared.rate_commands(f"{DOC} §四.2", u, RATE_STEPS, {"pitch": pitch_note}, gsm_notes=True, header="#tp"),
         command(ident="RPS", name="roll_pitch_rate", title="Roll and pitch speed", section=f"{DOC} §四.2", role="rate",
                 write=[rate("roll", u, RATE_STEPS), rate("pitch", u, RATE_STEPS, pitch_note)], header="#tp",
                 motion=True, **gimbal),
@@ -239,12 +208,8 @@ def commands(u: float, bo: str) -> list[CommandSpec]:
                 role="serial_number", address="G", group="system",
                 read=[F("serial", Text(1, 15), "14 characters", state_key="serial_number")]),
         # -- D class: system and image -----------------------------------------------------------
-        command(ident="REC", name="recording", title="Start / stop / toggle recording; query state",
-                section=f"{DOC} §五.1", role="recording", write=[F("action", REC_ACTION)],
-                read=[F("state", REC_STATE, state_key="recording")],
-                extra_forms=[report(F("state", REC_FEEDBACK), F("file_index", FILE_INDEX, "stream_0_<idx>.h264"),
-                                    title="feedback with file index")],
-                **camera),
+        shared.recording_command(f"{DOC} §五.1", [report(F("state", REC_FEEDBACK), F("file_index", FILE_INDEX,
+                          "stream_0_<idx>.h264"), title="feedback with file index")]),
         command(ident="CAP", name="photo", title="Take a photo", section=f"{DOC} §五.2", role="photo",
                 write=[F("mode", PHOTO_MODE, default="visible_thermal")], repeatable=False,
                 extra_forms=[report(F("state", enum(2, {"11": ("taken", "Photo taken")})),
@@ -264,8 +229,8 @@ def commands(u: float, bo: str) -> list[CommandSpec]:
                 **camera),
         command(ident="ROT", name="rotation", title="Image flip / mirror", section=f"{DOC} §五.6", role="rotation",
                 write=[F("rotation", ROTATION)], read=[F("rotation", ROTATION)], **camera),
-        *network_commands({"IPV": f"{DOC} §五.7", "GTW": f"{DOC} §五.7", "RST": f"{DOC} §五.7"}, dns=False),
-        *position_commands({"LAT": f"{DOC} §五.8.2, §五.8.7", "LON": f"{DOC} §五.8.1, §五.8.7", "ALT": f"{DOC} §五.8.3"}),
+        *shared.network_commands({"IPV": f"{DOC} §五.7", "GTW": f"{DOC} §五.7", "RST": f"{DOC} §五.7"}, dns=False),
+        *shared.position_commands({"LAT": f"{DOC} §五.8.2, §五.8.7", "LON": f"{DOC} §五.8.1, §五.8.7", "ALT": f"{DOC} §五.8.3"}),
         command(ident="AZI", name="azimuth", title="Vehicle ground course (true north)", section=f"{DOC} §五.8.4",
                 role="azimuth", write=[F("azimuth_deg", DecFloat(None, 1, "deg", 0, 359.9, pad=5))], **position),
         command(ident="GPS", name="gps", title="Vehicle position (packed binary, sTPGpsInfo)", section=f"{DOC} §五.8.5",
@@ -314,17 +279,15 @@ def commands(u: float, bo: str) -> list[CommandSpec]:
         command(ident="TMR", name="temperature_range", title="Radiometry range", section=f"{DOC} §五.12.4",
                 role="temperature_range",
                 write=[F("range", enum(2, {"00": ("low", "-20..150 °C"), "01": ("high", "-20..550 °C")}))], **thermal),
-        command(ident="IMG", name="palette", title="Thermal palette", section=f"{DOC} §五.13", role="palette",
-                write=[F("palette", PALETTES)], read=[F("palette", PALETTES, state_key="palette", factory="white_hot")],
-                extra_forms=palette_channel_forms(PALETTES), **thermal),
+        shared.palette_command(f"{DOC} §五.13", PALETTES),
         command(ident="DZM", name="digital_zoom", title="Digital zoom of the visible or thermal image",
                 section=f"{DOC} §五.14", role="digital_zoom", address="D", group="lens",
                 write=[F("lens", enum(1, {"0": "visible", "1": "thermal"}), default="visible"),
-                       F("zoom", OneOf(DZM_ACTIONS, DecInt(2, scale=0.1, unit="x", max=8.0)),
+                       F("zoom", OneOf(shared.DZM_ACTIONS, DecInt(2, scale=0.1, unit="x", max=8.0)),
                          "magnification step 0.1 (decimal 00..80), or an action")],
                 read=[F("thermal_zoom_x", DecInt(2, scale=0.1, unit="x"), state_key="zoom.thermal_digital_x"),
                       F("visible_zoom_x", DecInt(2, scale=0.1, unit="x"), state_key="zoom.digital_x")],
-                extra_forms=digital_zoom_client_forms(two_char=True)),
+                extra_forms=shared.digital_zoom_client_forms(two_char=True)),
         command(ident="DFG", name="defog", title="Electronic defog", section=f"{DOC} §五.15", role="defog",
                 write=[F("mode", DEFOG), F("strength", HexInt(2), "0..255")],
                 read=[F("mode", DEFOG), F("strength", HexInt(2))], **camera),
@@ -359,26 +322,17 @@ def topotek(
     destinations: {ident: address} for firmware that wants a command elsewhere.
     """
     u = speed_unit_deg_s
-    # A profile's max rate follows the speed unit (99 steps; 60 deg/s when steps are too fine to be
-    # the real limit) unless the profile fixes the unit itself.
-    models = [
-        m
-        if "speed_unit_deg_s" in m.dialect_options
-        else replace(m, max_rate_deg_s=RATE_STEPS * u if u >= 0.5 else 60.0)
-        for m in MODELS
-    ]
-    options: dict[str, object] = {"speed_unit_deg_s": speed_unit_deg_s, "binary_byteorder": binary_byteorder}
-    if destinations:
-        options["destinations"] = dict(destinations)
-    return Dialect(
+    return shared.build_dialect(
         "topotek",
         TITLE,
-        commands(speed_unit_deg_s, binary_byteorder),
-        models,
+        commands(u, binary_byteorder),
+        MODELS,
+        # 99 steps; 60 deg/s when steps are too fine to be the real limit.
+        max_rate_deg_s=RATE_STEPS * u if u >= 0.5 else 60.0,
+        options={"speed_unit_deg_s": u, "binary_byteorder": binary_byteorder},
+        destinations=destinations,
         host_addresses="UP",
         headers=("#TP", "#tp", "#tP", "#Tp"),
-        options=options,
-        destinations=destinations,
     )
 
 

@@ -15,14 +15,19 @@ function setup(canvas) {
 
 const rad = (d) => (d * Math.PI) / 180;
 
+// A filled dot (the path stays current).
+function dot(ctx, x, y, radius, color) {
+  ctx.fillStyle = color;
+  ctx.beginPath();
+  ctx.arc(x, y, radius, 0, 2 * Math.PI);
+  ctx.fill();
+}
+
 // The commanded yaw: a green dot on the rim of the heading dial.
 function drawTarget(ctx, cx, cy, r, target) {
   if (target == null || !Number.isFinite(target)) return;
   const tt = rad(target - 90);
-  ctx.fillStyle = "#3ccf7a";
-  ctx.beginPath();
-  ctx.arc(cx + (r - 8) * Math.cos(tt), cy + (r - 8) * Math.sin(tt), 4, 0, 2 * Math.PI);
-  ctx.fill();
+  dot(ctx, cx + (r - 8) * Math.cos(tt), cy + (r - 8) * Math.sin(tt), 4, "#3ccf7a");
 }
 
 export function drawHorizon(canvas, pitch, roll) {
@@ -73,10 +78,7 @@ export function drawHorizon(canvas, pitch, roll) {
   ctx.moveTo(cx - 50, cy); ctx.lineTo(cx - 16, cy); ctx.lineTo(cx - 8, cy + 8);
   ctx.moveTo(cx + 50, cy); ctx.lineTo(cx + 16, cy); ctx.lineTo(cx + 8, cy + 8);
   ctx.stroke();
-  ctx.fillStyle = "#ffd34d";
-  ctx.beginPath();
-  ctx.arc(cx, cy, 3, 0, 2 * Math.PI);
-  ctx.fill();
+  dot(ctx, cx, cy, 3, "#ffd34d");
   ctx.strokeStyle = "#ffffff55";
   ctx.lineWidth = 2;
   ctx.beginPath();
@@ -108,10 +110,7 @@ function disc(canvas, fill) {
   const r = Math.min(w, h) / 2 - 2;
   const cx = w / 2, cy = h / 2;
   ctx.clearRect(0, 0, w, h);
-  ctx.fillStyle = fill;
-  ctx.beginPath();
-  ctx.arc(cx, cy, r, 0, 2 * Math.PI);
-  ctx.fill();
+  dot(ctx, cx, cy, r, fill);
   return { ctx, r, cx, cy };
 }
 
@@ -148,10 +147,7 @@ export function drawHeading(canvas, yaw, target) {
   ctx.moveTo(cx - 14 * Math.cos(t), cy - 14 * Math.sin(t));
   ctx.lineTo(cx + (r - 34) * Math.cos(t), cy + (r - 34) * Math.sin(t));
   ctx.stroke();
-  ctx.fillStyle = "#3fa7ff";
-  ctx.beginPath();
-  ctx.arc(cx, cy, 5, 0, 2 * Math.PI);
-  ctx.fill();
+  dot(ctx, cx, cy, 5, "#3fa7ff");
   ctx.fillStyle = "#dde6ee";
   ctx.font = "600 15px system-ui, sans-serif";
   ctx.fillText(`${(yaw || 0).toFixed(1)}°`, cx, cy + r * 0.45);
