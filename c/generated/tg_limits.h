@@ -3,5 +3,5 @@
 #define TG_LIMITS_H
 #define TG_CATALOG_MAX_DATA 267 /* longest form's data */
 #define TG_CATALOG_MAX_FIELDS 7
-#define TG_CATALOG_FINGERPRINT "414551549b57aae9"
+#define TG_CATALOG_FINGERPRINT "15005312891e5160"
 #endif
