@@ -17,12 +17,11 @@ is checked after substitution (`_assert_loopback_only`).
 
 from __future__ import annotations
 
-import json
 import os
 import pty
 import re
-import select
 import shlex
+import shutil
 import signal
 import socket
 import subprocess
@@ -64,16 +63,18 @@ NOT_RUN: dict[str, str] = {
     "ffplay -rtsp_transport tcp rtsp://127.0.0.1:8554/stream=0": "a video window (GUI); tests/video play the streams",
 }
 
-# Output a command's comment promises, by a piece of the command's text: each string must be in
-# the comment (so the doc and this table agree) and in what the command prints.
+# Output a command's comment promises, by the command's text: each string must be in the comment
+# (so the doc and this table agree) and in what the command prints. A frame in a comment is
+# promised without being listed.
 PROMISES: dict[str, tuple[str, ...]] = {
-    "sim --model C12 --udp 127.0.0.1:0 ": ("udp://127.0.0.1:",),
-    "decode '#TPUG6wGAYEF073288'": ("'88'", "'48'"),
-    "sim --model C12 --video ": ("/stream=1", "/stream=2"),
+    "topgimbal sim --model C12 --udp 127.0.0.1:0": ("udp://127.0.0.1:",),
+    "topgimbal decode '#TPUG6wGAYEF073288'": ("'88'", "'48'"),
+    "topgimbal sim --model C12 --video": ("/stream=1", "/stream=2"),
+    "topgimbal sim --model C12 --udp 127.0.0.1:0 --video --video-port 0": ("rtsp://127.0.0.1:", "/stream=1"),
 }
-# Documented exit status other than 0, by a piece of the command's text, with the doc's reason.
+# Documented exit status other than 0, by the command's text, with the doc's reason.
 EXIT_STATUS: dict[str, int] = {
-    "decode '#TPUG6wGAYEF073288'": 1,  # "says what is wrong": a bad frame fails
+    "topgimbal decode '#TPUG6wGAYEF073288'": 1,  # "says what is wrong": a bad frame fails
 }
 # Shorter runs of the same command: the documented value only makes the test slower.
 SHORTER: dict[tuple[str, str], str] = {
@@ -201,11 +202,12 @@ def _runs(ex: Example) -> bool:
 
 
 def _other_runner(ex: Example) -> list[str] | None:
-    """Commands beside topgimbal that a test can run: tshark, curl, the C code generator's check."""
+    """Commands beside topgimbal that a test can run: tshark, curl, the C code generator's check,
+    the C example's build and run (in a copy of the tree's c/ and examples/)."""
     argv = ex.argv
     if argv[0] == "python" and argv[1:3] == ["-m", "topgimbal.tools.cgen"] and "--check" in argv:
         return [sys.executable, *argv[1:]]
-    if argv[0] in ("tshark", "curl"):
+    if argv[0] in ("tshark", "curl", "examples/c/point_camera") or argv == ["make", "-C", "examples/c"]:
         return argv
     return None
 
@@ -271,7 +273,8 @@ class Daemon:
                 left = deadline - time.monotonic()
                 if self.eof or left <= 0:
                     raise AssertionError(
-                        f"{self.ex.label}: never printed {pattern!r} (exit {self.proc.poll()}):\n" + "\n".join(self.lines)
+                        f"{self.ex.label}: never printed {pattern!r} (exit {self.proc.poll()}):\n"
+                        + "\n".join(self.lines)
                     )
                 self.cond.wait(min(left, 0.5))
 
@@ -298,8 +301,8 @@ class Listener:
 class Session:
     """The commands of one doc, in order, in a directory of their own (files flow between them)."""
 
-    def __init__(self, sims: Sims, cwd: Path) -> None:
-        self.sims = sims
+    def __init__(self, cwd: Path) -> None:
+        self.sims = Sims()  # a doc's own: another doc's commands do not move its gimbal
         self.cwd = cwd
         self.daemons: list[Daemon] = []
         self.listeners: dict[tuple[str, str], Listener] = {}  # (scheme, documented port)
@@ -307,11 +310,14 @@ class Session:
         self.ports: dict[str, str] = {}  # documented port -> actual, for filters on captures
         self.ptys: list[int] = []
         self.sockets: list[socket.socket] = []
-        self.ran: list[str] = []
+        self._pending: list[tuple[str, str, int]] = []  # listeners of the command being set up
+        self._heartbeat_socket: socket.socket | None = None  # where its mavlink udpout points
+        self._tcp_in: int | None = None  # its mavlink tcpin port
+        self._console: str | None = None  # the console curl talks to
 
     # -- substitution ----------------------------------------------------------------------------
 
-    def _resolve(self, scheme: str, host: str, port: str, model: str | None) -> str:
+    def _resolve(self, scheme: str, port: str, model: str | None) -> str:
         listener = self.listeners.get((scheme, port))
         if port == "PORT":
             listener = self.last_sim
@@ -388,7 +394,7 @@ class Session:
         if sub == "decode" and "--port" in argv:
             j = out.index("--port") + 1
             out[j] = self.ports.get(out[j], out[j])
-        return [self._repo_path(tok) for tok in out]
+        return out
 
     def _add_listener(self, scheme: str, doc_port: str) -> None:
         nth = sum(1 for s, _, _ in self._pending if s == scheme)
@@ -397,7 +403,7 @@ class Session:
     def _listen(self, sub: str, opt: str, value: str) -> str:
         if sub == "sim":
             scheme = opt[2:]
-            host, _, port = value.rpartition(":")
+            port = value.rpartition(":")[2]
             self._add_listener(scheme, port)
             return "127.0.0.1:0"
         m = URL_RE.match(value)
@@ -409,7 +415,7 @@ class Session:
         return f"serial://{self._pty()}" + value[sm.end() :]
 
     def _mavlink_endpoint(self, value: str) -> str:
-        kind, _, rest = value.partition(":")
+        kind = value.partition(":")[0]
         if kind == "udpout":
             sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             sock.bind(("127.0.0.1", 0))
@@ -421,14 +427,17 @@ class Session:
             with socket.socket() as s:
                 s.bind(("127.0.0.1", 0))
                 port = s.getsockname()[1]
-            self._tcp_in = port if kind == "tcpin" else None
+            if kind == "tcpin":
+                self._tcp_in = port
             return f"{kind}:127.0.0.1:{port}"
         device, _, baud = value.partition(",")
         assert device.startswith("/dev/"), f"unknown MAVLink endpoint {value!r}"
         return f"{self._pty()},{baud}" if baud else self._pty()
 
     def _destination(self, tok: str, model: str | None) -> str:
-        tok = URL_RE.sub(lambda m: self._resolve(m.group(1), m.group(2), m.group(3), model), tok)
+        if tok == "PORT":  # `127.0.0.1 PORT`: the simulator's port
+            return self._resolve("udp", "PORT", model).rsplit(":", 1)[1]
+        tok = URL_RE.sub(lambda m: self._resolve(m.group(1), m.group(3), model), tok)
         if SERIAL_RE.search(tok):
             tok = SERIAL_RE.sub(lambda m: (m.group(1) or "") + self._serial_device(model), tok)
         if tok == "0.0.0.0":
@@ -439,7 +448,7 @@ class Session:
 
     def _console_url(self) -> str:
         """The doc's earlier examples ran a console on 8080: one of its own, for curl."""
-        if not hasattr(self, "_console"):
+        if self._console is None:
             ex = Example("(test)", 0, -1, "topgimbal console --sim C12 --port 0", "")
             pending, self._pending = self._pending, []
             daemon = self._start(ex, [str(EXE), "console", "--sim", "C12", "--port", "0"])
@@ -447,14 +456,7 @@ class Session:
             self._console = daemon.wait_for(r"open (http://127\.0\.0\.1:\d+/)").group(1)
             # Traffic for the capture: the console polls its camera once it has a page open.
             urllib.request.urlopen(self._console, timeout=RUN_TIMEOUT_S).read()
-        return str(self._console)
-
-    @staticmethod
-    def _repo_path(tok: str) -> str:
-        for prefix in ("contrib/", "c/", "examples/"):
-            if tok.startswith(prefix) or f":{prefix}" in tok:
-                return tok.replace(prefix, f"{ROOT}/{prefix}", 1)
-        return tok
+        return self._console
 
     # -- running ---------------------------------------------------------------------------------
 
@@ -476,34 +478,33 @@ class Session:
         return daemon
 
     def run(self, ex: Example) -> None:
-        self._pending: list[tuple[str, str, int]] = []
+        self._pending, self._heartbeat_socket, self._tcp_in = [], None, None
         argv = self.substitute(ex) if ex.argv[0] == "topgimbal" else self._other(ex)
         _assert_loopback_only(argv)
         for daemon in list(self.daemons):  # it reads what a running one writes: stop that first
             if daemon.outputs & set(argv):
                 daemon.stop()
                 self.daemons.remove(daemon)
+        promised = list(PROMISES.get(ex.text, ()))
+        promised += re.findall(r"#(?:TP|tp)\w+", ex.comment)
+        promised += [line.strip() for line in ex.output.splitlines()]
+        for p in promised:
+            assert p in ex.comment or p in ex.output, f"{ex.label}: PROMISES says {p!r}, the doc does not"
         sub = _subcommand(ex.argv)
         if sub in DAEMONS and ex.argv[0] == "topgimbal":
             daemon = self._start(ex, argv)
             self._check_up(sub, ex, daemon)
-            printed = daemon.lines
+            for p in promised:  # it prints as it goes: wait for each
+                daemon.wait_for(re.escape(p))
         else:
-            printed = self._run_once(ex, argv)
-        text = "\n".join(printed)
-        promised = [p for key, ps in PROMISES.items() if key in ex.text for p in ps]
-        promised += re.findall(r"#(?:TP|tp)\w+", ex.comment)
-        for p in promised:
-            assert p in ex.comment or p in ex.output, f"{ex.label}: PROMISES says {p!r}, the doc does not"
-            assert p in text, f"{ex.label}: the doc promises {p!r}; printed:\n{text}"
-        for line in ex.output.splitlines():
-            assert line.strip() in text, f"{ex.label}: the doc shows {line!r}; printed:\n{text}"
-        self.ran.append(ex.text)
+            text = "\n".join(self._run_once(ex, argv))
+            for p in promised:
+                assert p in text, f"{ex.label}: the doc promises {p!r}; printed:\n{text}"
 
     def _other(self, ex: Example) -> list[str]:
         argv = _other_runner(ex)
         assert argv is not None
-        return [self._repo_path(self._destination(tok, None)) for tok in argv]
+        return [self._destination(tok, None) for tok in argv]
 
     def _run_once(self, ex: Example, argv: list[str]) -> list[str]:
         answer = next((a for key, a in ANSWERS.items() if key in ex.text), None)
@@ -519,7 +520,7 @@ class Session:
             )
         except subprocess.TimeoutExpired as exc:
             raise AssertionError(f"{ex.label}: still running after {RUN_TIMEOUT_S} s") from exc
-        expected = next((rc for key, rc in EXIT_STATUS.items() if key in ex.text), 0)
+        expected = EXIT_STATUS.get(ex.text, 0)
         assert done.returncode == expected, (
             f"{ex.label}\nran {shlex.join(argv)}\nexit {done.returncode}, documented {expected}\n"
             f"{done.stdout}{done.stderr}"
@@ -534,26 +535,32 @@ class Session:
                 daemon.wait_for(r"video at rtsp://127\.0\.0\.1:\d+/")
         elif sub == "proxy":
             m = daemon.wait_for(r"topgimbal proxy: (\S+) -> ")
-            if m.group(1).startswith("udp://"):  # a frame through it, and its reply back
-                host, port = m.group(1)[6:].rsplit(":", 1)
-                self._probe_udp(ex, (host, int(port)))
+            if URL_RE.match(m.group(1)):  # a frame through it, and its reply back
+                scheme, rest = m.group(1).split("://")
+                host, port = rest.rsplit(":", 1)
+                self._probe(ex, scheme, (host, int(port)))
         elif sub == "console":
             url = daemon.wait_for(r"open (http://127\.0\.0\.1:\d+/)").group(1)
             with urllib.request.urlopen(url, timeout=RUN_TIMEOUT_S) as page:
                 assert page.status == 200 and b"<html" in page.read().lower(), ex.label
         elif sub == "mavlink":
             daemon.wait_for(r"^mavlink bridge: ")
-            sock = getattr(self, "_heartbeat_socket", None)
+            sock = self._heartbeat_socket
             if sock is not None:  # MAVLink 2 frames (0xFD) arrive where udpout points
                 data, _ = sock.recvfrom(4096)
                 assert data[:1] == b"\xfd", f"{ex.label}: not MAVLink 2: {data!r}"
-            port = getattr(self, "_tcp_in", None)
-            if port is not None:
-                socket.create_connection(("127.0.0.1", port), timeout=RUN_TIMEOUT_S).close()
+            if self._tcp_in is not None:
+                socket.create_connection(("127.0.0.1", self._tcp_in), timeout=RUN_TIMEOUT_S).close()
 
-    def _probe_udp(self, ex: Example, addr: tuple[str, int]) -> None:
+    def _probe(self, ex: Example, scheme: str, addr: tuple[str, int]) -> None:
         # Whichever camera is behind it answers its own dialect's query and ignores the other.
         frames = [encode(dialect, "VER", read=True).to_bytes() for dialect in ("skydroid", "topotek")]
+        if scheme == "tcp":
+            with socket.create_connection(addr, timeout=RUN_TIMEOUT_S) as s:
+                s.sendall(b"".join(frames))
+                reply = s.recv(4096)
+            assert reply.startswith((b"#TP", b"#tp")), f"{ex.label}: {reply!r}"
+            return
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
             s.settimeout(5.0)
             for _ in range(5):  # UDP: the first datagram may go before the camera side is open
@@ -580,7 +587,11 @@ class Session:
             sock.close()
         self.daemons, self.ptys, self.sockets = [], [], []
         self.listeners, self.last_sim = {}, None  # its documented ports are free again
+        self._console = None
         assert not errors, "\n".join(errors)
+
+    def stop_sims(self) -> None:
+        self.sims.stop()
 
 
 def _subcommand(argv: list[str]) -> str:
@@ -626,13 +637,14 @@ def _capture_from_the_lan(path: Path) -> None:
 @pytest.fixture(scope="module")
 def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, str]]:
     """Run every doc's examples (docs in parallel, each doc's in order): doc -> text -> error."""
-    sims = Sims()
     outcome: dict[str, dict[str, str]] = {}
 
     def run_doc(doc: str) -> None:
         cwd = tmp_path_factory.mktemp(Path(doc).stem)
         _capture_from_the_lan(cwd / "capture.pcap")
-        session = Session(sims, cwd)
+        for tree in ("c", "examples", "contrib"):  # what examples name by relative path
+            shutil.copytree(ROOT / tree, cwd / tree, ignore=shutil.ignore_patterns("build", "point_camera"))
+        session = Session(cwd)
         errors = outcome.setdefault(doc, {})
         block = None
         for ex in (e for e in EXAMPLES if e.doc == doc and _runs(e)):
@@ -651,12 +663,13 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, str
             session.close()
         except AssertionError as exc:
             errors[f"(block {block})"] = str(exc)
+        finally:
+            session.stop_sims()
 
-    try:
-        with ThreadPoolExecutor(max_workers=3) as pool:
-            list(pool.map(run_doc, sorted({ex.doc for ex in EXAMPLES})))
-    finally:
-        sims.stop()
+    # The doc with the most examples first: it is the longest chain of commands.
+    docs = sorted({ex.doc for ex in EXAMPLES}, key=lambda d: -sum(ex.doc == d for ex in EXAMPLES))
+    with ThreadPoolExecutor(max_workers=3) as pool:
+        list(pool.map(run_doc, docs))
     return outcome
 
 
