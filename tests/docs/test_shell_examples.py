@@ -639,8 +639,12 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, str
     """Run every doc's examples (docs in parallel, each doc's in order): doc -> text -> error."""
     outcome: dict[str, dict[str, str]] = {}
 
+    # The doc with the most examples first: it is the longest chain of commands.
+    docs = sorted({ex.doc for ex in EXAMPLES}, key=lambda d: -sum(ex.doc == d for ex in EXAMPLES))
+    cwds = {doc: tmp_path_factory.mktemp(Path(doc).stem) for doc in docs}  # not thread-safe
+
     def run_doc(doc: str) -> None:
-        cwd = tmp_path_factory.mktemp(Path(doc).stem)
+        cwd = cwds[doc]
         _capture_from_the_lan(cwd / "capture.pcap")
         for tree in ("c", "examples", "contrib"):  # what examples name by relative path
             shutil.copytree(ROOT / tree, cwd / tree, ignore=shutil.ignore_patterns("build", "point_camera"))
@@ -666,8 +670,6 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, str
         finally:
             session.stop_sims()
 
-    # The doc with the most examples first: it is the longest chain of commands.
-    docs = sorted({ex.doc for ex in EXAMPLES}, key=lambda d: -sum(ex.doc == d for ex in EXAMPLES))
     with ThreadPoolExecutor(max_workers=3) as pool:
         list(pool.map(run_doc, docs))
     return outcome
