@@ -729,3 +729,24 @@ def test_extraction_handles_comments_prompts_and_continuations(tmp_path: Path) -
         ("topgimbal r x", "", ""),
         ("topgimbal r y", "", ""),
     ]
+
+
+@pytest.mark.parametrize(
+    ("text", "comment", "why"),
+    [
+        # README's comment before it was fixed: the frame needs speed_deg_s=5.
+        ("topgimbal encode GAY yaw_deg=-50 --dialect skydroid", "#TPUG6wGAYEC78324D", "promises"),
+        # A bad frame fails; a doc that does not say so (no EXIT_STATUS entry) is wrong.
+        ("topgimbal decode '#TPUG6wGAYEF073288' --json", "", "documented 0"),
+        # docs/client.md's range before it was fixed: a SIP without ALT has no distance.
+        ("topgimbal --url udp://127.0.0.1:9003 --model SIP range", "", "documented 0"),
+    ],
+)
+def test_a_wrong_example_fails(tmp_path: Path, text: str, comment: str, why: str) -> None:
+    session = Session(tmp_path)
+    try:
+        with pytest.raises(AssertionError, match=why):
+            session.run(Example("x.md", 1, 0, text, comment))
+    finally:
+        session.close()
+        session.stop_sims()
