@@ -20,6 +20,7 @@ from __future__ import annotations
 import os
 import pty
 import re
+import select
 import shlex
 import shutil
 import signal
@@ -28,6 +29,7 @@ import subprocess
 import sys
 import threading
 import time
+import tty
 import urllib.request
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -314,6 +316,7 @@ class Session:
         self._heartbeat_socket: socket.socket | None = None  # where its mavlink udpout points
         self._tcp_in: int | None = None  # its mavlink tcpin port
         self._console: str | None = None  # the console curl talks to
+        self._last_pty_master = -1  # the other end of the last serial line handed to a command
 
     # -- substitution ----------------------------------------------------------------------------
 
@@ -333,7 +336,9 @@ class Session:
 
     def _pty(self) -> str:
         master, slave = pty.openpty()
+        tty.setraw(master)  # bytes as they are: no echo, no line discipline
         self.ptys += [master, slave]
+        self._last_pty_master = master
         return os.ttyname(slave)
 
     def _serial_device(self, model: str | None) -> str:
@@ -539,6 +544,8 @@ class Session:
                 scheme, rest = m.group(1).split("://")
                 host, port = rest.rsplit(":", 1)
                 self._probe(ex, scheme, (host, int(port)))
+            elif m.group(1).startswith("serial://"):  # a ground station on the line's other end
+                self._probe_serial(ex, self._last_pty_master)
         elif sub == "console":
             url = daemon.wait_for(r"open (http://127\.0\.0\.1:\d+/)").group(1)
             with urllib.request.urlopen(url, timeout=RUN_TIMEOUT_S) as page:
@@ -551,6 +558,13 @@ class Session:
                 assert data[:1] == b"\xfd", f"{ex.label}: not MAVLink 2: {data!r}"
             if self._tcp_in is not None:
                 socket.create_connection(("127.0.0.1", self._tcp_in), timeout=RUN_TIMEOUT_S).close()
+
+    def _probe_serial(self, ex: Example, fd: int) -> None:
+        frames = [encode(dialect, "VER", read=True).to_bytes() for dialect in ("skydroid", "topotek")]
+        os.write(fd, b"".join(frames))
+        readable, _, _ = select.select([fd], [], [], RUN_TIMEOUT_S)
+        reply = os.read(fd, 4096) if readable else b""
+        assert reply.startswith((b"#TP", b"#tp")), f"{ex.label}: no reply on the serial line: {reply!r}"
 
     def _probe(self, ex: Example, scheme: str, addr: tuple[str, int]) -> None:
         # Whichever camera is behind it answers its own dialect's query and ignores the other.
