@@ -288,7 +288,8 @@ class Daemon:
         except subprocess.TimeoutExpired:
             self.proc.kill()
             raise AssertionError(f"{self.ex.label}: did not stop on Ctrl-C") from None
-        assert rc in (0, -signal.SIGINT, 130), f"{self.ex.label}: exit {rc} on Ctrl-C:\n" + "\n".join(self.lines)
+        # Ctrl-C is how the docs stop these: a clean exit, files flushed.
+        assert rc == 0, f"{self.ex.label}: exit {rc} on Ctrl-C:\n" + "\n".join(self.lines)
 
 
 @dataclass
