@@ -131,6 +131,7 @@ class Engine:
         for tx in failed:
             if not tx.done:
                 tx.state, tx.error, tx.deadline = "done", error, None
+                tx.attempts = []
                 self._finished.append(tx)
         return failed
 
@@ -373,7 +374,7 @@ class Engine:
         tx.last_sent_at = now
         self._out.append(tx.frame)
         if not tx.expect_reply:
-            tx.state, tx.deadline = "done", None
+            tx.state, tx.deadline, tx.attempts = "done", None, []
             return
         tx.state = "sent"
         tx.deadline = now + tx.timeout_s
@@ -382,6 +383,7 @@ class Engine:
         self, tx: Transaction, now: float, *, reply: Message | None = None, error: Exception | None = None
     ) -> None:
         tx.state, tx.reply, tx.error, tx.deadline = "done", reply, error, None
+        tx.attempts = []  # the ledger still knows them; no cycle left for the garbage collector
         self._finished.append(tx)
         key = tx.key
         if self.live.get(key) is tx:

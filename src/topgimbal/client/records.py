@@ -77,6 +77,9 @@ class Transaction:
     lenient: bool = False  # taken even with a recovered length character (known firmware errors)
     id: int = field(default_factory=lambda: next(_ids))
     state: str = "queued"  # queued -> deferred -> paced -> sent -> done
+    # Sends of a live request (emptied when it is done: each Attempt points back at its request,
+    # and a request that kept its attempts would be a reference cycle, freed only by the garbage
+    # collector, whose pauses were the client's p99)
     attempts: list[Attempt] = field(default_factory=list)
     first_sent_at: float | None = None
     last_sent_at: float | None = None
