@@ -119,7 +119,12 @@ MALFORMED = [
     (_with("camera.photo_index", "true"), "camera.photo_index is true; expected an integer"),
     (_with("gimbal.trims.x", "{}"), "gimbal.trims.x is an object; expected a number"),
     (_with("camera.bogus", "1"), "unknown key 'camera.bogus'; known here: bitrate_kbps"),
-    (_with("settings.TSM", "{}"), "unknown key 'settings.TSM'"),  # a setting the C12 does not have
+    (_with("settings.TSM", "{}"), "unknown key 'settings.TSM'"),
+    (_with("settings.TIM.time", '"yesterday"'), "settings.TIM.time is 'yesterday'; expected a time as ISO 8601"),
+    (
+        _with("settings.TIM.time", '"2026-13-45T99:00:00"'),
+        "settings.TIM.time is '2026-13-45T99:00:00'; expected a time",
+    ),  # a setting the C12 does not have
     (_with("network.ip", json.dumps("x" * 5000)), "network.ip is text; expected text of at most 4096"),
     (_with("model", '"SIP"'), "belongs to a SIP simulator, this one is a C12"),
     ("[" * 100_000 + "]" * 100_000, "nests more than 64 levels deep (line 1)"),

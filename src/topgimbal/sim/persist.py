@@ -29,6 +29,7 @@ import re
 import stat
 import tempfile
 from collections.abc import Callable, Mapping
+from datetime import datetime
 from pathlib import Path
 from typing import Any, Generic, TypeVar
 
@@ -240,6 +241,24 @@ def _check(p: Path, value: Any, template: Any, path: str) -> None:
         raise bad("an integer within +-2**63")
     if isinstance(value, str) and len(value) > MAX_TEXT:
         raise bad(f"text of at most {MAX_TEXT} characters")
+    if isinstance(template, str) and _is_time(template) and not _is_time(value):
+        raise StateFileError(
+            f"state file {p}: {path} is {value!r}; expected a time as ISO 8601 text (YYYY-MM-DDTHH:MM:SS)"
+        )
+
+
+def _is_time(value: object) -> bool:
+    """A stored time (TIM) as the snapshot writes it: ISO 8601 text."""
+    if not isinstance(value, str) or not _ISO_TIME.fullmatch(value):
+        return False
+    try:
+        datetime.fromisoformat(value)
+    except ValueError:
+        return False
+    return True
+
+
+_ISO_TIME = re.compile(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d(\.\d+)?")
 
 
 # -- writing ---------------------------------------------------------------------------------------
