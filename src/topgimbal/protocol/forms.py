@@ -6,12 +6,14 @@ A form is either a sequence of fields (only the last may have a variable width) 
 
 from __future__ import annotations
 
+from binascii import unhexlify
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from struct import Struct
 from typing import Any
 
 from ..errors import FieldValueError
-from .fields import Codec, Field
+from .fields import Codec, Field, HexInt
 
 REQUEST = "request"
 RESPONSE = "response"
@@ -91,16 +93,39 @@ class Form:
                 return {}
 
             return decode_const
-        namespace: dict[str, Any] = {}
-        items = []
-        for k, (name, codec, a, b) in enumerate(self._slices):
-            namespace[f"_d{k}"] = codec.decode
-            items.append(f"{name!r}: _d{k}(data[{a:d}:{b:d}])")
+        namespace: dict[str, Any] = {"_unhex": unhexlify}
+        lines: list[str] = []
+        items: list[str] = []
+        for k, run in enumerate(_runs(self._slices)):
+            name, codec, a, b = run[0]
+            plans = [c.packed_plan() if isinstance(c, HexInt) else None for _n, c, _a, _b in run]
+            if len(run) == 1 and plans[0] is None:
+                namespace[f"_d{k}"] = codec.decode
+                items.append(f"{name!r}: _d{k}(data[{a:d}:{b:d}])")
+                continue
+            # A run of packable hex fields: one unhexlify (which also rejects a non-hex digit with
+            # a ValueError) and one unpack, then each value scaled as HexInt.decode scales it.
+            namespace[f"_u{k}"] = Struct(">" + "".join(p[0] for p in plans if p)).unpack
+            names = [f"_v{k}_{j}" for j in range(len(run))]
+            lines.append(f"{', '.join(names)}, = _u{k}(_unhex(data[{a:d}:{run[-1][3]:d}]))")
+            for j, ((fname, _c, _a, _b), plan) in enumerate(zip(run, plans, strict=True)):
+                assert plan is not None
+                _letter, div, scale, dec = plan
+                namespace[f"_s{k}_{j}"] = div or scale
+                if div:
+                    expr = f"{names[j]} / _s{k}_{j}"
+                elif scale == 1:
+                    expr = names[j]
+                else:
+                    expr = f"_round({names[j]} * _s{k}_{j}, {dec:d})"
+                items.append(f"{fname!r}: {expr}")
+        namespace["_round"] = round
         if self._variable is not None:
             namespace["_dv"] = self._variable.decode
             items.append(f"{self.fields[-1].name!r}: _dv(data[{self._fixed:d}:])")
-        # Built from field names (as literals) and slice bounds (ints) only.
-        exec(f"def decode(data):\n    return {{{', '.join(items)}}}\n", namespace)
+        # Built from field names (as literals), slice bounds and decimals (ints) only.
+        body = "".join(f"    {line}\n" for line in lines)
+        exec(f"def decode(data):\n{body}    return {{{', '.join(items)}}}\n", namespace)
         return namespace["decode"]  # type: ignore[no-any-return]
 
     @property
@@ -193,6 +218,22 @@ class Form:
             if check is not None and not check(data[a:b]):
                 return False
         return True
+
+
+def _runs(slices: tuple[tuple[str, Codec, int, int], ...]) -> list[list[tuple[str, Codec, int, int]]]:
+    """Fixed fields in wire order, grouped: adjacent HexInt fields with a packed plan share a run
+    (decoded together), every other field is a run of its own."""
+    runs: list[list[tuple[str, Codec, int, int]]] = []
+    packable_before = False
+    for item in slices:
+        codec = item[1]
+        packable = isinstance(codec, HexInt) and codec.packed_plan() is not None
+        if packable and packable_before:
+            runs[-1].append(item)
+        else:
+            runs.append([item])
+        packable_before = packable
+    return runs
 
 
 QUERY = Form("r", REQUEST, const=b"00", title="query")

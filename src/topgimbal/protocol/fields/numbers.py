@@ -109,6 +109,16 @@ class HexInt(Codec):
             return v
         return round(v * scale, dec)
 
+    def packed_plan(self) -> tuple[str, int, float, int] | None:
+        """(struct letter, divisor, scale, decimals) when `decode` is exactly "unhexlify, unpack
+        big-endian, then divide by the divisor (or round(v * scale, decimals), or v when both are
+        neutral)": whole bytes of a width struct has, no none tokens. A form decodes a run of such
+        fields with one unhexlify and one unpack (Form._build_decoder)."""
+        letter = {2: "b", 4: "h", 8: "i", 16: "q"}.get(self.width)
+        if letter is None or self.none_tokens:
+            return None
+        return (letter if self.signed else letter.upper(), self._div, self.scale, self._dec)
+
     def parse_text(self, text: str) -> Any:
         if self.none_tokens and text.lower() in ("null", "none"):
             return None
