@@ -27,6 +27,8 @@ import time
 
 import topgimbal
 
+ROUNDS = 10
+
 
 def pct(values: list[float], p: float) -> float:
     s = sorted(values)
@@ -186,12 +188,25 @@ async def main_async(args: argparse.Namespace) -> None:
     try:
         query = b"#TPUG2rGAC0032"
         await echo_rtts(echo.port, 50, query)  # warm-up
-        e = await echo_rtts(echo.port, args.requests, query)
         await raw_rtts(sim.port, 50, query)
-        raw = await raw_rtts(sim.port, args.requests, query)
-        c, timeouts = await client_rtts(sim.url, args.model, args.requests)
+        # In turn, ROUNDS times, so that a change of machine load hits all three alike (one after
+        # the other, a busy spell during one of them alone decides the p99 ratio).
+        e: list[float] = []
+        raw: list[float] = []
+        c: list[float] = []
+        timeouts = 0
+        per_round = max(1, args.requests // ROUNDS)
+        for _ in range(ROUNDS):
+            e += await echo_rtts(echo.port, per_round, query)
+            raw += await raw_rtts(sim.port, per_round, query)
+            got, lost = await client_rtts(sim.url, args.model, per_round)
+            c += got
+            timeouts += lost
         ms = 1000.0
-        print(f"round trip over loopback UDP, {args.requests} requests each ({args.model} simulator, own process)")
+        print(
+            f"round trip over loopback UDP, {len(c)} requests each in {ROUNDS} alternating rounds "
+            f"({args.model} simulator, own process; load average {' '.join(f'{x:.2f}' for x in os.getloadavg())})"
+        )
         print(f"  {'':34s} {'p50 ms':>8s} {'p99 ms':>8s} {'mean ms':>8s}")
         for name, xs in (
             ("bare UDP echo", e),

@@ -8,7 +8,7 @@ keys by their first part, so no table of identifiers is kept here."""
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass, field
 
 from ..protocol import Message
@@ -126,16 +126,22 @@ def state_values(message: Message) -> dict[str, object]:
     fields, form, spec = message.fields, message.form, message.spec
     if fields is None or form is None or spec is None or message.is_error:
         return {}
-    keys: Mapping[str, str] = {f.name: f.state_key for f in form.fields if f.state_key}
-    if not keys and is_report(message):
-        keys = spec.state_keys
-    return {key: fields[name] for name, key in keys.items() if name in fields}
+    pairs: Iterable[tuple[str, str]] = form.keyed_fields
+    if not pairs and is_report(message):
+        pairs = spec.state_keys.items()
+    return {key: fields[name] for name, key in pairs if name in fields}
+
+
+_AXES = ("yaw_deg", "pitch_deg", "roll_deg")
+_AXIS_KEYS: dict[str, tuple[str, ...]] = {}  # prefix -> its three keys (per frame on the hot path)
 
 
 def attitude_of(keyed: Mapping[str, object], prefix: str, source: str) -> Attitude | None:
     """An Attitude from `<prefix>.yaw_deg` / `pitch_deg` / `roll_deg` values, when all are there."""
-    found = [keyed.get(f"{prefix}.{a}") for a in ("yaw_deg", "pitch_deg", "roll_deg")]
-    nums = [float(v) for v in found if isinstance(v, (int, float))]
+    keys = _AXIS_KEYS.get(prefix)
+    if keys is None:
+        keys = _AXIS_KEYS[prefix] = tuple(f"{prefix}.{a}" for a in _AXES)
+    nums = [float(v) for v in map(keyed.get, keys) if isinstance(v, (int, float))]
     if len(nums) != 3:
         return None
     return Attitude(nums[0], nums[1], nums[2], time.monotonic(), time.time(), source)

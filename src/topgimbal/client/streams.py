@@ -163,7 +163,7 @@ class StreamControl:
     # -- samples ---------------------------------------------------------------------------------
 
     def publish(self, att: Attitude) -> None:
-        for c in list(self.consumers):
+        for c in list(self.consumers) if self.consumers else ():
             if c._abandoned(att.t):
                 c._started = False  # it starts again if it ever asks for a sample
                 c._queue.clear()

@@ -40,6 +40,8 @@ class Form:
     section: str = ""
     # Derived once: decode and encode are on hot paths.
     names: frozenset[str] = field(init=False, repr=False, compare=False, default=frozenset())
+    # (field name, state key) of the fields that carry a catalog state key, in wire order
+    keyed_fields: tuple[tuple[str, str], ...] = field(init=False, repr=False, compare=False, default=())
     _fixed: int = field(init=False, repr=False, compare=False, default=0)
     _variable: Codec | None = field(init=False, repr=False, compare=False, default=None)
     _slices: tuple[tuple[str, Codec, int, int], ...] = field(init=False, repr=False, compare=False, default=())
@@ -74,6 +76,7 @@ class Form:
             hi = fixed + (variable.max_width if variable else 0)
         set_ = object.__setattr__
         set_(self, "names", frozenset(names))
+        set_(self, "keyed_fields", tuple((f.name, f.state_key) for f in self.fields if f.state_key))
         set_(self, "_fixed", fixed)
         set_(self, "_variable", variable)
         set_(self, "_slices", tuple(slices))
