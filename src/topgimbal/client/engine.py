@@ -37,6 +37,7 @@ __all__ = ["Attempt", "Engine", "Inbound", "Key", "Ledger", "RKey", "Transaction
 # went out (and sooner than half the fastest round trip seen) cannot be that query's answer. Capped
 # so that a slow first round trip cannot make later fast answers look like copies.
 COPY_FLOOR_CAP_S = 0.0002
+SETTLED_RTT_SAMPLES = 16  # round trips seen before half the fastest one bounds how fast an answer can be
 MAX_WAITING = 256  # requests queued behind one key (a runaway caller gets an error, not a leak)
 
 
@@ -69,6 +70,7 @@ class Engine:
         self._last_frame: dict[RKey, tuple[float, bytes]] = {}  # time and data of the last frame
         self._last_error: dict[str, float] = {}  # device address -> when its last ERE came
         self.copies_seen = False  # the link has delivered a frame twice
+        self._rtt_samples = 0
         self._out: list[Frame] = []
         self._finished: list[Transaction] = []
 
@@ -208,11 +210,13 @@ class Engine:
         own = [a for a in fits if a.tx is live]
         foreign = [a for a in fits if a.tx is not live]
         if live is not None and own and frame.rw == "r" and live.first_sent_at is not None:
-            rtt_min = self.stats.rtt_ms_min
-            floor = COPY_FLOOR_CAP_S if rtt_min is None else min(0.0005 * rtt_min, COPY_FLOOR_CAP_S)
-            if maybe_copy and now < live.first_sent_at + floor:
+            if maybe_copy and now < live.first_sent_at + self._copy_floor_s():
                 # An identical frame sooner than any answer can come: a copy of the previous one.
-                self._copy_seen()
+                # The link is taken to copy frames only once another frame follows for this
+                # request: a real answer that was just unusually fast (loopback under load) costs
+                # this request a retry, not every later read the copy wait.
+                self.stats.duplicates += 1
+                live.suspected_copy = len(live.attempts)
                 return Inbound("duplicate")
         if live is not None and own and (not foreign or frame.rw == "w" or live.slow):
             # Reads never have foreign attempts here (deferred until there are none); a write's
@@ -261,6 +265,16 @@ class Engine:
             return Inbound("late")
         return Inbound("unsolicited")
 
+    def _copy_floor_s(self) -> float:
+        """How soon after a query an identical frame must be a copy: half the fastest round trip
+        seen (a quarter while fewer than SETTLED_RTT_SAMPLES were seen: the first ones are slow,
+        and a floor too high takes fast real answers for copies), at most COPY_FLOOR_CAP_S."""
+        rtt_min = self.stats.rtt_ms_min
+        if rtt_min is None:
+            return COPY_FLOOR_CAP_S
+        share = 0.5 if self._rtt_samples >= SETTLED_RTT_SAMPLES else 0.25
+        return min(share * rtt_min / 1000.0, COPY_FLOOR_CAP_S)
+
     def _copy_seen(self) -> None:
         self.stats.duplicates += 1
         self.copies_seen = True
@@ -277,6 +291,9 @@ class Engine:
         self._close(oldest)
         if sole and len(own) == 1:
             self.stats.add_rtt(now - oldest.sent_at)  # only when it is clear which attempt answered
+            self._rtt_samples += 1
+        if tx.suspected_copy and tx.suspected_copy == len(tx.attempts):
+            self.copies_seen = True  # another frame followed the suspected copy, before any retry
         self.stats.replies += 1
         self._finish(tx, now, reply=message)
         return Inbound("answer", tx)

@@ -75,6 +75,8 @@ class Transaction:
     submitted_at: float = 0.0
     slow: bool = False  # a constant the device may answer very late: never deferred or retried
     lenient: bool = False  # taken even with a recovered length character (known firmware errors)
+    # a frame came too soon after it to be its answer: how many attempts it had then (0: none)
+    suspected_copy: int = 0
     id: int = field(default_factory=lambda: next(_ids))
     state: str = "queued"  # queued -> deferred -> paced -> sent -> done
     # Sends of a live request (emptied when it is done: each Attempt points back at its request,
