@@ -274,7 +274,7 @@ def new_state(
     gimbal = Gimbal.for_limits(
         m.yaw_range_deg, m.pitch_range_deg, m.roll_range_deg, m.max_rate_deg_s, m.max_accel_deg_s2
     )
-    camera = CameraState(optical_zoom_max=m.optical_zoom_max, digital_zoom_max=m.digital_zoom_max)
+    camera = CameraState(m)
     state = SimState(m, dialect, signs, quirks, seed, gimbal, camera, stream_hz=stream_hz)
     state.uid = first_uid(seed)
     state.serial = serial_for(m, seed)
