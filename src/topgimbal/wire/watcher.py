@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
 
+from ..client.stats import TrafficCounters
 from ..errors import TopGimbalError
 from ..protocol import Diagnostic, Dialect, Frame, FrameParser, Message, decode_any, get_dialect
 from .batchlog import BatchedTrafficLog
@@ -49,18 +50,11 @@ Subscriber = Callable[[ProxyEvent], None]
 
 
 @dataclass
-class ProxyStats:
-    frames_out: int = 0
-    frames_in: int = 0
-    bytes_out: int = 0
-    bytes_in: int = 0
+class ProxyStats(TrafficCounters):
     clients: int = 0
     clients_dropped: int = 0
     subscriber_errors: int = 0
     backlog_dropped: int = 0
-
-    def as_dict(self) -> dict[str, int]:
-        return dict(self.__dict__)
 
 
 class Chunk(NamedTuple):
