@@ -6,16 +6,35 @@ Dispatch is on the codec's class name (`HexInt`, `Enum`, ...): `kind` alone does
 number is spelled (hex, decimal, binary). A class without a handler raises `CodecSpecError`
 naming it: a new codec kind must be taught here (one small handler) and in `c/src/tg_codec.c`.
 
-Duck-typed on purpose: this package sits below `protocol/` and imports nothing from topgimbal.
+Duck-typed on purpose: this package sits below `protocol/` and imports nothing from topgimbal at
+run time; the codec classes are named for the type checker only (each handler reads its class).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from decimal import Decimal
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol, TypedDict
+
+if TYPE_CHECKING:
+    from ..protocol.commands import CommandSpec
+    from ..protocol.fields import (
+        BinInt,
+        Bitrate,
+        DecFloat,
+        DecInt,
+        Enum,
+        Geo,
+        HexInt,
+        IPv4Text,
+        Literal,
+        OneOf,
+        RawData,
+        Text,
+        Timestamp,
+    )
 
 # Kind codes shared with c/include/topgimbal.h (enum tg_kind). Append only.
 KINDS = (
@@ -74,7 +93,7 @@ class CodecSpec:
     lat: bool = False  # geo: latitude (else longitude)
     binary: bool = False  # raw: any byte allowed (else '#', CR and LF are refused on encode)
     sub: CodecSpec | None = None  # oneof: the number codec
-    extra: dict[str, Any] = field(default_factory=dict, compare=False)
+    extra: dict[str, object] = field(default_factory=dict, compare=False)
 
     @property
     def code(self) -> int:
@@ -112,8 +131,27 @@ def _bounds(lo: float, hi: float, exp10: int) -> tuple[int, int]:
     return lo_m, hi_m
 
 
-def _number(codec: Any, where: str, kind: str, exact_div: bool) -> dict[str, Any]:
-    scale = getattr(codec, "scale", 1)
+class _Ranged(Protocol):
+    """What `_number` reads of a number codec (HexInt, DecInt, BinInt)."""
+
+    @property
+    def scale(self) -> float: ...
+    @property
+    def min(self) -> float | None: ...
+    @property
+    def max(self) -> float | None: ...
+
+
+class _NumberParts(TypedDict):
+    mul: int
+    exp10: int
+    lo: int
+    hi: int
+    pyfloat: bool
+
+
+def _number(codec: _Ranged, where: str, kind: str, exact_div: bool) -> _NumberParts:
+    scale = codec.scale
     mul, exp10 = _scale_parts(scale, where)
     if scale != 1:
         inv = 1 / scale
@@ -122,11 +160,13 @@ def _number(codec: Any, where: str, kind: str, exact_div: bool) -> dict[str, Any
             raise CodecSpecError(
                 f"{where}: scale {scale!r} has more decimals than the Python codec keeps ({_python_decimals(scale)})"
             )
+    if codec.min is None or codec.max is None:  # the codecs derive both from the width
+        raise CodecSpecError(f"{where}: a number codec without a range")
     lo, hi = _bounds(codec.min, codec.max, exp10)
     return {"mul": mul, "exp10": exp10, "lo": lo, "hi": hi, "pyfloat": scale != 1}
 
 
-def _hexint(c: Any, where: str) -> CodecSpec:
+def _hexint(c: HexInt, where: str) -> CodecSpec:
     n = _number(c, where, "hexint", exact_div=True)
     if n["hi"] // n["mul"] >= 16**c.width or n["lo"] // n["mul"] < -(16**c.width):
         raise CodecSpecError(f"{where}: range {c.min}..{c.max} does not fit {c.width} hex digits")
@@ -135,11 +175,11 @@ def _hexint(c: Any, where: str) -> CodecSpec:
     )
 
 
-def _decint(c: Any, where: str) -> CodecSpec:
+def _decint(c: DecInt, where: str) -> CodecSpec:
     return CodecSpec("decint", c.width, c.width, c.width, **_number(c, where, "decint", exact_div=False))
 
 
-def _binint(c: Any, where: str) -> CodecSpec:
+def _binint(c: BinInt, where: str) -> CodecSpec:
     order = getattr(c, "byteorder", "little")
     if order not in ("little", "big"):
         raise CodecSpecError(f"{where}: byte order {order!r}")
@@ -147,7 +187,7 @@ def _binint(c: Any, where: str) -> CodecSpec:
     return CodecSpec("binint", c.width, c.width, c.width, signed=bool(c.signed), little=order == "little", **n)
 
 
-def _decfloat(c: Any, where: str) -> CodecSpec:
+def _decfloat(c: DecFloat, where: str) -> CodecSpec:
     dec = int(c.decimals)
     if dec > MAX_EXP:
         raise CodecSpecError(f"{where}: {dec} decimals")
@@ -168,13 +208,20 @@ def _decfloat(c: Any, where: str) -> CodecSpec:
     )
 
 
-def _bitrate(c: Any, where: str) -> CodecSpec:
+def _bitrate(c: Bitrate, where: str) -> CodecSpec:
     if getattr(c, "scale", 1) != 1:
         raise CodecSpecError(f"{where}: a Bitrate scale of {c.scale!r} (the C core counts whole kbps)")
     return CodecSpec("bitrate", c.width, c.min_width, c.max_width, lo=int(c.min), hi=int(c.max))
 
 
-def _enum_tables(c: Any, where: str) -> dict[str, Any]:
+class _EnumTables(TypedDict):
+    names: tuple[str, ...]
+    raws: tuple[bytes, ...]
+    idempotent: tuple[bool, ...]
+    spellings: tuple[tuple[bytes, int], ...]
+
+
+def _enum_tables(c: Enum, where: str) -> _EnumTables:
     values = tuple(c.values)
     raws = tuple(v.raw.encode("latin-1") for v in values)
     # Resolve spellings exactly as the Python codec builds its dictionary: the exact spelling
@@ -193,11 +240,11 @@ def _enum_tables(c: Any, where: str) -> dict[str, Any]:
     }
 
 
-def _enum(c: Any, where: str) -> CodecSpec:
+def _enum(c: Enum, where: str) -> CodecSpec:
     return CodecSpec("enum", c.width, c.width, c.width, **_enum_tables(c, where))
 
 
-def _oneof(c: Any, where: str) -> CodecSpec:
+def _oneof(c: OneOf, where: str) -> CodecSpec:
     number = codec_spec(c.number, where + " (number)")
     tokens = c.tokens
     if number.width != tokens.width:
@@ -205,19 +252,19 @@ def _oneof(c: Any, where: str) -> CodecSpec:
     return CodecSpec("oneof", tokens.width, tokens.width, tokens.width, sub=number, **_enum_tables(tokens, where))
 
 
-def _text(c: Any, where: str) -> CodecSpec:
+def _text(c: Text, where: str) -> CodecSpec:
     return CodecSpec("text", None, c.min_width, c.max_width)
 
 
-def _ipv4(c: Any, where: str) -> CodecSpec:
+def _ipv4(c: IPv4Text, where: str) -> CodecSpec:
     return CodecSpec("ipv4", None, c.min_width, c.max_width)
 
 
-def _raw(c: Any, where: str) -> CodecSpec:
+def _raw(c: RawData, where: str) -> CodecSpec:
     return CodecSpec("raw", c.width, c.min_width, c.max_width, binary=bool(getattr(c, "binary", False)))
 
 
-def _literal(c: Any, where: str) -> CodecSpec:
+def _literal(c: Literal, where: str) -> CodecSpec:
     t = c.text.encode("latin-1")
     return CodecSpec("literal", len(t), len(t), len(t), text=t)
 
@@ -225,7 +272,7 @@ def _literal(c: Any, where: str) -> CodecSpec:
 GEO_STYLES = {"dm": "geodm", "deg": "geodeg"}  # Geo(axis, style): the C kind of each style
 
 
-def _geo(c: Any, where: str) -> CodecSpec:
+def _geo(c: Geo, where: str) -> CodecSpec:
     kind = GEO_STYLES.get(c.style)
     if c.axis not in ("lat", "lon") or kind is None:
         raise CodecSpecError(f"{where}: Geo axis {c.axis!r} style {c.style!r} (the C core knows lat|lon, dm|deg)")
@@ -239,7 +286,7 @@ def _geo(c: Any, where: str) -> CodecSpec:
 _LAYOUT_FIELDS = {"%Y": 4, "%y": 2, "%m": 2, "%d": 2, "%H": 2, "%M": 2, "%S": 2, "%f2": 2}
 
 
-def _timestamp(c: Any, where: str) -> CodecSpec:
+def _timestamp(c: Timestamp, where: str) -> CodecSpec:
     layout = c.layout
     i, width = 0, 0
     while i < len(layout):
@@ -259,6 +306,8 @@ def _timestamp(c: Any, where: str) -> CodecSpec:
     return CodecSpec("timestamp", width, width, width, text=layout.encode("ascii"))
 
 
+# Keyed by class name (the run-time check): each handler takes its own class, so the table's
+# argument type is the one place left untyped.
 HANDLERS: dict[str, Callable[[Any, str], CodecSpec]] = {
     "HexInt": _hexint,
     "DecInt": _decint,
@@ -276,7 +325,7 @@ HANDLERS: dict[str, Callable[[Any, str], CodecSpec]] = {
 }
 
 
-def codec_spec(codec: Any, where: str = "") -> CodecSpec:
+def codec_spec(codec: object, where: str = "") -> CodecSpec:
     """The C descriptor of `codec`; CodecSpecError for a codec class the C core does not know."""
     name = type(codec).__name__
     handler = HANDLERS.get(name)
@@ -288,7 +337,7 @@ def codec_spec(codec: Any, where: str = "") -> CodecSpec:
     return handler(codec, where)
 
 
-def decode_order(forms: Any, rw: str, direction: str) -> list[int]:
+def decode_order(forms: Sequence[_FormKey], rw: str, direction: str) -> list[int]:
     """Dialect.decode's form order for (rw, direction): that direction's forms, then the other's
     (frames whose addresses are not swapped, errata E5). `forms` is a CommandSpec's forms."""
     own = [i for i, f in enumerate(forms) if f.rw == rw and f.direction == direction]
@@ -296,7 +345,18 @@ def decode_order(forms: Any, rw: str, direction: str) -> list[int]:
     return own + rest
 
 
-def codec_tuple(spec: CodecSpec) -> tuple[Any, ...]:
+class _FormKey(Protocol):
+    @property
+    def rw(self) -> str: ...
+    @property
+    def direction(self) -> str: ...
+
+
+# The extension's own layouts (build_codec, Decoder_init in _ctop.c): opaque to Python.
+CodecTuple = tuple[object, ...]
+
+
+def codec_tuple(spec: CodecSpec) -> CodecTuple:
     """The descriptor as the extension's Decoder reads it (see build_codec in _ctop.c)."""
     return (
         spec.code,
@@ -322,7 +382,7 @@ def codec_tuple(spec: CodecSpec) -> tuple[Any, ...]:
     )
 
 
-def decoder_tables(commands: Any) -> tuple[Any, ...]:
+def decoder_tables(commands: Iterable[CommandSpec]) -> tuple[CodecTuple, ...]:
     """A dialect's commands (Dialect.commands.values()) as the extension's Decoder takes them.
     Fields whose codec the C core does not decode natively carry only their Python codec."""
     out = []
@@ -346,7 +406,7 @@ def decoder_tables(commands: Any) -> tuple[Any, ...]:
                         codec_tuple(cs) if native and cs is not None else None,
                         f.codec,
                         cs.names if native and cs is not None and cs.names else None,
-                        f.codec.text if native and cs is not None and cs.kind == "literal" else None,
+                        cs.text.decode("latin-1") if native and cs is not None and cs.kind == "literal" else None,
                     )
                 )
                 offset += width
