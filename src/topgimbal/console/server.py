@@ -111,7 +111,7 @@ async def _no_video(request: web.Request) -> web.Response:
     return web.Response(status=204)
 
 
-def _dumps(obj: Any) -> str:
+def _dumps(obj: object) -> str:
     import json
 
     return json.dumps(obj, default=str)
