@@ -15,15 +15,10 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Mapping, Sequence
 from types import ModuleType
-from typing import TYPE_CHECKING
+from typing import Any
 
-if TYPE_CHECKING:  # named for the type checker only: this package imports nothing above it
-    from ..protocol.dialect import Dialect
-    from ..protocol.frame import Frame
-    from ..protocol.message import Message
-
-    Decode = Callable[[Frame], Message]
-
+# The decoders below are the C extension's objects: Dialect.decode / decode_any stand-ins whose
+# types this package cannot name (it sits below protocol/ and imports nothing from it).
 from .spec import decoder_tables
 
 ABI_VERSION = 2  # must match _ctop.c
@@ -77,9 +72,7 @@ def parser_methods(
     return {name: ext.ParserMethod(kind, frame_cls, pure[name]) for kind, name in enumerate(PARSER_METHODS)}
 
 
-def make_decoder(
-    dialect: Dialect, message_cls: type[Message], pure: Decode, *, ext: ModuleType | None = None
-) -> Decode | None:
+def make_decoder(dialect: Any, message_cls: type, pure: Callable[[Any], Any], *, ext: ModuleType | None = None) -> Any:
     """A Dialect.decode replacement for `dialect` (callable frame -> Message, with
     `.decode_many(frames)`), or None. `pure` is the pure decoder it hands frames to whenever the C
     core is not sure, and whose words every error keeps."""
@@ -97,8 +90,8 @@ def make_decoder(
 
 
 def make_any_decoder(
-    prefer: Decode | None, candidates: Sequence[Decode], pure: Decode, *, ext: ModuleType | None = None
-) -> Decode | None:
+    prefer: Any, candidates: Sequence[Any], pure: Callable[[Any], Any], *, ext: ModuleType | None = None
+) -> Any:
     """decode_any with a fixed preference: `prefer`'s decoder (or None) first, then the
     `candidates`' (the default dialects' C decoders, in their default order) ranked per frame as
     guess_dialects ranks them; `pure` (the pure decode_any) answers every frame none of them

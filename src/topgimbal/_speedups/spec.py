@@ -7,7 +7,7 @@ number is spelled (hex, decimal, binary). A class without a handler raises `Code
 naming it: a new codec kind must be taught here (one small handler) and in `c/src/tg_codec.c`.
 
 Duck-typed on purpose: this package sits below `protocol/` and imports nothing from topgimbal at
-run time; the codec classes are named for the type checker only (each handler reads its class).
+all (not even for types): each handler reads the public attributes of the class it is keyed by.
 """
 
 from __future__ import annotations
@@ -16,25 +16,7 @@ import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from decimal import Decimal
-from typing import TYPE_CHECKING, Any, Protocol, TypedDict
-
-if TYPE_CHECKING:
-    from ..protocol.commands import CommandSpec
-    from ..protocol.fields import (
-        BinInt,
-        Bitrate,
-        DecFloat,
-        DecInt,
-        Enum,
-        Geo,
-        HexInt,
-        IPv4Text,
-        Literal,
-        OneOf,
-        RawData,
-        Text,
-        Timestamp,
-    )
+from typing import Any, Protocol, TypedDict
 
 # Kind codes shared with c/include/topgimbal.h (enum tg_kind). Append only.
 KINDS = (
@@ -166,7 +148,7 @@ def _number(codec: _Ranged, where: str, kind: str, exact_div: bool) -> _NumberPa
     return {"mul": mul, "exp10": exp10, "lo": lo, "hi": hi, "pyfloat": scale != 1}
 
 
-def _hexint(c: HexInt, where: str) -> CodecSpec:
+def _hexint(c: Any, where: str) -> CodecSpec:
     n = _number(c, where, "hexint", exact_div=True)
     if n["hi"] // n["mul"] >= 16**c.width or n["lo"] // n["mul"] < -(16**c.width):
         raise CodecSpecError(f"{where}: range {c.min}..{c.max} does not fit {c.width} hex digits")
@@ -175,11 +157,11 @@ def _hexint(c: HexInt, where: str) -> CodecSpec:
     )
 
 
-def _decint(c: DecInt, where: str) -> CodecSpec:
+def _decint(c: Any, where: str) -> CodecSpec:
     return CodecSpec("decint", c.width, c.width, c.width, **_number(c, where, "decint", exact_div=False))
 
 
-def _binint(c: BinInt, where: str) -> CodecSpec:
+def _binint(c: Any, where: str) -> CodecSpec:
     order = getattr(c, "byteorder", "little")
     if order not in ("little", "big"):
         raise CodecSpecError(f"{where}: byte order {order!r}")
@@ -187,7 +169,7 @@ def _binint(c: BinInt, where: str) -> CodecSpec:
     return CodecSpec("binint", c.width, c.width, c.width, signed=bool(c.signed), little=order == "little", **n)
 
 
-def _decfloat(c: DecFloat, where: str) -> CodecSpec:
+def _decfloat(c: Any, where: str) -> CodecSpec:
     dec = int(c.decimals)
     if dec > MAX_EXP:
         raise CodecSpecError(f"{where}: {dec} decimals")
@@ -208,7 +190,7 @@ def _decfloat(c: DecFloat, where: str) -> CodecSpec:
     )
 
 
-def _bitrate(c: Bitrate, where: str) -> CodecSpec:
+def _bitrate(c: Any, where: str) -> CodecSpec:
     if getattr(c, "scale", 1) != 1:
         raise CodecSpecError(f"{where}: a Bitrate scale of {c.scale!r} (the C core counts whole kbps)")
     return CodecSpec("bitrate", c.width, c.min_width, c.max_width, lo=int(c.min), hi=int(c.max))
@@ -221,7 +203,7 @@ class _EnumTables(TypedDict):
     spellings: tuple[tuple[bytes, int], ...]
 
 
-def _enum_tables(c: Enum, where: str) -> _EnumTables:
+def _enum_tables(c: Any, where: str) -> _EnumTables:
     values = tuple(c.values)
     raws = tuple(v.raw.encode("latin-1") for v in values)
     # Resolve spellings exactly as the Python codec builds its dictionary: the exact spelling
@@ -240,11 +222,11 @@ def _enum_tables(c: Enum, where: str) -> _EnumTables:
     }
 
 
-def _enum(c: Enum, where: str) -> CodecSpec:
+def _enum(c: Any, where: str) -> CodecSpec:
     return CodecSpec("enum", c.width, c.width, c.width, **_enum_tables(c, where))
 
 
-def _oneof(c: OneOf, where: str) -> CodecSpec:
+def _oneof(c: Any, where: str) -> CodecSpec:
     number = codec_spec(c.number, where + " (number)")
     tokens = c.tokens
     if number.width != tokens.width:
@@ -252,19 +234,19 @@ def _oneof(c: OneOf, where: str) -> CodecSpec:
     return CodecSpec("oneof", tokens.width, tokens.width, tokens.width, sub=number, **_enum_tables(tokens, where))
 
 
-def _text(c: Text, where: str) -> CodecSpec:
+def _text(c: Any, where: str) -> CodecSpec:
     return CodecSpec("text", None, c.min_width, c.max_width)
 
 
-def _ipv4(c: IPv4Text, where: str) -> CodecSpec:
+def _ipv4(c: Any, where: str) -> CodecSpec:
     return CodecSpec("ipv4", None, c.min_width, c.max_width)
 
 
-def _raw(c: RawData, where: str) -> CodecSpec:
+def _raw(c: Any, where: str) -> CodecSpec:
     return CodecSpec("raw", c.width, c.min_width, c.max_width, binary=bool(getattr(c, "binary", False)))
 
 
-def _literal(c: Literal, where: str) -> CodecSpec:
+def _literal(c: Any, where: str) -> CodecSpec:
     t = c.text.encode("latin-1")
     return CodecSpec("literal", len(t), len(t), len(t), text=t)
 
@@ -272,7 +254,7 @@ def _literal(c: Literal, where: str) -> CodecSpec:
 GEO_STYLES = {"dm": "geodm", "deg": "geodeg"}  # Geo(axis, style): the C kind of each style
 
 
-def _geo(c: Geo, where: str) -> CodecSpec:
+def _geo(c: Any, where: str) -> CodecSpec:
     kind = GEO_STYLES.get(c.style)
     if c.axis not in ("lat", "lon") or kind is None:
         raise CodecSpecError(f"{where}: Geo axis {c.axis!r} style {c.style!r} (the C core knows lat|lon, dm|deg)")
@@ -286,7 +268,7 @@ def _geo(c: Geo, where: str) -> CodecSpec:
 _LAYOUT_FIELDS = {"%Y": 4, "%y": 2, "%m": 2, "%d": 2, "%H": 2, "%M": 2, "%S": 2, "%f2": 2}
 
 
-def _timestamp(c: Timestamp, where: str) -> CodecSpec:
+def _timestamp(c: Any, where: str) -> CodecSpec:
     layout = c.layout
     i, width = 0, 0
     while i < len(layout):
@@ -306,8 +288,6 @@ def _timestamp(c: Timestamp, where: str) -> CodecSpec:
     return CodecSpec("timestamp", width, width, width, text=layout.encode("ascii"))
 
 
-# Keyed by class name (the run-time check): each handler takes its own class, so the table's
-# argument type is the one place left untyped.
 HANDLERS: dict[str, Callable[[Any, str], CodecSpec]] = {
     "HexInt": _hexint,
     "DecInt": _decint,
@@ -382,7 +362,7 @@ def codec_tuple(spec: CodecSpec) -> CodecTuple:
     )
 
 
-def decoder_tables(commands: Iterable[CommandSpec]) -> tuple[CodecTuple, ...]:
+def decoder_tables(commands: Iterable[Any]) -> tuple[CodecTuple, ...]:
     """A dialect's commands (Dialect.commands.values()) as the extension's Decoder takes them.
     Fields whose codec the C core does not decode natively carry only their Python codec."""
     out = []

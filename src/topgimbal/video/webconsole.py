@@ -18,14 +18,13 @@ import asyncio
 import contextlib
 import logging
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from .lens import StreamSpec, VideoError, View, hfov_at, host_of, streams_for, tracking_requests, video_url, wrap180
 
-if TYPE_CHECKING:  # named for the type checker only: video/ imports neither the client nor aiohttp at run time
+if TYPE_CHECKING:  # named for the type checker only: aiohttp is imported by the routes when they run
     from aiohttp import web
 
-    from ..client import CameraAPI
     from ..sim.simulator import Simulator
     from .relay import Relay
     from .simvideo import SimVideo
@@ -49,8 +48,8 @@ class VideoHost(Protocol):
     def url(self) -> str | None: ...
     @property
     def sim(self) -> Simulator | None: ...
-    @property
-    def cam(self) -> CameraAPI | None: ...
+    @property  # a client.CameraAPI; video/ sits below client/, so it cannot name the type
+    def cam(self) -> Any: ...
 
 
 OriginCheck = Callable[["web.Request"], bool]
@@ -257,7 +256,7 @@ class ConsoleVideo:
             return _error(502, f"the camera refused: {exc}")
         return web.json_response({"direction": direction})
 
-    async def _zoom_stop(self, cam: CameraAPI) -> None:
+    async def _zoom_stop(self, cam: Any) -> None:
         await asyncio.sleep(ZOOM_STEP_S)
         with contextlib.suppress(Exception):
             await cam.zoom("stop")
