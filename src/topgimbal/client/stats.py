@@ -7,20 +7,11 @@ from dataclasses import dataclass
 
 
 @dataclass
-class TrafficCounters:
-    """Frames and bytes each way: what every link end counts (the client, the proxy's watcher)."""
-
+class LinkStats:
     frames_in: int = 0
     frames_out: int = 0
     bytes_in: int = 0
     bytes_out: int = 0
-
-    def as_dict(self) -> dict[str, float | int | bool | None]:
-        return dict(self.__dict__)
-
-
-@dataclass
-class LinkStats(TrafficCounters):
     requests: int = 0
     replies: int = 0
     timeouts: int = 0
@@ -46,5 +37,8 @@ class LinkStats(TrafficCounters):
         self.rtt_ms_min = ms if self.rtt_ms_min is None else min(self.rtt_ms_min, ms)
 
     def as_dict(self) -> dict[str, float | int | bool | None]:
-        rtts = {"rtt_ms_last": self.rtt_ms_last, "rtt_ms_avg": self.rtt_ms_avg, "rtt_ms_min": self.rtt_ms_min}
-        return {**super().as_dict(), **{k: None if v is None else round(v, 3) for k, v in rtts.items()}}
+        d = dict(self.__dict__)
+        for k in ("rtt_ms_last", "rtt_ms_avg", "rtt_ms_min"):
+            if d[k] is not None:
+                d[k] = round(d[k], 3)
+        return d

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
 
-from ..client.stats import TrafficCounters
 from ..errors import TopGimbalError
 from ..protocol import Diagnostic, Dialect, Frame, FrameParser, Message, decode_any, get_dialect
 from .batchlog import BatchedTrafficLog
@@ -50,11 +49,18 @@ Subscriber = Callable[[ProxyEvent], None]
 
 
 @dataclass
-class ProxyStats(TrafficCounters):
+class ProxyStats:
+    frames_out: int = 0
+    frames_in: int = 0
+    bytes_out: int = 0
+    bytes_in: int = 0
     clients: int = 0
     clients_dropped: int = 0
     subscriber_errors: int = 0
     backlog_dropped: int = 0
+
+    def as_dict(self) -> dict[str, int]:
+        return dict(self.__dict__)
 
 
 class Chunk(NamedTuple):
