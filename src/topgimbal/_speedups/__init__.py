@@ -14,15 +14,18 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping, Sequence
+from types import ModuleType
 from typing import Any
 
+# The decoders below are the C extension's objects: Dialect.decode / decode_any stand-ins whose
+# types this package cannot name (it sits below protocol/ and imports nothing from it).
 from .spec import decoder_tables
 
 ABI_VERSION = 2  # must match _ctop.c
 PARSER_METHODS = ("feed", "feed_datagram", "flush", "feed_messages")  # _ctop.c: M_FEED ... M_MESSAGES
 
 
-def load_extension() -> Any:
+def load_extension() -> ModuleType:
     """The compiled extension whatever TOPGIMBAL_PURE says (the differential tests compare it with
     the pure path in both test runs); ImportError when it is not built or stale."""
     from . import _ctop  # type: ignore[attr-defined]
@@ -32,7 +35,7 @@ def load_extension() -> Any:
     return _ctop
 
 
-_ext: Any = None
+_ext: ModuleType | None = None
 _status = ""
 if os.environ.get("TOPGIMBAL_PURE", "") not in ("", "0"):
     _status = "disabled by TOPGIMBAL_PURE"
@@ -56,8 +59,8 @@ def status() -> str:
 
 
 def parser_methods(
-    frame_cls: type, pure: Mapping[str, Callable[..., Any]], *, ext: Any = None
-) -> dict[str, Any] | None:
+    frame_cls: type, pure: Mapping[str, Callable[..., object]], *, ext: ModuleType | None = None
+) -> dict[str, Callable[..., object]] | None:
     """C versions of FrameParser's `feed`, `feed_datagram`, `flush` and `feed_messages` (method
     descriptors: `parser.feed(data)` goes straight into C), or None. `pure` maps each name to the
     pure method it stands for (docs and signature). Rare events go back to the parser's
@@ -69,7 +72,7 @@ def parser_methods(
     return {name: ext.ParserMethod(kind, frame_cls, pure[name]) for kind, name in enumerate(PARSER_METHODS)}
 
 
-def make_decoder(dialect: Any, message_cls: type, pure: Callable[[Any], Any], *, ext: Any = None) -> Any:
+def make_decoder(dialect: Any, message_cls: type, pure: Callable[[Any], Any], *, ext: ModuleType | None = None) -> Any:
     """A Dialect.decode replacement for `dialect` (callable frame -> Message, with
     `.decode_many(frames)`), or None. `pure` is the pure decoder it hands frames to whenever the C
     core is not sure, and whose words every error keeps."""
@@ -86,7 +89,9 @@ def make_decoder(dialect: Any, message_cls: type, pure: Callable[[Any], Any], *,
     )
 
 
-def make_any_decoder(prefer: Any, candidates: Sequence[Any], pure: Callable[[Any], Any], *, ext: Any = None) -> Any:
+def make_any_decoder(
+    prefer: Any, candidates: Sequence[Any], pure: Callable[[Any], Any], *, ext: ModuleType | None = None
+) -> Any:
     """decode_any with a fixed preference: `prefer`'s decoder (or None) first, then the
     `candidates`' (the default dialects' C decoders, in their default order) ranked per frame as
     guess_dialects ranks them; `pure` (the pure decode_any) answers every frame none of them

@@ -1050,13 +1050,15 @@ static PyGetSetDef ParserMethod_getset[] = {
 
 /* ---- module ------------------------------------------------------------------------------- */
 
+/* Every type here is a vectorcall object with its own dealloc: the head they share. */
+#define VECTORCALL_TYPE(NAME, STRUCT, DEALLOC, FLAGS)                                   \
+    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "topgimbal._speedups._ctop." NAME,        \
+    .tp_basicsize = sizeof(STRUCT), .tp_dealloc = (destructor)(DEALLOC),                \
+    .tp_vectorcall_offset = offsetof(STRUCT, vectorcall), .tp_call = PyVectorcall_Call, \
+    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_VECTORCALL | (FLAGS)
+
 static PyTypeObject DecoderType = {
-    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "topgimbal._speedups._ctop.Decoder",
-    .tp_basicsize = sizeof(Decoder),
-    .tp_dealloc = (destructor)Decoder_dealloc,
-    .tp_vectorcall_offset = offsetof(Decoder, vectorcall),
-    .tp_call = PyVectorcall_Call,
-    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_VECTORCALL,
+    VECTORCALL_TYPE("Decoder", Decoder, Decoder_dealloc, 0),
     .tp_doc = "Decoder(commands, message_cls, fallback, name, headers, host_addresses): Dialect.decode in C.",
     .tp_methods = Decoder_methods,
     .tp_getset = Decoder_getset,
@@ -1065,29 +1067,27 @@ static PyTypeObject DecoderType = {
 };
 
 static PyTypeObject AnyDecoderType = {
-    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "topgimbal._speedups._ctop.AnyDecoder",
-    .tp_basicsize = sizeof(AnyDecoder),
-    .tp_dealloc = (destructor)AnyDecoder_dealloc,
-    .tp_vectorcall_offset = offsetof(AnyDecoder, vectorcall),
-    .tp_call = PyVectorcall_Call,
-    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_VECTORCALL,
+    VECTORCALL_TYPE("AnyDecoder", AnyDecoder, AnyDecoder_dealloc, 0),
     .tp_doc = "AnyDecoder(prefer, candidates, fallback): decode_any in C.",
     .tp_new = AnyDecoder_new,
 };
 
 static PyTypeObject ParserMethodType = {
-    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "topgimbal._speedups._ctop.ParserMethod",
-    .tp_basicsize = sizeof(ParserMethod),
-    .tp_dealloc = (destructor)ParserMethod_dealloc,
-    .tp_vectorcall_offset = offsetof(ParserMethod, vectorcall),
-    .tp_call = PyVectorcall_Call,
+    VECTORCALL_TYPE("ParserMethod", ParserMethod, ParserMethod_dealloc, Py_TPFLAGS_METHOD_DESCRIPTOR),
     .tp_getattro = ParserMethod_getattro,
     .tp_descr_get = ParserMethod_get,
-    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_VECTORCALL | Py_TPFLAGS_METHOD_DESCRIPTOR,
     .tp_doc = "ParserMethod(kind, frame_cls, pure): a FrameParser method in C.",
     .tp_getset = ParserMethod_getset,
     .tp_new = ParserMethod_new,
 };
+
+#undef VECTORCALL_TYPE
+
+/* The module's types by the name it exports them under: readied and added in one loop. */
+static struct {
+    const char *name;
+    PyTypeObject *type;
+} module_types[] = {{"Decoder", &DecoderType}, {"AnyDecoder", &AnyDecoderType}, {"ParserMethod", &ParserMethodType}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_ctop", "libtopgimbal fast path", -1, NULL,
                                     NULL, NULL, NULL, NULL};
@@ -1095,9 +1095,9 @@ static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_ctop", "libtopgimba
 PyMODINIT_FUNC PyInit__ctop(void) {
     PyObject *m;
     static const char *const texts[5] = {"", "#TP", "#tp", "#tP", "#Tp"};
-    int k;
-    if (PyType_Ready(&DecoderType) < 0 || PyType_Ready(&AnyDecoderType) < 0 || PyType_Ready(&ParserMethodType) < 0)
-        return NULL;
+    size_t k;
+    for (k = 0; k < sizeof module_types / sizeof module_types[0]; k++)
+        if (PyType_Ready(module_types[k].type) < 0) return NULL;
     for (k = 0; k < 5; k++)
         if (!headers[k] && !(headers[k] = PyUnicode_InternFromString(texts[k]))) return NULL;
 #define INTERN(var, text) \
@@ -1114,13 +1114,15 @@ PyMODINIT_FUNC PyInit__ctop(void) {
 #undef INTERN
     m = PyModule_Create(&module);
     if (!m) return NULL;
-    Py_INCREF(&DecoderType);
-    Py_INCREF(&AnyDecoderType);
-    Py_INCREF(&ParserMethodType);
-    if (PyModule_AddObject(m, "Decoder", (PyObject *)&DecoderType) < 0 ||
-        PyModule_AddObject(m, "AnyDecoder", (PyObject *)&AnyDecoderType) < 0 ||
-        PyModule_AddObject(m, "ParserMethod", (PyObject *)&ParserMethodType) < 0 ||
-        PyModule_AddIntConstant(m, "ABI_VERSION", ABI_VERSION) < 0) {
+    for (k = 0; k < sizeof module_types / sizeof module_types[0]; k++) {
+        Py_INCREF(module_types[k].type);
+        if (PyModule_AddObject(m, module_types[k].name, (PyObject *)module_types[k].type) < 0) {
+            Py_DECREF(module_types[k].type);
+            Py_DECREF(m);
+            return NULL;
+        }
+    }
+    if (PyModule_AddIntConstant(m, "ABI_VERSION", ABI_VERSION) < 0) {
         Py_DECREF(m);
         return NULL;
     }

@@ -6,16 +6,17 @@ Dispatch is on the codec's class name (`HexInt`, `Enum`, ...): `kind` alone does
 number is spelled (hex, decimal, binary). A class without a handler raises `CodecSpecError`
 naming it: a new codec kind must be taught here (one small handler) and in `c/src/tg_codec.c`.
 
-Duck-typed on purpose: this package sits below `protocol/` and imports nothing from topgimbal.
+Duck-typed on purpose: this package sits below `protocol/` and imports nothing from topgimbal at
+all (not even for types): each handler reads the public attributes of the class it is keyed by.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from decimal import Decimal
-from typing import Any
+from typing import Any, Protocol, TypedDict
 
 # Kind codes shared with c/include/topgimbal.h (enum tg_kind). Append only.
 KINDS = (
@@ -74,7 +75,7 @@ class CodecSpec:
     lat: bool = False  # geo: latitude (else longitude)
     binary: bool = False  # raw: any byte allowed (else '#', CR and LF are refused on encode)
     sub: CodecSpec | None = None  # oneof: the number codec
-    extra: dict[str, Any] = field(default_factory=dict, compare=False)
+    extra: dict[str, object] = field(default_factory=dict, compare=False)
 
     @property
     def code(self) -> int:
@@ -112,8 +113,27 @@ def _bounds(lo: float, hi: float, exp10: int) -> tuple[int, int]:
     return lo_m, hi_m
 
 
-def _number(codec: Any, where: str, kind: str, exact_div: bool) -> dict[str, Any]:
-    scale = getattr(codec, "scale", 1)
+class _Ranged(Protocol):
+    """What `_number` reads of a number codec (HexInt, DecInt, BinInt)."""
+
+    @property
+    def scale(self) -> float: ...
+    @property
+    def min(self) -> float | None: ...
+    @property
+    def max(self) -> float | None: ...
+
+
+class _NumberParts(TypedDict):
+    mul: int
+    exp10: int
+    lo: int
+    hi: int
+    pyfloat: bool
+
+
+def _number(codec: _Ranged, where: str, kind: str, exact_div: bool) -> _NumberParts:
+    scale = codec.scale
     mul, exp10 = _scale_parts(scale, where)
     if scale != 1:
         inv = 1 / scale
@@ -122,6 +142,8 @@ def _number(codec: Any, where: str, kind: str, exact_div: bool) -> dict[str, Any
             raise CodecSpecError(
                 f"{where}: scale {scale!r} has more decimals than the Python codec keeps ({_python_decimals(scale)})"
             )
+    if codec.min is None or codec.max is None:  # the codecs derive both from the width
+        raise CodecSpecError(f"{where}: a number codec without a range")
     lo, hi = _bounds(codec.min, codec.max, exp10)
     return {"mul": mul, "exp10": exp10, "lo": lo, "hi": hi, "pyfloat": scale != 1}
 
@@ -174,7 +196,14 @@ def _bitrate(c: Any, where: str) -> CodecSpec:
     return CodecSpec("bitrate", c.width, c.min_width, c.max_width, lo=int(c.min), hi=int(c.max))
 
 
-def _enum_tables(c: Any, where: str) -> dict[str, Any]:
+class _EnumTables(TypedDict):
+    names: tuple[str, ...]
+    raws: tuple[bytes, ...]
+    idempotent: tuple[bool, ...]
+    spellings: tuple[tuple[bytes, int], ...]
+
+
+def _enum_tables(c: Any, where: str) -> _EnumTables:
     values = tuple(c.values)
     raws = tuple(v.raw.encode("latin-1") for v in values)
     # Resolve spellings exactly as the Python codec builds its dictionary: the exact spelling
@@ -276,7 +305,7 @@ HANDLERS: dict[str, Callable[[Any, str], CodecSpec]] = {
 }
 
 
-def codec_spec(codec: Any, where: str = "") -> CodecSpec:
+def codec_spec(codec: object, where: str = "") -> CodecSpec:
     """The C descriptor of `codec`; CodecSpecError for a codec class the C core does not know."""
     name = type(codec).__name__
     handler = HANDLERS.get(name)
@@ -288,7 +317,7 @@ def codec_spec(codec: Any, where: str = "") -> CodecSpec:
     return handler(codec, where)
 
 
-def decode_order(forms: Any, rw: str, direction: str) -> list[int]:
+def decode_order(forms: Sequence[_FormKey], rw: str, direction: str) -> list[int]:
     """Dialect.decode's form order for (rw, direction): that direction's forms, then the other's
     (frames whose addresses are not swapped, errata E5). `forms` is a CommandSpec's forms."""
     own = [i for i, f in enumerate(forms) if f.rw == rw and f.direction == direction]
@@ -296,7 +325,18 @@ def decode_order(forms: Any, rw: str, direction: str) -> list[int]:
     return own + rest
 
 
-def codec_tuple(spec: CodecSpec) -> tuple[Any, ...]:
+class _FormKey(Protocol):
+    @property
+    def rw(self) -> str: ...
+    @property
+    def direction(self) -> str: ...
+
+
+# The extension's own layouts (build_codec, Decoder_init in _ctop.c): opaque to Python.
+CodecTuple = tuple[object, ...]
+
+
+def codec_tuple(spec: CodecSpec) -> CodecTuple:
     """The descriptor as the extension's Decoder reads it (see build_codec in _ctop.c)."""
     return (
         spec.code,
@@ -322,7 +362,7 @@ def codec_tuple(spec: CodecSpec) -> tuple[Any, ...]:
     )
 
 
-def decoder_tables(commands: Any) -> tuple[Any, ...]:
+def decoder_tables(commands: Iterable[Any]) -> tuple[CodecTuple, ...]:
     """A dialect's commands (Dialect.commands.values()) as the extension's Decoder takes them.
     Fields whose codec the C core does not decode natively carry only their Python codec."""
     out = []
@@ -346,7 +386,7 @@ def decoder_tables(commands: Any) -> tuple[Any, ...]:
                         codec_tuple(cs) if native and cs is not None else None,
                         f.codec,
                         cs.names if native and cs is not None and cs.names else None,
-                        f.codec.text if native and cs is not None and cs.kind == "literal" else None,
+                        cs.text.decode("latin-1") if native and cs is not None and cs.kind == "literal" else None,
                     )
                 )
                 offset += width

@@ -15,20 +15,22 @@ import logging
 import math
 import sys
 import time
-from collections.abc import Awaitable, Callable
-from typing import Any
+from collections.abc import Awaitable, Callable, Mapping
 
 from ..client import AsyncClient, connect
 from ..client.identity import Verdict
 from ..client.requesting import model_hint
 from ..client.roles import focus_actions, role_ident
+from ..client.state import SdCard
 from ..errors import FieldValueError, RequestTimeoutError, TopGimbalError, TransportError
 from ..protocol import DIALECT_NAMES, all_models, get_dialect, get_model
+from ..protocol.fields import FieldValue
 from . import device_session
 from .args import add_json_argument
 from .device_output import attitude_dict, ok, show
 
-Runner = Callable[[AsyncClient, argparse.Namespace], Awaitable[Any]]
+# A command's result is what `show` prints (an int is the exit status instead).
+Runner = Callable[[AsyncClient, argparse.Namespace], Awaitable[object]]
 MODEL_CHECK_WAIT_S = 2.0  # at most this long after a command for the device to say what it is
 
 
@@ -79,7 +81,7 @@ def _run(args: argparse.Namespace, runner: Runner) -> int:
     if not args.url:
         raise TransportError("no device URL: pass --url URL (before the command) or set TOPGIMBAL_URL")
 
-    async def main() -> Any:
+    async def main() -> object:
         model = args.model
         if model is None:
             model = await _detect(args)
@@ -153,12 +155,12 @@ async def _detect(args: argparse.Namespace) -> str:
 # -- commands ------------------------------------------------------------------------------------
 
 
-async def _info(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _info(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     ident = await cam.identify()
     return {**ident, "url": cam.url, "title": cam.model.title, "link": cam.stats.as_dict()}
 
 
-async def _attitude(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _attitude(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object] | int:
     if not args.watch:
         return attitude_dict(await cam.get_attitude())
     n = 0
@@ -186,7 +188,7 @@ _POINT_OPTIONS = {
 }
 
 
-async def _point(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _point(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     try:
         att = await cam.point(
             args.yaw, args.pitch, tolerance_deg=args.tolerance, timeout_s=args.wait, speed_deg_s=args.speed
@@ -199,7 +201,7 @@ async def _point(cam: AsyncClient, args: argparse.Namespace) -> Any:
     return attitude_dict(att)
 
 
-async def _rate(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _rate(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     if args.duration:
         async with cam.rate_control(interval_s=0.1) as joy:
             joy.set(args.yaw_rate, args.pitch_rate, args.roll_rate)
@@ -209,22 +211,22 @@ async def _rate(cam: AsyncClient, args: argparse.Namespace) -> Any:
     return ok("rate")
 
 
-async def _stop(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _stop(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     await cam.stop()
     return ok("stop")
 
 
-async def _center(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _center(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     await cam.center()
     return ok("center")
 
 
-async def _mode(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _mode(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     await cam.set_mode(args.mode)
     return ok("mode", mode=args.mode)
 
 
-async def _zoom(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _zoom(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     if args.digital:
         await cam.digital_zoom(args.value)
     else:
@@ -232,12 +234,12 @@ async def _zoom(cam: AsyncClient, args: argparse.Namespace) -> Any:
     return ok("zoom", value=args.value)
 
 
-async def _focus(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _focus(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     await cam.focus(args.action)
     return ok("focus", value=args.action)
 
 
-async def _photo(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _photo(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     m = await cam.photo()
     out = ok("photo")
     if m.fields and "file_index" in m.fields:
@@ -245,7 +247,7 @@ async def _photo(cam: AsyncClient, args: argparse.Namespace) -> Any:
     return out
 
 
-async def _record(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _record(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     if args.action == "start":
         await cam.start_recording()
     elif args.action == "stop":
@@ -255,11 +257,11 @@ async def _record(cam: AsyncClient, args: argparse.Namespace) -> Any:
     return {"recording": await cam.recording()}
 
 
-async def _sd(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _sd(cam: AsyncClient, args: argparse.Namespace) -> SdCard:
     return await cam.sd_card()
 
 
-async def _thermal(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _thermal(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     value = args.value
     if value is not None:
         with contextlib.suppress(ValueError):
@@ -268,7 +270,7 @@ async def _thermal(cam: AsyncClient, args: argparse.Namespace) -> Any:
     return {args.setting: result}
 
 
-async def _range(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _range(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     distance = await cam.range()
     if distance is None:
         lo, hi = cam.model.lrf_range_m or (0.0, 0.0)
@@ -283,7 +285,7 @@ async def _range(cam: AsyncClient, args: argparse.Namespace) -> Any:
     return {"range_m": distance}
 
 
-async def _net(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _net(cam: AsyncClient, args: argparse.Namespace) -> Mapping[str, object]:
     if args.action == "show":
         return await cam.network()
     changes = {k: v for k, v in (("ip", args.ip), ("gateway", args.gateway), ("dns", args.dns)) if v is not None}
@@ -306,7 +308,7 @@ async def _net(cam: AsyncClient, args: argparse.Namespace) -> Any:
     return ok("net set", **changes)
 
 
-async def _raw(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _raw(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     """A frame as given; without its checksum it is completed (as the console does)."""
     reply = await cam.send_raw(args.frame, wait_reply=not args.no_wait)
     if reply is None:
@@ -314,9 +316,9 @@ async def _raw(cam: AsyncClient, args: argparse.Namespace) -> Any:
     return {"reply": reply.frame.text(), **reply.to_dict()}
 
 
-async def _command_generic(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _command_generic(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     spec = cam.dialect.command(args.ident)
-    values: dict[str, Any] = {}
+    values: dict[str, FieldValue] = {}
     forms = spec.forms_for("r" if args.read else "w", "request")
     codecs = {f.name: f.codec for form in forms for f in form.fields}
     for item in args.values:
@@ -325,7 +327,8 @@ async def _command_generic(cam: AsyncClient, args: argparse.Namespace) -> Any:
         k, v = item.split("=", 1)
         codec = codecs.get(k)
         values[k] = codec.parse_text(v) if codec is not None and hasattr(codec, "parse_text") else v
-    m = await cam.request(spec.ident, read=args.read, **values)
+    # request()'s own keywords are not field names here: the values go to the frame as given
+    m = await cam.send_request(cam.build_from(spec.ident, values, read=args.read))
     return {"reply": m.frame.text(), **m.to_dict()}
 
 

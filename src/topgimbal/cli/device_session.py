@@ -9,7 +9,10 @@ import contextlib
 import json
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rich.table import Table
 
 from ..client import AsyncClient, TrafficLog, read_log
 from ..errors import RequestTimeoutError, TopGimbalError
@@ -26,7 +29,7 @@ async def _first_attitude(cam: AsyncClient, rate_hz: float) -> None:
         await cam.wait_attitude(timeout_s=max(1.0, 3.0 / rate_hz))
 
 
-def _monitor_table(cam: AsyncClient) -> Any:
+def _monitor_table(cam: AsyncClient) -> Table:
     from rich.table import Table
 
     table = Table(title=f"{cam.model.name} at {cam.url}", show_header=True, expand=False)
@@ -49,7 +52,7 @@ def _monitor_table(cam: AsyncClient) -> Any:
     return table
 
 
-async def _monitor(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _monitor(cam: AsyncClient, args: argparse.Namespace) -> int:
     """A live view; `--count N` renders N frames and exits (for scripts and tests)."""
     from rich.console import Console
     from rich.live import Live
@@ -76,7 +79,7 @@ async def _monitor(cam: AsyncClient, args: argparse.Namespace) -> Any:
     return 0
 
 
-async def _log(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _log(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     """Record the traffic (with the attitude stream on, if asked) to a JSONL file."""
     log = TrafficLog(args.file, url=cam.url, model=cam.model.name, dialect=cam.dialect.name)
     count = 0
@@ -106,7 +109,7 @@ async def _log(cam: AsyncClient, args: argparse.Namespace) -> Any:
     return out
 
 
-async def _replay(cam: AsyncClient, args: argparse.Namespace) -> Any:
+async def _replay(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     """Send the host -> device frames of a log again, with their original spacing."""
     records = [r for r in read_log(args.file) if r.direction == "out"]
     sent = replies = 0

@@ -68,7 +68,7 @@ def _model(text: str) -> str:
     raise argparse.ArgumentTypeError(f"{text!r} is not a model; known: {', '.join(all_models())}")
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = subparsers.add_parser(
         "sim",
         help="run a virtual camera (simulator)",

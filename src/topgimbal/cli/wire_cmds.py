@@ -17,7 +17,7 @@ import json
 import signal
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 from ..protocol import Diagnostic, Dialect, Frame, Message, dissect, get_dialect, get_model
 from ..protocol.frame import DEVICE_ADDRESSES, HOST_ADDRESSES
@@ -216,7 +216,7 @@ def _live_line(event: ProxyEvent, as_json: bool) -> str:
     return text
 
 
-def _value(v: Any) -> str:
+def _value(v: object) -> str:
     return v.isoformat() if isinstance(v, datetime.datetime) else str(v)
 
 
@@ -226,7 +226,7 @@ class _Printer:
 
     MAX_LINES = 512
 
-    def __init__(self, stream: Any, as_json: bool) -> None:
+    def __init__(self, stream: TextIO | None, as_json: bool) -> None:
         self.stream = stream
         self.as_json = as_json
         self.lines: list[str] = []

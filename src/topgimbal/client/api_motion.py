@@ -10,6 +10,7 @@ import asyncio
 import contextlib
 import logging
 import time
+from typing import Protocol
 
 from ..errors import FieldValueError, RequestTimeoutError, TopGimbalError, UnsupportedError
 from . import checks, roles
@@ -46,84 +47,9 @@ def _plan(
     return plan
 
 
-async def set_angles(
-    core: ClientCore,
-    yaw_deg: float | None = None,
-    pitch_deg: float | None = None,
-    roll_deg: float | None = None,
-    *,
-    speed_deg_s: float | None = None,
-    frame: str = "body",
-) -> None:
-    """Move to absolute angles (degrees, API convention). `frame="earth"` uses the gyro's
-    earth-frame commands where the model has them. Every value is checked before the first frame
-    goes out. UnsupportedError where the firmware ignores angle commands (use `point()`)."""
-    if frame not in ("body", "earth"):
-        raise FieldValueError("frame", frame, "'body' or 'earth'")
-    wanted: dict[str, float] = {}
-    for axis, v in (("yaw", yaw_deg), ("pitch", pitch_deg), ("roll", roll_deg)):
-        _check_axis(core, axis, v)
-        if v is not None:
-            wanted[axis] = v
-    for cmd in _plan(core, "earth_angle" if frame == "earth" else "angle", wanted, speed_deg_s):
-        await send_values(core, cmd.spec.ident, cmd.values)
-
-
-async def rates(
-    core: ClientCore,
-    yaw_deg_s: float = 0,
-    pitch_deg_s: float = 0,
-    roll_deg_s: float = 0,
-    *,
-    wait_reply: bool | None = None,
-    timeout_s: float | None = None,
-    retries: int | None = None,
-) -> None:
-    """Turn at constant rates (deg/s, API convention) until told otherwise (as for `request`:
-    wait_reply, timeout_s, retries)."""
-    wanted = {"yaw": yaw_deg_s, "pitch": pitch_deg_s}
-    if roll_deg_s:
-        wanted["roll"] = roll_deg_s
-    checks.positive_seconds("timeout_s", timeout_s)
-    checks.count("retries", retries)
-    for cmd in _plan(core, "rate", wanted):
-        frame = core.build_from(cmd.spec.ident, cmd.values)
-        await core.send_request(frame, wait_reply=wait_reply, timeout_s=timeout_s, retries=retries)
-
-
 def _zero_rates(core: ClientCore) -> list[roles.AxisCommand]:
     axes = [a for a in ("yaw", "pitch") if roles.can_move(core.dialect, core.model, "rate", [a])]
     return _plan(core, "rate", {a: 0.0 for a in axes}) if axes else []
-
-
-async def stop(core: ClientCore) -> None:
-    """Stop all motion the way the model needs: zero rates and the stop code, each sent the
-    profile's `stop_repeats` times (a single stop may be missed and the gimbal coast on: C13), the
-    last ones acknowledged where the model acknowledges motion commands."""
-    zero = _zero_rates(core)
-    ptz = roles.command(core.dialect, core.model, "gimbal_control")
-    halt = [core.build_from(c.spec.ident, c.values) for c in zero]
-    if ptz is not None:
-        halt.append(core.build(ptz.ident, action="stop"))
-    for _ in range(core.stop_repeats - 1):
-        for frame in halt:
-            core.send_nowait(frame)
-    for frame in halt:
-        await core.send_request(frame)
-
-
-async def center(core: ClientCore) -> None:
-    ptz = roles.require(core.dialect, core.model, "gimbal_control", "gimbal control codes")
-    await request(core, ptz.ident, action="center")
-
-
-async def set_mode(core: ClientCore, mode: str) -> None:
-    """`follow` (the camera follows the vehicle's heading) or `lock` (holds its heading)."""
-    if mode not in ("follow", "lock"):
-        raise FieldValueError("mode", mode, "'follow' or 'lock'")
-    ptz = roles.require(core.dialect, core.model, "gimbal_control", "gimbal control codes")
-    await request(core, ptz.ident, action=mode)
-    core.state.set("mode", mode)
 
 
 async def _sample(core: ClientCore, after: float, wait_s: float) -> Attitude | None:
@@ -148,79 +74,6 @@ def _where(last: Attitude | None) -> str:
         f"; last attitude seen: yaw {last.yaw_deg:.2f}, pitch {last.pitch_deg:.2f}, roll {last.roll_deg:.2f} "
         f"({last.source}, {time.monotonic() - last.t:.1f} s ago)"
     )
-
-
-async def point(
-    core: ClientCore,
-    yaw_deg: float,
-    pitch_deg: float,
-    *,
-    tolerance_deg: float = 0.5,
-    timeout_s: float | None = None,
-    speed_deg_s: float | None = None,
-    poll_s: float = 0.05,
-) -> Attitude:
-    """Move to (yaw, pitch) and return once the attitude is within `tolerance_deg` on both axes.
-
-    With angle commands where the model obeys them; by closing the loop over rate commands fed by
-    the attitude where its firmware ignores them (C11), or when nothing moves after an angle
-    command (the client then keeps doing so for this connection). RequestTimeoutError (with the
-    last attitude seen) otherwise; the default timeout allows for the slew."""
-    _check_axis(core, "yaw", yaw_deg)
-    _check_axis(core, "pitch", pitch_deg)
-    if not checks.is_number(tolerance_deg) or tolerance_deg <= 0:
-        raise FieldValueError("tolerance_deg", tolerance_deg, "degrees above 0")
-    checks.positive_seconds("timeout_s", timeout_s)
-    checks.positive_seconds("poll_s", poll_s, allow_none=False)
-    if roles.readable(core.dialect, core.model, "attitude") is None:
-        raise UnsupportedError(
-            f"the {core.model.name} reports no attitude, so point() cannot tell when it is there; "
-            "use set_angles() (sent, not confirmed)"
-        )
-    targets = {"yaw": float(yaw_deg), "pitch": float(pitch_deg)}
-    closed = core.angles_ignored or not roles.can_move(core.dialect, core.model, "angle", list(targets))
-    now_att = core.state.attitude
-    if now_att is None or time.monotonic() - now_att.t > 1.0:
-        with contextlib.suppress(RequestTimeoutError):
-            now_att = await get_attitude(core)
-    dist = 180.0 if now_att is None else max(abs(yaw_deg - now_att.yaw_deg), abs(pitch_deg - now_att.pitch_deg))
-    speed = _rate_cap(core) if closed else (speed_deg_s or min(9.9, core.model.max_rate_deg_s))
-    if timeout_s is None:
-        timeout_s = dist / max(speed, 0.5) * 1.5 + 3.0
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + timeout_s
-    last: Attitude | None = now_att
-    if not closed:
-        await set_angles(core, yaw_deg, pitch_deg, speed_deg_s=speed_deg_s)
-        stall_s = max(STALL_S, 0.6 / speed_deg_s) if speed_deg_s else STALL_S
-        start, started = now_att, loop.time()
-        while (remaining := deadline - loop.time()) > 0:
-            sample = await _sample(core, last.t if last else 0.0, remaining)
-            if sample is None:
-                continue
-            last = sample
-            if within(targets, sample, tolerance_deg):
-                return sample
-            if (
-                start is not None
-                and loop.time() - started >= stall_s
-                and stalled(start, sample, targets, tolerance_deg)
-            ):
-                core.angles_ignored = True
-                log.warning(
-                    "%s: nothing moved %.1f s after an angle command: pointing by rate commands from now on",
-                    core.url,
-                    loop.time() - started,
-                )
-                deadline = max(deadline, loop.time() + dist / _rate_cap(core) * 1.5 + 3.0)
-                break
-            if core.streams.device_rate is None:
-                await asyncio.sleep(min(poll_s, max(0.0, deadline - loop.time())))
-        else:
-            raise RequestTimeoutError(
-                f"did not reach yaw {yaw_deg:g}, pitch {pitch_deg:g} within {timeout_s:.1f} s{_where(last)}"
-            )
-    return await _closed_loop(core, targets, tolerance_deg, deadline, last)
 
 
 def _rate_cap(core: ClientCore) -> float:
@@ -274,6 +127,14 @@ async def _closed_loop(
             await stream.aclose()
 
 
+def _ignore_angles(core: ClientCore, waited_s: float) -> None:
+    """Point by rate commands for the rest of this connection: the firmware ignores angles."""
+    core.angles_ignored = True
+    log.warning(
+        "%s: nothing moved %.1f s after an angle command: pointing by rate commands from now on", core.url, waited_s
+    )
+
+
 async def _halt(core: ClientCore) -> None:
     """Zero rates, `stop_repeats` times (fire and forget: the attitude confirms)."""
     for _ in range(core.stop_repeats):
@@ -281,10 +142,150 @@ async def _halt(core: ClientCore) -> None:
             core.send_nowait(core.build_from(cmd.spec.ident, cmd.values))
 
 
-class MotionMethods:
-    set_angles = api_method(set_angles)
-    rates = api_method(rates)
-    stop = api_method(stop)
-    center = api_method(center)
-    set_mode = api_method(set_mode)
-    point = api_method(point)
+class MotionMethods(Protocol):
+    @api_method
+    async def set_angles(
+        core: ClientCore,
+        yaw_deg: float | None = None,
+        pitch_deg: float | None = None,
+        roll_deg: float | None = None,
+        *,
+        speed_deg_s: float | None = None,
+        frame: str = "body",
+    ) -> None:
+        """Move to absolute angles (degrees, API convention). `frame="earth"` uses the gyro's
+        earth-frame commands where the model has them. Every value is checked before the first frame
+        goes out. UnsupportedError where the firmware ignores angle commands (use `point()`)."""
+        if frame not in ("body", "earth"):
+            raise FieldValueError("frame", frame, "'body' or 'earth'")
+        wanted: dict[str, float] = {}
+        for axis, v in (("yaw", yaw_deg), ("pitch", pitch_deg), ("roll", roll_deg)):
+            _check_axis(core, axis, v)
+            if v is not None:
+                wanted[axis] = v
+        for cmd in _plan(core, "earth_angle" if frame == "earth" else "angle", wanted, speed_deg_s):
+            await send_values(core, cmd.spec.ident, cmd.values)
+
+    @api_method
+    async def rates(
+        core: ClientCore,
+        yaw_deg_s: float = 0,
+        pitch_deg_s: float = 0,
+        roll_deg_s: float = 0,
+        *,
+        wait_reply: bool | None = None,
+        timeout_s: float | None = None,
+        retries: int | None = None,
+    ) -> None:
+        """Turn at constant rates (deg/s, API convention) until told otherwise (as for `request`:
+        wait_reply, timeout_s, retries)."""
+        wanted = {"yaw": yaw_deg_s, "pitch": pitch_deg_s}
+        if roll_deg_s:
+            wanted["roll"] = roll_deg_s
+        checks.positive_seconds("timeout_s", timeout_s)
+        checks.count("retries", retries)
+        for cmd in _plan(core, "rate", wanted):
+            frame = core.build_from(cmd.spec.ident, cmd.values)
+            await core.send_request(frame, wait_reply=wait_reply, timeout_s=timeout_s, retries=retries)
+
+    @api_method
+    async def stop(core: ClientCore) -> None:
+        """Stop all motion the way the model needs: zero rates and the stop code, each sent the
+        profile's `stop_repeats` times (a single stop may be missed and the gimbal coast on: C13), the
+        last ones acknowledged where the model acknowledges motion commands."""
+        zero = _zero_rates(core)
+        ptz = roles.command(core.dialect, core.model, "gimbal_control")
+        halt = [core.build_from(c.spec.ident, c.values) for c in zero]
+        if ptz is not None:
+            halt.append(core.build(ptz.ident, action="stop"))
+        for _ in range(core.stop_repeats - 1):
+            for frame in halt:
+                core.send_nowait(frame)
+        for frame in halt:
+            await core.send_request(frame)
+
+    @api_method
+    async def center(core: ClientCore) -> None:
+        ptz = roles.require(core.dialect, core.model, "gimbal_control", "gimbal control codes")
+        await request(core, ptz.ident, action="center")
+
+    @api_method
+    async def set_mode(core: ClientCore, mode: str) -> None:
+        """`follow` (the camera follows the vehicle's heading) or `lock` (holds its heading)."""
+        if mode not in ("follow", "lock"):
+            raise FieldValueError("mode", mode, "'follow' or 'lock'")
+        ptz = roles.require(core.dialect, core.model, "gimbal_control", "gimbal control codes")
+        await request(core, ptz.ident, action=mode)
+        core.state.set("mode", mode)
+
+    @api_method
+    async def point(
+        core: ClientCore,
+        yaw_deg: float,
+        pitch_deg: float,
+        *,
+        tolerance_deg: float = 0.5,
+        timeout_s: float | None = None,
+        speed_deg_s: float | None = None,
+        poll_s: float = 0.05,
+    ) -> Attitude:
+        """Move to (yaw, pitch) and return once the attitude is within `tolerance_deg` on both axes.
+
+        With angle commands where the model obeys them; by closing the loop over rate commands fed by
+        the attitude where its firmware ignores them (C11), or when nothing moves after an angle
+        command (the client then keeps doing so for this connection). RequestTimeoutError (with the
+        last attitude seen) otherwise; the default timeout allows for the slew."""
+        _check_axis(core, "yaw", yaw_deg)
+        _check_axis(core, "pitch", pitch_deg)
+        if not checks.is_number(tolerance_deg) or tolerance_deg <= 0:
+            raise FieldValueError("tolerance_deg", tolerance_deg, "degrees above 0")
+        checks.positive_seconds("timeout_s", timeout_s)
+        checks.positive_seconds("poll_s", poll_s, allow_none=False)
+        if roles.readable(core.dialect, core.model, "attitude") is None:
+            raise UnsupportedError(
+                f"the {core.model.name} reports no attitude, so point() cannot tell when it is there; "
+                "use set_angles() (sent, not confirmed)"
+            )
+        targets = {"yaw": float(yaw_deg), "pitch": float(pitch_deg)}
+        closed = core.angles_ignored or not roles.can_move(core.dialect, core.model, "angle", list(targets))
+        now_att = core.state.attitude
+        if now_att is None or time.monotonic() - now_att.t > 1.0:
+            with contextlib.suppress(RequestTimeoutError):
+                now_att = await get_attitude(core)
+        dist = 180.0 if now_att is None else max(abs(yaw_deg - now_att.yaw_deg), abs(pitch_deg - now_att.pitch_deg))
+        speed = _rate_cap(core) if closed else (speed_deg_s or min(9.9, core.model.max_rate_deg_s))
+        if timeout_s is None:
+            timeout_s = dist / max(speed, 0.5) * 1.5 + 3.0
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + timeout_s
+        last: Attitude | None = now_att
+        if not closed:
+            await set_angles(core, yaw_deg, pitch_deg, speed_deg_s=speed_deg_s)
+            stall_s = max(STALL_S, 0.6 / speed_deg_s) if speed_deg_s else STALL_S
+            start, started = now_att, loop.time()
+            while (remaining := deadline - loop.time()) > 0:
+                sample = await _sample(core, last.t if last else 0.0, remaining)
+                if sample is None:
+                    continue
+                last = sample
+                if within(targets, sample, tolerance_deg):
+                    return sample
+                if (
+                    start is not None
+                    and loop.time() - started >= stall_s
+                    and stalled(start, sample, targets, tolerance_deg)
+                ):
+                    _ignore_angles(core, loop.time() - started)
+                    deadline = max(deadline, loop.time() + dist / _rate_cap(core) * 1.5 + 3.0)
+                    break
+                if core.streams.device_rate is None:
+                    await asyncio.sleep(min(poll_s, max(0.0, deadline - loop.time())))
+            else:
+                raise RequestTimeoutError(
+                    f"did not reach yaw {yaw_deg:g}, pitch {pitch_deg:g} within {timeout_s:.1f} s{_where(last)}"
+                )
+        return await _closed_loop(core, targets, tolerance_deg, deadline, last)
+
+
+# The methods' own calls to each other (and the other api_* modules'): the plain functions.
+set_angles = MotionMethods.set_angles.fn

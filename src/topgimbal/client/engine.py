@@ -209,15 +209,21 @@ class Engine:
             fits = [a for a in ledger.open if self.echo_matches(a.tx.frame, a.tx.fields, message)]
         own = [a for a in fits if a.tx is live]
         foreign = [a for a in fits if a.tx is not live]
-        if live is not None and own and frame.rw == "r" and live.first_sent_at is not None:
-            if maybe_copy and now < live.first_sent_at + self._copy_floor_s():
-                # An identical frame sooner than any answer can come: a copy of the previous one.
-                # The link is taken to copy frames only once another frame follows for this
-                # request: a real answer that was just unusually fast (loopback under load) costs
-                # this request a retry, not every later read the copy wait.
-                self.stats.duplicates += 1
-                live.suspected_copy = len(live.attempts)
-                return Inbound("duplicate")
+        if (
+            live is not None
+            and own
+            and frame.rw == "r"
+            and live.first_sent_at is not None
+            and maybe_copy
+            and now < live.first_sent_at + self._copy_floor_s()
+        ):
+            # An identical frame sooner than any answer can come: a copy of the previous one.
+            # The link is taken to copy frames only once another frame follows for this
+            # request: a real answer that was just unusually fast (loopback under load) costs
+            # this request a retry, not every later read the copy wait.
+            self.stats.duplicates += 1
+            live.suspected_copy = len(live.attempts)
+            return Inbound("duplicate")
         if live is not None and own and (not foreign or frame.rw == "w" or live.slow):
             # Reads never have foreign attempts here (deferred until there are none); a write's
             # echo with the data sent proves the data were applied, whichever attempt it answers.

@@ -19,15 +19,15 @@ import contextlib
 import logging
 import time
 from collections import Counter
-from collections.abc import Coroutine, Iterator, Mapping
-from typing import Any
+from collections.abc import Coroutine, Iterator
+from typing import Any, Unpack
 
 from ..client import CameraAPI
 from ..errors import LinkLostError
 from ..protocol import CommandSpec, Frame, Message
 from .capture import link_for
-from .ops import OPS, describe_error, jsonable
-from .pages import MAX_OPS_IN_FLIGHT, PageHub
+from .ops import OPS, OpArgs, SdStatus, describe_error, jsonable, op_sd
+from .pages import MAX_OPS_IN_FLIGHT, PageHub, PageOptions
 
 log = logging.getLogger(__name__)
 
@@ -47,7 +47,7 @@ class Hub(PageHub):
         url: str = "",
         attitude_hz: float = 50.0,
         sd_interval_s: float = 5.0,
-        **options: Any,
+        **options: Unpack[PageOptions],
     ) -> None:
         """`options`: PageHub's (status_interval_s, traffic_interval_s, max_pages, peer_limits,
         recorder)."""
@@ -63,8 +63,8 @@ class Hub(PageHub):
         self._attitude_seq = 0
         self.recording_since: float | None = None
         self.recording: bool | None = None
-        self.sd: dict[str, Any] | None = None
-        self.version: Any = None
+        self.sd: SdStatus | None = None
+        self.version: str | None = None
         self.lost_since: float | None = None  # wall clock of the client's "link down"
         self.link_reason = ""
 
@@ -81,8 +81,8 @@ class Hub(PageHub):
             self._on_link_change(False, str(self.cam.link_state.get("reason") or "the link is down"))
         await super().start()
 
-    def loops(self) -> list[Coroutine[Any, Any, None]]:
-        loops: list[Coroutine[Any, Any, None]] = [self._keepalive_loop()]
+    def loops(self) -> list[Coroutine[object, object, None]]:
+        loops: list[Coroutine[object, object, None]] = [self._keepalive_loop()]
         if self.role("attitude") is not None:
             loops += [self._attitude_loop(), self._attitude_ticker()]
         if self.role("sd_capacity") is not None:
@@ -201,11 +201,11 @@ class Hub(PageHub):
             if self._polls[ident] <= 0:
                 del self._polls[ident]
 
-    async def refresh_sd(self, *, poll: bool = False) -> dict[str, Any] | None:
+    async def refresh_sd(self, *, poll: bool = False) -> SdStatus | None:
         spec = self.role("sd_capacity")
         try:
             with self._polling(spec.ident) if poll and spec is not None else contextlib.nullcontext():
-                self.sd = await OPS["sd"](self.cam, {})
+                self.sd = await op_sd(self.cam, {})
             self.clear_error("sd")
         except asyncio.CancelledError:
             raise
@@ -248,7 +248,7 @@ class Hub(PageHub):
     async def _version_once(self) -> None:
         while self.version is None:
             try:
-                self.version = jsonable(await self.cam.version())
+                self.version = await self.cam.version()
                 self.clear_error("version")
             except asyncio.CancelledError:
                 raise
@@ -258,13 +258,13 @@ class Hub(PageHub):
 
     # -- ops ---------------------------------------------------------------------------------
 
-    async def carry_out(self, op: str, msg: Mapping[str, Any]) -> Any:
+    async def carry_out(self, op: str, msg: OpArgs) -> object:
         async with self._motion if self._is_motion(op, msg) else contextlib.nullcontext():
             result = await OPS[op](self.cam, msg)
         self._after(op, msg, result)
         return result
 
-    def _is_motion(self, op: str, msg: Mapping[str, Any]) -> bool:
+    def _is_motion(self, op: str, msg: OpArgs) -> bool:
         if op in MOTION_OPS:
             return True
         ident = msg.get("id")
@@ -273,7 +273,7 @@ class Hub(PageHub):
         spec = self.dialect.commands.get(ident)
         return bool(spec is not None and (spec.motion or spec.role == "gimbal_control"))
 
-    def _after(self, op: str, msg: Mapping[str, Any], result: Any) -> None:
+    def _after(self, op: str, msg: OpArgs, result: object) -> None:
         if op == "record":
             if msg.get("action") == "start":
                 self.recording, self.recording_since = True, time.time()
@@ -286,7 +286,7 @@ class Hub(PageHub):
                 self.recording_since = None
             self.recording = result
         elif op == "sd" and isinstance(result, dict):
-            self.sd = result
+            self.sd = result  # op_sd's SdStatus
 
 
 __all__ = ["MAX_OPS_IN_FLIGHT", "Hub"]

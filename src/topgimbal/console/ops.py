@@ -6,9 +6,10 @@ The console never talks to the camera except through the client (`AsyncClient`).
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import math
 from collections.abc import Awaitable, Callable, Mapping
-from typing import Any
+from typing import TypeAlias, Union
 
 from ..client import CameraAPI
 from ..errors import (
@@ -21,9 +22,16 @@ from ..errors import (
     UnknownCommandError,
     UnsupportedError,
 )
+from ..protocol import Message
 from ..protocol.frame import complete_frame
 
-OpHandler = Callable[[CameraAPI, Mapping[str, Any]], Awaitable[Any]]
+# What the page gets back: JSON.
+JsonValue: TypeAlias = Union[bool, int, float, str, list["JsonValue"], dict[str, "JsonValue"], None]  # noqa: UP007
+# An op's arguments are the page's JSON object, unchecked until the op reads them; its result any
+# client result, made JSON by `jsonable`.
+OpArgs = Mapping[str, object]
+OpHandler = Callable[[CameraAPI, OpArgs], Awaitable[object]]
+SdStatus = dict[str, bool | int | None]  # op_sd: present, remaining_mb, total_mb
 
 
 class OpError(TopGimbalError, ValueError):
@@ -34,13 +42,13 @@ class ReadOnlyError(TopGimbalError):
     """The console only watches (a proxy's traffic): it sends nothing to the camera."""
 
 
-def short(value: Any, limit: int = 40, *, quote: bool = True) -> str:
+def short(value: object, limit: int = 40, *, quote: bool = True) -> str:
     """`value` for an error message, cut to `limit` characters (a page may send anything)."""
     text = repr(value) if quote else str(value)
     return text if len(text) <= limit else f"{text[: limit - 1]}…"
 
 
-def jsonable(value: Any) -> Any:
+def jsonable(value: object) -> JsonValue:
     """Client results (messages, dataclasses, tuples, datetimes) as JSON values."""
     if value is None or isinstance(value, (bool, int, str)):
         return value
@@ -55,10 +63,11 @@ def jsonable(value: Any) -> Any:
         return [jsonable(v) for v in value]
     if isinstance(value, bytes):
         return value.decode("latin-1")
-    if hasattr(value, "__dataclass_fields__"):
-        return {k: jsonable(getattr(value, k)) for k in value.__dataclass_fields__}
-    if hasattr(value, "_asdict"):
-        return jsonable(value._asdict())
+    if dataclasses.is_dataclass(value):
+        return {f.name: jsonable(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    as_tuple_dict = getattr(value, "_asdict", None)  # a NamedTuple
+    if callable(as_tuple_dict):
+        return jsonable(as_tuple_dict())
     return str(value)
 
 
@@ -89,28 +98,31 @@ def describe_error(exc: BaseException, what: str = "") -> tuple[str, str]:
     return "internal", f"{what} failed: {type(exc).__name__}: {exc}"
 
 
-def _num(args: Mapping[str, Any], name: str, *, required: bool = True) -> float | None:
+def _num(args: OpArgs, name: str, *, required: bool = True) -> float | None:
     if name not in args or args[name] in (None, ""):
         if required:
             raise OpError(f"missing number {name!r}")
         return None
+    given = args[name]
     try:
-        v = float(args[name])
+        if not isinstance(given, (int, float, str)):
+            raise TypeError(given)
+        v = float(given)
     except (TypeError, ValueError):
-        raise OpError(f"{name}={short(args[name])} is not a number") from None
+        raise OpError(f"{name}={short(given)} is not a number") from None
     if not math.isfinite(v):
         raise OpError(f"{name}={short(args[name])} is not a finite number")
     return v
 
 
-def _text(args: Mapping[str, Any], name: str) -> str:
+def _text(args: OpArgs, name: str) -> str:
     v = args.get(name)
     if not isinstance(v, str) or not v:
         raise OpError(f"missing text {name!r}")
     return v
 
 
-def _flag(args: Mapping[str, Any], name: str) -> bool:
+def _flag(args: OpArgs, name: str) -> bool:
     v = args.get(name, False)
     if v is None:
         return False
@@ -119,7 +131,7 @@ def _flag(args: Mapping[str, Any], name: str) -> bool:
     return v
 
 
-async def op_request(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+async def op_request(cam: CameraAPI, args: OpArgs) -> Message:
     ident = _text(args, "id")
     values = args.get("values") or {}
     if not isinstance(values, Mapping):
@@ -127,16 +139,16 @@ async def op_request(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     return await cam.request(ident, read=_flag(args, "read"), **dict(values))
 
 
-async def op_raw(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+async def op_raw(cam: CameraAPI, args: OpArgs) -> dict[str, JsonValue]:
     """Send a hand-typed frame (its checksum appended when missing); answer with the reply's
     fields and the frame actually sent."""
     sent = complete_frame(_text(args, "frame"))
-    reply = await cam.send_raw(sent)
-    out = jsonable(reply) if reply is not None else {"id": None, "fields": None}
+    reply = jsonable(await cam.send_raw(sent))
+    out = reply if isinstance(reply, dict) else {"id": None, "fields": None}
     return {**out, "sent": sent.decode("latin-1")}
 
 
-async def op_point(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+async def op_point(cam: CameraAPI, args: OpArgs) -> None:
     yaw = _num(args, "yaw", required=False)
     pitch = _num(args, "pitch", required=False)
     if yaw is None and pitch is None:
@@ -144,37 +156,37 @@ async def op_point(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     return await cam.set_angles(yaw_deg=yaw, pitch_deg=pitch)
 
 
-async def op_rates(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+async def op_rates(cam: CameraAPI, args: OpArgs) -> None:
     return await cam.rates(yaw_deg_s=_num(args, "yaw") or 0.0, pitch_deg_s=_num(args, "pitch") or 0.0)
 
 
-async def op_stop(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+async def op_stop(cam: CameraAPI, args: OpArgs) -> None:
     return await cam.stop()
 
 
-async def op_center(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+async def op_center(cam: CameraAPI, args: OpArgs) -> None:
     return await cam.center()
 
 
-async def op_mode(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+async def op_mode(cam: CameraAPI, args: OpArgs) -> None:
     mode = _text(args, "mode")
     if mode not in ("follow", "lock"):
         raise OpError(f"mode={short(mode)}: expected follow or lock")
     return await cam.set_mode(mode)
 
 
-async def op_ptz(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+async def op_ptz(cam: CameraAPI, args: OpArgs) -> Message:
     """A gimbal control code (calibrations, mount orientation, trims) by its catalog name."""
     action = _text(args, "action")
     spec = cam.dialect.require_role("gimbal_control", cam.model)
     return await cam.request(spec.ident, action=action)
 
 
-async def op_photo(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+async def op_photo(cam: CameraAPI, args: OpArgs) -> Message:
     return await cam.photo()
 
 
-async def op_record(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+async def op_record(cam: CameraAPI, args: OpArgs) -> None:
     action = _text(args, "action")
     if action == "start":
         return await cam.start_recording()
@@ -183,28 +195,28 @@ async def op_record(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
     raise OpError(f"action={short(action)}: expected start or stop")
 
 
-async def op_recording(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+async def op_recording(cam: CameraAPI, args: OpArgs) -> bool:
     return await cam.recording()
 
 
-async def op_sd(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+async def op_sd(cam: CameraAPI, args: OpArgs) -> SdStatus:
     sd = await cam.sd_card()
     return {"present": bool(sd.present), "remaining_mb": sd.remaining_mb, "total_mb": sd.total_mb}
 
 
-async def op_version(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+async def op_version(cam: CameraAPI, args: OpArgs) -> str:
     return await cam.version()
 
 
-async def op_range(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+async def op_range(cam: CameraAPI, args: OpArgs) -> float | None:
     return await cam.range()
 
 
-async def op_network(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+async def op_network(cam: CameraAPI, args: OpArgs) -> dict[str, str | None]:
     return await cam.network()
 
 
-async def op_set_network(cam: CameraAPI, args: Mapping[str, Any]) -> Any:
+async def op_set_network(cam: CameraAPI, args: OpArgs) -> None:
     values = args.get("values") or {}
     if not isinstance(values, Mapping) or not values:
         raise OpError("values must name the settings to write (address, gateway, ...)")

@@ -13,7 +13,7 @@ import logging
 import time
 from collections import deque
 from collections.abc import Callable, Coroutine, Mapping
-from typing import Any
+from typing import Any, TypedDict
 
 from aiohttp import WSMsgType, web
 
@@ -22,7 +22,7 @@ from ..wire.packets import Endpoint
 from .capture import Link, Recorder
 from .catalog_api import model_json
 from .limits import MAX_FRAME_BYTES, MAX_OPS_PER_S, OPS_BURST, MessageError, OpRate, parse_message
-from .ops import OPS, describe_error, jsonable, short
+from .ops import OPS, JsonValue, OpArgs, describe_error, jsonable, short
 from .peer import Peer
 
 log = logging.getLogger("topgimbal.console.hub")
@@ -33,6 +33,16 @@ MAX_PAGES = 16  # open WebSockets; one more is refused with 503 and a log line
 MAX_OPS_IN_FLIGHT = 32  # per page; one more is answered with an error
 # Roles whose frames are telemetry streams (the traffic pane hides them with the console's polls).
 STREAM_ROLES = ("attitude", "earth_attitude", "earth_attitude_stream")
+
+
+class PageOptions(TypedDict, total=False):
+    """PageHub's keywords that `Hub` and `WatchHub` pass on."""
+
+    status_interval_s: float
+    traffic_interval_s: float
+    max_pages: int
+    peer_limits: Mapping[str, int] | None
+    recorder: Recorder | None
 
 
 class PageHub:
@@ -76,7 +86,7 @@ class PageHub:
 
     # -- lifecycle ---------------------------------------------------------------------------
 
-    def loops(self) -> list[Coroutine[Any, Any, None]]:
+    def loops(self) -> list[Coroutine[object, object, None]]:
         """The subclass's background work, run beside the status and traffic pushes."""
         return []
 
@@ -129,7 +139,7 @@ class PageHub:
         *,
         t: float | None = None,
         host: Endpoint | None = None,
-        **marks: Any,
+        **marks: JsonValue,
     ) -> dict[str, Any]:
         """One frame for the traffic pane and the recorder; `marks` (poll, client) are added to the
         pane's item, and `stream` to the frames of telemetry streams. Never raises: a frame the
@@ -159,7 +169,9 @@ class PageHub:
             self.recorder.add(now, direction, frame.to_bytes(), host)
         return self._push(item)
 
-    def note(self, direction: str, raw: bytes, error: str, *, t: float | None = None, **marks: Any) -> dict[str, Any]:
+    def note(
+        self, direction: str, raw: bytes, error: str, *, t: float | None = None, **marks: JsonValue
+    ) -> dict[str, Any]:
         """Bytes that are not a frame (what the parser said about them), for the traffic pane only."""
         item: dict[str, Any] = {
             "t": time.time() if t is None else t,
@@ -220,11 +232,11 @@ class PageHub:
 
     # -- ops ---------------------------------------------------------------------------------
 
-    async def carry_out(self, op: str, msg: Mapping[str, Any]) -> Any:
+    async def carry_out(self, op: str, msg: OpArgs) -> object:
         """Run one op (a name in `OPS`); raise what the client raises."""
         raise NotImplementedError
 
-    async def execute(self, msg: Mapping[str, Any]) -> dict[str, Any]:
+    async def execute(self, msg: OpArgs) -> dict[str, Any]:
         """Carry out one op; the `ack` or `error` reply (never raises)."""
         ref = msg.get("ref")
         op = msg.get("op")
@@ -319,7 +331,7 @@ class PageHub:
                 log.info("page %s closed; %d periodic pushes were dropped for it", name, peer.dropped)
         return ws
 
-    async def _run_op(self, peer: Peer, msg: Mapping[str, Any]) -> None:
+    async def _run_op(self, peer: Peer, msg: OpArgs) -> None:
         reply = await self.execute(msg)
         peer.send(reply)
         if reply["type"] == "error" and reply.get("kind") not in ("op", "readonly"):
@@ -344,7 +356,7 @@ OP_NAMES = {
 }
 
 
-def _what(msg: Mapping[str, Any]) -> str:
+def _what(msg: OpArgs) -> str:
     op = msg.get("op")
     if op == "request":
         return f"{short(msg.get('id'), quote=False)} ({'read' if msg.get('read') else 'write'})"
@@ -353,7 +365,7 @@ def _what(msg: Mapping[str, Any]) -> str:
     return OP_NAMES.get(str(op), short(op, quote=False))
 
 
-def _frame_text(frame: Any) -> str:
+def _frame_text(frame: Frame | bytes | bytearray | str) -> str:
     """The frame as printable text for the traffic pane (never raises)."""
     try:
         if hasattr(frame, "text"):

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 from aiohttp import web
 from aiohttp.http_exceptions import HttpProcessingError
 
+from ..video.webconsole import ConsoleVideo
 from ..video.webconsole import attach as attach_video
 from .auth import needs_token, resolve_token, token_middleware
 from .capture import pcap
@@ -110,7 +111,7 @@ async def _no_video(request: web.Request) -> web.Response:
     return web.Response(status=204)
 
 
-def _dumps(obj: Any) -> str:
+def _dumps(obj: object) -> str:
     import json
 
     return json.dumps(obj, default=str)
@@ -174,7 +175,7 @@ class ConsoleServer:
         self.app: web.Application | None = None
         self._runner: web.AppRunner | None = None
         self.bound_port: int | None = None
-        self.video: Any = None
+        self.video: ConsoleVideo | None = None
 
     @property
     def base_url(self) -> str:

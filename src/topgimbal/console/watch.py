@@ -15,16 +15,15 @@ import contextlib
 import logging
 import time
 from collections import OrderedDict
-from collections.abc import Mapping
-from typing import Any
+from typing import Any, Unpack
 
 from ..protocol import DeviceModel, Diagnostic, Dialect, Frame, Message
 from ..protocol.signs import flip, resolve_signs
 from ..wire.packets import Endpoint
 from ..wire.proxy import Proxy, ProxyEvent
 from .capture import Link, link_for
-from .ops import ReadOnlyError
-from .pages import PageHub
+from .ops import OpArgs, ReadOnlyError
+from .pages import PageHub, PageOptions
 
 log = logging.getLogger(__name__)
 
@@ -51,7 +50,13 @@ class WatchHub(PageHub):
     mode = "watch"
 
     def __init__(
-        self, proxy: Proxy, dialect: Dialect, model: DeviceModel, *, attitude_hz: float = 50.0, **options: Any
+        self,
+        proxy: Proxy,
+        dialect: Dialect,
+        model: DeviceModel,
+        *,
+        attitude_hz: float = 50.0,
+        **options: Unpack[PageOptions],
     ) -> None:
         """`options`: PageHub's (status_interval_s, traffic_interval_s, max_pages, peer_limits)."""
         url = f"{proxy.url} -> {proxy.to.text}"
@@ -127,7 +132,7 @@ class WatchHub(PageHub):
     def hello(self) -> dict[str, Any]:
         return {**super().hello(), "attitude_hz": self.attitude_hz, "readonly": self.readonly}
 
-    async def carry_out(self, op: str, msg: Mapping[str, Any]) -> Any:
+    async def carry_out(self, op: str, msg: OpArgs) -> object:
         raise ReadOnlyError(self.readonly)
 
 

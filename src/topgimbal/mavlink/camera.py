@@ -15,7 +15,8 @@ import logging
 import math
 import time
 from collections import OrderedDict
-from typing import Any
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
 
 from ..video.lens import VideoError, hfov_at, tracking_requests, vfov_for
 from ._mav import mavlink
@@ -26,6 +27,11 @@ from .gimbal_device import _text, firmware_code, flag_bits
 from .quaternion import from_euler_deg
 from .services import Services
 from .vehicle import Vehicles
+
+if TYPE_CHECKING:
+    from ..client import AsyncClient
+    from ..protocol import Message
+    from ._mav import MAVLinkMessage
 
 log = logging.getLogger("topgimbal.mavlink")
 
@@ -183,7 +189,7 @@ class CameraComponent:
     async def _settings(self, cmd: Command) -> list[Any]:
         return [self._settings_message()]
 
-    def _settings_message(self) -> Any:
+    def _settings_message(self) -> MAVLinkMessage:
         return mavlink().MAVLink_camera_settings_message(
             self.comp.node.time_boot_ms(), self.mode_id, self.zoom_pct, float("nan")
         )
@@ -209,7 +215,7 @@ class CameraComponent:
             self._recording_now(rec)
         return [self._capture_status_message()]
 
-    def _capture_status_message(self) -> Any:
+    def _capture_status_message(self) -> MAVLinkMessage:
         rec_ms = int((time.monotonic() - self.record_started) * 1000) if self.recording else 0
         return mavlink().MAVLink_camera_capture_status_message(
             self.comp.node.time_boot_ms(), self.image_status, 1 if self.recording else 0, self.interval_s,
@@ -261,12 +267,12 @@ class CameraComponent:
 
     # -- photos ----------------------------------------------------------------------------------
 
-    async def _take_photo(self) -> Any:
+    async def _take_photo(self) -> MAVLinkMessage:
         values = self.photo_values or {}
         await self.cam.call(lambda c: c.photo(**values))
         return self._record_image(True)
 
-    def _record_image(self, ok: bool) -> Any:
+    def _record_image(self, ok: bool) -> MAVLinkMessage:
         index = self.image_count
         self.image_count += 1
         fix = self.vehicles.fix()
@@ -477,7 +483,7 @@ class CameraComponent:
     async def _fov_status(self, cmd: Command) -> list[Any]:
         return [self.fov_message()]
 
-    def fov_message(self) -> Any:
+    def fov_message(self) -> MAVLinkMessage:
         nan = float("nan")
         fix = self.vehicles.fix()
         att = self.cam.attitude
@@ -525,7 +531,7 @@ class CameraComponent:
             raise rejected("the rangefinder reported no distance (no target in range)")
         return [self._distance_message(d)]
 
-    def _distance_message(self, d: float) -> Any:
+    def _distance_message(self, d: float) -> MAVLinkMessage:
         lo, hi = self.profile.rangefinder or (0.0, 0.0)
         att = self.cam.attitude
         q = from_euler_deg(att.roll_deg, att.pitch_deg, att.yaw_deg) if att else (0.0, 0.0, 0.0, 0.0)
@@ -548,5 +554,5 @@ class CameraComponent:
                 self.comp.send(self._distance_message(d))
 
 
-async def _request(client: Any, *, ident: str, values: dict[str, Any]) -> Any:
-    return await client.request(ident, **values)
+async def _request(client: AsyncClient, *, ident: str, values: Mapping[str, object]) -> Message:
+    return await client.send_request(client.build_from(ident, values))

@@ -21,11 +21,14 @@ import time
 from collections import OrderedDict
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import DeviceError, FieldValueError, RequestTimeoutError, TopGimbalError, TransportError, UnsupportedError
 from ._mav import mavlink
 from .node import Component
+
+if TYPE_CHECKING:
+    from ._mav import MAVLinkMessage
 
 log = logging.getLogger("topgimbal.mavlink")
 
@@ -97,7 +100,7 @@ class Command:
         return (self.src_system, self.src_component, self.target_component, self.command, self.params)
 
     @classmethod
-    def from_message(cls, m: Any) -> Command:
+    def from_message(cls, m: MAVLinkMessage) -> Command:
         if m.get_type() == "COMMAND_INT":
             params = (m.param1, m.param2, m.param3, m.param4, float(m.x), float(m.y), m.z)
             return cls(m.command, params, m.get_srcSystem(), m.get_srcComponent(), m.target_system,
@@ -157,7 +160,7 @@ class Dispatcher:
     def handles(self, compid: int, command: int) -> bool:
         return (compid, command) in self._handlers
 
-    def on_message(self, m: Any) -> None:
+    def on_message(self, m: MAVLinkMessage) -> None:
         if m.get_type() not in ("COMMAND_LONG", "COMMAND_INT"):
             return
         cmd = Command.from_message(m)

@@ -12,8 +12,8 @@ import asyncio
 import contextlib
 import math
 import time
-from collections.abc import Mapping
-from typing import Any
+from collections.abc import Awaitable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 from ._mav import mavlink
 from .camera_link import AttitudeSample, CameraLink
@@ -21,6 +21,9 @@ from .commands import Command
 from .pointing import Pointer, Setpoint
 from .quaternion import from_euler_deg, is_valid, to_euler_deg
 from .services import Services
+
+if TYPE_CHECKING:
+    from ._mav import MAVLinkMessage
 
 MSG_ATTITUDE_STATUS = 285
 MSG_DEVICE_INFORMATION = 283
@@ -110,7 +113,7 @@ class GimbalDevice:
 
     # -- attitude status -----------------------------------------------------------------------
 
-    def status_message(self, att: AttitudeSample | None) -> Any:
+    def status_message(self, att: AttitudeSample | None) -> MAVLinkMessage:
         flags = F_ROLL_LOCK | F_PITCH_LOCK | F_YAW_IN_VEHICLE_FRAME
         if self.pointer.mode == "lock":
             flags |= F_YAW_LOCK
@@ -167,7 +170,7 @@ class GimbalDevice:
     async def _information(self, cmd: Command) -> list[Any]:
         return [self.information_message()]
 
-    def information_message(self) -> Any:
+    def information_message(self) -> MAVLinkMessage:
         m = self.profile.model
         rad = math.radians
         return mavlink().MAVLink_gimbal_device_information_message(
@@ -188,7 +191,7 @@ class GimbalDevice:
 
     # -- set-points from the autopilot ---------------------------------------------------------
 
-    def on_message(self, msg: Any) -> None:
+    def on_message(self, msg: MAVLinkMessage) -> None:
         if msg.get_type() != "GIMBAL_DEVICE_SET_ATTITUDE" or not self.accept_set_attitude:
             return
         if msg.target_system not in (0, self.comp.sysid) or msg.target_component not in (0, self.comp.compid):
@@ -202,7 +205,7 @@ class GimbalDevice:
             self._bg = asyncio.ensure_future(_quietly(self.cam.call(lambda c: c.center())))
 
 
-def setpoint_from(flags: int, q: Any, rates_rad_s: tuple[float, float, float]) -> Setpoint | None:
+def setpoint_from(flags: int, q: Sequence[float], rates_rad_s: tuple[float, float, float]) -> Setpoint | None:
     """A set-point from the angle (quaternion) or rate form of a SET_ATTITUDE message; None
     when it carries neither."""
     lock: bool | None = bool(flags & F_YAW_LOCK)
@@ -216,7 +219,7 @@ def setpoint_from(flags: int, q: Any, rates_rad_s: tuple[float, float, float]) -
     return Setpoint(roll_rate_deg_s=r[0], pitch_rate_deg_s=r[1], yaw_rate_deg_s=r[2], lock=lock)
 
 
-async def _quietly(aw: Any) -> None:
+async def _quietly(aw: Awaitable[object]) -> None:
     with contextlib.suppress(Exception):
         await aw
 

@@ -11,7 +11,7 @@ import asyncio
 import contextlib
 import logging
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ._mav import mavlink
 from .camera_link import CameraLink
@@ -21,6 +21,9 @@ from .gimbal_device import F_NEUTRAL, F_RETRACT, F_YAW_IN_EARTH_FRAME, F_YAW_LOC
 from .pointing import Pointer, Setpoint
 from .services import Services
 from .vehicle import Vehicles
+
+if TYPE_CHECKING:
+    from ._mav import MAVLinkMessage
 
 log = logging.getLogger("topgimbal.mavlink")
 
@@ -62,7 +65,7 @@ class GimbalManager:
 
     # -- information and status ----------------------------------------------------------------
 
-    def information_message(self) -> Any:
+    def information_message(self) -> MAVLinkMessage:
         m = self.cam.profile.model
         rad = math.radians
         return mavlink().MAVLink_gimbal_manager_information_message(
@@ -74,7 +77,7 @@ class GimbalManager:
     async def _information(self, cmd: Command) -> list[Any]:
         return [self.information_message()]
 
-    def status_message(self) -> Any:
+    def status_message(self) -> MAVLinkMessage:
         flags = 4 | 8 | 32  # roll and pitch lock, yaw in the vehicle frame
         if self.pointer.mode == "lock":
             flags |= F_YAW_LOCK
@@ -141,7 +144,7 @@ class GimbalManager:
         await self.pointer.apply(sp)
         return Outcome()
 
-    def on_message(self, msg: Any) -> None:
+    def on_message(self, msg: MAVLinkMessage) -> None:
         kind = msg.get_type()
         if kind not in ("GIMBAL_MANAGER_SET_ATTITUDE", "GIMBAL_MANAGER_SET_PITCHYAW"):
             return
@@ -251,7 +254,7 @@ def _control(current: tuple[int, int], sysid: float, compid: float, me: tuple[in
     return (int(sysid), int(compid) if not math.isnan(compid) else 0)
 
 
-def _pitchyaw_setpoint(msg: Any) -> Setpoint | None:
+def _pitchyaw_setpoint(msg: MAVLinkMessage) -> Setpoint | None:
     deg = math.degrees
     lock = bool(msg.flags & F_YAW_LOCK)
     earth = bool(msg.flags & F_YAW_IN_EARTH_FRAME)

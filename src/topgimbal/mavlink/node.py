@@ -10,10 +10,13 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Hashable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ._mav import mavlink
 from .endpoints import MAX_PEERS, Link, make_link
+
+if TYPE_CHECKING:
+    from ._mav import MAVLinkCodec, MAVLinkMessage
 
 log = logging.getLogger("topgimbal.mavlink")
 
@@ -42,7 +45,7 @@ class Component:
         self.mav.robust_parsing = True
         self.sent = 0
 
-    def send(self, msg: Any) -> None:
+    def send(self, msg: MAVLinkMessage) -> None:
         self.mav.send(msg)
         self.sent += 1
 
@@ -97,7 +100,7 @@ class Node:
                 link.dropped_out += 1
                 log.debug("%s: send failed: %s", link, exc)
 
-    def _parser(self, link: Link, peer: Hashable) -> Any:
+    def _parser(self, link: Link, peer: Hashable) -> MAVLinkCodec:
         key = (id(link), peer)
         p = self._parsers.get(key)
         if p is None:

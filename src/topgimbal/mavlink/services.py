@@ -13,11 +13,14 @@ import contextlib
 import logging
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ._mav import mavlink
 from .commands import Command, Dispatcher, Outcome, denied, unsupported
 from .node import Component
+
+if TYPE_CHECKING:
+    from ._mav import MAVLinkMessage
 
 log = logging.getLogger("topgimbal.mavlink")
 
@@ -76,7 +79,7 @@ class Services:
         s = self.streams[msgid] = Stream(msgid, producer, default_hz, max_hz, default_hz)
         return s
 
-    def heartbeat(self) -> Any:
+    def heartbeat(self) -> MAVLinkMessage:
         return mavlink().MAVLink_heartbeat_message(self.mav_type, 8, 0, 0, self.system_status, 3)
 
     def start(self) -> None:

@@ -8,9 +8,12 @@ import math
 import time
 from collections import OrderedDict
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 from .geo import Position
+
+if TYPE_CHECKING:
+    from ._mav import MAVLinkMessage
 
 MAX_SYSTEMS = 32
 STALE_S = 3.0
@@ -35,7 +38,7 @@ class Vehicles:
         self._fixes: OrderedDict[int, Fix] = OrderedDict()
         self._yaw: tuple[float, float] | None = None  # (deg, t) from our vehicle's ATTITUDE
 
-    def on_message(self, m: Any) -> None:
+    def on_message(self, m: MAVLinkMessage) -> None:
         kind = m.get_type()
         src = m.get_srcSystem()
         if kind == "GLOBAL_POSITION_INT":

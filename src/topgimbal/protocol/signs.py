@@ -30,7 +30,7 @@ KINDS = tuple(SIGN_KINDS)
 SIGN_KEYS = (*AXES, *(f"{k}.{a}" for k in KINDS for a in AXES))
 
 
-def _check(key: str, sign: Any) -> None:
+def _check(key: str, sign: object) -> None:
     if key not in SIGN_KEYS:
         raise FieldValueError("signs", key, f"an axis name ({', '.join(AXES)}) or kind.axis ({', '.join(KINDS)})")
     if isinstance(sign, bool) or sign not in (1, -1):

@@ -175,12 +175,12 @@ class SimState:
             self.gimbal.trims.update({k: float(v) for k, v in g["trims"].items() if k in self.gimbal.trims})
 
 
-def _jsonable(value: Any) -> Any:
+def _jsonable(value: object) -> object:
     """A stored setting as the state file holds it: a time (TIM) as ISO 8601 text."""
     return value.isoformat() if isinstance(value, datetime) else value
 
 
-def _restored(current: Any, saved: Any) -> Any:
+def _restored(current: object, saved: object) -> object:
     """A saved setting back in the type the device keeps (a time from its ISO text); text that is
     not a time leaves the factory value."""
     if isinstance(current, datetime):
@@ -274,7 +274,7 @@ def new_state(
     gimbal = Gimbal.for_limits(
         m.yaw_range_deg, m.pitch_range_deg, m.roll_range_deg, m.max_rate_deg_s, m.max_accel_deg_s2
     )
-    camera = CameraState(optical_zoom_max=m.optical_zoom_max, digital_zoom_max=m.digital_zoom_max)
+    camera = CameraState(m)
     state = SimState(m, dialect, signs, quirks, seed, gimbal, camera, stream_hz=stream_hz)
     state.uid = first_uid(seed)
     state.serial = serial_for(m, seed)

@@ -155,7 +155,7 @@ def _parse_int(text: str) -> int | _BadNumber:
 _TOKEN = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]', re.S)
 
 
-def _parse(p: Path, text: str) -> Any:
+def _parse(p: Path, text: str) -> object:
     depth = 0
     for m in _TOKEN.finditer(text):
         c = m.group()
@@ -180,7 +180,7 @@ def _parse(p: Path, text: str) -> Any:
         raise StateFileError(f"state file {p} is not valid JSON ({exc}); move it away to start fresh") from None
 
 
-def _kind(value: Any) -> str:
+def _kind(value: object) -> str:
     if isinstance(value, _BadNumber):
         return f"{value.text} ({value.what})"
     if value is None:
@@ -214,7 +214,7 @@ _LEAVES: list[tuple[type | None, tuple[type, ...], str]] = [
 ]
 
 
-def _check(p: Path, value: Any, template: Any, path: str) -> None:
+def _check(p: Path, value: object, template: object, path: str) -> None:
     def bad(expected: str) -> StateFileError:
         return StateFileError(f"state file {p}: {path or 'state'} is {_kind(value)}; expected {expected}")
 

@@ -21,12 +21,14 @@ from collections.abc import Hashable, Iterable, Mapping
 from pathlib import Path
 from typing import Any, cast
 
-from ..protocol import Frame
+from ..protocol import Dialect, Frame
 from . import persist
 from .clock import Clock, FakeClock, MonotonicClock
 from .device import TOPOTEK_STREAM_HZ, Device, Outgoing
 from .faults import FaultInjector, FaultPlan
+from .physics import Gimbal
 from .servers import LOOPBACK, Limits, SerialPeer, TcpServer, UdpServer
+from .state import CameraState, NetworkState
 
 Address = tuple[str, int]
 
@@ -101,19 +103,19 @@ class Simulator:
         return self.device.model.name
 
     @property
-    def dialect(self) -> Any:
+    def dialect(self) -> Dialect:
         return self.device.dialect
 
     @property
-    def gimbal(self) -> Any:
+    def gimbal(self) -> Gimbal:
         return self.device.gimbal
 
     @property
-    def camera(self) -> Any:
+    def camera(self) -> CameraState:
         return self.device.camera
 
     @property
-    def network(self) -> Any:
+    def network(self) -> NetworkState:
         return self.device.network
 
     @property

@@ -12,7 +12,7 @@ from datetime import datetime, timedelta
 from functools import cache
 from typing import Any
 
-from ..protocol import DIALECT_NAMES, QUERY, get_dialect
+from ..protocol import DIALECT_NAMES, QUERY, DeviceModel, get_dialect
 from ..protocol.commands import stored_form
 
 # Zoom motor position range. The documents give zoom positions as signed 16-bit values without a
@@ -75,8 +75,7 @@ class NetworkState:
 
 @dataclass
 class CameraState:
-    optical_zoom_max: float = 1.0
-    digital_zoom_max: float = 4.0
+    model: DeviceModel  # the lens limits are the profile's, not a copy
     recording: bool = False
     record_started: float = 0.0
     photos_taken: int = 0
@@ -106,6 +105,14 @@ class CameraState:
     events: list[str] = field(default_factory=list)  # "zoom_stopped" etc., consumed by the device
 
     # -- lens ----------------------------------------------------------------------------------
+
+    @property
+    def optical_zoom_max(self) -> float:
+        return self.model.optical_zoom_max
+
+    @property
+    def digital_zoom_max(self) -> float:
+        return self.model.digital_zoom_max
 
     @property
     def optical_zoom_x(self) -> float:

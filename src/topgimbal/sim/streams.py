@@ -32,7 +32,7 @@ class Stream:
     period: float
     next_due: float
     report: ReportFn
-    memo_key: Any = None
+    memo_key: Hashable = None  # what memo_frames were built from (compared, never read)
     memo_frames: list[Frame] = field(default_factory=list)
     last_frames: list[Frame] | None = None
     last_data: list[bytes] = field(default_factory=list)

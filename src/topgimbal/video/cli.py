@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from ..sim.simulator import Simulator
+    from .simvideo import SimVideo
 
 from .lens import VideoError
 
@@ -39,7 +43,7 @@ def wants_video(args: argparse.Namespace) -> bool:
     return bool(getattr(args, "video", False))
 
 
-def video_host(args: argparse.Namespace, sim: Any) -> str:
+def video_host(args: argparse.Namespace, sim: Simulator) -> str:
     host = getattr(args, "video_host", None)
     if host is None:
         addrs = [a for kind in ("udp", "tcp") for a in sim.addresses.get(kind, [])]
@@ -49,7 +53,7 @@ def video_host(args: argparse.Namespace, sim: Any) -> str:
     return str(host)
 
 
-async def start(sim: Any, args: argparse.Namespace) -> Any:
+async def start(sim: Simulator, args: argparse.Namespace) -> SimVideo:
     """Start the simulator's streams as the arguments say; prints one URL per lens."""
     try:
         from .simvideo import SimVideo, VideoOptions

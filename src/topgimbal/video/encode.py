@@ -9,10 +9,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any
 
 import av
 import numpy as np
+from av.video.codeccontext import VideoCodecContext
 from PIL import Image
 
 from .lens import VideoError
@@ -39,7 +39,9 @@ class Encoder:
         self.codec = codec
         self.width, self.height, self.fps = width, height, fps
         gop = max(1, int(gop or round(fps)))
-        ctx: Any = av.CodecContext.create(CODECS[codec], "w")
+        ctx = av.CodecContext.create(CODECS[codec], "w")
+        if not isinstance(ctx, VideoCodecContext):  # CODECS names video encoders only
+            raise VideoError(f"{CODECS[codec]} is not a video encoder in this FFmpeg")
         ctx.width, ctx.height = width, height
         ctx.pix_fmt = "yuv420p"
         ctx.time_base = Fraction(1, 90000)
@@ -80,7 +82,7 @@ class Encoder:
         self._n += 1
         return [self._unit(p, pts_s) for p in self._ctx.encode(frame)]
 
-    def _unit(self, packet: Any, pts_s: float) -> AccessUnit:
+    def _unit(self, packet: av.Packet, pts_s: float) -> AccessUnit:
         return AccessUnit(bytes(packet), bool(packet.is_keyframe), pts_s, self.codec)
 
     def close(self) -> None:
@@ -90,7 +92,7 @@ class Encoder:
             pass
 
 
-def yuv420_frame(picture: Image.Image) -> Any:
+def yuv420_frame(picture: Image.Image) -> av.VideoFrame:
     """A yuv420p frame from a Pillow "YCbCr" image (even sizes): Y as it is, Cb and Cr averaged
     over 2x2 pixels by Pillow's `reduce` (C code). Never through numpy's view of the whole image:
     for a YCbCr image that conversion alone costs ~7 ms per 720p picture; this costs ~2.5 ms."""

@@ -13,7 +13,12 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # PyAV is the video extra: imported where a stream is opened
+    import numpy as np
+    from av.container import InputContainer
+    from av.video.frame import VideoFrame
 
 from .lens import VideoError
 
@@ -28,7 +33,7 @@ OPEN_OPTIONS = {
 }
 
 
-def open_stream(url: str, *, transport: str = "tcp", timeout_s: float = 5.0) -> Any:
+def open_stream(url: str, *, transport: str = "tcp", timeout_s: float = 5.0) -> InputContainer:
     """An opened PyAV container for an RTSP URL (the caller closes it)."""
     import av
 
@@ -52,7 +57,7 @@ class LagMeter:
         self._clock = clock
         self._origin: tuple[float, float] | None = None
 
-    def lag_s(self, frame: Any) -> float:
+    def lag_s(self, frame: VideoFrame) -> float:
         if frame.time is None:
             return 0.0
         now = self._clock()
@@ -69,7 +74,7 @@ def frames(
     timeout_s: float = 5.0,
     max_frames: int | None = None,
     max_lag_s: float | None = 0.25,
-) -> Iterator[Any]:
+) -> Iterator[np.ndarray]:
     """Yield decoded pictures as numpy arrays (`format`: bgr24 for OpenCV, rgb24, gray). Ends
     when the stream ends or after `max_frames`; raises VideoError when the stream cannot be
     opened or stops sending for `timeout_s`.

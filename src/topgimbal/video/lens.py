@@ -23,7 +23,7 @@ from typing import Any
 from urllib.parse import urlsplit, urlunsplit
 
 from ..errors import TopGimbalError
-from ..protocol import DeviceModel, get_model
+from ..protocol import CommandSpec, DeviceModel, Dialect, get_model
 
 LENSES = ("visible", "thermal")
 RTSP_DEFAULT_PORT = 554
@@ -74,7 +74,7 @@ def _model(model: str | DeviceModel) -> tuple[Any, DeviceModel]:
         raise VideoError(f"no model {model!r}: {exc}") from None
 
 
-def _codec_settings(dialect: Any, model: DeviceModel) -> list[str]:
+def _codec_settings(dialect: Dialect, model: DeviceModel) -> list[str]:
     """The encoding command's `stream` values in wire order ("stream0", "stream1", ...): the
     n-th switches the profile's n-th stream."""
     spec = dialect.by_role("encoding", model)
@@ -269,7 +269,7 @@ LOC_HALF_SPAN = 1000
 POINT_BOX = (60 / 1920, 60 / 1080)  # fractions of the picture
 
 
-def _field_max(spec: Any, name: str) -> float | None:
+def _field_max(spec: CommandSpec, name: str) -> float | None:
     for form in spec.describe()["forms"]:
         for f in form["fields"]:
             if f["name"] == name and f.get("max") is not None:
@@ -278,7 +278,7 @@ def _field_max(spec: Any, name: str) -> float | None:
 
 
 def tracking_requests(
-    dialect: Any, model: DeviceModel, x0: float, y0: float, x1: float | None = None, y1: float | None = None
+    dialect: Dialect, model: DeviceModel, x0: float, y0: float, x1: float | None = None, y1: float | None = None
 ) -> list[tuple[str, dict[str, Any]]]:
     """The requests that start tracking what is at a point (x0, y0) or in a box (x0, y0)-(x1, y1)
     of the picture (fractions 0..1, top left 0, 0), found by role: the `tracking_target` command

@@ -12,12 +12,18 @@ the camera (a relay that falls further behind reopens the stream).
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 import logging
 import threading
 import time
 from collections.abc import AsyncGenerator
 from fractions import Fraction
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # PyAV is the video extra: imported by the reader thread
+    from av.container import InputContainer
+    from av.video.codeccontext import VideoCodecContext
+    from av.video.frame import VideoFrame
 
 from .lens import VideoError
 
@@ -56,8 +62,10 @@ class Relay:
         self._last_viewer = 0.0
         self.closed = False
         self.lag_resets = 0
-        self._encoder: Any = None
-        self._pending: Any = None  # the picture handed to the loop, until it has taken it
+        self._encoder: VideoCodecContext | None = None
+        self._pending: concurrent.futures.Future[None] | None = (
+            None  # the picture handed to the loop, until it has taken it
+        )
 
     def status(self) -> dict[str, Any]:
         return {
@@ -149,7 +157,7 @@ class Relay:
         self.state = "reconnecting"
         self._stop.wait(RETRY_S)
 
-    def _pump(self, container: Any) -> None:
+    def _pump(self, container: InputContainer) -> None:
         from .frames import LagMeter
 
         min_gap = 1.0 / MAX_FPS
@@ -180,13 +188,13 @@ class Relay:
             if loop is not None and not loop.is_closed():
                 self._pending = asyncio.run_coroutine_threadsafe(self._publish(jpeg), loop)
 
-    def _jpeg(self, frame: Any) -> bytes:
+    def _jpeg(self, frame: VideoFrame) -> bytes:
         """JPEG straight from the decoded YUV picture with FFmpeg's encoder: 2.5x cheaper than
         converting to RGB for Pillow (bench/video.py)."""
         import av
 
         if self._encoder is None or (self._encoder.width, self._encoder.height) != (frame.width, frame.height):
-            enc: Any = av.CodecContext.create("mjpeg", "w")
+            enc = av.CodecContext.create("mjpeg", "w")
             enc.width, enc.height = frame.width, frame.height
             enc.pix_fmt = "yuvj420p"
             enc.time_base = Fraction(1, 90000)

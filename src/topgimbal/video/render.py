@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Any
+from typing import Union, overload
 
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
@@ -86,7 +87,14 @@ def _lut_thermal() -> np.ndarray:
     return np.clip(np.round((t - lo) / (hi - lo) * 255), 0, 255).astype(np.uint8)
 
 
-def ycc(rgb: Any) -> Any:
+Colour = Union[int, tuple[int, ...]]  # noqa: UP007  (a PIL fill: a level, or RGB / Y'CbCr)
+
+
+@overload
+def ycc(rgb: tuple[int, int, int]) -> tuple[int, ...]: ...
+@overload
+def ycc(rgb: np.ndarray) -> np.ndarray: ...
+def ycc(rgb: tuple[int, int, int] | np.ndarray) -> tuple[int, ...] | np.ndarray:
     """RGB (0..255, ..., 3) -> BT.601 limited-range Y'CbCr (Y 16..235, Cb/Cr 16..240): what
     FFmpeg's RGB -> yuv420p conversion gives, so pictures look the same either way. Takes one
     colour (a tuple) or an array of them."""
@@ -96,6 +104,10 @@ def ycc(rgb: Any) -> Any:
     if out.ndim == 1:
         return tuple(int(v) for v in out)
     return out
+
+
+def _ycc_colour(rgb: tuple[int, int, int]) -> tuple[int, ...]:
+    return ycc(rgb)
 
 
 _LUT_VISIBLE = _lut_visible()
@@ -123,15 +135,19 @@ class Renderer:
         if mode not in MODES:
             raise ValueError(f"mode must be one of {', '.join(MODES)} (got {mode!r})")
         self.mode = mode
-        self._c: Any = functools.lru_cache(maxsize=64)(ycc) if mode == "YCbCr" else (lambda rgb: rgb)
+        self._c: Callable[[tuple[int, int, int]], tuple[int, ...]] = (
+            functools.lru_cache(maxsize=64)(_ycc_colour) if mode == "YCbCr" else (lambda rgb: rgb)
+        )
         self.lens = lens
         self.width = width
         self.height = height
         self.hfov_1x_deg = hfov_1x_deg
         self._grid: _Grid | None = None
         size = max(10, height // 36)
-        self._font: Any = ImageFont.load_default(size=size)
-        self._font_big: Any = ImageFont.load_default(size=int(size * 1.4))
+        # Text heights in pixels: what the fonts were asked for (a FreeType font's `size`).
+        self._font_px, self._font_big_px = size, int(size * 1.4)
+        self._font: ImageFont.FreeTypeFont | ImageFont.ImageFont = ImageFont.load_default(size=self._font_px)
+        self._font_big: ImageFont.FreeTypeFont | ImageFont.ImageFont = ImageFont.load_default(size=self._font_big_px)
         self._palette_name = ""
         self._palette: list[int] = []
         self._palette_ycc: list[int] = []
@@ -228,7 +244,7 @@ class Renderer:
         pts = [p for p in cam.points(np.array([world_dir(state.yaw_deg + d, 0.0) for d in (-45.0, 45.0)])) if p]
         if len(pts) == 2:
             (x0, y0), (x1, y1) = _clip_far(pts[0], pts[1], 4.0 * self.width, self.width, self.height)
-            colour: Any = int(_LUT_THERMAL[LUT_SIZE // 2]) if thermal else self._c((185, 190, 185))
+            colour: Colour = int(_LUT_THERMAL[LUT_SIZE // 2]) if thermal else self._c((185, 190, 185))
             draw.line((x0, y0, x1, y1), fill=colour, width=SHADE_DOWNSCALE + 2)
 
     def _draw_world_visible(self, draw: ImageDraw.ImageDraw, cam: Camera) -> None:
@@ -265,7 +281,7 @@ class Renderer:
                 r = cam.radius_px(max(0.3, radius_deg))
                 draw.ellipse((x - r, y - r, x + r, y + r), fill=world.temperature_level(world.GROUND_C + dt))
 
-    def _draw_ticks(self, draw: ImageDraw.ImageDraw, cam: Camera, colour: Any) -> None:
+    def _draw_ticks(self, draw: ImageDraw.ImageDraw, cam: Camera, colour: Colour) -> None:
         pts = cam.points(self._tick_dirs)
         h = max(4, self.height // 60)
         for az, p in zip(self._ticks, pts, strict=False):
@@ -276,9 +292,11 @@ class Renderer:
             draw.line((x, y - (2 * h if long else h), x, y), fill=colour, width=1)
             if long:
                 label = {0: "N", 90: "E", -180: "S", -90: "W"}.get(int(az), f"{int(az) % 360:03d}")
-                draw.text((x + 3, y - 2 * h - self._font.size), label, fill=colour, font=self._font)
+                draw.text((x + 3, y - 2 * h - self._font_px), label, fill=colour, font=self._font)
 
-    def _draw_marks(self, draw: ImageDraw.ImageDraw, cam: Camera, rings: tuple[Any, Any], text_fill: Any) -> None:
+    def _draw_marks(
+        self, draw: ImageDraw.ImageDraw, cam: Camera, rings: tuple[Colour, Colour], text_fill: Colour
+    ) -> None:
         r = cam.radius_px(world.LANDMARK_RADIUS_DEG)
         for m, p in zip(world.LANDMARKS, cam.points(self._marks), strict=False):
             if p is None:
@@ -288,11 +306,11 @@ class Renderer:
                 continue
             for k, rr in enumerate((r, r * 0.66, r * 0.33)):
                 draw.ellipse((x - rr, y - rr, x + rr, y + rr), fill=rings[k % 2])
-            draw.text((x + r + 3, y - r - self._font_big.size), str(m.number), fill=text_fill, font=self._font_big)
+            draw.text((x + r + 3, y - r - self._font_big_px), str(m.number), fill=text_fill, font=self._font_big)
 
     def _draw_osd(self, draw: ImageDraw.ImageDraw, state: SceneState, hfov: float) -> None:
         fg, sh = self._c((255, 255, 255)), self._c((0, 0, 0))
-        fs = self._font.size
+        fs = self._font_px
         zoom = state.thermal_zoom_x if self.lens == "thermal" else state.zoom_x
         lines = [
             f"{state.model} {self.lens.upper()}",
@@ -331,8 +349,8 @@ class Renderer:
             draw.rectangle((x0 + i * cell, y0, x0 + (i + 1) * cell - 1, y0 + cell - 1), fill=white if bit else black)
         t = datetime.fromtimestamp(state.wall_s).strftime("%H:%M:%S.%f")[:-3]
         text = f"{t}  #{state.frame}"
-        draw.text((x0 + 1, y0 - self._font.size - cell * 0.5), text, fill=black, font=self._font)
-        draw.text((x0, y0 - self._font.size - cell * 0.5 - 1), text, fill=white, font=self._font)
+        draw.text((x0 + 1, y0 - self._font_px - cell * 0.5), text, fill=black, font=self._font)
+        draw.text((x0, y0 - self._font_px - cell * 0.5 - 1), text, fill=white, font=self._font)
 
 
 def world_dir(az_deg: float, el_deg: float) -> tuple[float, float, float]:

@@ -27,7 +27,10 @@ import logging
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from ..sim.simulator import Simulator
 
 from .encode import Encoder
 from .lens import StreamSpec, VideoError, plan_ports, streams_for
@@ -64,7 +67,7 @@ class VideoOptions:
 
 
 class SimVideo:
-    def __init__(self, sim: Any, options: VideoOptions | None = None, **kw: Any) -> None:
+    def __init__(self, sim: Simulator, options: VideoOptions | None = None, **kw: Any) -> None:
         self.sim = sim
         self.options = options or VideoOptions(**kw)
         self.specs = streams_for(sim.model)

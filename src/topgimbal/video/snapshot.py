@@ -6,7 +6,10 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from ..sim.device import Device
 
 
 @dataclass(frozen=True)
@@ -26,7 +29,7 @@ class SceneState:
     frame: int = 0
 
 
-def capture(device: Any, frame: int = 0, wall_s: float | None = None) -> SceneState:
+def capture(device: Device, frame: int = 0, wall_s: float | None = None) -> SceneState:
     """Take the state of a `sim.Device`. Call it on the simulator's own thread."""
     device.sync()
     g = device.gimbal

@@ -17,10 +17,17 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any, Protocol
 
 from .lens import StreamSpec, VideoError, View, hfov_at, host_of, streams_for, tracking_requests, video_url, wrap180
+
+if TYPE_CHECKING:  # named for the type checker only: aiohttp is imported by the routes when they run
+    from aiohttp import web
+
+    from ..sim.simulator import Simulator
+    from .relay import Relay
+    from .simvideo import SimVideo
 
 log = logging.getLogger("topgimbal.video.console")
 
@@ -32,17 +39,33 @@ ZOOM_STEP_S = 0.3  # one wheel notch runs the zoom motor this long
 CONSOLE_SIM_FPS = 15.0
 
 
+class VideoHost(Protocol):
+    """What video reads of the console that hosts it (console/server.py)."""
+
+    @property
+    def model(self) -> str | None: ...
+    @property
+    def url(self) -> str | None: ...
+    @property
+    def sim(self) -> Simulator | None: ...
+    @property  # a client.CameraAPI; video/ sits below client/, so it cannot name the type
+    def cam(self) -> Any: ...
+
+
+OriginCheck = Callable[["web.Request"], bool]
+
+
 class ConsoleVideo:
-    def __init__(self, console: Any, *, origin_ok: Callable[[Any], bool] | None = None) -> None:
+    def __init__(self, console: VideoHost, *, origin_ok: OriginCheck | None = None) -> None:
         from .relay import Relay
 
         self.console = console
         self.origin_ok = origin_ok or (lambda request: True)
         self.specs: dict[str, StreamSpec] = {s.lens: s for s in streams_for(console.model or "C12")}
-        self.sim_video: Any = None
+        self.sim_video: SimVideo | None = None
         self.relays: dict[str, Relay] = {}
         self._zoom_task: asyncio.Task[None] | None = None
-        self._relay_cls = Relay
+        self._relay_cls: type[Relay] = Relay
 
     async def start(self) -> ConsoleVideo:
         if self.console.sim is not None:
@@ -52,8 +75,10 @@ class ConsoleVideo:
             self.sim_video = await SimVideo(self.console.sim, opts).start()
             urls = dict(self.sim_video.urls)
         else:
-            host = host_of(self.console.url)
-            urls = {lens: video_url(self.console.model, host, lens) for lens in self.specs}
+            model, url = self.console.model, self.console.url
+            if not model or not url:
+                raise VideoError("the console has no camera URL and model to take the video from")
+            urls = {lens: video_url(model, host_of(url), lens) for lens in self.specs}
         self.relays = {lens: self._relay_cls(lens, url) for lens, url in urls.items()}
         return self
 
@@ -66,14 +91,14 @@ class ConsoleVideo:
 
     # -- routes ------------------------------------------------------------------------------------
 
-    def add_routes(self, app: Any) -> None:
+    def add_routes(self, app: web.Application) -> None:
         app.router.add_get("/api/video", self.info)
         app.router.add_get("/video/{lens}.mjpg", self.mjpeg)
         app.router.add_post("/api/video/point", self.point)
         app.router.add_post("/api/video/track", self.track)
         app.router.add_post("/api/video/zoom", self.zoom)
 
-    async def info(self, request: Any) -> Any:
+    async def info(self, request: web.Request) -> web.StreamResponse:
         from aiohttp import web
 
         lenses = []
@@ -93,7 +118,7 @@ class ConsoleVideo:
             }
         )
 
-    async def mjpeg(self, request: Any) -> Any:
+    async def mjpeg(self, request: web.Request) -> web.StreamResponse:
         from aiohttp import web
 
         from .relay import RelayFullError
@@ -127,7 +152,7 @@ class ConsoleVideo:
             await pictures.aclose()
         return resp
 
-    async def _body(self, request: Any) -> dict[str, Any] | Any:
+    async def _body(self, request: web.Request) -> dict[str, object] | web.Response:
         if not self.origin_ok(request):
             return _error(403, "cross-origin request refused")
         try:
@@ -148,7 +173,7 @@ class ConsoleVideo:
         except (TypeError, ValueError):
             return 1.0
 
-    async def point(self, request: Any) -> Any:
+    async def point(self, request: web.Request) -> web.StreamResponse:
         from aiohttp import web
 
         body = await self._body(request)
@@ -159,6 +184,8 @@ class ConsoleVideo:
         except VideoError as exc:
             return _error(400, str(exc))
         cam = self.console.cam
+        if cam is None:
+            return _error(503, "no camera")
         att = cam.state.attitude
         if att is None:
             with contextlib.suppress(Exception):
@@ -179,7 +206,7 @@ class ConsoleVideo:
             return _error(502, f"the camera refused: {exc}")
         return web.json_response({"yaw_deg": round(yaw, 3), "pitch_deg": round(pitch, 3)})
 
-    async def track(self, request: Any) -> Any:
+    async def track(self, request: web.Request) -> web.StreamResponse:
         from aiohttp import web
 
         body = await self._body(request)
@@ -191,6 +218,8 @@ class ConsoleVideo:
         except VideoError as exc:
             return _error(400, str(exc))
         cam = self.console.cam
+        if cam is None:
+            return _error(503, "no camera")
         try:
             requests = tracking_requests(cam.dialect, cam.model, x0, y0, x1, y1)
         except VideoError as exc:
@@ -202,7 +231,7 @@ class ConsoleVideo:
             return _error(502, f"the camera refused: {exc}")
         return web.json_response({"requests": [{"id": i, **v} for i, v in requests]})
 
-    async def zoom(self, request: Any) -> Any:
+    async def zoom(self, request: web.Request) -> web.StreamResponse:
         from aiohttp import web
 
         body = await self._body(request)
@@ -212,6 +241,8 @@ class ConsoleVideo:
         if direction not in ("in", "out"):
             return _error(400, "direction must be 'in' or 'out'")
         cam = self.console.cam
+        if cam is None:
+            return _error(503, "no camera")
         try:
             if cam.model.optical_zoom_max > 1.0:
                 await cam.zoom(direction)
@@ -231,27 +262,27 @@ class ConsoleVideo:
             await cam.zoom("stop")
 
 
-def _error(status: int, message: str) -> Any:
+def _error(status: int, message: str) -> web.Response:
     from aiohttp import web
 
     return web.json_response({"error": "video", "message": message}, status=status)
 
 
-def _lens(body: dict[str, Any], specs: dict[str, StreamSpec]) -> str:
+def _lens(body: Mapping[str, object], specs: dict[str, StreamSpec]) -> str:
     lens = body.get("lens", "visible")
     if lens not in specs:
         raise VideoError(f"lens must be one of {', '.join(specs)} (got {lens!r})")
     return str(lens)
 
 
-def _fraction(body: dict[str, Any], key: str) -> float:
+def _fraction(body: Mapping[str, object], key: str) -> float:
     v = body.get(key)
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
         raise VideoError(f"{key} must be a number from 0 to 1 (a fraction of the picture), got {v!r}")
     return float(v)
 
 
-async def attach(console: Any, app: Any, origin_ok: Callable[[Any], bool] | None = None) -> ConsoleVideo | None:
+async def attach(console: VideoHost, app: web.Application, origin_ok: OriginCheck | None = None) -> ConsoleVideo | None:
     """Start video for a console and mount its routes on `app` (before the app starts)."""
     try:
         import av  # noqa: F401

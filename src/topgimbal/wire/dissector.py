@@ -32,7 +32,7 @@ from ..protocol import (
     get_dialect,
 )
 from ..protocol import frame as frame_module
-from ..protocol.fields import Codec
+from ..protocol.fields import Codec, Enum
 from ..protocol.fields.base import decimals_of
 from ..protocol.frame import ADDRESS_NAMES, DEVICE_ADDRESSES, HOST_ADDRESSES, MAX_LENGTH
 from .ports import documented_ports
@@ -94,7 +94,7 @@ def _lua_str(s: str | bytes) -> str:
     return '"' + "".join(out) + '"'
 
 
-def to_lua(obj: Any, indent: str = "") -> str:
+def to_lua(obj: object, indent: str = "") -> str:
     """A Lua literal for JSON-like data (dict keys are strings or ints); deterministic."""
     if obj is None:
         return "nil"
@@ -160,8 +160,8 @@ def _time_segments(layout: str) -> list[Any]:
     return out
 
 
-def _enum_map(codec: Any) -> dict[bytes, Any]:
-    table: dict[bytes, Any] = {}
+def _enum_map(codec: Enum) -> dict[bytes, dict[str, str | None]]:
+    table: dict[bytes, dict[str, str | None]] = {}
     for v in codec.values:
         entry = {"name": v.name, "label": v.label, "term": v.vendor_term or None}
         table[v.raw.encode("latin-1")] = entry

@@ -40,7 +40,7 @@ _LEN = struct.Struct("<I")
 NICE = 5  # the watcher yields the CPU to the forwarding process
 
 
-def _message(obj: Any) -> bytes:
+def _message(obj: object) -> bytes:
     body = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
     return _LEN.pack(len(body)) + body
 

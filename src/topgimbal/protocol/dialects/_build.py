@@ -6,11 +6,14 @@ group=..., write=[fields], read=[fields], ...)`, keyword-only: a row reads as wh
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import Any, TypedDict
+from typing import TYPE_CHECKING, Any, TypedDict
 
 from ..commands import CommandSpec
-from ..fields import Codec, Field, HexInt
+from ..fields import Codec, Field, FieldValue, HexInt
 from ..forms import QUERY, REQUEST, RESPONSE, Form
+
+if TYPE_CHECKING:
+    from typing import Unpack  # Python 3.11; the protocol core still imports on 3.10
 
 __all__ = [
     "QUERY",
@@ -39,7 +42,19 @@ def place(address: str, group: str) -> Place:
     return {"address": address, "group": group}
 
 
-def F(name: str, codec: Codec, description: str = "", default: Any = None, **kw: Any) -> Field:  # noqa: N802
+class FieldOptions(TypedDict, total=False):
+    """Field's metadata keywords, as the command tables pass them to F()."""
+
+    axis: str | None
+    sign: int
+    sign_kind: str | None
+    state_key: str | None
+    factory: FieldValue
+
+
+def F(  # noqa: N802
+    name: str, codec: Codec, description: str = "", default: FieldValue = None, **kw: Unpack[FieldOptions]
+) -> Field:
     return Field(name, codec, description, default, **kw)
 
 
@@ -79,7 +94,7 @@ def rate(axis: str, unit_deg_s: float, steps: int, description: str = "") -> Fie
     return Field(f"{axis}_rate_deg_s", codec, text, axis=axis, sign_kind="rate")
 
 
-def level(name: str, hi: int = 100, description: str = "", unit: str = "", factory: Any = None) -> Field:
+def level(name: str, hi: int = 100, description: str = "", unit: str = "", factory: FieldValue = None) -> Field:
     return Field(name, HexInt(2, max=hi, unit=unit), description, factory=factory)
 
 

@@ -18,9 +18,9 @@ One module per codec family, all re-exported here (`from topgimbal.protocol.fiel
 
 from __future__ import annotations
 
-from .base import Codec
+from .base import Codec, CodecDescription, EnumValueDescription, FieldValue, JsonScalar
 from .enums import ON_OFF, Enum, EnumValue, OneOf, enum
-from .field import AXES, SIGN_KINDS, Field
+from .field import AXES, SIGN_KINDS, Field, FieldDescription
 from .geo import Geo, GeoDeg, GeoDM
 from .numbers import BinInt, Bitrate, DecFloat, DecInt, HexInt
 from .text import IPv4Text, Literal, RawData, Text
@@ -33,16 +33,21 @@ __all__ = [
     "BinInt",
     "Bitrate",
     "Codec",
+    "CodecDescription",
     "DecFloat",
     "DecInt",
     "Enum",
     "EnumValue",
+    "EnumValueDescription",
     "Field",
+    "FieldDescription",
+    "FieldValue",
     "Geo",
     "GeoDM",
     "GeoDeg",
     "HexInt",
     "IPv4Text",
+    "JsonScalar",
     "Literal",
     "OneOf",
     "RawData",

@@ -20,9 +20,45 @@ names the class (`HexInt`, `Geo`, ...), the precise layout for generators that n
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar
+from datetime import datetime
+from typing import ClassVar, TypedDict, Union
 
 from ...errors import FieldValueError
+
+# A field's value in user units, as the codecs decode it (and take it back): numbers, enum names
+# and text, a Timestamp's datetime, None for a "no value" token. Message.fields hold these.
+FieldValue = Union[int, float, str, datetime, None]  # noqa: UP007  (a runtime alias, Python 3.10)
+# What `to_json` makes of one: JSON has no datetime.
+JsonScalar = Union[int, float, str, bool, None]  # noqa: UP007
+
+
+class EnumValueDescription(TypedDict):
+    raw: str
+    name: str
+    label: str
+    idempotent: bool
+    vendor_term: str
+
+
+class _CodecDescriptionBase(TypedDict):
+    kind: str
+    codec: str
+    width: int | None
+    unit: str
+    allowed: str
+
+
+class CodecDescription(_CodecDescriptionBase, total=False):
+    """`Codec.describe()`: every codec's keys, then its family's (numbers: min, max, step; enums:
+    values; enum-or-number: tokens and number)."""
+
+    min: float
+    max: float
+    step: float
+    values: list[EnumValueDescription]
+    tokens: list[EnumValueDescription]
+    number: CodecDescription
+
 
 # Ints beyond this are rejected before any float conversion (10**400 would overflow a float).
 _INT_LIMIT = 1 << 63
@@ -35,7 +71,7 @@ def decimals_of(scale: float) -> int:
     return max(0, -math.floor(math.log10(scale) + 1e-9)) if scale < 1 else 0
 
 
-def to_number(value: Any, name: str, codec: Codec) -> float:
+def to_number(value: object, name: str, codec: Codec) -> float:
     """`value` as a finite float, or FieldValueError naming what `codec` allows (built only on
     error). bool is refused (True is not a number a user means); numeric text is accepted."""
     if isinstance(value, bool):
@@ -81,31 +117,31 @@ class Codec:
     def max_width(self) -> int:
         return self.width if self.width is not None else 0xFF
 
-    def encode(self, value: Any, name: str = "value") -> bytes:
+    def encode(self, value: object, name: str = "value") -> bytes:
         raise NotImplementedError
 
-    def decode(self, raw: bytes) -> Any:
+    def decode(self, raw: bytes) -> FieldValue:
         raise NotImplementedError
 
     def allowed(self) -> str:
         """What values `encode` accepts, in words (used by errors, CLI help and docs)."""
         raise NotImplementedError
 
-    def parse_text(self, text: str) -> Any:
+    def parse_text(self, text: str) -> FieldValue:
         """A value from command-line text."""
         return text
 
-    def to_json(self, value: Any) -> Any:
-        return value
+    def to_json(self, value: FieldValue) -> JsonScalar:
+        return value.isoformat() if isinstance(value, datetime) else value
 
-    def neutral(self) -> Any:
+    def neutral(self) -> FieldValue:
         """A valid value with no particular meaning: what a stored setting holds when the catalog
         names no factory value (`Field.factory`). 0 where the range has it, else its nearest end."""
         return None
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> CodecDescription:
         """Metadata as JSON-able data; number codecs add `min`, `max` and `step` (user units)."""
-        d: dict[str, Any] = {
+        d: CodecDescription = {
             "kind": self.kind,
             "codec": type(self).__name__,
             "width": self.width,
@@ -113,10 +149,11 @@ class Codec:
             "allowed": self.allowed(),
         }
         if self.kind == "number":
-            for key in ("min", "max"):
-                v = getattr(self, key, None)
-                if isinstance(v, (int, float)) and not isinstance(v, bool):
-                    d[key] = v
+            lo, hi = getattr(self, "min", None), getattr(self, "max", None)
+            if isinstance(lo, (int, float)) and not isinstance(lo, bool):
+                d["min"] = lo
+            if isinstance(hi, (int, float)) and not isinstance(hi, bool):
+                d["max"] = hi
             scale, decimals = getattr(self, "scale", None), getattr(self, "decimals", None)
             if isinstance(scale, (int, float)) and scale:
                 d["step"] = scale
@@ -131,4 +168,15 @@ def clamp_neutral(lo: float | None, hi: float | None) -> float:
     return max(lo, min(hi, 0.0))
 
 
-__all__ = ["Codec", "clamp_neutral", "decimals_of", "fmt", "in_range", "to_number"]
+__all__ = [
+    "Codec",
+    "CodecDescription",
+    "EnumValueDescription",
+    "FieldValue",
+    "JsonScalar",
+    "clamp_neutral",
+    "decimals_of",
+    "fmt",
+    "in_range",
+    "to_number",
+]

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Union
+from typing import ClassVar, Union
 
 from ...errors import FieldValueError
-from .base import Codec
+from .base import Codec, CodecDescription, FieldValue
 
 # Values that mean "leave as it is" rather than a setting of their own (SkyDroid `N` lens slots).
 KEEP_NAMES = frozenset({"null"})
@@ -54,7 +54,7 @@ class Enum(Codec):
     def allowed(self) -> str:
         return "one of " + ", ".join(f"{v.name} ({v.raw})" for v in self.values)
 
-    def lookup(self, value: Any) -> EnumValue | None:
+    def lookup(self, value: object) -> EnumValue | None:
         """The table entry for a name, a wire spelling, a non-negative int (its hex spelling) or an
         EnumValue; None when there is none (bool is never a value of a table)."""
         if isinstance(value, EnumValue):
@@ -70,13 +70,13 @@ class Enum(Codec):
             return self._by_raw.get(b"%0*X" % (self.width, value))
         return None
 
-    def encode(self, value: Any, name: str = "value") -> bytes:
+    def encode(self, value: object, name: str = "value") -> bytes:
         v = self.lookup(value)
         if v is None:
             raise FieldValueError(name, value, self.allowed())
         return v.raw.encode("ascii")
 
-    def decode(self, raw: bytes) -> Any:
+    def decode(self, raw: bytes) -> str:
         v = self._by_raw.get(raw)
         if v is None:
             raise ValueError(f"{raw!r} is not in the table ({', '.join(x.raw for x in self.values)})")
@@ -90,11 +90,11 @@ class Enum(Codec):
         """The values that are settings of their own: no toggles, steps or "keep" spellings."""
         return [v for v in self.values if v.idempotent and v.name not in KEEP_NAMES]
 
-    def neutral(self) -> Any:
+    def neutral(self) -> str | None:
         plain = self.plain_values()
         return (plain[0] if plain else self.values[0]).name if self.values else None
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> CodecDescription:
         d = super().describe()
         d["values"] = [
             {"raw": v.raw, "name": v.name, "label": v.label, "idempotent": v.idempotent, "vendor_term": v.vendor_term}
@@ -144,7 +144,7 @@ class OneOf(Codec):
     def allowed(self) -> str:
         return f"{self.number.allowed()}, or {self.tokens.allowed()}"
 
-    def encode(self, value: Any, name: str = "value") -> bytes:
+    def encode(self, value: object, name: str = "value") -> bytes:
         tokenish = isinstance(value, EnumValue) or (isinstance(value, str) and not _numeric(value))
         if tokenish and self.tokens.lookup(value) is not None:
             return self.tokens.encode(value, name)
@@ -153,22 +153,22 @@ class OneOf(Codec):
         except FieldValueError:
             raise FieldValueError(name, value, self.allowed()) from None
 
-    def decode(self, raw: bytes) -> Any:
+    def decode(self, raw: bytes) -> FieldValue:
         try:
             return self.tokens.decode(raw)
         except ValueError:
             return self.number.decode(raw)
 
-    def parse_text(self, text: str) -> Any:
+    def parse_text(self, text: str) -> FieldValue:
         return text if self.tokens.lookup(text) is not None else self.number.parse_text(text)
 
     def is_idempotent(self, raw: bytes) -> bool:
         return self.tokens.is_idempotent(raw)
 
-    def neutral(self) -> Any:
+    def neutral(self) -> FieldValue:
         return self.number.neutral()
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> CodecDescription:
         d = super().describe()
         d["tokens"] = self.tokens.describe()["values"]
         d["number"] = self.number.describe()

@@ -3,9 +3,24 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TypedDict
 
-from .base import Codec
+from .base import Codec, CodecDescription, FieldValue, JsonScalar
+
+
+class _FieldKeys(TypedDict):
+    name: str
+    description: str
+    default: JsonScalar
+    axis: str | None
+    sign_kind: str | None
+    state_key: str | None
+    factory: JsonScalar
+
+
+class FieldDescription(_FieldKeys, CodecDescription):
+    """`Field.describe()`: the field's own keys, then its codec's."""
+
 
 AXES = ("yaw", "pitch", "roll")
 # What kind of quantity a gimbal-axis field is: models may put a different wire sign on each
@@ -36,12 +51,12 @@ class Field:
     name: str
     codec: Codec
     description: str = ""
-    default: Any = None
+    default: FieldValue = None
     axis: str | None = None
     sign: int = 1
     sign_kind: str | None = None
     state_key: str | None = None
-    factory: Any = None
+    factory: FieldValue = None
 
     def __post_init__(self) -> None:
         if self.axis is not None:
@@ -58,8 +73,8 @@ class Field:
     def unit(self) -> str:
         return self.codec.unit
 
-    def describe(self) -> dict[str, Any]:
-        d = {
+    def describe(self) -> FieldDescription:
+        return {
             "name": self.name,
             "description": self.description,
             "default": self.codec.to_json(self.default),
@@ -67,9 +82,8 @@ class Field:
             "sign_kind": self.sign_kind,
             "state_key": self.state_key,
             "factory": self.codec.to_json(self.factory),
+            **self.codec.describe(),
         }
-        d.update(self.codec.describe())
-        return d
 
 
-__all__ = ["AXES", "SIGN_KINDS", "Field"]
+__all__ = ["AXES", "SIGN_KINDS", "Field", "FieldDescription"]

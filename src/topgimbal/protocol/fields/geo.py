@@ -12,7 +12,7 @@ becomes "60.0000" and re-encoding a decoded value gives the same text."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import ClassVar
 
 from ...errors import FieldValueError
 from .base import Codec, to_number
@@ -71,7 +71,7 @@ class Geo(Codec):
     def allowed(self) -> str:
         return f"-{self.limit}..{self.limit} deg (sent as {self._pattern})"
 
-    def encode(self, value: Any, name: str = "value") -> bytes:
+    def encode(self, value: object, name: str = "value") -> bytes:
         v = to_number(value, name, self)
         if not -self.limit <= v <= self.limit:
             raise FieldValueError(name, value, self.allowed())
@@ -86,7 +86,7 @@ class Geo(Codec):
             body = f"{deg:0{self._deg_digits}d}.{rest:0{self._frac_digits}d}"
         return (hemi + body).encode("ascii")
 
-    def decode(self, raw: bytes) -> Any:
+    def decode(self, raw: bytes) -> float:
         text = raw.decode("ascii").replace(" ", "")
         hemi, body = text[:1].upper(), text[1:]
         point = self._deg_digits + (2 if self.style == "dm" else 0)
@@ -108,7 +108,7 @@ class Geo(Codec):
             raise ValueError(f"{raw!r} is beyond {self.limit} degrees")
         return round(v if hemi == self._hemi[0] else -v, 7) + 0.0
 
-    def neutral(self) -> Any:
+    def neutral(self) -> float:
         return 0.0
 
 

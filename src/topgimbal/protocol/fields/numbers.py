@@ -5,7 +5,7 @@ from __future__ import annotations
 from binascii import Error as BinasciiError
 from binascii import unhexlify
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import ClassVar
 
 from ...errors import FieldValueError
 from .base import Codec, clamp_neutral, decimals_of, fmt, in_range, to_number
@@ -43,7 +43,9 @@ class HexInt(Codec):
     _div: int = field(init=False, repr=False, compare=False, default=0)
     _half: int = field(init=False, repr=False, compare=False, default=0)
     _full: int = field(init=False, repr=False, compare=False, default=0)
-    _decode_plan: tuple[Any, ...] = field(init=False, repr=False, compare=False, default=())
+    _decode_plan: tuple[int, bool, bool, int, float, int] = field(
+        init=False, repr=False, compare=False, default=(0, True, False, 0, 1.0, 0)
+    )
 
     def __post_init__(self) -> None:
         bits = 4 * self.width
@@ -71,7 +73,7 @@ class HexInt(Codec):
     def allowed(self) -> str:
         return _range_text(self.min, self.max, self.unit, self.scale) + (" or null" if self.none_tokens else "")
 
-    def encode(self, value: Any, name: str = "value") -> bytes:
+    def encode(self, value: object, name: str = "value") -> bytes:
         if value is None and self.none_tokens:
             return self.none_tokens[0]
         v = to_number(value, name, self)
@@ -86,7 +88,7 @@ class HexInt(Codec):
             raw += self._full
         return b"%0*X" % (self.width, raw)
 
-    def decode(self, raw: bytes) -> Any:
+    def decode(self, raw: bytes) -> int | float | None:
         width, whole_bytes, signed, div, scale, dec = self._decode_plan
         if self.none_tokens and raw in self.none_tokens:
             return None
@@ -119,12 +121,12 @@ class HexInt(Codec):
             return None
         return (letter if self.signed else letter.upper(), self._div, self.scale, self._dec)
 
-    def parse_text(self, text: str) -> Any:
+    def parse_text(self, text: str) -> int | float | None:
         if self.none_tokens and text.lower() in ("null", "none"):
             return None
         return float(text) if self.scale != 1 or "." in text else int(text, 0)
 
-    def neutral(self) -> Any:
+    def neutral(self) -> int | float:
         return clamp_neutral(self.min, self.max) if self.scale != 1 else int(clamp_neutral(self.min, self.max))
 
 
@@ -150,7 +152,7 @@ class DecInt(Codec):
     def allowed(self) -> str:
         return _range_text(self.min, self.max, self.unit, self.scale)
 
-    def encode(self, value: Any, name: str = "value") -> bytes:
+    def encode(self, value: object, name: str = "value") -> bytes:
         v = to_number(value, name, self)
         hi = self.max if self.max is not None else (10**self.width - 1) * self.scale
         if not in_range(v, self.min, hi):  # first: a huge float would overflow round()
@@ -160,16 +162,16 @@ class DecInt(Codec):
             raise FieldValueError(name, value, self.allowed())
         return b"%0*d" % (self.width, raw)
 
-    def decode(self, raw: bytes) -> Any:
+    def decode(self, raw: bytes) -> int | float:
         if len(raw) != self.width or not raw.isdigit():
             raise ValueError(f"{raw!r} is not {self.width} decimal digits")
         v = int(raw)
         return v if self.scale == 1 else round(v * self.scale, self._dec)
 
-    def parse_text(self, text: str) -> Any:
+    def parse_text(self, text: str) -> int | float:
         return float(text) if self.scale != 1 or "." in text else int(text)
 
-    def neutral(self) -> Any:
+    def neutral(self) -> int | float:
         v = clamp_neutral(self.min, self.max)
         return v if self.scale != 1 else int(v)
 
@@ -210,7 +212,7 @@ class DecFloat(Codec):
             s += " or null (" + "/".join(t.decode() for t in self.none_tokens) + ")"
         return s
 
-    def encode(self, value: Any, name: str = "value") -> bytes:
+    def encode(self, value: object, name: str = "value") -> bytes:
         if value is None and self.none_tokens:
             return self.none_tokens[0]
         v = to_number(value, name, self)
@@ -224,7 +226,7 @@ class DecFloat(Codec):
             raise FieldValueError(name, value, self.allowed())
         return out
 
-    def decode(self, raw: bytes) -> Any:
+    def decode(self, raw: bytes) -> float | None:
         if raw.strip() in self.none_tokens or raw[:3] in self.none_tokens:
             return None
         if self.width is not None and len(raw) != self.width:
@@ -234,12 +236,12 @@ class DecFloat(Codec):
             raise ValueError(f"{raw!r} is not a number")
         return round(float(text), self.decimals) + 0.0
 
-    def parse_text(self, text: str) -> Any:
+    def parse_text(self, text: str) -> float | None:
         if self.none_tokens and text.lower() in ("null", "none"):
             return None
         return float(text)
 
-    def neutral(self) -> Any:
+    def neutral(self) -> float:
         return clamp_neutral(self.min, self.max)
 
 
@@ -276,7 +278,7 @@ class BinInt(Codec):
     def allowed(self) -> str:
         return _range_text(self.min, self.max, self.unit)
 
-    def encode(self, value: Any, name: str = "value") -> bytes:
+    def encode(self, value: object, name: str = "value") -> bytes:
         v = to_number(value, name, self)
         lo = self.min if self.min is not None else self._raw_lo * self.scale
         hi = self.max if self.max is not None else self._raw_hi * self.scale
@@ -287,16 +289,16 @@ class BinInt(Codec):
             raise FieldValueError(name, value, self.allowed())
         return raw.to_bytes(self.width, "little" if self.byteorder == "little" else "big", signed=self.signed)
 
-    def decode(self, raw: bytes) -> Any:
+    def decode(self, raw: bytes) -> int | float:
         if len(raw) != self.width:
             raise ValueError(f"{len(raw)} bytes where {self.width} are needed")
         v = int.from_bytes(raw, "little" if self.byteorder == "little" else "big", signed=self.signed)
         return v if self.scale == 1 else round(v * self.scale, self._dec)
 
-    def parse_text(self, text: str) -> Any:
+    def parse_text(self, text: str) -> int | float:
         return float(text) if self.scale != 1 or "." in text else int(text, 0)
 
-    def neutral(self) -> Any:
+    def neutral(self) -> int | float:
         v = clamp_neutral(self.min, self.max)
         return v if self.scale != 1 else int(v)
 
@@ -326,7 +328,7 @@ class Bitrate(Codec):
     def allowed(self) -> str:
         return f"{self.min}..{self.max} kbps, whole numbers (1000..8000 in whole Mbps use the Mbps form)"
 
-    def encode(self, value: Any, name: str = "value") -> bytes:
+    def encode(self, value: object, name: str = "value") -> bytes:
         v = to_number(value, name, self)
         if not v.is_integer() or not self.min <= v <= self.max:
             raise FieldValueError(name, value, self.allowed())
@@ -335,7 +337,7 @@ class Bitrate(Codec):
             return b"0%d0000" % (kbps // 1000)
         return b"K%05d" % kbps
 
-    def decode(self, raw: bytes) -> Any:
+    def decode(self, raw: bytes) -> int:
         if len(raw) == 6 and raw[:1] in (b"K", b"k") and raw[1:].isdigit():
             return int(raw[1:])
         if len(raw) in (2, 6) and raw[:1] == b"0" and raw[1:2].isdigit() and (len(raw) == 2 or raw[2:].isdigit()):
@@ -344,10 +346,10 @@ class Bitrate(Codec):
             return int(raw) * 1000
         raise ValueError(f"{raw!r} is not 0M0000, Kddddd, 0M or a Mbps digit")
 
-    def parse_text(self, text: str) -> Any:
+    def parse_text(self, text: str) -> int:
         return int(text)
 
-    def neutral(self) -> Any:
+    def neutral(self) -> int:
         return self.min
 
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import ipaddress
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import ClassVar
 
 from ...errors import FieldValueError
 from .base import Codec
@@ -41,17 +41,17 @@ class Text(Codec):
     def allowed(self) -> str:
         return f"printable ASCII text of {self.min_len}..{self.max_len} characters, without '#'"
 
-    def encode(self, value: Any, name: str = "value") -> bytes:
+    def encode(self, value: object, name: str = "value") -> bytes:
         if not isinstance(value, str) or not self.min_len <= len(value) <= self.max_len or not printable_text(value):
             raise FieldValueError(name, value, self.allowed())
         return value.encode("ascii")
 
-    def decode(self, raw: bytes) -> Any:
+    def decode(self, raw: bytes) -> str:
         if not self.min_len <= len(raw) <= self.max_len:
             raise ValueError(f"{len(raw)} characters, expected {self.min_len}..{self.max_len}")
         return raw.decode("latin-1")
 
-    def neutral(self) -> Any:
+    def neutral(self) -> str:
         return "0" * max(self.min_len, 1)
 
 
@@ -72,7 +72,7 @@ class IPv4Text(Codec):
     def allowed(self) -> str:
         return "a dotted IPv4 address (a.b.c.d, each 0..255)"
 
-    def encode(self, value: Any, name: str = "value") -> bytes:
+    def encode(self, value: object, name: str = "value") -> bytes:
         if not isinstance(value, (str, ipaddress.IPv4Address)) or (isinstance(value, str) and len(value) > 15):
             raise FieldValueError(name, value, self.allowed())
         try:
@@ -81,10 +81,10 @@ class IPv4Text(Codec):
         except ValueError:
             raise FieldValueError(name, value, self.allowed()) from None
 
-    def decode(self, raw: bytes) -> Any:
+    def decode(self, raw: bytes) -> str:
         return str(ipaddress.IPv4Address(raw.decode("ascii")))
 
-    def neutral(self) -> Any:
+    def neutral(self) -> str:
         return "0.0.0.0"
 
 
@@ -111,7 +111,7 @@ class RawData(Codec):
         n = f"{self.width} bytes" if self.width is not None else f"{self.min_bytes}..{self.max_bytes} bytes"
         return f"{n} given as a hex string" + ("" if self.binary else " (no 23 '#', 0D or 0A)")
 
-    def encode(self, value: Any, name: str = "value") -> bytes:
+    def encode(self, value: object, name: str = "value") -> bytes:
         if isinstance(value, (bytes, bytearray)):
             data = bytes(value)
         elif isinstance(value, str) and len(value) <= 2 * self.max_width + 1:
@@ -125,12 +125,12 @@ class RawData(Codec):
             raise FieldValueError(name, value, self.allowed())
         return data
 
-    def decode(self, raw: bytes) -> Any:
+    def decode(self, raw: bytes) -> str:
         if self.width is not None and len(raw) != self.width:
             raise ValueError(f"{len(raw)} bytes where {self.width} are needed")
         return raw.hex()
 
-    def neutral(self) -> Any:
+    def neutral(self) -> str:
         return "00" * (self.width or 1)
 
 
@@ -148,17 +148,17 @@ class Literal(Codec):
     def allowed(self) -> str:
         return f"exactly {self.text!r}"
 
-    def encode(self, value: Any, name: str = "value") -> bytes:
+    def encode(self, value: object, name: str = "value") -> bytes:
         if value is not None and value != self.text:
             raise FieldValueError(name, value, self.allowed())
         return self.text.encode("latin-1")
 
-    def decode(self, raw: bytes) -> Any:
+    def decode(self, raw: bytes) -> str:
         if raw != self.text.encode("latin-1"):
             raise ValueError(f"{raw!r} is not {self.text!r}")
         return self.text
 
-    def neutral(self) -> Any:
+    def neutral(self) -> str:
         return self.text
 
 

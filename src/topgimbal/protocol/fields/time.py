@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import Any, ClassVar
+from typing import ClassVar
 
 from ...errors import FieldValueError
 from .base import Codec
@@ -37,7 +37,7 @@ class Timestamp(Codec):
         lo, hi = self._years
         return f"a date and time in {lo}..{hi} (ISO 8601 text or datetime), sent as {self.layout.replace('%f2', 'ss')}"
 
-    def encode(self, value: Any, name: str = "value") -> bytes:
+    def encode(self, value: object, name: str = "value") -> bytes:
         if isinstance(value, str) and len(value) <= 40:
             try:
                 value = datetime.fromisoformat(value)
@@ -50,7 +50,7 @@ class Timestamp(Codec):
             raise FieldValueError(name, value, self.allowed())
         return out.encode("ascii")
 
-    def decode(self, raw: bytes) -> Any:
+    def decode(self, raw: bytes) -> datetime:
         text = raw.decode("ascii")
         if len(text) != self.width:
             raise ValueError(f"{raw!r} is not {self.width} characters")
@@ -67,13 +67,10 @@ class Timestamp(Codec):
             dt = dt.replace(year=dt.year + 100)  # two-digit years: a camera clock lives in 2000..2099
         return dt
 
-    def parse_text(self, text: str) -> Any:
+    def parse_text(self, text: str) -> datetime:
         return datetime.now() if text == "now" else datetime.fromisoformat(text)
 
-    def to_json(self, value: Any) -> Any:
-        return value.isoformat() if isinstance(value, datetime) else value
-
-    def neutral(self) -> Any:
+    def neutral(self) -> datetime:
         return datetime(2000, 1, 1)
 
 

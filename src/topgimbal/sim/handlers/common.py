@@ -7,7 +7,7 @@ from typing import Any
 
 from ...protocol import Message
 from ...protocol.commands import stored_form
-from ...protocol.fields import Enum, OneOf
+from ...protocol.fields import Codec, Enum, OneOf
 from ...protocol.fields.enums import KEEP_NAMES
 from ..context import RefusedError, Request, SimState
 
@@ -23,7 +23,7 @@ def fields(msg: Message) -> dict[str, Any]:
     return msg.fields
 
 
-def _enum(codec: Any) -> Enum | None:
+def _enum(codec: Codec) -> Enum | None:
     codec = codec.tokens if isinstance(codec, OneOf) else codec
     return codec if isinstance(codec, Enum) else None
 

@@ -101,7 +101,7 @@ def day_night(state: SimState, msg: Message, req: Request) -> None:
     state.dirty = True
 
 
-def _token(msg: Message, name: str, value: Any) -> tuple[str, bool] | None:
+def _token(msg: Message, name: str, value: object) -> tuple[str, bool] | None:
     """(name, idempotent) when `value` is a token of the field's enum, else None (a number)."""
     assert msg.form is not None
     codec = msg.form.field(name).codec
