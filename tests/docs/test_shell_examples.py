@@ -476,7 +476,7 @@ class Session:
     def _start(self, ex: Example, argv: list[str]) -> Daemon:
         proc = subprocess.Popen(
             argv, cwd=self.cwd, env=_env(), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT, text=True, start_new_session=True,
+            stderr=subprocess.STDOUT, text=True, start_new_session=True, preexec_fn=_ctrl_c_as_in_a_terminal,
         )  # fmt: skip
         outputs = {argv[j + 1] for j, t in enumerate(argv[:-1]) if t in ("--pcap", "--log")}
         daemon = Daemon(ex, argv, proc, outputs)
@@ -624,6 +624,13 @@ def _subcommand(argv: list[str]) -> str:
     while i < len(argv) and argv[i].startswith("-"):
         i += 2 if argv[i] in ("--url", "--model") else 1
     return argv[i] if i < len(argv) else ""
+
+
+def _ctrl_c_as_in_a_terminal() -> None:
+    """In the daemon before it starts: Ctrl-C as a terminal delivers it. A shell runs a background
+    job (a CI script started with `&`, nohup) with SIGINT ignored, and children inherit that; the
+    docs' commands are typed in a terminal, where Ctrl-C stops them."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _env() -> dict[str, str]:
