@@ -20,7 +20,7 @@ from topgimbal.console.limits import (
     parse_message,
     too_deep,
 )
-from topgimbal.console.peer import Peer
+from topgimbal.console.peer import Peer, PeerLimits
 
 pytestmark = pytest.mark.fuzz
 
@@ -157,7 +157,9 @@ async def test_a_page_that_stops_reading_loses_periodic_pushes_then_is_disconnec
 ) -> None:
     caplog.set_level(logging.INFO)
     ws, transport = _StuckSocket(), _Transport()
-    peer = Peer(ws, "test-page", soft_limit=8, max_messages=50, max_bytes=10_000, transport=transport)  # type: ignore[arg-type]
+    peer = Peer(
+        ws, "test-page", limits=PeerLimits(soft_limit=8, max_messages=50, max_bytes=10_000), transport=transport
+    )  # type: ignore[arg-type]
     writer = asyncio.create_task(peer.run())
     try:
         for i in range(1000):
@@ -195,7 +197,7 @@ async def test_a_page_that_keeps_up_gets_everything_in_order() -> None:
             self.got.append(json.loads(text))
 
     ws = Reader()
-    peer = Peer(ws, "fast", soft_limit=4)  # type: ignore[arg-type]
+    peer = Peer(ws, "fast", limits=PeerLimits(soft_limit=4))  # type: ignore[arg-type]
     writer = asyncio.create_task(peer.run())
     for i in range(100):
         peer.send({"i": i}, essential=i % 2 == 0)

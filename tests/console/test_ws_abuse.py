@@ -23,6 +23,7 @@ from hypothesis import strategies as st
 from topgimbal.console import ConsoleServer
 from topgimbal.console.limits import MAX_FRAME_BYTES, MAX_MESSAGE_BYTES, MessageError, parse_message
 from topgimbal.console.ops import OPS
+from topgimbal.console.peer import PeerLimits
 
 from .conftest import BackgroundConsole, wait_for
 
@@ -272,7 +273,7 @@ def _open_raw_ws(port: int) -> socket.socket:
 def test_a_page_that_stops_reading_is_disconnected(log_trap: LogTrap) -> None:
     """The page asks for many status replies and never reads one: the console's queue for it
     stays within its limit, the page is cut off with a log line, and another page is served."""
-    limits = {"soft_limit": 8, "max_messages": 64, "max_bytes": 64 * 1024}
+    limits = PeerLimits(soft_limit=8, max_messages=64, max_bytes=64 * 1024)
     with BackgroundConsole("C12") as bg:
         hub = bg.server.hub if bg.server else None
         assert hub is not None
@@ -301,7 +302,7 @@ def test_a_page_that_stops_reading_is_disconnected(log_trap: LogTrap) -> None:
             wait_for(lambda: not bg.call(lambda: list(hub.peers)), 20, what="the stuck page disconnected")
         finally:
             stuck.close()
-        assert peak <= limits["max_bytes"]
+        assert peak <= limits.max_bytes
         lines = [r.getMessage() for r in log_trap.records if "stopped reading" in r.getMessage()]
         assert len(lines) == 1 and "disconnected" in lines[0], lines
         print(lines[0], f"(after {sent} status ops, peak {peak} bytes queued)")

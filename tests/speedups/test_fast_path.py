@@ -21,6 +21,7 @@ from topgimbal.protocol import (
     Dialect,
     Frame,
     FrameParser,
+    Message,
     all_models,
     any_decoder,
     decode_any,
@@ -33,6 +34,7 @@ from topgimbal.tools.cvectors import sample
 from .conftest import (
     FAST_WANTED,
     PureFrameParser,
+    ext,
     fast_any_decoder,
     fast_decoder,
     fast_parser_cls,
@@ -289,3 +291,33 @@ def test_recovered_c12_version_reply_on_both_paths(parser_cls: type[FrameParser]
     frames = [e for e in out if isinstance(e, Frame)]
     assert [(f.ident, f.data, f.declared_length) for f in frames] == [("VER", b"010502", 3), ("AWB", b"01", None)]
     assert p.stats.length_recoveries == 1 and p.stats.bytes_discarded == 4
+
+
+@pytest.mark.parametrize("index, value", [(1, 256), (1, -1), (9, 200), (12, 2**40)])
+def test_decoder_refuses_a_codec_descriptor_out_of_range(index: int, value: int) -> None:
+    """The extension's Decoder reads a codec descriptor's small numbers straight into the C struct:
+    a width of 256, a negative width, an exponent or a multiplier out of its C type is an
+    OverflowError naming nothing half built (not a silently truncated codec)."""
+    from topgimbal._speedups.spec import decoder_tables
+
+    sky = get_dialect("skydroid")
+    tables = decoder_tables(sky.commands.values())
+    # the first natively decoded field of the tables: its descriptor, with one number changed
+    c, f, k = next(
+        (c, f, k)
+        for c, cmd in enumerate(tables)
+        for f, form in enumerate(cmd[2])
+        for k, fld in enumerate(form[4])
+        if fld[3] is not None
+    )
+    ident, spec, forms, orders = tables[c]
+    form = forms[f]
+    fld = form[4][k]
+    desc = (*fld[3][:index], value, *fld[3][index + 1 :])
+    fields = (*form[4][:k], (*fld[:3], desc, *fld[4:]), *form[4][k + 1 :])
+    bad_forms = (*forms[:f], (*form[:4], fields), *forms[f + 1 :])
+    bad = (*tables[:c], (ident, spec, bad_forms, orders), *tables[c + 1 :])
+    args = (Message, pure_decode(sky), sky.name, tuple(sky.headers), sky.host_addresses)
+    with pytest.raises(OverflowError):
+        ext().Decoder(bad, *args)
+    assert ext().Decoder(tables, *args) is not None  # the same tables unchanged build

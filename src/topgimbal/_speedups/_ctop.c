@@ -187,27 +187,25 @@ static const char *bytes_str(Decoder *d, PyObject *b) {
 static tg_codec *build_codec(Decoder *d, PyObject *t) {
     tg_codec *c;
     PyObject *raws, *spell, *nones, *text, *sub;
-    int kind, width, minw, maxw, sgn, little, lat, binary, pyfloat, exp10, decimals, pad;
+    int exp10;
     long mul;
     long long lo, hi;
     Py_ssize_t k;
-    if (!PyArg_ParseTuple(t, "iiiiiiiiiiiilLLOOOOO", &kind, &width, &minw, &maxw, &sgn, &little, &lat, &binary,
-                          &pyfloat, &exp10, &decimals, &pad, &mul, &lo, &hi, &raws, &spell, &nones, &text, &sub))
-        return NULL;
     c = PyMem_Calloc(1, sizeof *c);
     if (!c) return (tg_codec *)PyErr_NoMemory();
-    c->kind = (uint8_t)kind;
-    c->width = (uint8_t)width;
-    c->min_width = (uint8_t)minw;
-    c->max_width = (uint8_t)maxw;
-    c->is_signed = (uint8_t)sgn;
-    c->little = (uint8_t)little;
-    c->lat = (uint8_t)lat;
-    c->binary = (uint8_t)binary;
-    c->pyfloat = (uint8_t)pyfloat;
+    /* "b" stores straight into the uint8_t members and refuses what does not fit in 0..255 */
+    if (!PyArg_ParseTuple(t, "bbbbbbbbbibblLLOOOOO", &c->kind, &c->width, &c->min_width, &c->max_width,
+                          &c->is_signed, &c->little, &c->lat, &c->binary, &c->pyfloat, &exp10, &c->decimals,
+                          &c->pad, &mul, &lo, &hi, &raws, &spell, &nones, &text, &sub)) {
+        PyMem_Free(c);
+        return NULL;
+    }
+    if (exp10 < INT8_MIN || exp10 > INT8_MAX || mul < INT32_MIN || mul > INT32_MAX) {
+        PyMem_Free(c);
+        PyErr_SetString(PyExc_OverflowError, "codec descriptor: exp10 or mul out of range");
+        return NULL;
+    }
     c->exp10 = (int8_t)exp10;
-    c->decimals = (uint8_t)decimals;
-    c->pad = (uint8_t)pad;
     c->mul = (int32_t)mul;
     c->lo = lo;
     c->hi = hi;

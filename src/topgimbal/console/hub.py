@@ -20,14 +20,14 @@ import logging
 import time
 from collections import Counter
 from collections.abc import Coroutine, Iterator
-from typing import Any, Unpack
+from typing import Any
 
 from ..client import CameraAPI
 from ..errors import LinkLostError
 from ..protocol import CommandSpec, Frame, Message
 from .capture import link_for
 from .ops import OPS, OpArgs, SdStatus, describe_error, jsonable, op_sd
-from .pages import MAX_OPS_IN_FLIGHT, PageHub, PageOptions
+from .pages import MAX_OPS_IN_FLIGHT, PageHub
 
 log = logging.getLogger(__name__)
 
@@ -47,11 +47,8 @@ class Hub(PageHub):
         url: str = "",
         attitude_hz: float = 50.0,
         sd_interval_s: float = 5.0,
-        **options: Unpack[PageOptions],
     ) -> None:
-        """`options`: PageHub's (status_interval_s, traffic_interval_s, max_pages, peer_limits,
-        recorder)."""
-        super().__init__(dialect=cam.dialect, model=cam.model, url=url, link=link_for(url, cam.model), **options)
+        super().__init__(dialect=cam.dialect, model=cam.model, url=url, link=link_for(url, cam.model))
         self.cam = cam
         self.attitude_hz = min(max(attitude_hz, 1.0), 50.0)
         self.sd_interval_s = sd_interval_s

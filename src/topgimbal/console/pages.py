@@ -13,7 +13,7 @@ import logging
 import time
 from collections import deque
 from collections.abc import Callable, Coroutine, Mapping
-from typing import Any, TypedDict
+from typing import Any
 
 from aiohttp import WSMsgType, web
 
@@ -23,7 +23,7 @@ from .capture import Link, Recorder
 from .catalog_api import model_json
 from .limits import MAX_FRAME_BYTES, MAX_OPS_PER_S, OPS_BURST, MessageError, OpRate, parse_message
 from .ops import OPS, JsonValue, OpArgs, describe_error, jsonable, short
-from .peer import Peer
+from .peer import Peer, PeerLimits
 
 log = logging.getLogger("topgimbal.console.hub")
 
@@ -35,46 +35,25 @@ MAX_OPS_IN_FLIGHT = 32  # per page; one more is answered with an error
 STREAM_ROLES = ("attitude", "earth_attitude", "earth_attitude_stream")
 
 
-class PageOptions(TypedDict, total=False):
-    """PageHub's keywords that `Hub` and `WatchHub` pass on."""
-
-    status_interval_s: float
-    traffic_interval_s: float
-    max_pages: int
-    peer_limits: Mapping[str, int] | None
-    recorder: Recorder | None
-
-
 class PageHub:
     mode = "camera"
+    # Pacing and limits: constructors take none of them; a test lowers one on its hub instance.
+    status_interval_s = 0.5
+    traffic_interval_s = 0.1
+    max_pages = MAX_PAGES
 
-    def __init__(
-        self,
-        *,
-        dialect: Dialect,
-        model: DeviceModel,
-        url: str,
-        link: Link,
-        status_interval_s: float = 0.5,
-        traffic_interval_s: float = 0.1,
-        max_pages: int = MAX_PAGES,
-        peer_limits: Mapping[str, int] | None = None,
-        recorder: Recorder | None = None,
-    ) -> None:
+    def __init__(self, *, dialect: Dialect, model: DeviceModel, url: str, link: Link) -> None:
         self.dialect = dialect
         self.model = model
         self.url = url
         self.link = link
-        self.status_interval_s = status_interval_s
-        self.traffic_interval_s = traffic_interval_s
-        self.max_pages = max_pages
-        self.peer_limits = dict(peer_limits or {})  # Peer keyword arguments (tests use small ones)
+        self.peer_limits = PeerLimits()  # what may wait for each page (tests use small ones)
         self.op_rate = (MAX_OPS_PER_S, OPS_BURST)  # messages a second per page, burst
         self.peers: set[Peer] = set()
         self._handshakes = 0
         self.traffic: deque[dict[str, Any]] = deque(maxlen=TRAFFIC_HISTORY)
         self._pending: list[dict[str, Any]] = []
-        self.recorder = recorder or Recorder()
+        self.recorder = Recorder()
         self.streams = frozenset(
             spec.ident for role in STREAM_ROLES for spec in dialect.commands_with_role(role, model)
         )
@@ -283,7 +262,7 @@ class PageHub:
             await ws.prepare(request)
         finally:
             self._handshakes -= 1
-        peer = Peer(ws, name, transport=request.transport, **self.peer_limits)
+        peer = Peer(ws, name, limits=self.peer_limits, transport=request.transport)
         self.peers.add(peer)
         sender = asyncio.create_task(peer.run())
         peer.send(self.hello())

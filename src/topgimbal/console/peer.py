@@ -18,6 +18,7 @@ import json
 import logging
 from collections import deque
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from aiohttp import web
@@ -27,6 +28,15 @@ log = logging.getLogger(__name__)
 SOFT_LIMIT = 32  # messages waiting before periodic pushes are dropped (0.6 s of 50 Hz attitude)
 MAX_MESSAGES = 512  # messages waiting before the page is disconnected
 MAX_BYTES = 2 * 1024 * 1024  # bytes waiting before the page is disconnected
+
+
+@dataclass(frozen=True)
+class PeerLimits:
+    """What may wait for one page (the module docstring says what happens at each limit)."""
+
+    soft_limit: int = SOFT_LIMIT
+    max_messages: int = MAX_MESSAGES
+    max_bytes: int = MAX_BYTES
 
 
 def dumps(obj: Mapping[str, Any]) -> str:
@@ -41,16 +51,12 @@ class Peer:
         ws: web.WebSocketResponse,
         name: str,
         *,
-        soft_limit: int = SOFT_LIMIT,
-        max_messages: int = MAX_MESSAGES,
-        max_bytes: int = MAX_BYTES,
+        limits: PeerLimits = PeerLimits(),
         transport: asyncio.Transport | None = None,
     ) -> None:
         self.ws = ws
         self.name = name
-        self.soft_limit = soft_limit
-        self.max_messages = max_messages
-        self.max_bytes = max_bytes
+        self.limits = limits
         self.transport = transport
         self.queue: deque[str] = deque()
         self.queued_bytes = 0
@@ -63,14 +69,14 @@ class Peer:
     def send(self, obj: Mapping[str, Any], *, essential: bool = True) -> None:
         if self.closed:
             return
-        if not essential and len(self.queue) >= self.soft_limit:
+        if not essential and len(self.queue) >= self.limits.soft_limit:
             self.dropped += 1
             if not self._slow:
                 self._slow = True
                 log.info("page %s is not keeping up: dropping periodic pushes while it catches up", self.name)
             return
         text = dumps(obj)
-        if len(self.queue) >= self.max_messages or self.queued_bytes + len(text) > self.max_bytes:
+        if len(self.queue) >= self.limits.max_messages or self.queued_bytes + len(text) > self.limits.max_bytes:
             self._overflow()
             return
         self.queue.append(text)
@@ -83,8 +89,8 @@ class Peer:
             self.name,
             len(self.queue),
             self.queued_bytes,
-            self.max_messages,
-            self.max_bytes,
+            self.limits.max_messages,
+            self.limits.max_bytes,
         )
         self.overflowed = True
         self.close()

@@ -15,7 +15,7 @@ import contextlib
 import logging
 import time
 from collections import OrderedDict
-from typing import Any, Unpack
+from typing import Any
 
 from ..protocol import DeviceModel, Diagnostic, Dialect, Frame, Message
 from ..protocol.signs import flip, resolve_signs
@@ -23,7 +23,7 @@ from ..wire.packets import Endpoint
 from ..wire.proxy import Proxy, ProxyEvent
 from .capture import Link, link_for
 from .ops import OpArgs, ReadOnlyError
-from .pages import PageHub, PageOptions
+from .pages import PageHub
 
 log = logging.getLogger(__name__)
 
@@ -56,11 +56,9 @@ class WatchHub(PageHub):
         model: DeviceModel,
         *,
         attitude_hz: float = 50.0,
-        **options: Unpack[PageOptions],
     ) -> None:
-        """`options`: PageHub's (status_interval_s, traffic_interval_s, max_pages, peer_limits)."""
         url = f"{proxy.url} -> {proxy.to.text}"
-        super().__init__(dialect=dialect, model=model, url=url, link=proxy_link(proxy, model), **options)
+        super().__init__(dialect=dialect, model=model, url=url, link=proxy_link(proxy, model))
         self.proxy = proxy
         self.attitude_hz = min(max(attitude_hz, 1.0), 50.0)
         self._signs = resolve_signs(model)
