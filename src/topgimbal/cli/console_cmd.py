@@ -9,6 +9,7 @@ import sys
 from typing import Any
 
 from .args import add_camera_subcommand, add_model_argument
+from .runtime import stop_on_signals, wait_stopped
 
 DEFAULT_PORT = 8080
 
@@ -125,12 +126,15 @@ async def _serve(server: object, seconds: float | None, taken: int | None = None
     from ..console import ConsoleServer
 
     assert isinstance(server, ConsoleServer)
+    # Before start: SIGTERM (a service manager, `kill`) and Ctrl-C end the console the same orderly
+    # way, even when it was started with SIGINT ignored (a background job of a script).
+    stop = stop_on_signals()
     await server.start()
     try:
         if taken is not None:
             print(f"topgimbal console: port {taken} is taken: using {server.bound_port}", flush=True)
         print(server.banner(), flush=True)
-        await server.serve_forever(seconds)
+        await wait_stopped(stop, seconds)
     finally:
         await server.stop()
 
