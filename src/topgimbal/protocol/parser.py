@@ -27,6 +27,19 @@ from typing import Any
 from zlib import adler32 as _adler32
 
 from .. import _speedups
+from .diagnostics import (
+    BAD_CHECKSUM,
+    BAD_HEADER,
+    END_OF_STREAM,
+    INCOMPLETE_FOLLOWED,
+    INNER_FRAME,
+    OUTSIDE,
+    OVERSIZE,
+    RECOVERED,
+    WHY,
+    Diagnostic,
+    ParserStats,
+)
 from .frame import Frame, checksum_text
 
 _HEXVAL = [-1] * 256
@@ -50,41 +63,6 @@ _HEADERS_MAX = 4096
 _new_tuple = tuple.__new__
 _HEX2_LOWER = [b"%02x" % i for i in range(256)]
 _ASCII_MAX_TOTAL = 12 + 15
-# Why bytes were discarded, by the C scanner's reason codes (enum tg_reason in c/include/topgimbal.h):
-# the pure scan words its diagnostics with the same table, so both paths read the same.
-OUTSIDE, BAD_HEADER, OVERSIZE, INCOMPLETE_FOLLOWED, END_OF_STREAM, INNER_FRAME, BAD_CHECKSUM, RECOVERED = range(1, 9)
-_WHY = {
-    OUTSIDE: "bytes outside a frame",
-    BAD_HEADER: "'#' not followed by a valid header/address/length",
-    INCOMPLETE_FOLLOWED: "incomplete frame followed by a good one",
-    END_OF_STREAM: "incomplete frame at end of stream",
-    INNER_FRAME: "checksum matched by chance: a frame starts inside",
-}
-
-
-@dataclass(frozen=True)
-class Diagnostic:
-    """Something the parser noticed: `kind` is one of KINDS, `raw` the bytes concerned."""
-
-    kind: str
-    detail: str
-    raw: bytes = b""
-
-    KINDS = ("garbage", "bad_header", "bad_length", "oversize", "bad_checksum", "length_mismatch")
-
-
-@dataclass
-class ParserStats:
-    frames: int = 0
-    bytes: int = 0
-    bad_checksums: int = 0
-    resyncs: int = 0
-    bytes_discarded: int = 0
-    length_recoveries: int = 0
-    oversize: int = 0
-
-    def as_dict(self) -> dict[str, int]:
-        return dict(self.__dict__)
 
 
 @dataclass
@@ -182,7 +160,7 @@ class FrameParser:
             if final:  # the rest as if the stream ended here
                 pos = self._scan(buf, pos, out, final=True)
                 if pos < n_buf:
-                    self._discard(buf[pos:], out, _WHY[END_OF_STREAM])
+                    self._discard(buf[pos:], out, WHY[END_OF_STREAM])
                 pos = n_buf
             self._buf = buf[pos:]
             if decode is not None:
@@ -223,7 +201,7 @@ class FrameParser:
         elif code == RECOVERED:
             self._emit_recovered((frame, end), buf, start, out)
         else:
-            self._discard(buf[start:end], out, _WHY[code], "bad_header" if code == BAD_HEADER else "garbage")
+            self._discard(buf[start:end], out, WHY[code], "bad_header" if code == BAD_HEADER else "garbage")
 
     def _frame_end(self, buf: bytes, i: int) -> int:
         """End offset of a frame starting at `i` (by its declared length), -1 if it cannot be a
@@ -281,10 +259,10 @@ class FrameParser:
         while pos < n_buf:
             i = buf.find(b"#", pos)
             if i < 0:
-                self._discard(buf[pos:], out, _WHY[OUTSIDE])
+                self._discard(buf[pos:], out, WHY[OUTSIDE])
                 return n_buf
             if i > pos:
-                self._discard(buf[pos:i], out, _WHY[OUTSIDE])
+                self._discard(buf[pos:i], out, WHY[OUTSIDE])
                 pos = i
             head = _HEADERS.get(buf[i : i + 10])
             if head is not None:
@@ -296,7 +274,7 @@ class FrameParser:
             if end == -2:
                 return i  # too few bytes to judge the header yet (flush() discards them)
             if end == -1:
-                self._discard(buf[i : i + 1], out, _WHY[BAD_HEADER], "bad_header")
+                self._discard(buf[i : i + 1], out, WHY[BAD_HEADER], "bad_header")
                 pos = i + 1
                 continue
             if end == -3:
@@ -317,7 +295,7 @@ class FrameParser:
                     if isinstance(rec, tuple):
                         pos = self._emit_recovered(rec, buf, i, out)
                         continue
-                self._discard(buf[i:j], out, _WHY[INCOMPLETE_FOLLOWED])
+                self._discard(buf[i:j], out, WHY[INCOMPLETE_FOLLOWED])
                 pos = j
                 continue
             crc = buf[end - 2 : end]
@@ -327,7 +305,7 @@ class FrameParser:
                 if inner is None:
                     return i  # a frame that starts inside this one is still arriving
                 if inner >= 0:
-                    self._discard(buf[i:inner], out, _WHY[INNER_FRAME])
+                    self._discard(buf[i:inner], out, WHY[INNER_FRAME])
                     pos = inner
                     continue
                 assert head is not None  # set with every end >= 0
