@@ -233,7 +233,7 @@ class GatedWrites:
         self.gate = threading.Event()
         self.writes = 0
         self.fail = fail
-        real = persist.write_atomic
+        real = persist.store.write_atomic
 
         def gated(path: str | Path, data: bytes) -> None:
             self.gate.wait(10)
@@ -242,7 +242,7 @@ class GatedWrites:
                 raise OSError(28, "No space left on device")
             real(path, data)
 
-        monkeypatch.setattr(persist, "write_atomic", gated)
+        monkeypatch.setattr(persist.store, "write_atomic", gated)  # where GroupCommit finds it
 
 
 async def test_a_reply_waits_for_its_write_and_writes_meanwhile_share_one(
