@@ -7,10 +7,7 @@ import os
 import termios
 import tty
 
-from .common import (
-    BAUD,
-    Sink,
-)
+from .common import BAUD, Sink
 
 
 def configure_tty(fd: int, baud: int = BAUD) -> None:

@@ -5,16 +5,7 @@ from __future__ import annotations
 import asyncio
 import socket
 
-from .common import (
-    TCP_PAUSE_READING_BYTES,
-    TCP_READ_CHUNK,
-    Forget,
-    Limits,
-    Sink,
-    Throttled,
-    fmt_addr,
-    listen_error,
-)
+from .common import TCP_PAUSE_READING_BYTES, TCP_READ_CHUNK, Forget, Limits, Sink, Throttled, fmt_addr, listen_error
 
 
 class TcpPeer(asyncio.BufferedProtocol):

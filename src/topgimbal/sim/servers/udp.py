@@ -12,16 +12,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from .common import (
-    MAX_DATAGRAM,
-    READ_BATCH,
-    Forget,
-    Limits,
-    Sink,
-    Throttled,
-    fmt_addr,
-    listen_error,
-)
+from .common import MAX_DATAGRAM, READ_BATCH, Forget, Limits, Sink, Throttled, fmt_addr, listen_error
 
 # Linux: with IP_RECVERR an unconnected UDP socket learns about ICMP errors, and the error queue
 # (MSG_ERRQUEUE) names the destination each one is about. Python 3.11 has no constants for them.
