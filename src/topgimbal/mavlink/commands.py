@@ -88,6 +88,24 @@ class Command:
     def has(self, n: int) -> bool:
         return not math.isnan(self.params[n - 1])
 
+    def whole(self, n: int, what: str, lo: int, hi: int, default: int | None = None) -> int:
+        """Parameter n as a whole number lo..hi (NaN gives `default` where the command allows
+        leaving it out); anything else (inf, a fraction, out of range) is refused with DENIED
+        naming the parameter, before any work starts."""
+        v = self.params[n - 1]
+        if math.isnan(v) and default is not None:
+            return default
+        if not math.isfinite(v) or v != int(v) or not lo <= v <= hi:
+            raise CommandRefusedError(DENIED, f"param{n} ({what}) {v:g}: expected a whole number {lo}..{hi}")
+        return int(v)
+
+    def finite(self, n: int, what: str) -> float:
+        """Parameter n, refused with DENIED when it is NaN or infinite."""
+        v = self.params[n - 1]
+        if not math.isfinite(v):
+            raise CommandRefusedError(DENIED, f"param{n} ({what}) {v:g}: expected a finite number")
+        return v
+
     @property
     def lat_deg(self) -> float:
         return self.params[4] / 1e7 if self.is_int else self.params[4]
@@ -97,7 +115,11 @@ class Command:
         return self.params[5] / 1e7 if self.is_int else self.params[5]
 
     def key(self) -> tuple[Any, ...]:
-        return (self.src_system, self.src_component, self.target_component, self.command, self.params)
+        # NaN ("not given") is common in parameters and never equal to itself, and in Python 3.10+
+        # two NaN floats hash apart: a retransmission would never match its first copy and would
+        # act again. Every NaN counts as the same "not given".
+        params = tuple(None if math.isnan(v) else v for v in self.params)
+        return (self.src_system, self.src_component, self.target_component, self.command, params)
 
     @classmethod
     def from_message(cls, m: MAVLinkMessage) -> Command:
