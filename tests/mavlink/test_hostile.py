@@ -4,12 +4,14 @@ split anywhere, floods of NEUTRAL set-points, garbage rates. Each case once brok
 from __future__ import annotations
 
 import asyncio
+import logging
 import math
 from typing import Any
 
 import pytest
 from pymavlink.dialects.v20 import common as ml
 
+from topgimbal.mavlink.commands import Command, Dispatcher
 from topgimbal.mavlink.node import Node
 from topgimbal.mavlink.pointing import Setpoint
 from topgimbal.mavlink.quaternion import from_euler_deg
@@ -193,3 +195,50 @@ async def test_infinite_rates_are_no_rates(rig: Any, kind: str) -> None:
     p.send(sane)
     await eventually(lambda: len(applied) > 0)
     assert len(applied) == 1 and applied[0].pitch_deg == pytest.approx(-10) and not applied[0].is_rate
+
+
+class _Wire:
+    """A fake MAVLink link that keeps what the node sends."""
+
+    def __init__(self) -> None:
+        self.parser = ml.MAVLink(None)
+        self.acks: list[Any] = []
+        self.dropped_out = 0
+
+    def send(self, data: bytes) -> None:
+        self.acks += [m for m in self.parser.parse_buffer(data) or [] if m.get_type() == "COMMAND_ACK"]
+
+
+async def test_a_command_flood_beyond_the_in_flight_limit_is_refused_with_one_log_line(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    node = Node(1, [])
+    wire = _Wire()
+    node.links.append(wire)  # type: ignore[arg-type]
+    dispatcher = Dispatcher(max_inflight=4)
+    release = asyncio.Event()
+
+    async def slow(cmd: Command) -> None:
+        await release.wait()
+
+    dispatcher.register(node.component(GIMBAL, "gimbal"), 31000, slow)
+    gcs = ml.MAVLink(None, srcSystem=255, srcComponent=190)
+    parser = ml.MAVLink(None)
+    with caplog.at_level(logging.WARNING, logger="topgimbal.mavlink"):
+        for i in range(200):
+            packed = ml.MAVLink_command_long_message(1, GIMBAL, 31000, 0, i, 0, 0, 0, 0, 0, 0).pack(gcs)
+            for m in parser.parse_buffer(packed) or []:
+                dispatcher.on_message(m)
+        await asyncio.sleep(0)
+
+    def results() -> list[int]:  # IN_PROGRESS acks may come in between on a slow machine
+        return [a.result for a in wire.acks if a.result != ml.MAV_RESULT_IN_PROGRESS]
+
+    assert results() == [ml.MAV_RESULT_TEMPORARILY_REJECTED] * 196
+    busy = [r for r in caplog.records if "in progress (the limit)" in r.getMessage()]
+    assert len(busy) == 1  # was one warning per refused command
+    assert dispatcher.busy_rejected == 196
+    release.set()
+    await eventually(lambda: len(results()) == 200)
+    assert results()[196:] == [ml.MAV_RESULT_ACCEPTED] * 4
+    await dispatcher.close()

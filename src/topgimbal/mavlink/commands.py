@@ -48,6 +48,7 @@ CAMERA_ERROR, CAMERA_TIMEOUT, CAMERA_LINK_DOWN, BRIDGE_ERROR = 1, 2, 3, 4
 MAX_INFLIGHT = 32
 REMEMBER_RESULTS = 128
 RETRANSMIT_WINDOW_S = 3.0
+BUSY_LOG_EVERY_S = 10.0  # a flood of commands is one warning per this period, not one per command
 
 
 class CommandRefusedError(TopGimbalError):
@@ -171,6 +172,9 @@ class Dispatcher:
         self._inflight: dict[tuple[Any, ...], asyncio.Task[None]] = {}
         self._done: OrderedDict[tuple[Any, ...], _Done] = OrderedDict()
         self.counts: dict[str, int] = {}
+        self.busy_rejected = 0  # commands refused because max_inflight were running
+        self._busy_logged_at: float | None = None
+        self._busy_logged_count = 0
 
     def register(self, component: Component, command: int, handler: Handler) -> None:
         self._components[component.compid] = component
@@ -214,13 +218,22 @@ class Dispatcher:
             self._finish(comp, cmd, Outcome(UNSUPPORTED))
             return
         if len(self._inflight) >= self.max_inflight:
-            log.warning("%d commands in progress (the limit): %d from %d/%d rejected",
-                        self.max_inflight, cmd.command, cmd.src_system, cmd.src_component)  # fmt: skip
+            self._busy(cmd, now)
             self._ack(comp, cmd, TEMPORARILY_REJECTED)
             return
         task = asyncio.ensure_future(self._run(comp, cmd, handler))
         self._inflight[key] = task
         task.add_done_callback(lambda _t: self._inflight.pop(key, None))
+
+    def _busy(self, cmd: Command, now: float) -> None:
+        self.busy_rejected += 1
+        if self._busy_logged_at is not None and now - self._busy_logged_at < BUSY_LOG_EVERY_S:
+            return
+        since = self.busy_rejected - self._busy_logged_count
+        self._busy_logged_at, self._busy_logged_count = now, self.busy_rejected
+        log.warning("%d commands in progress (the limit): command %d from %d/%d TEMPORARILY_REJECTED "
+                    "(%d rejected since the last such line, %d in all)", self.max_inflight, cmd.command,
+                    cmd.src_system, cmd.src_component, since, self.busy_rejected)  # fmt: skip
 
     async def _run(self, comp: Component, cmd: Command, handler: Handler) -> None:
         work = asyncio.ensure_future(handler(cmd))
