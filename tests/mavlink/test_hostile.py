@@ -15,6 +15,7 @@ from topgimbal.mavlink.commands import Command, Dispatcher
 from topgimbal.mavlink.node import Node
 from topgimbal.mavlink.pointing import Setpoint
 from topgimbal.mavlink.quaternion import from_euler_deg
+from topgimbal.mavlink.vehicle import MAX_SYSTEMS, Vehicles
 
 from .conftest import NAN, Peer, eventually
 
@@ -242,3 +243,23 @@ async def test_a_command_flood_beyond_the_in_flight_limit_is_refused_with_one_lo
     await eventually(lambda: len(results()) == 200)
     assert results()[196:] == [ml.MAV_RESULT_ACCEPTED] * 4
     await dispatcher.close()
+
+
+def test_many_vehicles_on_the_network_never_evict_our_own() -> None:
+    """More than MAX_SYSTEMS vehicles reporting positions (a swarm, or a spoofer) used to push our own
+    vehicle's fix out between its own updates: ROI and earth-frame yaw were then refused."""
+    vehicles = Vehicles(1, {GIMBAL, CAMERA})
+    parser = ml.MAVLink(None)
+
+    def position_from(sysid: int) -> Any:
+        enc = ml.MAVLink(None, srcSystem=sysid, srcComponent=1)
+        data = ml.MAVLink_global_position_int_message(0, 473977420, 85455940, 500000, 100000, 0, 0, 0, 0).pack(enc)
+        return parser.parse_buffer(data)[0]
+
+    vehicles.on_message(position_from(1))
+    for sysid in range(2, 2 + 3 * MAX_SYSTEMS):
+        vehicles.on_message(position_from(sysid))
+    assert vehicles.fix() is not None
+    assert vehicles.fix(2 + 3 * MAX_SYSTEMS - 1) is not None  # the latest other system too
+    assert vehicles.fix(2) is None  # the oldest others went: still bounded
+    assert len(vehicles._fixes) == MAX_SYSTEMS
