@@ -12,6 +12,7 @@ import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.mavlink.commands import Command, Dispatcher
+from topgimbal.mavlink.geo import Position
 from topgimbal.mavlink.node import Node
 from topgimbal.mavlink.pointing import Setpoint
 from topgimbal.mavlink.quaternion import from_euler_deg
@@ -263,3 +264,17 @@ def test_many_vehicles_on_the_network_never_evict_our_own() -> None:
     assert vehicles.fix(2 + 3 * MAX_SYSTEMS - 1) is not None  # the latest other system too
     assert vehicles.fix(2) is None  # the oldest others went: still bounded
     assert len(vehicles._fixes) == MAX_SYSTEMS
+
+
+async def test_a_burst_of_set_points_during_roi_stops_it_once(rig: Any) -> None:
+    manager = rig.bridge.manager
+    manager.roi = Position(47.4, 8.5, 400.0)  # as after MAV_CMD_DO_SET_ROI_LOCATION
+    enc = ml.MAVLink(None, srcSystem=255, srcComponent=190)
+    parser = ml.MAVLink(None)
+    data = ml.MAVLink_gimbal_manager_set_pitchyaw_message(1, GIMBAL, 0, 0, -0.2, NAN, NAN, NAN).pack(enc)
+    msg = parser.parse_buffer(data)[0]
+    for _ in range(300):  # what one datagram full of set-points does, synchronously
+        manager.on_message(msg)
+    stops = [t for t in asyncio.all_tasks() if "_stop_roi" in repr(t.get_coro())]
+    assert len(stops) == 1  # was 300
+    await eventually(lambda: manager.roi is None)

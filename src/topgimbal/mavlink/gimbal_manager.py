@@ -246,7 +246,8 @@ class GimbalManager:
                 await task
 
     def _cancel_roi_soon(self) -> None:
-        if self.roi is not None:
+        # One stop at a time: a burst of set-points in one datagram is one task, not one each.
+        if self.roi is not None and (self._stopping is None or self._stopping.done()):
             self._stopping = asyncio.ensure_future(self._stop_roi())
 
 
