@@ -278,3 +278,31 @@ async def test_a_burst_of_set_points_during_roi_stops_it_once(rig: Any) -> None:
     stops = [t for t in asyncio.all_tasks() if "_stop_roi" in repr(t.get_coro())]
     assert len(stops) == 1  # was 300
     await eventually(lambda: manager.roi is None)
+
+
+async def test_a_broadcast_request_is_answered_only_by_components_that_send_the_message(rig: Any) -> None:
+    """A broadcast REQUEST_MESSAGE CAMERA_INFORMATION used to get UNSUPPORTED from the gimbal too: a
+    ground station that takes the first ack for a broadcast could conclude there is no camera."""
+    p = rig.peer
+    p.messages.clear()
+    for msgid in (ml.MAVLINK_MSG_ID_CAMERA_INFORMATION, ml.MAVLINK_MSG_ID_GIMBAL_MANAGER_INFORMATION):
+        p.send(ml.MAVLink_command_long_message(1, 0, ml.MAV_CMD_REQUEST_MESSAGE, 0, msgid, 0, 0, 0, 0, 0, 0))
+    p.send(ml.MAVLink_command_long_message(1, 0, ml.MAV_CMD_REQUEST_CAMERA_INFORMATION, 0, 1, 0, 0, 0, 0, 0, 0))
+    await p.wait("CAMERA_INFORMATION", lambda m: m.get_srcComponent() == 101)
+    await p.wait("GIMBAL_MANAGER_INFORMATION")
+    # a later command that needs the camera: every ack for the broadcasts has been sent by then
+    assert (await p.ack(GIMBAL, ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, -5, 0, NAN, NAN)).result == 0
+    acks = sorted(
+        (m.command, m.get_srcComponent(), m.result)
+        for m in p.messages
+        if m.get_type() == "COMMAND_ACK" and m.command != ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW
+    )
+    assert acks == sorted(
+        [
+            (ml.MAV_CMD_REQUEST_MESSAGE, CAMERA, 0),
+            (ml.MAV_CMD_REQUEST_MESSAGE, 101, 0),
+            (ml.MAV_CMD_REQUEST_MESSAGE, GIMBAL, 0),
+            (ml.MAV_CMD_REQUEST_CAMERA_INFORMATION, CAMERA, 0),
+            (ml.MAV_CMD_REQUEST_CAMERA_INFORMATION, 101, 0),
+        ]
+    )

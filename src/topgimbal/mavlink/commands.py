@@ -145,6 +145,7 @@ class Outcome:
 
 
 Handler = Callable[[Command], Awaitable["Outcome | None"]]
+Accepts = Callable[[Command], bool]
 
 
 @dataclass
@@ -168,6 +169,7 @@ class Dispatcher:
         self.timeout_s = timeout_s
         self.max_inflight = max_inflight
         self._handlers: dict[tuple[int, int], Handler] = {}
+        self._accepts: dict[tuple[int, int], Accepts] = {}
         self._components: dict[int, Component] = {}
         self._inflight: dict[tuple[Any, ...], asyncio.Task[None]] = {}
         self._done: OrderedDict[tuple[Any, ...], _Done] = OrderedDict()
@@ -176,9 +178,13 @@ class Dispatcher:
         self._busy_logged_at: float | None = None
         self._busy_logged_count = 0
 
-    def register(self, component: Component, command: int, handler: Handler) -> None:
+    def register(self, component: Component, command: int, handler: Handler, *, accepts: Accepts | None = None) -> None:
+        """`accepts`: for a broadcast (target component 0), whether this component answers this
+        command at all (REQUEST_MESSAGE for a message the component does not send: stay quiet)."""
         self._components[component.compid] = component
         self._handlers[(component.compid, command)] = handler
+        if accepts is not None:
+            self._accepts[(component.compid, command)] = accepts
 
     def add_component(self, component: Component) -> None:
         self._components[component.compid] = component
@@ -195,12 +201,18 @@ class Dispatcher:
             return
         if cmd.target_component == 0:
             # Broadcast: only components that handle the command answer (no chorus of UNSUPPORTED).
-            targets = [c for c in self._components.values() if self.handles(c.compid, cmd.command)]
+            targets = [c for c in self._components.values() if self._answers_broadcast(c.compid, cmd)]
         else:
             c = self._components.get(cmd.target_component)
             targets = [c] if c is not None else []
         for comp in targets:
             self._accept(comp, Command(**{**cmd.__dict__, "target_component": comp.compid}))
+
+    def _answers_broadcast(self, compid: int, cmd: Command) -> bool:
+        if not self.handles(compid, cmd.command):
+            return False
+        accepts = self._accepts.get((compid, cmd.command))
+        return accepts is None or accepts(cmd)
 
     def _accept(self, comp: Component, cmd: Command) -> None:
         key = cmd.key()

@@ -67,11 +67,19 @@ class Services:
         self.system_status = 4  # MAV_STATE_ACTIVE
         self._started = False
         dispatcher.add_component(comp)
-        dispatcher.register(comp, MAV_CMD_REQUEST_MESSAGE, self._request_message)
-        dispatcher.register(comp, MAV_CMD_SET_MESSAGE_INTERVAL, self._set_interval)
-        dispatcher.register(comp, MAV_CMD_GET_MESSAGE_INTERVAL, self._get_interval)
+        # Broadcast (component 0) requests are answered only by the components that send the
+        # message: a gimbal must not answer UNSUPPORTED to a broadcast CAMERA_INFORMATION request.
+        dispatcher.register(comp, MAV_CMD_REQUEST_MESSAGE, self._request_message,
+                            accepts=lambda c: c.p(1) in self.providers)  # fmt: skip
+        dispatcher.register(comp, MAV_CMD_SET_MESSAGE_INTERVAL, self._set_interval,
+                            accepts=lambda c: c.p(1) in self.streams)  # fmt: skip
+        dispatcher.register(comp, MAV_CMD_GET_MESSAGE_INTERVAL, self._get_interval,
+                            accepts=lambda c: c.p(1) in self.streams)  # fmt: skip
         for cmd in LEGACY_REQUESTS:
-            dispatcher.register(comp, cmd, self._legacy_request)
+            dispatcher.register(comp, cmd, self._legacy_request, accepts=self._provides_legacy)
+
+    def _provides_legacy(self, cmd: Command) -> bool:
+        return LEGACY_REQUESTS[cmd.command][0] in self.providers
 
     def provide(self, msgid: int, provider: Provider) -> None:
         self.providers[msgid] = provider
