@@ -81,7 +81,7 @@ class CameraComponent:
         self.last_range_m: float | None = None
         self._interval_task: asyncio.Task[None] | None = None
         self._range_task: asyncio.Task[None] | None = None
-        self._last_sequence: dict[tuple[int, int], float] = {}
+        self._last_sequence: dict[tuple[int, int], int] = {}
         p = self.profile
         provide = services.provide
         provide(MSG_INFO, self._information)
@@ -227,7 +227,7 @@ class CameraComponent:
         self.recording = rec
 
     async def _image_captured(self, cmd: Command) -> list[Any]:
-        index = int(cmd.p(2)) if cmd.has(2) else -1
+        index = cmd.whole(2, "image index", -1, INT32_MAX, default=-1)
         if index < 0 and self.images:
             index = next(reversed(self.images))
         msg = self.images.get(index)
@@ -241,7 +241,7 @@ class CameraComponent:
         return (1 if self.cam.answering else 0) | (2 if self.lens == "thermal" else 0)
 
     async def _video_info(self, cmd: Command) -> list[Any]:
-        sid = int(cmd.p(2)) if cmd.has(2) else 0
+        sid = cmd.whole(2, "stream id", 0, 255, default=0)
         lens = self.profile.lens(self.lens)
         hfov = round(lens.hfov_deg) if lens is not None else 0
         w, h = lens.size if lens is not None and lens.size_documented else (0, 0)
@@ -258,7 +258,7 @@ class CameraComponent:
         return out
 
     async def _video_status(self, cmd: Command) -> list[Any]:
-        sid = int(cmd.p(2)) if cmd.has(2) else 0
+        sid = cmd.whole(2, "stream id", 0, 255, default=0)
         ids = [i for i in range(1, len(self.video_urls) + 1) if sid in (0, i)]
         if not ids:
             raise denied(f"no stream {sid} (streams 1..{len(self.video_urls)})")
@@ -297,14 +297,14 @@ class CameraComponent:
 
     async def _image_start(self, cmd: Command) -> Outcome:
         interval = cmd.p(2) if cmd.has(2) else 0.0
-        total = int(cmd.p(3)) if cmd.has(3) else 1
-        if total < 0 or interval < 0 or interval > MAX_INTERVAL_S:
-            raise denied(f"interval {interval:g} s, {total} images: expected 0..{MAX_INTERVAL_S:g} s and >= 0 images")
+        total = cmd.whole(3, "total images, 0 = until stopped", 0, INT32_MAX, default=1)
+        if not 0 <= interval <= MAX_INTERVAL_S:
+            raise denied(f"interval {interval:g} s: expected 0..{MAX_INTERVAL_S:g} s")
         if total != 1 and interval <= 0:
             raise denied("several images need an interval (param2 > 0)")
         if total == 1:
             seq_key = (cmd.src_system, cmd.src_component)
-            seq = cmd.p(4) if cmd.has(4) else 0.0
+            seq = cmd.whole(4, "capture sequence number", 0, INT32_MAX, default=0)
             if seq and self._last_sequence.get(seq_key) == seq:
                 return Outcome()  # the same capture sequence number: already taken, not again
             await self._stop_interval()
@@ -356,9 +356,7 @@ class CameraComponent:
         return Outcome()
 
     async def _set_mode(self, cmd: Command) -> Outcome:
-        mode = int(cmd.p(2))
-        if mode not in (0, 1):
-            raise denied(f"camera mode {mode}: expected 0 (image) or 1 (video)")
+        mode = cmd.whole(2, "camera mode: 0 image, 1 video", 0, 1)
         self.mode_id = mode
         return Outcome(after=[self._settings_message()])
 
@@ -377,7 +375,9 @@ class CameraComponent:
     # -- zoom and focus --------------------------------------------------------------------------
 
     async def _zoom(self, cmd: Command) -> Outcome:
-        kind, value = int(cmd.p(1)), cmd.p(2)
+        kind, value = cmd.whole(1, "zoom type", 0, 255), cmd.p(2)
+        if kind in (0, 1):
+            value = cmd.finite(2, "zoom step or direction")
         p = self.profile
         if self.lens == "thermal":
             if kind == 0:
@@ -420,7 +420,8 @@ class CameraComponent:
         return round(level, 1)
 
     async def _focus(self, cmd: Command) -> Outcome:
-        kind, value = int(cmd.p(1)), cmd.p(2)
+        kind = cmd.whole(1, "focus type", 0, 255)
+        value = cmd.finite(2, "focus direction") if kind == 1 else 0.0
         acts = self.profile.focus_actions
         if kind == 1:
             action = "plus" if value > 0 else "minus" if value < 0 else "stop"

@@ -48,6 +48,7 @@ CAMERA_ERROR, CAMERA_TIMEOUT, CAMERA_LINK_DOWN, BRIDGE_ERROR = 1, 2, 3, 4
 MAX_INFLIGHT = 32
 REMEMBER_RESULTS = 128
 RETRANSMIT_WINDOW_S = 3.0
+BUSY_LOG_EVERY_S = 10.0  # a flood of commands is one warning per this period, not one per command
 
 
 class CommandRefusedError(TopGimbalError):
@@ -88,6 +89,24 @@ class Command:
     def has(self, n: int) -> bool:
         return not math.isnan(self.params[n - 1])
 
+    def whole(self, n: int, what: str, lo: int, hi: int, default: int | None = None) -> int:
+        """Parameter n as a whole number lo..hi (NaN gives `default` where the command allows
+        leaving it out); anything else (inf, a fraction, out of range) is refused with DENIED
+        naming the parameter, before any work starts."""
+        v = self.params[n - 1]
+        if math.isnan(v) and default is not None:
+            return default
+        if not math.isfinite(v) or v != int(v) or not lo <= v <= hi:
+            raise CommandRefusedError(DENIED, f"param{n} ({what}) {v:g}: expected a whole number {lo}..{hi}")
+        return int(v)
+
+    def finite(self, n: int, what: str) -> float:
+        """Parameter n, refused with DENIED when it is NaN or infinite."""
+        v = self.params[n - 1]
+        if not math.isfinite(v):
+            raise CommandRefusedError(DENIED, f"param{n} ({what}) {v:g}: expected a finite number")
+        return v
+
     @property
     def lat_deg(self) -> float:
         return self.params[4] / 1e7 if self.is_int else self.params[4]
@@ -97,7 +116,11 @@ class Command:
         return self.params[5] / 1e7 if self.is_int else self.params[5]
 
     def key(self) -> tuple[Any, ...]:
-        return (self.src_system, self.src_component, self.target_component, self.command, self.params)
+        # NaN ("not given") is common in parameters and never equal to itself, and in Python 3.10+
+        # two NaN floats hash apart: a retransmission would never match its first copy and would
+        # act again. Every NaN counts as the same "not given".
+        params = tuple(None if math.isnan(v) else v for v in self.params)
+        return (self.src_system, self.src_component, self.target_component, self.command, params)
 
     @classmethod
     def from_message(cls, m: MAVLinkMessage) -> Command:
@@ -122,6 +145,7 @@ class Outcome:
 
 
 Handler = Callable[[Command], Awaitable["Outcome | None"]]
+Accepts = Callable[[Command], bool]
 
 
 @dataclass
@@ -145,14 +169,22 @@ class Dispatcher:
         self.timeout_s = timeout_s
         self.max_inflight = max_inflight
         self._handlers: dict[tuple[int, int], Handler] = {}
+        self._accepts: dict[tuple[int, int], Accepts] = {}
         self._components: dict[int, Component] = {}
         self._inflight: dict[tuple[Any, ...], asyncio.Task[None]] = {}
         self._done: OrderedDict[tuple[Any, ...], _Done] = OrderedDict()
         self.counts: dict[str, int] = {}
+        self.busy_rejected = 0  # commands refused because max_inflight were running
+        self._busy_logged_at: float | None = None
+        self._busy_logged_count = 0
 
-    def register(self, component: Component, command: int, handler: Handler) -> None:
+    def register(self, component: Component, command: int, handler: Handler, *, accepts: Accepts | None = None) -> None:
+        """`accepts`: for a broadcast (target component 0), whether this component answers this
+        command at all (REQUEST_MESSAGE for a message the component does not send: stay quiet)."""
         self._components[component.compid] = component
         self._handlers[(component.compid, command)] = handler
+        if accepts is not None:
+            self._accepts[(component.compid, command)] = accepts
 
     def add_component(self, component: Component) -> None:
         self._components[component.compid] = component
@@ -169,12 +201,18 @@ class Dispatcher:
             return
         if cmd.target_component == 0:
             # Broadcast: only components that handle the command answer (no chorus of UNSUPPORTED).
-            targets = [c for c in self._components.values() if self.handles(c.compid, cmd.command)]
+            targets = [c for c in self._components.values() if self._answers_broadcast(c.compid, cmd)]
         else:
             c = self._components.get(cmd.target_component)
             targets = [c] if c is not None else []
         for comp in targets:
             self._accept(comp, Command(**{**cmd.__dict__, "target_component": comp.compid}))
+
+    def _answers_broadcast(self, compid: int, cmd: Command) -> bool:
+        if not self.handles(compid, cmd.command):
+            return False
+        accepts = self._accepts.get((compid, cmd.command))
+        return accepts is None or accepts(cmd)
 
     def _accept(self, comp: Component, cmd: Command) -> None:
         key = cmd.key()
@@ -192,13 +230,22 @@ class Dispatcher:
             self._finish(comp, cmd, Outcome(UNSUPPORTED))
             return
         if len(self._inflight) >= self.max_inflight:
-            log.warning("%d commands in progress (the limit): %d from %d/%d rejected",
-                        self.max_inflight, cmd.command, cmd.src_system, cmd.src_component)  # fmt: skip
+            self._busy(cmd, now)
             self._ack(comp, cmd, TEMPORARILY_REJECTED)
             return
         task = asyncio.ensure_future(self._run(comp, cmd, handler))
         self._inflight[key] = task
         task.add_done_callback(lambda _t: self._inflight.pop(key, None))
+
+    def _busy(self, cmd: Command, now: float) -> None:
+        self.busy_rejected += 1
+        if self._busy_logged_at is not None and now - self._busy_logged_at < BUSY_LOG_EVERY_S:
+            return
+        since = self.busy_rejected - self._busy_logged_count
+        self._busy_logged_at, self._busy_logged_count = now, self.busy_rejected
+        log.warning("%d commands in progress (the limit): command %d from %d/%d TEMPORARILY_REJECTED "
+                    "(%d rejected since the last such line, %d in all)", self.max_inflight, cmd.command,
+                    cmd.src_system, cmd.src_component, since, self.busy_rejected)  # fmt: skip
 
     async def _run(self, comp: Component, cmd: Command, handler: Handler) -> None:
         work = asyncio.ensure_future(handler(cmd))

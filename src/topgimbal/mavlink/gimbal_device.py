@@ -12,7 +12,7 @@ import asyncio
 import contextlib
 import math
 import time
-from collections.abc import Awaitable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 from ._mav import mavlink
@@ -98,7 +98,6 @@ class GimbalDevice:
         self.status_sent = 0
         self.set_attitude_received = 0
         self._task: asyncio.Task[None] | None = None
-        self._bg: asyncio.Future[None] | None = None
         cam.on_attitude(self._on_attitude)
         cam.on_health(self._on_health)
 
@@ -198,30 +197,29 @@ class GimbalDevice:
             return
         self.set_attitude_received += 1
         sp = setpoint_from(msg.flags, msg.q, (msg.angular_velocity_x, msg.angular_velocity_y, msg.angular_velocity_z))
-        if sp is not None:
+        if sp is not None and (self.profile.has_neutral or not sp.neutral):
+            # Latest wins, NEUTRAL too: a flood of them is one centre request, not one task each.
             self.pointer.stream(sp)
-        elif msg.flags & F_NEUTRAL and self.profile.has_neutral:
-            self.pointer.cancel_stream()
-            self._bg = asyncio.ensure_future(_quietly(self.cam.call(lambda c: c.center())))
 
 
 def setpoint_from(flags: int, q: Sequence[float], rates_rad_s: tuple[float, float, float]) -> Setpoint | None:
     """A set-point from the angle (quaternion) or rate form of a SET_ATTITUDE message; None
-    when it carries neither."""
+    when it carries neither. RETRACT (which these gimbals cannot do) and NEUTRAL take precedence
+    over everything else, as the MAVLink flags say. A NaN (MAVLink's "ignore") or infinite rate
+    is no rate: garbage must not turn into the model's top speed by clamping."""
+    if flags & F_RETRACT:
+        return None
+    if flags & F_NEUTRAL:
+        return Setpoint(neutral=True)
     lock: bool | None = bool(flags & F_YAW_LOCK)
     earth = bool(flags & F_YAW_IN_EARTH_FRAME) or (bool(flags & F_YAW_LOCK) and not flags & F_YAW_IN_VEHICLE_FRAME)
     if is_valid(list(q)):
         e = to_euler_deg(list(q))
         return Setpoint(e.yaw_deg, e.pitch_deg, e.roll_deg, earth_yaw=earth, lock=lock)
-    r = [math.degrees(v) if not math.isnan(v) else None for v in rates_rad_s]
+    r = [math.degrees(v) if math.isfinite(v) else None for v in rates_rad_s]
     if all(v is None for v in r):
         return None
     return Setpoint(roll_rate_deg_s=r[0], pitch_rate_deg_s=r[1], yaw_rate_deg_s=r[2], lock=lock)
-
-
-async def _quietly(aw: Awaitable[object]) -> None:
-    with contextlib.suppress(Exception):
-        await aw
 
 
 def _text(s: str, n: int) -> bytes:

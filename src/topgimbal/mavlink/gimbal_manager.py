@@ -97,14 +97,17 @@ class GimbalManager:
         raise denied(f"{sysid}/{compid} is not in control (primary {self.primary[0]}/{self.primary[1]})")
 
     def _for_us(self, gimbal_device_id: float) -> bool:
-        return int(gimbal_device_id) in (0, self.gimbal_device_id) if not math.isnan(gimbal_device_id) else True
+        # NaN: not given (any device); inf or a fraction is no device id, so not ours.
+        return math.isnan(gimbal_device_id) or gimbal_device_id in (0, self.gimbal_device_id)
 
     async def _configure(self, cmd: Command) -> Outcome:
         if not self._for_us(cmd.p(7)):
             raise denied(f"gimbal device {cmd.p(7):g} is not managed here (ours: {self.gimbal_device_id})")
         me = (cmd.src_system, cmd.src_component)
-        self.primary = _control(self.primary, cmd.p(1), cmd.p(2), me)
-        self.secondary = _control(self.secondary, cmd.p(3), cmd.p(4), me)
+        # Both pairs are checked before either is changed: a bad secondary leaves the primary as it was.
+        primary = _control(self.primary, cmd, 1, "primary", me)
+        secondary = _control(self.secondary, cmd, 3, "secondary", me)
+        self.primary, self.secondary = primary, secondary
         self.comp.send(self.status_message())
         return Outcome()
 
@@ -114,15 +117,13 @@ class GimbalManager:
         if not self._for_us(cmd.p(7)):
             raise denied(f"gimbal device {cmd.p(7):g} is not managed here (ours: {self.gimbal_device_id})")
         self._check_control(cmd.src_system, cmd.src_component)
-        flags = int(cmd.p(5)) if cmd.has(5) else 0
+        flags = cmd.whole(5, "gimbal manager flags", 0, 2**32 - 1, default=0)
         if flags & F_RETRACT:
             raise unsupported("the gimbal cannot retract")
         await self._stop_roi()
         self.pointer.cancel_stream()
         if flags & F_NEUTRAL:
-            if not self.cam.profile.has_neutral:
-                raise unsupported("the gimbal has no neutral position command")
-            await self.cam.call(lambda c: c.center())
+            await self.pointer.apply(Setpoint(neutral=True))
             return Outcome()
         lock = bool(flags & F_YAW_LOCK)
         earth = bool(flags & F_YAW_IN_EARTH_FRAME)
@@ -163,7 +164,7 @@ class GimbalManager:
             )
         else:
             sp = _pitchyaw_setpoint(msg)
-        if sp is not None:
+        if sp is not None and (self.cam.profile.has_neutral or not sp.neutral):
             self._cancel_roi_soon()
             self.pointer.stream(sp)
 
@@ -173,31 +174,38 @@ class GimbalManager:
         self._check_control(cmd.src_system, cmd.src_component)
         c = cmd.command
         if c == CMD_ROI:  # deprecated form: param1 = MAV_ROI mode
-            mode = int(cmd.p(1))
+            mode = cmd.whole(1, "MAV_ROI mode", 0, 255)
             if mode == 0:
                 c = CMD_ROI_NONE
             elif mode == 3:
                 c = CMD_ROI_LOCATION
             else:
                 raise unsupported(f"MAV_CMD_DO_SET_ROI mode {mode} (supported: 0 none, 3 location)")
-        elif not self._for_us(cmd.p(1)):
-            raise denied(f"gimbal device {cmd.p(1):g} is not managed here (ours: {self.gimbal_device_id})")
+        else:
+            device_param = 2 if c == CMD_ROI_SYSID else 1  # ROI_SYSID: param1 is the system to follow
+            if not self._for_us(cmd.p(device_param)):
+                raise denied(
+                    f"gimbal device {cmd.p(device_param):g} is not managed here (ours: {self.gimbal_device_id})"
+                )
         if c == CMD_ROI_NONE:
             await self._stop_roi()
             return Outcome()
         if c == CMD_ROI_SYSID:
-            sysid = int(cmd.p(1))
+            sysid = cmd.whole(1, "system id", 1, 255)
             if self.vehicles.fix(sysid) is None:
                 raise rejected(f"no position heard from system {sysid}")
             target: Position | int = sysid
         else:
-            alt = cmd.p(7)
+            alt = cmd.finite(7, "altitude in metres")
+            lat, lon = cmd.lat_deg, cmd.lon_deg
+            if not (-90 <= lat <= 90 and -180 <= lon <= 180):  # also refuses NaN and inf
+                raise denied(f"location {lat:g}, {lon:g}: expected latitude -90..90 and longitude -180..180 degrees")
             if cmd.frame in (3, 6):  # relative to home
                 fix = self.vehicles.fix()
                 if fix is None:
                     raise rejected("the vehicle's position is not known yet (no GLOBAL_POSITION_INT)")
                 alt += fix.home_alt_m
-            target = Position(cmd.lat_deg, cmd.lon_deg, alt)
+            target = Position(lat, lon, alt)
         yaw, pitch = self._aim(target)
         await self._stop_roi()
         self.pointer.cancel_stream()
@@ -238,37 +246,49 @@ class GimbalManager:
                 await task
 
     def _cancel_roi_soon(self) -> None:
-        if self.roi is not None:
+        # One stop at a time: a burst of set-points in one datagram is one task, not one each.
+        if self.roi is not None and (self._stopping is None or self._stopping.done()):
             self._stopping = asyncio.ensure_future(self._stop_roi())
 
 
-def _control(current: tuple[int, int], sysid: float, compid: float, me: tuple[int, int]) -> tuple[int, int]:
-    """MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE's rules: -1 leave, -2 take for the sender, -3 release
-    if the sender holds it, >= 0 set (0 = nobody)."""
-    if math.isnan(sysid) or sysid == -1:
+def _control(current: tuple[int, int], cmd: Command, n: int, which: str, me: tuple[int, int]) -> tuple[int, int]:
+    """MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE's rules for the (system id, component id) in params n,
+    n + 1: -1 leave, -2 take for the sender, -3 release if the sender holds it, 0..255 set (0 =
+    nobody); anything else is refused."""
+    sysid = cmd.whole(n, f"{which} control system id: -1 leave, -2 take, -3 release, or 0..255", -3, 255, default=-1)
+    if sysid == -1:
         return current
     if sysid == -2:
         return me
     if sysid == -3:
         return (0, 0) if current == me else current
-    return (int(sysid), int(compid) if not math.isnan(compid) else 0)
+    return (sysid, cmd.whole(n + 1, f"{which} control component id", 0, 255, default=0))
 
 
 def _pitchyaw_setpoint(msg: MAVLinkMessage) -> Setpoint | None:
+    """GIMBAL_MANAGER_SET_PITCHYAW: NaN = ignore that value (angles win over rates), RETRACT and
+    NEUTRAL take precedence; an infinite value counts as not given."""
+    if msg.flags & F_RETRACT:
+        return None
+    if msg.flags & F_NEUTRAL:
+        return Setpoint(neutral=True)
+    pitch, yaw, pitch_rate, yaw_rate = (
+        v if math.isfinite(v) else math.nan for v in (msg.pitch, msg.yaw, msg.pitch_rate, msg.yaw_rate)
+    )
     deg = math.degrees
     lock = bool(msg.flags & F_YAW_LOCK)
     earth = bool(msg.flags & F_YAW_IN_EARTH_FRAME)
-    if not (math.isnan(msg.pitch) and math.isnan(msg.yaw)):
+    if not (math.isnan(pitch) and math.isnan(yaw)):
         return Setpoint(
-            yaw_deg=None if math.isnan(msg.yaw) else deg(msg.yaw),
-            pitch_deg=None if math.isnan(msg.pitch) else deg(msg.pitch),
+            yaw_deg=None if math.isnan(yaw) else deg(yaw),
+            pitch_deg=None if math.isnan(pitch) else deg(pitch),
             earth_yaw=earth,
             lock=lock,
         )
-    if math.isnan(msg.pitch_rate) and math.isnan(msg.yaw_rate):
+    if math.isnan(pitch_rate) and math.isnan(yaw_rate):
         return None
     return Setpoint(
-        yaw_rate_deg_s=0.0 if math.isnan(msg.yaw_rate) else deg(msg.yaw_rate),
-        pitch_rate_deg_s=0.0 if math.isnan(msg.pitch_rate) else deg(msg.pitch_rate),
+        yaw_rate_deg_s=0.0 if math.isnan(yaw_rate) else deg(yaw_rate),
+        pitch_rate_deg_s=0.0 if math.isnan(pitch_rate) else deg(pitch_rate),
         lock=lock,
     )

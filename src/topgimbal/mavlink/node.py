@@ -119,7 +119,9 @@ class Node:
         except Exception as exc:  # robust_parsing turns most garbage into BAD_DATA; be sure
             self.bad_in += 1
             log.debug("%s: unparsable bytes from %s: %s", link, peer, exc)
+            self._parsers.pop((id(link), peer), None)  # start afresh rather than trust its state
             return
+        _compact(parser)
         for m in msgs:
             if m.get_type() == "BAD_DATA":
                 self.bad_in += 1
@@ -134,3 +136,13 @@ class Node:
                     log.exception(
                         "handling %s from %d/%d failed", m.get_type(), m.get_srcSystem(), m.get_srcComponent()
                     )
+
+
+def _compact(parser: MAVLinkCodec) -> None:
+    """Drop the bytes pymavlink's parser has consumed. It frees its buffer only when a chunk ends
+    exactly at a packet boundary; on a byte stream (TCP, serial) whose chunks always split a packet
+    the consumed bytes were kept forever (a MB per 50 000 messages). What is left after
+    `parse_buffer` is at most one unfinished packet (< 280 bytes)."""
+    if parser.buf_index:
+        del parser.buf[: parser.buf_index]
+        parser.buf_index = 0

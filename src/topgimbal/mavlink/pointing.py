@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 from ..errors import TopGimbalError
 from .camera_link import CameraLink
-from .commands import rejected
+from .commands import rejected, unsupported
 from .quaternion import wrap180
 from .vehicle import Vehicles
 
@@ -31,7 +31,8 @@ RATE_REFRESH_S = 0.5  # some firmware stops a rate command after a silence
 
 @dataclass(frozen=True)
 class Setpoint:
-    """Angles (body frame unless earth_yaw) or rates, degrees; None = leave that axis alone."""
+    """Angles (body frame unless earth_yaw) or rates, degrees; None = leave that axis alone.
+    neutral: go to the neutral position (the camera's centre command), whatever else is given."""
 
     yaw_deg: float | None = None
     pitch_deg: float | None = None
@@ -41,10 +42,11 @@ class Setpoint:
     roll_rate_deg_s: float | None = None
     earth_yaw: bool = False
     lock: bool | None = None  # True: yaw lock, False: follow, None: no change
+    neutral: bool = False
 
     @property
     def is_rate(self) -> bool:
-        return self.yaw_deg is None and self.pitch_deg is None and self.roll_deg is None
+        return not self.neutral and self.yaw_deg is None and self.pitch_deg is None and self.roll_deg is None
 
 
 class Pointer:
@@ -73,6 +75,12 @@ class Pointer:
 
     async def apply(self, sp: Setpoint, *, clamp: bool = False) -> None:
         """Send one set-point and return once the camera confirmed it (raises otherwise)."""
+        if sp.neutral:
+            if not self.profile.has_neutral:
+                raise unsupported("the gimbal has no neutral position command")
+            await self.cam.call(lambda c: c.center())
+            self._last_sent = (sp, time.monotonic())
+            return
         if sp.lock is not None and (self.profile.has_lock and self.profile.has_follow):
             want = "lock" if sp.lock else "follow"
             # Cameras power up following the vehicle: an unknown mode counts as follow, so plain
@@ -136,6 +144,8 @@ class Pointer:
             return False
         last, t = self._last_sent
         if (last.lock != sp.lock and sp.lock is not None) or last.earth_yaw != sp.earth_yaw:
+            return False
+        if last.neutral != sp.neutral:
             return False
         refresh = RATE_REFRESH_S if sp.is_rate else ANGLE_REFRESH_S
         if now - t >= refresh:

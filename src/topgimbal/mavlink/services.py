@@ -30,6 +30,7 @@ Producer = Callable[[], "Any | None"]
 MAV_CMD_REQUEST_MESSAGE = 512
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_CMD_GET_MESSAGE_INTERVAL = 510
+MAX_MESSAGE_ID = 2**24 - 1  # MAVLink 2 message ids are 24 bits
 # Legacy request commands -> (message id, which parameter carries the message's index).
 LEGACY_REQUESTS: dict[int, tuple[int, int | None]] = {
     521: (259, None),  # REQUEST_CAMERA_INFORMATION
@@ -66,11 +67,19 @@ class Services:
         self.system_status = 4  # MAV_STATE_ACTIVE
         self._started = False
         dispatcher.add_component(comp)
-        dispatcher.register(comp, MAV_CMD_REQUEST_MESSAGE, self._request_message)
-        dispatcher.register(comp, MAV_CMD_SET_MESSAGE_INTERVAL, self._set_interval)
-        dispatcher.register(comp, MAV_CMD_GET_MESSAGE_INTERVAL, self._get_interval)
+        # Broadcast (component 0) requests are answered only by the components that send the
+        # message: a gimbal must not answer UNSUPPORTED to a broadcast CAMERA_INFORMATION request.
+        dispatcher.register(comp, MAV_CMD_REQUEST_MESSAGE, self._request_message,
+                            accepts=lambda c: c.p(1) in self.providers)  # fmt: skip
+        dispatcher.register(comp, MAV_CMD_SET_MESSAGE_INTERVAL, self._set_interval,
+                            accepts=lambda c: c.p(1) in self.streams)  # fmt: skip
+        dispatcher.register(comp, MAV_CMD_GET_MESSAGE_INTERVAL, self._get_interval,
+                            accepts=lambda c: c.p(1) in self.streams)  # fmt: skip
         for cmd in LEGACY_REQUESTS:
-            dispatcher.register(comp, cmd, self._legacy_request)
+            dispatcher.register(comp, cmd, self._legacy_request, accepts=self._provides_legacy)
+
+    def _provides_legacy(self, cmd: Command) -> bool:
+        return LEGACY_REQUESTS[cmd.command][0] in self.providers
 
     def provide(self, msgid: int, provider: Provider) -> None:
         self.providers[msgid] = provider
@@ -117,7 +126,7 @@ class Services:
     # -- command handlers ------------------------------------------------------------------------
 
     async def _request_message(self, cmd: Command) -> Outcome:
-        return await self._answer(int(cmd.p(1)), cmd)
+        return await self._answer(cmd.whole(1, "message id", 0, MAX_MESSAGE_ID), cmd)
 
     async def _legacy_request(self, cmd: Command) -> Outcome:
         msgid, index_param = LEGACY_REQUESTS[cmd.command]
@@ -136,7 +145,7 @@ class Services:
         return Outcome(after=list(msgs))
 
     async def _set_interval(self, cmd: Command) -> Outcome:
-        msgid, interval_us = int(cmd.p(1)), cmd.p(2)
+        msgid, interval_us = cmd.whole(1, "message id", 0, MAX_MESSAGE_ID), cmd.finite(2, "interval in microseconds")
         s = self.streams.get(msgid)
         if s is None:
             raise unsupported(f"{self.comp.name} does not stream message {msgid}")
@@ -155,7 +164,7 @@ class Services:
         return Outcome()
 
     async def _get_interval(self, cmd: Command) -> Outcome:
-        msgid = int(cmd.p(1))
+        msgid = cmd.whole(1, "message id", 0, MAX_MESSAGE_ID)
         s = self.streams.get(msgid)
         interval = 0 if s is None else -1 if s.hz <= 0 else int(1e6 / s.hz)
         return Outcome(after=[mavlink().MAVLink_message_interval_message(msgid, interval)])

@@ -1,6 +1,7 @@
 """What the bridge hears about vehicles on the MAVLink network: our own vehicle's position and
 heading (for ROI, earth-frame yaw, photo positions, CAMERA_FOV_STATUS) and other systems'
-positions (MAV_CMD_DO_SET_ROI_SYSID). Bounded: at most MAX_SYSTEMS remembered."""
+positions (MAV_CMD_DO_SET_ROI_SYSID). Bounded: at most MAX_SYSTEMS remembered, our own vehicle
+always among them."""
 
 from __future__ import annotations
 
@@ -48,8 +49,11 @@ class Vehicles:
             )
             self._fixes[src] = fix
             self._fixes.move_to_end(src)
-            while len(self._fixes) > MAX_SYSTEMS:
-                self._fixes.popitem(last=False)
+            if len(self._fixes) > MAX_SYSTEMS:
+                # The least recently heard other system goes; never our own vehicle (on a network
+                # of more than MAX_SYSTEMS vehicles it used to be evicted between its own updates).
+                oldest = next(k for k in self._fixes if k != self.sysid)
+                del self._fixes[oldest]
         elif (
             kind == "ATTITUDE" and src == self.sysid and m.get_srcComponent() not in self.own and not math.isnan(m.yaw)
         ):
