@@ -10,27 +10,21 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import functools
 import logging
-import math
 import time
 from collections import OrderedDict
-from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from ..video.lens import VideoError, hfov_at, tracking_requests, vfov_for
 from ._mav import mavlink
 from .camera_link import CameraLink
-from .commands import Command, Outcome, denied, rejected, unsupported
-from .geo import ground_point
+from .camera_tracking import Tracker
+from .camera_view import CameraView
+from .commands import Command, Outcome, denied, unsupported
 from .gimbal_device import _text, firmware_code, flag_bits
-from .quaternion import from_euler_deg
 from .services import Services
 from .vehicle import Vehicles
 
 if TYPE_CHECKING:
-    from ..client import AsyncClient
-    from ..protocol import Message
     from ._mav import MAVLinkMessage
 
 log = logging.getLogger("topgimbal.mavlink")
@@ -77,11 +71,11 @@ class CameraComponent:
         self.record_started = 0.0
         self.zoom_pct: float = float("nan")
         self.available_mib: float = float("nan")
-        self.tracking: tuple[int, tuple[float, ...]] = (0, ())
-        self.last_range_m: float | None = None
         self._interval_task: asyncio.Task[None] | None = None
         self._range_task: asyncio.Task[None] | None = None
         self._last_sequence: dict[tuple[int, int], int] = {}
+        self.view = CameraView(self.comp, cam, vehicles, lens=lens, range_hz=self.range_hz)
+        self.tracker = Tracker(cam)
         p = self.profile
         provide = services.provide
         provide(MSG_INFO, self._information)
@@ -89,14 +83,14 @@ class CameraComponent:
         provide(MSG_STORAGE, self._storage)
         provide(MSG_CAPTURE_STATUS, self._capture_status)
         provide(MSG_IMAGE_CAPTURED, self._image_captured)
-        provide(MSG_FOV, self._fov_status)
+        provide(MSG_FOV, self.view.fov_status)
         if self.video_urls:
             provide(MSG_VIDEO_INFO, self._video_info)
             provide(MSG_VIDEO_STATUS, self._video_status)
         if self.tracks_point or self.tracks_rect:
-            provide(MSG_TRACKING, self._tracking_status)
+            provide(MSG_TRACKING, self.tracker.status)
         if self.range_hz or (lens == "visible" and p.rangefinder):
-            provide(MSG_DISTANCE_SENSOR, self._distance_now)
+            provide(MSG_DISTANCE_SENSOR, self.view.distance_now)
         d = services.dispatcher
         reg = d.register
         reg(self.comp, CMD_SET_MODE, self._set_mode)
@@ -111,11 +105,11 @@ class CameraComponent:
         if lens == "visible" and p.can_focus:
             reg(self.comp, CMD_FOCUS, self._focus)
         if self.tracks_point:
-            reg(self.comp, CMD_TRACK_POINT, self._track_point)
+            reg(self.comp, CMD_TRACK_POINT, self.tracker.point)
         if self.tracks_rect:
-            reg(self.comp, CMD_TRACK_RECT, self._track_rect)
+            reg(self.comp, CMD_TRACK_RECT, self.tracker.rect)
         if self.tracks_point or self.tracks_rect:
-            reg(self.comp, CMD_TRACK_STOP, self._track_stop)
+            reg(self.comp, CMD_TRACK_STOP, self.tracker.stop)
 
     # -- what this lens can do (from the catalog) ------------------------------------------------
 
@@ -160,7 +154,7 @@ class CameraComponent:
 
     def start(self) -> None:
         if self.range_hz > 0:
-            self._range_task = asyncio.ensure_future(self._range_loop())
+            self._range_task = asyncio.ensure_future(self.view.range_loop())
 
     async def close(self) -> None:
         for t in (self._interval_task, self._range_task):
@@ -282,18 +276,11 @@ class CameraComponent:
             alt, rel = int(fix.position.alt_m * 1000), int(fix.relative_alt_m * 1000)
         msg = mavlink().MAVLink_camera_image_captured_message(
             self.comp.node.time_boot_ms(), int(time.time() * 1e6), 0, lat, lon, alt, rel,
-            list(self._earth_quaternion()), index, 1 if ok else 0, b"")  # fmt: skip
+            list(self.view.earth_quaternion()), index, 1 if ok else 0, b"")  # fmt: skip
         self.images[index] = msg
         while len(self.images) > MAX_REMEMBERED_IMAGES:
             self.images.popitem(last=False)
         return msg
-
-    def _earth_quaternion(self) -> tuple[float, float, float, float]:
-        att = self.cam.attitude
-        if att is None:
-            return (float("nan"),) * 4  # type: ignore[return-value]
-        yaw = att.yaw_deg + (self.vehicles.yaw_deg or 0.0)
-        return from_euler_deg(att.roll_deg, att.pitch_deg, yaw)
 
     async def _image_start(self, cmd: Command) -> Outcome:
         interval = cmd.p(2) if cmd.has(2) else 0.0
@@ -431,129 +418,3 @@ class CameraComponent:
             raise unsupported(f"focus type {kind} (supported: 1 continuous, 4/5/6 auto)")
         await self.cam.call(lambda c: c.focus(action))
         return Outcome()
-
-    # -- tracking ------------------------------------------------------------------------------
-
-    async def _track_point(self, cmd: Command) -> Outcome:
-        x, y = cmd.p(1), cmd.p(2)
-        radius = cmd.p(3) if cmd.has(3) else 0.05
-        if not (0 <= x <= 1 and 0 <= y <= 1):
-            raise denied(f"point ({x:g}, {y:g}): expected 0..1 each")
-        await self._track(x, y)
-        self.tracking = (1, (x, y, radius))
-        return Outcome()
-
-    async def _track_rect(self, cmd: Command) -> Outcome:
-        x0, y0, x1, y1 = cmd.p(1), cmd.p(2), cmd.p(3), cmd.p(4)
-        if not all(0 <= v <= 1 for v in (x0, y0, x1, y1)) or x1 <= x0 or y1 <= y0:
-            raise denied("rectangle: expected 0 <= top-left < bottom-right <= 1")
-        await self._track(x0, y0, x1, y1)
-        self.tracking = (2, (x0, y0, x1, y1))
-        return Outcome()
-
-    async def _track(self, x0: float, y0: float, x1: float | None = None, y1: float | None = None) -> None:
-        """The model's tracking request for this point or box (one helper for the console and
-        the bridge: `video.lens.tracking_requests`)."""
-        try:
-            requests = tracking_requests(self.profile.dialect, self.profile.model, x0, y0, x1, y1)
-        except VideoError as exc:
-            raise unsupported(str(exc)) from None
-        for ident, values in requests:
-            await self.cam.call(functools.partial(_request, ident=ident, values=values))
-
-    async def _track_stop(self, cmd: Command) -> Outcome:
-        p = self.profile
-        role = "tracking_confirm" if p.can("tracking_confirm") else "tracking" if p.can("tracking") else None
-        if role is not None:
-            await self.cam.call(functools.partial(_request, ident=p.ident(role), values={"action": "stop"}))
-        else:
-            raise unsupported(f"the {self.profile.model.name} cannot stop tracking")
-        self.tracking = (0, ())
-        return Outcome()
-
-    async def _tracking_status(self, cmd: Command) -> list[Any]:
-        mode, v = self.tracking
-        nan = float("nan")
-        pt = (v[0], v[1], v[2]) if mode == 1 else (nan, nan, nan)
-        rect = tuple(v) if mode == 2 else (nan, nan, nan, nan)
-        return [mavlink().MAVLink_camera_tracking_image_status_message(
-            1 if mode else 0, mode, 1 if mode == 1 else 2 if mode == 2 else 0, *pt, *rect, 0)]  # fmt: skip
-
-    # -- field of view and range ---------------------------------------------------------------
-
-    async def _fov_status(self, cmd: Command) -> list[Any]:
-        return [self.fov_message()]
-
-    def fov_message(self) -> MAVLinkMessage:
-        nan = float("nan")
-        fix = self.vehicles.fix()
-        att = self.cam.attitude
-        vyaw = self.vehicles.yaw_deg
-        lat_c = lon_c = lat_i = lon_i = INT32_MAX
-        alt_c = alt_i = INT32_MAX
-        if fix is not None:
-            lat_c, lon_c = int(fix.position.lat_deg * 1e7), int(fix.position.lon_deg * 1e7)
-            alt_c = int(fix.position.alt_m * 1000)
-            if att is not None and vyaw is not None:
-                hit = ground_point(fix.position, att.yaw_deg + vyaw, att.pitch_deg, fix.home_alt_m)
-                if hit is not None:
-                    lat_i, lon_i, alt_i = int(hit.lat_deg * 1e7), int(hit.lon_deg * 1e7), int(hit.alt_m * 1000)
-        hfov, vfov = self.fov_deg()
-        q = self._earth_quaternion() if vyaw is not None else (nan, nan, nan, nan)
-        return mavlink().MAVLink_camera_fov_status_message(
-            self.comp.node.time_boot_ms(), lat_c, lon_c, alt_c, lat_i, lon_i, alt_i, list(q), hfov, vfov, 0
-        )
-
-    def zoom_x(self) -> float:
-        """This lens's magnification as the camera last reported it (1 until it has)."""
-        client = self.cam.client
-        if client is None:
-            return 1.0
-        state = client.state
-        if self.lens == "thermal":
-            z = state.extra.get("zoom.thermal_digital_x")
-            value = z.value if z is not None else 1.0
-        else:
-            value = state.zoom.value if state.zoom is not None else 1.0
-        return float(value) if isinstance(value, (int, float)) and value >= 1 else 1.0
-
-    def fov_deg(self) -> tuple[float, float]:
-        """(horizontal, vertical) field of view now: the profile's at 1x through the pinhole
-        lens model at the current zoom; NaN when the model lists no stream for this lens."""
-        lens = self.profile.lens(self.lens)
-        if lens is None:
-            return float("nan"), float("nan")
-        hfov = hfov_at(lens.hfov_deg, self.zoom_x())
-        return hfov, vfov_for(hfov, *lens.size)
-
-    async def _distance_now(self, cmd: Command) -> list[Any]:
-        d = await self.cam.call(lambda c: c.range())
-        if d is None:
-            raise rejected("the rangefinder reported no distance (no target in range)")
-        return [self._distance_message(d)]
-
-    def _distance_message(self, d: float) -> MAVLinkMessage:
-        lo, hi = self.profile.rangefinder or (0.0, 0.0)
-        att = self.cam.attitude
-        q = from_euler_deg(att.roll_deg, att.pitch_deg, att.yaw_deg) if att else (0.0, 0.0, 0.0, 0.0)
-        self.last_range_m = d
-        return mavlink().MAVLink_distance_sensor_message(
-            self.comp.node.time_boot_ms(), int(lo * 100), min(65535, int(hi * 100)), min(65535, int(d * 100)),
-            0, 0, 100 if att else 25, 255, 0.0, 0.0, list(q), 0)  # fmt: skip
-
-    async def _range_loop(self) -> None:
-        while True:
-            await asyncio.sleep(1.0 / self.range_hz)
-            if not self.cam.answering:
-                continue
-            try:
-                d = await self.cam.call(lambda c: c.range())
-            except Exception as exc:
-                log.debug("range measurement failed: %s", exc)
-                continue
-            if d is not None and not math.isnan(d):
-                self.comp.send(self._distance_message(d))
-
-
-async def _request(client: AsyncClient, *, ident: str, values: Mapping[str, object]) -> Message:
-    return await client.send_request(client.build_from(ident, values))

@@ -1,0 +1,116 @@
+"""What the camera looks at, for MAVLink: its field of view and where its axis meets the ground
+(CAMERA_FOV_STATUS), its earth-frame orientation (for captured images), and the rangefinder's
+distance (DISTANCE_SENSOR, on request or as a stream)."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+from typing import TYPE_CHECKING, Any
+
+from ..video.lens import hfov_at, vfov_for
+from ._mav import mavlink
+from .camera_link import CameraLink
+from .commands import Command, rejected
+from .geo import ground_point
+from .node import Component
+from .quaternion import from_euler_deg
+from .vehicle import Vehicles
+
+if TYPE_CHECKING:
+    from ._mav import MAVLinkMessage
+
+log = logging.getLogger("topgimbal.mavlink")
+INT32_MAX = 2**31 - 1
+
+
+class CameraView:
+    def __init__(self, comp: Component, cam: CameraLink, vehicles: Vehicles, *, lens: str, range_hz: float) -> None:
+        self.comp = comp
+        self.cam = cam
+        self.profile = cam.profile
+        self.vehicles = vehicles
+        self.lens = lens
+        self.range_hz = range_hz
+        self.last_range_m: float | None = None
+
+    def earth_quaternion(self) -> tuple[float, float, float, float]:
+        att = self.cam.attitude
+        if att is None:
+            return (float("nan"),) * 4  # type: ignore[return-value]
+        yaw = att.yaw_deg + (self.vehicles.yaw_deg or 0.0)
+        return from_euler_deg(att.roll_deg, att.pitch_deg, yaw)
+
+    async def fov_status(self, cmd: Command) -> list[Any]:
+        return [self.fov_message()]
+
+    def fov_message(self) -> MAVLinkMessage:
+        nan = float("nan")
+        fix = self.vehicles.fix()
+        att = self.cam.attitude
+        vyaw = self.vehicles.yaw_deg
+        lat_c = lon_c = lat_i = lon_i = INT32_MAX
+        alt_c = alt_i = INT32_MAX
+        if fix is not None:
+            lat_c, lon_c = int(fix.position.lat_deg * 1e7), int(fix.position.lon_deg * 1e7)
+            alt_c = int(fix.position.alt_m * 1000)
+            if att is not None and vyaw is not None:
+                hit = ground_point(fix.position, att.yaw_deg + vyaw, att.pitch_deg, fix.home_alt_m)
+                if hit is not None:
+                    lat_i, lon_i, alt_i = int(hit.lat_deg * 1e7), int(hit.lon_deg * 1e7), int(hit.alt_m * 1000)
+        hfov, vfov = self.fov_deg()
+        q = self.earth_quaternion() if vyaw is not None else (nan, nan, nan, nan)
+        return mavlink().MAVLink_camera_fov_status_message(
+            self.comp.node.time_boot_ms(), lat_c, lon_c, alt_c, lat_i, lon_i, alt_i, list(q), hfov, vfov, 0
+        )
+
+    def zoom_x(self) -> float:
+        """This lens's magnification as the camera last reported it (1 until it has)."""
+        client = self.cam.client
+        if client is None:
+            return 1.0
+        state = client.state
+        if self.lens == "thermal":
+            z = state.extra.get("zoom.thermal_digital_x")
+            value = z.value if z is not None else 1.0
+        else:
+            value = state.zoom.value if state.zoom is not None else 1.0
+        return float(value) if isinstance(value, (int, float)) and value >= 1 else 1.0
+
+    def fov_deg(self) -> tuple[float, float]:
+        """(horizontal, vertical) field of view now: the profile's at 1x through the pinhole
+        lens model at the current zoom; NaN when the model lists no stream for this lens."""
+        lens = self.profile.lens(self.lens)
+        if lens is None:
+            return float("nan"), float("nan")
+        hfov = hfov_at(lens.hfov_deg, self.zoom_x())
+        return hfov, vfov_for(hfov, *lens.size)
+
+    async def distance_now(self, cmd: Command) -> list[Any]:
+        d = await self.cam.call(lambda c: c.range())
+        if d is None:
+            raise rejected("the rangefinder reported no distance (no target in range)")
+        return [self.distance_message(d)]
+
+    def distance_message(self, d: float) -> MAVLinkMessage:
+        lo, hi = self.profile.rangefinder or (0.0, 0.0)
+        att = self.cam.attitude
+        q = from_euler_deg(att.roll_deg, att.pitch_deg, att.yaw_deg) if att else (0.0, 0.0, 0.0, 0.0)
+        self.last_range_m = d
+        return mavlink().MAVLink_distance_sensor_message(
+            self.comp.node.time_boot_ms(), int(lo * 100), min(65535, int(hi * 100)), min(65535, int(d * 100)),
+            0, 0, 100 if att else 25, 255, 0.0, 0.0, list(q), 0)  # fmt: skip
+
+    async def range_loop(self) -> None:
+        while True:
+            await asyncio.sleep(1.0 / self.range_hz)
+            if not self.cam.answering:
+                continue
+            try:
+                d = await self.cam.call(lambda c: c.range())
+            except Exception as exc:
+                log.debug("range measurement failed: %s", exc)
+                continue
+            if d is not None and not math.isnan(d):
+                self.comp.send(self.distance_message(d))
