@@ -363,6 +363,119 @@ async def test_a_tcp_client_that_stops_reading_is_closed(caplog):
         server.close()
 
 
+async def _wait_for(text: str, caplog: Any) -> None:
+    for _ in range(400):
+        if text in caplog.text:
+            return
+        await asyncio.sleep(0.05)
+    raise AssertionError(f"{text!r} never logged: {caplog.text[-2000:]}")
+
+
+async def test_tcp_clients_that_stop_reading_give_their_slot_back(caplog):
+    """A client closed for leaving 64 KiB unread kept its session (close() waits for the unread
+    bytes to leave, which they never do), so max_clients such clients locked every other client
+    out for good; now it is aborted and its slot is free at once."""
+    chunk = b"#TPGUCrGAC00000000000023" * 4_000
+
+    async def device(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        with contextlib.suppress(ConnectionError):
+            while True:  # floods every connection, until the proxy closes it
+                writer.write(chunk)
+                await writer.drain()
+        writer.close()
+
+    server = await asyncio.start_server(device, "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    proxy = Proxy("tcp://127.0.0.1:0", f"tcp://127.0.0.1:{port}", max_clients=1)
+    await proxy.start()
+    loop = asyncio.get_running_loop()
+    stuck = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # and it never reads
+    try:
+        stuck.setblocking(False)
+        await loop.sock_connect(stuck, proxy.listen_address)  # type: ignore[arg-type]
+        await _wait_for("unread bytes", caplog)
+        for _ in range(100):
+            if not proxy._sessions:
+                break
+            await asyncio.sleep(0.02)
+        assert not proxy._sessions
+        reader, writer = await asyncio.open_connection(*proxy.listen_address)  # type: ignore[misc]
+        assert (await asyncio.wait_for(reader.readexactly(24), 5)) == chunk[:24]  # served, not refused
+        writer.close()
+        assert "refusing" not in caplog.text
+    finally:
+        stuck.close()
+        await proxy.stop()
+        server.close()
+
+
+async def test_a_tcp_camera_that_stops_reading_ends_the_session(caplog):
+    """The camera accepts and never reads while the client sends: the proxy's buffer towards the
+    camera grew without bound (51 MB in a probe); now the session ends past 64 KiB, logged."""
+    held: list[asyncio.StreamWriter] = []
+
+    async def device(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        held.append(writer)  # never reads
+
+    server = await asyncio.start_server(device, "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    proxy = Proxy("tcp://127.0.0.1:0", f"tcp://127.0.0.1:{port}")
+    await proxy.start()
+    try:
+        reader, writer = await asyncio.open_connection(*proxy.listen_address)  # type: ignore[misc]
+        with contextlib.suppress(ConnectionError, asyncio.TimeoutError):
+            for _ in range(200):  # up to 20 MB, until the proxy closes this client
+                writer.write(PTZ * 7500)
+                await asyncio.wait_for(writer.drain(), 1)
+        await _wait_for("the device has", caplog)
+        assert "unread bytes; closing this client" in caplog.text
+        with contextlib.suppress(ConnectionResetError):  # a reset: what it sent was never read
+            assert await asyncio.wait_for(reader.read(), 5) == b""  # the client's connection ended
+        writer.close()
+    finally:
+        await proxy.stop()
+        server.close()
+        for w in held:
+            w.close()
+
+
+async def test_a_serial_line_slower_than_the_camera_drops_chunks_not_memory(caplog):
+    """A UDP camera sending more than the serial line carries (here nobody reads the pty): what
+    waits for the line is bounded at 64 KiB, whole chunks dropped beyond it, logged once."""
+    burst = PTZ * 70  # ~1 KB per datagram
+
+    class Flood(asyncio.DatagramProtocol):
+        def connection_made(self, transport: Any) -> None:
+            self.t = transport
+
+        def datagram_received(self, data: bytes, addr: Any) -> None:
+            for _ in range(400):  # ~400 KB per query
+                self.t.sendto(burst, addr)
+
+    loop = asyncio.get_running_loop()
+    dev, _ = await loop.create_datagram_endpoint(Flood, local_addr=("127.0.0.1", 0))
+    master, slave = os.openpty()
+    tty.setraw(master)
+    tty.setraw(slave)
+    proxy = Proxy(f"serial://{os.ttyname(slave)}?baud=115200", f"udp://127.0.0.1:{dev.get_extra_info('sockname')[1]}")
+    await proxy.start()
+    try:
+        for _ in range(3):
+            os.write(master, PTZ)
+            await asyncio.sleep(0.2)
+        await _wait_for("unsent bytes; dropping chunks", caplog)
+        assert proxy._serial is not None
+        unsent = proxy._serial.write_buffer_size  # type: ignore[attr-defined]
+        assert 0 < unsent <= 64 * 1024 + len(burst)
+        assert caplog.text.count("unsent bytes; dropping chunks") == 1
+    finally:
+        await proxy.stop()
+        dev.close()
+        os.close(master)
+        os.close(slave)
+
+
 WATCHER = [sys.executable, "-c", "from topgimbal.cli.wire_cmds import watch_main; watch_main()", "quiet"]
 
 

@@ -44,6 +44,7 @@ from typing import Any
 from ..errors import TopGimbalError, TransportError
 from ..protocol import Dialect, FrameParser, get_dialect, get_model
 from ..transport import Transport, TransportURL, open_transport, parse_url
+from ..transport.tcp import StreamTransport
 from .offload import WatcherProcess
 from .packets import Endpoint
 from .ports import dialect_for_ports, documented_ports
@@ -152,6 +153,12 @@ class _Session:
 
     def _upstream_send(self, data: bytes) -> None:
         if self.upstream is not None and self.upstream.connected:
+            unsent = self.upstream.write_buffer_size if isinstance(self.upstream, StreamTransport) else 0
+            if unsent > MAX_QUEUED:
+                # the device stopped reading: this session ends rather than buffering without bound
+                log.warning("proxy: %s: the device has %d unread bytes; closing this client", self.label, unsent)
+                self.proxy._drop(self)
+                return
             try:
                 self.upstream.send(data)
             except TransportError as exc:
@@ -209,9 +216,13 @@ class _TcpClient(asyncio.Protocol):
         if self.transport is None or self.transport.is_closing():
             return
         if self.transport.get_write_buffer_size() > MAX_QUEUED:
-            # the client stopped reading: it is dropped rather than buffered without bound
+            # The client stopped reading: it is dropped rather than buffered without bound. abort(),
+            # not close(): close() waits for the unread bytes to leave, which they never do, and
+            # the session would keep its client slot for good.
             log.warning("proxy: a TCP client has %d unread bytes; closing it", self.transport.get_write_buffer_size())
-            self.transport.close()
+            self.transport.abort()
+            if self.session is not None:
+                self.proxy._drop(self.session)
             return
         self.transport.write(data)
 
@@ -267,6 +278,7 @@ class Proxy:
         self._udp: UdpSocket | None = None
         self._server: asyncio.AbstractServer | None = None
         self._serial: Transport | None = None
+        self._serial_dropped = 0  # chunks dropped since the serial line last kept up
         self._sweeper: asyncio.TimerHandle | None = None
         self._device_ep: Endpoint = ("127.0.0.1", 0)
         self._transport_kind = self.to.scheme if self.to.scheme in ("udp", "tcp") else self.listen.scheme
@@ -453,6 +465,14 @@ class Proxy:
 
     def _serial_send(self, data: bytes) -> None:
         if self._serial is not None and self._serial.connected:
+            unsent = self._serial.write_buffer_size if isinstance(self._serial, StreamTransport) else 0
+            if unsent > MAX_QUEUED:
+                # the device sends faster than the line's baud rate carries: whole chunks are dropped
+                self._serial_dropped += 1
+                if self._serial_dropped == 1:
+                    log.warning("proxy: serial port %s has %d unsent bytes; dropping chunks", self.listen.path, unsent)
+                return
+            self._serial_dropped = 0
             self._serial.send(data)
 
     def _serial_lost(self, exc: Exception | None) -> None:
