@@ -410,6 +410,86 @@ async def test_tcp_clients_that_stop_reading_give_their_slot_back(caplog):
         server.close()
 
 
+@pytest.mark.parametrize("size", ["one frame", "336 KB"])
+async def test_a_tcp_client_is_not_cut_while_its_device_link_opens(caplog, monkeypatch, size):
+    """A TCP client sends and closes before the camera link is up. More than 64 KiB: the bytes
+    beyond were dropped from the middle of the stream (frames cut); now the client is not read
+    until the link opens. Either size: what waited was thrown away when the client closed (a
+    command sent by `nc -q0` never arrived); now it is delivered, then the link closed."""
+    from topgimbal.wire import proxy as proxy_module
+
+    release = asyncio.Event()
+    real_open = proxy_module.open_transport
+
+    async def slow_open(*args: Any) -> Any:
+        await release.wait()
+        return await real_open(*args)
+
+    monkeypatch.setattr(proxy_module, "open_transport", slow_open)
+    received = bytearray()
+    done = asyncio.Event()
+
+    async def device(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        while data := await reader.read(65536):
+            received.extend(data)
+        done.set()
+        writer.close()
+
+    server = await asyncio.start_server(device, "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    proxy = Proxy("tcp://127.0.0.1:0", f"tcp://127.0.0.1:{port}")
+    await proxy.start()
+    sent = PTZ if size == "one frame" else (PTZ + b"#TPUG2rGAC0032") * 12_000
+    try:
+        reader, writer = await asyncio.open_connection(*proxy.listen_address)  # type: ignore[misc]
+        writer.write(sent)
+        for _ in range(200):  # until the proxy holds what it may (or, before, dropped the rest)
+            if sum(s.queued_bytes for s in proxy._sessions.values()) >= min(len(sent), 64 * 1024):
+                break
+            if "wait for the device link" in caplog.text:
+                break
+            await asyncio.sleep(0.02)
+        writer.close()
+        release.set()
+        with contextlib.suppress(asyncio.TimeoutError):  # the camera sees the end of the stream
+            await asyncio.wait_for(done.wait(), 10)
+        assert len(received) == len(sent) and bytes(received) == sent
+        assert "dropping" not in caplog.text
+        assert ("not reading this client until it opens" in caplog.text) == (size != "one frame")
+    finally:
+        release.set()
+        await proxy.stop()
+        server.close()
+
+
+async def test_stop_does_not_wait_for_a_device_link_that_never_opens(monkeypatch):
+    """A client left with bytes for a link still opening; stop() ends that wait, closes it all."""
+    from topgimbal.wire import proxy as proxy_module
+
+    never = asyncio.Event()
+
+    async def hanging_open(*args: Any) -> Any:
+        await never.wait()
+
+    monkeypatch.setattr(proxy_module, "open_transport", hanging_open)
+    proxy = Proxy("tcp://127.0.0.1:0", "tcp://127.0.0.1:9")
+    await proxy.start()
+    reader, writer = await asyncio.open_connection(*proxy.listen_address)  # type: ignore[misc]
+    writer.write(PTZ)
+    for _ in range(200):
+        if any(s.queued for s in proxy._sessions.values()):
+            break
+        await asyncio.sleep(0.02)
+    writer.close()
+    for _ in range(200):
+        if proxy._closing:
+            break
+        await asyncio.sleep(0.02)
+    assert proxy._closing and not proxy._sessions  # the session ended, and waits to deliver PTZ
+    await asyncio.wait_for(proxy.stop(), 30)  # a hang guard, not a timing check
+    assert not proxy._closing
+
+
 async def test_a_tcp_camera_that_stops_reading_ends_the_session(caplog):
     """The camera accepts and never reads while the client sends: the proxy's buffer towards the
     camera grew without bound (51 MB in a probe); now the session ends past 64 KiB, logged."""

@@ -96,12 +96,15 @@ class _Session:
         endpoint: Endpoint,
         send_down: Callable[[bytes], None],
         close_down: Callable[[], None] | None = None,
+        pause_down: Callable[[bool], None] | None = None,
     ) -> None:
         self.proxy = proxy
         self.label = label
         self.endpoint = endpoint
         self.send_down = send_down
         self.close_down = close_down
+        self.pause_down = pause_down  # a stream client: stop (True) or resume reading it
+        self.paused = False
         self.upstream: Transport | UdpSocket | None = None
         self.queued: list[bytes] = []
         self.queued_bytes = 0
@@ -131,10 +134,27 @@ class _Session:
         queued, self.queued, self.queued_bytes = self.queued, [], 0
         for chunk in queued:
             self._send_up(chunk)
+        if self.paused and self.pause_down is not None:
+            self.paused = False
+            self.pause_down(False)
 
     def from_client(self, data: bytes) -> None:
         self.last_active = time.monotonic()
         if self.upstream is None:
+            if self.pause_down is not None:
+                # A stream's bytes cannot be dropped (the frames around the hole would be cut):
+                # the client is not read until the link opens, so at most one read more waits.
+                self.queued.append(data)
+                self.queued_bytes += len(data)
+                if self.queued_bytes > MAX_QUEUED and not self.paused:
+                    log.warning(
+                        "proxy: %s: %d bytes wait for the device link; not reading this client until it opens",
+                        self.label,
+                        self.queued_bytes,
+                    )
+                    self.paused = True
+                    self.pause_down(True)
+                return
             if self.queued_bytes + len(data) > MAX_QUEUED:
                 log.warning(
                     "proxy: %s: %d bytes already wait for the device link; dropping %d",
@@ -176,7 +196,10 @@ class _Session:
             log.info("proxy: device link of %s closed%s", self.label, f": {exc}" if exc else "")
             self.proxy._drop(self)
 
-    async def close(self) -> None:
+    async def close(self, deliver: bool = False) -> None:
+        """End the session. `deliver`: the client left (a command sent and the connection closed
+        at once, as `nc -q0` does): what it sent before the device link opened still goes to the
+        device, once the link is up."""
         if self.closed:
             return
         self.closed = True
@@ -184,7 +207,11 @@ class _Session:
             if d.flush_timer is not None:
                 d.flush_timer.cancel()
         if self.opening is not None and not self.opening.done():
-            self.opening.cancel()
+            if deliver and self.queued:
+                with contextlib.suppress(asyncio.CancelledError):
+                    await self.opening  # open() sends what waits; bounded by the link's connect timeout
+            else:
+                self.opening.cancel()
         if self.close_down is not None:
             self.close_down()
         self.proxy._closed(self)
@@ -210,7 +237,7 @@ class _TcpClient(asyncio.Protocol):
 
     def connection_lost(self, exc: Exception | None) -> None:
         if self.session is not None:
-            self.proxy._drop(self.session)
+            self.proxy._drop(self.session, deliver=True)
 
     def send(self, data: bytes) -> None:
         if self.transport is None or self.transport.is_closing():
@@ -229,6 +256,13 @@ class _TcpClient(asyncio.Protocol):
     def close(self) -> None:
         if self.transport is not None:
             self.transport.close()
+
+    def pause(self, paused: bool) -> None:
+        if self.transport is not None and not self.transport.is_closing():
+            if paused:
+                self.transport.pause_reading()
+            else:
+                self.transport.resume_reading()
 
 
 class Proxy:
@@ -279,6 +313,7 @@ class Proxy:
         self._server: asyncio.AbstractServer | None = None
         self._serial: Transport | None = None
         self._serial_dropped = 0  # chunks dropped since the serial line last kept up
+        self._closing: dict[asyncio.Task[None], _Session] = {}  # sessions ending (some deliver first)
         self._sweeper: asyncio.TimerHandle | None = None
         self._device_ep: Endpoint = ("127.0.0.1", 0)
         self._transport_kind = self.to.scheme if self.to.scheme in ("udp", "tcp") else self.listen.scheme
@@ -364,6 +399,10 @@ class Proxy:
         for session in list(self._sessions.values()):
             await session.close()
         self._sessions.clear()
+        for task, session in list(self._closing.items()):  # stopping: no more waiting for device links
+            if session.opening is not None:
+                session.opening.cancel()
+            await asyncio.gather(task, return_exceptions=True)
         if self._udp is not None:
             await self._udp.close()
         if self._server is not None:
@@ -428,12 +467,14 @@ class Proxy:
         self.stats.clients += 1
         session.opening = asyncio.get_running_loop().create_task(session.open())
 
-    def _drop(self, session: _Session) -> None:
+    def _drop(self, session: _Session, *, deliver: bool = False) -> None:
         for key, s in list(self._sessions.items()):
             if s is session:
                 del self._sessions[key]
         if not session.closed:
-            asyncio.get_running_loop().create_task(session.close())
+            task = asyncio.get_running_loop().create_task(session.close(deliver))
+            self._closing[task] = session
+            task.add_done_callback(lambda t: self._closing.pop(t, None))
 
     def _udp_datagram(self, data: bytes, addr: tuple[Any, ...]) -> None:
         key = addr[:2]
@@ -459,7 +500,9 @@ class Proxy:
             log.warning("proxy: at most %d clients; refusing %s", self.max_clients, _ep_text(peer))
             client.transport.close()
             return None
-        session = _Session(self, f"tcp {_ep_text(peer)}", (str(peer[0]), int(peer[1])), client.send, client.close)
+        session = _Session(
+            self, f"tcp {_ep_text(peer)}", (str(peer[0]), int(peer[1])), client.send, client.close, client.pause
+        )
         self._add(peer, session)
         return session
 
