@@ -462,6 +462,62 @@ async def test_a_tcp_client_is_not_cut_while_its_device_link_opens(caplog, monke
         server.close()
 
 
+async def test_a_flood_of_new_clients_is_logged_once_not_once_per_client(caplog):
+    """300 UDP clients (one datagram each, as a port-rotating flood sends) against max_clients=2:
+    each replacement was a warning line (a log as long as the flood); now one line per 10 s,
+    the clients still replaced, counted, and a client sending now still served."""
+    dev, port = await _echo_device()
+    proxy = Proxy("udp://127.0.0.1:0", f"udp://127.0.0.1:{port}", max_clients=2)
+    await proxy.start()
+    socks = []
+    try:
+        for i in range(300):
+            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            sock.sendto(b"#TP garbage %d" % i, proxy.listen_address)  # type: ignore[arg-type]
+            socks.append(sock)
+            if len(socks) > 20:
+                socks.pop(0).close()
+            if i % 20 == 0:
+                await asyncio.sleep(0.01)
+        for _ in range(200):
+            if proxy.stats.clients >= 300:
+                break
+            await asyncio.sleep(0.02)
+        assert proxy.stats.clients == 300 and proxy.stats.clients_dropped == 298
+        assert caplog.text.count("at most 2 client(s); dropping") == 1
+        loop = asyncio.get_running_loop()
+        good = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        socks.append(good)
+        good.setblocking(False)
+        good.connect(proxy.listen_address)  # type: ignore[arg-type]
+        good.send(PTZ)
+        assert await asyncio.wait_for(loop.sock_recv(good, 100), 5) == PTZ  # the echo camera's answer
+        assert len(proxy._sessions) <= 2
+    finally:
+        for sock in socks:
+            sock.close()
+        await proxy.stop()
+        dev.close()
+
+
+def test_a_throttled_warning_says_how_many_were_left_out(caplog):
+    from topgimbal.wire.proxy import _Throttle
+
+    now = [100.0]
+    throttle = _Throttle(every_s=10.0, clock=lambda: now[0])
+    for i in range(5):
+        throttle.warning("clients", "proxy: client %d dropped", i)
+        throttle.warning("refused", "proxy: refusing %d", i)
+    now[0] += 10.0
+    throttle.warning("clients", "proxy: client %d dropped", 5)
+    lines = [r.getMessage() for r in caplog.records]
+    assert lines == [
+        "proxy: client 0 dropped",
+        "proxy: refusing 0",
+        "proxy: client 5 dropped (4 more like it not logged)",
+    ]
+
+
 async def test_stop_does_not_wait_for_a_device_link_that_never_opens(monkeypatch):
     """A client left with bytes for a link still opening; stop() ends that wait, closes it all."""
     from topgimbal.wire import proxy as proxy_module

@@ -73,6 +73,31 @@ DEFER_S = 0.0002  # decoding starts this long after a chunk is forwarded (a loop
 PROCESS_SLICE_S = 0.0005  # decoding runs at most this long before the loop polls sockets again
 FLUSH_S = 0.2  # the pcap and the log are handed to the files this often (and at stop)
 SERIAL_CLIENT: Endpoint = ("127.0.0.1", 40000)
+LOG_EVERY_S = 10.0  # a warning that peers can repeat at will is logged at most this often
+
+
+class _Throttle:
+    """Warnings a peer can trigger again and again (a flood of new clients or datagrams): each
+    kind is logged at most once per LOG_EVERY_S, the next line saying how many were left out."""
+
+    def __init__(self, every_s: float = LOG_EVERY_S, clock: Callable[[], float] = time.monotonic) -> None:
+        self.every_s = every_s
+        self.clock = clock
+        self._last: dict[str, float] = {}  # one entry per kind of warning: bounded
+        self._left_out: dict[str, int] = {}
+
+    def warning(self, kind: str, fmt: str, *args: Any) -> None:
+        now = self.clock()
+        last = self._last.get(kind)
+        if last is not None and now - last < self.every_s:
+            self._left_out[kind] = self._left_out.get(kind, 0) + 1
+            return
+        self._last[kind] = now
+        left_out = self._left_out.pop(kind, 0)
+        if left_out:
+            fmt += " (%d more like it not logged)"
+            args = (*args, left_out)
+        log.warning(fmt, *args)
 
 
 @dataclass
@@ -123,12 +148,8 @@ class _Session:
                 self.proxy._watch(self.upstream)
             else:
                 self.upstream = await open_transport(to, self.from_device, self.device_lost)
-        except OSError as exc:
-            log.warning("proxy: cannot reach %s for %s: %s", to, self.label, exc)
-            self.proxy._drop(self)
-            return
-        except TopGimbalError as exc:
-            log.warning("proxy: cannot reach %s for %s: %s", self.proxy.to, self.label, exc)
+        except (OSError, TopGimbalError) as exc:
+            self.proxy.throttle.warning("unreachable", "proxy: cannot reach %s for %s: %s", to, self.label, exc)
             self.proxy._drop(self)
             return
         queued, self.queued, self.queued_bytes = self.queued, [], 0
@@ -156,7 +177,8 @@ class _Session:
                     self.pause_down(True)
                 return
             if self.queued_bytes + len(data) > MAX_QUEUED:
-                log.warning(
+                self.proxy.throttle.warning(
+                    "queue full",
                     "proxy: %s: %d bytes already wait for the device link; dropping %d",
                     self.label,
                     self.queued_bytes,
@@ -182,7 +204,7 @@ class _Session:
             try:
                 self.upstream.send(data)
             except TransportError as exc:
-                log.warning("proxy: %s: device link: %s", self.label, exc)
+                self.proxy.throttle.warning("send failed", "proxy: %s: device link: %s", self.label, exc)
 
     def _device_datagram(self, data: bytes, addr: Any) -> None:
         self.from_device(data)
@@ -246,7 +268,9 @@ class _TcpClient(asyncio.Protocol):
             # The client stopped reading: it is dropped rather than buffered without bound. abort(),
             # not close(): close() waits for the unread bytes to leave, which they never do, and
             # the session would keep its client slot for good.
-            log.warning("proxy: a TCP client has %d unread bytes; closing it", self.transport.get_write_buffer_size())
+            self.proxy.throttle.warning(
+                "unread", "proxy: a TCP client has %d unread bytes; closing it", self.transport.get_write_buffer_size()
+            )
             self.transport.abort()
             if self.session is not None:
                 self.proxy._drop(self.session)
@@ -313,6 +337,7 @@ class Proxy:
         self._server: asyncio.AbstractServer | None = None
         self._serial: Transport | None = None
         self._serial_dropped = 0  # chunks dropped since the serial line last kept up
+        self.throttle = _Throttle()
         self._closing: dict[asyncio.Task[None], _Session] = {}  # sessions ending (some deliver first)
         self._sweeper: asyncio.TimerHandle | None = None
         self._device_ep: Endpoint = ("127.0.0.1", 0)
@@ -461,7 +486,9 @@ class Proxy:
         while len(self._sessions) >= self.max_clients:
             _, old = self._sessions.popitem(last=False)
             self.stats.clients_dropped += 1
-            log.warning("proxy: at most %d client(s); dropping %s for %s", self.max_clients, old.label, session.label)
+            self.throttle.warning(
+                "clients", "proxy: at most %d client(s); dropping %s for %s", self.max_clients, old.label, session.label
+            )
             asyncio.get_running_loop().create_task(old.close())
         self._sessions[key] = session
         self.stats.clients += 1
@@ -497,7 +524,7 @@ class Proxy:
         assert client.transport is not None
         peer = client.transport.get_extra_info("peername")[:2]
         if len(self._sessions) >= self.max_clients and self.to.scheme != "serial":
-            log.warning("proxy: at most %d clients; refusing %s", self.max_clients, _ep_text(peer))
+            self.throttle.warning("refused", "proxy: at most %d clients; refusing %s", self.max_clients, _ep_text(peer))
             client.transport.close()
             return None
         session = _Session(
