@@ -8,10 +8,9 @@ import random
 import pytest
 
 from topgimbal.protocol import Diagnostic, Frame
-from topgimbal.wire import CaptureWriter, PcapWriter
+from topgimbal.wire import CaptureWriter, PcapWriter, tcpstream
 from topgimbal.wire.capture import PacketNote, WireFrame, frames_in_capture
 from topgimbal.wire.packets import TCP_ACK, TCP_PSH, TCP_SYN, build_packet
-from topgimbal.wire import tcpstream
 from topgimbal.wire.tcpstream import TcpStream
 
 HOST, DEV = ("127.0.0.1", 40000), ("127.0.0.1", 5000)

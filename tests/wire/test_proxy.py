@@ -441,7 +441,7 @@ async def test_a_tcp_client_is_not_cut_while_its_device_link_opens(caplog, monke
     await proxy.start()
     sent = PTZ if size == "one frame" else (PTZ + b"#TPUG2rGAC0032") * 12_000
     try:
-        reader, writer = await asyncio.open_connection(*proxy.listen_address)  # type: ignore[misc]
+        _reader, writer = await asyncio.open_connection(*proxy.listen_address)  # type: ignore[misc]
         writer.write(sent)
         for _ in range(200):  # until the proxy holds what it may (or, before, dropped the rest)
             if sum(s.queued_bytes for s in proxy._sessions.values()) >= min(len(sent), 64 * 1024):
@@ -530,7 +530,7 @@ async def test_stop_does_not_wait_for_a_device_link_that_never_opens(monkeypatch
     monkeypatch.setattr(proxy_module, "open_transport", hanging_open)
     proxy = Proxy("tcp://127.0.0.1:0", "tcp://127.0.0.1:9")
     await proxy.start()
-    reader, writer = await asyncio.open_connection(*proxy.listen_address)  # type: ignore[misc]
+    _reader, writer = await asyncio.open_connection(*proxy.listen_address)  # type: ignore[misc]
     writer.write(PTZ)
     for _ in range(200):
         if any(s.queued for s in proxy._sessions.values()):

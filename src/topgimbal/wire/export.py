@@ -36,14 +36,15 @@ class ExportReport:
     device: Endpoint = ("127.0.0.1", 5000)
 
 
-def _endpoints(header: dict[str, Any], problems: list[str]) -> tuple[str, Endpoint, Endpoint]:
+def _endpoints(header: dict[str, Any], problems: list[str] | None = None) -> tuple[str, Endpoint, Endpoint]:
     dialect = str(header.get("dialect") or "")
     url_text = str(header.get("url") or "")
     transport, port, loopback = "udp", 0, "127.0.0.1"
     try:
         address = network_address(url_text)
     except (ValueError, TopGimbalError) as exc:  # a damaged header: the frames are still worth having
-        problems.append(f"header: url {url_text!r} is not a transport URL ({exc}): loopback UDP assumed")
+        if problems is not None:
+            problems.append(f"header: url {url_text!r} is not a transport URL ({exc}): loopback UDP assumed")
         address = None
     if address is not None:
         transport, host, port = address

@@ -16,10 +16,12 @@ frames; bytes the parser still holds are sent as they are after `STREAM_FLUSH_S`
 Bounded: at most `max_clients` clients (UDP: the least recently active is dropped for a new one;
 TCP: a connection beyond the limit is closed), UDP clients idle for `idle_timeout_s` are
 forgotten, at most `MAX_QUEUED` bytes wait per client while its device link opens (a TCP client
-leaving that much unread is closed), at most `MAX_BACKLOG` bytes wait to be decoded (beyond,
-chunks are still forwarded but not decoded, logged or captured; counted), at most
-`MAX_SUBSCRIBERS` subscribers. Every limit hit is logged. A serial device has one host at a time,
-so with `to=serial://` a new client replaces the previous one.
+is not read beyond it) and at most that much unread by a TCP client (it is aborted) or unsent
+towards a stream device (TCP: the session ends; a serial line: chunks are dropped), at most
+`MAX_BACKLOG` bytes wait to be decoded (beyond, chunks are still forwarded but not decoded,
+logged or captured; counted), at most `MAX_SUBSCRIBERS` subscribers. Every limit hit is logged
+(what peers can repeat at will, at most once per `LOG_EVERY_S`). A serial device has one host at
+a time, so with `to=serial://` a new client replaces the previous one.
 
 The pcap shows the device's side of the proxy as if captured on that link: the client's address
 talking to the device's (a serial side is given loopback addresses and the dialect's documented
