@@ -206,6 +206,28 @@ def test_corrupt_record_length(tmp_path):
     assert isinstance(problem, CaptureProblem) and "corrupt" in problem.detail
 
 
+def test_empty_records_and_bad_udp_lengths_are_noted(tmp_path):
+    """Records of 0 bytes, a UDP length below its header or beyond the packet: each noted with
+    what is wrong (tshark flags them too), the good packet after them decoded."""
+    good = build_packet("udp", ("127.0.0.1", 40000), ("127.0.0.1", 5000), PTZ)
+    at = 14 + 20 + 4  # the UDP length field
+    short, long = bytearray(good), bytearray(good)
+    short[at : at + 2] = struct.pack("!H", 3)
+    long[at : at + 2] = struct.pack("!H", 60000)
+    path = tmp_path / "odd.pcap"
+    with PcapWriter(path) as w:
+        for i, packet in enumerate((b"", bytes(short), bytes(long), good)):
+            w.write(1.0 + i, packet)
+    got = list(frames_in_capture(path))
+    notes = [(x.number, x.detail) for x in got if isinstance(x, PacketNote)]
+    assert notes == [
+        (1, "malformed packet: its 0 bytes end inside a header (unpack requires a buffer of 2 bytes)"),
+        (2, f"UDP length 3 does not fit the {8 + len(PTZ)}-byte payload"),
+        (3, f"UDP length 60000 does not fit the {8 + len(PTZ)}-byte payload"),
+    ]
+    assert [x.number for x in got if isinstance(x, WireFrame)] == [4]
+
+
 def test_unparseable_packets_are_noted_not_raised(tmp_path):
     path = tmp_path / "odd.pcap"
     good = build_packet("udp", ("127.0.0.1", 40000), ("127.0.0.1", 5000), PTZ)
