@@ -8,7 +8,7 @@ import random
 import pytest
 
 from topgimbal.protocol import Diagnostic, Frame
-from topgimbal.wire import CaptureWriter, PcapWriter
+from topgimbal.wire import CaptureWriter, PcapWriter, tcpstream
 from topgimbal.wire.capture import PacketNote, WireFrame, frames_in_capture
 from topgimbal.wire.packets import TCP_ACK, TCP_PSH, TCP_SYN, build_packet
 from topgimbal.wire.tcpstream import TcpStream
@@ -45,6 +45,62 @@ def test_a_hole_is_skipped_and_reported_when_too_much_waits():
     s2.add(0, 0, b"a")
     s2.add(5, 0, b"xyz")
     assert [(d.data, d.gap) for d in s2.finish()] == [(b"xyz", 4)]
+
+
+class _CountingAhead:
+    """Counts the sequence-number comparisons a TcpStream makes (the work it does)."""
+
+    def __init__(self) -> None:
+        self.calls = 0
+        self.real = tcpstream._ahead
+
+    def __call__(self, a: int, b: int) -> int:
+        self.calls += 1
+        return self.real(a, b)
+
+
+@pytest.mark.parametrize("order", ["reversed", "holes"])
+def test_reassembly_work_grows_linearly_with_waiting_segments(monkeypatch, order):
+    """3,000 one-byte segments in reverse order (or each after a hole) cost ~9 million comparisons
+    before (every waiting segment compared again per delivered one: 32,000 took 90 s, a 256 KiB
+    backlog of them hours); now one per segment."""
+    counter = _CountingAhead()
+    monkeypatch.setattr(tcpstream, "_ahead", counter)
+    n = 3000
+    s = TcpStream()
+    s.add(0, TCP_SYN, b"")
+    if order == "reversed":
+        for i in range(n, 0, -1):
+            assert s.add(1 + i, 0, bytes([65 + i % 26])) == []
+        got = s.add(1, 0, b"@")
+        assert b"".join(d.data for d in got) == b"@" + bytes(65 + i % 26 for i in range(1, n + 1))
+        assert [d.gap for d in got] == [0] * (n + 1)
+    else:
+        for i in range(n):
+            assert s.add(2 + 2 * i, 0, b"x") == []
+        got = s.finish()
+        assert [(d.data, d.gap) for d in got] == [(b"x", 1)] * n
+    assert counter.calls <= 4 * n
+    assert s.finish() == []
+
+
+def test_a_new_syn_restarts_the_stream_where_it_says():
+    s = TcpStream()
+    s.add(99, TCP_SYN, b"")
+    assert [d.data for d in s.add(100, 0, b"ab")] == [b"ab"]
+    s.add(5000, TCP_SYN, b"")  # the port pair reused by a new connection
+    assert [d.data for d in s.add(5001, 0, b"cd")] == [b"cd"]
+    assert s.next_seq == 5003
+
+
+def test_the_end_of_a_one_sided_conversation_names_both_endpoints(tmp_path):
+    """An incomplete frame left at the end of a TCP stream whose peer never sent: the record was
+    addressed from the sender to itself."""
+    path = tmp_path / "half.pcap"
+    with PcapWriter(path) as w:
+        w.write(1.0, build_packet("tcp", HOST, DEV, PTZ + PTZ[:6], seq=1000, flags=TCP_PSH | TCP_ACK))
+    got = [x for x in frames_in_capture(path) if isinstance(x, WireFrame)]
+    assert [(type(x.item).__name__, x.src, x.dst) for x in got] == [("Frame", HOST, DEV), ("Diagnostic", HOST, DEV)]
 
 
 def _frames(path) -> list[Frame | Diagnostic]:

@@ -136,6 +136,44 @@ def test_log_over_tcp_to_pcap(tmp_path, capsys):
     assert [(r["id"], r["dir"], r["transport"]) for r in got] == [("PTZ", "out", "tcp"), ("GAC", "in", "tcp")]
 
 
+@pytest.mark.parametrize("url", ["udp://127.0.0.1:5000", "tcp://127.0.0.1:5000"])
+def test_log_lines_no_capture_can_hold_are_reported_and_skipped(tmp_path, capsys, url):
+    """A time that is not finite, negative or past 2106, or a frame no datagram holds, stopped
+    `pcap from-log` with a traceback (OverflowError, ValueError, struct.error) and left a capture
+    cut short; now each is a reported line, and the rest of the log is written."""
+    good = {"dir": "out", "raw": PTZ.decode()}
+    bad = [{"t": t, **good} for t in ("NaN", "Infinity", -5, 1e12)]
+    if url.startswith("udp"):  # over TCP it is split into segments (and garbage)
+        bad.append({"t": 3.0, "dir": "in", "raw": "A" * 70_000})
+    lines = [json.dumps({"topgimbal_log": 1, "url": url, "dialect": "skydroid"})]
+    lines += [json.dumps(x).replace('"NaN"', "NaN").replace('"Infinity"', "Infinity") for x in bad]
+    lines += [json.dumps({"t": 10.0 + i, **good}) for i in range(2)]
+    log = tmp_path / "odd.jsonl"
+    log.write_text("\n".join(lines) + "\n")
+    pcap = tmp_path / "odd.pcap"
+    assert main(["pcap", "from-log", str(log), "-o", str(pcap)]) == 1
+    err = capsys.readouterr().err
+    for n, t in ((2, "nan"), (3, "inf"), (4, "-5"), (5, "1000000000000.0")):
+        assert f"line {n}: time {t}" in err and "a capture holds 0..4294967295 s" in err, err
+    if url.startswith("udp"):
+        assert "line 6: a 70000-byte datagram cannot be written: UDP holds at most 65507" in err
+    assert "wrote" in err and "2 frames" in err
+    assert main(["decode", "--pcap", str(pcap), "--json"]) == 0  # the handshake came before the data
+    got = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert [r["time"] for r in got if r["id"] == "PTZ"] == [10.0, 11.0]
+
+
+def test_a_log_header_with_a_broken_url_still_exports_the_frames(tmp_path, capsys):
+    log = tmp_path / "hdr.jsonl"
+    header = {"topgimbal_log": 1, "url": "udp://[::1:5000", "dialect": "skydroid"}
+    log.write_text("\n".join(json.dumps(x) for x in (header, {"t": 1.0, "dir": "out", "raw": PTZ.decode()})))
+    pcap = tmp_path / "hdr.pcap"
+    assert main(["pcap", "from-log", str(log), "-o", str(pcap)]) == 1  # was: "error: Invalid IPv6 URL", nothing written
+    err = capsys.readouterr().err
+    assert "header: url 'udp://[::1:5000' is not a transport URL" in err and "1 frames" in err
+    assert [type(x) for x in read_capture(pcap)] == [CaptureRecord]
+
+
 @pytest.mark.integration
 @pytest.mark.parametrize(("as_json", "stop"), [(True, signal.SIGTERM), (False, signal.SIGINT)])
 def test_proxy_command_prints_each_frame(tmp_path, as_json, stop):

@@ -7,6 +7,7 @@ from __future__ import annotations
 import shutil
 import struct
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -20,7 +21,7 @@ from topgimbal.wire import (
     PcapWriter,
     read_capture,
 )
-from topgimbal.wire.capture import WireFrame, frames_in_capture
+from topgimbal.wire.capture import PacketNote, WireFrame, frames_in_capture
 from topgimbal.wire.packets import TCP_ACK, TCP_PSH, Segment, build_packet, parse_packet
 from topgimbal.wire.pcapfile import (
     LINKTYPE_ETHERNET,
@@ -205,6 +206,28 @@ def test_corrupt_record_length(tmp_path):
     assert isinstance(problem, CaptureProblem) and "corrupt" in problem.detail
 
 
+def test_empty_records_and_bad_udp_lengths_are_noted(tmp_path):
+    """Records of 0 bytes, a UDP length below its header or beyond the packet: each noted with
+    what is wrong (tshark flags them too), the good packet after them decoded."""
+    good = build_packet("udp", ("127.0.0.1", 40000), ("127.0.0.1", 5000), PTZ)
+    at = 14 + 20 + 4  # the UDP length field
+    short, long = bytearray(good), bytearray(good)
+    short[at : at + 2] = struct.pack("!H", 3)
+    long[at : at + 2] = struct.pack("!H", 60000)
+    path = tmp_path / "odd.pcap"
+    with PcapWriter(path) as w:
+        for i, packet in enumerate((b"", bytes(short), bytes(long), good)):
+            w.write(1.0 + i, packet)
+    got = list(frames_in_capture(path))
+    notes = [(x.number, x.detail) for x in got if isinstance(x, PacketNote)]
+    assert notes == [
+        (1, "malformed packet: its 0 bytes end inside a header (unpack requires a buffer of 2 bytes)"),
+        (2, f"UDP length 3 does not fit the {8 + len(PTZ)}-byte payload"),
+        (3, f"UDP length 60000 does not fit the {8 + len(PTZ)}-byte payload"),
+    ]
+    assert [x.number for x in got if isinstance(x, WireFrame)] == [4]
+
+
 def test_unparseable_packets_are_noted_not_raised(tmp_path):
     path = tmp_path / "odd.pcap"
     good = build_packet("udp", ("127.0.0.1", 40000), ("127.0.0.1", 5000), PTZ)
@@ -263,3 +286,53 @@ def test_big_endian_pcap(tmp_path):
     [rec] = _records(path)
     assert rec.data == packet and rec.ts == pytest.approx(1_700_000_000.25)
     assert [x.item.ident for x in frames_in_capture(path) if isinstance(x, WireFrame)] == ["PTZ"]  # type: ignore[union-attr]
+
+
+def _block(btype: int, body: bytes, length: int | None = None) -> bytes:
+    body += b"\0" * (-len(body) % 4)
+    n = len(body) + 12 if length is None else length
+    return struct.pack("<II", btype, n) + body + struct.pack("<I", n)
+
+
+@pytest.mark.parametrize("length", [0xFFFFFFF0, 8, 30])
+def test_a_section_header_with_a_corrupt_length_is_reported_before_it_is_read(tmp_path, length):
+    """The section header's length was used to size a read unchecked: a claimed 4 GiB allocated
+    4 GiB (MemoryError under a memory limit), a short one was 'block truncated'."""
+    path = tmp_path / "shb.pcapng"
+    path.write_bytes(struct.pack("<III", 0x0A0D0D0A, length, 0x1A2B3C4D) + b"\0" * 40)
+    [problem] = list(read_capture(path))
+    assert isinstance(problem, CaptureProblem) and problem.offset == 0
+    assert f"section header: block length {length}: must be a multiple of 4 in 28.." in problem.detail
+
+
+def test_a_huge_section_header_length_allocates_nothing(tmp_path):
+    """Under a 1 GiB address-space limit, reading a file whose section header claims 4 GiB ends
+    with the CaptureProblem, not a MemoryError."""
+    path = tmp_path / "shb.pcapng"
+    path.write_bytes(struct.pack("<III", 0x0A0D0D0A, 0xFFFFFFF0, 0x1A2B3C4D) + b"\0" * 40)
+    code = (
+        "import resource, sys; from topgimbal.wire import read_capture; "
+        "resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30)); "
+        "print([str(x) for x in read_capture(sys.argv[1])])"
+    )
+    proc = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert "block length 4294967280" in proc.stdout
+
+
+def test_pcapng_with_unknown_blocks_and_interfaces_of_other_link_types(tmp_path):
+    """A second interface of a link type we do not decode: its packets are noted, the others
+    decoded, an unknown block skipped; numbers stay Wireshark's."""
+    packet = build_packet("udp", ("127.0.0.1", 40000), ("127.0.0.1", 5000), PTZ)
+    shb = _block(0x0A0D0D0A, struct.pack("<IHHq", 0x1A2B3C4D, 1, 0, -1))
+    idbs = _block(1, struct.pack("<HHI", LINKTYPE_ETHERNET, 0, 0xFFFFFFFF)) + _block(1, struct.pack("<HHI", 147, 0, 0))
+
+    def epb(iface: int) -> bytes:
+        return _block(6, struct.pack("<IIIII", iface, 0, 1_000_000, len(packet), len(packet)) + packet)
+
+    path = tmp_path / "multi.pcapng"
+    path.write_bytes(shb + idbs + _block(0x0BAD, b"vendor") + epb(0) + epb(1) + epb(0))
+    got = list(frames_in_capture(path))
+    notes = [x for x in got if isinstance(x, PacketNote)]
+    assert [(n.number, "link type 147 is not supported" in n.detail) for n in notes] == [(2, True)]
+    assert [x.number for x in got if isinstance(x, WireFrame)] == [1, 3]

@@ -363,6 +363,255 @@ async def test_a_tcp_client_that_stops_reading_is_closed(caplog):
         server.close()
 
 
+async def _wait_for(text: str, caplog: Any) -> None:
+    for _ in range(400):
+        if text in caplog.text:
+            return
+        await asyncio.sleep(0.05)
+    raise AssertionError(f"{text!r} never logged: {caplog.text[-2000:]}")
+
+
+async def test_tcp_clients_that_stop_reading_give_their_slot_back(caplog):
+    """A client closed for leaving 64 KiB unread kept its session (close() waits for the unread
+    bytes to leave, which they never do), so max_clients such clients locked every other client
+    out for good; now it is aborted and its slot is free at once."""
+    chunk = b"#TPGUCrGAC00000000000023" * 4_000
+
+    async def device(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        with contextlib.suppress(ConnectionError):
+            while True:  # floods every connection, until the proxy closes it
+                writer.write(chunk)
+                await writer.drain()
+        writer.close()
+
+    server = await asyncio.start_server(device, "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    proxy = Proxy("tcp://127.0.0.1:0", f"tcp://127.0.0.1:{port}", max_clients=1)
+    await proxy.start()
+    loop = asyncio.get_running_loop()
+    stuck = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # and it never reads
+    try:
+        stuck.setblocking(False)
+        await loop.sock_connect(stuck, proxy.listen_address)  # type: ignore[arg-type]
+        await _wait_for("unread bytes", caplog)
+        for _ in range(100):
+            if not proxy._sessions:
+                break
+            await asyncio.sleep(0.02)
+        assert not proxy._sessions
+        reader, writer = await asyncio.open_connection(*proxy.listen_address)  # type: ignore[misc]
+        assert (await asyncio.wait_for(reader.readexactly(24), 5)) == chunk[:24]  # served, not refused
+        writer.close()
+        assert "refusing" not in caplog.text
+    finally:
+        stuck.close()
+        await proxy.stop()
+        server.close()
+
+
+@pytest.mark.parametrize("size", ["one frame", "336 KB"])
+async def test_a_tcp_client_is_not_cut_while_its_device_link_opens(caplog, monkeypatch, size):
+    """A TCP client sends and closes before the camera link is up. More than 64 KiB: the bytes
+    beyond were dropped from the middle of the stream (frames cut); now the client is not read
+    until the link opens. Either size: what waited was thrown away when the client closed (a
+    command sent by `nc -q0` never arrived); now it is delivered, then the link closed."""
+    from topgimbal.wire import proxy as proxy_module
+
+    release = asyncio.Event()
+    real_open = proxy_module.open_transport
+
+    async def slow_open(*args: Any) -> Any:
+        await release.wait()
+        return await real_open(*args)
+
+    monkeypatch.setattr(proxy_module, "open_transport", slow_open)
+    received = bytearray()
+    done = asyncio.Event()
+
+    async def device(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        while data := await reader.read(65536):
+            received.extend(data)
+        done.set()
+        writer.close()
+
+    server = await asyncio.start_server(device, "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    proxy = Proxy("tcp://127.0.0.1:0", f"tcp://127.0.0.1:{port}")
+    await proxy.start()
+    sent = PTZ if size == "one frame" else (PTZ + b"#TPUG2rGAC0032") * 12_000
+    try:
+        _reader, writer = await asyncio.open_connection(*proxy.listen_address)  # type: ignore[misc]
+        writer.write(sent)
+        for _ in range(200):  # until the proxy holds what it may (or, before, dropped the rest)
+            if sum(s.queued_bytes for s in proxy._sessions.values()) >= min(len(sent), 64 * 1024):
+                break
+            if "wait for the device link" in caplog.text:
+                break
+            await asyncio.sleep(0.02)
+        writer.close()
+        release.set()
+        with contextlib.suppress(asyncio.TimeoutError):  # the camera sees the end of the stream
+            await asyncio.wait_for(done.wait(), 10)
+        assert len(received) == len(sent) and bytes(received) == sent
+        assert "dropping" not in caplog.text
+        assert ("not reading this client until it opens" in caplog.text) == (size != "one frame")
+    finally:
+        release.set()
+        await proxy.stop()
+        server.close()
+
+
+async def test_a_flood_of_new_clients_is_logged_once_not_once_per_client(caplog):
+    """300 UDP clients (one datagram each, as a port-rotating flood sends) against max_clients=2:
+    each replacement was a warning line (a log as long as the flood); now one line per 10 s,
+    the clients still replaced, counted, and a client sending now still served."""
+    dev, port = await _echo_device()
+    proxy = Proxy("udp://127.0.0.1:0", f"udp://127.0.0.1:{port}", max_clients=2)
+    await proxy.start()
+    socks = []
+    try:
+        for i in range(300):
+            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            sock.sendto(b"#TP garbage %d" % i, proxy.listen_address)  # type: ignore[arg-type]
+            socks.append(sock)
+            if len(socks) > 20:
+                socks.pop(0).close()
+            if i % 20 == 0:
+                await asyncio.sleep(0.01)
+        for _ in range(200):
+            if proxy.stats.clients >= 300:
+                break
+            await asyncio.sleep(0.02)
+        assert proxy.stats.clients == 300 and proxy.stats.clients_dropped == 298
+        assert caplog.text.count("at most 2 client(s); dropping") == 1
+        loop = asyncio.get_running_loop()
+        good = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        socks.append(good)
+        good.setblocking(False)
+        good.connect(proxy.listen_address)  # type: ignore[arg-type]
+        good.send(PTZ)
+        assert await asyncio.wait_for(loop.sock_recv(good, 100), 5) == PTZ  # the echo camera's answer
+        assert len(proxy._sessions) <= 2
+    finally:
+        for sock in socks:
+            sock.close()
+        await proxy.stop()
+        dev.close()
+
+
+def test_a_throttled_warning_says_how_many_were_left_out(caplog):
+    from topgimbal.wire.proxy import _Throttle
+
+    now = [100.0]
+    throttle = _Throttle(every_s=10.0, clock=lambda: now[0])
+    for i in range(5):
+        throttle.warning("clients", "proxy: client %d dropped", i)
+        throttle.warning("refused", "proxy: refusing %d", i)
+    now[0] += 10.0
+    throttle.warning("clients", "proxy: client %d dropped", 5)
+    lines = [r.getMessage() for r in caplog.records]
+    assert lines == [
+        "proxy: client 0 dropped",
+        "proxy: refusing 0",
+        "proxy: client 5 dropped (4 more like it not logged)",
+    ]
+
+
+async def test_stop_does_not_wait_for_a_device_link_that_never_opens(monkeypatch):
+    """A client left with bytes for a link still opening; stop() ends that wait, closes it all."""
+    from topgimbal.wire import proxy as proxy_module
+
+    never = asyncio.Event()
+
+    async def hanging_open(*args: Any) -> Any:
+        await never.wait()
+
+    monkeypatch.setattr(proxy_module, "open_transport", hanging_open)
+    proxy = Proxy("tcp://127.0.0.1:0", "tcp://127.0.0.1:9")
+    await proxy.start()
+    _reader, writer = await asyncio.open_connection(*proxy.listen_address)  # type: ignore[misc]
+    writer.write(PTZ)
+    for _ in range(200):
+        if any(s.queued for s in proxy._sessions.values()):
+            break
+        await asyncio.sleep(0.02)
+    writer.close()
+    for _ in range(200):
+        if proxy._closing:
+            break
+        await asyncio.sleep(0.02)
+    assert proxy._closing and not proxy._sessions  # the session ended, and waits to deliver PTZ
+    await asyncio.wait_for(proxy.stop(), 30)  # a hang guard, not a timing check
+    assert not proxy._closing
+
+
+async def test_a_tcp_camera_that_stops_reading_ends_the_session(caplog):
+    """The camera accepts and never reads while the client sends: the proxy's buffer towards the
+    camera grew without bound (51 MB in a probe); now the session ends past 64 KiB, logged."""
+    held: list[asyncio.StreamWriter] = []
+
+    async def device(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        held.append(writer)  # never reads
+
+    server = await asyncio.start_server(device, "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    proxy = Proxy("tcp://127.0.0.1:0", f"tcp://127.0.0.1:{port}")
+    await proxy.start()
+    try:
+        reader, writer = await asyncio.open_connection(*proxy.listen_address)  # type: ignore[misc]
+        with contextlib.suppress(ConnectionError, asyncio.TimeoutError):
+            for _ in range(200):  # up to 20 MB, until the proxy closes this client
+                writer.write(PTZ * 7500)
+                await asyncio.wait_for(writer.drain(), 1)
+        await _wait_for("the device has", caplog)
+        assert "unread bytes; closing this client" in caplog.text
+        with contextlib.suppress(ConnectionResetError):  # a reset: what it sent was never read
+            assert await asyncio.wait_for(reader.read(), 5) == b""  # the client's connection ended
+        writer.close()
+    finally:
+        await proxy.stop()
+        server.close()
+        for w in held:
+            w.close()
+
+
+async def test_a_serial_line_slower_than_the_camera_drops_chunks_not_memory(caplog):
+    """A UDP camera sending more than the serial line carries (here nobody reads the pty): what
+    waits for the line is bounded at 64 KiB, whole chunks dropped beyond it, logged once."""
+    burst = PTZ * 70  # ~1 KB per datagram
+
+    class Flood(asyncio.DatagramProtocol):
+        def connection_made(self, transport: Any) -> None:
+            self.t = transport
+
+        def datagram_received(self, data: bytes, addr: Any) -> None:
+            for _ in range(400):  # ~400 KB per query
+                self.t.sendto(burst, addr)
+
+    loop = asyncio.get_running_loop()
+    dev, _ = await loop.create_datagram_endpoint(Flood, local_addr=("127.0.0.1", 0))
+    master, slave = os.openpty()
+    tty.setraw(master)
+    tty.setraw(slave)
+    proxy = Proxy(f"serial://{os.ttyname(slave)}?baud=115200", f"udp://127.0.0.1:{dev.get_extra_info('sockname')[1]}")
+    await proxy.start()
+    try:
+        for _ in range(3):
+            os.write(master, PTZ)
+            await asyncio.sleep(0.2)
+        await _wait_for("unsent bytes; dropping chunks", caplog)
+        assert proxy._serial is not None
+        unsent = proxy._serial.write_buffer_size  # type: ignore[attr-defined]
+        assert 0 < unsent <= 64 * 1024 + len(burst)
+        assert caplog.text.count("unsent bytes; dropping chunks") == 1
+    finally:
+        await proxy.stop()
+        dev.close()
+        os.close(master)
+        os.close(slave)
+
+
 WATCHER = [sys.executable, "-c", "from topgimbal.cli.wire_cmds import watch_main; watch_main()", "quiet"]
 
 

@@ -24,6 +24,12 @@ class StreamTransport(Transport):
 
     _transport: asyncio.BaseTransport | None = None
 
+    @property
+    def write_buffer_size(self) -> int:
+        """Bytes handed to `send()` that the peer has not taken yet (a relay bounds it)."""
+        t = self._transport
+        return t.get_write_buffer_size() if isinstance(t, asyncio.WriteTransport) else 0
+
     def send(self, data: bytes) -> None:
         self._check_open()
         assert self._transport is not None

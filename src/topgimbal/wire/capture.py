@@ -59,6 +59,7 @@ class _Conversation:
     transport: str
     dialect: str | None
     top: bool
+    ends: frozenset[Endpoint] = frozenset()  # both endpoints, also when only one has sent
     sides: dict[Endpoint, _Direction] = field(default_factory=dict)
 
 
@@ -118,7 +119,7 @@ def _packet(
     conv = convs.get(key)
     if conv is None:
         hint = dialect_for_ports(seg.transport, seg.src[1], seg.dst[1])
-        conv = _Conversation(seg.transport, hint, keep.active or hint is not None)
+        conv = _Conversation(seg.transport, hint, keep.active or hint is not None, key[1])
         convs[key] = conv
         if len(convs) > MAX_CONVERSATIONS:
             _, old = convs.popitem(last=False)
@@ -152,9 +153,8 @@ def _finish(conv: _Conversation, ts: float, number: int) -> Iterator[WireFrame |
     """End of the file: bytes still waiting in TCP streams and parsers."""
     if not conv.top:
         return
-    ends = list(conv.sides)
     for src, side in conv.sides.items():
-        dst = next((e for e in ends if e != src), src)
+        dst = next((e for e in conv.ends if e != src), src)
         items: list[Frame | Diagnostic] = []
         for piece in side.stream.finish():
             if piece.gap:

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..errors import TopGimbalError
 from ..transport import network_address
 from .packets import Endpoint
 from .pcapfile import CaptureError
@@ -35,11 +36,16 @@ class ExportReport:
     device: Endpoint = ("127.0.0.1", 5000)
 
 
-def _endpoints(header: dict[str, Any]) -> tuple[str, Endpoint, Endpoint]:
+def _endpoints(header: dict[str, Any], problems: list[str] | None = None) -> tuple[str, Endpoint, Endpoint]:
     dialect = str(header.get("dialect") or "")
     url_text = str(header.get("url") or "")
     transport, port, loopback = "udp", 0, "127.0.0.1"
-    address = network_address(url_text)
+    try:
+        address = network_address(url_text)
+    except (ValueError, TopGimbalError) as exc:  # a damaged header: the frames are still worth having
+        if problems is not None:
+            problems.append(f"header: url {url_text!r} is not a transport URL ({exc}): loopback UDP assumed")
+        address = None
     if address is not None:
         transport, host, port = address
         try:
@@ -86,7 +92,7 @@ def log_to_pcap(log_path: str | Path, out_path: str | Path) -> ExportReport:
             report.problems.append(f"line {n}: no 'dir' (in/out) and 'raw' frame text")
     if not header and records:
         report.problems.append("no header line (url, dialect): loopback UDP port 5000 assumed")
-    report.transport, report.host, report.device = _endpoints(header)
+    report.transport, report.host, report.device = _endpoints(header, report.problems)
     with CaptureWriter(out_path) as out:
         for n, obj in records:
             try:
@@ -96,9 +102,13 @@ def log_to_pcap(log_path: str | Path, out_path: str | Path) -> ExportReport:
                 report.problems.append(f"line {n}: {exc}")
                 continue
             src, dst = (report.host, report.device) if obj["dir"] == "out" else (report.device, report.host)
-            if report.transport == "tcp":
-                out.tcp(src, dst, raw, ts, client=report.host)
-            else:
-                out.udp(src, dst, raw, ts)
+            try:
+                if report.transport == "tcp":
+                    out.tcp(src, dst, raw, ts, client=report.host)
+                else:
+                    out.udp(src, dst, raw, ts)
+            except CaptureError as exc:  # a time or size no capture can hold: this line only
+                report.problems.append(f"line {n}: {exc}")
+                continue
             report.frames += 1
     return report

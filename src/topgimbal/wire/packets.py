@@ -55,7 +55,7 @@ def parse_packet(linktype: int, data: bytes) -> Segment | str | None:
             return ip
         return _ip(ip)
     except (struct.error, IndexError, ValueError) as exc:  # a header cut short
-        return f"malformed packet ({exc})"
+        return f"malformed packet: its {len(data)} bytes end inside a header ({exc})"
 
 
 def _network_layer(linktype: int, data: bytes) -> bytes | str | None:

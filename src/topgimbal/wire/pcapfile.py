@@ -9,6 +9,7 @@ read. Limits: a record may hold at most `MAX_RECORD` bytes (a larger claim means
 
 from __future__ import annotations
 
+import math
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -153,13 +154,18 @@ def _read_pcapng(fh: BinaryIO, first: bytes) -> Iterator[CaptureRecord | Capture
                 return
             length = struct.unpack(order + "I", head[4:8])[0]
             body_len = length - 12
-            body = bom + fh.read(max(0, body_len - 4))
+            problem = _bad_block_length(length, 28)
+            if problem:  # checked before reading: a corrupt length must not size an allocation
+                yield CaptureProblem(offset, f"section header: {problem}")
+                return
+            body = bom + fh.read(body_len - 4)
             interfaces = []  # interface ids are per section
         else:
             length = struct.unpack(order + "I", head[4:8])[0]
             body_len = length - 12
-            if length < 12 or length % 4 or length > MAX_RECORD:
-                yield CaptureProblem(offset, f"block length {length} is not a multiple of 4 in 12..{MAX_RECORD}")
+            problem = _bad_block_length(length, 12)
+            if problem:
+                yield CaptureProblem(offset, f"block type 0x{btype:08x}: {problem}")
                 return
             body = fh.read(body_len)
         if body_len < 0 or len(body) < body_len:
@@ -184,6 +190,12 @@ def _read_pcapng(fh: BinaryIO, first: bytes) -> Iterator[CaptureRecord | Capture
             if btype != _IDB:
                 number += 1  # Wireshark numbers a damaged packet too; keep numbers aligned
         offset += length
+
+
+def _bad_block_length(length: int, least: int) -> str | None:
+    if length < least or length % 4 or length > MAX_RECORD:
+        return f"block length {length}: must be a multiple of 4 in {least}..{MAX_RECORD}"
+    return None
 
 
 def _interface(body: bytes, order: str, interfaces: list[_Interface]) -> str | None:
@@ -236,6 +248,15 @@ def _packet(btype: int, body: bytes, order: str, interfaces: list[_Interface]) -
 
 # -- writing ---------------------------------------------------------------------------------------
 
+MAX_TIME_S = 0xFFFFFFFF  # pcap stores whole seconds in 32 bits: 2106-02-07
+
+
+def capture_micros(ts: float) -> int:
+    """`ts` in whole microseconds, or CaptureError when pcap's 32-bit seconds cannot hold it."""
+    if not (isinstance(ts, (int, float)) and math.isfinite(ts) and 0 <= ts < MAX_TIME_S + 1):
+        raise CaptureError(f"time {ts!r} cannot be written: a capture holds 0..{MAX_TIME_S} s since 1970")
+    return min(round(ts * 1_000_000), (MAX_TIME_S + 1) * 1_000_000 - 1)
+
 
 class PcapWriter:
     """Writes a classic pcap file (microsecond timestamps, little-endian). By default every record
@@ -275,8 +296,9 @@ class PcapWriter:
             self.flush()
 
     def write(self, ts: float, packet: bytes) -> None:
-        """Append one packet captured at `ts` (seconds since the epoch)."""
-        micros = round(ts * 1_000_000)
+        """Append one packet captured at `ts` (seconds since the epoch; CaptureError for a time
+        the format cannot hold: not finite, negative, or past 2106)."""
+        micros = capture_micros(ts)
         sec, usec = divmod(micros, 1_000_000)
         self._record(struct.pack("<IIII", sec, usec, len(packet), len(packet)) + packet)
 
@@ -314,7 +336,7 @@ class PcapngWriter(PcapWriter):
         return struct.pack("<II", btype, length) + body + struct.pack("<I", length)
 
     def write(self, ts: float, packet: bytes) -> None:
-        micros = round(ts * 1_000_000)
+        micros = capture_micros(ts)
         head = struct.pack("<IIIII", 0, micros >> 32, micros & 0xFFFFFFFF, len(packet), len(packet))
         self._record(self._block(_EPB, head + packet))
 

@@ -16,10 +16,12 @@ frames; bytes the parser still holds are sent as they are after `STREAM_FLUSH_S`
 Bounded: at most `max_clients` clients (UDP: the least recently active is dropped for a new one;
 TCP: a connection beyond the limit is closed), UDP clients idle for `idle_timeout_s` are
 forgotten, at most `MAX_QUEUED` bytes wait per client while its device link opens (a TCP client
-leaving that much unread is closed), at most `MAX_BACKLOG` bytes wait to be decoded (beyond,
-chunks are still forwarded but not decoded, logged or captured; counted), at most
-`MAX_SUBSCRIBERS` subscribers. Every limit hit is logged. A serial device has one host at a time,
-so with `to=serial://` a new client replaces the previous one.
+is not read beyond it) and at most that much unread by a TCP client (it is aborted) or unsent
+towards a stream device (TCP: the session ends; a serial line: chunks are dropped), at most
+`MAX_BACKLOG` bytes wait to be decoded (beyond, chunks are still forwarded but not decoded,
+logged or captured; counted), at most `MAX_SUBSCRIBERS` subscribers. Every limit hit is logged
+(what peers can repeat at will, at most once per `LOG_EVERY_S`). A serial device has one host at
+a time, so with `to=serial://` a new client replaces the previous one.
 
 The pcap shows the device's side of the proxy as if captured on that link: the client's address
 talking to the device's (a serial side is given loopback addresses and the dialect's documented
@@ -44,6 +46,7 @@ from typing import Any
 from ..errors import TopGimbalError, TransportError
 from ..protocol import Dialect, FrameParser, get_dialect, get_model
 from ..transport import Transport, TransportURL, open_transport, parse_url
+from ..transport.tcp import StreamTransport
 from .offload import WatcherProcess
 from .packets import Endpoint
 from .ports import dialect_for_ports, documented_ports
@@ -72,6 +75,31 @@ DEFER_S = 0.0002  # decoding starts this long after a chunk is forwarded (a loop
 PROCESS_SLICE_S = 0.0005  # decoding runs at most this long before the loop polls sockets again
 FLUSH_S = 0.2  # the pcap and the log are handed to the files this often (and at stop)
 SERIAL_CLIENT: Endpoint = ("127.0.0.1", 40000)
+LOG_EVERY_S = 10.0  # a warning that peers can repeat at will is logged at most this often
+
+
+class _Throttle:
+    """Warnings a peer can trigger again and again (a flood of new clients or datagrams): each
+    kind is logged at most once per LOG_EVERY_S, the next line saying how many were left out."""
+
+    def __init__(self, every_s: float = LOG_EVERY_S, clock: Callable[[], float] = time.monotonic) -> None:
+        self.every_s = every_s
+        self.clock = clock
+        self._last: dict[str, float] = {}  # one entry per kind of warning: bounded
+        self._left_out: dict[str, int] = {}
+
+    def warning(self, kind: str, fmt: str, *args: Any) -> None:
+        now = self.clock()
+        last = self._last.get(kind)
+        if last is not None and now - last < self.every_s:
+            self._left_out[kind] = self._left_out.get(kind, 0) + 1
+            return
+        self._last[kind] = now
+        left_out = self._left_out.pop(kind, 0)
+        if left_out:
+            fmt += " (%d more like it not logged)"
+            args = (*args, left_out)
+        log.warning(fmt, *args)
 
 
 @dataclass
@@ -95,12 +123,15 @@ class _Session:
         endpoint: Endpoint,
         send_down: Callable[[bytes], None],
         close_down: Callable[[], None] | None = None,
+        pause_down: Callable[[bool], None] | None = None,
     ) -> None:
         self.proxy = proxy
         self.label = label
         self.endpoint = endpoint
         self.send_down = send_down
         self.close_down = close_down
+        self.pause_down = pause_down  # a stream client: stop (True) or resume reading it
+        self.paused = False
         self.upstream: Transport | UdpSocket | None = None
         self.queued: list[bytes] = []
         self.queued_bytes = 0
@@ -119,23 +150,37 @@ class _Session:
                 self.proxy._watch(self.upstream)
             else:
                 self.upstream = await open_transport(to, self.from_device, self.device_lost)
-        except OSError as exc:
-            log.warning("proxy: cannot reach %s for %s: %s", to, self.label, exc)
-            self.proxy._drop(self)
-            return
-        except TopGimbalError as exc:
-            log.warning("proxy: cannot reach %s for %s: %s", self.proxy.to, self.label, exc)
+        except (OSError, TopGimbalError) as exc:
+            self.proxy.throttle.warning("unreachable", "proxy: cannot reach %s for %s: %s", to, self.label, exc)
             self.proxy._drop(self)
             return
         queued, self.queued, self.queued_bytes = self.queued, [], 0
         for chunk in queued:
             self._send_up(chunk)
+        if self.paused and self.pause_down is not None:
+            self.paused = False
+            self.pause_down(False)
 
     def from_client(self, data: bytes) -> None:
         self.last_active = time.monotonic()
         if self.upstream is None:
+            if self.pause_down is not None:
+                # A stream's bytes cannot be dropped (the frames around the hole would be cut):
+                # the client is not read until the link opens, so at most one read more waits.
+                self.queued.append(data)
+                self.queued_bytes += len(data)
+                if self.queued_bytes > MAX_QUEUED and not self.paused:
+                    log.warning(
+                        "proxy: %s: %d bytes wait for the device link; not reading this client until it opens",
+                        self.label,
+                        self.queued_bytes,
+                    )
+                    self.paused = True
+                    self.pause_down(True)
+                return
             if self.queued_bytes + len(data) > MAX_QUEUED:
-                log.warning(
+                self.proxy.throttle.warning(
+                    "queue full",
                     "proxy: %s: %d bytes already wait for the device link; dropping %d",
                     self.label,
                     self.queued_bytes,
@@ -152,10 +197,16 @@ class _Session:
 
     def _upstream_send(self, data: bytes) -> None:
         if self.upstream is not None and self.upstream.connected:
+            unsent = self.upstream.write_buffer_size if isinstance(self.upstream, StreamTransport) else 0
+            if unsent > MAX_QUEUED:
+                # the device stopped reading: this session ends rather than buffering without bound
+                log.warning("proxy: %s: the device has %d unread bytes; closing this client", self.label, unsent)
+                self.proxy._drop(self)
+                return
             try:
                 self.upstream.send(data)
             except TransportError as exc:
-                log.warning("proxy: %s: device link: %s", self.label, exc)
+                self.proxy.throttle.warning("send failed", "proxy: %s: device link: %s", self.label, exc)
 
     def _device_datagram(self, data: bytes, addr: Any) -> None:
         self.from_device(data)
@@ -169,7 +220,10 @@ class _Session:
             log.info("proxy: device link of %s closed%s", self.label, f": {exc}" if exc else "")
             self.proxy._drop(self)
 
-    async def close(self) -> None:
+    async def close(self, deliver: bool = False) -> None:
+        """End the session. `deliver`: the client left (a command sent and the connection closed
+        at once, as `nc -q0` does): what it sent before the device link opened still goes to the
+        device, once the link is up."""
         if self.closed:
             return
         self.closed = True
@@ -177,7 +231,11 @@ class _Session:
             if d.flush_timer is not None:
                 d.flush_timer.cancel()
         if self.opening is not None and not self.opening.done():
-            self.opening.cancel()
+            if deliver and self.queued:
+                with contextlib.suppress(asyncio.CancelledError):
+                    await self.opening  # open() sends what waits; bounded by the link's connect timeout
+            else:
+                self.opening.cancel()
         if self.close_down is not None:
             self.close_down()
         self.proxy._closed(self)
@@ -203,21 +261,34 @@ class _TcpClient(asyncio.Protocol):
 
     def connection_lost(self, exc: Exception | None) -> None:
         if self.session is not None:
-            self.proxy._drop(self.session)
+            self.proxy._drop(self.session, deliver=True)
 
     def send(self, data: bytes) -> None:
         if self.transport is None or self.transport.is_closing():
             return
         if self.transport.get_write_buffer_size() > MAX_QUEUED:
-            # the client stopped reading: it is dropped rather than buffered without bound
-            log.warning("proxy: a TCP client has %d unread bytes; closing it", self.transport.get_write_buffer_size())
-            self.transport.close()
+            # The client stopped reading: it is dropped rather than buffered without bound. abort(),
+            # not close(): close() waits for the unread bytes to leave, which they never do, and
+            # the session would keep its client slot for good.
+            self.proxy.throttle.warning(
+                "unread", "proxy: a TCP client has %d unread bytes; closing it", self.transport.get_write_buffer_size()
+            )
+            self.transport.abort()
+            if self.session is not None:
+                self.proxy._drop(self.session)
             return
         self.transport.write(data)
 
     def close(self) -> None:
         if self.transport is not None:
             self.transport.close()
+
+    def pause(self, paused: bool) -> None:
+        if self.transport is not None and not self.transport.is_closing():
+            if paused:
+                self.transport.pause_reading()
+            else:
+                self.transport.resume_reading()
 
 
 class Proxy:
@@ -267,6 +338,9 @@ class Proxy:
         self._udp: UdpSocket | None = None
         self._server: asyncio.AbstractServer | None = None
         self._serial: Transport | None = None
+        self._serial_dropped = 0  # chunks dropped since the serial line last kept up
+        self.throttle = _Throttle()
+        self._closing: dict[asyncio.Task[None], _Session] = {}  # sessions ending (some deliver first)
         self._sweeper: asyncio.TimerHandle | None = None
         self._device_ep: Endpoint = ("127.0.0.1", 0)
         self._transport_kind = self.to.scheme if self.to.scheme in ("udp", "tcp") else self.listen.scheme
@@ -352,6 +426,10 @@ class Proxy:
         for session in list(self._sessions.values()):
             await session.close()
         self._sessions.clear()
+        for task, session in list(self._closing.items()):  # stopping: no more waiting for device links
+            if session.opening is not None:
+                session.opening.cancel()
+            await asyncio.gather(task, return_exceptions=True)
         if self._udp is not None:
             await self._udp.close()
         if self._server is not None:
@@ -410,18 +488,22 @@ class Proxy:
         while len(self._sessions) >= self.max_clients:
             _, old = self._sessions.popitem(last=False)
             self.stats.clients_dropped += 1
-            log.warning("proxy: at most %d client(s); dropping %s for %s", self.max_clients, old.label, session.label)
+            self.throttle.warning(
+                "clients", "proxy: at most %d client(s); dropping %s for %s", self.max_clients, old.label, session.label
+            )
             asyncio.get_running_loop().create_task(old.close())
         self._sessions[key] = session
         self.stats.clients += 1
         session.opening = asyncio.get_running_loop().create_task(session.open())
 
-    def _drop(self, session: _Session) -> None:
+    def _drop(self, session: _Session, *, deliver: bool = False) -> None:
         for key, s in list(self._sessions.items()):
             if s is session:
                 del self._sessions[key]
         if not session.closed:
-            asyncio.get_running_loop().create_task(session.close())
+            task = asyncio.get_running_loop().create_task(session.close(deliver))
+            self._closing[task] = session
+            task.add_done_callback(lambda t: self._closing.pop(t, None))
 
     def _udp_datagram(self, data: bytes, addr: tuple[Any, ...]) -> None:
         key = addr[:2]
@@ -444,15 +526,25 @@ class Proxy:
         assert client.transport is not None
         peer = client.transport.get_extra_info("peername")[:2]
         if len(self._sessions) >= self.max_clients and self.to.scheme != "serial":
-            log.warning("proxy: at most %d clients; refusing %s", self.max_clients, _ep_text(peer))
+            self.throttle.warning("refused", "proxy: at most %d clients; refusing %s", self.max_clients, _ep_text(peer))
             client.transport.close()
             return None
-        session = _Session(self, f"tcp {_ep_text(peer)}", (str(peer[0]), int(peer[1])), client.send, client.close)
+        session = _Session(
+            self, f"tcp {_ep_text(peer)}", (str(peer[0]), int(peer[1])), client.send, client.close, client.pause
+        )
         self._add(peer, session)
         return session
 
     def _serial_send(self, data: bytes) -> None:
         if self._serial is not None and self._serial.connected:
+            unsent = self._serial.write_buffer_size if isinstance(self._serial, StreamTransport) else 0
+            if unsent > MAX_QUEUED:
+                # the device sends faster than the line's baud rate carries: whole chunks are dropped
+                self._serial_dropped += 1
+                if self._serial_dropped == 1:
+                    log.warning("proxy: serial port %s has %d unsent bytes; dropping chunks", self.listen.path, unsent)
+                return
+            self._serial_dropped = 0
             self._serial.send(data)
 
     def _serial_lost(self, exc: Exception | None) -> None:

@@ -13,9 +13,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .packets import TCP_ACK, TCP_FIN, TCP_PSH, TCP_SYN, Endpoint, build_packet
-from .pcapfile import LINKTYPE_ETHERNET, PcapWriter, open_writer
+from .pcapfile import LINKTYPE_ETHERNET, CaptureError, PcapWriter, capture_micros, open_writer
 
 MAX_SEGMENT = 65000  # bytes of TCP payload per packet (an IPv4 packet holds at most 65535)
+MAX_DATAGRAM = 65507  # bytes of UDP payload in one IPv4 packet (65535 - IP and UDP headers)
 
 
 @dataclass
@@ -41,21 +42,32 @@ class CaptureWriter:
     def packets(self) -> int:
         return self._out.packets
 
-    def _write(self, ts: float | None, transport: str, src: Endpoint, dst: Endpoint, payload: bytes, **kw: int) -> None:
+    def _write(self, ts: float, transport: str, src: Endpoint, dst: Endpoint, payload: bytes, **kw: int) -> None:
         self._ident = (self._ident + 1) & 0xFFFF
         packet = build_packet(transport, src, dst, payload, ident=self._ident, **kw)
-        self._last_ts = time.time() if ts is None else ts
-        self._out.write(self._last_ts, packet)
+        self._last_ts = ts
+        self._out.write(ts, packet)
+
+    @staticmethod
+    def _time(ts: float | None) -> float:
+        """`ts` (now when None), checked before anything is written: a bad time writes nothing."""
+        ts = time.time() if ts is None else ts
+        capture_micros(ts)
+        return ts
 
     def udp(self, src: Endpoint, dst: Endpoint, payload: bytes, ts: float | None = None) -> None:
-        """One datagram."""
-        self._write(ts, "udp", src, dst, payload)
+        """One datagram. CaptureError (nothing written) for more than MAX_DATAGRAM bytes, which no
+        IP packet holds, or a time a capture cannot hold."""
+        if len(payload) > MAX_DATAGRAM:
+            raise CaptureError(f"a {len(payload)}-byte datagram cannot be written: UDP holds at most {MAX_DATAGRAM}")
+        self._write(self._time(ts), "udp", src, dst, payload)
 
     def tcp(
         self, src: Endpoint, dst: Endpoint, payload: bytes, ts: float | None = None, *, client: Endpoint | None = None
     ) -> None:
         """Stream bytes from `src` to `dst`, one segment per 65000 bytes. The first call for a pair
         opens the connection from `client` (default: `src`)."""
+        ts = self._time(ts)
         opener, other = (src, dst) if client is None or client == src else (dst, src)
         conn = self._connection(opener, other, ts)
         for at in range(0, len(payload), MAX_SEGMENT):
@@ -63,7 +75,7 @@ class CaptureWriter:
             self._write(ts, "tcp", src, dst, piece, seq=conn.seq[src], ack=conn.seq[dst], flags=TCP_PSH | TCP_ACK)
             conn.seq[src] = (conn.seq[src] + len(piece)) & 0xFFFFFFFF
 
-    def _connection(self, client: Endpoint, server: Endpoint, ts: float | None) -> _Tcp:
+    def _connection(self, client: Endpoint, server: Endpoint, ts: float) -> _Tcp:
         src, dst = client, server
         key = frozenset((src, dst))
         conn = self._tcp.get(key)
@@ -78,6 +90,7 @@ class CaptureWriter:
 
     def close_tcp(self, src: Endpoint, dst: Endpoint, ts: float | None = None) -> None:
         """`src` closes the connection (FIN from each side, acknowledged)."""
+        ts = self._time(ts)
         conn = self._tcp.pop(frozenset((src, dst)), None)
         if conn is None:
             return
