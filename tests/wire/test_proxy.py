@@ -416,16 +416,16 @@ async def test_a_tcp_client_is_not_cut_while_its_device_link_opens(caplog, monke
     beyond were dropped from the middle of the stream (frames cut); now the client is not read
     until the link opens. Either size: what waited was thrown away when the client closed (a
     command sent by `nc -q0` never arrived); now it is delivered, then the link closed."""
-    from topgimbal.wire import proxy as proxy_module
+    from topgimbal.wire import sessions as sessions_module  # where a session opens its device link
 
     release = asyncio.Event()
-    real_open = proxy_module.open_transport
+    real_open = sessions_module.open_transport
 
     async def slow_open(*args: Any) -> Any:
         await release.wait()
         return await real_open(*args)
 
-    monkeypatch.setattr(proxy_module, "open_transport", slow_open)
+    monkeypatch.setattr(sessions_module, "open_transport", slow_open)
     received = bytearray()
     done = asyncio.Event()
 
@@ -501,10 +501,10 @@ async def test_a_flood_of_new_clients_is_logged_once_not_once_per_client(caplog)
 
 
 def test_a_throttled_warning_says_how_many_were_left_out(caplog):
-    from topgimbal.wire.proxy import _Throttle
+    from topgimbal.wire.sessions import Throttle
 
     now = [100.0]
-    throttle = _Throttle(every_s=10.0, clock=lambda: now[0])
+    throttle = Throttle(every_s=10.0, clock=lambda: now[0])
     for i in range(5):
         throttle.warning("clients", "proxy: client %d dropped", i)
         throttle.warning("refused", "proxy: refusing %d", i)
@@ -520,14 +520,14 @@ def test_a_throttled_warning_says_how_many_were_left_out(caplog):
 
 async def test_stop_does_not_wait_for_a_device_link_that_never_opens(monkeypatch):
     """A client left with bytes for a link still opening; stop() ends that wait, closes it all."""
-    from topgimbal.wire import proxy as proxy_module
+    from topgimbal.wire import sessions as sessions_module  # where a session opens its device link
 
     never = asyncio.Event()
 
     async def hanging_open(*args: Any) -> Any:
         await never.wait()
 
-    monkeypatch.setattr(proxy_module, "open_transport", hanging_open)
+    monkeypatch.setattr(sessions_module, "open_transport", hanging_open)
     proxy = Proxy("tcp://127.0.0.1:0", "tcp://127.0.0.1:9")
     await proxy.start()
     _reader, writer = await asyncio.open_connection(*proxy.listen_address)  # type: ignore[misc]

@@ -31,31 +31,27 @@ port, so Wireshark picks the right dialect). The traffic log is the client SDK's
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import ipaddress
 import logging
-import select
 import socket
 import time
-from collections import OrderedDict, deque
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from collections import OrderedDict
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ..errors import TopGimbalError, TransportError
-from ..protocol import Dialect, FrameParser, get_dialect, get_model
+from ..protocol import Dialect, get_dialect, get_model
 from ..transport import Transport, TransportURL, open_transport, parse_url
 from ..transport.tcp import StreamTransport
+from .backlog import MAX_BACKLOG, Backlog
 from .offload import WatcherProcess
 from .packets import Endpoint
 from .ports import dialect_for_ports, documented_ports
+from .sessions import MAX_QUEUED, Session, TcpClient, Throttle, ep_text
 from .udplink import UdpSocket
 from .watcher import (
     CLOSED,
-    IN,
     MAX_SUBSCRIBERS,
-    OUT,
     Chunk,
     ProxyError,
     ProxyEvent,
@@ -68,227 +64,9 @@ log = logging.getLogger("topgimbal.proxy")
 
 MAX_CLIENTS = 8
 IDLE_TIMEOUT_S = 120.0
-MAX_QUEUED = 64 * 1024  # bytes waiting for a client's device link to open, or unread by a TCP client
 STREAM_FLUSH_S = 0.05
-MAX_BACKLOG = 1024 * 1024  # bytes forwarded but not yet decoded (decoding fell behind the link)
-DEFER_S = 0.0002  # decoding starts this long after a chunk is forwarded (a loopback reply goes first)
-PROCESS_SLICE_S = 0.0005  # decoding runs at most this long before the loop polls sockets again
 FLUSH_S = 0.2  # the pcap and the log are handed to the files this often (and at stop)
 SERIAL_CLIENT: Endpoint = ("127.0.0.1", 40000)
-LOG_EVERY_S = 10.0  # a warning that peers can repeat at will is logged at most this often
-
-
-class _Throttle:
-    """Warnings a peer can trigger again and again (a flood of new clients or datagrams): each
-    kind is logged at most once per LOG_EVERY_S, the next line saying how many were left out."""
-
-    def __init__(self, every_s: float = LOG_EVERY_S, clock: Callable[[], float] = time.monotonic) -> None:
-        self.every_s = every_s
-        self.clock = clock
-        self._last: dict[str, float] = {}  # one entry per kind of warning: bounded
-        self._left_out: dict[str, int] = {}
-
-    def warning(self, kind: str, fmt: str, *args: Any) -> None:
-        now = self.clock()
-        last = self._last.get(kind)
-        if last is not None and now - last < self.every_s:
-            self._left_out[kind] = self._left_out.get(kind, 0) + 1
-            return
-        self._last[kind] = now
-        left_out = self._left_out.pop(kind, 0)
-        if left_out:
-            fmt += " (%d more like it not logged)"
-            args = (*args, left_out)
-        log.warning(fmt, *args)
-
-
-@dataclass
-class _Direction:
-    """Decoding (and, from a stream to a datagram side, framing) of one direction of a session."""
-
-    from_datagram: bool
-    to_datagram: bool
-    parser: FrameParser = field(default_factory=FrameParser)
-    held: bytes = b""  # stream bytes the parser still holds (sent on when complete or stale)
-    flush_timer: asyncio.TimerHandle | None = None
-
-
-class _Session:
-    """One client's path to the device."""
-
-    def __init__(
-        self,
-        proxy: Proxy,
-        label: str,
-        endpoint: Endpoint,
-        send_down: Callable[[bytes], None],
-        close_down: Callable[[], None] | None = None,
-        pause_down: Callable[[bool], None] | None = None,
-    ) -> None:
-        self.proxy = proxy
-        self.label = label
-        self.endpoint = endpoint
-        self.send_down = send_down
-        self.close_down = close_down
-        self.pause_down = pause_down  # a stream client: stop (True) or resume reading it
-        self.paused = False
-        self.upstream: Transport | UdpSocket | None = None
-        self.queued: list[bytes] = []
-        self.queued_bytes = 0
-        self.closed = False
-        self.last_active = time.monotonic()
-        down_dgram = proxy.listen.scheme == "udp"
-        up_dgram = proxy.to.scheme == "udp"
-        self.dirs = {OUT: _Direction(down_dgram, up_dgram), IN: _Direction(up_dgram, down_dgram)}
-        self.opening: asyncio.Task[None] | None = None
-
-    async def open(self) -> None:
-        to = self.proxy.to
-        try:
-            if to.scheme == "udp":
-                self.upstream = await UdpSocket.connect(to.host, to.port or 0, self._device_datagram)
-                self.proxy._watch(self.upstream)
-            else:
-                self.upstream = await open_transport(to, self.from_device, self.device_lost)
-        except (OSError, TopGimbalError) as exc:
-            self.proxy.throttle.warning("unreachable", "proxy: cannot reach %s for %s: %s", to, self.label, exc)
-            self.proxy._drop(self)
-            return
-        queued, self.queued, self.queued_bytes = self.queued, [], 0
-        for chunk in queued:
-            self._send_up(chunk)
-        if self.paused and self.pause_down is not None:
-            self.paused = False
-            self.pause_down(False)
-
-    def from_client(self, data: bytes) -> None:
-        self.last_active = time.monotonic()
-        if self.upstream is None:
-            if self.pause_down is not None:
-                # A stream's bytes cannot be dropped (the frames around the hole would be cut):
-                # the client is not read until the link opens, so at most one read more waits.
-                self.queued.append(data)
-                self.queued_bytes += len(data)
-                if self.queued_bytes > MAX_QUEUED and not self.paused:
-                    log.warning(
-                        "proxy: %s: %d bytes wait for the device link; not reading this client until it opens",
-                        self.label,
-                        self.queued_bytes,
-                    )
-                    self.paused = True
-                    self.pause_down(True)
-                return
-            if self.queued_bytes + len(data) > MAX_QUEUED:
-                self.proxy.throttle.warning(
-                    "queue full",
-                    "proxy: %s: %d bytes already wait for the device link; dropping %d",
-                    self.label,
-                    self.queued_bytes,
-                    len(data),
-                )
-                return
-            self.queued.append(data)
-            self.queued_bytes += len(data)
-            return
-        self._send_up(data)
-
-    def _send_up(self, data: bytes) -> None:
-        self.proxy._relay(self, OUT, data, self._upstream_send)
-
-    def _upstream_send(self, data: bytes) -> None:
-        if self.upstream is not None and self.upstream.connected:
-            unsent = self.upstream.write_buffer_size if isinstance(self.upstream, StreamTransport) else 0
-            if unsent > MAX_QUEUED:
-                # the device stopped reading: this session ends rather than buffering without bound
-                log.warning("proxy: %s: the device has %d unread bytes; closing this client", self.label, unsent)
-                self.proxy._drop(self)
-                return
-            try:
-                self.upstream.send(data)
-            except TransportError as exc:
-                self.proxy.throttle.warning("send failed", "proxy: %s: device link: %s", self.label, exc)
-
-    def _device_datagram(self, data: bytes, addr: Any) -> None:
-        self.from_device(data)
-
-    def from_device(self, data: bytes) -> None:
-        self.last_active = time.monotonic()
-        self.proxy._relay(self, IN, data, self.send_down)
-
-    def device_lost(self, exc: Exception | None) -> None:
-        if not self.closed:
-            log.info("proxy: device link of %s closed%s", self.label, f": {exc}" if exc else "")
-            self.proxy._drop(self)
-
-    async def close(self, deliver: bool = False) -> None:
-        """End the session. `deliver`: the client left (a command sent and the connection closed
-        at once, as `nc -q0` does): what it sent before the device link opened still goes to the
-        device, once the link is up."""
-        if self.closed:
-            return
-        self.closed = True
-        for d in self.dirs.values():
-            if d.flush_timer is not None:
-                d.flush_timer.cancel()
-        if self.opening is not None and not self.opening.done():
-            if deliver and self.queued:
-                with contextlib.suppress(asyncio.CancelledError):
-                    await self.opening  # open() sends what waits; bounded by the link's connect timeout
-            else:
-                self.opening.cancel()
-        if self.close_down is not None:
-            self.close_down()
-        self.proxy._closed(self)
-        if self.upstream is not None:
-            if isinstance(self.upstream, UdpSocket):
-                self.proxy._watch(self.upstream, on=False)
-            await self.upstream.close()
-
-
-class _TcpClient(asyncio.Protocol):
-    def __init__(self, proxy: Proxy) -> None:
-        self.proxy = proxy
-        self.session: _Session | None = None
-        self.transport: asyncio.Transport | None = None
-
-    def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
-        self.session = self.proxy._tcp_connected(self)
-
-    def data_received(self, data: bytes) -> None:
-        if self.session is not None:
-            self.session.from_client(data)
-
-    def connection_lost(self, exc: Exception | None) -> None:
-        if self.session is not None:
-            self.proxy._drop(self.session, deliver=True)
-
-    def send(self, data: bytes) -> None:
-        if self.transport is None or self.transport.is_closing():
-            return
-        if self.transport.get_write_buffer_size() > MAX_QUEUED:
-            # The client stopped reading: it is dropped rather than buffered without bound. abort(),
-            # not close(): close() waits for the unread bytes to leave, which they never do, and
-            # the session would keep its client slot for good.
-            self.proxy.throttle.warning(
-                "unread", "proxy: a TCP client has %d unread bytes; closing it", self.transport.get_write_buffer_size()
-            )
-            self.transport.abort()
-            if self.session is not None:
-                self.proxy._drop(self.session)
-            return
-        self.transport.write(data)
-
-    def close(self) -> None:
-        if self.transport is not None:
-            self.transport.close()
-
-    def pause(self, paused: bool) -> None:
-        if self.transport is not None and not self.transport.is_closing():
-            if paused:
-                self.transport.pause_reading()
-            else:
-                self.transport.resume_reading()
 
 
 class Proxy:
@@ -328,19 +106,14 @@ class Proxy:
         self.pcap_path = Path(pcap) if pcap else None
         self.log_path = Path(log_path) if log_path else None
         self.stats = ProxyStats()
-        self._sessions: OrderedDict[Any, _Session] = OrderedDict()
-        self._backlog: deque[Chunk] = deque()
-        self._backlog_bytes = 0
-        self._poll = select.poll()
-        self._drain_handle: asyncio.TimerHandle | None = None
-        self._current: Iterator[bool] | None = None  # the chunk being worked off, step by step
+        self._sessions: OrderedDict[Any, Session] = OrderedDict()
         self._flusher: asyncio.TimerHandle | None = None
         self._udp: UdpSocket | None = None
         self._server: asyncio.AbstractServer | None = None
         self._serial: Transport | None = None
         self._serial_dropped = 0  # chunks dropped since the serial line last kept up
-        self.throttle = _Throttle()
-        self._closing: dict[asyncio.Task[None], _Session] = {}  # sessions ending (some deliver first)
+        self.throttle = Throttle()
+        self._closing: dict[asyncio.Task[None], Session] = {}  # sessions ending (some deliver first)
         self._sweeper: asyncio.TimerHandle | None = None
         self._device_ep: Endpoint = ("127.0.0.1", 0)
         self._transport_kind = self.to.scheme if self.to.scheme in ("udp", "tcp") else self.listen.scheme
@@ -364,6 +137,7 @@ class Proxy:
             stats=self.stats,
         )
         self.offload = offload
+        self.backlog = Backlog(self.watcher, self.stats)
 
     # -- subscribers ------------------------------------------------------------------------------
 
@@ -404,11 +178,11 @@ class Proxy:
                 self._sweeper = loop.call_later(min(self.idle_timeout_s, 5.0), self._sweep)
             elif self.listen.scheme == "tcp":
                 self._server = await loop.create_server(
-                    lambda: _TcpClient(self), self.listen.host, self.listen.port or 0, reuse_address=True
+                    lambda: TcpClient(self), self.listen.host, self.listen.port or 0, reuse_address=True
                 )
                 self.listen_address = self._server.sockets[0].getsockname()[:2]
             else:
-                session = _Session(self, f"serial {self.listen.path}", SERIAL_CLIENT, self._serial_send)
+                session = Session(self, f"serial {self.listen.path}", SERIAL_CLIENT, self._serial_send)
                 self._serial = await open_transport(self.listen, session.from_client, self._serial_lost)
                 self._add(("serial",), session)
         except OSError as exc:
@@ -484,7 +258,7 @@ class Proxy:
 
     # -- clients ----------------------------------------------------------------------------------
 
-    def _add(self, key: Any, session: _Session) -> None:
+    def _add(self, key: Any, session: Session) -> None:
         while len(self._sessions) >= self.max_clients:
             _, old = self._sessions.popitem(last=False)
             self.stats.clients_dropped += 1
@@ -496,7 +270,7 @@ class Proxy:
         self.stats.clients += 1
         session.opening = asyncio.get_running_loop().create_task(session.open())
 
-    def _drop(self, session: _Session, *, deliver: bool = False) -> None:
+    def _drop(self, session: Session, *, deliver: bool = False) -> None:
         for key, s in list(self._sessions.items()):
             if s is session:
                 del self._sessions[key]
@@ -509,28 +283,28 @@ class Proxy:
         key = addr[:2]
         session = self._sessions.get(key)
         if session is None:
-            label = f"udp {_ep_text(key)}"
+            label = f"udp {ep_text(key)}"
             udp = self._udp
 
             def send_down(payload: bytes, addr: tuple[Any, ...] = addr) -> None:
                 if udp is not None:
                     udp.sendto(payload, addr)
 
-            session = _Session(self, label, (str(addr[0]), int(addr[1])), send_down)
+            session = Session(self, label, (str(addr[0]), int(addr[1])), send_down)
             self._add(key, session)
         else:
             self._sessions.move_to_end(key)
         session.from_client(data)
 
-    def _tcp_connected(self, client: _TcpClient) -> _Session | None:
+    def _tcp_connected(self, client: TcpClient) -> Session | None:
         assert client.transport is not None
         peer = client.transport.get_extra_info("peername")[:2]
         if len(self._sessions) >= self.max_clients and self.to.scheme != "serial":
-            self.throttle.warning("refused", "proxy: at most %d clients; refusing %s", self.max_clients, _ep_text(peer))
+            self.throttle.warning("refused", "proxy: at most %d clients; refusing %s", self.max_clients, ep_text(peer))
             client.transport.close()
             return None
-        session = _Session(
-            self, f"tcp {_ep_text(peer)}", (str(peer[0]), int(peer[1])), client.send, client.close, client.pause
+        session = Session(
+            self, f"tcp {ep_text(peer)}", (str(peer[0]), int(peer[1])), client.send, client.close, client.pause
         )
         self._add(peer, session)
         return session
@@ -559,14 +333,9 @@ class Proxy:
                 asyncio.get_running_loop().create_task(s.close())
         self._sweeper = asyncio.get_running_loop().call_later(min(self.idle_timeout_s, 5.0), self._sweep)
 
-    # -- the data path ------------------------------------------------------------------------------
-    #
-    # A chunk is forwarded in the callback that received it. Decoding, recording and publishing
-    # wait in `_backlog` and run DEFER_S later, in slices that end after PROCESS_SLICE_S or as soon
-    # as a UDP socket of the proxy has a datagram waiting: a reply is forwarded first, watching
-    # delays the link by at most one chunk's decoding, and a burst is worked off between datagrams.
+    # -- the data path: forwarded at once, decoded soon (backlog.py) -----------------------------
 
-    def _relay(self, session: _Session, direction: str, data: bytes, send: Callable[[bytes], None]) -> None:
+    def _relay(self, session: Session, direction: str, data: bytes, send: Callable[[bytes], None]) -> None:
         """Forward `data` now; decode, record and publish it soon."""
         d = session.dirs[direction]
         t = time.time()
@@ -592,7 +361,7 @@ class Proxy:
             Chunk(t, session.label, session.endpoint, direction, held[:ready] if ready > 0 else b"", False, items)
         )
 
-    def _flush_held(self, session: _Session, direction: str, send: Callable[[bytes], None]) -> None:
+    def _flush_held(self, session: Session, direction: str, send: Callable[[bytes], None]) -> None:
         d = session.dirs[direction]
         d.flush_timer = None
         if d.held and not session.closed:
@@ -603,63 +372,15 @@ class Proxy:
     def _queue(self, work: Chunk) -> None:
         if self.offload is not None:
             self.offload.submit(work)
-            return
-        size = len(work.data) + 64  # an empty chunk (a session's end, a flush) still costs an entry
-        if self._backlog_bytes + size > MAX_BACKLOG:
-            self.stats.backlog_dropped += 1
-            if self.stats.backlog_dropped == 1:
-                log.error("proxy: %d bytes wait to be decoded; skipping chunks (still forwarded)", MAX_BACKLOG)
-            return
-        self._backlog_bytes += size
-        self._backlog.append(work)
-        if self._drain_handle is None:
-            self._drain_handle = asyncio.get_running_loop().call_later(DEFER_S, self._drain)
-
-    def _drain(self) -> None:
-        self._drain_handle = None
-        end = time.perf_counter() + PROCESS_SLICE_S
-        while not self._bytes_waiting():
-            if self._current is None:
-                if not self._backlog:
-                    break
-                self._current = self.watcher.steps(self._take())
-            if next(self._current, None) is None:
-                self._current = None
-            if time.perf_counter() > end:
-                break
-        if self._backlog or self._current is not None:
-            # A timer, not call_soon: asyncio runs the callbacks of sockets found readable before
-            # the timers that fell due, so a waiting datagram is forwarded before decoding goes on
-            # (a call_soon callback would run first and decode one more chunk).
-            self._drain_handle = asyncio.get_running_loop().call_later(0, self._drain)
-
-    def _bytes_waiting(self) -> bool:
-        """Whether a UDP socket of the proxy has a datagram to forward (then decoding yields)."""
-        try:
-            # POLLIN or POLLERR (the loop's reader consumes both); never POLLNVAL, which a closed
-            # descriptor would report forever and so stall decoding for good
-            return any(ev & (select.POLLIN | select.POLLERR) for _, ev in self._poll.poll(0))
-        except OSError:  # pragma: no cover - poll itself failed: decode on, the loop sorts sockets out
-            return False
+        else:
+            self.backlog.queue(work)
 
     def _watch(self, sock: UdpSocket, on: bool = True) -> None:
-        with contextlib.suppress(KeyError, ValueError, OSError):
-            if on:
-                self._poll.register(sock.sock.fileno(), select.POLLIN)
-            else:
-                self._poll.unregister(sock.sock.fileno())
+        self.backlog.watch(sock, on)
 
     def drain(self) -> None:
         """Process everything that waits now (stop() does; tests and tools may too)."""
-        if self._drain_handle is not None:
-            self._drain_handle.cancel()
-            self._drain_handle = None
-        if self._current is not None:
-            for _ in self._current:
-                pass
-            self._current = None
-        while self._backlog:
-            self.watcher.run(self._take())
+        self.backlog.drain()
 
     def flush(self) -> None:
         """Hand what the pcap and the log hold to their files (a timer does this every FLUSH_S)."""
@@ -669,19 +390,9 @@ class Proxy:
         self.flush()
         self._flusher = asyncio.get_running_loop().call_later(FLUSH_S, self._flush_timer)
 
-    def _take(self) -> Chunk:
-        work = self._backlog.popleft()
-        self._backlog_bytes -= len(work.data) + 64
-        return work
-
-    def _closed(self, session: _Session) -> None:
+    def _closed(self, session: Session) -> None:
         """A session ended: its parsers go, and its TCP connection in the pcap ends after what it sent."""
         self._queue(Chunk(time.time(), session.label, session.endpoint, CLOSED, b"", False, []))
-
-
-def _ep_text(addr: tuple[Any, ...]) -> str:
-    host, port = str(addr[0]), addr[1]
-    return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
 
 
 __all__ = [
