@@ -6,10 +6,8 @@ The server runs in-process with a stream fed by hand (no encoder): fast and dete
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import contextlib
-import dataclasses
 import logging
 import time
 from collections.abc import AsyncIterator
@@ -17,10 +15,8 @@ from typing import Any
 
 import pytest
 
-from topgimbal.video import cli as video_cli
 from topgimbal.video import rtsp
 from topgimbal.video.encode import AccessUnit
-from topgimbal.video.lens import VideoError, plan_ports, streams_for
 from topgimbal.video.rtsp import RtspServer, Stream, Transport, parse_transport
 
 SPS = b"\x67\x42\xc0\x1f\xda\x01\x40\x16\xe8"
@@ -261,9 +257,7 @@ async def test_sessions_count_from_setup_so_one_client_cannot_hold_more(
         other.close()
 
 
-async def test_connections_nothing_is_heard_from_are_closed(
-    server: RtspServer, monkeypatch: Any, caplog: Any
-) -> None:
+async def test_connections_nothing_is_heard_from_are_closed(server: RtspServer, monkeypatch: Any, caplog: Any) -> None:
     monkeypatch.setattr(rtsp, "MAX_CONNECTIONS", 3)
     idle = [await Client.connect(server) for _ in range(3)]
     late = await Client.connect(server)
@@ -305,22 +299,3 @@ async def test_a_playing_client_that_keeps_talking_is_not_closed(server: RtspSer
         assert (await c.ask("OPTIONS"))[0] == 200
     finally:
         c.close()
-
-
-def test_video_port_must_be_a_port(capsys: Any) -> None:
-    p = argparse.ArgumentParser()
-    video_cli.add_arguments(p)
-    assert p.parse_args(["--video-port", "0"]).video_port == 0
-    assert p.parse_args(["--video-port", "65535"]).video_port == 65535
-    for bad in ("70000", "-1", "abc", "5e3"):
-        with pytest.raises(SystemExit):
-            p.parse_args(["--video-port", bad])  # before: 70000 and -1 crashed in bind() with OverflowError
-        assert "0..65535" in capsys.readouterr().err
-
-
-def test_planned_ports_fit_in_65535() -> None:
-    visible = streams_for("C12")[0]
-    specs = (visible, dataclasses.replace(visible, lens="thermal", port=visible.port + 1))
-    assert plan_ports(specs, 8554) == {554: 8554, 555: 8555}
-    with pytest.raises(VideoError, match=r"give 1\.\.65534"):
-        plan_ports(specs, 65535)
