@@ -299,3 +299,21 @@ async def test_a_playing_client_that_keeps_talking_is_not_closed(server: RtspSer
         assert (await c.ask("OPTIONS"))[0] == 200
     finally:
         c.close()
+
+
+async def test_a_setup_that_cannot_get_udp_sockets_fails_alone(server: RtspServer, monkeypatch: Any) -> None:
+    loop = asyncio.get_running_loop()
+
+    async def no_sockets(*args: Any, **kwargs: Any) -> Any:
+        raise OSError(24, "Too many open files")
+
+    c = await Client.connect(server)
+    try:
+        with monkeypatch.context() as m:
+            m.setattr(loop, "create_datagram_endpoint", no_sockets)
+            code, _ = await c.ask("SETUP", Transport="RTP/AVP;unicast;client_port=40000-40001")
+        assert code == 503  # before: 500 after a logged traceback
+        assert not server.streams["/stream=1"].sessions  # no place held by the failed SETUP
+        await c.play_tcp()
+    finally:
+        c.close()

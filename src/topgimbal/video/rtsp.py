@@ -449,6 +449,8 @@ class _Connection(asyncio.Protocol):
         sid = f"{random.getrandbits(48):012X}"
         pk = Packetizer(stream.codec, random.getrandbits(32), random.getrandbits(16))
         session = _Session(sid, stream, self, pk)
+        # Hold the place before the first await: SETUPs on other connections meanwhile see it.
+        stream.sessions.add(session)
         reply_transport = wanted.header()
         if wanted.tcp:
             session.channel = wanted.rtp
@@ -456,9 +458,19 @@ class _Connection(asyncio.Protocol):
             peer_host = self.transport.get_extra_info("peername")[0]
             loop = asyncio.get_running_loop()
             local = self.transport.get_extra_info("sockname")[0]
-            udp, _ = await loop.create_datagram_endpoint(lambda: _Heard(self), local_addr=(local, 0))
-            rtcp, _ = await loop.create_datagram_endpoint(lambda: _Heard(self), local_addr=(local, 0))
-            session.udp, session.udp_rtcp = udp, rtcp  # type: ignore[assignment]
+            try:
+                udp, _ = await loop.create_datagram_endpoint(lambda: _Heard(self), local_addr=(local, 0))
+                session.udp = udp  # type: ignore[assignment]
+                rtcp, _ = await loop.create_datagram_endpoint(lambda: _Heard(self), local_addr=(local, 0))
+                session.udp_rtcp = rtcp  # type: ignore[assignment]
+            except OSError as exc:  # out of sockets or ports: this SETUP fails, the server goes on
+                session.close()
+                log.warning("RTSP %s: cannot open UDP sockets for %s (%s): 503", stream.path, self.peer, exc)
+                self.reply(req, 503, "Service Unavailable")
+                return
+            except BaseException:  # cancelled: the connection went away meanwhile
+                session.close()
+                raise
             session.udp_peer = (peer_host, wanted.rtp)
             session.server_ports = (udp.get_extra_info("sockname")[1], rtcp.get_extra_info("sockname")[1])
             reply_transport += f";server_port={session.server_ports[0]}-{session.server_ports[1]}"
@@ -466,7 +478,6 @@ class _Connection(asyncio.Protocol):
                 session.close()
                 return
         self.sessions[sid] = session
-        stream.sessions.add(session)
         self.reply(req, 200, "OK", {"Transport": reply_transport, "Session": f"{sid};timeout={SESSION_TIMEOUT_S}"})
 
     def _play(self, req: _Request) -> None:
