@@ -9,6 +9,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import socket
 import time
 from collections.abc import AsyncIterator
 from typing import Any
@@ -317,3 +318,44 @@ async def test_a_setup_that_cannot_get_udp_sockets_fails_alone(server: RtspServe
         await c.play_tcp()
     finally:
         c.close()
+
+
+async def test_a_client_that_reads_no_answers_cannot_grow_the_servers_memory(
+    server: RtspServer, monkeypatch: Any, caplog: Any
+) -> None:
+    monkeypatch.setattr(rtsp, "MAX_BUFFERED_BYTES", 200_000)
+    stream = server.streams["/stream=1"]
+    stream.params["sps"] = SPS + bytes(6000)  # big answers (DESCRIBE's SDP carries it): quick to show
+    loop = asyncio.get_running_loop()
+    client = socket.socket()
+    # Each request in its own segment: with Nagle's algorithm the requests held back behind an
+    # unacknowledged one arrive together, and the pipelining limit would close the connection
+    # whatever the answers do.
+    client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    client.setblocking(False)
+    await loop.sock_connect(client, ("127.0.0.1", server.port))
+    for _ in range(200):
+        if server.connections:
+            break
+        await asyncio.sleep(0.01)
+    conn = next(iter(server.connections))
+    assert conn.transport is not None
+    request = f"DESCRIBE {server.url('/stream=1')} RTSP/1.0\r\nCSeq: 1\r\n\r\n".encode()
+    most = 0
+    try:
+        with caplog.at_level(logging.WARNING, "topgimbal.video.rtsp"):
+            for _ in range(4000):  # up to 32 MB of answers, which the client never reads
+                if conn.transport.is_closing():
+                    break
+                with contextlib.suppress(BlockingIOError):
+                    client.send(request)
+                # One request at a time, at a rate the server keeps up with (a burst of them
+                # has its own limit, MAX_PIPELINED).
+                await asyncio.sleep(0.001)
+                most = max(most, conn.transport.get_write_buffer_size())
+        # Before: the answers piled up in memory without bound.
+        assert conn.transport.is_closing(), f"still answering into memory ({most} bytes unsent)"
+        assert most < rtsp.MAX_BUFFERED_BYTES + rtsp.MAX_PIPELINED * 10_000
+        assert "requests waiting (answers unread" in caplog.text
+    finally:
+        client.close()

@@ -7,8 +7,9 @@ pictures (one encoder per stream, whatever the number of receivers), starting at
 
 Bounds (each refusal is logged): MAX_CONNECTIONS RTSP connections per server, MAX_RECEIVERS
 sessions per stream, set up or playing (SETUP beyond it is answered 453), MAX_REQUEST_BYTES per
-request, MAX_PIPELINED requests waiting per connection, and MAX_BUFFERED_BYTES of unsent RTP per
-TCP receiver (past it the receiver skips pictures up to the next keyframe instead of queueing).
+request, MAX_PIPELINED requests waiting per connection, and MAX_BUFFERED_BYTES unsent per
+connection: past it a TCP receiver skips pictures up to the next keyframe instead of queueing, and
+requests wait to be answered (a client that reads no answers is closed once MAX_PIPELINED wait).
 A session lives as long as its RTSP connection, and a connection from which nothing (no request,
 no RTCP) is heard for IDLE_CLOSE_S (the advertised session timeout plus a margin for late
 keep-alives) is closed, so abandoned and idle connections give their places back.
@@ -251,6 +252,18 @@ class _Connection(asyncio.Protocol):
         self.queue: asyncio.Queue[_Request] = asyncio.Queue()
         self.task: asyncio.Task[None] | None = None
         self.last_heard = time.monotonic()
+        # Set while the transport's unsent bytes are under its high-water mark (MAX_BUFFERED_BYTES):
+        # requests wait for it, so a client that sends requests but reads no answers makes its
+        # requests pile up (and is closed past MAX_PIPELINED) instead of the answers growing
+        # without bound in memory.
+        self.writable = asyncio.Event()
+        self.writable.set()
+
+    def pause_writing(self) -> None:
+        self.writable.clear()
+
+    def resume_writing(self) -> None:
+        self.writable.set()
 
     def heard(self) -> None:
         """The client showed it is alive: a request, interleaved RTCP, or RTCP over UDP."""
@@ -265,6 +278,8 @@ class _Connection(asyncio.Protocol):
             transport.close()
             return
         self.server.connections.add(self)
+        if self.transport is not None:
+            self.transport.set_write_buffer_limits(high=MAX_BUFFERED_BYTES, low=MAX_BUFFERED_BYTES // 2)
         self.task = asyncio.get_running_loop().create_task(self._serve())
 
     def connection_lost(self, exc: Exception | None) -> None:
@@ -314,9 +329,12 @@ class _Connection(asyncio.Protocol):
                 self._bad(f"not an RTSP request line: {lines[0][:80]!r}")
                 return
             if self.queue.qsize() >= MAX_PIPELINED:
-                self._bad(f"more than {MAX_PIPELINED} requests waiting")
+                self._bad(f"more than {MAX_PIPELINED} requests waiting (answers unread: {self._unsent()} bytes)")
                 return
             self.queue.put_nowait(_Request(parts[0].upper(), parts[1], headers, parts[2]))
+
+    def _unsent(self) -> int:
+        return self.transport.get_write_buffer_size() if self.transport is not None else 0
 
     def _bad(self, why: str) -> None:
         log.warning("RTSP %s: %s; closing", self.peer, why)
@@ -343,6 +361,7 @@ class _Connection(asyncio.Protocol):
     async def _serve(self) -> None:
         while True:
             req = await self.queue.get()
+            await self.writable.wait()
             try:
                 await self._handle(req)
             except Exception:  # a bad request must not take the server down
