@@ -127,3 +127,19 @@ async def test_a_viewer_that_leaves_mid_picture_ends_quietly(console: tuple[Cons
     # Before: aiohttp's "Connection lost" (a ConnectionError, not a ConnectionResetError) escaped
     # the handler and was logged as "Error handling request" with a traceback.
     assert "Error handling request" not in caplog.text and "Traceback" not in caplog.text
+
+
+@pytest.mark.parametrize("lens", [["visible"], {"a": 1}, 3, None, "ir"])
+@pytest.mark.parametrize("route", ["point", "track"])
+async def test_a_bad_lens_is_a_clear_400(console: tuple[ConsoleVideo, int], route: str, lens: Any) -> None:
+    import aiohttp
+
+    _, port = console
+    body = {"lens": lens, "x": 0.5, "y": 0.5, "x0": 0.1, "y0": 0.1, "x1": 0.2, "y1": 0.2}
+    async with (
+        aiohttp.ClientSession() as http,
+        http.post(f"http://127.0.0.1:{port}/api/video/{route}", json=body) as resp,
+    ):
+        # Before: a list or an object as the lens raised TypeError (unhashable): a 500.
+        assert resp.status == 400
+        assert "lens must be one of visible, thermal" in (await resp.json())["message"]

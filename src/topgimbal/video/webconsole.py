@@ -280,7 +280,7 @@ def _error(status: int, message: str) -> web.Response:
 
 def _lens(body: Mapping[str, object], specs: dict[str, StreamSpec]) -> str:
     lens = body.get("lens", "visible")
-    if lens not in specs:
+    if not isinstance(lens, str) or lens not in specs:  # a list or an object is unhashable: not a 500
         raise VideoError(f"lens must be one of {', '.join(specs)} (got {lens!r})")
     return str(lens)
 
