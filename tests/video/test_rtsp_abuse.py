@@ -187,7 +187,7 @@ async def test_a_client_asking_for_odd_channels_or_ports_cannot_starve_the_other
             assert (await bad.ask("PLAY"))[0] == 454
         for n in range(1, 6):
             stream.publish(_picture(n))
-        got = set()
+        got: set[int] = set()
         while len(got) < 5:
             _, data = await good.frame()
             if data[12] & 0x1F == 5:  # the slice (the parameter sets go first)
