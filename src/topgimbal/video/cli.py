@@ -22,6 +22,12 @@ def _size(text: str) -> tuple[int, int]:
     return int(w), int(h)
 
 
+def _port(text: str) -> int:
+    if not (text.isascii() and text.isdigit()) or not 0 <= int(text) <= 65535:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a port: give 0..65535 (0 picks free ports)")
+    return int(text)
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("video (needs the video extra: pip install 'topgimbal[video]')")
     g.add_argument("--video", action="store_true", help="serve the model's RTSP streams, rendered from the simulation")
@@ -36,7 +42,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def add_video_port_argument(parser: argparse.ArgumentParser | argparse._ArgumentGroup, help_text: str) -> None:
     """`--video-port N`: the first RTSP port when not the model's (the simulator's and the bridge's)."""
-    parser.add_argument("--video-port", type=int, metavar="N", help=help_text)
+    parser.add_argument("--video-port", type=_port, metavar="N", help=help_text)
 
 
 def wants_video(args: argparse.Namespace) -> bool:

@@ -11,6 +11,7 @@ lossy links better than UDP at the price of a little delay.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING
@@ -81,7 +82,41 @@ def frames(
 
     A consumer slower than the camera gets the newest pictures: those decoded more than
     `max_lag_s` behind the camera are dropped (decoding goes on; converting is what costs).
-    `max_lag_s=None` yields every picture, however late."""
+    `max_lag_s=None` yields every picture, however late.
+
+    The arguments are checked at once (VideoError naming what is allowed), before any network:
+    a bad one used to surface only after the stream was opened, as PyAV's ValueError, or not at
+    all (max_frames=0 gave one picture; a negative max_lag_s dropped every picture forever)."""
+    _check_frames_arguments(format, transport, timeout_s, max_frames, max_lag_s)
+    return _frames(url, format, transport, timeout_s, max_frames, max_lag_s)
+
+
+def _check_frames_arguments(
+    format: str, transport: str, timeout_s: float, max_frames: int | None, max_lag_s: float | None
+) -> None:
+    import av
+
+    if transport not in ("tcp", "udp"):
+        raise VideoError(f"transport must be tcp or udp (got {transport!r})")
+    try:
+        av.video.format.VideoFormat(format)
+    except (ValueError, TypeError):
+        raise VideoError(
+            f"format must be a pixel format name such as bgr24 (OpenCV), rgb24 or gray (got {format!r})"
+        ) from None
+    if isinstance(timeout_s, bool) or not isinstance(timeout_s, (int, float)) or not 0 < timeout_s < math.inf:
+        raise VideoError(f"timeout_s must be a number of seconds above 0 (got {timeout_s!r})")
+    if max_frames is not None and (isinstance(max_frames, bool) or not isinstance(max_frames, int) or max_frames < 1):
+        raise VideoError(f"max_frames must be a whole number from 1, or None for no limit (got {max_frames!r})")
+    if max_lag_s is not None and (
+        isinstance(max_lag_s, bool) or not isinstance(max_lag_s, (int, float)) or not 0 <= max_lag_s < math.inf
+    ):
+        raise VideoError(f"max_lag_s must be a number of seconds from 0, or None for no limit (got {max_lag_s!r})")
+
+
+def _frames(
+    url: str, format: str, transport: str, timeout_s: float, max_frames: int | None, max_lag_s: float | None
+) -> Iterator[np.ndarray]:
     import av
 
     container = open_stream(url, transport=transport, timeout_s=timeout_s)

@@ -151,6 +151,11 @@ def plan_ports(specs: tuple[StreamSpec, ...], port: int | None) -> dict[int, int
         return {p: p for p in documented}
     if port == 0:
         return {p: 0 for p in documented}
+    if not 0 < port <= 65535 or port + (documented[-1] - documented[0]) > 65535:
+        raise VideoError(
+            f"port {port} leaves no room for every stream (they keep the documented spacing "
+            f"{', '.join(map(str, documented))}): give 1..{65535 - (documented[-1] - documented[0])}, or 0 for free ports"
+        )
     return {p: port + (p - documented[0]) for p in documented}
 
 

@@ -4,8 +4,8 @@ browsers as MJPEG (multipart JPEG over HTTP: one `<img>`, no script, no player b
 A reader thread opens the stream with PyAV only while someone watches, decodes every picture,
 and JPEG-encodes the newest one for the viewers; viewers that are slower than the camera skip
 pictures (the relay keeps one picture, never a queue). When the stream fails or stops, the state
-says so and the reader tries again every RETRY_S. Bounds: MAX_VIEWERS per stream (more get 503),
-one JPEG buffered, MAX_FPS pictures per second to the browsers, and at most MAX_LAG_S behind
+says so and the reader tries again every RETRY_S. Bounds: MAX_VIEWERS per stream (more get 503;
+a viewer that takes no picture for webconsole.VIEWER_STALL_S is dropped), one JPEG buffered, MAX_FPS pictures per second to the browsers, and at most MAX_LAG_S behind
 the camera (a relay that falls further behind reopens the stream).
 """
 

@@ -42,6 +42,7 @@ log = logging.getLogger("topgimbal.video")
 
 DEFAULT_FPS = 30.0
 MAX_FPS = 60.0
+MAX_BITRATE_KBPS = 100_000
 SNAPSHOT_TIMEOUT_S = 1.0
 CODEC_POLL_S = 0.2  # how often the codec setting is looked at (a change restarts the stream's encoder)
 
@@ -64,6 +65,10 @@ class VideoOptions:
                 raise VideoError(f"picture size must be even, 64x48..3840x2160 (got {w}x{h})")
         if self.codec not in (None, "h264", "h265"):
             raise VideoError(f"codec must be h264 or h265 (got {self.codec!r})")
+        if self.port is not None and not 0 <= self.port <= 65535:
+            raise VideoError(f"port must be 0..65535, 0 for free ports (got {self.port})")
+        if self.bitrate_kbps is not None and not 1 <= self.bitrate_kbps <= MAX_BITRATE_KBPS:
+            raise VideoError(f"bitrate must be 1..{MAX_BITRATE_KBPS} kbit/s (got {self.bitrate_kbps})")
 
 
 class SimVideo:

@@ -37,6 +37,7 @@ ZOOM_STEP_S = 0.3  # one wheel notch runs the zoom motor this long
 # small machine, the CPU) with the console and the relay; 15 fps halves the cost of 30 (see
 # docs/video.md) and still shows motion. `topgimbal sim --video` keeps the camera's 30 fps.
 CONSOLE_SIM_FPS = 15.0
+VIEWER_STALL_S = 10.0  # a viewer that takes no picture for this long is dropped (it holds a place)
 
 
 class VideoHost(Protocol):
@@ -139,15 +140,24 @@ class ConsoleVideo:
                 "Cache-Control": "no-store",
             }
         )
-        await resp.prepare(request)
         try:
+            await resp.prepare(request)
             jpeg = first
             while True:
                 head = f"--{BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {len(jpeg)}\r\n\r\n"
-                await resp.write(head.encode() + jpeg + b"\r\n")
+                # A viewer that stops reading (a frozen tab, a stalled proxy) would hold its
+                # place among the MAX_VIEWERS forever: past VIEWER_STALL_S it is dropped.
+                await asyncio.wait_for(resp.write(head.encode() + jpeg + b"\r\n"), VIEWER_STALL_S)
                 jpeg = await pictures.__anext__()
-        except (ConnectionResetError, StopAsyncIteration, asyncio.CancelledError):
-            pass
+        except asyncio.TimeoutError:
+            log.warning(
+                "video %s: a viewer (%s) took no picture for %.0f s: dropping it",
+                relay.name, request.remote, VIEWER_STALL_S,
+            )  # fmt: skip
+            if request.transport is not None:
+                request.transport.close()
+        except (ConnectionError, StopAsyncIteration, asyncio.CancelledError):
+            pass  # the viewer left (aiohttp says "Connection lost" as a plain ConnectionError)
         finally:
             await pictures.aclose()
         return resp
@@ -270,7 +280,7 @@ def _error(status: int, message: str) -> web.Response:
 
 def _lens(body: Mapping[str, object], specs: dict[str, StreamSpec]) -> str:
     lens = body.get("lens", "visible")
-    if lens not in specs:
+    if not isinstance(lens, str) or lens not in specs:  # a list or an object is unhashable: not a 500
         raise VideoError(f"lens must be one of {', '.join(specs)} (got {lens!r})")
     return str(lens)
 
