@@ -22,15 +22,13 @@ import contextlib
 import itertools
 import logging
 import random
-import struct
 import time
-from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import urlsplit
 
-from .encode import AccessUnit
-from .rtp import CLOCK_HZ, Packetizer, parameter_sets, sdp, split_nals
+from .rtp import Packetizer, sdp
+from .rtsp_request import Request, Transport, cseq_ok, parse_transport, session_id
+from .rtsp_stream import Session, Stream
 
 log = logging.getLogger("topgimbal.video.rtsp")
 
@@ -48,121 +46,6 @@ SUPPORTED = ("OPTIONS", "DESCRIBE", "SETUP", "PLAY", "TEARDOWN", "GET_PARAMETER"
 # RTSP methods this server knows but does not offer (405 with Allow); anything else is 501.
 NOT_ALLOWED = ("ANNOUNCE", "PAUSE", "RECORD", "REDIRECT", "PLAY_NOTIFY")
 MAX_CHANNEL = 254  # interleaved RTP channel; RTCP takes the next one, and both must fit in a byte
-_FRAME_HEAD = struct.Struct("!cBH")
-
-
-class Stream:
-    """One live stream (one path): the latest parameter sets and the receivers playing it."""
-
-    def __init__(
-        self,
-        path: str,
-        codec: str,
-        *,
-        on_keyframe_wanted: Callable[[], None] | None = None,
-        on_play: Callable[[], None] | None = None,
-    ) -> None:
-        self.path = path
-        self.codec = codec
-        self.params: dict[str, bytes] = {}
-        self.ready = asyncio.Event()
-        self.receivers: set[_Session] = set()  # playing
-        self.sessions: set[_Session] = set()  # set up, playing or not: what MAX_RECEIVERS bounds
-        self.pictures = 0
-        self._want_key = on_keyframe_wanted or (lambda: None)
-        self.on_play = on_play or (lambda: None)
-
-    def publish(self, au: AccessUnit) -> None:
-        """Send one access unit to every receiver (on the server's event loop)."""
-        if au.codec != self.codec:
-            return  # encoded before a codec change, delivered after it
-        self.pictures += 1
-        if au.keyframe:
-            found = parameter_sets(self.codec, split_nals(au.data))
-            if found:
-                self.params.update(found)
-                self.ready.set()
-        rtp_time = int(au.pts_s * CLOCK_HZ) & 0xFFFFFFFF
-        for r in list(self.receivers):
-            try:
-                r.send_picture(au, rtp_time)
-            except Exception:  # one broken receiver must not starve the others
-                log.exception("RTSP %s: sending to %s failed: dropping that receiver", self.path, r.conn.peer)
-                r.close()
-
-    def want_keyframe(self) -> None:
-        self._want_key()
-
-    def restart(self, codec: str) -> None:
-        """The encoder restarts with another codec: forget the parameter sets (DESCRIBE waits
-        for the new ones) and disconnect every player (an RTP session cannot change its payload
-        format; players that reconnect get the new SDP)."""
-        self.codec = codec
-        self.params = {}
-        self.ready.clear()
-        for r in list(self.sessions):
-            log.info("RTSP %s: codec now %s: disconnecting %s", self.path, codec, r.conn.peer)
-            r.close()
-            if r.conn.transport is not None:
-                r.conn.transport.close()
-
-    def now_rtp(self) -> int:
-        return int(time.monotonic() * CLOCK_HZ) & 0xFFFFFFFF
-
-
-@dataclass(eq=False)  # identity: a set member
-class _Session:
-    id: str
-    stream: Stream
-    conn: _Connection
-    packetizer: Packetizer
-    channel: int | None = None  # interleaved RTP channel (TCP)
-    udp: asyncio.DatagramTransport | None = None
-    udp_rtcp: asyncio.DatagramTransport | None = None
-    udp_peer: tuple[str, int] | None = None
-    playing: bool = False
-    waiting_key: bool = True
-    dropped: int = 0
-    server_ports: tuple[int, int] = (0, 0)
-    _congested: bool = field(default=False, repr=False)
-
-    def send_picture(self, au: AccessUnit, rtp_time: int) -> None:
-        if not self.playing:
-            return
-        if self.waiting_key:
-            if not au.keyframe:
-                return
-            self.waiting_key = False
-        if self.channel is not None:
-            tr = self.conn.transport
-            if tr is None or tr.is_closing():
-                return
-            if tr.get_write_buffer_size() > MAX_BUFFERED_BYTES:
-                # A receiver that cannot keep up skips to the next keyframe rather than queue.
-                self.dropped += 1
-                self.waiting_key = True
-                if not self._congested:
-                    log.warning(
-                        "RTSP %s: receiver %s too slow, skipping to the next keyframe", self.stream.path, self.conn.peer
-                    )
-                    self._congested = True
-                return
-            self._congested = False
-            tr.writelines(
-                [_FRAME_HEAD.pack(b"$", self.channel, len(p)) + p for p in self.packetizer.packets(au.data, rtp_time)]
-            )
-        elif self.udp is not None and self.udp_peer is not None:
-            for p in self.packetizer.packets(au.data, rtp_time):
-                self.udp.sendto(p, self.udp_peer)
-
-    def close(self) -> None:
-        self.playing = False
-        self.stream.receivers.discard(self)
-        self.stream.sessions.discard(self)
-        for t in (self.udp, self.udp_rtcp):
-            if t is not None:
-                t.close()
-        self.udp = self.udp_rtcp = None
 
 
 class _Heard(asyncio.DatagramProtocol):
@@ -175,81 +58,14 @@ class _Heard(asyncio.DatagramProtocol):
         self.conn.heard()
 
 
-@dataclass(frozen=True)
-class Transport:
-    """What a SETUP's Transport header asks for, once understood: RTP over the RTSP connection
-    (`tcp`, channels `rtp`/`rtcp`) or over UDP to the client's ports `rtp`/`rtcp`."""
-
-    tcp: bool
-    rtp: int
-    rtcp: int
-
-    def header(self) -> str:
-        if self.tcp:
-            return f"RTP/AVP/TCP;unicast;interleaved={self.rtp}-{self.rtcp}"
-        return f"RTP/AVP;unicast;client_port={self.rtp}-{self.rtcp}"
-
-
-def parse_transport(header: str, busy_channels: set[int] | frozenset[int] = frozenset()) -> Transport | None:
-    """The first alternative of a Transport header (RFC 2326 12.39: comma-separated, in the
-    client's order of preference) this server can serve: unicast RTP/AVP over TCP with
-    interleaved channels 0..255 (the lowest free pair when not given), or over UDP with client
-    ports 1..65535. None when there is none (the answer is 461)."""
-    for alternative in header.split(","):
-        opts = [o.strip() for o in alternative.split(";") if o.strip()]
-        if not opts:
-            continue
-        profile = opts[0].upper()
-        params: dict[str, str] = {}
-        for o in opts[1:]:
-            k, _, v = o.partition("=")
-            params[k.strip().lower()] = v.strip()
-        if profile not in ("RTP/AVP", "RTP/AVP/UDP", "RTP/AVP/TCP") or "multicast" in params:
-            continue
-        if profile == "RTP/AVP/TCP":
-            if "interleaved" in params:
-                pair = _number_pair(params["interleaved"], 0, 255)
-            else:
-                free = next(
-                    (c for c in range(0, 255, 2) if c not in busy_channels and c + 1 not in busy_channels), None
-                )
-                pair = None if free is None else (free, free + 1)
-            if pair is not None:
-                return Transport(True, *pair)
-        elif "client_port" in params:
-            pair = _number_pair(params["client_port"], 1, 65535)
-            if pair is not None:
-                return Transport(False, *pair)
-    return None
-
-
-def _number_pair(text: str, lo: int, hi: int) -> tuple[int, int] | None:
-    """N or N-M (digits) with both within lo..hi ("N" alone means N and N+1), else None."""
-    first, sep, second = text.partition("-")
-    if not sep:
-        second = str(int(first) + 1) if first.isascii() and first.isdigit() and len(first) <= 5 else ""
-    if not all(t.isascii() and t.isdigit() and len(t) <= 5 for t in (first, second)):
-        return None
-    a, b = int(first), int(second)
-    return (a, b) if lo <= a <= hi and lo <= b <= hi else None
-
-
-@dataclass
-class _Request:
-    method: str
-    url: str
-    headers: dict[str, str]
-    version: str = "RTSP/1.0"
-
-
 class _Connection(asyncio.Protocol):
     def __init__(self, server: RtspServer) -> None:
         self.server = server
         self.transport: asyncio.Transport | None = None
         self.peer: str = "?"
         self.buf = b""
-        self.sessions: dict[str, _Session] = {}
-        self.queue: asyncio.Queue[_Request] = asyncio.Queue()
+        self.sessions: dict[str, Session] = {}
+        self.queue: asyncio.Queue[Request] = asyncio.Queue()
         self.task: asyncio.Task[None] | None = None
         self.last_heard = time.monotonic()
         # Set while the transport's unsent bytes are under its high-water mark (MAX_BUFFERED_BYTES):
@@ -331,25 +147,25 @@ class _Connection(asyncio.Protocol):
             if self.queue.qsize() >= MAX_PIPELINED:
                 self._bad(f"more than {MAX_PIPELINED} requests waiting (answers unread: {self._unsent()} bytes)")
                 return
-            self.queue.put_nowait(_Request(parts[0].upper(), parts[1], headers, parts[2]))
+            self.queue.put_nowait(Request(parts[0].upper(), parts[1], headers, parts[2]))
 
     def _unsent(self) -> int:
         return self.transport.get_write_buffer_size() if self.transport is not None else 0
 
     def _bad(self, why: str) -> None:
         log.warning("RTSP %s: %s; closing", self.peer, why)
-        self.reply(_Request("?", "", {}), 400, "Bad Request")
+        self.reply(Request("?", "", {}), 400, "Bad Request")
         self.buf = b""
         if self.transport is not None:
             self.transport.close()
 
     def reply(
-        self, req: _Request, code: int, reason: str, headers: dict[str, str] | None = None, body: str = ""
+        self, req: Request, code: int, reason: str, headers: dict[str, str] | None = None, body: str = ""
     ) -> None:
         if self.transport is None or self.transport.is_closing():
             return
         lines = [f"RTSP/1.0 {code} {reason}"]
-        if _cseq_ok(req):
+        if cseq_ok(req):
             lines.append(f"CSeq: {req.headers['cseq']}")
         lines.append(f"Server: {SERVER_NAME}")
         lines += [f"{k}: {v}" for k, v in (headers or {}).items()]
@@ -370,11 +186,11 @@ class _Connection(asyncio.Protocol):
 
     # -- methods ----------------------------------------------------------------------------------
 
-    async def _handle(self, req: _Request) -> None:
+    async def _handle(self, req: Request) -> None:
         m = req.method
         # RFC 2326 12.17: every request carries CSeq; RFC 7826 7.1.1: a version the server does
         # not speak is 505. Both answers keep the connection (the request itself was framed).
-        if not _cseq_ok(req):
+        if not cseq_ok(req):
             log.warning("RTSP %s: %s without a numeric CSeq: 400", self.peer, m[:20])
             self.reply(req, 400, "Bad Request")
             return
@@ -400,7 +216,7 @@ class _Connection(asyncio.Protocol):
             self.reply(req, 200, "OK")
         elif m in ("GET_PARAMETER", "SET_PARAMETER"):
             # A keep-alive may name no session; one that names a session must name a live one.
-            sid = _session_id(req)
+            sid = session_id(req)
             if sid and sid not in self.sessions:
                 self.reply(req, 454, "Session Not Found")
                 return
@@ -411,15 +227,15 @@ class _Connection(asyncio.Protocol):
             log.warning("RTSP %s: unknown method %r: 501", self.peer, m[:20])
             self.reply(req, 501, "Not Implemented", {"Public": ", ".join(SUPPORTED)})
 
-    def _session(self, req: _Request) -> _Session | None:
-        sid = _session_id(req)
+    def _session(self, req: Request) -> Session | None:
+        sid = session_id(req)
         if sid in self.sessions:
             return self.sessions[sid]
         if not sid and len(self.sessions) == 1:
             return next(iter(self.sessions.values()))
         return None
 
-    async def _describe(self, req: _Request) -> None:
+    async def _describe(self, req: Request) -> None:
         stream = self.server.find(req.url)
         if stream is None:
             self.reply(req, 404, "Not Found")
@@ -436,16 +252,16 @@ class _Connection(asyncio.Protocol):
         base = req.url if req.url.endswith("/") else req.url + "/"
         self.reply(req, 200, "OK", {"Content-Base": base, "Content-Type": "application/sdp"}, body)
 
-    async def _setup(self, req: _Request) -> None:
+    async def _setup(self, req: Request) -> None:
         stream = self.server.find(req.url)
         if stream is None:
             self.reply(req, 404, "Not Found")
             return
-        if _session_id(req):
+        if session_id(req):
             # One track per stream, so a SETUP that names a session would change a set-up
             # session's transport, which is not offered (455); a session this connection does
             # not hold is 454 (RFC 2326 11.3.9).
-            if _session_id(req) in self.sessions:
+            if session_id(req) in self.sessions:
                 self.reply(req, 455, "Method Not Valid in This State")
             else:
                 self.reply(req, 454, "Session Not Found")
@@ -467,7 +283,7 @@ class _Connection(asyncio.Protocol):
             return
         sid = f"{random.getrandbits(48):012X}"
         pk = Packetizer(stream.codec, random.getrandbits(32), random.getrandbits(16))
-        session = _Session(sid, stream, self, pk)
+        session = Session(sid, stream, self, pk)
         # Hold the place before the first await: SETUPs on other connections meanwhile see it.
         stream.sessions.add(session)
         reply_transport = wanted.header()
@@ -499,7 +315,7 @@ class _Connection(asyncio.Protocol):
         self.sessions[sid] = session
         self.reply(req, 200, "OK", {"Transport": reply_transport, "Session": f"{sid};timeout={SESSION_TIMEOUT_S}"})
 
-    def _play(self, req: _Request) -> None:
+    def _play(self, req: Request) -> None:
         s = self._session(req)
         if s is None:
             self.reply(req, 454, "Session Not Found")
@@ -511,15 +327,6 @@ class _Connection(asyncio.Protocol):
         s.stream.on_play()
         info = f"url={req.url.rstrip('/')}/trackID=0;seq={s.packetizer.seq};rtptime={s.stream.now_rtp()}"
         self.reply(req, 200, "OK", {"Session": s.id, "Range": "npt=0.000-", "RTP-Info": info})
-
-
-def _session_id(req: _Request) -> str:
-    return req.headers.get("session", "").split(";")[0].strip()
-
-
-def _cseq_ok(req: _Request) -> bool:
-    cseq = req.headers.get("cseq", "")
-    return cseq.isascii() and cseq.isdigit() and len(cseq) <= 10
 
 
 class RtspServer:
@@ -584,3 +391,6 @@ class RtspServer:
             with contextlib.suppress(Exception):
                 await asyncio.wait_for(self._server.wait_closed(), 2.0)
             self._server = None
+
+
+__all__ = ["IDLE_CLOSE_S", "SUPPORTED", "RtspServer", "Session", "Stream", "Transport", "parse_transport"]
