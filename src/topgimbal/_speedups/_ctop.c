@@ -155,13 +155,19 @@ static void free_command(dcommand *c) {
         for (b = 0; b < 2; b++) PyMem_Free(c->order[a][b]);
 }
 
-static void Decoder_dealloc(Decoder *self) {
+static void free_tables(Decoder *self) {
     Py_ssize_t s;
     if (self->slots) {
         for (s = 0; s < self->n_slots; s++)
             if (self->slots[s].key) free_command(&self->slots[s]);
         PyMem_Free(self->slots);
     }
+    self->slots = NULL;
+    self->n_slots = 0;
+}
+
+static void Decoder_dealloc(Decoder *self) {
+    free_tables(self);
     Py_XDECREF(self->message_cls);
     Py_XDECREF(self->fallback);
     Py_XDECREF(self->name);
@@ -248,6 +254,8 @@ static int build_form(Decoder *d, PyObject *t, dform *f) {
     PyObject *fields;
     Py_ssize_t k;
     if (!PyArg_ParseTuple(t, "OOnnO", &f->form, &f->const_data, &f->min_len, &f->max_len, &fields)) return -1;
+    if (f->min_len < 0 || f->max_len < f->min_len)
+        return PyErr_SetString(PyExc_ValueError, "form lengths must be 0 <= min_len <= max_len"), -1;
     if (!keep(d, f->form)) return -1;
     if (f->const_data == Py_None) {
         f->const_data = NULL;
@@ -269,6 +277,12 @@ static int build_form(Decoder *d, PyObject *t, dform *f) {
         x->names = names == Py_None ? NULL : keep(d, names);
         x->literal = literal == Py_None ? NULL : keep(d, literal);
         if (desc != Py_None && !(x->codec = build_codec(d, desc))) return -1;
+        /* decode_form reads data[offset, offset + width) of data at least min_len long, and
+         * py_value indexes names by the codec's value: a layout that breaks either is refused */
+        if (x->offset < 0 || x->width < 0 || x->offset + x->width > f->min_len ||
+            (x->codec && x->codec->n_values &&
+             (!x->names || !PyTuple_Check(x->names) || PyTuple_GET_SIZE(x->names) < x->codec->n_values)))
+            return PyErr_SetString(PyExc_ValueError, "field layout does not fit the form"), -1;
     }
     return 0;
 }
@@ -277,7 +291,7 @@ static int build_command(Decoder *d, PyObject *t, dcommand *c) {
     PyObject *ident, *forms, *orders;
     Py_ssize_t k;
     int a, b;
-    if (!PyArg_ParseTuple(t, "OOOO", &ident, &c->spec, &forms, &orders)) return -1;
+    if (!PyArg_ParseTuple(t, "OOO!O", &ident, &c->spec, &PyTuple_Type, &forms, &orders)) return -1;
     if (!PyBytes_Check(ident) || PyBytes_GET_SIZE(ident) != 3)
         return PyErr_SetString(PyExc_ValueError, "identifier must be 3 bytes"), -1;
     if (!keep(d, c->spec)) return -1;
@@ -287,16 +301,30 @@ static int build_command(Decoder *d, PyObject *t, dcommand *c) {
     if (!c->forms) return PyErr_NoMemory(), -1;
     for (k = 0; k < c->n_forms; k++)
         if (build_form(d, PyTuple_GET_ITEM(forms, k), &c->forms[k]) < 0) return -1;
-    for (a = 0; a < 2; a++)
+    if (!PyTuple_Check(orders) || PyTuple_GET_SIZE(orders) != 2) goto bad_order;
+    for (a = 0; a < 2; a++) {
+        PyObject *pair = PyTuple_GET_ITEM(orders, a);
+        if (!PyTuple_Check(pair) || PyTuple_GET_SIZE(pair) != 2) goto bad_order;
         for (b = 0; b < 2; b++) {
-            PyObject *o = PyTuple_GET_ITEM(PyTuple_GET_ITEM(orders, a), b);
-            Py_ssize_t n = PyTuple_GET_SIZE(o), i;
+            PyObject *o = PyTuple_GET_ITEM(pair, b);
+            Py_ssize_t n, i;
+            if (!PyTuple_Check(o)) goto bad_order;
+            n = PyTuple_GET_SIZE(o);
             c->n_order[a][b] = n;
             c->order[a][b] = PyMem_Calloc((size_t)(n ? n : 1), 1);
             if (!c->order[a][b]) return PyErr_NoMemory(), -1;
-            for (i = 0; i < n; i++) c->order[a][b][i] = (uint8_t)PyLong_AsLong(PyTuple_GET_ITEM(o, i));
+            for (i = 0; i < n; i++) {
+                long v = PyLong_AsLong(PyTuple_GET_ITEM(o, i));
+                if (v == -1 && PyErr_Occurred()) return -1;
+                if (v < 0 || v >= c->n_forms || v > 255) goto bad_order;
+                c->order[a][b][i] = (uint8_t)v;
+            }
         }
+    }
     return 0;
+bad_order:
+    PyErr_SetString(PyExc_ValueError, "decode orders must be ((r_req, r_rsp), (w_req, w_rsp)) of form indices");
+    return -1;
 }
 
 static int header_code_of(PyObject *h) {
@@ -313,23 +341,28 @@ static int header_code_of(PyObject *h) {
 /* Decoder(commands, message_cls, fallback, name, headers, host_addresses); commands: tuple of
  * (ident bytes, spec, forms, ((r_req, r_rsp), (w_req, w_rsp))) from spec.decoder_tables. */
 static int Decoder_init(Decoder *self, PyObject *args, PyObject *kw) {
-    PyObject *commands, *hdrs;
+    PyObject *commands, *hdrs, *message_cls, *fallback, *name;
     const char *hosts;
     Py_ssize_t n, k;
     (void)kw;
     if (self->slots) return PyErr_SetString(PyExc_TypeError, "a Decoder is built once"), -1;
-    if (!PyArg_ParseTuple(args, "O!OOUO!s", &PyTuple_Type, &commands, &self->message_cls, &self->fallback,
-                          &self->name, &PyTuple_Type, &hdrs, &hosts))
+    if (!PyArg_ParseTuple(args, "O!OOUO!s", &PyTuple_Type, &commands, &message_cls, &fallback, &name, &PyTuple_Type,
+                          &hdrs, &hosts))
         return -1;
-    Py_INCREF(self->message_cls);
-    Py_INCREF(self->fallback);
-    Py_INCREF(self->name);
-    if (!PyType_Check(self->message_cls) || !PyType_IsSubtype((PyTypeObject *)self->message_cls, &PyTuple_Type))
+    if (!PyType_Check(message_cls) || !PyType_IsSubtype((PyTypeObject *)message_cls, &PyTuple_Type))
         return PyErr_SetString(PyExc_TypeError, "message_cls must be a tuple subclass"), -1;
+    /* XSETREF: __init__ may run again after a failed one; the tables stay NULL until all is built */
+    Py_INCREF(message_cls);
+    Py_XSETREF(self->message_cls, message_cls);
+    Py_INCREF(fallback);
+    Py_XSETREF(self->fallback, fallback);
+    Py_INCREF(name);
+    Py_XSETREF(self->name, name);
+    self->headers = 0;
     for (k = 0; k < PyTuple_GET_SIZE(hdrs); k++) self->headers |= 1u << header_code_of(PyTuple_GET_ITEM(hdrs, k));
     self->headers &= ~1u;
     self->hosts = (strchr(hosts, 'U') ? 1u : 0u) | (strchr(hosts, 'P') ? 2u : 0u);
-    self->keep = PyList_New(0);
+    Py_XSETREF(self->keep, PyList_New(0));
     if (!self->keep) return -1;
     n = PyTuple_GET_SIZE(commands);
     self->n_slots = 8;
@@ -340,14 +373,24 @@ static int Decoder_init(Decoder *self, PyObject *args, PyObject *kw) {
         dcommand tmp;
         uint32_t s;
         memset(&tmp, 0, sizeof tmp);
-        if (build_command(self, PyTuple_GET_ITEM(commands, k), &tmp) < 0) {
+        if (build_command(self, PyTuple_GET_ITEM(commands, k), &tmp) < 0 || !tmp.key) {
             free_command(&tmp);
+            free_tables(self); /* half a catalog would decode some frames: none instead */
+            if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "identifier must not be 3 NUL bytes");
             return -1;
         }
         s = slot_of(tmp.key, self->n_slots);
         while (self->slots[s].key) s = (s + 1) & (uint32_t)(self->n_slots - 1);
         self->slots[s] = tmp;
     }
+    return 0;
+}
+
+/* A Decoder made by Decoder.__new__ alone, or whose __init__ failed, has no tables: every use is a
+ * TypeError rather than a read through a NULL table. */
+static int ready(const Decoder *d) {
+    if (d->slots) return 1;
+    PyErr_SetString(PyExc_TypeError, "Decoder is not initialised: build it with Decoder(commands, ...)");
     return 0;
 }
 
@@ -580,6 +623,7 @@ static PyObject *decoder_decode(Decoder *self, PyObject *frame) {
     frame_view v;
     PyObject *msg = NULL;
     int r;
+    if (!ready(self)) return NULL;
     if (!view_of(frame, &v)) return PyObject_CallOneArg(self->fallback, frame);
     r = decode_native(self, frame, &v, &msg);
     if (r == NATIVE_OK || r == NATIVE_ERROR) return msg;
@@ -613,8 +657,10 @@ static PyObject *Decoder_new(PyTypeObject *type, PyObject *args, PyObject *kw) {
 }
 
 static PyObject *Decoder_decode_many(Decoder *self, PyObject *frames) {
-    PyObject *seq = PySequence_Fast(frames, "frames must be a sequence"), *out;
+    PyObject *seq, *out;
     Py_ssize_t n, k;
+    if (!ready(self)) return NULL;
+    seq = PySequence_Fast(frames, "frames must be a sequence");
     if (!seq) return NULL;
     n = PySequence_Fast_GET_SIZE(seq);
     out = PyList_New(n);
@@ -637,6 +683,7 @@ static PyObject *Decoder_decode_many(Decoder *self, PyObject *frames) {
 
 static PyObject *Decoder_get_name(Decoder *self, void *closure) {
     (void)closure;
+    if (!ready(self)) return NULL;
     Py_INCREF(self->name);
     return self->name;
 }
@@ -688,6 +735,7 @@ static PyObject *AnyDecoder_new(PyTypeObject *type, PyObject *args, PyObject *kw
     if ((prefer != Py_None && !PyObject_TypeCheck(prefer, &DecoderType)) || PyTuple_GET_SIZE(cands) > MAX_CANDIDATES)
         return PyErr_Format(PyExc_TypeError, "AnyDecoder(prefer Decoder or None, up to %d Decoders, fallback)",
                             MAX_CANDIDATES);
+    if (prefer != Py_None && !ready((Decoder *)prefer)) return NULL;
     self = (AnyDecoder *)type->tp_alloc(type, 0);
     if (!self) return NULL;
     self->vectorcall = AnyDecoder_vectorcall;
@@ -700,6 +748,10 @@ static PyObject *AnyDecoder_new(PyTypeObject *type, PyObject *args, PyObject *kw
         if (!PyObject_TypeCheck(c, &DecoderType)) {
             Py_DECREF(self);
             return PyErr_Format(PyExc_TypeError, "candidates must be Decoders");
+        }
+        if (!ready((Decoder *)c)) {
+            Py_DECREF(self);
+            return NULL;
         }
         Py_INCREF(c);
         self->cands[self->n++] = (Decoder *)c;
@@ -862,10 +914,13 @@ static PyObject *feed(PyObject *parser, PyObject *data, int final, PyObject *dec
     int recover;
     if (PyBytes_CheckExact(data)) {
         Py_INCREF(data);
-    } else if (!(data = PyObject_CallOneArg((PyObject *)&PyBytes_Type, data))) { /* bytes(data), as the pure path */
-        return NULL;
+        dlen = PyBytes_GET_SIZE(data);
+    } else {
+        /* len(data) then bytes(data), as the pure path: an int is a TypeError there (bytes(n)
+         * would make n zero bytes), and the statistics count what len() says */
+        if ((dlen = PyObject_Size(data)) < 0) return NULL;
+        if (!(data = PyObject_CallOneArg((PyObject *)&PyBytes_Type, data))) return NULL;
     }
-    dlen = PyBytes_GET_SIZE(data);
     old = PyObject_GetAttr(parser, s_buf);
     if (!old) goto error;
     if (!PyBytes_Check(old)) {
