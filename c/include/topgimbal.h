@@ -46,6 +46,9 @@ enum tg_status {
     TG_E_ARG = -8        /* bad argument (address, control, header, missing field) */
 };
 
+/* A status in words ("value out of range (TG_E_RANGE)"), for log lines; any int is accepted. */
+const char *tg_status_text(int status);
+
 /* ---- frames ------------------------------------------------------------------------------- */
 
 enum tg_header { TG_HDR_NONE = 0, TG_HDR_TP = 1, TG_HDR_tp = 2, TG_HDR_tP = 3, TG_HDR_Tp = 4 };

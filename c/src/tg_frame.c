@@ -18,6 +18,21 @@ const char *tg_header_text(uint8_t header) {
     }
 }
 
+const char *tg_status_text(int status) {
+    switch (status) {
+    case TG_OK: return "ok (TG_OK)";
+    case TG_E_INVALID: return "bytes do not fit the field (TG_E_INVALID)";
+    case TG_E_UNSURE: return "a spelling the C core does not decode (TG_E_UNSURE)";
+    case TG_E_RANGE: return "value out of range (TG_E_RANGE)";
+    case TG_E_TYPE: return "value of the wrong type for the field (TG_E_TYPE)";
+    case TG_E_SPACE: return "output buffer too small (TG_E_SPACE)";
+    case TG_E_UNKNOWN: return "identifier not in the dialect (TG_E_UNKNOWN)";
+    case TG_E_NO_FORM: return "no form of the command fits the data (TG_E_NO_FORM)";
+    case TG_E_ARG: return "bad argument: address, control, header or missing field (TG_E_ARG)";
+    default: return status > 0 ? "a length, not an error" : "unknown status";
+    }
+}
+
 static int is_addr(char c) { return c == 'U' || c == 'M' || c == 'D' || c == 'E' || c == 'P' || c == 'G'; }
 
 static int is_ident(char c) {

@@ -6,7 +6,8 @@
  *
  * Sends GAM (yaw and pitch angles, degrees as on the wire), then asks GAC (attitude) ten times a
  * second until both axes are within 0.5 degrees, and prints the attitude. Exit 0 when reached,
- * 1 on timeout (15 s), 2 on a usage or I/O error.
+ * 1 on timeout (15 s), 2 on a usage or I/O error (a message on stderr says which argument or
+ * call failed and what is allowed).
  *
  * What the library needs from this host program is what an RTOS port supplies (docs/c.md): a way
  * to send bytes (send_bytes), bytes received (fed to the parser) and a clock (now_ms).
@@ -14,6 +15,7 @@
 #define _DEFAULT_SOURCE /* cfmakeraw */
 #include <arpa/inet.h>
 #include <errno.h>
+#include <math.h>
 #include <fcntl.h>
 #include <poll.h>
 #include <stdio.h>
@@ -41,28 +43,63 @@ static int send_bytes(const uint8_t *p, size_t n) {
     return w == (ssize_t)n ? 0 : -1;
 }
 
+/* A whole decimal number in [lo, hi], or -1 with a message naming the argument. */
+static long whole_number(const char *what, const char *text, long lo, long hi) {
+    char *end;
+    long v;
+    errno = 0;
+    v = strtol(text, &end, 10);
+    if (end == text || *end || errno || v < lo || v > hi) {
+        fprintf(stderr, "bad %s '%s': expected a whole number %ld..%ld\n", what, text, lo, hi);
+        return -1;
+    }
+    return v;
+}
+
 static int open_udp(const char *host, const char *port) {
     struct sockaddr_in local;
-    fd = socket(AF_INET, SOCK_DGRAM, 0);
+    long p = whole_number("port", port, 1, 65535);
+    if (p < 0) return -1;
     memset(&peer, 0, sizeof peer);
     peer.sin_family = AF_INET;
-    peer.sin_port = htons((uint16_t)atoi(port));
-    if (fd < 0 || inet_pton(AF_INET, host, &peer.sin_addr) != 1) return -1;
+    peer.sin_port = htons((uint16_t)p);
+    if (inet_pton(AF_INET, host, &peer.sin_addr) != 1) {
+        fprintf(stderr, "bad host '%s': expected a dotted IPv4 address such as 127.0.0.1\n", host);
+        return -1;
+    }
+    fd = socket(AF_INET, SOCK_DGRAM, 0);
     memset(&local, 0, sizeof local);
     local.sin_family = AF_INET; /* any port: the camera answers whoever asked */
     is_udp = 1;
-    return bind(fd, (const struct sockaddr *)&local, sizeof local);
+    if (fd < 0 || bind(fd, (const struct sockaddr *)&local, sizeof local) != 0) {
+        fprintf(stderr, "cannot open a UDP socket: %s\n", strerror(errno));
+        return -1;
+    }
+    return 0;
 }
 
 static int open_serial(const char *dev, const char *baud) {
     struct termios t;
-    speed_t speed = atoi(baud) == 115200 ? B115200 : (atoi(baud) == 57600 ? B57600 : B9600);
+    long b = whole_number("baud rate", baud, 1, 4000000);
+    speed_t speed = b == 115200 ? B115200 : (b == 57600 ? B57600 : B9600);
+    if (b < 0) return -1;
+    if (b != 9600 && b != 57600 && b != 115200) {
+        fprintf(stderr, "bad baud rate '%s': expected 9600, 57600 or 115200\n", baud);
+        return -1;
+    }
     fd = open(dev, O_RDWR | O_NOCTTY);
-    if (fd < 0 || tcgetattr(fd, &t) != 0) return -1;
+    if (fd < 0 || tcgetattr(fd, &t) != 0) {
+        fprintf(stderr, "cannot open serial device %s: %s\n", dev, strerror(errno));
+        return -1;
+    }
     cfmakeraw(&t);
     cfsetispeed(&t, speed);
     cfsetospeed(&t, speed);
-    return tcsetattr(fd, TCSANOW, &t);
+    if (tcsetattr(fd, TCSANOW, &t) != 0) {
+        fprintf(stderr, "cannot set up serial device %s: %s\n", dev, strerror(errno));
+        return -1;
+    }
+    return 0;
 }
 
 /* Encode a request of the SkyDroid dialect and send it. */
@@ -71,15 +108,35 @@ static int request(unsigned cmd, unsigned form, const tg_value *values) {
     const tg_command *c = &tg_skydroid.commands[cmd];
     int n = tg_encode(&tg_skydroid, c, &c->forms[form], 'U', c->address, 0, values, frame, sizeof frame);
     if (n < 0) {
-        fprintf(stderr, "cannot encode %.3s: error %d\n", c->ident, n);
+        fprintf(stderr, "cannot encode %.3s: %s\n", c->ident, tg_status_text(n));
         return -1;
     }
-    return send_bytes(frame, (size_t)n);
+    if (send_bytes(frame, (size_t)n) != 0) {
+        fprintf(stderr, "cannot send %.3s: %s\n", c->ident, strerror(errno));
+        return -1;
+    }
+    return 0;
 }
 
-static tg_value degrees(const char *text) {
-    double v = strtod(text, NULL);
-    return tg_num((int64_t)(v * 100.0 + (v < 0 ? -0.5 : 0.5)), -2); /* hundredths of a degree */
+/* An angle argument in hundredths of a degree, checked against the GAM field it goes to (a
+ * double outside int64_t would make the conversion undefined: the range is checked first). */
+static int degrees(const char *what, const char *text, unsigned field, tg_value *out) {
+    const tg_codec *c = tg_skydroid.commands[TG_SKYDROID_GAM].forms[TG_SKYDROID_GAM_W_REQ].fields[field].codec;
+    int64_t lo, hi;
+    tg_value bound = tg_num(c->lo, c->exp10);
+    char *end;
+    double v;
+    errno = 0;
+    v = strtod(text, &end);
+    tg_value_rescale(&bound, -2, &lo);
+    bound.num = c->hi;
+    tg_value_rescale(&bound, -2, &hi);
+    if (end == text || *end || errno || !isfinite(v) || v * 100.0 < (double)lo - 0.5 || v * 100.0 > (double)hi + 0.5) {
+        fprintf(stderr, "bad %s '%s': expected degrees %.2f..%.2f\n", what, text, (double)lo / 100, (double)hi / 100);
+        return -1;
+    }
+    *out = tg_num((int64_t)(v * 100.0 + (v < 0 ? -0.5 : 0.5)), -2); /* hundredths of a degree */
+    return 0;
 }
 
 int main(int argc, char **argv) {
@@ -88,18 +145,17 @@ int main(int argc, char **argv) {
     int64_t want_yaw, want_pitch;
     long deadline, next_query = 0;
     int opened;
-    if (argc != 6) {
-        fprintf(stderr, "usage: %s udp HOST PORT YAW PITCH | serial DEVICE BAUD YAW PITCH\n", argv[0]);
-        return 2;
-    }
-    opened = strcmp(argv[1], "udp") == 0 ? open_udp(argv[2], argv[3]) : open_serial(argv[2], argv[3]);
-    if (opened != 0) {
-        perror(argv[2]);
+    if (argc != 6 || (strcmp(argv[1], "udp") != 0 && strcmp(argv[1], "serial") != 0)) {
+        fprintf(stderr, "usage: %s udp HOST PORT YAW PITCH | serial DEVICE BAUD YAW PITCH\n",
+                argc > 0 ? argv[0] : "point_camera");
         return 2;
     }
     memset(gam, 0, sizeof gam); /* TG_V_ABSENT: the speeds take the catalog's defaults */
-    gam[TG_SKYDROID_GAM_W_REQ_YAW_DEG] = degrees(argv[4]);
-    gam[TG_SKYDROID_GAM_W_REQ_PITCH_DEG] = degrees(argv[5]);
+    if (degrees("yaw", argv[4], TG_SKYDROID_GAM_W_REQ_YAW_DEG, &gam[TG_SKYDROID_GAM_W_REQ_YAW_DEG]) != 0 ||
+        degrees("pitch", argv[5], TG_SKYDROID_GAM_W_REQ_PITCH_DEG, &gam[TG_SKYDROID_GAM_W_REQ_PITCH_DEG]) != 0)
+        return 2;
+    opened = strcmp(argv[1], "udp") == 0 ? open_udp(argv[2], argv[3]) : open_serial(argv[2], argv[3]);
+    if (opened != 0) return 2;
     want_yaw = gam[TG_SKYDROID_GAM_W_REQ_YAW_DEG].num;
     want_pitch = gam[TG_SKYDROID_GAM_W_REQ_PITCH_DEG].num;
     memset(none, 0, sizeof none);
@@ -120,6 +176,7 @@ int main(int argc, char **argv) {
         n = read(fd, buf, sizeof buf);
         if (n <= 0) {
             if (n < 0 && errno == EINTR) continue;
+            fprintf(stderr, "cannot read from %s: %s\n", argv[2], n < 0 ? strerror(errno) : "end of input");
             return 2;
         }
         tg_parser_feed(&parser, buf, (size_t)n);
@@ -129,8 +186,9 @@ int main(int argc, char **argv) {
             int64_t yaw, pitch;
             if (ev.type != TG_EV_FRAME || tg_decode(&tg_skydroid, &ev.frame, &m) != TG_OK) continue;
             if (m.cmd != &tg_skydroid.commands[TG_SKYDROID_GAC] || m.form->direction != TG_RESPONSE) continue;
-            tg_value_rescale(&m.values[TG_SKYDROID_GAC_R_RSP_YAW_DEG], -2, &yaw);
-            tg_value_rescale(&m.values[TG_SKYDROID_GAC_R_RSP_PITCH_DEG], -2, &pitch);
+            if (tg_value_rescale(&m.values[TG_SKYDROID_GAC_R_RSP_YAW_DEG], -2, &yaw) != TG_OK ||
+                tg_value_rescale(&m.values[TG_SKYDROID_GAC_R_RSP_PITCH_DEG], -2, &pitch) != TG_OK)
+                continue; /* not a number (a "no value" token): nothing to compare */
             printf("attitude yaw %.2f pitch %.2f\n", (double)yaw / 100, (double)pitch / 100);
             if (llabs(yaw - want_yaw) <= 50 && llabs(pitch - want_pitch) <= 50) {
                 printf("reached yaw %.2f pitch %.2f\n", (double)yaw / 100, (double)pitch / 100);

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -45,3 +46,56 @@ def test_example_points_the_simulated_camera(tmp_path: Path) -> None:
     finally:
         sim.terminate()
         sim.wait(timeout=10)
+
+
+@pytest.fixture(scope="module")
+def sanitized_example(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The example built with ASan + UBSan (a NaN or huge angle cast to int64_t is caught)."""
+    exe = tmp_path_factory.mktemp("example") / "point_camera"
+    sources = [str(p) for p in sorted((C / "src").glob("*.c"))] + [str(C / "generated" / "tg_catalog.c")]
+    subprocess.run(
+        ["clang", "-std=c99", "-O1", "-g", "-Wall", "-Wextra", "-Wpedantic", "-Werror",
+         "-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-I", str(C / "include"),
+         "-I", str(C / "generated"), str(ROOT / "examples" / "c" / "point_camera.c"), *sources, "-o", str(exe)],
+        check=True,
+    )  # fmt: skip
+    return exe
+
+
+BAD_ARGS = [
+    ([], "usage:"),
+    (["tcp", "127.0.0.1", "{port}", "1", "2"], "usage:"),
+    (["udp", "127.0.0.1", "{port}", "abc", "2"], "bad yaw 'abc': expected degrees -"),
+    (["udp", "127.0.0.1", "{port}", "1", "nan"], "bad pitch 'nan': expected degrees"),
+    (["udp", "127.0.0.1", "{port}", "inf", "2"], "bad yaw 'inf'"),
+    (["udp", "127.0.0.1", "{port}", "1e300", "2"], "bad yaw '1e300'"),
+    (["udp", "127.0.0.1", "{port}", "500", "2"], "bad yaw '500'"),
+    (["udp", "127.0.0.1", "{port}", "12.5x", "2"], "bad yaw '12.5x'"),
+    (["udp", "127.0.0.1", "port", "1", "2"], "bad port 'port': expected a whole number 1..65535"),
+    (["udp", "127.0.0.1", "70000", "1", "2"], "bad port '70000'"),
+    (["udp", "localhost", "{port}", "1", "2"], "bad host 'localhost': expected a dotted IPv4 address"),
+    (["serial", "/nonexistent/ttyTG0", "115200", "1", "2"], "cannot open serial device /nonexistent/ttyTG0"),
+    (["serial", "/dev/null", "115200", "1", "2"], "cannot open serial device /dev/null"),
+    (["serial", "/dev/null", "1234", "1", "2"], "bad baud rate '1234': expected 9600, 57600 or 115200"),
+]
+
+
+@pytest.mark.parametrize(("args", "message"), BAD_ARGS, ids=[" ".join(a) or "none" for a, _ in BAD_ARGS])
+def test_example_refuses_bad_arguments_before_sending(sanitized_example: Path, args: list[str], message: str) -> None:
+    """A non-numeric angle used to be read as 0 (the camera pointed at 0, 0), NaN cast to int64_t
+    (undefined), an unknown transport opened its host as a serial device, and a bad port became 0;
+    now each is a message naming the argument and what is allowed, exit 2, and nothing is sent."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as camera:
+        camera.bind(("127.0.0.1", 0))
+        camera.setblocking(False)
+        port = str(camera.getsockname()[1])
+        r = subprocess.run(
+            [str(sanitized_example), *(a.replace("{port}", port) for a in args)],
+            capture_output=True,
+            text=True,
+            timeout=30,
+        )
+        assert r.returncode == 2, (r.returncode, r.stderr)
+        assert message in r.stderr and "runtime error" not in r.stderr, r.stderr
+        with pytest.raises(BlockingIOError):
+            camera.recv(512)
