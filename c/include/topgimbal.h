@@ -7,6 +7,18 @@
  *
  * Values are fixed point: a number is `mantissa * 10^exp10` (tg_value.num, tg_value.exp10),
  * in the field's user unit (degrees, deg/s, metres, ...).
+ *
+ * Preconditions (not checked: breaking one is undefined behaviour, as for memcpy):
+ *  - pointer arguments are not NULL, except where a comment allows it: an input of n bytes may be
+ *    NULL when n is 0, an output buffer may be NULL when its capacity is 0;
+ *  - an input pointer points to as many bytes as its length says, an output buffer to `cap` bytes;
+ *  - tables (dialects, commands, forms, codecs) are the generated ones, a form belongs to the
+ *    command it is used with, and value arrays have one entry per field of the form;
+ *  - a tg_parser is set up by tg_parser_init before any other call, and one is used by one
+ *    thread at a time (no function keeps state elsewhere: different objects are independent).
+ * Everything else (values of any type or range, enum indices, header codes, addresses, controls,
+ * identifiers, lengths, capacities) is checked and answered with a tg_status. On an error an
+ * output buffer may hold partial bytes: only a non-negative return says what was written.
  */
 #ifndef TOPGIMBAL_H
 #define TOPGIMBAL_H
@@ -63,9 +75,11 @@ typedef struct tg_frame {
     int16_t declared;       /* length on the wire when it differs from len (recovered), else -1 */
 } tg_frame;
 
-/* Sum of the bytes mod 256 (the TOP checksum). */
+/* Sum of the bytes mod 256 (the TOP checksum). p may be NULL when n is 0. */
 uint8_t tg_checksum(const uint8_t *p, size_t n);
-/* Write a whole frame (header..checksum); returns its length or TG_E_SPACE / TG_E_ARG. */
+/* Write a whole frame (header..checksum); returns its length or TG_E_SPACE / TG_E_ARG /
+ * TG_E_RANGE (a length the header cannot carry). f->data: f->len bytes (NULL when 0); it may
+ * already sit at out + 10. Nothing is written on an error. */
 int tg_frame_write(const tg_frame *f, uint8_t *out, size_t cap);
 /* The 3-character header text of a header code ("#TP"...), NULL when invalid. */
 const char *tg_header_text(uint8_t header);
@@ -119,9 +133,11 @@ typedef struct tg_step {
 
 /* One step of the scanner over buf[0..n) from `pos` (pure: no state). `final` means no more bytes
  * will come (end of a datagram or file). The same function drives the streaming parser below and
- * the Python fast path, so both behave as topgimbal.protocol.FrameParser. */
+ * the Python fast path, so both behave as topgimbal.protocol.FrameParser. A pos at or past n is
+ * a WAIT step. */
 void tg_scan_step(const uint8_t *buf, size_t n, size_t pos, int final, const tg_scan_cfg *cfg, tg_step *out);
-/* Fill a frame view from a FRAME / RECOVERED step over buf. */
+/* Fill a frame view from a FRAME / RECOVERED step over buf (only those kinds: other steps do not
+ * describe a frame). */
 void tg_step_frame(const uint8_t *buf, const tg_step *st, tg_frame *f);
 
 typedef struct tg_parser_stats {
@@ -154,14 +170,17 @@ typedef struct tg_parser {
 } tg_parser;
 
 /* cfg NULL: bound TG_PARSER_MAX_DATA, length recovery on. A larger max_data is clamped to
- * TG_PARSER_MAX_DATA. */
+ * TG_PARSER_MAX_DATA. Statistics start at 0. */
 void tg_parser_init(tg_parser *p, const tg_scan_cfg *cfg);
+/* Drop the buffered bytes and any pending event (mid-frame too); keeps cfg and statistics. The
+ * parser has no error state: after any diagnostic it simply goes on, no reset needed. */
 void tg_parser_reset(tg_parser *p);
 /* Room for tg_parser_feed right now. */
 size_t tg_parser_space(const tg_parser *p);
 /* Add one byte (returns 0 if the buffer is full: drain events first). */
 int tg_parser_push(tg_parser *p, uint8_t byte);
-/* Add up to n bytes; returns how many were taken. */
+/* Add up to n bytes; returns how many were taken (0 when full: drain events first). data may be
+ * NULL when n is 0. */
 size_t tg_parser_feed(tg_parser *p, const uint8_t *data, size_t n);
 /* The next event, 1 if one was written to *ev, 0 when more bytes are needed. Pointers in *ev stay
  * valid until the next call to any tg_parser_* function. */
@@ -226,9 +245,14 @@ typedef struct tg_codec {
 } tg_codec;
 
 /* Decode one field. TG_OK, TG_E_INVALID or TG_E_UNSURE (see docs/c.md: the C core decodes a
- * strict subset of what the Python codecs accept; never a different value). */
+ * strict subset of what the Python codecs accept; never a different value). raw may be NULL when
+ * len is 0; *out is meaningful only on TG_OK (text and bytes point into raw). */
 int tg_codec_decode(const tg_codec *c, const uint8_t *raw, size_t len, tg_value *out);
-/* Encode one field; returns the number of bytes written or a negative tg_status. */
+/* Encode one field; returns the number of bytes written or a negative tg_status: TG_E_TYPE (a
+ * value type the field does not take, or not in enum tg_vtype), TG_E_RANGE (out of range, an
+ * enum index outside the table, an impossible time, text with bytes outside printable ASCII or
+ * a '#'), TG_E_SPACE. Text/bytes values: ptr to len bytes (NULL when len is 0). out may be NULL
+ * when cap is 0. */
 int tg_codec_encode(const tg_codec *c, const tg_value *v, uint8_t *out, size_t cap);
 
 /* ---- catalog ------------------------------------------------------------------------------ */
@@ -298,15 +322,22 @@ typedef struct tg_message {
 } tg_message;
 
 /* Name the fields of a frame (the Python Dialect.decode): returns TG_OK, TG_E_UNKNOWN or
- * TG_E_NO_FORM. Text and byte values point into the frame's data. */
+ * TG_E_NO_FORM. Text and byte values point into the frame's data. Any header, address, control
+ * and identifier bytes are accepted (an unknown identifier is TG_E_UNKNOWN); f->data may be NULL
+ * when f->len is 0. */
 int tg_decode(const tg_dialect *d, const tg_frame *f, tg_message *m);
-/* Decode data against one form: TG_OK, TG_E_INVALID, TG_E_UNSURE. */
+/* Decode data against one form: TG_OK, TG_E_INVALID, TG_E_UNSURE. values: room for
+ * form->n_fields (the generated TG_CATALOG_MAX_FIELDS always fits); data may be NULL when len is 0. */
 int tg_form_decode(const tg_form *form, const uint8_t *data, size_t len, tg_value *values);
-/* Encode values (one per form field, TG_V_ABSENT for defaults) as form data; returns length. */
+/* Encode values (one per form field, TG_V_ABSENT for defaults; NULL for a form without fields)
+ * as form data; returns the length or a negative tg_status (TG_E_ARG: a field without a default
+ * left absent). out may be NULL when cap is 0. */
 int tg_form_encode(const tg_form *form, const tg_value *values, uint8_t *out, size_t cap);
 /* The header the dialect uses for a command with n data bytes to/from dst (Dialect.header_for). */
 uint8_t tg_header_for(const tg_dialect *d, const tg_command *c, size_t n, char dst);
-/* A whole frame: encode `values` with `form`, header chosen by tg_header_for when header is 0. */
+/* A whole frame: encode `values` with `form` (one of c's forms), header chosen by tg_header_for
+ * when header is 0; returns the frame's length (at most 12 + TG_CATALOG_MAX_DATA) or a negative tg_status
+ * (TG_E_ARG: an address other than U M D E P G, a header code outside enum tg_header). */
 int tg_encode(const tg_dialect *d, const tg_command *c, const tg_form *form, char src, char dst,
               uint8_t header, const tg_value *values, uint8_t *out, size_t cap);
 
@@ -327,9 +358,10 @@ static inline tg_value tg_enum_value(unsigned index) {
     v.num = (int64_t)index;
     return v;
 }
-/* Index of an enum value by name, -1 if none. */
+/* Index of an enum value by name (NUL-terminated), -1 if none or the codec is not an enum. */
 int tg_enum_find(const tg_codec *c, const char *name);
-/* A number rescaled to 10^exp10 (rounded half to even); 0 on overflow-free success. */
+/* A number rescaled to 10^exp10 (rounded half to even): TG_OK, TG_E_TYPE (not a TG_V_NUM) or
+ * TG_E_RANGE (the result does not fit in int64_t). *out is set only on TG_OK. */
 int tg_value_rescale(const tg_value *v, int exp10, int64_t *out);
 
 #ifdef __cplusplus

@@ -34,8 +34,10 @@ const tg_form *tg_form_find(const tg_command *c, char rw, uint8_t direction, uns
 }
 
 int tg_form_decode(const tg_form *form, const uint8_t *data, size_t len, tg_value *values) {
+    static const uint8_t empty[1] = {0};
     unsigned k;
     int result = TG_OK;
+    if (len == 0) data = empty; /* no data may come as a NULL pointer (a frame without data) */
     if (form->const_data) {
         return (len == form->const_len && memcmp(data, form->const_data, len) == 0) ? TG_OK : TG_E_INVALID;
     }
@@ -75,8 +77,13 @@ int tg_decode(const tg_dialect *d, const tg_frame *f, tg_message *m) {
 }
 
 int tg_form_encode(const tg_form *form, const tg_value *values, uint8_t *out, size_t cap) {
+    uint8_t nowhere; /* out may be NULL when cap is 0: `out + n` then points here (never written) */
     size_t n = 0;
     unsigned k;
+    if (!out) {
+        out = &nowhere;
+        cap = 0;
+    }
     if (form->const_data) {
         if (form->const_len > cap) return TG_E_SPACE;
         memcpy(out, form->const_data, form->const_len);

@@ -50,6 +50,7 @@ int tg_parser_push(tg_parser *p, uint8_t byte) {
 size_t tg_parser_feed(tg_parser *p, const uint8_t *data, size_t n) {
     size_t room = sizeof p->buf - p->len;
     if (n > room) n = room;
+    if (n == 0) return 0; /* a zero-length chunk may come with a NULL pointer */
     memcpy(p->buf + p->len, data, n);
     p->len += n;
     p->stats.bytes += (uint32_t)n;

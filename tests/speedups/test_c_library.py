@@ -114,3 +114,18 @@ def test_no_fuzzer_artifacts_in_the_tree() -> None:
     stray = [p for p in C.rglob("*") if p.name.startswith(("crash-", "leak-", "timeout-", "oom-"))]
     assert not [p for p in stray if (C / "build") not in p.parents]
     assert "-artifact_prefix=$(B)/artifacts/" in (C / "Makefile").read_text()
+
+
+@pytest.mark.parametrize("cc", COMPILERS)
+def test_api_misuse_is_caught_cleanly(cc: str, tmp_path: Path) -> None:
+    """c/tests/api_misuse.c under ASan + UBSan: short output buffers, hostile values of every type,
+    data of every length, NULL with length 0, parser resets mid-frame. A zero-length chunk at NULL
+    used to pass NULL to memcpy (UBSan: "null pointer passed as argument 2"), and a form decoded
+    without data applied an offset to NULL."""
+    exe = tmp_path / f"api_misuse-{cc}"
+    sanitize = ["-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"]
+    subprocess.run([_cc(cc), *STD, *sanitize, *INC, str(C / "tests" / "api_misuse.c"), *LIB, "-o", str(exe)], check=True)
+    r = subprocess.run([str(exe)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and "runtime error" not in r.stderr, r.stderr[-3000:]
+    checks, failed = (int(w) for w in r.stdout.split()[::2][:2])
+    assert failed == 0 and checks > 100_000, r.stdout
