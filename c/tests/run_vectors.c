@@ -191,6 +191,25 @@ static int check_encode(unsigned line, char **tok, int ntok) {
                  got > 0 ? got : 0, (const char *)out, n, (const char *)want);
         return fail(line, "encode", msg);
     }
+    { /* and the C decoder reads the C encoder's frame back as the values given */
+        tg_frame f;
+        tg_value back[TG_CATALOG_MAX_FIELDS];
+        if (one_frame(out, (size_t)got, &f) || tg_form_decode(&c->forms[fi], f.data, f.len, back) != TG_OK) {
+            snprintf(msg, sizeof msg, "%.3s form %d: '%.*s' does not decode with its form", c->ident, fi, got,
+                     (const char *)out);
+            return fail(line, "encode round trip", msg);
+        }
+        for (k = 0; k < nv; k++) {
+            if (values[k].type == TG_V_ABSENT || same_value(&back[k], &values[k])) continue;
+            {
+                char a[48], b[48];
+                describe(&back[k], a, sizeof a);
+                describe(&values[k], b, sizeof b);
+                snprintf(msg, sizeof msg, "%.3s form %d field %d: decoded %s, encoded %s", c->ident, fi, k, a, b);
+            }
+            return fail(line, "encode round trip", msg);
+        }
+    }
     passed++;
     return 0;
 }

@@ -124,7 +124,9 @@ def test_api_misuse_is_caught_cleanly(cc: str, tmp_path: Path) -> None:
     without data applied an offset to NULL."""
     exe = tmp_path / f"api_misuse-{cc}"
     sanitize = ["-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"]
-    subprocess.run([_cc(cc), *STD, *sanitize, *INC, str(C / "tests" / "api_misuse.c"), *LIB, "-o", str(exe)], check=True)
+    subprocess.run(
+        [_cc(cc), *STD, *sanitize, *INC, str(C / "tests" / "api_misuse.c"), *LIB, "-o", str(exe)], check=True
+    )
     r = subprocess.run([str(exe)], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0 and "runtime error" not in r.stderr, r.stderr[-3000:]
     checks, failed = (int(w) for w in r.stdout.split()[::2][:2])

@@ -67,7 +67,7 @@ def _decoder_args(commands: tuple[Any, ...]) -> tuple[Any, ...]:
 
 def _with_command(k: int, command: tuple[Any, ...]) -> tuple[Any, ...]:
     tables = _tables()
-    return tables[:k] + (command,) + tables[k + 1 :]
+    return (*tables[:k], command, *tables[k + 1 :])
 
 
 def _bad_tables() -> list[tuple[str, tuple[Any, ...]]]:
@@ -85,7 +85,7 @@ def _bad_tables() -> list[tuple[str, tuple[Any, ...]]]:
         (
             "field past the data",
             _with_command(
-                k, (ident, spec, forms[:rsp] + ((*form[:4], (far, *form[4][1:])),) + forms[rsp + 1 :], orders)
+                k, (ident, spec, (*forms[:rsp], (*form[:4], (far, *form[4][1:])), *forms[rsp + 1 :]), orders)
             ),
         ),
         ("min_len above max_len", _with_command(k, (ident, spec, ((form[0], form[1], 9, 2, ()),), orders))),
@@ -150,7 +150,7 @@ def test_feed_of_bytes_like_data_matches_the_pure_path(data: Any) -> None:
 def test_feed_counts_bytes_as_the_pure_path_for_wide_items() -> None:
     """An array of 4-byte items: len() counts items, bytes() gives 4 per item. The statistics
     follow the pure path (len) instead of the C path's own count, as the C docs promise."""
-    data = array.array("i", [0x23232323, 0])
+    data: Any = array.array("i", [0x23232323, 0])
     stats = []
     for cls in (fast_parser_cls(), PureFrameParser):
         p = cls()
@@ -175,5 +175,6 @@ def test_huge_streams_are_scanned_without_holding_them() -> None:
     p = fast_parser_cls()()
     events = p.feed(junk + GOOD)
     assert [type(e).__name__ for e in events] == ["Diagnostic", "Frame"] and p.buffered == 0
-    events = p.feed_datagram(memoryview(b"#Tp" + b"x" * (1 << 20)))
+    view: Any = memoryview(b"#Tp" + b"x" * (1 << 20))
+    events = p.feed_datagram(view)
     assert p.buffered == 0 and all(type(e).__name__ == "Diagnostic" for e in events)

@@ -1,9 +1,13 @@
 """Test vectors for libtopgimbal, produced by the Python side (catalog, codecs, FrameParser).
 
 For every form of both dialects: the frame Python encodes from sample values (checked against the
-C encoder), what Python decodes from it (checked against the C decoder), and streams holding it
-valid, with a bad checksum, with a wrong length character and inside garbage, with every frame and
-diagnostic the Python parser reports (checked against the C parser, whole and byte at a time).
+C encoder, whose frame must also decode back to the same values with the C decoder), what Python
+decodes from it (checked against the C decoder), and streams holding it valid, with a bad checksum,
+with a wrong length character and inside garbage, with every frame and diagnostic the Python
+parser reports (checked against the C parser, whole and byte at a time). Besides the three fixed
+samples (lowest, highest or defaults, random), EXTRA_SAMPLES random valid values per form, drawn
+with the fixed-point edges (the range's ends and their neighbours, 0, one step either side of it)
+weighted in, make the encode side a bounded differential test of the two encoders.
 
 Line format (read by c/tests/run_vectors.c), tokens separated by one space:
     M <dialect> <frame hex> <status> <form> <n> <value>...      decode
@@ -17,7 +21,7 @@ Values: n:<mantissa>e<exp10>  z (null)  e:<index>  t:<hex>  b:<hex>  d:YYYYMMDDH
 from __future__ import annotations
 
 import random
-from datetime import datetime
+from datetime import datetime, timedelta
 from decimal import Decimal
 from typing import Any
 
@@ -37,6 +41,8 @@ DIAG = {
 }
 HEADER = {"#TP": 1, "#tp": 2, "#tP": 3, "#Tp": 4}
 NUMBER_KINDS = {"hexint", "decint", "binint", "decfloat", "bitrate", "geodm", "geodeg"}
+EXTRA_SAMPLES = 8  # random valid value sets per form beyond the three fixed ones
+_TEXT_CHARS = "".join(chr(c) for c in range(0x20, 0x7F) if chr(c) != "#")  # what a text field may carry
 
 
 class VectorError(Exception):
@@ -78,8 +84,44 @@ def _grid(spec: CodecSpec, m: int) -> Any:
     return float(Decimal(m).scaleb(spec.exp10))
 
 
+def random_sample(spec: CodecSpec, rnd: random.Random) -> Any:
+    """A random valid value of a codec, in user units, with the fixed-point edges weighted in."""
+    kind = spec.kind
+    if kind in ("hexint", "decint", "binint", "decfloat"):
+        if spec.none_tokens and rnd.random() < 0.1:
+            return None
+        lo, hi = spec.lo, spec.hi
+        m = rnd.choice((lo, hi, lo + 1, hi - 1, 0, 1, -1, rnd.randint(lo, hi), rnd.randint(lo, hi)))
+        return _grid(spec, min(max(m, lo), hi))
+    if kind == "bitrate":
+        return rnd.choice((spec.lo, spec.hi, 1000 * rnd.randint(1, 8), rnd.randint(spec.lo, spec.hi)))
+    if kind in ("enum", "oneof"):
+        if kind == "oneof" and spec.sub is not None and rnd.random() < 0.5:
+            return random_sample(spec.sub, rnd)
+        return rnd.choice(spec.names)
+    if kind == "text":
+        n = rnd.randint(spec.min_width, spec.max_width)
+        return "".join(rnd.choice(_TEXT_CHARS) for _ in range(n))
+    if kind == "ipv4":
+        return ".".join(str(rnd.choice((0, 1, 9, 10, 99, 100, 255, rnd.randint(0, 255)))) for _ in range(4))
+    if kind == "raw":
+        n = spec.width if spec.width is not None else rnd.randint(spec.min_width, spec.max_width)
+        allowed = range(256) if spec.binary else [b for b in range(256) if b not in b"#\r\n"]
+        return bytes(rnd.choice(allowed) for _ in range(n))
+    if kind in ("geodm", "geodeg"):
+        lim = 90 if spec.lat else 180
+        return rnd.choice((lim, -lim, 0.0, 1e-7, -1e-7, round(rnd.uniform(-lim, lim), 7), round(rnd.uniform(-1, 1), 7)))
+    if kind == "timestamp":
+        day = datetime(2000, 1, 1) + timedelta(seconds=rnd.randint(0, 100 * 365 * 86400 - 1))
+        return day.replace(microsecond=10000 * rnd.randint(0, 99))
+    return sample(spec, 0, rnd)
+
+
 def sample(spec: CodecSpec, k: int, rnd: random.Random) -> Any:
-    """The k-th sample value (0..2) of a codec, in user units."""
+    """The k-th sample value of a codec, in user units: 0 lowest, 1 highest, 2 random (the fixed
+    three), any further k a random valid value with the edges weighted in."""
+    if k > 2:
+        return random_sample(spec, rnd)
     kind = spec.kind
     if kind in ("hexint", "decint", "binint", "decfloat"):
         if k == 2 and spec.none_tokens:
@@ -172,7 +214,7 @@ def render(dialects: list[Dialect], max_data: int) -> str:
         for ci, spec in enumerate(d.commands.values()):
             for fi, form in enumerate(spec.forms):
                 specs = [codec_spec(f.codec, f"{d.name} {spec.ident}.{f.name}") for f in form.fields]
-                for k in range(3):
+                for k in range(3 + EXTRA_SAMPLES):
                     if k and not form.fields:
                         break
                     values: dict[str, Any] = {}
@@ -184,10 +226,10 @@ def render(dialects: list[Dialect], max_data: int) -> str:
                         v = sample(cs, k, rnd)
                         try:  # canonical value: what decoding its own encoding gives
                             v = f.codec.decode(f.codec.encode(v, f.name))
-                        except (TopGimbalError, ValueError):
+                            tokens.append(value_token(cs, v))
+                        except (TopGimbalError, ValueError, VectorError):
                             break
                         values[f.name] = v
-                        tokens.append(value_token(cs, v))
                     else:
                         try:
                             data = form.encode(values, spec.ident)
