@@ -163,8 +163,9 @@ typedef struct tg_parser {
     size_t wake_len;   /* see tg_step.wake_len */
     uint8_t wake_mark;
     uint8_t idle;      /* 1 while nothing can change until wake conditions */
-    uint8_t final;     /* flushing */
+    uint8_t final;     /* flushing: the stream ends at final_len */
     uint8_t pending;   /* a recovered frame follows its diagnostic */
+    size_t final_len;  /* bytes fed before tg_parser_flush (those after it are a new stream) */
     tg_step pending_step;
     uint8_t buf[TG_PARSER_BUF];
 } tg_parser;
@@ -186,7 +187,9 @@ size_t tg_parser_feed(tg_parser *p, const uint8_t *data, size_t n);
  * valid until the next call to any tg_parser_* function. */
 int tg_parser_next(tg_parser *p, tg_event *ev);
 /* End of a datagram or stream: what remains is resolved by the following tg_parser_next calls
- * (a trailing frame with a wrong length character is recovered, the rest discarded). */
+ * (a trailing frame with a wrong length character is recovered, the rest discarded). Bytes fed
+ * after the flush, before those calls, start a new stream (as if fed after them); a second flush
+ * before they return 0 moves the end of the flushed stream to the later point. */
 void tg_parser_flush(tg_parser *p);
 
 /* ---- values and codecs -------------------------------------------------------------------- */

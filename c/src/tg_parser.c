@@ -60,6 +60,7 @@ size_t tg_parser_feed(tg_parser *p, const uint8_t *data, size_t n) {
 
 void tg_parser_flush(tg_parser *p) {
     p->final = 1;
+    p->final_len = p->len;
     p->idle = 0;
 }
 
@@ -106,7 +107,13 @@ int tg_parser_next(tg_parser *p, tg_event *ev) {
         return 1;
     }
     for (;;) {
+        size_t end; /* the scan's end: the flush point while flushing */
         if (p->idle) return 0;
+        if (p->final && p->pos >= p->final_len && p->final_len < p->len) {
+            /* the flushed stream is resolved; what was fed after the flush starts a new one */
+            p->final = 0;
+            compact(p, p->pos);
+        }
         if (p->pos >= p->len) {
             compact(p, p->len);
             p->final = 0;
@@ -115,18 +122,19 @@ int tg_parser_next(tg_parser *p, tg_event *ev) {
             p->wake_mark = 0;
             return 0;
         }
-        tg_scan_step(p->buf, p->len, p->pos, p->final, &p->cfg, &st);
+        end = p->final ? p->final_len : p->len;
+        tg_scan_step(p->buf, end, p->pos, p->final, &p->cfg, &st);
         switch (st.kind) {
         case TG_STEP_WAIT:
             if (p->final) {
                 /* Flush: what is left cannot become a frame. */
-                size_t start = st.next, n = p->len - start;
-                size_t junk = junk_count(p->buf + start, n);
-                p->pos = p->len;
+                size_t start = st.next, left = end - start;
+                size_t junk = junk_count(p->buf + start, left);
+                p->pos = end;
                 if (junk) {
                     p->stats.bytes_discarded += (uint32_t)junk;
                     p->stats.resyncs++;
-                    diag_event(ev, TG_DIAG_GARBAGE, TG_R_END_OF_STREAM, p->buf + start, n);
+                    diag_event(ev, TG_DIAG_GARBAGE, TG_R_END_OF_STREAM, p->buf + start, left);
                     return 1;
                 }
                 continue;
@@ -138,6 +146,7 @@ int tg_parser_next(tg_parser *p, tg_event *ev) {
             if (p->len >= sizeof p->buf) {
                 /* Cannot happen within the bound (see TG_PARSER_BUF); never stall: resolve now. */
                 p->final = 1;
+                p->final_len = p->len;
                 p->idle = 0;
             }
             return 0;
