@@ -233,3 +233,43 @@ def test_ctrl_c_in_a_blocking_call_cancels_its_request() -> None:
     assert done.returncode == 0, done.stderr[-2000:]
     out = json.loads(done.stdout.strip().splitlines()[-1])
     assert out == {"interrupted": True, "live_after": 0, "threads_after_close": 0}
+
+
+async def test_open_twice_is_refused_and_leaks_nothing(fake) -> None:
+    """A second open() used to open a second transport and drop the first one unclosed (its
+    socket lived on after close(): +2 descriptors per extra open)."""
+    url = await fake.start_udp()
+    fds = _fds()
+    cam = await topgimbal.connect(url, model="C12", timeout_s=0.3, check_model=False, host_feeds=False)
+    with pytest.raises(TopGimbalError, match="open already"):
+        await cam.open()
+    assert (await cam.request("VER", read=True)).fields == {"version": "1.5.2"}
+    await cam.close()
+    with pytest.raises(TopGimbalError, match="closed"):
+        await cam.open()
+    await asyncio.sleep(0)  # the transports' own close callbacks
+    assert _fds() == fds
+
+
+async def test_a_failed_open_holds_nothing_and_may_be_retried(tmp_path) -> None:
+    """The transport does not open: the traffic log opened before it is closed at once (not at
+    the garbage collector's leisure) and open() may simply be called again."""
+    import socket
+
+    sock = socket.socket()  # bound, not listening yet: connections are refused
+    sock.bind(("127.0.0.1", 0))
+    port = sock.getsockname()[1]
+    try:
+        fds = _fds()
+        cam = topgimbal.AsyncClient(
+            f"tcp://127.0.0.1:{port}", "C20", log_path=str(tmp_path / "t.jsonl"), check_model=False, host_feeds=False
+        )
+        with pytest.raises(TopGimbalError, match="cannot connect"):
+            await cam.open()
+        assert _fds() == fds  # the old code kept the log file open
+        sock.listen()
+        await cam.open()  # the old code said nothing here and opened a second engine's worth
+        assert cam.connected_transport
+        await cam.close()
+    finally:
+        sock.close()
