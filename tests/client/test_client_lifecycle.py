@@ -273,3 +273,15 @@ async def test_a_failed_open_holds_nothing_and_may_be_retried(tmp_path) -> None:
         await cam.close()
     finally:
         sock.close()
+
+
+def test_an_unclosed_gimbal_collected_on_its_own_loop_thread_ends_it(sip_url: str) -> None:
+    """The collector may run the finalizer on the client's loop thread itself (which cannot wait
+    for itself): the close is scheduled there and the thread still ends."""
+    cam = topgimbal.Gimbal(sip_url, model="SIP", timeout_s=0.5)
+    thread = cam._thread
+    del cam
+    thread.loop.call_soon_threadsafe(gc.collect)
+    thread.thread.join(JOIN_S)
+    assert not thread.thread.is_alive()
+    assert thread.stopped
