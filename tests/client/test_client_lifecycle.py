@@ -14,12 +14,15 @@ import subprocess
 import sys
 import threading
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
 import topgimbal
 from topgimbal.errors import RequestTimeoutError, TopGimbalError
 from topgimbal.sim import BackgroundSimulator
+
+from .conftest import FakeDevice
 
 pytestmark = pytest.mark.integration
 
@@ -235,7 +238,7 @@ def test_ctrl_c_in_a_blocking_call_cancels_its_request() -> None:
     assert out == {"interrupted": True, "live_after": 0, "threads_after_close": 0}
 
 
-async def test_open_twice_is_refused_and_leaks_nothing(fake) -> None:
+async def test_open_twice_is_refused_and_leaks_nothing(fake: FakeDevice) -> None:
     """A second open() used to open a second transport and drop the first one unclosed (its
     socket lived on after close(): +2 descriptors per extra open)."""
     url = await fake.start_udp()
@@ -251,7 +254,7 @@ async def test_open_twice_is_refused_and_leaks_nothing(fake) -> None:
     assert _fds() == fds
 
 
-async def test_a_failed_open_holds_nothing_and_may_be_retried(tmp_path) -> None:
+async def test_a_failed_open_holds_nothing_and_may_be_retried(tmp_path: Path) -> None:
     """The transport does not open: the traffic log opened before it is closed at once (not at
     the garbage collector's leisure) and open() may simply be called again."""
     import socket
