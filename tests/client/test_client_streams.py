@@ -106,3 +106,47 @@ async def test_stream_samples_are_decimated_to_the_asked_rate(fake):
         gaps = [b - a for a, b in itertools.pairwise(ts)]
         assert all(g >= 0.09 * 0.99 for g in gaps), gaps  # never faster than asked (10 % slack)
         await asyncio.sleep(0)
+
+
+async def test_two_tasks_reading_one_stream_both_get_samples(fake):
+    """The second reader's wait used to replace the first's, which then waited forever."""
+    url = fake.start_memory()
+    async with topgimbal.connect(url, model="C12", timeout_s=0.5) as cam:
+        stream = cam.attitude(rate_hz=50)
+
+        async def read(n: int) -> int:
+            got = 0
+            async for _att in stream:
+                got += 1
+                if got == n:
+                    return got
+            return got
+
+        assert await asyncio.wait_for(asyncio.gather(read(5), read(5)), 30) == [5, 5]
+        # a reader cancelled mid-wait does not cancel the other
+        other = asyncio.ensure_future(read(3))
+        cancelled = asyncio.ensure_future(read(10**6))
+        await until(lambda: stream._waiter is not None)
+        cancelled.cancel()
+        assert await asyncio.wait_for(other, 30) == 3
+        await stream.aclose()
+
+
+async def test_closing_a_stream_ends_the_task_waiting_on_it(fake):
+    """aclose() from one task while another waits in `async for`: the waiting one ends (it used
+    to wait forever, the stream being released and fed no more)."""
+    url = fake.start_memory()
+    async with topgimbal.connect(url, model="C12", timeout_s=0.5) as cam:
+        stream = await cam.attitude(rate_hz=1).start()
+        fake._set_stream(0)  # the device sends nothing more: the reader waits
+        samples: list[object] = []
+
+        async def read() -> None:
+            async for att in stream:
+                samples.append(att)
+
+        reader = asyncio.ensure_future(read())
+        await until(lambda: stream._waiter is not None)
+        await stream.aclose()
+        await asyncio.wait_for(reader, 30)
+        assert reader.done() and reader.exception() is None

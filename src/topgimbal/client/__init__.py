@@ -14,11 +14,11 @@ from .signs import resolve_signs
 from .state import Attitude, SdCard, Stamped, StateCache
 from .stats import LinkStats
 from .streams import AttitudeStream
-from .sync import Gimbal, LoopThreadError, SyncAttitudeStream
+from .sync import ClientClosedError, Gimbal, LoopThreadError, SyncAttitudeStream
 from .traffic import LogRecord, TrafficLog, read_log
 
 __all__ = [
-    "AsyncClient", "Attitude", "AttitudeStream", "CameraAPI", "CatalogCommand", "Engine", "Gimbal", "Inbound",
+    "AsyncClient", "Attitude", "AttitudeStream", "CameraAPI", "CatalogCommand", "ClientClosedError", "Engine", "Gimbal", "Inbound",
     "LinkEvent", "LinkMonitor", "LinkStats", "LogRecord", "LoopThreadError", "RateKeepAlive", "SdCard", "Stamped",
     "StateCache", "SyncAttitudeStream", "TrafficLog", "Transaction", "connect", "read_log", "resolve_signs",
 ]  # fmt: skip

@@ -103,6 +103,7 @@ class ClientCore(Requests):
         self._timer: asyncio.TimerHandle | None = None
         self._timer_at: float | None = None
         self._traffic_log: TrafficLog | None = None
+        self._untraffic: Callable[[], None] = lambda: None
         self._tasks: set[asyncio.Task[object]] = set()
         self._builder = FrameBuilder(self.dialect, self.model, self.signs, self.host_address)
 
@@ -123,6 +124,11 @@ class ClientCore(Requests):
     # -- life cycle ------------------------------------------------------------------------------
 
     async def open(self) -> ClientCore:
+        """Open the link (once: a second open() would leave the first transport running unseen)."""
+        if self.closed:
+            raise TransportError(f"{self.url}: the client is closed; open a new one (connect(...))")
+        if self._engine is not None:
+            raise TransportError(f"{self.url}: the client is open already (or being opened)")
         self._loop = loop = asyncio.get_running_loop()
         self._engine = Engine(
             clock=loop.time,
@@ -139,8 +145,12 @@ class ClientCore(Requests):
             self._traffic_log = TrafficLog(
                 self.options.log_path, url=self.url, model=self.model.name, dialect=self.dialect.name
             )
-            self.on_traffic(self._traffic_log.record)
-        self._transport = await open_transport(self.transport_url, self.on_bytes, self.keeper.lost)
+            self._untraffic = self.on_traffic(self._traffic_log.record)
+        try:
+            self._transport = await open_transport(self.transport_url, self.on_bytes, self.keeper.lost)
+        except BaseException:
+            self._opened_not()
+            raise
         self.stats.connected = True
         if self.options.check_model:
             self.background(self.identity.run())
@@ -149,6 +159,15 @@ class ClientCore(Requests):
         if self.feeds.enabled:
             self.background(self.feeds.start())
         return self
+
+    def _opened_not(self) -> None:
+        """The transport did not open: undo the rest, so nothing is held and open() may be retried."""
+        if self._traffic_log is not None:
+            self._traffic_log.close()
+            self._traffic_log = None
+            self._untraffic()
+        self._engine = None
+        self.link = None
 
     def background(self, coro: Coroutine[object, object, object]) -> None:
         """Run a coroutine of the client's own (model check, feeds setup); errors are logged."""

@@ -220,6 +220,7 @@ class AttitudeStream:
         self.dropped = 0  # samples lost because the consumer fell behind
         self._queue: deque[Attitude | BaseException | None] = deque()
         self._waiter: asyncio.Future[None] | None = None
+        self._readers = 0  # tasks waiting in __anext__
         self._min_gap = 0.9 / rate_hz  # 10 % slack: device clocks drift
         self._last_t = -math.inf
         self._last_pull = time.monotonic()
@@ -256,19 +257,26 @@ class AttitudeStream:
         if not self._started:
             await self.start()
         while not self._queue:
-            self._waiter = asyncio.get_running_loop().create_future()
+            # One waiter shared by every task reading this stream (a second one used to replace the
+            # first's, which then waited forever); shielded: one reader's cancel is not the others'.
+            waiter = self._waiter
+            if waiter is None or waiter.done():
+                waiter = self._waiter = asyncio.get_running_loop().create_future()
+            self._readers += 1
             try:
-                await self._waiter
+                await asyncio.shield(waiter)
             finally:
-                self._waiter = None
+                self._readers -= 1
+                if not self._readers:
+                    self._waiter = None  # no one waits: the stream may be abandoned
         self._last_pull = time.monotonic()
-        item = self._queue.popleft()
-        if item is None:
-            self._closed = True
-            raise StopAsyncIteration
-        if isinstance(item, BaseException):
-            self._closed = True
+        item = self._queue[0]
+        if item is None or isinstance(item, BaseException):
+            self._closed = True  # the end stays queued: every task reading this stream sees it
+            if item is None:
+                raise StopAsyncIteration
             raise item
+        self._queue.popleft()
         return item
 
     async def aclose(self) -> None:
@@ -276,6 +284,8 @@ class AttitudeStream:
         if self._closed and not self._started:
             return
         was_started, self._started, self._closed = self._started, False, True
+        self._queue.append(None)  # a task waiting for a sample ends now, not never
+        self._wake()
         if was_started:
             self.control.release(self)
             core = self.control.core

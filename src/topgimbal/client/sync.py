@@ -8,13 +8,15 @@ callback) would wait for the loop it is blocking: that raises LoopThreadError in
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 import contextlib
 import threading
+import weakref
 from collections.abc import Callable, Coroutine, Iterator
 from types import TracebackType
 from typing import TYPE_CHECKING, TypeVar, Unpack
 
-from ..errors import TopGimbalError
+from ..errors import RequestTimeoutError, TopGimbalError, TransportError
 from ..protocol import CommandSpec, DeviceModel, Dialect, Message
 from .aio import AsyncClient
 from .api_camera import CameraMethods
@@ -31,25 +33,69 @@ from .streams import AttitudeStream
 
 T = TypeVar("T")
 
+STOP_JOIN_S = 5.0  # how long stop() waits for the loop thread to wind down
+WIND_DOWN_ROUNDS = 4  # rounds of cancelling tasks left on a stopped loop
+CLOSE_WAIT_S = 5.0  # how long an unclosed Gimbal's finalizer waits for the client to close
+
 
 class LoopThreadError(TopGimbalError, RuntimeError):
     """A blocking Gimbal method was called on the client's own event-loop thread."""
 
 
+class ClientClosedError(TransportError):
+    """A blocking Gimbal method was called after (or while) the Gimbal was closed."""
+
+
 class ThreadLoop:
-    """An event loop running in a daemon thread."""
+    """An event loop running in a daemon thread.
+
+    `run()` never waits for a loop that will not run its coroutine: once `stop()` is called, new
+    calls fail at once with TransportError, and calls that raced it are failed when the loop ends
+    (their tasks cancelled and run out). A caller that stops waiting (a timeout, Ctrl-C) cancels
+    its coroutine, so no request or stream read is left running for nobody."""
 
     def __init__(self) -> None:
         self.loop = asyncio.new_event_loop()
+        self.stopped = False
+        self._lock = threading.RLock()  # re-entrant: a finalizer may run inside it
+        self._waiting: set[concurrent.futures.Future[object]] = set()
         self._ready = threading.Event()
         self.thread = threading.Thread(target=self._run, name="topgimbal-loop", daemon=True)
         self.thread.start()
         self._ready.wait()
 
     def _run(self) -> None:
-        asyncio.set_event_loop(self.loop)
-        self.loop.call_soon(self._ready.set)
-        self.loop.run_forever()
+        loop = self.loop
+        asyncio.set_event_loop(loop)
+        loop.call_soon(self._ready.set)
+        try:
+            loop.run_forever()
+        finally:
+            self._wind_down()
+
+    def _wind_down(self) -> None:
+        """On the loop thread once the loop has stopped: cancel what is left (a call that raced
+        `stop()`, a background task), let it run out, fail any caller still waiting, close."""
+        loop = self.loop
+        with self._lock:
+            self.stopped = True
+        try:
+            for _ in range(WIND_DOWN_ROUNDS):  # cancelled tasks may start others; bounded
+                # First the callbacks already queued: calls that raced stop() (they fail with
+                # "closed"), and tasks' done-callbacks that hand results to waiting threads.
+                loop.run_until_complete(asyncio.sleep(0))
+                tasks = [t for t in asyncio.all_tasks(loop) if not t.done()]
+                if not tasks:
+                    break
+                for task in tasks:
+                    task.cancel()
+                loop.run_until_complete(asyncio.gather(*tasks, return_exceptions=True))
+        finally:
+            with self._lock:
+                left, self._waiting = list(self._waiting), set()
+            for fut in left:
+                fut.cancel()  # its caller raises ClientClosedError
+            loop.close()
 
     def run(self, coro: Coroutine[object, object, T], timeout: float | None = None) -> T:
         if threading.current_thread() is self.thread:
@@ -58,15 +104,33 @@ class ThreadLoop:
                 "a blocking Gimbal method was called from the client's event-loop thread (a callback?); "
                 "schedule the work elsewhere, or use the AsyncClient (gimbal.aio) inside callbacks"
             )
-        return asyncio.run_coroutine_threadsafe(coro, self.loop).result(timeout)
+        with self._lock:
+            if self.stopped:
+                coro.close()
+                raise ClientClosedError("the client is closed (Gimbal.close() was called); open a new Gimbal")
+            fut = asyncio.run_coroutine_threadsafe(coro, self.loop)
+            self._waiting.add(fut)  # type: ignore[arg-type]
+        try:
+            return fut.result(timeout)
+        except concurrent.futures.CancelledError:
+            if self.stopped:
+                raise ClientClosedError("the client was closed while this call was waiting") from None
+            raise
+        except BaseException:
+            fut.cancel()  # a timeout or Ctrl-C: the coroutine must not go on for nobody
+            raise
+        finally:
+            with self._lock:
+                self._waiting.discard(fut)  # type: ignore[arg-type]
 
     def stop(self) -> None:
-        if self.loop.is_running():
-            self.loop.call_soon_threadsafe(self.loop.stop)
+        with self._lock:
+            self.stopped = True
+        if not self.loop.is_closed():
+            with contextlib.suppress(RuntimeError):  # closed meanwhile by the loop thread
+                self.loop.call_soon_threadsafe(self.loop.stop)
         if threading.current_thread() is not self.thread:
-            self.thread.join(5)
-        if not self.loop.is_running():
-            self.loop.close()
+            self.thread.join(STOP_JOIN_S)
 
 
 class Gimbal(SyncDriver, CoreMethods, MotionMethods, CameraMethods):
@@ -83,6 +147,9 @@ class Gimbal(SyncDriver, CoreMethods, MotionMethods, CameraMethods):
             self._thread.stop()
             raise
         self.cmd = SyncCommands(self)
+        # A Gimbal dropped without close() closes its client and ends its thread (sockets and
+        # the loop's file descriptors with it); also at interpreter exit. Holds no reference to self.
+        self._finalizer = weakref.finalize(self, _close_quietly, self._thread, self.aio)
 
     # -- plumbing --------------------------------------------------------------------------------
 
@@ -93,12 +160,12 @@ class Gimbal(SyncDriver, CoreMethods, MotionMethods, CameraMethods):
         return self._thread.run(coro)
 
     def close(self) -> None:
-        if self._thread.loop.is_closed():
-            return
-        try:
-            self._run(self.aio.close())
-        finally:
-            self._thread.stop()
+        """Stop the client's streams, fail calls still waiting (ClientClosedError, a
+        TransportError), close the link, end the thread. Idempotent; later calls raise
+        ClientClosedError."""
+        if self._finalizer.detach() is None:
+            return  # closed already (or being closed by another thread)
+        _close(self._thread, self.aio)
 
     def __enter__(self) -> Gimbal:
         return self
@@ -186,6 +253,8 @@ class SyncAttitudeStream:
             raise StopIteration
         try:
             return self._g._thread.run(_anext(self._stream), self._timeout_s)
+        except TimeoutError:  # the wait for this sample was cancelled: nothing is left waiting
+            raise RequestTimeoutError(f"no attitude sample arrived within {self._timeout_s} s") from None
         except StopAsyncIteration:
             self._open = False
             raise StopIteration from None
@@ -198,7 +267,7 @@ class SyncAttitudeStream:
         self.close()
 
     def close(self) -> None:
-        if self._open and not self._g._thread.loop.is_closed():
+        if self._open and not self._g._thread.stopped:
             self._open = False
             with contextlib.suppress(TopGimbalError, RuntimeError):
                 self._g._thread.run(self._stream.aclose())
@@ -206,6 +275,23 @@ class SyncAttitudeStream:
     def __del__(self) -> None:
         with contextlib.suppress(Exception):
             self.close()
+
+
+def _close(thread: ThreadLoop, aio: AsyncClient, wait_s: float | None = None) -> None:
+    if threading.current_thread() is thread.thread:  # the garbage collector ran on the loop thread
+        thread.loop.create_task(aio.close()).add_done_callback(lambda _: thread.stop())
+        return
+    try:
+        if not thread.stopped:
+            with contextlib.suppress(ClientClosedError):
+                thread.run(aio.close(), wait_s)
+    finally:
+        thread.stop()
+
+
+def _close_quietly(thread: ThreadLoop, aio: AsyncClient) -> None:
+    with contextlib.suppress(Exception):
+        _close(thread, aio, CLOSE_WAIT_S)
 
 
 async def _anext(stream: AttitudeStream) -> Attitude:
