@@ -5,10 +5,12 @@ not answer, Ctrl-C. Each gets one clear line and the right exit status (2: usage
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -210,7 +212,8 @@ def test_a_log_that_fails_keeps_and_names_what_it_recorded(silent, capsys, tmp_p
 # -- Ctrl-C ----------------------------------------------------------------------------------------
 
 
-def _interrupt_after_first_line(argv: list[str]) -> tuple[int, str]:
+def _interrupt_when(argv: list[str], ready: Callable[[subprocess.Popen[str]], None]) -> tuple[int, str]:
+    """Run the CLI, send SIGINT once `ready(proc)` returns, give its exit status and stderr."""
     proc = subprocess.Popen(
         [sys.executable, "-m", "topgimbal.cli.main", *argv],
         stdout=subprocess.PIPE,
@@ -219,7 +222,7 @@ def _interrupt_after_first_line(argv: list[str]) -> tuple[int, str]:
         text=True,
     )
     try:
-        assert proc.stdout is not None and proc.stdout.readline()  # blocking on the device now
+        ready(proc)
         proc.send_signal(signal.SIGINT)
         code = proc.wait(30)
     finally:
@@ -231,35 +234,24 @@ def _interrupt_after_first_line(argv: list[str]) -> tuple[int, str]:
 
 
 def test_ctrl_c_says_interrupted(sim):
-    code, err = _interrupt_after_first_line([*sim, "attitude", "--watch", "--rate", "5"])
+    def first_sample(proc: subprocess.Popen[str]) -> None:
+        assert proc.stdout is not None and proc.stdout.readline()  # blocking on the device now
+
+    code, err = _interrupt_when([*sim, "attitude", "--watch", "--rate", "5"], first_sample)
     assert code == 130 and "topgimbal: interrupted" in err and "Traceback" not in err  # was: silent
 
 
 def test_ctrl_c_during_log_still_writes_the_capture(sim, tmp_path):
     log, pcap = tmp_path / "s.jsonl", tmp_path / "s.pcap"
-    argv = [*sim, "log", str(log), "--seconds", "600", "--stream", "10", "--pcap", str(pcap)]
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "topgimbal.cli.main", *argv],
-        stderr=subprocess.PIPE,
-        stdout=subprocess.DEVNULL,
-        stdin=subprocess.DEVNULL,
-        text=True,
-    )
-    try:
+
+    def streaming(proc: subprocess.Popen[str]) -> None:
         for _ in range(600):  # until the device's stream is in the log (bounded: 60 s)
             if log.exists() and log.read_text().count('"dir": "in"') >= 3:
-                break
-            try:
+                return
+            with contextlib.suppress(subprocess.TimeoutExpired):
                 proc.wait(0.1)
-            except subprocess.TimeoutExpired:
-                pass
-        proc.send_signal(signal.SIGINT)
-        code = proc.wait(30)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    assert proc.stderr is not None
-    err = proc.stderr.read()
+
+    argv = [*sim, "log", str(log), "--seconds", "600", "--stream", "10", "--pcap", str(pcap)]
+    code, err = _interrupt_when(argv, streaming)
     assert code == 130 and "log interrupted" in err and f"{pcap} their capture" in err, err
     assert pcap.stat().st_size > 24  # more than the pcap header: the frames recorded (was: no file)
