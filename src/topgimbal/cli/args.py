@@ -3,9 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import math
 import os
+import stat
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
+from ..errors import TopGimbalError
 from ..protocol import DIALECT_NAMES, all_models
 
 
@@ -77,3 +84,101 @@ def add_dialect_argument(parser: argparse.ArgumentParser, *, auto: bool = True) 
 
 def add_json_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="machine-readable JSON output")
+
+
+# -- number types: a bad value is a usage error (exit 2) naming what is allowed -------------------
+
+
+def number(
+    *, low: float | None = None, high: float | None = None, low_open: bool = False, what: str = "a number"
+) -> Callable[[str], float]:
+    """argparse type: a finite float within low..high (`low_open`: above low, not equal). NaN and
+    infinity are refused: a wait of nan seconds or a rate of inf Hz is never what was meant."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        too_low = low is not None and (value <= low if low_open else value < low)
+        if not math.isfinite(value) or too_low or (high is not None and value > high):
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}: expected {_span(low, high, low_open)}")
+        return value
+
+    return parse
+
+
+def whole(*, low: int = 0, high: int | None = None, what: str = "a count") -> Callable[[str], int]:
+    """argparse type: a whole number within low..high."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}: expected a whole number") from None
+        if value < low or (high is not None and value > high):
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}: expected {_span(low, high, False)}")
+        return value
+
+    return parse
+
+
+def _span(low: float | None, high: float | None, low_open: bool) -> str:
+    if low is None and high is None:
+        return "a finite number"
+    if high is None:
+        return f"a number above {low:g}" if low_open else f"a number {low:g} or more"
+    if low is None:
+        return f"a number up to {high:g}"
+    return f"a number above {low:g} and up to {high:g}" if low_open else f"{low:g}..{high:g}"
+
+
+HZ = number(low=0, low_open=True, what="a rate in Hz")
+COUNT = whole(low=0, what="a count")
+
+
+def input_file(path: str, what: str) -> str:
+    """`path` when it is a regular file that can be read. A FIFO or a device would block the
+    command at open() (a FIFO with no writer waits for ever) or stream without end: refused."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as exc:
+        raise FileArgumentError(f"{what} {path}: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(mode):
+        kind = "a directory" if stat.S_ISDIR(mode) else "a FIFO" if stat.S_ISFIFO(mode) else "not a regular file"
+        raise FileArgumentError(f"{what} {path} is {kind}: give a regular file")
+    return path
+
+
+def writable_output(path: str, what: str = "output file") -> str:
+    """`path` when a file can be written there, checked before the work that fills it (nothing is
+    created here: a command that then fails leaves no empty file behind)."""
+    p = Path(path)
+    if p.is_dir():
+        raise FileArgumentError(f"{what} {path} is a directory: give a file path")
+    parent = p.parent
+    if not parent.is_dir():
+        raise FileArgumentError(f"{what} {path}: the directory {parent} does not exist")
+    if not os.access(parent, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
+        raise FileArgumentError(f"{what} {path} cannot be written (permission denied)")
+    return path
+
+
+def write_whole(path: str, text: str) -> None:
+    """Write `text` to `path` all or nothing: a failure (disk full, interrupted) leaves the old
+    file as it was, never a truncated one."""
+    writable_output(path)
+    fd, tmp = tempfile.mkstemp(dir=Path(path).parent, prefix=f".{Path(path).name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+class FileArgumentError(TopGimbalError, OSError):
+    """A file given on the command line cannot be used as asked (missing, a directory, a FIFO, a
+    directory that does not exist for an output)."""

@@ -26,7 +26,7 @@ from ..errors import FieldValueError, RequestTimeoutError, TopGimbalError, Trans
 from ..protocol import DIALECT_NAMES, all_models, get_dialect, get_model
 from ..protocol.fields import FieldValue
 from . import device_session
-from .args import add_json_argument
+from .args import COUNT, HZ, add_json_argument, number
 from .device_output import attitude_dict, ok, show
 
 # A command's result is what `show` prints (an int is the exit status instead).
@@ -201,13 +201,29 @@ async def _point(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object
     return attitude_dict(att)
 
 
+# The rate fields (API and wire names) -> the CLI's words and the argument holding what was typed:
+# the wire value has the model's sign applied, and "-20 is not allowed" after typing 20 misleads.
+_RATE_OPTIONS = {
+    "yaw": ("YAW_RATE", "yaw_rate"),
+    "pitch": ("PITCH_RATE", "pitch_rate"),
+    "roll": ("--roll-rate", "roll_rate"),
+}
+
+
 async def _rate(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
-    if args.duration:
-        async with cam.rate_control(interval_s=0.1) as joy:
-            joy.set(args.yaw_rate, args.pitch_rate, args.roll_rate)
-            await asyncio.sleep(args.duration)
-        return ok("rate", stopped=True)
-    await cam.rates(args.yaw_rate, args.pitch_rate, args.roll_rate)
+    try:
+        if args.duration:
+            async with cam.rate_control(interval_s=0.1) as joy:
+                joy.set(args.yaw_rate, args.pitch_rate, args.roll_rate)
+                await asyncio.sleep(args.duration)
+            return ok("rate", stopped=True)
+        await cam.rates(args.yaw_rate, args.pitch_rate, args.roll_rate)
+    except FieldValueError as exc:
+        axis = exc.field.split("_", 1)[0]
+        if axis not in _RATE_OPTIONS or "deg_s" not in exc.field:
+            raise
+        option, dest = _RATE_OPTIONS[axis]
+        raise FieldValueError(option, getattr(args, dest), exc.allowed) from None
     return ok("rate")
 
 
@@ -227,6 +243,13 @@ async def _mode(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]
 
 
 async def _zoom(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
+    try:
+        magnification = float(args.value)
+    except ValueError:
+        pass  # a word (in, out, stop): the client names the words it knows
+    else:
+        if not math.isfinite(magnification):
+            raise FieldValueError("zoom", args.value, "in, out, stop or a magnification such as 2")
     if args.digital:
         await cam.digital_zoom(args.value)
     else:
@@ -334,6 +357,8 @@ async def _command_generic(cam: AsyncClient, args: argparse.Namespace) -> dict[s
 
 # -- registration --------------------------------------------------------------------------------
 
+RATE = number(what="a rate in deg/s")
+
 
 def _point_ranges() -> tuple[str, str, str]:
     """Help text with the limits each model has, from the catalog and the model profiles."""
@@ -363,8 +388,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
     p = _command(sub, "attitude", _attitude, "print the gimbal attitude (degrees; yaw right-, pitch up-positive)")
     p.add_argument("--watch", action="store_true", help="stream samples until interrupted (or --count)")
-    p.add_argument("--rate", type=float, default=10.0, help="--watch sample rate in Hz (default 10)")
-    p.add_argument("--count", type=int, default=0, help="--watch: stop after N samples")
+    p.add_argument("--rate", type=HZ, default=10.0, help="--watch sample rate in Hz (default 10)")
+    p.add_argument("--count", type=COUNT, default=0, help="--watch: stop after N samples (default 0: never)")
 
     yaw_help, pitch_help, speed_help = _point_ranges()
     p = _command(sub, "point", _point, "move to YAW PITCH (degrees) and return once reached")
@@ -375,10 +400,16 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--wait", type=_seconds, default=None, metavar="S", help="give up after S seconds")
 
     p = _command(sub, "rate", _rate, "turn at constant rates in deg/s (stop with `stop`)")
-    p.add_argument("yaw_rate", type=float)
-    p.add_argument("pitch_rate", type=float, nargs="?", default=0.0)
-    p.add_argument("--roll-rate", dest="roll_rate", type=float, default=0.0)
-    p.add_argument("--duration", type=float, default=0.0, help="keep the rates alive for S seconds, then stop")
+    p.add_argument("yaw_rate", type=RATE, metavar="YAW_RATE", help="deg/s, right-positive")
+    p.add_argument("pitch_rate", type=RATE, nargs="?", default=0.0, metavar="PITCH_RATE", help="deg/s, up-positive")
+    p.add_argument("--roll-rate", dest="roll_rate", type=RATE, default=0.0)
+    p.add_argument(
+        "--duration",
+        type=number(low=0, what="a duration"),
+        default=0.0,
+        metavar="S",
+        help="keep the rates alive for S seconds, then stop (default 0: set them and return)",
+    )
 
     _command(sub, "stop", _stop, "stop all gimbal motion")
     _command(sub, "center", _center, "centre the gimbal")

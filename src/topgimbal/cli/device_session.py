@@ -6,7 +6,9 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import copy
 import json
+import sys
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
@@ -14,9 +16,12 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from rich.table import Table
 
-from ..client import AsyncClient, TrafficLog, read_log
+    from ..wire.export import ExportReport
+
+from ..client import AsyncClient, LogRecord, TrafficLog, read_log
 from ..errors import RequestTimeoutError, TopGimbalError
 from ..protocol import Frame, Message
+from .args import COUNT, HZ, input_file, number, writable_output
 from .device_output import plain as _plain
 
 Register = Callable[..., argparse.ArgumentParser]
@@ -80,7 +85,10 @@ async def _monitor(cam: AsyncClient, args: argparse.Namespace) -> int:
 
 
 async def _log(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
-    """Record the traffic (with the attitude stream on, if asked) to a JSONL file."""
+    """Record the traffic (with the attitude stream on, if asked) to a JSONL file. A failure or
+    Ctrl-C keeps what was recorded and says so (with --pcap, the capture of it is still written)."""
+    if args.pcap:  # find out now, not after --seconds of recording
+        writable_output(args.pcap)
     log = TrafficLog(args.file, url=cam.url, model=cam.model.name, dialect=cam.dialect.name)
     count = 0
 
@@ -96,22 +104,46 @@ async def _log(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
         await asyncio.sleep(args.seconds)
         if args.stream:
             await cam.stop_attitude_stream()
+    except asyncio.CancelledError:  # Ctrl-C: what was recorded is the point of the command
+        log.close()
+        print(f"topgimbal: log interrupted: {_kept(args, count, 'Ctrl-C')}", file=sys.stderr, flush=True)
+        raise
+    except TopGimbalError as exc:
+        log.close()
+        kept = copy.copy(exc)  # the same kind of error (a timeout stays one), saying what is left
+        kept.args = (f"{exc}; {_kept(args, count, 'the error')}",)
+        raise kept from None
     finally:
         log.close()
     if args.stream and cam.stats.frames_in == 0:
         raise TopGimbalError(f"nothing came from the device in {args.seconds:g} s; {args.file} holds no answers")
     out: dict[str, object] = {"file": args.file, "frames": count}
     if args.pcap:
-        from ..wire.export import log_to_pcap  # the one pcap writer (topgimbal.wire)
-
-        report = log_to_pcap(args.file, args.pcap)
+        report = _log_pcap(args)
         out.update(pcap=args.pcap, pcap_frames=report.frames, pcap_problems=len(report.problems))
     return out
 
 
+def _log_pcap(args: argparse.Namespace) -> ExportReport:
+    from ..wire.export import log_to_pcap  # the one pcap writer (topgimbal.wire)
+
+    return log_to_pcap(args.file, args.pcap)
+
+
+def _kept(args: argparse.Namespace, count: int, before: str) -> str:
+    """What a stopped `log` left behind, for its error line."""
+    kept = f"{args.file} keeps the {count} frames recorded before {before}"
+    if args.pcap and count:
+        try:
+            kept += f", and {args.pcap} their capture ({_log_pcap(args).frames} frames)"
+        except (TopGimbalError, OSError) as exc:
+            kept += f" (no capture written: {exc})"
+    return kept
+
+
 async def _replay(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     """Send the host -> device frames of a log again, with their original spacing."""
-    records = [r for r in read_log(args.file) if r.direction == "out"]
+    records = _records(input_file(args.file, "traffic log"))
     sent = replies = 0
     start = time.monotonic()
     t0 = records[0].mono if records else 0.0
@@ -137,11 +169,33 @@ async def _replay(cam: AsyncClient, args: argparse.Namespace) -> dict[str, objec
     return {"file": args.file, "sent": sent, "replies": replies}
 
 
+def _records(path: str) -> list[LogRecord]:
+    """The host -> device records of a traffic log; a file that holds none (or is not a log at all)
+    is an error naming it, not a replay that sends nothing and succeeds."""
+    try:
+        records = [r for r in read_log(path) if r.direction == "out"]
+    except UnicodeDecodeError as exc:
+        raise TopGimbalError(f"{path} is not a traffic log: not UTF-8 text (byte {exc.start})") from None
+    except (TypeError, AttributeError, ValueError) as exc:  # a JSON line that is not a record object
+        raise TopGimbalError(f"{path} is not a traffic log: a line is not a record ({exc})") from None
+    if not records:
+        raise TopGimbalError(
+            f"{path} holds no host -> device frames to replay (a traffic log has one JSON object per line "
+            "with 'dir' and 'raw'; write one with `topgimbal log FILE`)"
+        )
+    return records
+
+
 def register(sub: argparse._SubParsersAction, command: Register) -> None:  # type: ignore[type-arg]
     p = command(sub, "monitor", _monitor, "live view of attitude, camera state and link statistics")
-    p.add_argument("--rate", type=float, default=20.0, help="attitude stream rate in Hz (default 20)")
-    p.add_argument("--fps", type=float, default=5.0, help="screen refreshes per second (default 5)")
-    p.add_argument("--count", type=int, default=0, help="render N frames and exit")
+    p.add_argument("--rate", type=HZ, default=20.0, help="attitude stream rate in Hz (default 20)")
+    p.add_argument(
+        "--fps",
+        type=number(low=0.1, high=60, what="a refresh rate"),
+        default=5.0,
+        help="screen refreshes per second (0.1..60, default 5)",
+    )
+    p.add_argument("--count", type=COUNT, default=0, help="render N frames and exit (default 0: until Ctrl-C)")
 
     p = command(sub, "log", _log, "record the traffic to a JSONL file (and a pcap with --pcap)")
     p.add_argument("file")
@@ -151,11 +205,24 @@ def register(sub: argparse._SubParsersAction, command: Register) -> None:  # typ
         help="also write what was recorded as a capture for Wireshark (pcapng if FILE ends in .pcapng); "
         "`topgimbal pcap from-log LOG -o FILE` converts any log later",
     )
-    p.add_argument("--seconds", type=float, default=10.0)
-    p.add_argument("--stream", type=float, default=0.0, metavar="HZ", help="turn the attitude stream on while logging")
+    p.add_argument(
+        "--seconds", type=number(low=0, low_open=True, what="a duration"), default=10.0, help="how long (default 10)"
+    )
+    p.add_argument(
+        "--stream",
+        type=number(low=0, what="a rate in Hz"),
+        default=0.0,
+        metavar="HZ",
+        help="turn the attitude stream on while logging (default 0: off)",
+    )
 
     p = command(sub, "replay", _replay, "send the host -> device frames of a JSONL log again")
     p.add_argument("file")
-    p.add_argument("--speed", type=float, default=1.0, help="time scale (2 = twice as fast)")
+    p.add_argument(
+        "--speed",
+        type=number(low=0, low_open=True, what="a time scale"),
+        default=1.0,
+        help="time scale (2 = twice as fast)",
+    )
     p.add_argument("--fast", action="store_true", help="ignore the original timing")
     p.add_argument("--no-wait", action="store_true", help="do not wait for replies")

@@ -45,7 +45,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         code = int(args.func(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, not at exit
         return code
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # Ctrl-C: say so, a bare 130 reads as a crash in a script's log
+        print("topgimbal: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:  # the reader left (`| head`): not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -21,7 +21,12 @@ from ..sim import FaultPlan, Simulator
 from ..sim import quirks as quirk_table
 from ..sim.servers import Limits
 from ..video import cli as video_cli
+from .args import number, writable_output
 from .runtime import stop_on_signals
+
+# A stream faster than this is no camera's (the devices stream at most 100 Hz) and would only
+# spin the simulator's loop; nan, 0 or a negative rate stopped the stream without a word.
+MAX_STREAM_HZ = 1000.0
 
 
 def _hostport(text: str) -> tuple[str, int]:
@@ -105,7 +110,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help=f"turn quirks on (NAME) or off (-NAME): {', '.join(quirk_table.QUIRKS)}",
     )
     p.add_argument("--seed", type=int, default=0, help="seed for every random choice (default 0)")
-    p.add_argument("--stream-hz", type=float, default=10.0, help="TOPOTEK GAA/GIA stream rate (default 10)")
+    p.add_argument(
+        "--stream-hz",
+        type=number(low=0, low_open=True, high=MAX_STREAM_HZ, what="a stream rate"),
+        default=10.0,
+        help=f"TOPOTEK GAA/GIA stream rate, above 0 and up to {MAX_STREAM_HZ:g} Hz (default 10)",
+    )
     d = Limits()
     p.add_argument(
         "--udp-lease",
@@ -142,6 +152,8 @@ def _check_loopback(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     _check_loopback(args)
+    if args.state:  # a change is saved before its reply: a state file that cannot be written fails now
+        writable_output(args.state, "state file")
     model = args.sim_model or getattr(args, "model", None) or "C12"
     sim = Simulator(
         model,

@@ -26,7 +26,7 @@ from ..wire.export import log_to_pcap
 from ..wire.offload import WatcherProcess, read_config, serve
 from ..wire.proxy import MAX_CLIENTS, Proxy, ProxyEvent
 from ..wire.watcher import Watcher
-from .args import add_dialect_argument, add_json_argument
+from .args import FileArgumentError, add_dialect_argument, add_json_argument, input_file, writable_output, write_whole
 from .protocol_cmds import _dialect_from_args, _human, dissection_record
 from .runtime import stop_on_signals
 
@@ -108,6 +108,7 @@ def decode_pcap(args: argparse.Namespace) -> int:
     forced = _dialect_from_args(args)
     items: list[tuple[float, int, dict[str, Any]]] = []
     problems = 0
+    input_file(args.pcap, "capture")
     for seq, got in enumerate(frames_in_capture(args.pcap, ports=args.port or (), addresses=args.address or ())):
         if isinstance(got, (PacketNote, CaptureProblem)):
             where = f"packet {got.number}" if isinstance(got, PacketNote) else args.pcap
@@ -157,16 +158,19 @@ def cmd_dissector(args: argparse.Namespace) -> int:
     text = generate_dissector()
     if args.check:
         try:
-            current = Path(args.check).read_text(encoding="utf-8")
-        except OSError as exc:
-            print(f"topgimbal: {args.check}: {exc.strerror}", file=sys.stderr)
+            current = Path(input_file(args.check, "dissector")).read_bytes()
+        except FileArgumentError as exc:
+            print(f"topgimbal: {exc}", file=sys.stderr)
             return 1
-        if current != text:
+        except OSError as exc:
+            print(f"topgimbal: {args.check}: {exc.strerror or exc}", file=sys.stderr)
+            return 1
+        if current != text.encode("utf-8"):  # bytes: a file that is not even UTF-8 is just stale
             print(f"topgimbal: {args.check} is stale: run `topgimbal dissector -o {args.check}`", file=sys.stderr)
             return 1
         return 0
     if args.output and args.output != "-":
-        Path(args.output).write_text(text, encoding="utf-8")
+        write_whole(args.output, text)
         print(f"wrote {args.output} ({len(text)} bytes)", file=sys.stderr)
     else:
         sys.stdout.write(text)
@@ -177,7 +181,7 @@ def cmd_dissector(args: argparse.Namespace) -> int:
 
 
 def cmd_from_log(args: argparse.Namespace) -> int:
-    report = log_to_pcap(args.log_file, args.output)
+    report = log_to_pcap(input_file(args.log_file, "traffic log"), writable_output(args.output))
     for problem in report.problems:
         print(f"topgimbal: {args.log_file}: {problem}", file=sys.stderr)
     print(
