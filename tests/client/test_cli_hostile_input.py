@@ -220,6 +220,9 @@ def _interrupt_when(argv: list[str], ready: Callable[[subprocess.Popen[str]], No
         stderr=subprocess.PIPE,
         stdin=subprocess.DEVNULL,
         text=True,
+        # Ctrl-C as a terminal delivers it: a CI script run in the background (`&`, nohup) has
+        # SIGINT ignored, and the CLI would inherit that.
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     try:
         ready(proc)
