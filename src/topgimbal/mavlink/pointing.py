@@ -61,6 +61,8 @@ class Pointer:
         self._last_sent: tuple[Setpoint, float] | None = None
         self.stream_errors = 0
         self._error_logged = 0.0
+        self.yaw_dropped = 0  # streamed earth-frame yaws left out for want of a heading
+        self._no_heading_logged = False
 
     def start(self) -> None:
         self._task = asyncio.ensure_future(self._worker())
@@ -73,8 +75,10 @@ class Pointer:
 
     # -- commands (awaited, acked with the camera's answer) -------------------------------------
 
-    async def apply(self, sp: Setpoint, *, clamp: bool = False) -> None:
-        """Send one set-point and return once the camera confirmed it (raises otherwise)."""
+    async def apply(self, sp: Setpoint, *, clamp: bool = False, partial: bool = False) -> None:
+        """Send one set-point and return once the camera confirmed it (raises otherwise).
+        `partial` (streams): an earth-frame yaw that cannot be converted (no heading heard) is
+        left out and the other axes still go; a command (not partial) is refused whole instead."""
         if sp.neutral:
             if not self.profile.has_neutral:
                 raise unsupported("the gimbal has no neutral position command")
@@ -94,7 +98,7 @@ class Pointer:
                 raise rejected(f"the {self.profile.model.name} takes no rate commands")
             await self.cam.call(lambda c: c.rates(yr, pr, rr if "roll" in self.profile.rate_axes else 0.0))
         else:
-            yaw, frame = self._body_yaw(sp)
+            yaw, frame = self._body_yaw(sp, partial)
             yaw = self._angle("yaw", yaw, clamp)
             pitch = self._angle("pitch", sp.pitch_deg, clamp)
             roll = (
@@ -106,15 +110,31 @@ class Pointer:
             await self.cam.call(lambda c: c.set_angles(yaw, pitch, roll, frame=frame))
         self._last_sent = (sp, time.monotonic())
 
-    def _body_yaw(self, sp: Setpoint) -> tuple[float | None, str]:
+    def _body_yaw(self, sp: Setpoint, partial: bool = False) -> tuple[float | None, str]:
+        """The yaw to send and its frame. Earth-frame yaw (from North) becomes vehicle-frame yaw
+        by subtracting the vehicle's heading: MAVLink's vehicle frame is the earth frame turned
+        to the heading, so this is exact whatever the vehicle's roll and pitch. Pitch and roll
+        need nothing: the flags autopilots send (ROLL_LOCK, PITCH_LOCK) mean relative to the
+        horizon, which is what these stabilised gimbals hold."""
         if sp.yaw_deg is None or not sp.earth_yaw:
             return sp.yaw_deg, "body"
         vehicle_yaw = self.vehicles.yaw_deg
         if vehicle_yaw is not None:
+            self._no_heading_logged = False  # the next outage is logged again
             return wrap180(sp.yaw_deg - vehicle_yaw), "body"
         if self.profile.earth_frame:
             return wrap180(sp.yaw_deg), "earth"
-        raise rejected("yaw in the earth frame needs the vehicle's heading (ATTITUDE); none heard")
+        text = (
+            "yaw in the earth frame needs the vehicle's heading (AUTOPILOT_STATE_FOR_GIMBAL_DEVICE, "
+            "ATTITUDE or GLOBAL_POSITION_INT); none heard"
+        )
+        if not partial:
+            raise rejected(text)
+        if not self._no_heading_logged:
+            self._no_heading_logged = True  # once per outage, not per set-point (50 Hz)
+            log.warning("%s: streamed set-points move pitch and roll only until one comes", text)
+        self.yaw_dropped += 1
+        return None, "body"
 
     def _angle(self, axis: str, value: float | None, clamp: bool) -> float | None:
         if value is None or math.isnan(value):
@@ -178,7 +198,7 @@ class Pointer:
             if sp is None or self._is_repeat(sp, time.monotonic()):
                 continue
             try:
-                await self.apply(sp, clamp=True)
+                await self.apply(sp, clamp=True, partial=True)
             except (TopGimbalError, OSError) as exc:
                 self.stream_errors += 1
                 now = time.monotonic()

@@ -1,7 +1,11 @@
 """What the bridge hears about vehicles on the MAVLink network: our own vehicle's position and
-heading (for ROI, earth-frame yaw, photo positions, CAMERA_FOV_STATUS) and other systems'
+attitude (for ROI, earth-frame set-points, photo positions, CAMERA_FOV_STATUS) and other systems'
 positions (MAV_CMD_DO_SET_ROI_SYSID). Bounded: at most MAX_SYSTEMS remembered, our own vehicle
-always among them."""
+always among them.
+
+Our vehicle's attitude comes from AUTOPILOT_STATE_FOR_GIMBAL_DEVICE (preferred: what an autopilot
+sends its MAVLink gimbal, about 50 Hz; ArduPilot sends no ATTITUDE on a gimbal's port unless
+MAVn_EXTRA1 is set) or ATTITUDE; the heading, failing both, from GLOBAL_POSITION_INT hdg."""
 
 from __future__ import annotations
 
@@ -12,12 +16,15 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from .geo import Position
+from .quaternion import is_valid, to_euler_deg
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
 
 MAX_SYSTEMS = 32
 STALE_S = 3.0
+
+Attitude = tuple[float, float, float]  # roll_deg, pitch_deg, yaw_deg
 
 
 @dataclass(frozen=True)
@@ -37,7 +44,8 @@ class Vehicles:
         self.sysid = sysid
         self.own = own_compids
         self._fixes: OrderedDict[int, Fix] = OrderedDict()
-        self._yaw: tuple[float, float] | None = None  # (deg, t) from our vehicle's ATTITUDE
+        # Our vehicle's attitude: (roll, pitch, yaw degrees, t) per source message type.
+        self._attitude: dict[str, tuple[Attitude, float]] = {}
 
     def on_message(self, m: MAVLinkMessage) -> None:
         kind = m.get_type()
@@ -54,10 +62,21 @@ class Vehicles:
                 # of more than MAX_SYSTEMS vehicles it used to be evicted between its own updates).
                 oldest = next(k for k in self._fixes if k != self.sysid)
                 del self._fixes[oldest]
-        elif (
-            kind == "ATTITUDE" and src == self.sysid and m.get_srcComponent() not in self.own and not math.isnan(m.yaw)
-        ):
-            self._yaw = (math.degrees(m.yaw), time.monotonic())
+            return
+        if src != self.sysid or m.get_srcComponent() in self.own:
+            return
+        if kind == "AUTOPILOT_STATE_FOR_GIMBAL_DEVICE":
+            # q: the vehicle's attitude, earth frame (NED) to body, Hamilton (w, x, y, z); NaN or
+            # zero when the autopilot has none. Addressed to its gimbal; another gimbal's copy
+            # carries the same attitude, so the target does not matter.
+            if is_valid(list(m.q)):
+                e = to_euler_deg(list(m.q))
+                self._attitude[kind] = ((e.roll_deg, e.pitch_deg, e.yaw_deg), time.monotonic())
+        elif kind == "ATTITUDE":
+            values = (m.roll, m.pitch, m.yaw)
+            if all(math.isfinite(v) for v in values):
+                roll, pitch, yaw = (math.degrees(v) for v in values)
+                self._attitude[kind] = ((roll, pitch, yaw), time.monotonic())
 
     def fix(self, sysid: int | None = None) -> Fix | None:
         f = self._fixes.get(self.sysid if sysid is None else sysid)
@@ -65,11 +84,22 @@ class Vehicles:
             return None
         return f
 
+    def attitude_deg(self) -> tuple[float, float, float] | None:
+        """Our vehicle's (roll_deg, pitch_deg, yaw_deg), earth frame (yaw from North, clockwise;
+        -180..180), from AUTOPILOT_STATE_FOR_GIMBAL_DEVICE (preferred) or ATTITUDE heard within
+        STALE_S; None when neither was."""
+        now = time.monotonic()
+        for kind in ("AUTOPILOT_STATE_FOR_GIMBAL_DEVICE", "ATTITUDE"):
+            got = self._attitude.get(kind)
+            if got is not None and now - got[1] <= STALE_S:
+                return got[0]
+        return None
+
     @property
     def yaw_deg(self) -> float | None:
-        """Our vehicle's heading (ATTITUDE yaw, else GLOBAL_POSITION_INT hdg), if heard lately."""
-        now = time.monotonic()
-        if self._yaw is not None and now - self._yaw[1] <= STALE_S:
-            return self._yaw[0]
+        """Our vehicle's heading (attitude_deg()'s yaw, else GLOBAL_POSITION_INT hdg), if heard lately."""
+        att = self.attitude_deg()
+        if att is not None:
+            return att[2]
         f = self.fix()
         return f.heading_deg if f is not None else None
