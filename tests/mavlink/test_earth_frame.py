@@ -51,6 +51,7 @@ async def test_attitude_from_autopilot_state_for_gimbal_device(rig_factory: Any)
         await eventually(lambda: vehicles.yaw_deg is not None and abs(vehicles.yaw_deg - 100) < 1e-3, 5)
         autopilot.send(set_attitude(EARTH, 0.0, -20.0, 70.0))
         await eventually(lambda: abs(s.gimbal.yaw_deg + 30) < 0.1, 10, "body yaw 70 - 100 = -30")
+
         # ATTITUDE is second choice: the preferred message wins while both are fresh
         def both_heard() -> bool:
             autopilot.send(ml.MAVLink_attitude_message(0, 0.0, 0.0, math.radians(10), 0, 0, 0))

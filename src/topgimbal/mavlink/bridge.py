@@ -11,6 +11,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -23,6 +24,7 @@ from .gimbal_device import GimbalDevice
 from .gimbal_manager import GimbalManager
 from .node import Node
 from .pointing import Pointer
+from .reboots import RebootWatch
 from .services import Services
 from .vehicle import Vehicles
 
@@ -131,6 +133,8 @@ class Bridge:
                 self.cameras.append(CameraComponent(
                     svc, self.cam, self.vehicles, lens=lens, gimbal_device_id=gimbal_ref, video_urls=mine,
                     identity=self.identity, range_hz=c.range_hz))  # fmt: skip
+        self.reboots = RebootWatch(self._peer_rebooted)
+        self.node.subscribe(lambda m: self.reboots.on_message(m, time.monotonic()))
         self.node.subscribe(self.vehicles.on_message)
         self.node.subscribe(self.dispatcher.on_message)
         self.node.subscribe(self.device.on_message)
@@ -192,6 +196,10 @@ class Bridge:
 
     async def wait_closed(self) -> None:
         await self._closed.wait()
+
+    def _peer_rebooted(self, sysid: int, why: str) -> None:
+        for cam in self.cameras:
+            cam.forget_sequences(sysid)
 
     def _on_health(self, answering: bool) -> None:
         for svc in self.services:

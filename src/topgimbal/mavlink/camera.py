@@ -261,6 +261,11 @@ class CameraComponent:
 
     # -- photos ----------------------------------------------------------------------------------
 
+    def forget_sequences(self, sysid: int) -> None:
+        """A peer rebooted (mavlink/reboots.py): its capture sequence starts again at 1."""
+        for key in [k for k in self._last_sequence if k[0] == sysid]:
+            del self._last_sequence[key]
+
     async def _take_photo(self) -> MAVLinkMessage:
         values = self.photo_values or {}
         await self.cam.call(lambda c: c.photo(**values))

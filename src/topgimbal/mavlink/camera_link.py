@@ -28,7 +28,7 @@ from typing import Any, TypeVar
 from urllib.parse import urlsplit
 
 from ..client import AsyncClient
-from ..errors import LinkLostError, TopGimbalError
+from ..errors import LinkLostError, RequestTimeoutError, TopGimbalError
 from ..protocol import Message, get_model
 from .profile import Profile, profile_of
 
@@ -52,6 +52,11 @@ class AttitudeSample:
     yaw_rate_deg_s: float = NAN
     pitch_rate_deg_s: float = NAN
     roll_rate_deg_s: float = NAN
+
+
+class SentUnansweredError(RequestTimeoutError):
+    """The request went to the camera while its link was up, then the link was declared lost
+    before an answer: it may have been carried out (a photo taken). Not "not sent"."""
 
 
 AttitudeCallback = Callable[[AttitudeSample], None]
@@ -108,12 +113,19 @@ class CameraLink:
 
     async def call(self, fn: Callable[[AsyncClient], Awaitable[T]]) -> T:
         """Run one client operation. Its errors are the client's: LinkLostError while the link
-        is down (at once: nothing is sent), RequestTimeoutError, DeviceError..."""
+        is down (at once: nothing is sent), RequestTimeoutError, DeviceError... A link declared
+        lost while the request was in flight (the camera went quiet for `silence_s` with our
+        frame sent) is SentUnansweredError: sent, outcome unknown, never "not sent"."""
         client = self.client
         if client is None or not client.connected:
             reason = client.link_state["reason"] if client is not None else self.reason
             raise LinkLostError(f"{self.url}: the camera link is down ({reason})")
-        return await fn(client)
+        try:
+            return await fn(client)
+        except LinkLostError as exc:
+            raise SentUnansweredError(
+                f"{exc}; the request was sent while the link was up: it may or may not have been carried out"
+            ) from None
 
     async def start(self, wait_s: float = 0.0) -> None:
         self._task = asyncio.ensure_future(self._run())

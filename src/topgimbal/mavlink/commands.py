@@ -7,8 +7,8 @@ TEMPORARILY_REJECTED; the camera's error frame, a timeout or a lost link -> FAIL
 `result_param2` saying which (and a STATUSTEXT with the camera's words). A handler still running
 after `progress_after_s` gets MAV_RESULT_IN_PROGRESS acks (every second) until it ends.
 
-Retransmissions (same sender, command and parameters; COMMAND_LONG `confirmation` > 0) never
-act twice: one in progress is answered IN_PROGRESS, one just finished gets its final ack again.
+Retransmissions (same sender, message type, command and parameters; COMMAND_LONG
+`confirmation` > 0, see `Command.retransmits`) never act twice: one in progress is answered IN_PROGRESS, one just finished gets its final ack again.
 Work in flight and remembered results are bounded."""
 
 from __future__ import annotations
@@ -119,8 +119,24 @@ class Command:
         # NaN ("not given") is common in parameters and never equal to itself, and in Python 3.10+
         # two NaN floats hash apart: a retransmission would never match its first copy and would
         # act again. Every NaN counts as the same "not given".
+        # The message type is part of it: a COMMAND_INT is never a retransmission of a
+        # COMMAND_LONG (a sender retransmits with the same message), and their parameters 5 and 6
+        # mean different things (scaled integers vs floats).
         params = tuple(None if math.isnan(v) else v for v in self.params)
-        return (self.src_system, self.src_component, self.target_component, self.command, params)
+        kind = "INT" if self.is_int else "LONG"
+        return (self.src_system, self.src_component, self.target_component, kind, self.command, params, self.frame)
+
+    def retransmits(self, earlier_confirmation: int) -> bool:
+        """Whether this copy, arriving after an identical one (same key) that ended within the
+        retransmission window, is that command sent again rather than a new order. MAVLink's
+        command protocol: COMMAND_LONG `confirmation` is 0 on the first transmission and counts
+        up on each retransmission, so 0 is always a new command and a retransmission carries a
+        higher number than the copy we answered (an equal one is the same frame duplicated on
+        the way, e.g. by a router on two links). COMMAND_INT has no such field: senders (QGC,
+        MAVSDK) repeat it unchanged, so an identical one within the window is a retransmission."""
+        if self.is_int:
+            return True
+        return self.confirmation > 0 and self.confirmation >= earlier_confirmation
 
     @classmethod
     def from_message(cls, m: MAVLinkMessage) -> Command:
@@ -153,6 +169,7 @@ class _Done:
     t: float
     result: int
     param2: int
+    confirmation: int = 0
 
 
 class Dispatcher:
@@ -222,7 +239,8 @@ class Dispatcher:
         now = time.monotonic()
         self._forget_old(now)
         done = self._done.get(key)
-        if done is not None and (cmd.confirmation > 0 or cmd.is_int):
+        if done is not None and cmd.retransmits(done.confirmation):
+            done.confirmation = max(done.confirmation, cmd.confirmation)
             self._ack(comp, cmd, done.result, param2=done.param2)  # a retransmission: the same answer
             return
         handler = self._handlers.get((comp.compid, cmd.command))
@@ -297,7 +315,7 @@ class Dispatcher:
                      comp.name, name, outcome.text)  # fmt: skip
             if outcome.result == FAILED:
                 statustext(comp, outcome.text, severity=3)
-        self._done[cmd.key()] = _Done(time.monotonic(), outcome.result, outcome.param2)
+        self._done[cmd.key()] = _Done(time.monotonic(), outcome.result, outcome.param2, cmd.confirmation)
         while len(self._done) > REMEMBER_RESULTS:
             self._done.popitem(last=False)
         for msg in outcome.after:

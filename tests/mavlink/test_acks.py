@@ -1,0 +1,103 @@
+"""Acknowledgements that say what the camera did: a photo sent before the camera went quiet,
+COMMAND_INT vs COMMAND_LONG retransmission keys, and a peer that rebooted (issue 22)."""
+
+from __future__ import annotations
+
+import random
+from typing import Any
+
+from pymavlink.dialects.v20 import common as ml
+
+from topgimbal.mavlink.reboots import RebootWatch
+from topgimbal.sim.faults import FaultInjector, FaultPlan
+
+from .conftest import eventually
+
+CAMERA = 100
+PHOTO = ml.MAV_CMD_IMAGE_START_CAPTURE
+
+
+def silence_camera_replies(sim: Any, seconds: float) -> None:
+    """From now on, for `seconds`, nothing comes out of the simulated camera; what it is sent it
+    still carries out (the simulator's own fault injector, outbound direction only)."""
+    now = sim.clock.now()
+    sim._fault_out = FaultInjector(FaultPlan(silence=((0.0, seconds),), direction="out"), "out", random.Random(0), now)
+
+
+async def test_photo_sent_before_the_camera_went_quiet_is_not_reported_as_not_sent(rig_factory: Any) -> None:
+    # The photo request's own timeout (3 s) is longer than --silence (0.6 s): the client declares
+    # the link lost while our frame is at the camera, which takes the photo.
+    r = await rig_factory("C12", silence_s=0.6, timeout_s=3.0)
+    s, p = r.sim, r.peer
+    await eventually(lambda: r.bridge.cam.answering, 10, "camera answering")
+    silence_camera_replies(s, 4.0)
+    ack = await p.ack(CAMERA, PHOTO, 0, 0, 1, 0, timeout=15)
+    assert s.camera.photos_taken == 1, "the camera took the photo"
+    assert ack.result == ml.MAV_RESULT_FAILED  # not confirmed: never ACCEPTED
+    assert ack.result_param2 == 2, f"result_param2 {ack.result_param2}: sent, outcome unknown (not 3, not sent)"
+    # while the link is down, a new command is really not sent: 3
+    assert not r.bridge.cam.answering
+    ack = await p.ack(CAMERA, PHOTO, 0, 0, 1, 0)
+    assert (ack.result, ack.result_param2) == (ml.MAV_RESULT_FAILED, 3)
+    assert s.camera.photos_taken == 1
+
+
+async def test_command_int_is_not_a_retransmission_of_a_command_long(rig: Any) -> None:
+    s, p = rig.sim, rig.peer
+    assert (await p.ack(CAMERA, PHOTO, 0, 0, 1, 0)).result == ml.MAV_RESULT_ACCEPTED
+    assert s.camera.photos_taken == 1
+    # the same parameters in a COMMAND_INT: another sender path, another order
+    assert (await p.ack(CAMERA, PHOTO, 0, 0, 1, 0, as_int=True)).result == ml.MAV_RESULT_ACCEPTED
+    assert s.camera.photos_taken == 2
+    # a COMMAND_INT repeated unchanged within the window is its retransmission (no confirmation field)
+    assert (await p.ack(CAMERA, PHOTO, 0, 0, 1, 0, as_int=True)).result == ml.MAV_RESULT_ACCEPTED
+    assert s.camera.photos_taken == 2
+    # COMMAND_LONG: confirmation 0 is a first transmission (a new photo), > 0 a retransmission
+    assert (await p.ack(CAMERA, PHOTO, 0, 0, 1, 0)).result == ml.MAV_RESULT_ACCEPTED
+    assert s.camera.photos_taken == 3
+    assert (await p.ack(CAMERA, PHOTO, 0, 0, 1, 0, confirmation=1)).result == ml.MAV_RESULT_ACCEPTED
+    assert (await p.ack(CAMERA, PHOTO, 0, 0, 1, 0, confirmation=2)).result == ml.MAV_RESULT_ACCEPTED
+    assert s.camera.photos_taken == 3
+
+
+async def test_capture_sequence_is_forgotten_when_the_sender_reboots(rig: Any) -> None:
+    s, p = rig.sim, rig.peer
+    p.send(ml.MAVLink_system_time_message(0, 600_000))
+    assert (await p.ack(CAMERA, PHOTO, 0, 0, 1, 1)).result == ml.MAV_RESULT_ACCEPTED
+    assert s.camera.photos_taken == 1
+    assert (await p.ack(CAMERA, PHOTO, 0, 0, 1, 1)).result == ml.MAV_RESULT_ACCEPTED
+    assert s.camera.photos_taken == 1, "the same sequence number again: already taken"
+    # the autopilot reboots: its boot clock starts again and its capture count restarts at 1
+    p.send(ml.MAVLink_system_time_message(0, 4_000))
+    await eventually(lambda: rig.bridge.reboots.reboots == 1, 5, "reboot noticed")
+    assert (await p.ack(CAMERA, PHOTO, 0, 0, 1, 1)).result == ml.MAV_RESULT_ACCEPTED
+    assert s.camera.photos_taken == 2, "the first photo after the reboot is taken"
+
+
+def _from(sysid: int, compid: int, msg: Any) -> Any:
+    msg.pack(ml.MAVLink(None, srcSystem=sysid, srcComponent=compid))  # sets the sender in its header
+    return msg
+
+
+def _heartbeat(sysid: int, compid: int = 1) -> Any:
+    return _from(sysid, compid, ml.MAVLink_heartbeat_message(2, 3, 0, 0, 4, 3))
+
+
+def _system_time(sysid: int, boot_ms: int) -> Any:
+    return _from(sysid, 1, ml.MAVLink_system_time_message(0, boot_ms))
+
+
+def test_reboot_watch_heartbeat_gap_and_boot_clock() -> None:
+    seen: list[int] = []
+    w = RebootWatch(lambda sysid, why: seen.append(sysid), gap_s=5.0)
+    for t in (0.0, 1.0, 2.0, 6.9):  # a 4.9 s gap: a link hiccup, not a reboot
+        w.on_message(_heartbeat(1), t)
+    assert seen == []
+    w.on_message(_heartbeat(1), 12.5)
+    assert seen == [1]
+    w.on_message(_heartbeat(2, 100), 12.6)
+    w.on_message(_system_time(2, 50_000), 13.0)
+    w.on_message(_system_time(2, 49_500), 13.1)  # reordered on the way: not a reboot
+    assert seen == [1]
+    w.on_message(_system_time(2, 1_200), 14.0)
+    assert seen == [1, 2]
