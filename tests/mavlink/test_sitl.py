@@ -45,9 +45,8 @@ PARAMS = """\
 MNT1_TYPE 6
 CAM1_TYPE 6
 SERIAL2_PROTOCOL 2
-SR0_EXTRA1 10
-SR0_POSITION 5
-SR0_EXT_STAT 2
+MAV1_EXTRA1 10
+MAV1_POSITION 5
 """
 
 
@@ -139,13 +138,13 @@ class Gcs:
 
     @property
     def heading_deg(self) -> float:
-        assert self.attitude is not None, "no ATTITUDE from the autopilot (SR0_EXTRA1)"
+        assert self.attitude is not None, "no ATTITUDE from the autopilot"
         return math.degrees(self.attitude.yaw)
 
     @property
     def place(self) -> Position:
         p = self.position
-        assert p is not None, "no GLOBAL_POSITION_INT from the autopilot (SR0_POSITION)"
+        assert p is not None, "no GLOBAL_POSITION_INT from the autopilot"
         return Position(p.lat / 1e7, p.lon / 1e7, p.alt / 1000.0)
 
     def texts_since(self, t: float, needle: str) -> list[str]:
@@ -269,6 +268,12 @@ async def steps(gcs: Gcs, r: Any, times: dict[str, float], acks: list[tuple[str,
                        ("MNT1_YAW_MIN", model.yaw_range_deg[0]), ("MNT1_YAW_MAX", model.yaw_range_deg[1])):  # fmt: skip
         got = await gcs.param(name)
         assert abs(got - want) < 0.01, f"{name} {got}: expected {want} from GIMBAL_DEVICE_INFORMATION"
+    # our own view of the vehicle (to compute where the camera must point), whatever the stream
+    # rate parameters of this ArduPilot version are called (MAV1_* since 4.6, SR0_* before)
+    for msgid in (ml.MAVLINK_MSG_ID_ATTITUDE, ml.MAVLINK_MSG_ID_GLOBAL_POSITION_INT):
+        accepted(
+            f"SET_MESSAGE_INTERVAL {msgid} 10 Hz", await gcs.command(ml.MAV_CMD_SET_MESSAGE_INTERVAL, msgid, 100_000)
+        )
     await until(lambda: gcs.attitude is not None and gcs.position is not None, 30, "ATTITUDE and position")
     await until(lambda: r.bridge.vehicles.attitude_deg() is not None, 30, "AUTOPILOT_STATE_FOR_GIMBAL_DEVICE")
     nan = math.nan
