@@ -21,6 +21,14 @@ if TYPE_CHECKING:
 log = logging.getLogger("topgimbal.mavlink")
 
 MessageCallback = Callable[[Any], None]
+_PEER_ATTR = "_topgimbal_link_peer"
+
+
+def link_peer(m: Any) -> Hashable | None:
+    """Where a message came from: (link, peer address or connection) as the node saw it; None
+    for a message that did not come through a node (tests that feed a dispatcher directly)."""
+    peer: Hashable | None = getattr(m, _PEER_ATTR, None)
+    return peer
 
 
 class _Writer:
@@ -129,6 +137,7 @@ class Node:
             if m.get_srcSystem() == self.sysid and m.get_srcComponent() in self.components:
                 continue  # our own message, echoed by a router
             self.messages_in += 1
+            setattr(m, _PEER_ATTR, (str(link), peer))
             for cb in list(self._subscribers):
                 try:
                     cb(m)
