@@ -24,6 +24,13 @@ local GEN = {
  max_ascii_length=15,
  max_data_length=1024,
  ports={udp={[5000]="skydroid", [9002]="skydroid", [9003]="topotek", [9004]="topotek"}, tcp={[5000]="skydroid"}},
+ heuristic={
+  headers={"#TP", "#tp", "#tP", "#Tp"},
+  address_letters="UMDEPG",
+  address_bytes=2,
+  max_leading_line_ends=8,
+  head_bytes=13
+ },
  field_types={
   action="string",
   address="string",
@@ -5736,12 +5743,22 @@ local function split_frame(buf, item)
     return fr
 end
 
--- Whether a payload starts like a TOP frame (line ends first allowed): the heuristic's test.
+-- Whether a payload on an undocumented port is TOP: the heuristic's test. The rule and its
+-- numbers come from wire/heuristic.py (GEN.heuristic), the rule `decode --pcap` applies: after at
+-- most max_leading_line_ends CR/LF bytes, a TOP header, then address letters in as many of the
+-- next address_bytes bytes as the payload has. `head` is the payload's first head_bytes bytes.
+local HEUR_HDR, HEUR_ADDR = {}, {}
+for _, h in ipairs(GEN.heuristic.headers) do HEUR_HDR[h] = true end
+for k = 1, #GEN.heuristic.address_letters do HEUR_ADDR[sbyte(GEN.heuristic.address_letters, k)] = true end
+
 local function looks_like_top(head)
-    head = head:gsub("^[\r\n]+", "")
-    if #head < 3 or head:sub(1, 1) ~= "#" or not HDR[head:sub(2, 3)] then return false end
-    for k = 4, math.min(#head, 5) do
-        if not ADDR[sbyte(head, k)] then return false end
+    head = head:sub(1, GEN.heuristic.head_bytes)
+    local ends = #(head:match("^[\r\n]*"))
+    if ends > GEN.heuristic.max_leading_line_ends then return false end
+    local rest = head:sub(ends + 1)
+    if not HEUR_HDR[rest:sub(1, 3)] then return false end
+    for k = 4, math.min(#rest, 3 + GEN.heuristic.address_bytes) do
+        if not HEUR_ADDR[sbyte(rest, k)] then return false end
     end
     return true
 end
@@ -6047,7 +6064,7 @@ top.dissector = dissect
 local function heuristic(tvb, pinfo, tree)
     local len = tvb:len()
     if len < 3 then return false end
-    if not CORE.looks_like_top(tvb:raw(0, math.min(len, 16))) then return false end
+    if not CORE.looks_like_top(tvb:raw(0, math.min(len, GEN.heuristic.head_bytes))) then return false end
     pinfo.conversation = top
     dissect(tvb, pinfo, tree)
     return true

@@ -7,6 +7,7 @@ The routes run on a real aiohttp server on loopback; the relay is fed by hand (n
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import socket
 from collections.abc import AsyncIterator
@@ -55,7 +56,8 @@ def _viewer(port: int, *, reads: bool) -> socket.socket:
         s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
     s.connect(("127.0.0.1", port))
     s.setblocking(False)
-    s.sendall(b"GET /video/visible.mjpg HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+    # As the console's own page asks (it may use every place, OPERATOR_RESERVED included).
+    s.sendall(b"GET /video/visible.mjpg HTTP/1.1\r\nHost: 127.0.0.1\r\nSec-Fetch-Site: same-origin\r\n\r\n")
     return s
 
 
@@ -143,3 +145,46 @@ async def test_a_bad_lens_is_a_clear_400(console: tuple[ConsoleVideo, int], rout
         # Before: a list or an object as the lens raised TypeError (unhashable): a 500.
         assert resp.status == 400
         assert "lens must be one of visible, thermal" in (await resp.json())["message"]
+
+
+async def test_other_clients_leave_the_operators_places_free(console: tuple[ConsoleVideo, int]) -> None:
+    """Clients that are not the console's page (scripts, direct URLs) take at most
+    MAX_VIEWERS - OPERATOR_RESERVED places; the console's own page still gets a picture.
+    Before: any 8 viewers locked the operator's page out with 503."""
+    video, port = console
+    relay = video.relays["visible"]
+    others: list[socket.socket] = []
+    mine: list[socket.socket] = []
+    try:
+        for _ in range(relay_mod.MAX_VIEWERS):
+            s = socket.create_connection(("127.0.0.1", port))
+            s.setblocking(False)
+            s.sendall(b"GET /video/visible.mjpg HTTP/1.1\r\nHost: 127.0.0.1\r\nSec-Fetch-Site: none\r\n\r\n")
+            others.append(s)
+        await eventually_viewers(relay, relay_mod.MAX_VIEWERS - relay_mod.OPERATOR_RESERVED)
+        refused = 0
+        for s in others:
+            with contextlib.suppress(asyncio.TimeoutError):
+                answer = await asyncio.wait_for(asyncio.get_running_loop().sock_recv(s, 4096), 1.0)
+                refused += answer.startswith(b"HTTP/1.1 503") and b"kept for the console's page" in answer
+        assert refused == relay_mod.OPERATOR_RESERVED
+        for _ in range(relay_mod.OPERATOR_RESERVED):
+            mine.append(_viewer(port, reads=True))
+        await eventually_viewers(relay, relay_mod.MAX_VIEWERS)
+        await relay._publish(PICTURE)
+        for s in mine:
+            assert (await _read_some(s)).startswith(b"HTTP/1.1 200")
+        extra = _viewer(port, reads=True)  # every place taken now, the operator's too
+        mine.append(extra)
+        assert (await _read_some(extra)).startswith(b"HTTP/1.1 503")
+    finally:
+        for s in others + mine:
+            s.close()
+
+
+async def eventually_viewers(relay: Any, n: int) -> None:
+    for _ in range(500):
+        if relay.viewers == n:
+            return
+        await asyncio.sleep(0.02)
+    raise AssertionError(f"{relay.viewers} viewers, expected {n}")

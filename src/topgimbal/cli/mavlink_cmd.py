@@ -54,9 +54,26 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--silence", type=float, default=3.0, help="seconds without a frame before the camera counts as down"
     )
     p.add_argument("--max-peers", type=int, default=16, help="peers per listening link (default 16)")
+    p.add_argument(
+        "--signing-key",
+        type=_signing_key,
+        default=None,
+        metavar="FILE",
+        help="MAVLink 2 signing: sign what the bridge sends, refuse what is not signed with this key. FILE holds "
+        "64 hex digits, 32 raw bytes, or a passphrase (its SHA-256, as MAVProxy and QGC make it)",
+    )
     p.add_argument("-v", "--verbose", action="store_true", help="log every link and camera change")
     p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=run)
+
+
+def _signing_key(path: str) -> bytes:
+    from ..mavlink.signing import SigningKeyError, load_key
+
+    try:
+        return load_key(path)
+    except SigningKeyError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def build_config(args: argparse.Namespace) -> object:
@@ -82,6 +99,7 @@ def build_config(args: argparse.Namespace) -> object:
         timeout_s=args.timeout,
         silence_s=args.silence,
         max_peers=args.max_peers,
+        signing_key=getattr(args, "signing_key", None),
     )
     config.check()
     return config
@@ -101,7 +119,8 @@ def run(args: argparse.Namespace) -> int:
             for link, a in zip(bridge.node.links, bridge.addresses, strict=True)
         )
         print(f"mavlink bridge: {config.url} ({config.model}) <-> {addrs}, system {config.sysid}, "  # type: ignore[attr-defined]
-              f"role {config.role}", flush=True)  # type: ignore[attr-defined]  # fmt: skip
+              f"role {config.role}" + (", MAVLink 2 signing on" if config.signing_key else ""),  # type: ignore[attr-defined]
+              flush=True)  # type: ignore[attr-defined]  # fmt: skip
         stop = stop_on_signals()
         try:
             await wait_stopped(stop, args.seconds)

@@ -7,6 +7,16 @@ a WebSocket to `ws://127.0.0.1:PORT/ws` with its own `Origin`. Both reach a loop
 the console checks, on every request, that the Host is one of its names and, where a browser would
 send one, that the Origin is exactly one of its own `http(s)://name:port` origins.
 
+A page on another site (or another port of this machine: a different origin, the same "site")
+can also simply embed the console: `<img src="http://127.0.0.1:PORT/video/visible.mjpg">` takes
+a viewer place, an `<iframe>` runs the whole console page. A browser sends no Origin with such
+requests, but it does say where they come from: on every route (pages, static files, JSON,
+pictures, the socket) a request whose `Sec-Fetch-Site` is anything but `same-origin` (the
+console's own page) or `none` (the operator typed the URL, a bookmark, a link from the terminal)
+is refused 403; a browser that sends no `Sec-Fetch-Site` (before 2020-2023) is judged by its
+`Origin` and, failing that, its `Referer` (it must be one of the console's own origins). Clients
+that send none of these (scripts, `curl`, the tests) pass; the token rule still applies to them.
+
 Allowed names: `localhost`, `127.0.0.1`, `::1`, the address the console was bound to, the address
 the connection actually arrived on (an IP literal cannot be rebound, so `--host 0.0.0.0` works with
 `http://LAN-ADDRESS:PORT/`), and every `--allow-host NAME`. The port must be the one the
@@ -29,6 +39,9 @@ log = logging.getLogger(__name__)
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
 WILDCARD_ADDRESSES = ("", "0.0.0.0", "::")
 SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
+# Sec-Fetch-Site values of requests the console answers: its own page, or the operator's own
+# navigation (typed URL, bookmark). "same-site" is another port or subdomain: another origin.
+OWN_FETCH_SITES = frozenset({"same-origin", "none"})
 MAX_LOGGED_REFUSALS = 50  # distinct refusals logged; a flood of bad requests must not flood the log
 
 Handler = Callable[[web.Request], Awaitable[web.StreamResponse]]
@@ -175,6 +188,42 @@ class HostGuard:
             return f"Origin {origin!r} is another site (expected {allowed}): cross-site requests are refused"
         return None
 
+    def _own_origin_problem(self, header: str, value: str, request: web.Request) -> str | None:
+        """Why `value` (an Origin, or a Referer URL) is not one of this console's origins."""
+        scheme, sep, rest = value.partition("://")
+        allowed = f"http(s)://NAME:PORT with NAME one of {self.names()} and this console's port"
+        if not sep or scheme.lower() not in ("http", "https"):
+            return f"{header} {value[:100]!r} is not an http(s) origin of this console (expected {allowed})"
+        authority = rest.split("/", 1)[0].split("?", 1)[0].split("#", 1)[0]
+        parsed = split_host_port(authority)
+        if parsed is None:
+            return f"{header} {value[:100]!r} does not name a host and port (expected {allowed})"
+        name, port = parsed
+        default = 443 if scheme.lower() == "https" else 80
+        if not self._name_ok(name, request) or not self._port_ok(port, request, default):
+            return f"{header} {value[:100]!r} is another site (expected {allowed}): cross-site requests are refused"
+        return None
+
+    def embedding_problem(self, request: web.Request) -> str | None:
+        """Why a request looks made by another site's page (None when it is the console's own
+        page, the operator's own navigation, or not a browser)."""
+        site = request.headers.get("Sec-Fetch-Site")
+        if site is not None:
+            if site.strip().lower() in OWN_FETCH_SITES:
+                return None
+            dest = request.headers.get("Sec-Fetch-Dest", "?")
+            return (
+                f"Sec-Fetch-Site {site[:40]!r} (a {dest[:20]} request made by another site's page, or by a page on "
+                "another port of this machine): the console answers only its own page and the URL opened directly"
+            )
+        origin = request.headers.get("Origin")
+        if origin is not None:
+            return self._own_origin_problem("Origin", origin, request)
+        referer = request.headers.get("Referer")
+        if referer:
+            return self._own_origin_problem("Referer", referer, request)
+        return None
+
     def _log_refusal(self, request: web.Request, status: int, message: str) -> None:
         key = (request.path, message)
         if key in self._logged or len(self._logged) > MAX_LOGGED_REFUSALS:
@@ -192,11 +241,14 @@ class HostGuard:
             if problem is not None:
                 self._log_refusal(request, 421, problem)
                 return web.json_response({"error": "misdirected", "message": problem}, status=421)
+            problem = None
             if request.method not in SAFE_METHODS or request.path == "/ws":
                 problem = self.origin_problem(request)
-                if problem is not None:
-                    self._log_refusal(request, 403, problem)
-                    return web.json_response({"error": "forbidden", "message": problem}, status=403)
+            # Every route, media included: no other site's page may embed or read the console.
+            problem = problem or self.embedding_problem(request)
+            if problem is not None:
+                self._log_refusal(request, 403, problem)
+                return web.json_response({"error": "forbidden", "message": problem}, status=403)
             return await handler(request)
 
         return check

@@ -62,6 +62,7 @@ class BridgeConfig:
     retries: int = 2
     silence_s: float = 3.0
     max_peers: int = MAX_PEERS
+    signing_key: bytes | None = None  # MAVLink 2 signing (signing.py): sign all, accept only signed
     client_options: dict[str, Any] = field(default_factory=dict)
 
     def check(self) -> None:
@@ -84,6 +85,8 @@ class BridgeConfig:
                 raise BridgeConfigError(f"{name}={v:g}: expected {lo:g}..{hi:g}")
         if self.video_port is not None and not 1 <= self.video_port <= 65535:
             raise BridgeConfigError(f"video_port={self.video_port}: expected 1..65535")
+        if self.signing_key is not None and len(self.signing_key) != 32:
+            raise BridgeConfigError(f"signing_key: {len(self.signing_key)} bytes, expected 32")
         if not 1 <= self.max_peers <= 256:
             raise BridgeConfigError(f"max_peers={self.max_peers}: expected 1..256")
 
@@ -97,7 +100,7 @@ class Bridge:
             c.url, c.model, stream_hz=c.stream_hz, silence_s=c.silence_s, timeout_s=c.timeout_s,
             retries=c.retries, client_options=c.client_options,
         )  # fmt: skip
-        self.node = Node(c.sysid, list(c.endpoints), max_peers=c.max_peers)
+        self.node = Node(c.sysid, list(c.endpoints), max_peers=c.max_peers, signing_key=c.signing_key)
         self.dispatcher = Dispatcher()
         self.identity: dict[str, Any] = {}
         own = {c.compid} | ({c.camera_compid, c.camera_compid + 1} if c.camera_compid is not None else set())

@@ -8,8 +8,10 @@ TEMPORARILY_REJECTED; the camera's error frame, a timeout or a lost link -> FAIL
 after `progress_after_s` gets MAV_RESULT_IN_PROGRESS acks (every second) until it ends.
 
 Retransmissions (same sender, message type, command and parameters; COMMAND_LONG
-`confirmation` > 0, see `Command.retransmits`) never act twice: one in progress is answered IN_PROGRESS, one just finished gets its final ack again.
-Work in flight and remembered results are bounded."""
+`confirmation` > 0, see `Command.retransmits`) never act twice: one in progress is answered
+IN_PROGRESS, one just finished gets its final ack again.
+Work in flight and remembered results are bounded: in total and per peer (fairness.py), and
+commands registered `local` (no camera traffic) are answered whatever the load."""
 
 from __future__ import annotations
 
@@ -25,7 +27,8 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import DeviceError, FieldValueError, RequestTimeoutError, TopGimbalError, TransportError, UnsupportedError
 from ._mav import mavlink
-from .node import Component
+from .fairness import MAX_INFLIGHT, MAX_INFLIGHT_PER_PEER, RESERVED_FOR_IDLE_PEERS, InflightLimits
+from .node import Component, link_peer
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
@@ -45,7 +48,6 @@ RESULT_NAMES = {
 # result_param2 on FAILED: why the camera did not confirm (documented in docs/mavlink.md).
 CAMERA_ERROR, CAMERA_TIMEOUT, CAMERA_LINK_DOWN, BRIDGE_ERROR = 1, 2, 3, 4
 
-MAX_INFLIGHT = 32
 REMEMBER_RESULTS = 128
 RETRANSMIT_WINDOW_S = 3.0
 BUSY_LOG_EVERY_S = 10.0  # a flood of commands is one warning per this period, not one per command
@@ -82,6 +84,8 @@ class Command:
     confirmation: int = 0
     is_int: bool = False
     frame: int = 0
+    # Where the command came from on the link (node.link_peer); not part of its identity.
+    peer: Any = field(default=None, compare=False)
 
     def p(self, n: int) -> float:
         return self.params[n - 1]
@@ -143,10 +147,10 @@ class Command:
         if m.get_type() == "COMMAND_INT":
             params = (m.param1, m.param2, m.param3, m.param4, float(m.x), float(m.y), m.z)
             return cls(m.command, params, m.get_srcSystem(), m.get_srcComponent(), m.target_system,
-                       m.target_component, 0, True, m.frame)  # fmt: skip
+                       m.target_component, 0, True, m.frame, link_peer(m))  # fmt: skip
         params = (m.param1, m.param2, m.param3, m.param4, m.param5, m.param6, m.param7)
         return cls(m.command, params, m.get_srcSystem(), m.get_srcComponent(), m.target_system,
-                   m.target_component, m.confirmation)  # fmt: skip
+                   m.target_component, m.confirmation, peer=link_peer(m))  # fmt: skip
 
 
 @dataclass
@@ -185,6 +189,13 @@ class Dispatcher:
         self.progress_every_s = progress_every_s
         self.timeout_s = timeout_s
         self.max_inflight = max_inflight
+        # Per-peer bounds scaled to a smaller total (tests); the defaults are fairness.py's.
+        self.limits = InflightLimits(
+            max_inflight,
+            min(MAX_INFLIGHT_PER_PEER, max_inflight),
+            RESERVED_FOR_IDLE_PEERS * max_inflight // MAX_INFLIGHT,
+        )
+        self._local: dict[tuple[int, int], Accepts] = {}
         self._handlers: dict[tuple[int, int], Handler] = {}
         self._accepts: dict[tuple[int, int], Accepts] = {}
         self._components: dict[int, Component] = {}
@@ -195,11 +206,23 @@ class Dispatcher:
         self._busy_logged_at: float | None = None
         self._busy_logged_count = 0
 
-    def register(self, component: Component, command: int, handler: Handler, *, accepts: Accepts | None = None) -> None:
+    def register(
+        self,
+        component: Component,
+        command: int,
+        handler: Handler,
+        *,
+        accepts: Accepts | None = None,
+        local: bool | Accepts = False,
+    ) -> None:
         """`accepts`: for a broadcast (target component 0), whether this component answers this
-        command at all (REQUEST_MESSAGE for a message the component does not send: stay quiet)."""
+        command at all (REQUEST_MESSAGE for a message the component does not send: stay quiet).
+        `local` (or a predicate on the command): the handler needs no camera traffic; it takes no
+        in-flight place and is answered whatever the load."""
         self._components[component.compid] = component
         self._handlers[(component.compid, command)] = handler
+        if local:
+            self._local[(component.compid, command)] = local if callable(local) else (lambda _c: True)
         if accepts is not None:
             self._accepts[(component.compid, command)] = accepts
 
@@ -247,23 +270,35 @@ class Dispatcher:
         if handler is None:
             self._finish(comp, cmd, Outcome(UNSUPPORTED))
             return
-        if len(self._inflight) >= self.max_inflight:
-            self._busy(cmd, now)
-            self._ack(comp, cmd, TEMPORARILY_REJECTED)
-            return
+        peer = cmd.peer if cmd.peer is not None else (cmd.src_system, cmd.src_component)
+        is_local = self._local.get((comp.compid, cmd.command))
+        local = is_local is not None and is_local(cmd)
+        if not local:
+            why = self.limits.refusal(peer)
+            if why is not None:
+                self._busy(cmd, now, why)
+                self._ack(comp, cmd, TEMPORARILY_REJECTED)
+                return
+            self.limits.take(peer)
         task = asyncio.ensure_future(self._run(comp, cmd, handler))
         self._inflight[key] = task
-        task.add_done_callback(lambda _t: self._inflight.pop(key, None))
 
-    def _busy(self, cmd: Command, now: float) -> None:
+        def ended(_t: asyncio.Task[None]) -> None:
+            self._inflight.pop(key, None)
+            if not local:
+                self.limits.give_back(peer)
+
+        task.add_done_callback(ended)
+
+    def _busy(self, cmd: Command, now: float, why: str = "") -> None:
         self.busy_rejected += 1
         if self._busy_logged_at is not None and now - self._busy_logged_at < BUSY_LOG_EVERY_S:
             return
         since = self.busy_rejected - self._busy_logged_count
         self._busy_logged_at, self._busy_logged_count = now, self.busy_rejected
-        log.warning("%d commands in progress (the limit): command %d from %d/%d TEMPORARILY_REJECTED "
-                    "(%d rejected since the last such line, %d in all)", self.max_inflight, cmd.command,
-                    cmd.src_system, cmd.src_component, since, self.busy_rejected)  # fmt: skip
+        log.warning("%s: command %d from %d/%d (%s) TEMPORARILY_REJECTED "
+                    "(%d rejected since the last such line, %d in all)", why, cmd.command,
+                    cmd.src_system, cmd.src_component, _peer_text(cmd.peer), since, self.busy_rejected)  # fmt: skip
 
     async def _run(self, comp: Component, cmd: Command, handler: Handler) -> None:
         work = asyncio.ensure_future(handler(cmd))
@@ -338,6 +373,12 @@ class Dispatcher:
         for t in list(self._inflight.values()):
             with contextlib.suppress(BaseException):
                 await t
+
+
+def _peer_text(peer: Any) -> str:
+    if isinstance(peer, tuple) and len(peer) == 2:
+        return f"{peer[0]} {peer[1]}"
+    return str(peer) if peer is not None else "?"
 
 
 def statustext(comp: Component, text: str, severity: int = 6) -> None:

@@ -4,7 +4,8 @@
     udp:HOST:PORT      the same as udpin (as in pymavlink)
     udpout:HOST:PORT   send to HOST:PORT, take what comes back
     tcp:HOST:PORT      connect; reconnect with back-off when the peer goes away
-    tcpin:HOST:PORT    listen; at most max_peers connections at once
+    tcpin:HOST:PORT    listen; at most max_peers connections at once; one silent for PEER_TIMEOUT_S
+                       is closed when a new one needs its place (or when we next send)
     DEVICE[,BAUD]      a serial port (/dev/ttyUSB0,57600; default 115200); reopened when it fails
 
 Links carry bytes only; the node parses MAVLink per (link, peer) so a stream split anywhere is
@@ -235,12 +236,14 @@ class _StreamProtocol(asyncio.Protocol):
         self.owner = owner
         self.peer = peer
         self.transport: asyncio.Transport | None = None
+        self.last_heard = time.monotonic()
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         self.transport = transport  # type: ignore[assignment]
         self.owner._connected(self)
 
     def data_received(self, data: bytes) -> None:
+        self.last_heard = time.monotonic()
         self.owner._deliver(self.peer, data)
 
     def connection_lost(self, exc: Exception | None) -> None:
@@ -321,7 +324,23 @@ class StreamLink(Link):
             if not self._closed:
                 await asyncio.sleep(RECONNECT_MIN_S)
 
+    def _expire(self, now: float) -> None:
+        """tcpin: close connections nothing was heard from for PEER_TIMEOUT_S (as udpin forgets
+        silent peers): a ground station sends a heartbeat every second, and silent connections
+        must not keep new ground stations out for good."""
+        if self.spec.kind != "tcpin":
+            return
+        for peer, proto in list(self._conns.items()):
+            if now - proto.last_heard > PEER_TIMEOUT_S:
+                log.info("%s: %s silent for %.0f s, closed", self, peer, PEER_TIMEOUT_S)
+                del self._conns[peer]
+                if proto.transport is not None:
+                    proto.transport.close()
+                self._on_gone(self, peer)
+
     def _connected(self, proto: _StreamProtocol) -> None:
+        if len(self._conns) >= self.max_peers:
+            self._expire(time.monotonic())
         if len(self._conns) >= self.max_peers:
             self._refuse(proto.peer)
             if proto.transport is not None:
@@ -338,6 +357,7 @@ class StreamLink(Link):
             self._lost.set()
 
     def send(self, data: bytes) -> None:
+        self._expire(time.monotonic())
         if not self._conns:
             self.dropped_out += 1
             return

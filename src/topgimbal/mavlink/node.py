@@ -3,7 +3,11 @@ components it speaks as (each a pymavlink encoder with its own sequence numbers)
 
 Everything a component sends goes out on every link (a MAVLink node broadcasts; routers and
 ground stations sort it out). Messages our own components sent, echoed back by a router, are
-dropped on arrival."""
+dropped on arrival.
+
+With a signing key (`signing.py`) every component signs what it sends and every parser refuses
+what is not signed with the key; the first refusal from each peer is logged (a warning naming
+the peer, the claimed system/component and why), later ones are counted in `unsigned_in`."""
 
 from __future__ import annotations
 
@@ -14,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from ._mav import mavlink
 from .endpoints import MAX_PEERS, Link, make_link
+from .signing import describe_refused, require_signed, sign_outgoing
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkCodec, MAVLinkMessage
@@ -21,6 +26,15 @@ if TYPE_CHECKING:
 log = logging.getLogger("topgimbal.mavlink")
 
 MessageCallback = Callable[[Any], None]
+_PEER_ATTR = "_topgimbal_link_peer"
+MAX_SIGNED_STREAMS = 256  # (link id, system, component) timestamps kept per peer for replay checks
+
+
+def link_peer(m: Any) -> Hashable | None:
+    """Where a message came from: (link, peer address or connection) as the node saw it; None
+    for a message that did not come through a node (tests that feed a dispatcher directly)."""
+    peer: Hashable | None = getattr(m, _PEER_ATTR, None)
+    return peer
 
 
 class _Writer:
@@ -43,6 +57,8 @@ class Component:
         self.name = name
         self.mav = mavlink().MAVLink(_Writer(node), srcSystem=node.sysid, srcComponent=compid)
         self.mav.robust_parsing = True
+        if node.signing_key is not None:
+            sign_outgoing(self.mav, node.signing_key)
         self.sent = 0
 
     def send(self, msg: MAVLinkMessage) -> None:
@@ -54,8 +70,13 @@ class Component:
 
 
 class Node:
-    def __init__(self, sysid: int, endpoints: list[str], *, max_peers: int = MAX_PEERS) -> None:
+    def __init__(
+        self, sysid: int, endpoints: list[str], *, max_peers: int = MAX_PEERS, signing_key: bytes | None = None
+    ) -> None:
         self.sysid = sysid
+        self.signing_key = signing_key
+        self.unsigned_in = 0  # messages refused for a missing or wrong signature
+        self._unsigned_logged: set[tuple[int, Hashable]] = set()
         self.links: list[Link] = [make_link(e, self._on_data, self._on_gone, max_peers) for e in endpoints]
         self.components: dict[int, Component] = {}
         self._parsers: dict[tuple[int, Hashable], Any] = {}
@@ -106,11 +127,27 @@ class Node:
         if p is None:
             p = mavlink().MAVLink(None)
             p.robust_parsing = True
+            if self.signing_key is not None:
+                require_signed(p, self.signing_key)
             self._parsers[key] = p
         return p
 
     def _on_gone(self, link: Link, peer: Hashable) -> None:
         self._parsers.pop((id(link), peer), None)
+        self._unsigned_logged.discard((id(link), peer))
+
+    def _refused_signature(self, link: Link, peer: Hashable, data: bytes) -> None:
+        self.unsigned_in += 1
+        key = (id(link), peer)
+        if key in self._unsigned_logged:
+            return
+        self._unsigned_logged.add(key)
+        kind, sysid, compid = describe_refused(bytes(data))
+        log.warning(
+            "%s: refusing %s messages from %s (system %d, component %d): --signing-key is set, only messages "
+            "signed with that key are accepted (logged once per peer; see docs/mavlink.md, signing)",
+            link, kind, peer, sysid, compid,
+        )  # fmt: skip
 
     def _on_data(self, link: Link, peer: Hashable, data: bytes) -> None:
         parser = self._parser(link, peer)
@@ -122,13 +159,21 @@ class Node:
             self._parsers.pop((id(link), peer), None)  # start afresh rather than trust its state
             return
         _compact(parser)
+        if self.signing_key is not None and len(parser.signing.stream_timestamps) > MAX_SIGNED_STREAMS:
+            # pymavlink records a stream's timestamp before checking its signature: a peer sending
+            # frames with made-up ids would grow this without bound.
+            parser.signing.stream_timestamps.clear()
         for m in msgs:
             if m.get_type() == "BAD_DATA":
+                if self.signing_key is not None and "signature" in str(getattr(m, "reason", "")):
+                    self._refused_signature(link, peer, m.data)
+                    continue
                 self.bad_in += 1
                 continue
             if m.get_srcSystem() == self.sysid and m.get_srcComponent() in self.components:
                 continue  # our own message, echoed by a router
             self.messages_in += 1
+            setattr(m, _PEER_ATTR, (str(link), peer))
             for cb in list(self._subscribers):
                 try:
                     cb(m)

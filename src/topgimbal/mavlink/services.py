@@ -30,6 +30,9 @@ Producer = Callable[[], "Any | None"]
 MAV_CMD_REQUEST_MESSAGE = 512
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_CMD_GET_MESSAGE_INTERVAL = 510
+# Messages every component answers from what the bridge already knows (no camera traffic): a
+# REQUEST_MESSAGE for one is answered whatever the command load (fairness.py).
+LOCAL_MESSAGES = frozenset({259, 280, 281, 283, 285})  # CAMERA_, GIMBAL_MANAGER_ / GIMBAL_DEVICE_ INFORMATION, statuses
 MAX_MESSAGE_ID = 2**24 - 1  # MAVLink 2 message ids are 24 bits
 # Legacy request commands -> (message id, which parameter carries the message's index).
 LEGACY_REQUESTS: dict[int, tuple[int, int | None]] = {
@@ -70,11 +73,12 @@ class Services:
         # Broadcast (component 0) requests are answered only by the components that send the
         # message: a gimbal must not answer UNSUPPORTED to a broadcast CAMERA_INFORMATION request.
         dispatcher.register(comp, MAV_CMD_REQUEST_MESSAGE, self._request_message,
-                            accepts=lambda c: c.p(1) in self.providers)  # fmt: skip
+                            accepts=lambda c: c.p(1) in self.providers,
+                            local=lambda c: c.p(1) in LOCAL_MESSAGES)  # fmt: skip
         dispatcher.register(comp, MAV_CMD_SET_MESSAGE_INTERVAL, self._set_interval,
-                            accepts=lambda c: c.p(1) in self.streams)  # fmt: skip
+                            accepts=lambda c: c.p(1) in self.streams, local=True)  # fmt: skip
         dispatcher.register(comp, MAV_CMD_GET_MESSAGE_INTERVAL, self._get_interval,
-                            accepts=lambda c: c.p(1) in self.streams)  # fmt: skip
+                            accepts=lambda c: c.p(1) in self.streams, local=True)  # fmt: skip
         for cmd in LEGACY_REQUESTS:
             dispatcher.register(comp, cmd, self._legacy_request, accepts=self._provides_legacy)
 

@@ -5,6 +5,8 @@ A reader thread opens the stream with PyAV only while someone watches, decodes e
 and JPEG-encodes the newest one for the viewers; viewers that are slower than the camera skip
 pictures (the relay keeps one picture, never a queue). When the stream fails or stops, the state
 says so and the reader tries again every RETRY_S. Bounds: MAX_VIEWERS per stream (more get 503;
+the last OPERATOR_RESERVED places go only to the console's own page, so other clients cannot
+lock the operator out;
 a viewer that takes no picture for webconsole.VIEWER_STALL_S is dropped), one JPEG buffered, MAX_FPS pictures per second to the browsers, and at most MAX_LAG_S behind
 the camera (a relay that falls further behind reopens the stream).
 """
@@ -30,6 +32,7 @@ from .lens import VideoError
 log = logging.getLogger("topgimbal.video.relay")
 
 MAX_VIEWERS = 8
+OPERATOR_RESERVED = 2  # of MAX_VIEWERS: only for the console's own page (webconsole.py says which)
 MAX_FPS = 30.0
 RETRY_S = 1.0
 IDLE_CLOSE_S = 5.0  # keep the camera stream open this long after the last viewer left
@@ -79,11 +82,15 @@ class Relay:
 
     # -- viewers (event loop) ------------------------------------------------------------------------
 
-    async def pictures_for_viewer(self) -> AsyncGenerator[bytes, None]:
-        """JPEG pictures as they come, newest first, for one viewer. Raises RelayFullError."""
-        if self.viewers >= MAX_VIEWERS:
-            log.warning("video %s: refusing a viewer: %d already (limit)", self.name, MAX_VIEWERS)
-            raise RelayFullError(f"{MAX_VIEWERS} viewers already watch the {self.name} stream")
+    async def pictures_for_viewer(self, *, operator: bool = False) -> AsyncGenerator[bytes, None]:
+        """JPEG pictures as they come, newest first, for one viewer. Raises RelayFullError.
+        `operator`: the console's own page, which may also take the OPERATOR_RESERVED places."""
+        limit = MAX_VIEWERS if operator else MAX_VIEWERS - OPERATOR_RESERVED
+        if self.viewers >= limit:
+            log.warning("video %s: refusing a viewer: %d already (the limit%s)", self.name, self.viewers,
+                        "" if operator else f"; {OPERATOR_RESERVED} more are kept for the console's own page")  # fmt: skip
+            raise RelayFullError(f"{self.viewers} viewers already watch the {self.name} stream"
+                                 + ("" if operator else f" ({OPERATOR_RESERVED} places are kept for the console's page)"))  # fmt: skip
         self._loop = asyncio.get_running_loop()
         if self._cond is None:
             self._cond = asyncio.Condition()

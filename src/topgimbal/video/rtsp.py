@@ -24,11 +24,10 @@ import logging
 import random
 import time
 from typing import Any
-from urllib.parse import urlsplit
 
 from .rtp import Packetizer, sdp
-from .rtsp_request import Request, Transport, cseq_ok, parse_transport, session_id
-from .rtsp_stream import Session, Stream
+from .rtsp_request import BadUrlError, Request, Transport, cseq_ok, parse_transport, session_id, url_path
+from .rtsp_stream import KEYFRAME_MIN_INTERVAL_S, Session, Stream
 
 log = logging.getLogger("topgimbal.video.rtsp")
 
@@ -235,10 +234,22 @@ class _Connection(asyncio.Protocol):
             return next(iter(self.sessions.values()))
         return None
 
-    async def _describe(self, req: Request) -> None:
-        stream = self.server.find(req.url)
+    def _stream(self, req: Request) -> Stream | None:
+        """The stream a request names; None after answering 400 (a URL that cannot be parsed)
+        or 404 (no such path)."""
+        try:
+            stream = self.server.find(req.url)
+        except BadUrlError as exc:
+            log.warning("RTSP %s: %s with an unparsable URL %r (%s): 400", self.peer, req.method, req.url[:120], exc)
+            self.reply(req, 400, "Bad Request")
+            return None
         if stream is None:
             self.reply(req, 404, "Not Found")
+        return stream
+
+    async def _describe(self, req: Request) -> None:
+        stream = self._stream(req)
+        if stream is None:
             return
         if not stream.ready.is_set():
             stream.want_keyframe()
@@ -253,9 +264,8 @@ class _Connection(asyncio.Protocol):
         self.reply(req, 200, "OK", {"Content-Base": base, "Content-Type": "application/sdp"}, body)
 
     async def _setup(self, req: Request) -> None:
-        stream = self.server.find(req.url)
+        stream = self._stream(req)
         if stream is None:
-            self.reply(req, 404, "Not Found")
             return
         if session_id(req):
             # One track per stream, so a SETUP that names a session would change a set-up
@@ -320,11 +330,14 @@ class _Connection(asyncio.Protocol):
         if s is None:
             self.reply(req, 454, "Session Not Found")
             return
-        s.playing = True
-        s.waiting_key = True
-        s.stream.receivers.add(s)
-        s.stream.want_keyframe()  # so the new receiver starts now, not at the next GOP
-        s.stream.on_play()
+        if not s.playing:  # a PLAY on a playing session changes nothing (RFC 2326 10.5)
+            s.playing = True
+            s.waiting_key = True
+            s.stream.receivers.add(s)
+            # So the new receiver starts now rather than at the next GOP: rate limited per stream
+            # (rtsp_stream.KEYFRAME_MIN_INTERVAL_S), as the keyframe goes to every receiver.
+            s.stream.want_keyframe()
+            s.stream.on_play()
         info = f"url={req.url.rstrip('/')}/trackID=0;seq={s.packetizer.seq};rtptime={s.stream.now_rtp()}"
         self.reply(req, 200, "OK", {"Session": s.id, "Range": "npt=0.000-", "RTP-Info": info})
 
@@ -368,8 +381,9 @@ class RtspServer:
             self.reap()
 
     def find(self, url: str) -> Stream | None:
-        path = urlsplit(url).path if "://" in url else url
-        path = path.rstrip("/")
+        """The stream a request URL names, None for an unknown path; BadUrlError when the URL
+        cannot be parsed."""
+        path = url_path(url).rstrip("/")
         if path.endswith("/trackID=0"):
             path = path[: -len("/trackID=0")]
         return self.streams.get(path)
@@ -393,4 +407,13 @@ class RtspServer:
             self._server = None
 
 
-__all__ = ["IDLE_CLOSE_S", "SUPPORTED", "RtspServer", "Session", "Stream", "Transport", "parse_transport"]
+__all__ = [
+    "IDLE_CLOSE_S",
+    "KEYFRAME_MIN_INTERVAL_S",
+    "SUPPORTED",
+    "RtspServer",
+    "Session",
+    "Stream",
+    "Transport",
+    "parse_transport",
+]

@@ -3,7 +3,13 @@ Transport header asks for (RFC 2326 12.39) once understood."""
 
 from __future__ import annotations
 
+import ipaddress
 from dataclasses import dataclass
+from urllib.parse import urlsplit
+
+
+class BadUrlError(ValueError):
+    """A request URL that cannot be parsed (answered 400)."""
 
 
 @dataclass
@@ -16,6 +22,27 @@ class Request:
 
 def session_id(req: Request) -> str:
     return req.headers.get("session", "").split(";")[0].strip()
+
+
+def url_path(url: str) -> str:
+    """The path a request URL names (an absolute `rtsp://host[:port]/path` or a bare path).
+    BadUrlError, with the reason, for what Python's URL parser refuses (an unterminated IPv6
+    literal `[::1`, a stray `]`, characters NFKC turns into delimiters) or a bracketed host that
+    is not an IPv6 address (checked here too: older Pythons let it through)."""
+    if "://" not in url:
+        return url
+    try:
+        parts = urlsplit(url)
+    except ValueError as exc:
+        raise BadUrlError(str(exc)) from None
+    host = parts.netloc.rpartition("@")[2]
+    if host.startswith("["):
+        literal = host[1 : host.find("]")].partition("%")[0]
+        try:
+            ipaddress.IPv6Address(literal)
+        except ValueError:
+            raise BadUrlError(f"{literal!r} in brackets is not an IPv6 address") from None
+    return parts.path
 
 
 def cseq_ok(req: Request) -> bool:

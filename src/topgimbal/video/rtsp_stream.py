@@ -1,5 +1,12 @@
 """One live RTSP stream (a path) and the sessions set up on it: the encoded pictures go to every
-playing session as RTP, interleaved on its RTSP connection or over UDP, starting at a keyframe."""
+playing session as RTP, interleaved on its RTSP connection or over UDP, starting at a keyframe.
+
+Every receiver shares the stream's one encoder, so a keyframe forced for one receiver reaches all
+of them (a keyframe is ~10x the size of another picture). Forced keyframes are therefore rate
+limited per stream: the encoder is asked for one only when no keyframe (forced or its own, every
+GOP) went out in the last KEYFRAME_MIN_INTERVAL_S; a wish made sooner is kept and asked for at the
+first picture after the interval, unless a keyframe came meanwhile. A client that floods PLAY (or
+SETUP/PLAY/TEARDOWN cycles) thus adds at most one keyframe per interval to what the others get."""
 
 from __future__ import annotations
 
@@ -16,6 +23,9 @@ from .rtp import CLOCK_HZ, Packetizer, parameter_sets, split_nals
 
 log = logging.getLogger("topgimbal.video.rtsp")
 _FRAME_HEAD = struct.Struct("!cBH")
+# At most one forced keyframe per this many seconds per stream (the simulator's GOP is 1 s, so a
+# new receiver waits at most ~1 s for its first picture; see docs/video.md).
+KEYFRAME_MIN_INTERVAL_S = 1.0
 
 
 class Connection(Protocol):
@@ -35,6 +45,7 @@ class Stream:
         *,
         on_keyframe_wanted: Callable[[], None] | None = None,
         on_play: Callable[[], None] | None = None,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.path = path
         self.codec = codec
@@ -45,6 +56,12 @@ class Stream:
         self.pictures = 0
         self._want_key = on_keyframe_wanted or (lambda: None)
         self.on_play = on_play or (lambda: None)
+        self.clock = clock
+        self.keyframes_asked = 0  # forced keyframes asked of the encoder
+        self.keyframes_deferred = 0  # wishes that had to wait for KEYFRAME_MIN_INTERVAL_S
+        self._key_wanted = False
+        self._last_key_t: float | None = None  # the last keyframe published or asked for
+        self._deferred_logged_t: float | None = None
 
     def publish(self, au: AccessUnit) -> None:
         """Send one access unit to every receiver (on the server's event loop)."""
@@ -52,10 +69,14 @@ class Stream:
             return  # encoded before a codec change, delivered after it
         self.pictures += 1
         if au.keyframe:
+            self._key_wanted = False
+            self._last_key_t = self.clock()
             found = parameter_sets(self.codec, split_nals(au.data))
             if found:
                 self.params.update(found)
                 self.ready.set()
+        elif self._key_wanted:
+            self._ask_keyframe()
         rtp_time = int(au.pts_s * CLOCK_HZ) & 0xFFFFFFFF
         for r in list(self.receivers):
             try:
@@ -65,6 +86,24 @@ class Stream:
                 r.close()
 
     def want_keyframe(self) -> None:
+        """A new receiver (or a DESCRIBE) wants a keyframe: asked of the encoder now if none went
+        out in the last KEYFRAME_MIN_INTERVAL_S, else at the first picture after it."""
+        self._key_wanted = True
+        self._ask_keyframe()
+
+    def _ask_keyframe(self) -> None:
+        now = self.clock()
+        last = self._last_key_t
+        if last is not None and now - last < KEYFRAME_MIN_INTERVAL_S:
+            self.keyframes_deferred += 1
+            if self._deferred_logged_t is None or now - self._deferred_logged_t >= 60.0:
+                self._deferred_logged_t = now
+                log.info("RTSP %s: keyframes wanted faster than one per %g s: the wish waits (%d deferred in all)",
+                         self.path, KEYFRAME_MIN_INTERVAL_S, self.keyframes_deferred)  # fmt: skip
+            return
+        self._key_wanted = False
+        self._last_key_t = now
+        self.keyframes_asked += 1
         self._want_key()
 
     def restart(self, codec: str) -> None:
@@ -74,6 +113,7 @@ class Stream:
         self.codec = codec
         self.params = {}
         self.ready.clear()
+        self._last_key_t = None  # the new encoder starts with a keyframe of its own
         for r in list(self.sessions):
             log.info("RTSP %s: codec now %s: disconnecting %s", self.path, codec, r.conn.peer)
             r.close()

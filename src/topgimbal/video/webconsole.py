@@ -127,7 +127,10 @@ class ConsoleVideo:
         relay = self.relays.get(request.match_info["lens"])
         if relay is None:
             return _error(404, f"no such lens; this camera has: {', '.join(self.relays)}")
-        pictures = relay.pictures_for_viewer()
+        # The console's own page (a same-origin request: the guard refused other sites' pages)
+        # may take the places kept for the operator.
+        own_page = request.headers.get("Sec-Fetch-Site", "").strip().lower() == "same-origin"
+        pictures = relay.pictures_for_viewer(operator=own_page)
         try:
             first = await pictures.__anext__()
         except RelayFullError as exc:

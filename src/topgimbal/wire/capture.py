@@ -1,8 +1,8 @@
 """TOP frames out of a capture file: packets -> conversations -> streams -> the frame parser.
 
 A conversation is taken for TOP traffic when a user filter selects it, when it uses a documented
-port (`ports.documented_ports()`), or once one of its payloads starts with a TOP header (what the
-Wireshark dissector's heuristic does); other traffic in the file is passed over silently. UDP
+port (`ports.documented_ports()`), or once one of its payloads looks like TOP by the rule of
+`heuristic.py` (the Wireshark dissector's heuristic applies the same rule, generated from it); other traffic in the file is passed over silently. UDP
 payloads are parsed as whole datagrams, TCP payloads as a reassembled stream per direction.
 Everything is bounded: at most `MAX_CONVERSATIONS` are tracked (the least recently active is
 dropped, with a note), and each TCP direction buffers at most `tcpstream.MAX_PENDING` bytes.
@@ -17,13 +17,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..protocol import Diagnostic, Frame, FrameParser
+from .heuristic import looks_like_top
 from .packets import TCP_FIN, TCP_RST, Endpoint, Segment, parse_packet
 from .pcapfile import CaptureProblem, CaptureRecord, read_capture
 from .ports import dialect_for_ports
 from .tcpstream import TcpStream
 
 MAX_CONVERSATIONS = 4096
-_TOP_START = (b"#TP", b"#tp", b"#tP", b"#Tp")
 
 
 @dataclass(frozen=True)
@@ -61,11 +61,6 @@ class _Conversation:
     top: bool
     ends: frozenset[Endpoint] = frozenset()  # both endpoints, also when only one has sent
     sides: dict[Endpoint, _Direction] = field(default_factory=dict)
-
-
-def looks_like_top(payload: bytes) -> bool:
-    """True when a payload starts (after line ends) with a TOP header."""
-    return payload.lstrip(b"\r\n")[:3] in _TOP_START
 
 
 class _Filter:

@@ -35,6 +35,7 @@ from ..protocol import frame as frame_module
 from ..protocol.fields import Codec, Enum
 from ..protocol.fields.base import decimals_of
 from ..protocol.frame import ADDRESS_NAMES, DEVICE_ADDRESSES, HOST_ADDRESSES, MAX_LENGTH
+from .heuristic import lua_table as heuristic_rule
 from .ports import documented_ports
 
 # Codec kinds whose decoded value is a number (their Wireshark fields are FT_DOUBLE).
@@ -371,6 +372,7 @@ def catalog_tables(dialect_names: Iterable[str] = DIALECT_NAMES) -> dict[str, An
         "max_ascii_length": MAX_LENGTH["#TP"],
         "max_data_length": FrameParser().max_data_length,
         "ports": ports,
+        "heuristic": heuristic_rule(),  # the same rule as decode --pcap (heuristic.py)
         "field_types": _field_types([*tables.values(), *variants.values()], codecs.entries),
         "codecs": codecs.entries,
         "dialects": tables,

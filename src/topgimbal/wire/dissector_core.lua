@@ -668,12 +668,22 @@ local function split_frame(buf, item)
     return fr
 end
 
--- Whether a payload starts like a TOP frame (line ends first allowed): the heuristic's test.
+-- Whether a payload on an undocumented port is TOP: the heuristic's test. The rule and its
+-- numbers come from wire/heuristic.py (GEN.heuristic), the rule `decode --pcap` applies: after at
+-- most max_leading_line_ends CR/LF bytes, a TOP header, then address letters in as many of the
+-- next address_bytes bytes as the payload has. `head` is the payload's first head_bytes bytes.
+local HEUR_HDR, HEUR_ADDR = {}, {}
+for _, h in ipairs(GEN.heuristic.headers) do HEUR_HDR[h] = true end
+for k = 1, #GEN.heuristic.address_letters do HEUR_ADDR[sbyte(GEN.heuristic.address_letters, k)] = true end
+
 local function looks_like_top(head)
-    head = head:gsub("^[\r\n]+", "")
-    if #head < 3 or head:sub(1, 1) ~= "#" or not HDR[head:sub(2, 3)] then return false end
-    for k = 4, math.min(#head, 5) do
-        if not ADDR[sbyte(head, k)] then return false end
+    head = head:sub(1, GEN.heuristic.head_bytes)
+    local ends = #(head:match("^[\r\n]*"))
+    if ends > GEN.heuristic.max_leading_line_ends then return false end
+    local rest = head:sub(ends + 1)
+    if not HEUR_HDR[rest:sub(1, 3)] then return false end
+    for k = 4, math.min(#rest, 3 + GEN.heuristic.address_bytes) do
+        if not HEUR_ADDR[sbyte(rest, k)] then return false end
     end
     return true
 end

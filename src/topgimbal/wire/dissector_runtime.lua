@@ -291,7 +291,7 @@ top.dissector = dissect
 local function heuristic(tvb, pinfo, tree)
     local len = tvb:len()
     if len < 3 then return false end
-    if not CORE.looks_like_top(tvb:raw(0, math.min(len, 16))) then return false end
+    if not CORE.looks_like_top(tvb:raw(0, math.min(len, GEN.heuristic.head_bytes))) then return false end
     pinfo.conversation = top
     dissect(tvb, pinfo, tree)
     return true
