@@ -16,11 +16,14 @@ from collections import OrderedDict
 from typing import TYPE_CHECKING, Any
 
 from ._mav import mavlink
+from .camdef import definition_version, settings_for
+from .camera_extras import CameraExtras
 from .camera_link import CameraLink
 from .camera_tracking import Tracker
 from .camera_view import CameraView
 from .commands import Command, Outcome, denied, unsupported
 from .gimbal_device import _text, firmware_code, flag_bits
+from .params_ext import ParamsExt
 from .services import Services
 from .vehicle import Vehicles
 
@@ -77,6 +80,10 @@ class CameraComponent:
         self.view = CameraView(self.comp, cam, vehicles, lens=lens, range_hz=self.range_hz)
         self.tracker = Tracker(cam)
         p = self.profile
+        self.definition_uri = ""  # set by the bridge once its definition server listens
+        self.params = ParamsExt(self.comp, cam, settings_for(p.dialect, p.model, lens))
+        self.extras = CameraExtras(self.comp, cam, lens)
+        self.extras.register(services)
         provide = services.provide
         provide(MSG_INFO, self._information)
         provide(MSG_SETTINGS, self._settings)
@@ -148,7 +155,8 @@ class CameraComponent:
         visible = self.lens == "visible"
         record, photo = self.can_record, self.photo_values is not None
         return flag_bits({1 | 16: record, 2 | 8: photo, 64: self.zoom_any, 128: visible and self.profile.can_focus,
-                          256: bool(self.video_urls), 512: self.tracks_point, 1024: self.tracks_rect})  # fmt: skip
+                          256: bool(self.video_urls), 512: self.tracks_point, 1024: self.tracks_rect,
+                          4096: self.extras.has_thermal_range})  # fmt: skip
 
     # -- lifecycle ------------------------------------------------------------------------------
 
@@ -157,6 +165,8 @@ class CameraComponent:
             self._range_task = asyncio.ensure_future(self.view.range_loop())
 
     async def close(self) -> None:
+        await self.params.close()
+        await self.extras.close()
         for t in (self._interval_task, self._range_task):
             if t is not None:
                 t.cancel()
@@ -174,11 +184,13 @@ class CameraComponent:
         # Focal length and sensor size are in no profile; the resolution only where the profile
         # gives the stream's picture size (0 = unknown, as MAVLink says).
         w, h = lens.size if lens is not None and lens.size_documented else (0, 0)
+        uri = self.definition_uri
+        version = definition_version(self.profile.dialect, m, self.lens) if uri else 0
         return [mavlink().MAVLink_camera_information_message(
             self.comp.node.time_boot_ms(), list(_text(self.profile.vendor, 32).ljust(32, b"\0")),
             list(_text(name, 32).ljust(32, b"\0")), firmware_code(self.identity.get("version")),
-            0.0, 0.0, 0.0, w, h, 0 if self.lens == "visible" else 1, self.cap_flags(), 0, b"",
-            self.gimbal_device_id, 0)]  # fmt: skip
+            0.0, 0.0, 0.0, w, h, 0 if self.lens == "visible" else 1, self.cap_flags(), version,
+            _text(uri, 140), self.gimbal_device_id, 0)]  # fmt: skip
 
     async def _settings(self, cmd: Command) -> list[Any]:
         return [self._settings_message()]
