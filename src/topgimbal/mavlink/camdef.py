@@ -136,7 +136,7 @@ def _spec_settings(spec: CommandSpec, lens: str, taken: set[str]) -> list[Settin
     for f in form["fields"]:
         if f.get("default") is not None:
             fixed.append((f["name"], f["default"]))
-        elif f["kind"] == "enum" and f.get("values") or f["kind"] == "number" and "min" in f:
+        elif (f["kind"] == "enum" and f.get("values")) or (f["kind"] == "number" and "min" in f):
             chosen.append(f)
         else:
             return []  # raw data, text...: nothing a settings screen can offer
@@ -154,7 +154,7 @@ def _spec_settings(spec: CommandSpec, lens: str, taken: set[str]) -> list[Settin
             if not options:
                 return []
             first = factory.get(f["name"])
-            default = next((o.value for o in options if o.name == first), options[0].value)
+            default = float(next((o.value for o in options if o.name == first), options[0].value))
             typ = "uint8" if max(o.value for o in options) < 256 else "int32"
             out.append(Setting(type=typ, default=default, options=options, **common))  # type: ignore[arg-type]
             continue

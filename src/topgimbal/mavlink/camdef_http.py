@@ -69,7 +69,8 @@ class DefinitionServer:
         try:
             writer.write(
                 f"HTTP/1.1 {status}\r\nContent-Type: {ctype}\r\nContent-Length: {len(body)}\r\n"
-                "Connection: close\r\n\r\n".encode() + (b"" if head_only else body)
+                "Connection: close\r\n\r\n".encode()
+                + (b"" if head_only else body)
             )
             await asyncio.wait_for(writer.drain(), HEAD_TIMEOUT_S)
         except (OSError, asyncio.TimeoutError):

@@ -39,7 +39,6 @@ log = logging.getLogger("topgimbal.mavlink")
 MAX_REMEMBERED_IMAGES = 64
 MAX_INTERVAL_S = 3600.0
 INT32_MAX = 2**31 - 1
-VIDEO_ENCODING = {"h264": 1, "h265": 2}  # VIDEO_STREAM_ENCODING
 
 
 class CameraComponent:
@@ -92,8 +91,8 @@ class CameraComponent:
         provide(MSG_IMAGE_CAPTURED, self._image_captured)
         provide(MSG_FOV, self.view.fov_status)
         if self.video_urls:
-            provide(MSG_VIDEO_INFO, self._video_info)
-            provide(MSG_VIDEO_STATUS, self._video_status)
+            provide(MSG_VIDEO_INFO, lambda cmd: self.extras.video_info(cmd, self.video_urls))
+            provide(MSG_VIDEO_STATUS, lambda cmd: self.extras.video_status(cmd, self.video_urls))
         if self.tracks_point or self.tracks_rect:
             provide(MSG_TRACKING, self.tracker.status)
         if self.range_hz or (lens == "visible" and p.rangefinder):
@@ -219,6 +218,9 @@ class CameraComponent:
         if self.can_record and self.profile.dialect.require_role("recording", self.profile.model).readable:
             rec = await self.cam.call(lambda c: c.recording())
             self._recording_now(rec)
+        if self.profile.has_sd:  # available_capacity: what the card says now
+            sd = await self.cam.call(lambda c: c.sd_card())
+            self.available_mib = float(sd.remaining_mb or 0) if sd.present else 0.0
         return [self._capture_status_message()]
 
     def _capture_status_message(self) -> MAVLinkMessage:
@@ -242,34 +244,6 @@ class CameraComponent:
         return [msg]
 
     # -- video streams ---------------------------------------------------------------------------
-
-    def _stream_flags(self) -> int:
-        return (1 if self.cam.answering else 0) | (2 if self.lens == "thermal" else 0)
-
-    async def _video_info(self, cmd: Command) -> list[Any]:
-        sid = cmd.whole(2, "stream id", 0, 255, default=0)
-        lens = self.profile.lens(self.lens)
-        hfov = round(lens.hfov_deg) if lens is not None else 0
-        w, h = lens.size if lens is not None and lens.size_documented else (0, 0)
-        encoding = VIDEO_ENCODING.get(lens.codec, 0) if lens is not None and lens.codec_documented else 0
-        out = []
-        for i, url in enumerate(self.video_urls, start=1):
-            if sid not in (0, i):
-                continue
-            out.append(mavlink().MAVLink_video_stream_information_message(
-                i, len(self.video_urls), 0, self._stream_flags(), 0.0, w, h, 0, 0, hfov,
-                _text(f"{self.lens} {i}", 32), _text(url, 160), encoding, 0))  # fmt: skip
-        if not out:
-            raise denied(f"no stream {sid} (streams 1..{len(self.video_urls)})")
-        return out
-
-    async def _video_status(self, cmd: Command) -> list[Any]:
-        sid = cmd.whole(2, "stream id", 0, 255, default=0)
-        ids = [i for i in range(1, len(self.video_urls) + 1) if sid in (0, i)]
-        if not ids:
-            raise denied(f"no stream {sid} (streams 1..{len(self.video_urls)})")
-        return [mavlink().MAVLink_video_stream_status_message(i, self._stream_flags(), 0.0, 0, 0, 0, 0, 0, 0)
-                for i in ids]  # fmt: skip
 
     # -- photos ----------------------------------------------------------------------------------
 

@@ -24,6 +24,7 @@ from ..errors import RequestTimeoutError, TopGimbalError
 from ._mav import mavlink
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, unsupported
+from .gimbal_device import _text
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
@@ -35,6 +36,7 @@ SOURCE_RGB, SOURCE_IR = 1, 2  # CAMERA_SOURCE
 REPORT_STALE_S = 3.0
 REPORT_WAIT_S = 2.5
 NAN = float("nan")
+VIDEO_ENCODING = {"h264": 1, "h265": 2}  # VIDEO_STREAM_ENCODING
 # (primary, secondary) -> the catalog's picture-in-picture layout name
 LAYOUTS = {(SOURCE_RGB, 0): "main_only", (SOURCE_RGB, SOURCE_IR): "main_sub",
            (SOURCE_IR, SOURCE_RGB): "sub_main", (SOURCE_IR, 0): "sub_only"}  # fmt: skip
@@ -113,7 +115,7 @@ class CameraExtras:
     async def _output(self, value: str) -> None:
         ident = self.output
         current = await self.cam.call(lambda c: c.request(ident, read=True))
-        values = {**current.fields, "output": value}
+        values = {**(current.fields or {}), "output": value}
         await self.cam.call(lambda c: c.request(ident, **values))
 
     async def stream_figures(self) -> dict[str, float]:
@@ -123,14 +125,44 @@ class CameraExtras:
         for role in ("video_output", "bitrate"):
             if not p.can(role) or not p.dialect.require_role(role, p.model).readable:
                 continue
+            ident = p.ident(role)
             try:
-                fields = (await self.cam.call(lambda c, r=role: c.request(p.ident(r), read=True))).fields
+                fields = (await self.cam.call(lambda c, i=ident: c.request(i, read=True))).fields or {}  # type: ignore[misc]
             except (TopGimbalError, OSError):
                 continue
             for key in ("fps", "bitrate_kbps"):
                 if isinstance(fields.get(key), (int, float)):
                     out.setdefault(key, float(fields[key]))
         return out
+
+    def _stream_flags(self) -> int:
+        return (1 if self.cam.answering else 0) | (2 if self.lens == "thermal" else 0)
+
+    async def video_info(self, cmd: Command, urls: list[str]) -> list[Any]:
+        """VIDEO_STREAM_INFORMATION: the profile's stream (field of view; picture size and codec
+        where the profile documents them, else 0 = unknown) and what the camera says now of its
+        frame rate and bitrate (visible stream; 0 = unknown)."""
+        sid = cmd.whole(2, "stream id", 0, 255, default=0)
+        if sid not in range(len(urls) + 1):
+            raise denied(f"no stream {sid} (streams 1..{len(urls)})")
+        lens = self.cam.profile.lens(self.lens)
+        hfov = round(lens.hfov_deg) if lens is not None else 0
+        w, h = lens.size if lens is not None and lens.size_documented else (0, 0)
+        encoding = VIDEO_ENCODING.get(lens.codec, 0) if lens is not None and lens.codec_documented else 0
+        figures = await self.stream_figures() if self.lens == "visible" else {}
+        fps, kbps = figures.get("fps", 0.0), figures.get("bitrate_kbps", 0.0)
+        return [mavlink().MAVLink_video_stream_information_message(
+            i, len(urls), 0, self._stream_flags(), fps, w, h, int(kbps * 1000), 0, hfov,
+            _text(f"{self.lens} {i}", 32), _text(url, 160), encoding, 0)
+            for i, url in enumerate(urls, start=1) if sid in (0, i)]  # fmt: skip
+
+    async def video_status(self, cmd: Command, urls: list[str]) -> list[Any]:
+        sid = cmd.whole(2, "stream id", 0, 255, default=0)
+        ids = [i for i in range(1, len(urls) + 1) if sid in (0, i)]
+        if not ids:
+            raise denied(f"no stream {sid} (streams 1..{len(urls)})")
+        return [mavlink().MAVLink_video_stream_status_message(i, self._stream_flags(), 0.0, 0, 0, 0, 0, 0, 0)
+                for i in ids]  # fmt: skip
 
     # -- thermal range -----------------------------------------------------------------------------
 

@@ -129,7 +129,7 @@ class ParamsExt:
     async def read_command(self, ident: str) -> dict[str, Any]:
         """The camera's answer to the command's query (its fields in API values)."""
         m = await self.cam.call(lambda c: c.request(ident, read=True))
-        return dict(m.fields)
+        return dict(m.fields or {})
 
     async def current(self, s: Setting, cache: dict[str, dict[str, Any]] | None = None) -> float:
         """The setting's value as the camera says it (readable), else as last known."""
@@ -150,7 +150,8 @@ class ParamsExt:
 
     def _value_message(self, s: Setting, value: float) -> MAVLinkMessage:
         return mavlink().MAVLink_param_ext_value_message(
-            s.param.encode(), encode_value(s, value), s.wire_type, len(self.order), self.order.index(s.param))
+            s.param.encode(), encode_value(s, value), s.wire_type, len(self.order), self.order.index(s.param)
+        )
 
     async def _list(self) -> None:
         cache: dict[str, dict[str, Any]] = {}
