@@ -50,7 +50,10 @@ class MAVProxy:
             found[:] = [ln for ln in self.lines[start:] if pattern.search(ln)]
             return bool(found)
 
-        await eventually(seen, timeout, f"MAVProxy printing {expect!r}; it printed:\n" + "\n".join(self.lines))
+        try:
+            await eventually(seen, timeout, f"MAVProxy printing {expect!r}")
+        except AssertionError as exc:
+            raise AssertionError(f"{exc}; it printed:\n" + "\n".join(self.lines)) from None
         return found[0]
 
     async def close(self) -> None:
@@ -64,10 +67,13 @@ class MAVProxy:
         self.task.cancel()
 
 
-async def start_mavproxy(port: int, workdir: Path) -> MAVProxy:
+async def start_mavproxy(port: int, workdir: Path, modules: str = "camera") -> MAVProxy:
     proc = await asyncio.create_subprocess_exec(
-        str(MAVPROXY), f"--master=udpout:127.0.0.1:{port}", "--mav20", "--default-modules=camera",
+        str(MAVPROXY), f"--master=udpout:127.0.0.1:{port}", "--mav20", f"--default-modules={modules}",
         f"--state-basedir={workdir}", "--source-system=255",
+        # the vehicle's system: an autopilot's heartbeat would select it; the bridge alone sends none
+        # (MAVProxy passes other systems' messages only to multi-vehicle modules: camera, not ftp)
+        "--target-system=1",
         stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.STDOUT,
         cwd=workdir, env={**os.environ, "PYTHONUNBUFFERED": "1", "DISPLAY": ""},
     )  # fmt: skip

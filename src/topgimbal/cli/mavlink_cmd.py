@@ -54,6 +54,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--silence", type=float, default=3.0, help="seconds without a frame before the camera counts as down"
     )
     p.add_argument("--max-peers", type=int, default=16, help="peers per listening link (default 16)")
+    p.add_argument(
+        "--definition-http", default="127.0.0.1:0", metavar="HOST:PORT",
+        help="serve the camera definitions here (default 127.0.0.1:0, any free port; 'off': not served)",
+    )  # fmt: skip
     p.add_argument("-v", "--verbose", action="store_true", help="log every link and camera change")
     p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=run)
@@ -82,6 +86,7 @@ def build_config(args: argparse.Namespace) -> object:
         timeout_s=args.timeout,
         silence_s=args.silence,
         max_peers=args.max_peers,
+        definition_http=None if args.definition_http == "off" else args.definition_http,
     )
     config.check()
     return config

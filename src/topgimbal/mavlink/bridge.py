@@ -21,6 +21,7 @@ from .camera import CameraComponent
 from .camera_link import CameraLink
 from .commands import Dispatcher
 from .endpoints import MAX_PEERS, parse_endpoint
+from .ftp import FtpServer
 from .gimbal_device import GimbalDevice
 from .gimbal_manager import GimbalManager
 from .node import Node
@@ -148,9 +149,14 @@ class Bridge:
         self.node.subscribe(self.device.on_message)
         if self.manager is not None:
             self.node.subscribe(self.manager.on_message)
+        self.definitions: DefinitionServer | None = None
+        p = self.cam.profile
+        self.definition_files = {file_name(p.model, c.lens): render(p.dialect, p.model, c.lens) for c in self.cameras}
         for cam in self.cameras:
             self.node.subscribe(cam.params.on_message)
-        self.definitions: DefinitionServer | None = None
+            self.node.subscribe(FtpServer(cam.comp, self.definition_files).on_message)
+            # over MAVLink FTP (QGC's form) unless served over HTTP (_serve_definitions)
+            cam.definition_uri = f"mftp://[;comp={cam.comp.compid}]/{file_name(p.model, cam.lens)}"
         self.cam.on_health(self._on_health)
         for svc in self.services:
             svc.system_status = MAV_STATE_BOOT  # until the camera has answered (or is declared down)
@@ -217,8 +223,7 @@ class Bridge:
         if address is None or not self.cameras:
             return
         p = self.cam.profile
-        files = {file_name(p.model, c.lens): render(p.dialect, p.model, c.lens) for c in self.cameras}
-        self.definitions = DefinitionServer(files, *address)
+        self.definitions = DefinitionServer(self.definition_files, *address)
         await self.definitions.start()
         for c in self.cameras:
             c.definition_uri = self.definitions.uri(file_name(p.model, c.lens))
