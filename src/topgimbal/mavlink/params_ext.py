@@ -68,6 +68,9 @@ class ParamsExt:
         self.tasks: set[asyncio.Task[None]] = set()
         self.refused = 0
         self._busy_logged = 0.0
+        # One request at a time: answers leave in the order the requests came (MAVSDK's parameter
+        # client takes an answer for another parameter than the one it asked as a failure).
+        self._turn = asyncio.Lock()
 
     # -- messages ---------------------------------------------------------------------------------
 
@@ -112,9 +115,13 @@ class ParamsExt:
                 s = self.settings[setting]
                 self._ack(s, self._known(s), FAILED)
             return
-        task = asyncio.ensure_future(work)
+        task = asyncio.ensure_future(self._in_turn(work))
         self.tasks.add(task)
         task.add_done_callback(self.tasks.discard)
+
+    async def _in_turn(self, work: Any) -> None:
+        async with self._turn:
+            await work
 
     async def close(self) -> None:
         for t in list(self.tasks):
