@@ -152,3 +152,39 @@ async def test_recording_time_counts_up(rig_factory: Any) -> None:
     await eventually(lambda: not rig.sim.camera.recording, what="the simulator stopped recording")
     stopped = await rig.peer.request(100, 262, "CAMERA_CAPTURE_STATUS")
     assert stopped.video_status == 0 and stopped.recording_time_ms == 0
+
+
+async def test_hostile_param_ext_requests_are_answered_or_ignored(rig_factory: Any) -> None:
+    rig: Rig = await rig_factory("SIP")
+    peer, sim = rig.peer, rig.sim
+    for pid in (b"\xff\xfe\x00", b"NO_SUCH_PARAM", b""):
+        peer.send(ml.MAVLink_param_ext_request_read_message(1, 101, pid, 99))
+        peer.send(ml.MAVLink_param_ext_set_message(1, 101, pid, b"\x01", 1))
+    nan = struct.pack("<f", float("nan")).ljust(128, b"\0")
+    for ptype in (9, 200, 0):  # float NaN, no such type: VALUE_UNSUPPORTED
+        acks = await param_set_raw(peer, 101, "IMG_PALETTE", nan, ptype)
+        assert acks[-1].param_result == VALUE_UNSUPPORTED
+    # a flood of sets: bounded, every one answered, the camera ends at one of the values sent
+    start = len(peer.messages)
+    for i in range(30):
+        peer.send(ml.MAVLink_param_ext_set_message(1, 101, b"IMG_PALETTE", bytes([i % 10]).ljust(128, b"\0"), 1))
+
+    def finals() -> list[Any]:
+        return [m for m in peer.messages[start:] if m.get_type() == "PARAM_EXT_ACK" and m.param_result != IN_PROGRESS]
+
+    await eventually(lambda: len(finals()) == 30, 60, "an answer to every set")
+    assert {a.param_result for a in finals()} <= {ACCEPTED, FAILED}
+    assert sum(a.param_result == ACCEPTED for a in finals()) >= 1
+    values = await param_list(peer, 101)  # still serving, and it says what the camera has
+    palette = next(s for s in rig.bridge.cameras[1].params.settings.values() if s.param == "IMG_PALETTE")
+    assert palette.to_api(values["IMG_PALETTE"]) == sim.settings["IMG"]["palette"]
+
+
+async def param_set_raw(peer: Peer, comp: int, name: str, raw: bytes, ptype: int) -> list[Any]:
+    acks: list[Any] = []
+    final = asyncio.ensure_future(peer.wait("PARAM_EXT_ACK", lambda m: m.param_id == name and
+                                            (acks.append(m) or m.param_result != IN_PROGRESS), timeout=15))  # fmt: skip
+    await asyncio.sleep(0)
+    peer.send(ml.MAVLink_param_ext_set_message(1, comp, name.encode(), raw, ptype))
+    await final
+    return acks
