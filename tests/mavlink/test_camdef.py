@@ -118,3 +118,18 @@ async def test_http_server_serves_only_its_files_and_survives_hostile_requests()
         assert server.uri("sip-thermal.xml") == f"http://127.0.0.1:{server.port}/sip-thermal.xml"
     finally:
         await server.close()
+
+
+def test_cli_names_the_definitions_and_checks_the_option(capsys: pytest.CaptureFixture[str]) -> None:
+    from topgimbal.cli.main import main
+    from topgimbal.sim import BackgroundSimulator
+
+    base = ["mavlink", "--model", "SIP", "--mavlink", "udpin:127.0.0.1:0", "--seconds", "0.5"]
+    with BackgroundSimulator("SIP", listen={"udp": [("127.0.0.1", 0)]}) as sim:
+        assert main([*base, "--url", sim.url]) == 0
+        out = capsys.readouterr().out
+        assert "camera 101 definition: http://127.0.0.1:" in out and out.rstrip().endswith("/sip-thermal.xml")
+        assert main([*base, "--url", sim.url, "--definition-http", "off"]) == 0
+        assert "camera 100 definition: mftp://[;comp=100]/sip-visible.xml" in capsys.readouterr().out
+    assert main([*base, "--url", "udp://127.0.0.1:9", "--definition-http", "nowhere"]) != 0
+    assert "definition_http='nowhere': expected HOST:PORT" in capsys.readouterr().err

@@ -107,6 +107,8 @@ def run(args: argparse.Namespace) -> int:
         )
         print(f"mavlink bridge: {config.url} ({config.model}) <-> {addrs}, system {config.sysid}, "  # type: ignore[attr-defined]
               f"role {config.role}", flush=True)  # type: ignore[attr-defined]  # fmt: skip
+        for cam in bridge.cameras:
+            print(f"camera {cam.comp.compid} definition: {cam.definition_uri}", flush=True)
         stop = stop_on_signals()
         try:
             await wait_stopped(stop, args.seconds)
