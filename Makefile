@@ -11,6 +11,9 @@ $(STAMP): pyproject.toml setup.py src/topgimbal/_speedups/_ctop.c $(wildcard c/s
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[dev]'
+	# MAVProxy for the ground-station tests, without its GUI stack (wx, matplotlib, vtk): its camera
+	# module and a headless start need only what the dev extra has (defusedxml, OpenCV headless)
+	$(BIN)/pip install --quiet --no-deps MAVProxy==1.8.75
 	touch $(STAMP)
 
 # Debian's chromium for the browser tests (browser downloads do not work here), and a CJK font
@@ -53,10 +56,12 @@ typecheck: $(STAMP)
 docs: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.gendocs docs/protocol.md
 	$(BIN)/topgimbal dissector -o contrib/wireshark/topgimbal.lua
+	$(BIN)/python -m topgimbal.mavlink.camdef_files contrib/camera-definitions
 
 docs-check: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.gendocs --check docs/protocol.md
 	$(BIN)/topgimbal dissector --check contrib/wireshark/topgimbal.lua
+	$(BIN)/python -m topgimbal.mavlink.camdef_files --check contrib/camera-definitions
 
 # The whole suite on the C fast path, then the protocol, client and fast-path tests again on the pure
 # Python path (what runs where no compiler built the extension; tests/speedups compares the two).

@@ -62,6 +62,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="MAVLink 2 signing: sign what the bridge sends, refuse what is not signed with this key. FILE holds "
         "64 hex digits, 32 raw bytes, or a passphrase (its SHA-256, as MAVProxy and QGC make it)",
     )
+    p.add_argument(
+        "--definition-http", default="127.0.0.1:0", metavar="HOST:PORT",
+        help="serve the camera definitions here (default 127.0.0.1:0, any free port; 'off': not served)",
+    )  # fmt: skip
     p.add_argument("-v", "--verbose", action="store_true", help="log every link and camera change")
     p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=run)
@@ -100,6 +104,7 @@ def build_config(args: argparse.Namespace) -> object:
         silence_s=args.silence,
         max_peers=args.max_peers,
         signing_key=getattr(args, "signing_key", None),
+        definition_http=None if args.definition_http == "off" else args.definition_http,
     )
     config.check()
     return config
@@ -121,6 +126,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"mavlink bridge: {config.url} ({config.model}) <-> {addrs}, system {config.sysid}, "  # type: ignore[attr-defined]
               f"role {config.role}" + (", MAVLink 2 signing on" if config.signing_key else ""),  # type: ignore[attr-defined]
               flush=True)  # type: ignore[attr-defined]  # fmt: skip
+        for cam in bridge.cameras:
+            print(f"camera {cam.comp.compid} definition: {cam.definition_uri}", flush=True)
         stop = stop_on_signals()
         try:
             await wait_stopped(stop, args.seconds)

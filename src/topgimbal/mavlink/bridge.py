@@ -16,10 +16,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import TopGimbalError
+from .camdef import file_name, render
+from .camdef_http import DefinitionServer
 from .camera import CameraComponent
 from .camera_link import CameraLink
 from .commands import Dispatcher
 from .endpoints import MAX_PEERS, parse_endpoint
+from .ftp import FtpServer
 from .gimbal_device import GimbalDevice
 from .gimbal_manager import GimbalManager
 from .node import Node
@@ -64,6 +67,15 @@ class BridgeConfig:
     max_peers: int = MAX_PEERS
     signing_key: bytes | None = None  # MAVLink 2 signing (signing.py): sign all, accept only signed
     client_options: dict[str, Any] = field(default_factory=dict)
+    definition_http: str | None = "127.0.0.1:0"  # HOST:PORT serving the camera definitions; None: not served
+
+    def definition_address(self) -> tuple[str, int] | None:
+        if not self.definition_http:
+            return None
+        host, sep, port = self.definition_http.rpartition(":")
+        if not sep or not port.isdigit() or not 0 <= int(port) <= 65535:
+            raise BridgeConfigError(f"definition_http={self.definition_http!r}: expected HOST:PORT (port 0..65535)")
+        return host.strip("[]") or "127.0.0.1", int(port)
 
     def check(self) -> None:
         if not self.endpoints:
@@ -87,6 +99,7 @@ class BridgeConfig:
             raise BridgeConfigError(f"video_port={self.video_port}: expected 1..65535")
         if self.signing_key is not None and len(self.signing_key) != 32:
             raise BridgeConfigError(f"signing_key: {len(self.signing_key)} bytes, expected 32")
+        self.definition_address()
         if not 1 <= self.max_peers <= 256:
             raise BridgeConfigError(f"max_peers={self.max_peers}: expected 1..256")
 
@@ -143,6 +156,14 @@ class Bridge:
         self.node.subscribe(self.device.on_message)
         if self.manager is not None:
             self.node.subscribe(self.manager.on_message)
+        self.definitions: DefinitionServer | None = None
+        p = self.cam.profile
+        self.definition_files = {file_name(p.model, c.lens): render(p.dialect, p.model, c.lens) for c in self.cameras}
+        for cam in self.cameras:
+            self.node.subscribe(cam.params.on_message)
+            self.node.subscribe(FtpServer(cam.comp, self.definition_files).on_message)
+            # over MAVLink FTP (QGC's form) unless served over HTTP (_serve_definitions)
+            cam.definition_uri = f"mftp://[;comp={cam.comp.compid}]/{file_name(p.model, cam.lens)}"
         self.cam.on_health(self._on_health)
         for svc in self.services:
             svc.system_status = MAV_STATE_BOOT  # until the camera has answered (or is declared down)
@@ -157,6 +178,7 @@ class Bridge:
 
     async def start(self, camera_wait_s: float = 2.0) -> Bridge:
         await self.node.start()
+        await self._serve_definitions()
         await self.cam.start(wait_s=camera_wait_s)
         self.pointer.start()
         self.device.start()
@@ -189,6 +211,8 @@ class Bridge:
         await self.pointer.close()
         await self.cam.close()
         await self.node.close()
+        if self.definitions is not None:
+            await self.definitions.close()
         self._closed.set()
 
     async def __aenter__(self) -> Bridge:
@@ -203,6 +227,17 @@ class Bridge:
     def _peer_rebooted(self, sysid: int, why: str) -> None:
         for cam in self.cameras:
             cam.forget_sequences(sysid)
+
+    async def _serve_definitions(self) -> None:
+        """The camera definitions over HTTP; each camera's CAMERA_INFORMATION gives its URI."""
+        address = self.config.definition_address()
+        if address is None or not self.cameras:
+            return
+        p = self.cam.profile
+        self.definitions = DefinitionServer(self.definition_files, *address)
+        await self.definitions.start()
+        for c in self.cameras:
+            c.definition_uri = self.definitions.uri(file_name(p.model, c.lens))
 
     def _on_health(self, answering: bool) -> None:
         for svc in self.services:

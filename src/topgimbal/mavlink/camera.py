@@ -16,11 +16,14 @@ from collections import OrderedDict
 from typing import TYPE_CHECKING, Any
 
 from ._mav import mavlink
+from .camdef import definition_version, settings_for
+from .camera_extras import CameraExtras
 from .camera_link import CameraLink
 from .camera_tracking import Tracker
 from .camera_view import CameraView
 from .commands import Command, Outcome, denied, unsupported
 from .gimbal_device import _text, firmware_code, flag_bits
+from .params_ext import ParamsExt
 from .services import Services
 from .vehicle import Vehicles
 
@@ -36,7 +39,6 @@ log = logging.getLogger("topgimbal.mavlink")
 MAX_REMEMBERED_IMAGES = 64
 MAX_INTERVAL_S = 3600.0
 INT32_MAX = 2**31 - 1
-VIDEO_ENCODING = {"h264": 1, "h265": 2}  # VIDEO_STREAM_ENCODING
 
 
 class CameraComponent:
@@ -77,6 +79,10 @@ class CameraComponent:
         self.view = CameraView(self.comp, cam, vehicles, lens=lens, range_hz=self.range_hz)
         self.tracker = Tracker(cam)
         p = self.profile
+        self.definition_uri = ""  # set by the bridge once its definition server listens
+        self.params = ParamsExt(self.comp, cam, settings_for(p.dialect, p.model, lens))
+        self.extras = CameraExtras(self.comp, cam, lens)
+        self.extras.register(services)
         provide = services.provide
         provide(MSG_INFO, self._information)
         provide(MSG_SETTINGS, self._settings)
@@ -85,8 +91,8 @@ class CameraComponent:
         provide(MSG_IMAGE_CAPTURED, self._image_captured)
         provide(MSG_FOV, self.view.fov_status)
         if self.video_urls:
-            provide(MSG_VIDEO_INFO, self._video_info)
-            provide(MSG_VIDEO_STATUS, self._video_status)
+            provide(MSG_VIDEO_INFO, lambda cmd: self.extras.video_info(cmd, self.video_urls))
+            provide(MSG_VIDEO_STATUS, lambda cmd: self.extras.video_status(cmd, self.video_urls))
         if self.tracks_point or self.tracks_rect:
             provide(MSG_TRACKING, self.tracker.status)
         if self.range_hz or (lens == "visible" and p.rangefinder):
@@ -148,7 +154,8 @@ class CameraComponent:
         visible = self.lens == "visible"
         record, photo = self.can_record, self.photo_values is not None
         return flag_bits({1 | 16: record, 2 | 8: photo, 64: self.zoom_any, 128: visible and self.profile.can_focus,
-                          256: bool(self.video_urls), 512: self.tracks_point, 1024: self.tracks_rect})  # fmt: skip
+                          256: bool(self.video_urls), 512: self.tracks_point, 1024: self.tracks_rect,
+                          4096: self.extras.has_thermal_range})  # fmt: skip
 
     # -- lifecycle ------------------------------------------------------------------------------
 
@@ -157,6 +164,8 @@ class CameraComponent:
             self._range_task = asyncio.ensure_future(self.view.range_loop())
 
     async def close(self) -> None:
+        await self.params.close()
+        await self.extras.close()
         for t in (self._interval_task, self._range_task):
             if t is not None:
                 t.cancel()
@@ -174,11 +183,13 @@ class CameraComponent:
         # Focal length and sensor size are in no profile; the resolution only where the profile
         # gives the stream's picture size (0 = unknown, as MAVLink says).
         w, h = lens.size if lens is not None and lens.size_documented else (0, 0)
+        uri = self.definition_uri
+        version = definition_version(self.profile.dialect, m, self.lens) if uri else 0
         return [mavlink().MAVLink_camera_information_message(
             self.comp.node.time_boot_ms(), list(_text(self.profile.vendor, 32).ljust(32, b"\0")),
             list(_text(name, 32).ljust(32, b"\0")), firmware_code(self.identity.get("version")),
-            0.0, 0.0, 0.0, w, h, 0 if self.lens == "visible" else 1, self.cap_flags(), 0, b"",
-            self.gimbal_device_id, 0)]  # fmt: skip
+            0.0, 0.0, 0.0, w, h, 0 if self.lens == "visible" else 1, self.cap_flags(), version,
+            _text(uri, 140), self.gimbal_device_id, 0)]  # fmt: skip
 
     async def _settings(self, cmd: Command) -> list[Any]:
         return [self._settings_message()]
@@ -207,6 +218,9 @@ class CameraComponent:
         if self.can_record and self.profile.dialect.require_role("recording", self.profile.model).readable:
             rec = await self.cam.call(lambda c: c.recording())
             self._recording_now(rec)
+        if self.profile.has_sd:  # available_capacity: what the card says now
+            sd = await self.cam.call(lambda c: c.sd_card())
+            self.available_mib = float(sd.remaining_mb or 0) if sd.present else 0.0
         return [self._capture_status_message()]
 
     def _capture_status_message(self) -> MAVLinkMessage:
@@ -230,34 +244,6 @@ class CameraComponent:
         return [msg]
 
     # -- video streams ---------------------------------------------------------------------------
-
-    def _stream_flags(self) -> int:
-        return (1 if self.cam.answering else 0) | (2 if self.lens == "thermal" else 0)
-
-    async def _video_info(self, cmd: Command) -> list[Any]:
-        sid = cmd.whole(2, "stream id", 0, 255, default=0)
-        lens = self.profile.lens(self.lens)
-        hfov = round(lens.hfov_deg) if lens is not None else 0
-        w, h = lens.size if lens is not None and lens.size_documented else (0, 0)
-        encoding = VIDEO_ENCODING.get(lens.codec, 0) if lens is not None and lens.codec_documented else 0
-        out = []
-        for i, url in enumerate(self.video_urls, start=1):
-            if sid not in (0, i):
-                continue
-            out.append(mavlink().MAVLink_video_stream_information_message(
-                i, len(self.video_urls), 0, self._stream_flags(), 0.0, w, h, 0, 0, hfov,
-                _text(f"{self.lens} {i}", 32), _text(url, 160), encoding, 0))  # fmt: skip
-        if not out:
-            raise denied(f"no stream {sid} (streams 1..{len(self.video_urls)})")
-        return out
-
-    async def _video_status(self, cmd: Command) -> list[Any]:
-        sid = cmd.whole(2, "stream id", 0, 255, default=0)
-        ids = [i for i in range(1, len(self.video_urls) + 1) if sid in (0, i)]
-        if not ids:
-            raise denied(f"no stream {sid} (streams 1..{len(self.video_urls)})")
-        return [mavlink().MAVLink_video_stream_status_message(i, self._stream_flags(), 0.0, 0, 0, 0, 0, 0, 0)
-                for i in ids]  # fmt: skip
 
     # -- photos ----------------------------------------------------------------------------------
 

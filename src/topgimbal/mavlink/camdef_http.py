@@ -1,0 +1,94 @@
+"""The camera definitions over HTTP: a small read-only server for `cam_definition_uri`.
+
+It serves only the files it was given (GET or HEAD of `/<name>`; anything else 404 / 405 / 400),
+answers one request per connection, and is bounded: at most MAX_CONNECTIONS at once (more are
+closed at once, with a rate-limited log line), a request head of at most MAX_HEAD_BYTES read
+within HEAD_TIMEOUT_S. It binds loopback by default (`--definition-http HOST:PORT`)."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+
+log = logging.getLogger("topgimbal.mavlink")
+
+MAX_CONNECTIONS = 16
+MAX_HEAD_BYTES = 8192
+HEAD_TIMEOUT_S = 5.0
+LOG_EVERY_S = 10.0
+
+
+class DefinitionServer:
+    def __init__(self, files: dict[str, str], host: str = "127.0.0.1", port: int = 0) -> None:
+        self.files = {name: text.encode("utf-8") for name, text in files.items()}
+        self.host = host
+        self.port = port
+        self.server: asyncio.Server | None = None
+        self.active = 0
+        self.refused = 0
+        self.served = 0
+        self._logged = 0.0
+
+    async def start(self) -> None:
+        self.server = await asyncio.start_server(self._client, self.host, self.port, limit=MAX_HEAD_BYTES)
+        self.port = self.server.sockets[0].getsockname()[1]
+
+    def uri(self, name: str, advertise_host: str | None = None) -> str:
+        host = advertise_host or self.host
+        if host in ("0.0.0.0", "", "::"):
+            host = "127.0.0.1"
+        if ":" in host:
+            host = f"[{host}]"
+        return f"http://{host}:{self.port}/{name}"
+
+    async def close(self) -> None:
+        if self.server is not None:
+            self.server.close()
+            with contextlib.suppress(Exception):
+                await self.server.wait_closed()
+
+    async def _client(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        if self.active >= MAX_CONNECTIONS:
+            self.refused += 1
+            now = time.monotonic()
+            if now - self._logged >= LOG_EVERY_S:
+                self._logged = now
+                log.warning("camera definition server: %d connections open, refused %d", MAX_CONNECTIONS, self.refused)
+            writer.close()
+            return
+        self.active += 1
+        try:
+            head = await asyncio.wait_for(reader.readuntil(b"\r\n\r\n"), HEAD_TIMEOUT_S)
+            status, body, ctype = self._answer(head)
+            head_only = head.startswith(b"HEAD ")
+        except (asyncio.TimeoutError, asyncio.IncompleteReadError, asyncio.LimitOverrunError, ValueError,
+                ConnectionError):  # fmt: skip
+            status, body, ctype, head_only = "400 Bad Request", b"bad request\n", "text/plain", False
+        try:
+            writer.write(
+                f"HTTP/1.1 {status}\r\nContent-Type: {ctype}\r\nContent-Length: {len(body)}\r\n"
+                "Connection: close\r\n\r\n".encode()
+                + (b"" if head_only else body)
+            )
+            await asyncio.wait_for(writer.drain(), HEAD_TIMEOUT_S)
+        except (OSError, asyncio.TimeoutError):
+            pass
+        finally:
+            self.active -= 1
+            writer.close()
+
+    def _answer(self, head: bytes) -> tuple[str, bytes, str]:
+        line = head.split(b"\r\n", 1)[0].decode("latin-1")
+        parts = line.split(" ")
+        if len(parts) != 3 or not parts[2].startswith("HTTP/"):
+            return "400 Bad Request", b"bad request\n", "text/plain"
+        method, path = parts[0], parts[1].split("?", 1)[0]
+        if method not in ("GET", "HEAD"):
+            return "405 Method Not Allowed", b"only GET\n", "text/plain"
+        body = self.files.get(path.lstrip("/"))
+        if body is None:
+            return "404 Not Found", b"no such definition\n", "text/plain"
+        self.served += 1
+        return "200 OK", body, "application/xml"
