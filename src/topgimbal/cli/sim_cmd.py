@@ -141,6 +141,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         p.add_argument(flag, type=_count, default=default, metavar="N", help=f"{help_text} (default {default})")
     p.add_argument("--allow-any-address", action="store_true", help=argparse.SUPPRESS)
     video_cli.add_arguments(p)  # --video, --video-port, ... (topgimbal.video)
+    video_cli.add_media_arguments(p)  # --media DIR, --media-port (topgimbal.video.media)
     p.set_defaults(func=run)
 
 
@@ -193,12 +194,16 @@ async def _serve(sim: Simulator, listen: dict[str, Any], args: argparse.Namespac
 
     for _kind, url in sim.endpoints:
         print(url, flush=True)
-    video = None
+    video = media = None
     try:
         if args is not None and video_cli.wants_video(args):
             video = await video_cli.start(sim, args)
+        if args is not None:
+            media = await video_cli.start_media(sim, args)
         await stop.wait()
     finally:
+        if media is not None:
+            await media.stop()
         if video is not None:
             await video.stop()
         await sim.stop()

@@ -16,8 +16,8 @@ from ..errors import FieldValueError
 from ..protocol import CommandSpec, DeviceModel, Message
 from . import checks, identity, roles
 from .api_camera import CameraMethods
-from .api_feed import FeedMethods
 from .api_core import CoreMethods, _rate
+from .api_feed import FeedMethods
 from .api_motion import MotionMethods
 from .core import ClientCore
 from .options import ConnectOptions

@@ -169,7 +169,7 @@ class CoreMethods(Protocol):
         verdict = core.identity.verdict
         out["model_check"] = verdict.status if verdict.status != "mismatch" else verdict.message
         if core.feeds.active:  # what the host feeds the camera (position, time, attitude)
-            out["feeds"] = ", ".join(f"{i} {v['hz']:g} Hz ({v['state']})" for i, v in core.feeds.status()["feeds"].items())  # type: ignore[attr-defined]
+            out["feeds"] = core.feeds.summary()
         return out
 
     @api_method

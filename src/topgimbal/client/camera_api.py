@@ -13,8 +13,8 @@ from typing import Protocol
 
 from ..protocol import DeviceModel, Dialect, Frame, Message
 from .api_camera import CameraMethods
-from .api_feed import FeedMethods
 from .api_core import CoreMethods
+from .api_feed import FeedMethods
 from .api_motion import MotionMethods
 from .identity import Verdict
 from .state import Attitude, StateCache

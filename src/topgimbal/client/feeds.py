@@ -187,9 +187,20 @@ class HostFeeds:
         return {
             "enabled": self.enabled,
             "feeds": out,
-            "fix": None if fix is None else {**fix.__dict__, "age_s": round(time.monotonic() - (self.fix_at or 0.0), 2)},
-            "time_source": self.time_source if self.utc_offset_s is not None or self.active & set(self._idents(CLOCK_ROLES)) else None,
+            "fix": None
+            if fix is None
+            else {**fix.__dict__, "age_s": round(time.monotonic() - (self.fix_at or 0.0), 2)},
+            "time_source": self.time_source
+            if self.utc_offset_s is not None or self.active & set(self._idents(CLOCK_ROLES))
+            else None,
         }
+
+    def summary(self) -> str:
+        """One line for `info` and the console: "LAT 10 Hz (sending), UTC 1 Hz (sending)"."""
+        parts = []
+        for ident, v in self.status()["feeds"].items():  # type: ignore[attr-defined]
+            parts.append(f"{ident} {v['hz']:g} Hz ({v['state']})")
+        return ", ".join(parts) or "nothing"
 
     def stop(self) -> None:
         for task in self.tasks.values():

@@ -20,8 +20,8 @@ from ..errors import RequestTimeoutError, TopGimbalError, TransportError
 from ..protocol import CommandSpec, DeviceModel, Dialect, Message
 from .aio import AsyncClient
 from .api_camera import CameraMethods
-from .api_feed import FeedMethods
 from .api_core import CoreMethods
+from .api_feed import FeedMethods
 from .api_motion import MotionMethods
 from .core import LinkState
 from .identity import Verdict

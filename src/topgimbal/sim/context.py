@@ -96,6 +96,9 @@ class SimState:
     coast_until: float | None = None  # when a stop that has not taken yet takes (stop_coasts quirk)
     coast_axes: tuple[str, ...] = ()  # the axes that stop then
     rng: random.Random = field(default_factory=random.Random)
+    # Called on the simulator's thread as (event, file index) for "photo", "record_start" and
+    # "record_stop" (the media store: video/media.py). A listener must not raise.
+    capture_listeners: list[Callable[[str, int], None]] = field(default_factory=list)
 
     def report(self, ident: str, *, dst: str, src: str | None = None, rw: str | None = None, **values: Any) -> Frame:
         """An unsolicited frame from API-convention values (wire signs applied here)."""
