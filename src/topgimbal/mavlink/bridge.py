@@ -16,6 +16,7 @@ from typing import Any
 
 from ..errors import TopGimbalError
 from .camera import CameraComponent
+from .camera_feed import CameraFeed
 from .camera_link import CameraLink
 from .commands import Dispatcher
 from .endpoints import MAX_PEERS, parse_endpoint
@@ -132,6 +133,8 @@ class Bridge:
                     svc, self.cam, self.vehicles, lens=lens, gimbal_device_id=gimbal_ref, video_urls=mine,
                     identity=self.identity, range_hz=c.range_hz))  # fmt: skip
         self.node.subscribe(self.vehicles.on_message)
+        self.feed = CameraFeed(self.cam, self.vehicles, c.sysid, own)  # position, attitude, time to the camera
+        self.node.subscribe(self.feed.on_message)
         self.node.subscribe(self.dispatcher.on_message)
         self.node.subscribe(self.device.on_message)
         if self.manager is not None:
@@ -153,6 +156,7 @@ class Bridge:
         await self.cam.start(wait_s=camera_wait_s)
         self.pointer.start()
         self.device.start()
+        self.feed.start()
         for cam in self.cameras:
             cam.start()
         for svc in self.services:
@@ -178,6 +182,7 @@ class Bridge:
             await cam.close()
         for svc in self.services:
             await svc.close()
+        await self.feed.close()
         await self.device.close()
         await self.pointer.close()
         await self.cam.close()

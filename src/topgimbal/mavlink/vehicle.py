@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from .geo import Position
+from .quaternion import is_valid, to_euler_deg
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
@@ -38,6 +39,8 @@ class Vehicles:
         self.own = own_compids
         self._fixes: OrderedDict[int, Fix] = OrderedDict()
         self._yaw: tuple[float, float] | None = None  # (deg, t) from our vehicle's ATTITUDE
+        self._att: tuple[tuple[float, float, float], float] | None = None  # ((roll, pitch, yaw) deg, t): ATTITUDE
+        self._att_q: tuple[tuple[float, float, float], float] | None = None  # the same from AUTOPILOT_STATE_FOR_GIMBAL_DEVICE
 
     def on_message(self, m: MAVLinkMessage) -> None:
         kind = m.get_type()
@@ -58,12 +61,27 @@ class Vehicles:
             kind == "ATTITUDE" and src == self.sysid and m.get_srcComponent() not in self.own and not math.isnan(m.yaw)
         ):
             self._yaw = (math.degrees(m.yaw), time.monotonic())
+            if not (math.isnan(m.roll) or math.isnan(m.pitch)):
+                self._att = ((math.degrees(m.roll), math.degrees(m.pitch), math.degrees(m.yaw)), time.monotonic())
+        elif kind == "AUTOPILOT_STATE_FOR_GIMBAL_DEVICE" and src == self.sysid and m.get_srcComponent() not in self.own:
+            if is_valid(list(m.q)):
+                e = to_euler_deg(list(m.q))
+                self._att_q = ((e.roll_deg, e.pitch_deg, e.yaw_deg), time.monotonic())
 
     def fix(self, sysid: int | None = None) -> Fix | None:
         f = self._fixes.get(self.sysid if sysid is None else sysid)
         if f is None or time.monotonic() - f.t > STALE_S:
             return None
         return f
+
+    def attitude_deg(self) -> tuple[float, float, float] | None:
+        """Our vehicle's (roll, pitch, yaw) in degrees, if heard lately: AUTOPILOT_STATE_FOR_GIMBAL_DEVICE's
+        quaternion preferred, else ATTITUDE; None when neither is fresh."""
+        now = time.monotonic()
+        for att in (self._att_q, self._att):
+            if att is not None and now - att[1] <= STALE_S:
+                return att[0]
+        return None
 
     @property
     def yaw_deg(self) -> float | None:
