@@ -50,7 +50,9 @@ async def autopilot(peer: Peer, *, fix: bool = True, quaternion: bool = True) ->
 
 
 def exiftool(path: Path) -> dict[str, Any]:
-    out = subprocess.run(["exiftool", "-j", "-n", "-G", str(path)], capture_output=True, text=True, check=True, timeout=60)
+    out = subprocess.run(
+        ["exiftool", "-j", "-n", "-G", str(path)], capture_output=True, text=True, check=True, timeout=60
+    )
     data: dict[str, Any] = json.loads(out.stdout)[0]
     return data
 
@@ -74,7 +76,9 @@ async def test_the_next_photo_carries_the_autopilots_position_attitude_and_time(
         await eventually(lambda: abs(rig.sim.device.gimbal.earth()[1] + 30.0) < 0.5, 15.0, "gimbal at -30")
         ack = await rig.peer.ack(100, 2000, 0, 0, 1, 0)  # MAV_CMD_IMAGE_START_CAPTURE, one photo
         assert ack.result == ml.MAV_RESULT_ACCEPTED
-        await eventually(lambda: len(list(tmp_path.iterdir())) >= 2 and not list(tmp_path.glob("*.part")), 30.0, "photo files")
+        await eventually(
+            lambda: len(list(tmp_path.iterdir())) >= 2 and not list(tmp_path.glob("*.part")), 30.0, "photo files"
+        )
     finally:
         task.cancel()
         with contextlib.suppress(asyncio.CancelledError):
@@ -90,7 +94,10 @@ async def test_the_next_photo_carries_the_autopilots_position_attitude_and_time(
     assert abs(float(tags["XMP:GimbalPitchDegree"]) + 30.0) < 1.0
     assert tags["EXIF:Model"] == model and tags["EXIF:FocalLength"] > 0
     if model == "C12":  # FAI carries the vehicle attitude, from AUTOPILOT_STATE_FOR_GIMBAL_DEVICE's quaternion
-        assert abs(float(tags["XMP:FlightPitchDegree"]) + 6.0) < 0.1 and abs(float(tags["XMP:FlightRollDegree"]) - 5.0) < 0.1
+        assert (
+            abs(float(tags["XMP:FlightPitchDegree"]) + 6.0) < 0.1
+            and abs(float(tags["XMP:FlightRollDegree"]) - 5.0) < 0.1
+        )
     import exifread  # the second reader
 
     with visible.open("rb") as f:
@@ -107,7 +114,9 @@ async def test_no_fix_no_position_feed(rig_factory):
     await ap.connect(rig.bridge.addresses[0][1])
     task = asyncio.ensure_future(autopilot(ap, fix=False))
     try:
-        await eventually(lambda: (t := rig.sim.device.camera_time()) is not None and t.year == AP_TIME.year, 15.0, "time")
+        await eventually(
+            lambda: (t := rig.sim.device.camera_time()) is not None and t.year == AP_TIME.year, 15.0, "time"
+        )
         await asyncio.sleep(0.5)
         assert rig.sim.device.state.position.lat_deg is None
         assert not any(f.ident in ("LAT", "LON", "ALT") for f in rig.sim.received)

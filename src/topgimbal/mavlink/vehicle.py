@@ -40,7 +40,9 @@ class Vehicles:
         self._fixes: OrderedDict[int, Fix] = OrderedDict()
         self._yaw: tuple[float, float] | None = None  # (deg, t) from our vehicle's ATTITUDE
         self._att: tuple[tuple[float, float, float], float] | None = None  # ((roll, pitch, yaw) deg, t): ATTITUDE
-        self._att_q: tuple[tuple[float, float, float], float] | None = None  # the same from AUTOPILOT_STATE_FOR_GIMBAL_DEVICE
+        self._att_q: tuple[tuple[float, float, float], float] | None = (
+            None  # the same from AUTOPILOT_STATE_FOR_GIMBAL_DEVICE
+        )
 
     def on_message(self, m: MAVLinkMessage) -> None:
         kind = m.get_type()
@@ -63,16 +65,18 @@ class Vehicles:
             self._yaw = (math.degrees(m.yaw), time.monotonic())
             if not (math.isnan(m.roll) or math.isnan(m.pitch)):
                 self._att = ((math.degrees(m.roll), math.degrees(m.pitch), math.degrees(m.yaw)), time.monotonic())
-        elif kind == "AUTOPILOT_STATE_FOR_GIMBAL_DEVICE" and src == self.sysid and m.get_srcComponent() not in self.own:
-            if is_valid(list(m.q)):
-                e = to_euler_deg(list(m.q))
-                self._att_q = ((e.roll_deg, e.pitch_deg, e.yaw_deg), time.monotonic())
+        elif kind == "AUTOPILOT_STATE_FOR_GIMBAL_DEVICE" and self._own_vehicle(m) and is_valid(list(m.q)):
+            e = to_euler_deg(list(m.q))
+            self._att_q = ((e.roll_deg, e.pitch_deg, e.yaw_deg), time.monotonic())
 
     def fix(self, sysid: int | None = None) -> Fix | None:
         f = self._fixes.get(self.sysid if sysid is None else sysid)
         if f is None or time.monotonic() - f.t > STALE_S:
             return None
         return f
+
+    def _own_vehicle(self, m: MAVLinkMessage) -> bool:
+        return bool(m.get_srcSystem() == self.sysid and m.get_srcComponent() not in self.own)
 
     def attitude_deg(self) -> tuple[float, float, float] | None:
         """Our vehicle's (roll, pitch, yaw) in degrees, if heard lately: AUTOPILOT_STATE_FOR_GIMBAL_DEVICE's
