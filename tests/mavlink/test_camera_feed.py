@@ -19,6 +19,7 @@ from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.mavlink.quaternion import from_euler_deg
 from topgimbal.video.media import MediaStore
+from topgimbal.video.media_http import MediaServer
 
 from .conftest import Peer, eventually
 
@@ -59,7 +60,8 @@ def exiftool(path: Path) -> dict[str, Any]:
 
 @pytest.mark.parametrize("model", ["SIP", "C12"])
 async def test_the_next_photo_carries_the_autopilots_position_attitude_and_time(rig_factory, tmp_path, model):
-    rig = await rig_factory(model)
+    server = MediaServer(tmp_path).start()
+    rig = await rig_factory(model, media_url=server.url)
     store = MediaStore(rig.sim, tmp_path).start()
     ap = Peer(sysid=1, compid=1)
     await ap.connect(rig.bridge.addresses[0][1])
@@ -85,6 +87,7 @@ async def test_the_next_photo_carries_the_autopilots_position_attitude_and_time(
             await task
         ap.close()
         await store.stop()
+        server.stop()
     visible = sorted(p for p in tmp_path.iterdir() if "_T" not in p.name and not p.name.startswith("snap_1"))[0]
     tags = exiftool(visible)
     assert abs(tags["Composite:GPSLatitude"] - LAT) < 1e-5 and abs(tags["Composite:GPSLongitude"] - LON) < 1e-5
@@ -98,6 +101,11 @@ async def test_the_next_photo_carries_the_autopilots_position_attitude_and_time(
             abs(float(tags["XMP:FlightPitchDegree"]) + 6.0) < 0.1
             and abs(float(tags["XMP:FlightRollDegree"]) - 5.0) < 0.1
         )
+    captured = [m for m in rig.peer.messages if m.get_type() == "CAMERA_IMAGE_CAPTURED" and m.get_srcComponent() == 100]
+    if model == "SIP":  # its CAP answer names the file: file_url points at it
+        assert captured and captured[-1].file_url == server.url + visible.name
+    else:  # the C12's does not: no URL rather than a guess
+        assert captured and captured[-1].file_url == ""
     import exifread  # the second reader
 
     with visible.open("rb") as f:

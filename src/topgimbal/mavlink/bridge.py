@@ -57,6 +57,7 @@ class BridgeConfig:
     range_hz: float = 1.0
     video_urls: list[str] | None = None  # None: the model's streams at the camera's address
     video_port: int | None = None  # the first stream's RTSP port when not the profile's (others keep the spacing)
+    media_url: str | None = None  # the camera's files over HTTP (sim --media-port): CAMERA_IMAGE_CAPTURED.file_url
     timeout_s: float = 1.0
     retries: int = 2
     silence_s: float = 3.0
@@ -83,6 +84,10 @@ class BridgeConfig:
                 raise BridgeConfigError(f"{name}={v:g}: expected {lo:g}..{hi:g}")
         if self.video_port is not None and not 1 <= self.video_port <= 65535:
             raise BridgeConfigError(f"video_port={self.video_port}: expected 1..65535")
+        if self.media_url is not None and not self.media_url.startswith(("http://", "https://")):
+            raise BridgeConfigError(
+                f"media_url {self.media_url!r}: expected http://HOST:PORT/ (sim --media-port prints it)"
+            )
         if not 1 <= self.max_peers <= 256:
             raise BridgeConfigError(f"max_peers={self.max_peers}: expected 1..256")
 
@@ -131,7 +136,7 @@ class Bridge:
                     mine = [by_lens[lens]] if lens in by_lens else []
                 self.cameras.append(CameraComponent(
                     svc, self.cam, self.vehicles, lens=lens, gimbal_device_id=gimbal_ref, video_urls=mine,
-                    identity=self.identity, range_hz=c.range_hz))  # fmt: skip
+                    identity=self.identity, range_hz=c.range_hz, media_url=c.media_url))  # fmt: skip
         self.node.subscribe(self.vehicles.on_message)
         self.feed = CameraFeed(self.cam, self.vehicles, c.sysid, own)  # position, attitude, time to the camera
         self.node.subscribe(self.feed.on_message)

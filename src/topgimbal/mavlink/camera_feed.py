@@ -19,11 +19,14 @@ import contextlib
 import datetime
 import logging
 import time
+from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
 from ..client.api_feed import FeedSample, apply_sample
 from ..client.feeds import Fix
 from ..errors import TopGimbalError
+from ..protocol import get_model
+from ..video.media_names import photo_names
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
@@ -34,6 +37,16 @@ log = logging.getLogger("topgimbal.mavlink")
 
 PERIOD_S = 0.1
 TIME_STALE_S = 5.0  # a SYSTEM_TIME older than this is not used (the offset is kept by the feeds)
+
+
+def file_url(media_url: str | None, model: str, lens: str, answer: Mapping[str, object] | None) -> str:
+    """CAMERA_IMAGE_CAPTURED.file_url: the photo's file on the camera's media server, where the
+    bridge was told that server (`--media-url`) and the camera's answer names the file (TOPOTEK's
+    CAP feedback carries its file index); else empty, as MAVLink allows."""
+    index = (answer or {}).get("file_index")
+    if not media_url or not isinstance(index, int):
+        return ""
+    return media_url.rstrip("/") + "/" + photo_names(get_model(model)[0].name, index, [lens])[lens]
 
 
 class CameraFeed:

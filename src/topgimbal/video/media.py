@@ -21,7 +21,6 @@ import datetime
 import io
 import logging
 import os
-import re
 import threading
 import time
 from dataclasses import dataclass, replace
@@ -31,6 +30,7 @@ from typing import TYPE_CHECKING
 from ..sim.state import NO_CLOCK_EPOCH
 from .exif import PhotoMeta, Pose, focal_lengths, tag_jpeg
 from .lens import StreamSpec, streams_for
+from .media_names import MEDIA_NAME, photo_names, recording_name
 from .render import Renderer
 from .snapshot import SceneState, capture
 
@@ -46,7 +46,6 @@ RECORD_FPS = 10.0
 MAX_RECORD_S = 600.0
 MAX_PENDING = 8
 SENSOR_WIDTH_MM = {"visible": 6.17, "thermal": 7.68}  # assumed (1/2.3" visible, 640 x 12 um thermal)
-MEDIA_NAME = re.compile(r"^(IMG_\d{4,}(_T)?\.jpg|snap_[01]_\d+\.jpeg|stream_0_\d+\.mp4|VID_\d{4,}\.mp4)$")
 MAKES = {"topotek": "TOPOTEK", "skydroid": "SkyDroid"}
 
 
@@ -57,16 +56,6 @@ class Shot:
     index: int
     scene: SceneState
     meta: PhotoMeta
-
-
-def photo_names(dialect: str, index: int, lenses: list[str]) -> dict[str, str]:
-    if dialect == "topotek":
-        return {lens: f"snap_{int(lens == 'thermal')}_{index}.jpeg" for lens in lenses}
-    return {lens: f"IMG_{index:04d}{'_T' if lens == 'thermal' else ''}.jpg" for lens in lenses}
-
-
-def recording_name(dialect: str, index: int) -> str:
-    return f"stream_0_{index}.mp4" if dialect == "topotek" else f"VID_{index:04d}.mp4"
 
 
 class MediaStore:
