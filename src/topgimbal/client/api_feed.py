@@ -12,9 +12,8 @@ from __future__ import annotations
 import asyncio
 import datetime
 import logging
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 from ..errors import FieldValueError
 from .core import ClientCore
@@ -47,6 +46,13 @@ async def apply_sample(core: ClientCore, sample: FeedSample) -> None:
         yaw = (yaw + 180.0) % 360.0 - 180.0
         given = {"yaw_deg": yaw, "pitch_deg": pitch, "roll_deg": roll}
         await core.feeds.vehicle_attitude({k: v for k, v in given.items() if k in names})
+
+
+@runtime_checkable
+class FeedSource(Protocol):
+    """What `feed_from` polls: any callable taking nothing and returning a FeedSample or None."""
+
+    def __call__(self) -> FeedSample | None: ...
 
 
 class FeedMethods(Protocol):
@@ -85,7 +91,7 @@ class FeedMethods(Protocol):
         return core.feeds.status()
 
     @api_method
-    async def feed_from(core: ClientCore, source: Callable[[], FeedSample | None], rate_hz: float = 10.0) -> None:
+    async def feed_from(core: ClientCore, source: FeedSource, rate_hz: float = 10.0) -> None:
         """Poll `source()` at `rate_hz` in the background and feed what it returns (None: nothing
         new). Replaces an earlier source; stops when the client closes. A source that raises is
         logged and polled again at its next period."""
@@ -97,7 +103,7 @@ class FeedMethods(Protocol):
         core.feeds.source_task = asyncio.ensure_future(_poll(core, source, 1.0 / rate_hz))
 
 
-async def _poll(core: ClientCore, source: Callable[[], FeedSample | None], period_s: float) -> None:
+async def _poll(core: ClientCore, source: FeedSource, period_s: float) -> None:
     while True:
         try:
             sample = source()
