@@ -63,6 +63,14 @@ NOT_RUN: dict[str, str] = {
     "make -C c test": "the C library's own suite (sanitizers, fuzzers): minutes; `make test` runs it",
     "make -C c deps": "apt-get install as root",
     "ffplay -rtsp_transport tcp rtsp://127.0.0.1:8554/stream=0": "a video window (GUI); tests/video play the streams",
+    "topgimbal media list http://127.0.0.1:PORT/": "the URL is the one `sim --media-port` prints; "
+    "tests/video/test_media.py runs `media list` against it",
+    "topgimbal media get http://127.0.0.1:PORT/ -o photos": "the URL is the one `sim --media-port` prints; "
+    "tests/video/test_media.py runs `media get` against it",
+    "topgimbal geotag photos/ --log traffic.jsonl": "needs a flight's photos and its log; "
+    "tests/video/test_media.py tags photos from a traffic log",
+    "topgimbal geotag IMG_0001.jpg IMG_0002.jpg --log flight.tlog --offset -3600": "needs a flight's photos and "
+    "its tlog; tests/video/test_media.py tags a photo from a tlog",
 }
 
 # Output a command's doc promises, by the command's text: each string must be in the doc (its

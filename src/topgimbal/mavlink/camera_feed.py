@@ -26,7 +26,7 @@ from ..client.api_feed import FeedSample, apply_sample
 from ..client.feeds import Fix
 from ..errors import TopGimbalError
 from ..protocol import get_model
-from ..video.media_names import photo_names
+from ..video.lens import photo_names
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage

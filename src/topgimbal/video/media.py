@@ -29,8 +29,7 @@ from typing import TYPE_CHECKING
 
 from ..sim.state import NO_CLOCK_EPOCH
 from .exif import PhotoMeta, Pose, focal_lengths, tag_jpeg
-from .lens import StreamSpec, streams_for
-from .media_names import MEDIA_NAME, photo_names, recording_name
+from .lens import MEDIA_NAME, StreamSpec, photo_names, recording_name, streams_for
 from .render import Renderer
 from .snapshot import SceneState, capture
 

@@ -20,7 +20,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from urllib.parse import unquote, urlsplit
 
-from .media_names import MEDIA_NAME
+from .lens import MEDIA_NAME
 
 log = logging.getLogger("topgimbal.sim")
 
