@@ -153,6 +153,8 @@ def _check_loopback(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     _check_loopback(args)
+    if getattr(args, "media_port", None) is not None and getattr(args, "media", None) is None:
+        raise ValueError("--media-port serves the --media DIR: give --media DIR too")
     if args.state:  # a change is saved before its reply: a state file that cannot be written fails now
         writable_output(args.state, "state file")
     model = args.sim_model or getattr(args, "model", None) or "C12"
