@@ -134,3 +134,44 @@ async def test_no_fix_no_position_feed(rig_factory):
         with contextlib.suppress(asyncio.CancelledError):
             await task
         ap.close()
+
+
+class ScriptedConnection:
+    """pymavlink's `recv_match(blocking=False)` over a list of packets an autopilot sent."""
+
+    def __init__(self, packets: list[bytes]) -> None:
+        parser = ml.MAVLink(None)
+        self.messages = [m for p in packets for m in parser.parse_buffer(p) or []]
+
+    def recv_match(self, blocking: bool = False) -> Any:
+        return self.messages.pop(0) if self.messages else None
+
+
+async def test_the_sdk_feeds_from_a_mavlink_connection_without_the_bridge(tmp_path):
+    import topgimbal
+    from topgimbal.mavlink.camera_feed import MavlinkSource
+    from topgimbal.sim import Simulator
+
+    ap = ml.MAVLink(None, srcSystem=1, srcComponent=1)
+    other = ml.MAVLink(None, srcSystem=7, srcComponent=1)  # another vehicle: not ours
+    usec = int(AP_TIME.timestamp() * 1e6)
+    packets = [
+        ml.MAVLink_global_position_int_message(0, 10, 20, 0, 0, 0, 0, 0, 0).pack(other),
+        ml.MAVLink_global_position_int_message(
+            0, int(LAT * 1e7), int(LON * 1e7), int(ALT_M * 1000), 0, 0, 0, 0, int(HDG * 100)
+        ).pack(ap),
+        ml.MAVLink_system_time_message(usec, 0).pack(ap),
+        b"\xfd\x09garbage",
+    ]
+    sim = Simulator("SIP")
+    await sim.start(udp=[("127.0.0.1", 0)])
+    try:
+        async with topgimbal.connect(sim.url, model="SIP", timeout_s=1, check_model=False) as cam:
+            await cam.feed_from(MavlinkSource(ScriptedConnection(packets)), rate_hz=10)
+            pos = sim.device.state.position
+            await eventually(lambda: pos.lat_deg is not None and pos.azimuth_deg is not None, 15.0, "position")
+            await eventually(lambda: (t := sim.device.camera_time()) is not None and t.year == AP_TIME.year, 15.0)
+            assert abs(pos.lat_deg - LAT) < 1e-5 and abs(pos.lon_deg - LON) < 1e-5  # type: ignore[operator]
+            assert abs(pos.azimuth_deg - HDG) < 0.2  # type: ignore[operator]
+    finally:
+        await sim.stop()

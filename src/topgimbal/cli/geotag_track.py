@@ -4,7 +4,9 @@ their file index) or a MAVLink telemetry log (.tlog: GLOBAL_POSITION_INT, ATTITU
 MAV_CMD_IMAGE_START_CAPTURE's CAMERA_IMAGE_CAPTURED).
 
 `Track.at(t)` interpolates the position linearly between the two samples around `t` (UTC seconds);
-outside the track, or across a gap longer than `max_gap_s`, there is no position (never a guess)."""
+before the first or after the last sample it holds that sample for at most `max_gap_s` (a host
+feeds a position every so often: the camera would have had that one); further out, or across a
+gap longer than `max_gap_s`, there is no position (never a guess)."""
 
 from __future__ import annotations
 
@@ -47,8 +49,11 @@ class Track:
         i = bisect.bisect_left([x.t for x in s], t)
         if i < len(s) and s[i].t == t:
             return s[i]
-        if i == 0 or i == len(s):
+        if not s:
             return None
+        if i == 0 or i == len(s):  # before the first / after the last: held within max_gap_s
+            edge = s[0] if i == 0 else s[-1]
+            return Sample(t, edge.lat_deg, edge.lon_deg, edge.alt_m) if abs(edge.t - t) <= self.max_gap_s else None
         a, b = s[i - 1], s[i]
         if b.t - a.t > self.max_gap_s:
             return None

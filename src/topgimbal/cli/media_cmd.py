@@ -1,13 +1,14 @@
 """`topgimbal media list URL` and `topgimbal media get URL [NAME...] [-o DIR]`: the files of a
 camera's card served over HTTP (the simulator's `--media DIR --media-port N` prints URL).
 
-`get` without names fetches every file; a file that fails is reported and the others go on (exit
+`get` without names fetches every file (into `-o DIR`, created if missing); a file that fails is reported and the others go on (exit
 status 1). Bounded: each file at most `--max-mib` MiB (a longer one is dropped, nothing partial is
 left), each request `--timeout` seconds."""
 
 from __future__ import annotations
 
 import argparse
+import http.client
 import json
 import os
 import sys
@@ -27,7 +28,11 @@ class MediaFetchError(TopGimbalError):
 
 def _url(text: str) -> str:
     parts = urlsplit(text)
-    if parts.scheme != "http" or not parts.hostname:
+    try:
+        port = parts.port  # a port that is not a number raises here
+    except ValueError:
+        port = -1
+    if parts.scheme != "http" or not parts.hostname or port == -1:
         raise argparse.ArgumentTypeError(f"{text!r} is not an http://HOST:PORT/ URL (the simulator prints it)")
     return text if text.endswith("/") else text + "/"
 
@@ -62,7 +67,7 @@ def index(url: str, timeout_s: float) -> list[dict[str, object]]:
     try:
         with urllib.request.urlopen(url, timeout=timeout_s) as r:
             data = json.loads(r.read(4 * 1024 * 1024))
-    except (urllib.error.URLError, OSError, ValueError) as exc:
+    except (urllib.error.URLError, http.client.HTTPException, OSError, ValueError) as exc:
         raise MediaFetchError(f"{url}: no media index ({exc})") from None
     if not isinstance(data, list) or not all(isinstance(e, dict) and isinstance(e.get("name"), str) for e in data):
         raise MediaFetchError(f"{url}: the answer is not a media index")
@@ -85,7 +90,7 @@ def fetch(url: str, name: str, out_dir: Path, max_bytes: int, timeout_s: float) 
         os.replace(tmp, dest)
     except urllib.error.HTTPError as exc:
         raise MediaFetchError(f"{name}: {exc.code} {exc.reason}") from None
-    except (urllib.error.URLError, OSError) as exc:
+    except (urllib.error.URLError, http.client.HTTPException, OSError) as exc:
         raise MediaFetchError(f"{name}: {exc}") from None
     finally:
         tmp.unlink(missing_ok=True)
@@ -101,8 +106,10 @@ def run(args: argparse.Namespace) -> int:
             print(f"{e['name']}\t{e.get('size', '?')}")
         return 0
     out_dir = Path(args.output)
-    if not out_dir.is_dir():
-        raise MediaFetchError(f"--output {out_dir}: not a directory")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise MediaFetchError(f"--output {out_dir}: {exc.strerror or exc}") from None
     names = list(args.names) or [str(e["name"]) for e in entries]
     failed = 0
     for name in names:

@@ -20,7 +20,7 @@ import datetime
 import logging
 import time
 from collections.abc import Mapping
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ..client.api_feed import FeedSample, apply_sample
 from ..client.feeds import Fix
@@ -49,18 +49,16 @@ def file_url(media_url: str | None, model: str, lens: str, answer: Mapping[str, 
     return media_url.rstrip("/") + "/" + photo_names(get_model(model)[0].name, index, [lens])[lens]
 
 
-class CameraFeed:
-    def __init__(self, cam: CameraLink, vehicles: Vehicles, sysid: int, own_compids: set[int]) -> None:
-        self.cam = cam
+class AutopilotState:
+    """What the autopilot says, as a FeedSample: the fix and attitude from `Vehicles`, the time
+    from SYSTEM_TIME (handled here)."""
+
+    def __init__(self, vehicles: Vehicles, sysid: int, own_compids: set[int]) -> None:
         self.vehicles = vehicles
         self.sysid = sysid
         self.own = own_compids
         self._utc: tuple[datetime.datetime, float] | None = None  # (autopilot UTC, monotonic when heard)
-        self._utc_new = False
-        self._client: object = None  # the client last fed (a reconnect makes a new one: time again)
-        self._task: asyncio.Task[None] | None = None
-        self.samples = 0
-        self.state = "waiting for the autopilot"
+        self.utc_new = False  # a SYSTEM_TIME not yet handed on
 
     def on_message(self, m: MAVLinkMessage) -> None:
         if m.get_type() != "SYSTEM_TIME" or m.get_srcSystem() != self.sysid or m.get_srcComponent() in self.own:
@@ -72,7 +70,11 @@ class CameraFeed:
             utc = datetime.datetime.fromtimestamp(usec / 1e6, datetime.timezone.utc)
         except (OverflowError, OSError, ValueError):
             return  # a time no calendar holds: not a time
-        self._utc, self._utc_new = (utc, time.monotonic()), True
+        self._utc, self.utc_new = (utc, time.monotonic()), True
+
+    @property
+    def has_time(self) -> bool:
+        return self._utc is not None
 
     def sample(self) -> FeedSample:
         """What the autopilot says now (a fix only when it is fresh and not 0, 0)."""
@@ -82,9 +84,50 @@ class CameraFeed:
             with contextlib.suppress(ValueError):  # out-of-range numbers from the network: no fix
                 fix = Fix(f.position.lat_deg, f.position.lon_deg, f.position.alt_m, self.vehicles.yaw_deg)
         utc = None
-        if self._utc is not None and self._utc_new and time.monotonic() - self._utc[1] <= TIME_STALE_S:
+        if self._utc is not None and self.utc_new and time.monotonic() - self._utc[1] <= TIME_STALE_S:
             utc = self._utc[0] + datetime.timedelta(seconds=time.monotonic() - self._utc[1])
         return FeedSample(fix=fix, time_utc=utc, attitude_deg=self.vehicles.attitude_deg())
+
+
+class MavlinkSource:
+    """A feed source for `cam.feed_from(...)` reading an autopilot's MAVLink connection without the
+    bridge: anything with pymavlink's `recv_match(blocking=False)` (e.g.
+    `mavutil.mavlink_connection("udpin:127.0.0.1:14551")`). Each call drains at most
+    `max_messages` and returns what the autopilot says now."""
+
+    def __init__(self, conn: Any, sysid: int = 1, *, max_messages: int = 500) -> None:
+        from .vehicle import Vehicles
+
+        self.conn = conn
+        self.max_messages = max_messages
+        self.state = AutopilotState(Vehicles(sysid, set()), sysid, set())
+
+    def __call__(self) -> FeedSample:
+        for _ in range(self.max_messages):
+            m = self.conn.recv_match(blocking=False)
+            if m is None:
+                break
+            if m.get_type() == "BAD_DATA":
+                continue
+            self.state.vehicles.on_message(m)
+            self.state.on_message(m)
+        sample = self.state.sample()
+        self.state.utc_new = False
+        return sample
+
+
+class CameraFeed:
+    def __init__(self, cam: CameraLink, vehicles: Vehicles, sysid: int, own_compids: set[int]) -> None:
+        self.cam = cam
+        self.autopilot = AutopilotState(vehicles, sysid, own_compids)
+        self.on_message = self.autopilot.on_message
+        self._client: object = None  # the client last fed (a reconnect makes a new one: time again)
+        self._task: asyncio.Task[None] | None = None
+        self.samples = 0
+        self.state = "waiting for the autopilot"
+
+    def sample(self) -> FeedSample:
+        return self.autopilot.sample()
 
     def start(self) -> None:
         self._task = asyncio.ensure_future(self._run())
@@ -102,7 +145,8 @@ class CameraFeed:
             if client is None or not client.connected:
                 continue
             if client is not self._client:  # a new connection: its feeds know nothing yet
-                self._client, self._utc_new = client, self._utc is not None
+                self._client = client
+                self.autopilot.utc_new = self.autopilot.has_time
             sample = self.sample()
             try:
                 await apply_sample(client, sample)
@@ -110,6 +154,6 @@ class CameraFeed:
                 log.info("camera feed: %s", exc)
                 continue
             if sample.time_utc is not None:
-                self._utc_new = False
+                self.autopilot.utc_new = False
             self.samples += 1
             self.state = client.feeds.summary()
