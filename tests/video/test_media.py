@@ -206,3 +206,35 @@ def test_geotag_from_a_mavlink_tlog_matches_by_capture_time(tmp_path):
     late.write_bytes(tag_jpeg(buf.getvalue(), PhotoMeta(time=(t0 + datetime.timedelta(hours=1)).replace(tzinfo=None))))
     assert main(["geotag", str(late), "--log", str(tmp_path / "flight.tlog")]) == 1  # outside the flight: no guess
     assert "EXIF:GPSLatitude" not in exiftool(late)[0]
+
+
+def test_geotag_reports_damaged_photos_and_goes_on(tmp_path, capsys):
+    """Untrusted files: damaged EXIF, truncated pictures, not a JPEG. Each is tagged or reported in
+    one line; nothing stops the batch."""
+    import random
+
+    from PIL import Image
+
+    from topgimbal.video.exif import PhotoMeta, tag_jpeg
+
+    t0 = datetime.datetime(2025, 5, 4, 10, 0, 0, tzinfo=UTC)
+    _tlog(tmp_path / "flight.tlog", t0.timestamp(), 20)
+    buf = io.BytesIO()
+    Image.new("RGB", (32, 24)).save(buf, "JPEG")
+    good = tag_jpeg(buf.getvalue(), PhotoMeta(time=(t0 + datetime.timedelta(seconds=5)).replace(tzinfo=None)))
+    rng = random.Random(7)
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for i in range(60):
+        b = bytearray(good)
+        for _ in range(rng.randint(1, 6)):
+            j = rng.randrange(2, min(len(b), 300))
+            b[j] = rng.randrange(256)
+        (photos / f"p{i:02d}.jpg").write_bytes(bytes(b[: rng.randrange(20, len(b) + 1)]))
+    (photos / "text.jpg").write_text("not a picture")
+    (photos / "zz_good.jpg").write_bytes(good)
+    rc = main(["geotag", str(photos), "--log", str(tmp_path / "flight.tlog")])
+    err = capsys.readouterr().err
+    assert rc == 1 and "text.jpg" in err and "Traceback" not in err
+    assert f"of {62} photos tagged" in err
+    assert abs(exiftool(photos / "zz_good.jpg")[0]["Composite:GPSLatitude"] - (47.0 + 25 * 1e-5)) < 1e-6

@@ -18,6 +18,7 @@ import math
 import os
 import re
 import sys
+import warnings
 from pathlib import Path
 
 from ..errors import TopGimbalError
@@ -78,6 +79,15 @@ def run(args: argparse.Namespace) -> int:
     if not photos:
         print("topgimbal geotag: no JPEG photo given (files or folders of *.jpg / *.jpeg)", file=sys.stderr)
         return 2
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # Pillow warns on corrupt EXIF and uses what it could read: so do we
+        failed = _tag_all(photos, track, args)
+    print(f"topgimbal geotag: {len(photos) - failed} of {len(photos)} photos tagged", file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _tag_all(photos: list[Path], track: Track, args: argparse.Namespace) -> int:
+    """Tag each photo; a failure is reported and the next one goes on. Returns how many failed."""
     failed = 0
     for path in photos:
         try:
@@ -85,8 +95,10 @@ def run(args: argparse.Namespace) -> int:
         except (TopGimbalError, OSError, ValueError) as exc:
             failed += 1
             print(f"topgimbal geotag: {path}: {exc}", file=sys.stderr)
-    print(f"topgimbal geotag: {len(photos) - failed} of {len(photos)} photos tagged", file=sys.stderr)
-    return 1 if failed else 0
+        except Exception as exc:  # a file no reader expected (Pillow's parsers raise many kinds): go on
+            failed += 1
+            print(f"topgimbal geotag: {path}: unreadable metadata ({type(exc).__name__}: {exc})", file=sys.stderr)
+    return failed
 
 
 class GeotagError(TopGimbalError, ValueError):
