@@ -96,6 +96,7 @@ async def test_the_next_photo_carries_the_autopilots_position_attitude_and_time(
     assert abs((taken - AP_TIME.replace(tzinfo=None)).total_seconds()) < 120  # the autopilot's day, not today
     assert abs(float(tags["XMP:GimbalPitchDegree"]) + 30.0) < 1.0
     assert tags["EXIF:Model"] == model and tags["EXIF:FocalLength"] > 0
+    assert abs(float(tags["XMP:GimbalYawDegree"]) - (HDG - 360)) < 1.0  # body yaw 0 + the vehicle's heading
     if model == "C12":  # FAI carries the vehicle attitude, from AUTOPILOT_STATE_FOR_GIMBAL_DEVICE's quaternion
         assert (
             abs(float(tags["XMP:FlightPitchDegree"]) + 6.0) < 0.1

@@ -89,6 +89,7 @@ class SimState:
     uid: int = 0
     serial: str = ""
     vehicle_input: bool = True  # whether vehicle attitude from the host counts (SkyDroid: after FAE)
+    vehicle_heard: bool = False  # a vehicle attitude arrived (else only AZI may say the heading)
     stream_hz: float | None = None  # rate of on / off streams (TOPOTEK GAA, GIA); None: the profile's
     dirty: bool = False  # persistent state changed
     reboots: int = 0
