@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps
+.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps exiftool-deps
 
 # The C fast path is compiled by `pip install`: rebuild it when its sources change.
 $(STAMP): pyproject.toml setup.py src/topgimbal/_speedups/_ctop.c $(wildcard c/src/*.c c/include/*.h c/generated/*)
@@ -46,6 +46,14 @@ video-deps:
 	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq ffmpeg >/dev/null; \
 	fi
 
+# Debian's exiftool: the media and geotag tests read the photos' EXIF / XMP with it.
+exiftool-deps:
+	@if ! command -v exiftool >/dev/null; then \
+	  echo "installing Debian's exiftool"; \
+	  if [ "$$(id -u)" = 0 ]; then SUDO=; else SUDO=sudo; fi; \
+	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 install -y -qq libimage-exiftool-perl >/dev/null; \
+	fi
+
 lint: $(STAMP)
 	$(BIN)/ruff check src tests bench
 	$(BIN)/ruff format --check src tests bench
@@ -65,7 +73,7 @@ docs-check: $(STAMP)
 
 # The whole suite on the C fast path, then the protocol, client and fast-path tests again on the pure
 # Python path (what runs where no compiler built the extension; tests/speedups compares the two).
-pytest: $(STAMP) browser-deps tshark-deps video-deps
+pytest: $(STAMP) browser-deps tshark-deps video-deps exiftool-deps
 	$(BIN)/python -m pytest -q
 	TOPGIMBAL_PURE=1 $(BIN)/python -m pytest -q tests/protocol tests/client tests/speedups
 
@@ -78,7 +86,7 @@ c-deps:
 c-test: $(STAMP) c-deps
 	$(MAKE) -C c test PYTHON=$(CURDIR)/$(BIN)/python
 
-test: $(STAMP) browser-deps tshark-deps video-deps c-deps lint typecheck pytest c-test
+test: $(STAMP) browser-deps tshark-deps video-deps exiftool-deps c-deps lint typecheck pytest c-test
 
 demo: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.demo

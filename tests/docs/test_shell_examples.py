@@ -100,6 +100,7 @@ DATA_ADDRESS_OPTIONS = {
 # What an interactive command is answered on its terminal.
 ANSWERS: dict[str, str] = {"net set": "y\n"}
 
+MEDIA_PORT = "8090"  # docs/geotag.md's `sim --media-port 8090`: the test's sim picks a free one
 URL_RE = re.compile(r"\b(udp|tcp)://([^/:\s?]+|\[[^\]]+\]):(\w+)")
 SERIAL_RE = re.compile(r"(serial://)?(/dev/tty\w+)")
 IPV4_RE = re.compile(r"\b(\d{1,3}\.\d{1,3}\.\d{1,3}\.\d{1,3})\b")
@@ -324,6 +325,7 @@ class Session:
         self._heartbeat_socket: socket.socket | None = None  # where its mavlink udpout points
         self._tcp_in: int | None = None  # its mavlink tcpin port
         self._console: str | None = None  # the console curl talks to
+        self._media: Daemon | None = None  # the sim whose --media-port the doc's http://127.0.0.1:8090/ is
         self._last_pty_master = -1  # the other end of the last serial line handed to a command
 
     # -- substitution ----------------------------------------------------------------------------
@@ -380,7 +382,7 @@ class Session:
                 out += [tok, "pty"]
                 i += 2
                 continue
-            if sub == "sim" and tok == "--video-port":
+            if sub == "sim" and tok in ("--video-port", "--media-port"):
                 out += [tok, "0"]
                 i += 2
                 continue
@@ -457,6 +459,9 @@ class Session:
             return "127.0.0.1"
         if tok.startswith("http://127.0.0.1:8080/"):
             return self._console_url() + tok.split(":8080/", 1)[1]
+        if tok.startswith(f"http://127.0.0.1:{MEDIA_PORT}/") and self._media is not None:
+            # the documented media port: the URL the doc's `sim --media-port` printed
+            return self._media.wait_for(r"(http://127\.0\.0\.1:\d+/)").group(1) + tok.split(f":{MEDIA_PORT}/", 1)[1]
         return tok
 
     def _console_url(self) -> str:
@@ -480,6 +485,8 @@ class Session:
         )  # fmt: skip
         outputs = {argv[j + 1] for j, t in enumerate(argv[:-1]) if t in ("--pcap", "--log")}
         daemon = Daemon(ex, argv, proc, outputs)
+        if "--media-port" in argv:
+            self._media = daemon
         threading.Thread(target=daemon.read, daemon=True).start()
         self.daemons.append(daemon)
         for scheme, port, nth in self._pending:

@@ -141,6 +141,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         p.add_argument(flag, type=_count, default=default, metavar="N", help=f"{help_text} (default {default})")
     p.add_argument("--allow-any-address", action="store_true", help=argparse.SUPPRESS)
     video_cli.add_arguments(p)  # --video, --video-port, ... (topgimbal.video)
+    video_cli.add_media_arguments(p)  # --media DIR, --media-port (topgimbal.video.media)
     p.set_defaults(func=run)
 
 
@@ -152,6 +153,8 @@ def _check_loopback(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     _check_loopback(args)
+    if getattr(args, "media_port", None) is not None and getattr(args, "media", None) is None:
+        raise ValueError("--media-port serves the --media DIR: give --media DIR too")
     if args.state:  # a change is saved before its reply: a state file that cannot be written fails now
         writable_output(args.state, "state file")
     model = args.sim_model or getattr(args, "model", None) or "C12"
@@ -193,12 +196,16 @@ async def _serve(sim: Simulator, listen: dict[str, Any], args: argparse.Namespac
 
     for _kind, url in sim.endpoints:
         print(url, flush=True)
-    video = None
+    video = media = None
     try:
         if args is not None and video_cli.wants_video(args):
             video = await video_cli.start(sim, args)
+        if args is not None:
+            media = await video_cli.start_media(sim, args)
         await stop.wait()
     finally:
+        if media is not None:
+            await media.stop()
         if video is not None:
             await video.stop()
         await sim.stop()

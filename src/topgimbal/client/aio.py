@@ -17,13 +17,14 @@ from ..protocol import CommandSpec, DeviceModel, Message
 from . import checks, identity, roles
 from .api_camera import CameraMethods
 from .api_core import CoreMethods, _rate
+from .api_feed import FeedMethods
 from .api_motion import MotionMethods
 from .core import ClientCore
 from .options import ConnectOptions
 from .streams import AttitudeStream
 
 
-class AsyncClient(ClientCore, CoreMethods, MotionMethods, CameraMethods):
+class AsyncClient(ClientCore, CoreMethods, MotionMethods, CameraMethods, FeedMethods):
     """A connection to one gimbal camera. Open with `await connect(url, model=...)`."""
 
     def __init__(self, url: str, model: str | DeviceModel = "C12", **options: Unpack[ConnectOptions]) -> None:

@@ -168,6 +168,8 @@ class CoreMethods(Protocol):
             raise errors[0]
         verdict = core.identity.verdict
         out["model_check"] = verdict.status if verdict.status != "mismatch" else verdict.message
+        if core.feeds.active:  # what the host feeds the camera (position, time, attitude)
+            out["feeds"] = core.feeds.summary()
         return out
 
     @api_method

@@ -14,13 +14,14 @@ from typing import Protocol
 from ..protocol import DeviceModel, Dialect, Frame, Message
 from .api_camera import CameraMethods
 from .api_core import CoreMethods
+from .api_feed import FeedMethods
 from .api_motion import MotionMethods
 from .identity import Verdict
 from .state import Attitude, StateCache
 from .stats import LinkStats
 
 
-class CameraAPI(CoreMethods, MotionMethods, CameraMethods, Protocol):
+class CameraAPI(CoreMethods, MotionMethods, CameraMethods, FeedMethods, Protocol):
     url: str
     dialect: Dialect
     model: DeviceModel

@@ -21,6 +21,7 @@ from ..protocol import CommandSpec, DeviceModel, Dialect, Message
 from .aio import AsyncClient
 from .api_camera import CameraMethods
 from .api_core import CoreMethods
+from .api_feed import FeedMethods
 from .api_motion import MotionMethods
 from .core import LinkState
 from .identity import Verdict
@@ -133,7 +134,7 @@ class ThreadLoop:
             self.thread.join(STOP_JOIN_S)
 
 
-class Gimbal(SyncDriver, CoreMethods, MotionMethods, CameraMethods):
+class Gimbal(SyncDriver, CoreMethods, MotionMethods, CameraMethods, FeedMethods):
     """`with Gimbal("serial:///dev/ttyUSB0?baud=115200", model="SIP") as cam: cam.point(10, -20)`.
 
     The same typed methods as AsyncClient, blocking. Callbacks run on the loop thread."""

@@ -136,6 +136,7 @@ class Hub(PageHub):
             "recording_since": self.recording_since,
             "sd": self.sd,
             "version": self.version,
+            "feeds": _feeds_summary(self.cam),
         }
 
     def hello(self) -> dict[str, Any]:
@@ -287,3 +288,10 @@ class Hub(PageHub):
 
 
 __all__ = ["MAX_OPS_IN_FLIGHT", "Hub"]
+
+
+def _feeds_summary(cam: object) -> str:
+    """What the client keeps sending the camera (client/feeds.py), for the page's "Fed" line."""
+    feeds = getattr(cam, "feeds", None)
+    summary = getattr(feeds, "summary", None)
+    return str(summary()) if callable(summary) else "nothing"

@@ -19,6 +19,7 @@ from ..errors import TopGimbalError
 from .camdef import file_name, render
 from .camdef_http import DefinitionServer
 from .camera import CameraComponent
+from .camera_feed import CameraFeed
 from .camera_link import CameraLink
 from .commands import Dispatcher
 from .endpoints import MAX_PEERS, parse_endpoint
@@ -61,6 +62,7 @@ class BridgeConfig:
     range_hz: float = 1.0
     video_urls: list[str] | None = None  # None: the model's streams at the camera's address
     video_port: int | None = None  # the first stream's RTSP port when not the profile's (others keep the spacing)
+    media_url: str | None = None  # the camera's files over HTTP (sim --media-port): CAMERA_IMAGE_CAPTURED.file_url
     timeout_s: float = 1.0
     retries: int = 2
     silence_s: float = 3.0
@@ -100,6 +102,10 @@ class BridgeConfig:
         if self.signing_key is not None and len(self.signing_key) != 32:
             raise BridgeConfigError(f"signing_key: {len(self.signing_key)} bytes, expected 32")
         self.definition_address()
+        if self.media_url is not None and not self.media_url.startswith(("http://", "https://")):
+            raise BridgeConfigError(
+                f"media_url {self.media_url!r}: expected http://HOST:PORT/ (sim --media-port prints it)"
+            )
         if not 1 <= self.max_peers <= 256:
             raise BridgeConfigError(f"max_peers={self.max_peers}: expected 1..256")
 
@@ -148,10 +154,12 @@ class Bridge:
                     mine = [by_lens[lens]] if lens in by_lens else []
                 self.cameras.append(CameraComponent(
                     svc, self.cam, self.vehicles, lens=lens, gimbal_device_id=gimbal_ref, video_urls=mine,
-                    identity=self.identity, range_hz=c.range_hz))  # fmt: skip
+                    identity=self.identity, range_hz=c.range_hz, media_url=c.media_url))  # fmt: skip
         self.reboots = RebootWatch(self._peer_rebooted)
         self.node.subscribe(lambda m: self.reboots.on_message(m, time.monotonic()))
         self.node.subscribe(self.vehicles.on_message)
+        self.feed = CameraFeed(self.cam, self.vehicles, c.sysid, own)  # position, attitude, time to the camera
+        self.node.subscribe(self.feed.on_message)
         self.node.subscribe(self.dispatcher.on_message)
         self.node.subscribe(self.device.on_message)
         if self.manager is not None:
@@ -182,6 +190,7 @@ class Bridge:
         await self.cam.start(wait_s=camera_wait_s)
         self.pointer.start()
         self.device.start()
+        self.feed.start()
         for cam in self.cameras:
             cam.start()
         for svc in self.services:
@@ -207,6 +216,7 @@ class Bridge:
             await cam.close()
         for svc in self.services:
             await svc.close()
+        await self.feed.close()
         await self.device.close()
         await self.pointer.close()
         await self.cam.close()

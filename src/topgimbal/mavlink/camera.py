@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 from ._mav import mavlink
 from .camdef import definition_version, settings_for
 from .camera_extras import CameraExtras
+from .camera_feed import file_url
 from .camera_link import CameraLink
 from .camera_tracking import Tracker
 from .camera_view import CameraView
@@ -53,6 +54,7 @@ class CameraComponent:
         video_urls: list[str] | None = None,
         identity: dict[str, Any] | None = None,
         range_hz: float = 0.0,
+        media_url: str | None = None,
     ) -> None:
         self.services = services
         self.comp = services.comp
@@ -64,6 +66,7 @@ class CameraComponent:
         self.video_urls = list(video_urls or [])
         self.identity = identity if identity is not None else {}
         self.range_hz = range_hz if lens == "visible" and self.profile.rangefinder else 0.0
+        self.media_url = media_url  # the camera's files over HTTP (sim --media-port): CAMERA_IMAGE_CAPTURED.file_url
         self.mode_id = 0  # CAMERA_MODE_IMAGE; the camera has no modes: the bridge's own bookkeeping
         self.image_count = 0
         self.images: OrderedDict[int, Any] = OrderedDict()
@@ -254,10 +257,10 @@ class CameraComponent:
 
     async def _take_photo(self) -> MAVLinkMessage:
         values = self.photo_values or {}
-        await self.cam.call(lambda c: c.photo(**values))
-        return self._record_image(True)
+        answer = await self.cam.call(lambda c: c.photo(**values))
+        return self._record_image(True, file_url(self.media_url, self.cam.model_name, self.lens, answer.fields))
 
-    def _record_image(self, ok: bool) -> MAVLinkMessage:
+    def _record_image(self, ok: bool, url: str = "") -> MAVLinkMessage:
         index = self.image_count
         self.image_count += 1
         fix = self.vehicles.fix()
@@ -267,7 +270,7 @@ class CameraComponent:
             alt, rel = int(fix.position.alt_m * 1000), int(fix.relative_alt_m * 1000)
         msg = mavlink().MAVLink_camera_image_captured_message(
             self.comp.node.time_boot_ms(), int(time.time() * 1e6), 0, lat, lon, alt, rel,
-            list(self.view.earth_quaternion()), index, 1 if ok else 0, b"")  # fmt: skip
+            list(self.view.earth_quaternion()), index, 1 if ok else 0, _text(url, 205))  # fmt: skip
         self.images[index] = msg
         while len(self.images) > MAX_REMEMBERED_IMAGES:
             self.images.popitem(last=False)

@@ -89,6 +89,7 @@ class SimState:
     uid: int = 0
     serial: str = ""
     vehicle_input: bool = True  # whether vehicle attitude from the host counts (SkyDroid: after FAE)
+    vehicle_heard: bool = False  # a vehicle attitude arrived (else only AZI may say the heading)
     stream_hz: float | None = None  # rate of on / off streams (TOPOTEK GAA, GIA); None: the profile's
     dirty: bool = False  # persistent state changed
     reboots: int = 0
@@ -96,6 +97,9 @@ class SimState:
     coast_until: float | None = None  # when a stop that has not taken yet takes (stop_coasts quirk)
     coast_axes: tuple[str, ...] = ()  # the axes that stop then
     rng: random.Random = field(default_factory=random.Random)
+    # Called on the simulator's thread as (event, file index) for "photo", "record_start" and
+    # "record_stop" (the media store: video/media.py). A listener must not raise.
+    capture_listeners: list[Callable[[str, int], None]] = field(default_factory=list)
 
     def report(self, ident: str, *, dst: str, src: str | None = None, rw: str | None = None, **values: Any) -> Frame:
         """An unsolicited frame from API-convention values (wire signs applied here)."""

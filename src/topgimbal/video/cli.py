@@ -77,3 +77,63 @@ async def start(sim: Simulator, args: argparse.Namespace) -> SimVideo:
         print(url, flush=True)
         print(f"topgimbal sim: {lens} video at {url} ({video.streams[lens].codec})", file=sys.stderr)
     return video
+
+
+# -- `--media DIR`: the camera's card (media.py, media_http.py) -----------------------------------
+
+
+def _mib(text: str) -> int:
+    if not (text.isascii() and text.isdigit()) or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a size in MiB: give a whole number >= 1")
+    return int(text)
+
+
+def add_media_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("media (the camera's files; needs the video extra)")
+    g.add_argument("--media", metavar="DIR", help="store each photo (JPEG with EXIF/XMP) and recording (MP4) in DIR")
+    g.add_argument(
+        "--media-port", type=_port, metavar="N", help="serve DIR over HTTP on loopback port N (0: a free port)"
+    )
+    g.add_argument("--media-max-mib", type=_mib, default=256, metavar="MIB",
+                   help="size cap of DIR; the oldest files are dropped (default 256)")  # fmt: skip
+
+
+class Media:
+    """The media store and its HTTP server, started and stopped together."""
+
+    def __init__(self, store: object, server: object | None) -> None:
+        self.store, self.server = store, server
+
+    async def stop(self) -> None:
+        from .media import MediaStore
+        from .media_http import MediaServer
+
+        if isinstance(self.server, MediaServer):
+            self.server.stop()
+        if isinstance(self.store, MediaStore):
+            await self.store.stop()
+
+
+async def start_media(sim: Simulator, args: argparse.Namespace) -> Media | None:
+    """Start `--media DIR` (and `--media-port`) as the arguments say; prints the HTTP URL."""
+    directory = getattr(args, "media", None)
+    if directory is None:
+        if getattr(args, "media_port", None) is not None:
+            raise VideoError("--media-port needs --media DIR")
+        return None
+    try:
+        from .media import MediaStore
+        from .media_http import MediaServer
+    except ImportError as exc:
+        raise VideoError(f"--media needs the video extra (pip install 'topgimbal[video]'): {exc}") from None
+    try:
+        store = MediaStore(sim, directory, max_bytes=args.media_max_mib * 1024 * 1024).start()
+    except OSError as exc:
+        raise VideoError(f"--media {directory}: {exc.strerror or exc}") from None
+    server = None
+    if args.media_port is not None:
+        server = MediaServer(directory, video_host(args, sim), args.media_port).start()
+        print(server.url, flush=True)
+        print(f"topgimbal sim: media files at {server.url}", file=sys.stderr)
+    print(f"topgimbal sim: photos and recordings go to {directory}", file=sys.stderr)
+    return Media(store, server)

@@ -105,6 +105,7 @@ function setPageLink(state) {
 
 // The camera's link state from a status push: badge, LOST banner, controls, gauges.
 function applyLink(st) {
+  if (st.feeds !== undefined) $("conn-feeds").textContent = st.feeds;  // what the host feeds the camera
   const reason = showLink(st, S.clockOffset);
   if (reason !== S.lockReason || reason) {
     const was = S.lockReason;

@@ -115,6 +115,9 @@ MODELS: tuple[DeviceModel, ...] = (
         },
         wire_signs={"rate.yaw": -1},
         min_command_gap_s=0.04,
+        # Within the 40 ms pacing (25 frames/s): FAI 10 Hz as on the C11, the position 2 Hz, TIM 1 Hz.
+        host_feeds={"FAI": 10.0, "LAT": 2.0, "LON": 2.0, "ALT": 2.0, "TIM": 1.0},
+        host_setup=(("FAE", {"state": "on"}),),
         slow_answers=frozenset({"MOD"}),
         quirks={"ver_wrong_length": True, "wire_signs": True, "late_answers": False, "command_pacing": False},
         video=_video(60.0, 1.0, thermal_hfov=45.0),

@@ -31,6 +31,9 @@ MODELS: tuple[DeviceModel, ...] = (
         # although §四.3 says up-positive for angles (errata E9).
         wire_signs={"yaw": 1, "pitch": -1, "roll": 1},
         stream_rates_hz={"GAA": 10.0, "GIA": 10.0},
+        # ArduPilot's driver: LAT, LON, ALT, AZI every 100 ms while it has a position; UTC a few
+        # times after boot (here 1 Hz once a time is given: the camera's clock then never drifts).
+        host_feeds={"LAT": 10.0, "LON": 10.0, "ALT": 10.0, "AZI": 10.0, "UTC": 1.0},
         echo_rules={"REC": "feedback with file index", "CAP": "feedback with file index"},
         quirks={"wire_signs": True, "version_digits_only": False},
         # "version@M": what the lens answers when VSN goes to M (TOPOTEK §三.8); the system's (§五.16)

@@ -28,8 +28,10 @@ def recording(state: SimState, msg: Message, req: Request) -> dict[str, Any] | N
         cam.record_started = req.now
         cam.record_index += 1
         state.dirty = True
-    elif not start:
+        _tell(state, "record_start", cam.record_index)
+    elif not start and cam.recording:
         cam.recording = False
+        _tell(state, "record_stop", cam.record_index)
     # TOPOTEK §五.1: #tpDUAwREC11xxxxxxxx (started) / 00xxxxxxxx (stopped), file stream_0_<idx>.h264
     return {"state": "started" if cam.recording else "stopped", "file_index": cam.record_index}
 
@@ -42,7 +44,13 @@ def photo(state: SimState, msg: Message, req: Request) -> dict[str, Any]:
     cam.photo_index += 1
     cam.sd_used_mb += PHOTO_MB
     state.dirty = True
+    _tell(state, "photo", cam.photo_index)
     return {"state": "taken", "file_index": cam.photo_index}
+
+
+def _tell(state: SimState, event: str, index: int) -> None:
+    for listener in list(state.capture_listeners):
+        listener(event, index)
 
 
 def sd_card(state: SimState, msg: Message, req: Request) -> dict[str, Any]:

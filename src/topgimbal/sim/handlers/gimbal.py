@@ -173,6 +173,7 @@ def vehicle_attitude(state: SimState, msg: Message, req: Request) -> None:
     if not state.vehicle_input:
         return
     v = state.gimbal.vehicle
+    state.vehicle_heard = True
     v.yaw = wrap180(f["yaw_deg"])
     v.pitch = float(f["pitch_deg"])
     v.roll = float(f["roll_deg"])

@@ -1,0 +1,163 @@
+"""`topgimbal geotag PHOTOS... --log LOG`: write the vehicle's position (EXIF GPS) and the gimbal
+pose (XMP) into photos from a camera that was not fed, from a log of the flight (geotag_track.py).
+
+Each photo's capture time: the log's CAP answer with the photo's file index where the log has one
+(the index in the name: snap_0_<n>.jpeg, IMG_<n>.jpg), else its EXIF DateTimeOriginal plus
+`--offset` seconds (the camera's clock minus UTC, negated), read as UTC. A photo whose clock was
+never set (before 2000) and that matched by index also gets the log's time as DateTimeOriginal.
+Photos that already have GPS are left alone unless `--overwrite`. The picture itself is not
+re-encoded: only the EXIF and XMP segments change. A bad file is reported on stderr and the others
+go on; the exit status is 1 when any photo was not tagged."""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import io
+import math
+import os
+import re
+import sys
+import warnings
+from pathlib import Path
+
+from ..errors import TopGimbalError
+from .geotag_track import Track, TrackError, load_track
+
+INDEX_IN_NAME = re.compile(r"^(?:snap_\d_|IMG_|DJI_)(\d+)", re.IGNORECASE)
+PHOTO_SUFFIXES = {".jpg", ".jpeg"}
+CLOCK_NEVER_SET_YEAR = 2000
+
+
+def _seconds(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds")
+    return v
+
+
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = subparsers.add_parser(
+        "geotag",
+        help="write GPS and gimbal pose into photos from a log (traffic .jsonl or MAVLink .tlog)",
+        description=__doc__.split("\n\n")[0] if __doc__ else None,
+    )
+    p.add_argument("photos", nargs="+", metavar="PHOTO", help="JPEG files or folders of them")
+    p.add_argument("--log", required=True, metavar="LOG", help="the client's traffic log (JSONL) or a MAVLink .tlog")
+    p.add_argument("--offset", type=_seconds, default=0.0, metavar="S",
+                   help="seconds to add to a photo's DateTimeOriginal to get UTC (default 0)")  # fmt: skip
+    p.add_argument("--max-gap", type=_seconds, default=10.0, metavar="S",
+                   help="no position across a gap in the log longer than S seconds (default 10)")  # fmt: skip
+    p.add_argument("--overwrite", action="store_true", help="replace GPS tags a photo already has")
+    p.add_argument("--dry-run", action="store_true", help="say what would be written, change nothing")
+    p.set_defaults(func=run)
+
+
+def _photos(items: list[str]) -> list[Path]:
+    out: list[Path] = []
+    for item in items:
+        p = Path(item)
+        if p.is_dir():
+            out += sorted(q for q in p.iterdir() if q.suffix.lower() in PHOTO_SUFFIXES and q.is_file())
+        else:
+            out.append(p)
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        track = load_track(Path(args.log))
+    except FileNotFoundError:
+        raise TrackError(f"--log {args.log}: no such file") from None
+    except OSError as exc:
+        raise TrackError(f"--log {args.log}: {exc.strerror or exc}") from None
+    track.max_gap_s = args.max_gap
+    photos = _photos(args.photos)
+    if not photos:
+        print("topgimbal geotag: no JPEG photo given (files or folders of *.jpg / *.jpeg)", file=sys.stderr)
+        return 2
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # Pillow warns on corrupt EXIF and uses what it could read: so do we
+        failed = _tag_all(photos, track, args)
+    print(f"topgimbal geotag: {len(photos) - failed} of {len(photos)} photos tagged", file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _tag_all(photos: list[Path], track: Track, args: argparse.Namespace) -> int:
+    """Tag each photo; a failure is reported and the next one goes on. Returns how many failed."""
+    failed = 0
+    for path in photos:
+        try:
+            print(tag_photo(path, track, offset_s=args.offset, overwrite=args.overwrite, dry_run=args.dry_run))
+        except (TopGimbalError, OSError, ValueError) as exc:
+            failed += 1
+            print(f"topgimbal geotag: {path}: {exc}", file=sys.stderr)
+        except Exception as exc:  # a file no reader expected (Pillow's parsers raise many kinds): go on
+            failed += 1
+            print(f"topgimbal geotag: {path}: unreadable metadata ({type(exc).__name__}: {exc})", file=sys.stderr)
+    return failed
+
+
+class GeotagError(TopGimbalError, ValueError):
+    pass
+
+
+def tag_photo(
+    path: Path, track: Track, *, offset_s: float = 0.0, overwrite: bool = False, dry_run: bool = False
+) -> str:
+    """Tag one photo; returns what was done, raises GeotagError / OSError saying why not."""
+    from PIL import Image, UnidentifiedImageError
+
+    from ..video.exif import EXIF_TIME, IFD_EXIF, IFD_GPS, TAG_ORIGINAL, ExifError, PhotoMeta, Pose, tag_jpeg
+
+    data = path.read_bytes()
+    try:
+        with Image.open(io.BytesIO(data)) as img:
+            if img.format != "JPEG":
+                raise GeotagError(f"not a JPEG ({img.format})")
+            exif = img.getexif()
+    except (UnidentifiedImageError, OSError, SyntaxError) as exc:
+        raise GeotagError(f"not a readable picture: {exc}") from None
+    if exif.get_ifd(IFD_GPS).get(2) and not overwrite:
+        return f"{path}: has GPS already (--overwrite replaces it)"
+    taken: datetime.datetime | None = None
+    text = exif.get_ifd(IFD_EXIF).get(TAG_ORIGINAL)
+    if isinstance(text, str):
+        try:
+            taken = datetime.datetime.strptime(text.strip("\x00 "), EXIF_TIME)
+        except ValueError:
+            taken = None
+    m = INDEX_IN_NAME.match(path.name)
+    index = int(m.group(1)) if m else None
+    new_time = None
+    if index is not None and index in track.captures:
+        t, how = track.captures[index], f"photo {index}'s CAP in the log"
+        if taken is None or taken.year < CLOCK_NEVER_SET_YEAR:
+            new_time = datetime.datetime.fromtimestamp(t, datetime.timezone.utc).replace(tzinfo=None)
+    elif taken is not None and taken.year >= CLOCK_NEVER_SET_YEAR:
+        t = taken.replace(tzinfo=datetime.timezone.utc).timestamp() + offset_s
+        how = f"DateTimeOriginal {taken:%Y-%m-%d %H:%M:%S}" + (f" {offset_s:+g} s" if offset_s else "")
+    else:
+        raise GeotagError("no capture time: no CAP for its file index in the log, and no DateTimeOriginal set "
+                          "by a clock (give the camera's time with TIM / UTC, or use --offset)")  # fmt: skip
+    at = track.at(t)
+    if at is None:
+        when = datetime.datetime.fromtimestamp(t, datetime.timezone.utc)
+        raise GeotagError(f"the log has no position at {when:%Y-%m-%d %H:%M:%S} UTC (from {how})")
+    pose = track.pose_at(t)
+    meta = PhotoMeta(time=new_time, lat_deg=at.lat_deg, lon_deg=at.lon_deg, alt_m=at.alt_m,
+                     gimbal=Pose(*pose) if pose is not None else None)  # fmt: skip
+    summary = f"{path}: {at.lat_deg:.7f}, {at.lon_deg:.7f}, {at.alt_m:.1f} m (matched by {how})"
+    if dry_run:
+        return summary + " [dry run]"
+    try:
+        out = tag_jpeg(data, meta, base=exif)
+    except ExifError as exc:
+        raise GeotagError(str(exc)) from None
+    tmp = path.with_name(path.name + ".geotag-tmp")
+    tmp.write_bytes(out)
+    os.replace(tmp, path)
+    return summary

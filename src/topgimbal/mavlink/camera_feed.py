@@ -1,0 +1,159 @@
+"""The bridge feeds the camera what the autopilot says, so its photos carry where and when they
+were taken: the position (GLOBAL_POSITION_INT), the vehicle attitude (AUTOPILOT_STATE_FOR_GIMBAL_DEVICE,
+else ATTITUDE: `Vehicles.attitude_deg()`) and the UTC time (SYSTEM_TIME, handled here).
+
+Every `PERIOD_S` the latest of each goes to the client's feeds (client/feeds.py), which send them at
+the model's profile rates (TOPOTEK: LAT, LON, ALT, AZI at 10 Hz and UTC at 1 Hz, as ArduPilot's
+AP_Mount_Topotek does; C12: FAI 10 Hz, LAT/LON/ALT 2 Hz, TIM 1 Hz).
+
+No fix, no feed: a GLOBAL_POSITION_INT older than vehicle.STALE_S, or at 0, 0 (what an autopilot
+sends before its first fix), stops the position feeds; the camera keeps the last position it
+was given, as a real one does, but nothing stale is sent as if it were current. SYSTEM_TIME with
+time_unix_usec 0 (no GPS time yet) is ignored: the camera's clock is then left alone (a camera
+without a clock keeps counting from 1970, the others keep theirs)."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import datetime
+import logging
+import time
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+from ..client.api_feed import FeedSample, apply_sample
+from ..client.feeds import Fix
+from ..errors import TopGimbalError
+from ..protocol import get_model
+from ..video.lens import photo_names
+
+if TYPE_CHECKING:
+    from ._mav import MAVLinkMessage
+    from .camera_link import CameraLink
+    from .vehicle import Vehicles
+
+log = logging.getLogger("topgimbal.mavlink")
+
+PERIOD_S = 0.1
+TIME_STALE_S = 5.0  # a SYSTEM_TIME older than this is not used (the offset is kept by the feeds)
+
+
+def file_url(media_url: str | None, model: str, lens: str, answer: Mapping[str, object] | None) -> str:
+    """CAMERA_IMAGE_CAPTURED.file_url: the photo's file on the camera's media server, where the
+    bridge was told that server (`--media-url`) and the camera's answer names the file (TOPOTEK's
+    CAP feedback carries its file index); else empty, as MAVLink allows."""
+    index = (answer or {}).get("file_index")
+    if not media_url or not isinstance(index, int):
+        return ""
+    return media_url.rstrip("/") + "/" + photo_names(get_model(model)[0].name, index, [lens])[lens]
+
+
+class AutopilotState:
+    """What the autopilot says, as a FeedSample: the fix and attitude from `Vehicles`, the time
+    from SYSTEM_TIME (handled here)."""
+
+    def __init__(self, vehicles: Vehicles, sysid: int, own_compids: set[int]) -> None:
+        self.vehicles = vehicles
+        self.sysid = sysid
+        self.own = own_compids
+        self._utc: tuple[datetime.datetime, float] | None = None  # (autopilot UTC, monotonic when heard)
+        self.utc_new = False  # a SYSTEM_TIME not yet handed on
+
+    def on_message(self, m: MAVLinkMessage) -> None:
+        if m.get_type() != "SYSTEM_TIME" or m.get_srcSystem() != self.sysid or m.get_srcComponent() in self.own:
+            return
+        usec = int(m.time_unix_usec)
+        if usec <= 0:
+            return  # no GPS time yet
+        try:
+            utc = datetime.datetime.fromtimestamp(usec / 1e6, datetime.timezone.utc)
+        except (OverflowError, OSError, ValueError):
+            return  # a time no calendar holds: not a time
+        self._utc, self.utc_new = (utc, time.monotonic()), True
+
+    @property
+    def has_time(self) -> bool:
+        return self._utc is not None
+
+    def sample(self) -> FeedSample:
+        """What the autopilot says now (a fix only when it is fresh and not 0, 0)."""
+        f = self.vehicles.fix()
+        fix = None
+        if f is not None and not (f.position.lat_deg == 0 and f.position.lon_deg == 0):
+            with contextlib.suppress(ValueError):  # out-of-range numbers from the network: no fix
+                fix = Fix(f.position.lat_deg, f.position.lon_deg, f.position.alt_m, self.vehicles.yaw_deg)
+        utc = None
+        if self._utc is not None and self.utc_new and time.monotonic() - self._utc[1] <= TIME_STALE_S:
+            utc = self._utc[0] + datetime.timedelta(seconds=time.monotonic() - self._utc[1])
+        return FeedSample(fix=fix, time_utc=utc, attitude_deg=self.vehicles.attitude_deg())
+
+
+class MavlinkSource:
+    """A feed source for `cam.feed_from(...)` reading an autopilot's MAVLink connection without the
+    bridge: anything with pymavlink's `recv_match(blocking=False)` (e.g.
+    `mavutil.mavlink_connection("udpin:127.0.0.1:14551")`). Each call drains at most
+    `max_messages` and returns what the autopilot says now."""
+
+    def __init__(self, conn: Any, sysid: int = 1, *, max_messages: int = 500) -> None:
+        from .vehicle import Vehicles
+
+        self.conn = conn
+        self.max_messages = max_messages
+        self.state = AutopilotState(Vehicles(sysid, set()), sysid, set())
+
+    def __call__(self) -> FeedSample:
+        for _ in range(self.max_messages):
+            m = self.conn.recv_match(blocking=False)
+            if m is None:
+                break
+            if m.get_type() == "BAD_DATA":
+                continue
+            self.state.vehicles.on_message(m)
+            self.state.on_message(m)
+        sample = self.state.sample()
+        self.state.utc_new = False
+        return sample
+
+
+class CameraFeed:
+    def __init__(self, cam: CameraLink, vehicles: Vehicles, sysid: int, own_compids: set[int]) -> None:
+        self.cam = cam
+        self.autopilot = AutopilotState(vehicles, sysid, own_compids)
+        self.on_message = self.autopilot.on_message
+        self._client: object = None  # the client last fed (a reconnect makes a new one: time again)
+        self._task: asyncio.Task[None] | None = None
+        self.samples = 0
+        self.state = "waiting for the autopilot"
+
+    def sample(self) -> FeedSample:
+        return self.autopilot.sample()
+
+    def start(self) -> None:
+        self._task = asyncio.ensure_future(self._run())
+
+    async def close(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+
+    async def _run(self) -> None:
+        while True:
+            await asyncio.sleep(PERIOD_S)
+            client = self.cam.client
+            if client is None or not client.connected:
+                continue
+            if client is not self._client:  # a new connection: its feeds know nothing yet
+                self._client = client
+                self.autopilot.utc_new = self.autopilot.has_time
+            sample = self.sample()
+            try:
+                await apply_sample(client, sample)
+            except TopGimbalError as exc:
+                log.info("camera feed: %s", exc)
+                continue
+            if sample.time_utc is not None:
+                self.autopilot.utc_new = False
+            self.samples += 1
+            self.state = client.feeds.summary()
