@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from ..errors import TopGimbalError
 from . import args as common
 
-COMMAND_MODULES = ("protocol_cmds", "sim_cmd", "device_cmds", "console_cmd", "mavlink_cmd", "wire_cmds")
+COMMAND_MODULES = ("protocol_cmds", "sim_cmd", "device_cmds", "console_cmd", "mavlink_cmd", "wire_cmds", "zenoh_cmd")
 
 
 def build_parser() -> argparse.ArgumentParser:
