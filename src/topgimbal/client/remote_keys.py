@@ -168,7 +168,7 @@ def decode_result(method: str, value: object, model: str) -> object:
 
 def _message(value: Mapping[str, object], model: str) -> Message:
     frame = parse_frame(str(value["frame"]))
-    dialect = get_model(model).dialect
+    dialect = get_model(model)[0]
     local = dialect.decode(frame)  # spec and form; the fields are the server's (API convention)
     fields = value.get("fields")
     return Message(frame, local.spec, local.form, dict(fields) if isinstance(fields, dict) else None,

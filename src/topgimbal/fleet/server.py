@@ -37,7 +37,7 @@ class FleetServer:
         client_options: dict[str, Any] | None = None,
     ) -> None:
         self.specs = collect(cameras)
-        self.endpoints = {"listen": list(listen), "connect": list(connect), "mode": mode, "config_file": config_file}
+        self.listen, self.connect, self.mode, self.config_file = list(listen), list(connect), mode, config_file
         self.rate_hz = rate_hz
         self.max_calls = max_calls
         self.client_options = dict(client_options or {})
@@ -46,10 +46,9 @@ class FleetServer:
         self._closed = asyncio.Event()
 
     async def start(self) -> FleetServer:
-        e = self.endpoints
         # Opening may wait for a router (client mode): off the loop.
         self.session = await asyncio.to_thread(
-            open_session, listen=e["listen"], connect=e["connect"], mode=e["mode"], config_file=e["config_file"]
+            open_session, listen=self.listen, connect=self.connect, mode=self.mode, config_file=self.config_file
         )
         try:
             for spec in self.specs:
@@ -60,7 +59,7 @@ class FleetServer:
         except BaseException:
             await self.close()
             raise
-        log.info("serving %d cameras on Zenoh (%s)", len(self.cameras), e)
+        log.info("serving %d cameras on Zenoh (%s)", len(self.cameras), ", ".join(self.listen + self.connect))
         return self
 
     async def close(self) -> None:
