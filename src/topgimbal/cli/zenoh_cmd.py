@@ -11,7 +11,7 @@ from ..errors import FieldValueError
 from .runtime import stop_on_signals, wait_stopped
 
 
-def _camera(text: str) -> object:
+def camera_arg(text: str) -> object:
     from ..fleet.specs import parse_camera
 
     try:
@@ -53,7 +53,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "token per camera and the queryable topgimbal/NAME/call/METHOD (JSON keyword arguments of the SDK's "
         "methods). Multicast and gossip scouting are off: give --listen and/or --connect endpoints.",
     )
-    p.add_argument("--camera", action="append", type=_camera, default=[], metavar="NAME=URL,MODEL",
+    p.add_argument("--camera", action="append", type=camera_arg, default=[], metavar="NAME=URL,MODEL",
                    help="a camera to serve, e.g. cam1=udp://127.0.0.1:5000,C12 (repeatable)")  # fmt: skip
     p.add_argument("--cameras", metavar="FILE", help="cameras from a file: NAME=URL,MODEL per line, or a JSON list")
     p.add_argument("--listen", action="append", type=_endpoint, default=[], metavar="ENDPOINT",
