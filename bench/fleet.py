@@ -158,7 +158,7 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int) -> dict[str, A
         # command round trips: through Zenoh, then direct
         zrtt: list[float] = []
         zfail: list[str] = []
-        for i in range(calls):
+        for _ in range(calls):
             key = "topgimbal/cam0/call/version"  # the camera the direct client asks too
             t = time.perf_counter()
             replies = await asyncio.to_thread(lambda k=key: list(session.get(k, payload="{}", timeout=10)))
