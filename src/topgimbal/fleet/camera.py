@@ -14,6 +14,7 @@ import contextlib
 import json
 import logging
 import time
+from collections.abc import Callable
 from typing import Any
 
 from ..client import AsyncClient, StateCache
@@ -70,6 +71,7 @@ class ServedCamera:
         self._last_state: str | None = None
         self._busy_logged = 0.0
         self._closing = False
+        self._unsubscribe: list[Callable[[], None]] = []
 
     async def start(self) -> ServedCamera:
         self.loop = asyncio.get_running_loop()
@@ -82,14 +84,15 @@ class ServedCamera:
         self._decls.append(s.declare_queryable(key(self.name, "call/*"), self._on_query_thread))
         self._decls.append(s.declare_queryable(key(self.name, "info"), self._on_info_thread))
         self._decls.append(s.liveliness().declare_token(liveliness_key(self.name)))
-        self.client.on_link_change(self._on_link)
-        self.client.subscribe(self._on_frame)
+        self._unsubscribe = [self.client.on_link_change(self._on_link), self.client.subscribe(self._on_frame)]
         self._tasks.append(asyncio.ensure_future(self._attitude_loop()))
         self._tasks.append(asyncio.ensure_future(self._state_loop()))
         return self
 
     async def close(self) -> None:
         self._closing = True
+        for remove in self._unsubscribe:
+            remove()
         for t in [*self._tasks, *self._calls]:
             t.cancel()
         for t in [*self._tasks, *self._calls]:
@@ -104,18 +107,21 @@ class ServedCamera:
     # -- what it publishes --------------------------------------------------------------------------
 
     async def _attitude_loop(self) -> None:
-        """Keeps the camera's attitude stream at `rate_hz` (started again after a loss). Samples are
-        published from `_on_frame`, every frame the camera sends: a stream consumer would thin out
-        samples that come a little early, which under load on a busy host is one in three."""
+        """Asks the camera for its attitude stream at `rate_hz` until it has accepted once; the SDK
+        keeps it on from then (asked again after a link loss). Samples are published by `_on_frame`,
+        every frame the camera sends: a stream consumer would wake a task per sample and thin out
+        samples that come a little early (one in three under load on a busy host)."""
         while True:
             try:
-                async for _att in self.client.attitude(self.rate_hz, abandon_after_s=3600.0):
-                    pass
+                await self.client.attitude_stream(self.rate_hz)
+                return
             except TopGimbalError as exc:
-                log.debug("%s: attitude stream ended: %s", self.name, exc)
-            await asyncio.sleep(0.5)
+                log.debug("%s: attitude stream not started: %s", self.name, exc)
+            await asyncio.sleep(1.0)
 
     def _on_frame(self, message: Message) -> None:
+        if self._closing:
+            return
         att = attitude_of(StateCache.values_of(message), "attitude", message.ident)
         if att is None:
             return
@@ -147,7 +153,8 @@ class ServedCamera:
             await asyncio.sleep(STATE_POLL_S)
 
     def _on_link(self, up: bool, reason: str) -> None:
-        self._link.put(json.dumps({"up": up, "reason": reason, "t": time.time()}))
+        if not self._closing:
+            self._link.put(json.dumps({"up": up, "reason": reason, "t": time.time()}))
 
     # -- queries ------------------------------------------------------------------------------------
 
