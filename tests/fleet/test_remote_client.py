@@ -71,8 +71,12 @@ async def test_link_down_and_up_reach_a_remote_client(sims: Any, zport: int) -> 
             cam.on_link_change(lambda up, reason: changes.append((up, reason)))
             raw = raw_session(zport)
             links: list[dict[str, Any]] = []
+            states: list[dict[str, Any]] = []
             sub = raw.declare_subscriber(
                 "topgimbal/cam/link", lambda s: links.append(json.loads(s.payload.to_string()))
+            )
+            sub2 = raw.declare_subscriber(
+                "topgimbal/cam/state", lambda s: states.append(json.loads(s.payload.to_string()))
             )
             await asyncio.sleep(1.0)  # the attitude stream runs
             await sim.stop()  # the camera goes away
@@ -82,7 +86,10 @@ async def test_link_down_and_up_reach_a_remote_client(sims: Any, zport: int) -> 
             assert down["reason"]
             with pytest.raises((LinkLostError, topgimbal.RequestTimeoutError)):
                 await cam.version()
+            await eventually(lambda: any(x["up"] is False and x["model"] == "C12" for x in states), 20, "state: down")
+            assert "stats" in states[-1] and states[-1]["stats"]["link_losses"] >= 1
             sub.undeclare()
+            sub2.undeclare()
             raw.close()
         finally:
             await cam.close()
@@ -133,3 +140,24 @@ def test_url_and_camera_forms(tmp_path: Any) -> None:
     j.write_text('[{"name": 3}]')
     with pytest.raises(FieldValueError):
         read_camera_file(str(j))
+
+
+def test_config_file_is_read_and_scouting_stays_off(tmp_path: Any) -> None:
+    from topgimbal.client.zenoh_session import make_config
+
+    f = tmp_path / "zenoh.json5"
+    f.write_text(
+        '{ mode: "peer", scouting: { multicast: { enabled: true } }, listen: { endpoints: ["tcp/127.0.0.1:7999"] } }'
+    )
+    conf = make_config(config_file=str(f))
+    got = {k: json.loads(conf.get_json(k)) for k in ("scouting/multicast/enabled", "scouting/gossip/enabled")}
+    assert got == {"scouting/multicast/enabled": False, "scouting/gossip/enabled": False}
+    assert json.loads(conf.get_json("listen/endpoints")) == ["tcp/127.0.0.1:7999"]  # the file's: no --listen given
+    conf = make_config(config_file=str(f), listen=["tcp/127.0.0.1:7998"])
+    assert json.loads(conf.get_json("listen/endpoints")) == ["tcp/127.0.0.1:7998"]
+    with pytest.raises(FieldValueError, match="configuration file"):
+        make_config(config_file=str(tmp_path / "missing.json5"))
+    with pytest.raises(FieldValueError):
+        make_config(listen=["127.0.0.1:7447"])
+    with pytest.raises(FieldValueError):
+        make_config(mode="client")  # a client needs somewhere to connect
