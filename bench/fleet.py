@@ -85,6 +85,7 @@ class Subscriber:
         self.counting = False
         self.count = 0
         self.lost = 0
+        self.repeated = 0  # a seq not above the last one: a copy or a reordering
         self.last_seq: dict[str, int] = {}
         self.latency: list[float] = []
 
@@ -100,6 +101,8 @@ class Subscriber:
             self.count += 1
             if prev is not None and d["seq"] > prev + 1:
                 self.lost += d["seq"] - prev - 1
+            elif prev is not None and d["seq"] <= prev:
+                self.repeated += 1
             self.latency.append(now - d["t"])
 
 
@@ -150,7 +153,7 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int) -> dict[str, A
         await asyncio.sleep(seconds)
         with sub.lock:
             sub.counting = False
-            count, lost, lat = sub.count, sub.lost, list(sub.latency)
+            count, lost, repeated, lat = sub.count, sub.lost, sub.repeated, list(sub.latency)
         wall = time.monotonic() - t0
         cpu1 = (cpu_s(server.pid), cpu_s(sims.pid))
         streaming = len(sub.last_seq)
@@ -180,6 +183,7 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int) -> dict[str, A
             "delivered_per_s": round(count / wall, 1), "nominal_per_s": n * rate_hz,
             "of_nominal_pct": round(100 * count / wall / (n * rate_hz), 1),
             "lost_server_to_subscriber_pct": round(100 * lost / max(1, count + lost), 3),
+            "repeated_or_reordered": repeated,
             "latency_ms_p50": round(pct(lat, 50) * 1000, 2), "latency_ms_p99": round(pct(lat, 99) * 1000, 2),
             "cmd_rtt_ms_zenoh_p50": round(pct(zrtt, 50) * 1000, 2), "cmd_rtt_ms_zenoh_p99": round(pct(zrtt, 99) * 1000, 2),
             "cmd_rtt_ms_direct_p50": round(pct(drtt, 50) * 1000, 2), "cmd_rtt_ms_direct_p99": round(pct(drtt, 99) * 1000, 2),
