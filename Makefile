@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps exiftool-deps
+.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps exiftool-deps mavproxy-deps
 
 # The C fast path is compiled by `pip install`: rebuild it when its sources change.
 $(STAMP): pyproject.toml setup.py src/topgimbal/_speedups/_ctop.c $(wildcard c/src/*.c c/include/*.h c/generated/*)
@@ -73,11 +73,16 @@ docs-check: $(STAMP)
 
 # The whole suite on the C fast path, then the protocol, client and fast-path tests again on the pure
 # Python path (what runs where no compiler built the extension; tests/speedups compares the two).
-pytest: $(STAMP) browser-deps tshark-deps video-deps exiftool-deps
+pytest: $(STAMP) browser-deps tshark-deps video-deps exiftool-deps mavproxy-deps
 	$(BIN)/python -m pytest -q
 	TOPGIMBAL_PURE=1 $(BIN)/python -m pytest -q tests/protocol tests/client tests/speedups
 
 # libtopgimbal (c/): clang with libFuzzer and sanitizer runtimes, installed only when missing.
+# MAVProxy as a MAVLink router in the tests (tests/mavlink/test_multi_router.py). --no-deps: its
+# declared dependencies pull in opencv, vtk and matplotlib, which routing never imports.
+mavproxy-deps: $(STAMP)
+	@$(BIN)/python -c "import MAVProxy" 2>/dev/null || $(BIN)/pip install --quiet --no-deps MAVProxy==1.8.75
+
 c-deps:
 	$(MAKE) -C c deps
 
@@ -86,7 +91,7 @@ c-deps:
 c-test: $(STAMP) c-deps
 	$(MAKE) -C c test PYTHON=$(CURDIR)/$(BIN)/python
 
-test: $(STAMP) browser-deps tshark-deps video-deps exiftool-deps c-deps lint typecheck pytest c-test
+test: $(STAMP) browser-deps tshark-deps video-deps exiftool-deps mavproxy-deps c-deps lint typecheck pytest c-test
 
 demo: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.demo

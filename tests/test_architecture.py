@@ -21,7 +21,8 @@ ALLOWED = {
     "tools": {"protocol", "client", "sim", "console", "_speedups", "video"},
     "mavlink": {"protocol", "client", "video"},  # video.lens only (streams and fields of view from the profile)
     "wire": {"protocol", "transport", "client"},  # client only for the JSONL traffic log format
-    "cli": {"protocol", "client", "transport", "sim", "console", "tools", "mavlink", "wire", "video"},
+    "fleet": {"protocol", "client"},  # the Zenoh fleet server: SDK clients on one session
+    "cli": {"protocol", "client", "transport", "sim", "console", "tools", "mavlink", "wire", "video", "fleet"},
 }
 
 

@@ -105,7 +105,7 @@ URL_RE = re.compile(r"\b(udp|tcp)://([^/:\s?]+|\[[^\]]+\]):(\w+)")
 SERIAL_RE = re.compile(r"(serial://)?(/dev/tty\w+)")
 IPV4_RE = re.compile(r"\b(\d{1,3}\.\d{1,3}\.\d{1,3}\.\d{1,3})\b")
 DOC_PORT_MODEL = {"9003": "SIP", "9004": "SIP"}
-DAEMONS = {"sim", "proxy", "console", "mavlink"}
+DAEMONS = {"sim", "proxy", "console", "mavlink", "zenoh"}
 
 
 # -- extraction ------------------------------------------------------------------------------------
@@ -323,6 +323,7 @@ class Session:
         self.sockets: list[socket.socket] = []
         self._pending: list[tuple[str, str, int]] = []  # listeners of the command being set up
         self._heartbeat_socket: socket.socket | None = None  # where its mavlink udpout points
+        self.zenoh_ports: dict[str, int] = {}  # a doc's Zenoh address -> the free port used for it
         self._tcp_in: int | None = None  # its mavlink tcpin port
         self._console: str | None = None  # the console curl talks to
         self._media: Daemon | None = None  # the sim whose --media-port the doc's http://127.0.0.1:8090/ is
@@ -390,6 +391,10 @@ class Session:
                 out += [tok, "0"]
                 i += 2
                 continue
+            if sub == "zenoh" and tok in ("--listen", "--connect") and nxt is not None:
+                out += [tok, self._zenoh_endpoint(nxt)]  # tcp/127.0.0.1:7447 may be taken
+                i += 2
+                continue
             if sub == "mavlink" and tok == "--mavlink" and nxt is not None:
                 out += [tok, self._mavlink_endpoint(nxt)]
                 i += 2
@@ -428,6 +433,15 @@ class Session:
         sm = SERIAL_RE.match(value)
         assert sm, f"cannot listen on {value!r} in a test"
         return f"serial://{self._pty()}" + value[sm.end() :]
+
+    def _zenoh_endpoint(self, value: str) -> str:
+        proto, _, address = value.partition("/")
+        assert address.rpartition(":")[0] in LOOPBACK, f"Zenoh endpoint {value!r} is not loopback"
+        if address not in self.zenoh_ports:
+            with socket.socket() as s:
+                s.bind(("127.0.0.1", 0))
+                self.zenoh_ports[address] = s.getsockname()[1]
+        return f"{proto}/127.0.0.1:{self.zenoh_ports[address]}"
 
     def _mavlink_endpoint(self, value: str) -> str:
         kind = value.partition(":")[0]
@@ -568,6 +582,8 @@ class Session:
             url = daemon.wait_for(r"open (http://127\.0\.0\.1:\d+/)").group(1)
             with urllib.request.urlopen(url, timeout=RUN_TIMEOUT_S) as page:
                 assert page.status == 200 and b"<html" in page.read().lower(), ex.label
+        elif sub == "zenoh":
+            daemon.wait_for(r"^zenoh: serving \d+ cameras on tcp/127\.0\.0\.1:\d+")
         elif sub == "mavlink":
             daemon.wait_for(r"^mavlink bridge: ")
             sock = self._heartbeat_socket

@@ -24,6 +24,7 @@ COMMAND_MODULES = (
     "wire_cmds",
     "media_cmd",
     "geotag_cmd",
+    "zenoh_cmd",
 )
 
 

@@ -9,6 +9,7 @@ import sys
 
 from ..video.cli import add_video_port_argument
 from .args import add_camera_subcommand
+from .mavlink_multi import add_fleet_arguments, run_multi
 from .runtime import stop_on_signals, wait_stopped
 
 GIMBAL_COMPIDS = (154, 171, 172, 173, 174, 175)
@@ -26,6 +27,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "or a serial DEVICE[,BAUD]; give --mavlink several times for several links. See docs/mavlink.md.",
     )
     p.add_argument("--mavlink", action="append", required=True, metavar="ENDPOINT", help="MAVLink link (repeatable)")
+    add_fleet_arguments(p)
     p.add_argument("--sysid", type=int, default=1, help="MAVLink system id (default 1: the vehicle's)")
     p.add_argument("--compid", type=int, default=154, choices=GIMBAL_COMPIDS, help="gimbal component id (default 154)")
     p.add_argument(
@@ -116,6 +118,8 @@ def build_config(args: argparse.Namespace) -> object:
 def run(args: argparse.Namespace) -> int:
     from ..mavlink import Bridge
 
+    if args.camera:  # several cameras: one component set each on shared links (mavlink_multi.py)
+        return run_multi(args)
     config = build_config(args)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
 

@@ -177,7 +177,12 @@ def connect(url: str, model: str | DeviceModel = "C12", **options: Unpack[Connec
     client/options.py; None takes the model profile's value): echo_motion, combined_motion,
     late_window_s, dup_window_s, stop_repeats, host_address, link_timeout_s, reconnect_s,
     min_command_gap_s, check_model, host_feeds, stream_renew_s; and timeout_s (per attempt, 1 s),
-    retries (2), signs (per-axis overrides), log_path (JSONL traffic log)."""
+    retries (2), signs (per-axis overrides), log_path (JSONL traffic log).
+    `zenoh/NAME?connect=tcp/HOST:PORT`: a camera served by `topgimbal zenoh` (client/remote.py)."""
+    if isinstance(url, str) and url.startswith("zenoh"):  # a remote camera: same methods, over Zenoh
+        from .remote import RemoteClient
+
+        return _Connector(RemoteClient(url, model, **options))  # type: ignore[arg-type]
     return _Connector(AsyncClient(url, model, **options))
 
 

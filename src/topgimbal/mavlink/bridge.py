@@ -90,8 +90,9 @@ class BridgeConfig:
             raise BridgeConfigError(f"system id {self.sysid}: expected 1..255")
         if self.compid not in GIMBAL_COMPIDS:
             raise BridgeConfigError(f"gimbal component id {self.compid}: expected one of {GIMBAL_COMPIDS}")
-        if self.camera_compid is not None and self.camera_compid not in CAMERA_COMPIDS[:-1]:
-            raise BridgeConfigError(f"camera component id {self.camera_compid}: expected one of {CAMERA_COMPIDS[:-1]}")
+        allowed = CAMERA_COMPIDS[:-1] if self.thermal else CAMERA_COMPIDS  # the thermal lens takes the next id
+        if self.camera_compid is not None and self.camera_compid not in allowed:
+            raise BridgeConfigError(f"camera component id {self.camera_compid}: expected one of {allowed}")
         for name, lo, hi in (("attitude_hz", 0.0, 100.0), ("stream_hz", 1.0, 100.0), ("heartbeat_hz", 0.1, 10.0),
                              ("range_hz", 0.0, 10.0), ("silence_s", 0.2, 60.0), ("timeout_s", 0.05, 30.0)):  # fmt: skip
             v = getattr(self, name)
@@ -111,7 +112,9 @@ class BridgeConfig:
 
 
 class Bridge:
-    def __init__(self, config: BridgeConfig) -> None:
+    def __init__(self, config: BridgeConfig, node: Node | None = None) -> None:
+        """`node`: a MAVLink node shared with other bridges (multi.py: N cameras on one set of
+        links), started and closed by its owner; None: this bridge's own, from `endpoints`."""
         config.check()
         self.config = config
         c = config
@@ -119,7 +122,10 @@ class Bridge:
             c.url, c.model, stream_hz=c.stream_hz, silence_s=c.silence_s, timeout_s=c.timeout_s,
             retries=c.retries, client_options=c.client_options,
         )  # fmt: skip
-        self.node = Node(c.sysid, list(c.endpoints), max_peers=c.max_peers, signing_key=c.signing_key)
+        self._own_node = node is None
+        self.node = (
+            node if node is not None else Node(c.sysid, list(c.endpoints), max_peers=c.max_peers, signing_key=c.signing_key)
+        )
         self.dispatcher = Dispatcher()
         self.identity: dict[str, Any] = {}
         own = {c.compid} | ({c.camera_compid, c.camera_compid + 1} if c.camera_compid is not None else set())
@@ -185,7 +191,8 @@ class Bridge:
         return [link.address for link in self.node.links]
 
     async def start(self, camera_wait_s: float = 2.0) -> Bridge:
-        await self.node.start()
+        if self._own_node:
+            await self.node.start()
         await self._serve_definitions()
         await self.cam.start(wait_s=camera_wait_s)
         self.pointer.start()
@@ -220,7 +227,8 @@ class Bridge:
         await self.device.close()
         await self.pointer.close()
         await self.cam.close()
-        await self.node.close()
+        if self._own_node:
+            await self.node.close()
         if self.definitions is not None:
             await self.definitions.close()
         self._closed.set()

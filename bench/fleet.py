@@ -1,0 +1,235 @@
+"""Fleet benchmark: N simulated cameras (one simulator process) served by one `topgimbal zenoh`
+process to a subscriber in a third process (this one, eclipse-zenoh directly). Figures, no
+assertions:
+
+- attitude messages delivered per second (all cameras) against the nominal N x rate, and the loss
+  between server and subscriber (gaps in each camera's `seq`);
+- latency p50 / p99 from the camera's frame reaching the server's client (the `t` stamped on
+  arrival there; the simulator is on the same loopback, so the UDP hop adds tens of microseconds)
+  to the subscriber's callback;
+- a command's round trip p50 / p99 to camera 0 (`version()`, a VER query, which the attitude
+  stream does not answer): through Zenoh (query on
+  topgimbal/cam0/call/version -> the server's client -> camera -> reply) and direct (an SDK
+  client on the camera's UDP port from this process);
+- CPU seconds per wall second of the server process and of the simulator process, per camera.
+
+    python bench/fleet.py --cameras 10,100 --rate-hz 50 --seconds 10
+
+Loopback only (tcp/127.0.0.1, scouting off). On a shared, loaded machine the figures say what this
+machine could do at that moment: the script prints the load average next to them."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import json
+import os
+import signal
+import socket
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+CLK_TCK = os.sysconf("SC_CLK_TCK")
+
+
+def pct(xs: list[float], p: float) -> float:
+    if not xs:
+        return float("nan")
+    xs = sorted(xs)
+    return xs[min(len(xs) - 1, int(p / 100 * len(xs)))]
+
+
+def cpu_s(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / CLK_TCK  # utime + stime
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+# -- the simulator fleet (a child process) ---------------------------------------------------------
+
+
+async def sim_fleet(n: int, out: str) -> None:
+    from topgimbal.sim import Simulator
+
+    sims = []
+    for _ in range(n):
+        s = Simulator("C12")
+        await s.start(udp=[("127.0.0.1", 0)])
+        sims.append(s)
+    Path(out).write_text("\n".join(s.url for s in sims))
+    stop = asyncio.Event()
+    asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, stop.set)
+    await stop.wait()
+    for s in sims:
+        await s.stop()
+
+
+# -- the run ---------------------------------------------------------------------------------------
+
+
+class Subscriber:
+    """Counts attitude samples per camera, seq gaps and latency, in Zenoh's callback thread."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.counting = False
+        self.count = 0
+        self.lost = 0
+        self.repeated = 0  # a seq not above the last one: a copy or a reordering
+        self.last_seq: dict[str, int] = {}
+        self.latency: list[float] = []
+
+    def __call__(self, sample: Any) -> None:
+        now = time.time()
+        d = json.loads(sample.payload.to_bytes())
+        k = str(sample.key_expr)
+        with self.lock:
+            prev = self.last_seq.get(k)
+            self.last_seq[k] = d["seq"]
+            if not self.counting:
+                return
+            self.count += 1
+            if prev is not None and d["seq"] > prev + 1:
+                self.lost += d["seq"] - prev - 1
+            elif prev is not None and d["seq"] <= prev:
+                self.repeated += 1
+            self.latency.append(now - d["t"])
+
+
+async def run(n: int, rate_hz: float, seconds: float, calls: int) -> dict[str, Any]:
+    import zenoh
+
+    from topgimbal import connect
+
+    tmp = Path(tempfile.mkdtemp(prefix="fleet-bench-"))
+    urls_file = tmp / "urls"
+    sims = await asyncio.create_subprocess_exec(
+        sys.executable, __file__, "--sim-fleet", str(n), "--out", str(urls_file)
+    )
+    server: asyncio.subprocess.Process | None = None
+    session: Any = None
+    try:
+        for _ in range(600):
+            if urls_file.exists() and len(urls_file.read_text().split()) == n:
+                break
+            await asyncio.sleep(0.1)
+        urls = urls_file.read_text().split()
+        cams = tmp / "cameras"
+        cams.write_text("\n".join(f"cam{i}={u},C12" for i, u in enumerate(urls)))
+        port = free_port()
+        server = await asyncio.create_subprocess_exec(
+            sys.executable, "-m", "topgimbal.cli.main", "zenoh", "--cameras", str(cams),
+            "--listen", f"tcp/127.0.0.1:{port}", "--rate-hz", str(rate_hz), stdout=asyncio.subprocess.PIPE,
+        )  # fmt: skip
+        assert server.stdout is not None
+        await asyncio.wait_for(server.stdout.readline(), 120)
+        conf = zenoh.Config()
+        for k, v in (("mode", "client"), ("scouting/multicast/enabled", False), ("scouting/gossip/enabled", False),
+                     ("connect/endpoints", [f"tcp/127.0.0.1:{port}"])):  # fmt: skip
+            conf.insert_json5(k, json.dumps(v))
+        session = zenoh.open(conf)
+        sub = Subscriber()
+        zsub = session.declare_subscriber("topgimbal/*/attitude", sub)
+        # warm up: every camera streaming
+        for _ in range(600):
+            if len(sub.last_seq) >= n:
+                break
+            await asyncio.sleep(0.1)
+        await asyncio.sleep(2.0)
+        cpu0 = (cpu_s(server.pid), cpu_s(sims.pid))
+        t0 = time.monotonic()
+        with sub.lock:
+            sub.counting = True
+        await asyncio.sleep(seconds)
+        with sub.lock:
+            sub.counting = False
+            count, lost, repeated, lat = sub.count, sub.lost, sub.repeated, list(sub.latency)
+        wall = time.monotonic() - t0
+        cpu1 = (cpu_s(server.pid), cpu_s(sims.pid))
+        streaming = len(sub.last_seq)
+
+        # command round trips: through Zenoh, then direct
+        zrtt: list[float] = []
+        zfail: list[str] = []
+        for _ in range(calls):
+            key = "topgimbal/cam0/call/version"  # the camera the direct client asks too
+            t = time.perf_counter()
+            replies = await asyncio.to_thread(lambda k=key: list(session.get(k, payload="{}", timeout=10)))
+            body = json.loads(replies[0].ok.payload.to_bytes()) if replies and replies[0].ok is not None else None
+            if body and body["ok"]:
+                zrtt.append(time.perf_counter() - t)
+            else:
+                zfail.append(str(body)[:160] if body else "no reply")
+        drtt: list[float] = []
+        async with connect(urls[0], model="C12") as cam:
+            for _ in range(calls):
+                t = time.perf_counter()
+                with contextlib.suppress(Exception):
+                    await cam.version()
+                    drtt.append(time.perf_counter() - t)
+        zsub.undeclare()
+        return {
+            "cameras": n, "rate_hz": rate_hz, "seconds": round(wall, 2), "streaming": streaming,
+            "delivered_per_s": round(count / wall, 1), "nominal_per_s": n * rate_hz,
+            "of_nominal_pct": round(100 * count / wall / (n * rate_hz), 1),
+            "lost_server_to_subscriber_pct": round(100 * lost / max(1, count + lost), 3),
+            "repeated_or_reordered": repeated,
+            "latency_ms_p50": round(pct(lat, 50) * 1000, 2), "latency_ms_p99": round(pct(lat, 99) * 1000, 2),
+            "cmd_rtt_ms_zenoh_p50": round(pct(zrtt, 50) * 1000, 2), "cmd_rtt_ms_zenoh_p99": round(pct(zrtt, 99) * 1000, 2),
+            "cmd_rtt_ms_direct_p50": round(pct(drtt, 50) * 1000, 2), "cmd_rtt_ms_direct_p99": round(pct(drtt, 99) * 1000, 2),
+            "calls_ok": f"{len(zrtt)}/{calls} zenoh, {len(drtt)}/{calls} direct",
+            "zenoh_call_failures": sorted(set(zfail))[:3],
+            "server_cpu_pct": round(100 * (cpu1[0] - cpu0[0]) / wall, 1),
+            "server_cpu_pct_per_camera": round(100 * (cpu1[0] - cpu0[0]) / wall / n, 2),
+            "sim_cpu_pct": round(100 * (cpu1[1] - cpu0[1]) / wall, 1),
+        }  # fmt: skip
+    finally:
+        if session is not None:
+            session.close()
+        for p in (server, sims):
+            if p is not None and p.returncode is None:
+                p.send_signal(signal.SIGINT if p is server else signal.SIGTERM)
+                try:
+                    await asyncio.wait_for(p.wait(), 30)
+                except asyncio.TimeoutError:
+                    p.kill()
+                    await p.wait()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--cameras", default="10,100", help="camera counts to run, comma-separated (default 10,100)")
+    ap.add_argument("--rate-hz", type=float, default=50.0)
+    ap.add_argument("--seconds", type=float, default=10.0, help="measuring window per run")
+    ap.add_argument("--calls", type=int, default=200, help="command round trips per path")
+    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--sim-fleet", type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--out", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.sim_fleet:
+        asyncio.run(sim_fleet(args.sim_fleet, args.out))
+        return
+    print(f"cores {os.cpu_count()}, load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    for n in (int(x) for x in args.cameras.split(",")):
+        r = asyncio.run(run(n, args.rate_hz, args.seconds, args.calls))
+        r["load_after"] = round(os.getloadavg()[0], 2)
+        if args.json:
+            print(json.dumps(r))
+        else:
+            print(f"\n{n} cameras at {args.rate_hz:g} Hz ({r['streaming']} streaming), {r['seconds']} s:")
+            for k, v in r.items():
+                print(f"  {k:34} {v}")
+
+
+if __name__ == "__main__":
+    main()

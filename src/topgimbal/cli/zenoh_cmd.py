@@ -1,0 +1,109 @@
+"""`topgimbal zenoh`: serve N cameras on a Zenoh session (docs/fleet.md)."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import logging
+import sys
+
+from ..errors import FieldValueError
+from .runtime import stop_on_signals, wait_stopped
+
+
+def camera_arg(text: str) -> object:
+    from ..fleet.specs import parse_camera
+
+    try:
+        return parse_camera(text)
+    except FieldValueError as exc:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected {exc.allowed}") from None
+
+
+def _endpoint(text: str) -> str:
+    from ..client.zenoh_session import check_endpoint
+
+    try:
+        return check_endpoint(text)
+    except FieldValueError as exc:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected {exc.allowed}") from None
+
+
+def _rate(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not 0.5 <= v <= 100:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a rate of 0.5..100 Hz")
+    return v
+
+
+def _calls(text: str) -> int:
+    if not text.isdigit() or not 1 <= int(text) <= 64:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected 1..64 calls")
+    return int(text)
+
+
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = subparsers.add_parser(
+        "zenoh",
+        help="serve several cameras on a Zenoh session (attitude, state, link, calls; docs/fleet.md)",
+        description="Serve N cameras on one Zenoh session: topgimbal/NAME/attitude, /state, /link, a liveliness "
+        "token per camera and the queryable topgimbal/NAME/call/METHOD (JSON keyword arguments of the SDK's "
+        "methods). Multicast and gossip scouting are off: give --listen and/or --connect endpoints.",
+    )
+    p.add_argument("--camera", action="append", type=camera_arg, default=[], metavar="NAME=URL,MODEL",
+                   help="a camera to serve, e.g. cam1=udp://127.0.0.1:5000,C12 (repeatable)")  # fmt: skip
+    p.add_argument("--cameras", metavar="FILE", help="cameras from a file: NAME=URL,MODEL per line, or a JSON list")
+    p.add_argument("--listen", action="append", type=_endpoint, default=[], metavar="ENDPOINT",
+                   help="Zenoh endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable)")  # fmt: skip
+    p.add_argument("--connect", action="append", type=_endpoint, default=[], metavar="ENDPOINT",
+                   help="Zenoh endpoint (router or peer) to connect to (repeatable)")  # fmt: skip
+    p.add_argument("--mode", choices=("peer", "client"), default="peer", help="Zenoh session mode (default peer)")
+    p.add_argument("--config", metavar="FILE", help="Zenoh configuration file (TLS, user/password, access control)")
+    p.add_argument("--rate-hz", type=_rate, default=50.0, help="attitude stream rate asked of each camera (default 50)")
+    p.add_argument("--max-calls", type=_calls, default=8, help="calls in progress per camera (default 8)")
+    p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds (default 1)")
+    p.add_argument("-v", "--verbose", action="store_true", help="log link changes and refused calls")
+    p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..fleet import FleetServer
+    from ..fleet.specs import collect, read_camera_file
+
+    specs = list(args.camera) + (read_camera_file(args.cameras) if args.cameras else [])
+    if not specs:
+        print("topgimbal zenoh: error: give at least one --camera NAME=URL,MODEL or --cameras FILE", file=sys.stderr)
+        return 2
+    if not args.listen and not args.connect:
+        print("topgimbal zenoh: error: give --listen and/or --connect endpoints (scouting is off), "
+              "e.g. --listen tcp/127.0.0.1:7447", file=sys.stderr)  # fmt: skip
+        return 2
+    if not 0.05 <= args.timeout <= 30:
+        print(f"topgimbal zenoh: error: --timeout {args.timeout:g}: expected 0.05..30 s", file=sys.stderr)
+        return 2
+    specs = collect(specs)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
+
+    async def main() -> None:
+        server = FleetServer(specs, listen=args.listen, connect=args.connect, mode=args.mode, config_file=args.config,
+                             rate_hz=args.rate_hz, max_calls=args.max_calls,
+                             client_options={"timeout_s": args.timeout})  # fmt: skip
+        await server.start()
+        where = ", ".join(args.listen + args.connect)
+        names = ", ".join(f"{s.name} ({s.model})" for s in specs)
+        print(f"zenoh: serving {len(specs)} cameras on {where} ({args.mode}): {names}", flush=True)
+        stop = stop_on_signals()
+        try:
+            await wait_stopped(stop, args.seconds)
+        finally:
+            await server.close()
+
+    try:
+        asyncio.run(main())
+    except KeyboardInterrupt:
+        print("stopped", file=sys.stderr)
+    return 0

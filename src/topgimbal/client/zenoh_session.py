@@ -1,0 +1,68 @@
+"""Opening a Zenoh session for a camera fleet (server or remote client), with scouting off.
+
+Zenoh's defaults scout by UDP multicast (224.0.0.224) and gossip: a fleet is wired by explicit
+endpoints instead (`--listen` / `--connect`), so nothing is sent to addresses nobody named. A
+Zenoh configuration file (TLS, user/password, access control) is read first and then given the
+endpoints, mode and scouting settings; a file that turns scouting back on is overridden."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from typing import Any
+
+from ..errors import FieldValueError, TransportError
+
+MODES = ("peer", "client")
+
+
+def _zenoh() -> Any:
+    try:
+        import zenoh
+    except ImportError:  # pragma: no cover - the extra is part of the dev install
+        raise TransportError("Zenoh needs the eclipse-zenoh package: pip install 'topgimbal[zenoh]'") from None
+    return zenoh
+
+
+def check_endpoint(endpoint: str) -> str:
+    proto, sep, rest = endpoint.partition("/")
+    if not sep or proto not in ("tcp", "udp", "tls", "quic", "ws", "unixsock-stream") or not rest:
+        raise FieldValueError("endpoint", endpoint, "a Zenoh locator such as tcp/127.0.0.1:7447")
+    return endpoint
+
+
+def make_config(
+    *, listen: Sequence[str] = (), connect: Sequence[str] = (), mode: str = "peer", config_file: str | None = None
+) -> Any:
+    zenoh = _zenoh()
+    if mode not in MODES:
+        raise FieldValueError("mode", mode, " or ".join(MODES))
+    for e in (*listen, *connect):
+        check_endpoint(e)
+    if mode == "client" and not connect:
+        raise FieldValueError("connect", None, "a client needs at least one --connect endpoint")
+    try:
+        conf = zenoh.Config.from_file(config_file) if config_file else zenoh.Config()
+    except Exception as exc:  # zenoh's own error type: say which file
+        raise FieldValueError("config", config_file, f"a readable Zenoh configuration file ({exc})") from None
+    conf.insert_json5("mode", json.dumps(mode))
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("scouting/gossip/enabled", "false")
+    if listen:
+        conf.insert_json5("listen/endpoints", json.dumps(list(listen)))
+    if connect:
+        conf.insert_json5("connect/endpoints", json.dumps(list(connect)))
+    return conf
+
+
+def open_session(
+    *, listen: Sequence[str] = (), connect: Sequence[str] = (), mode: str = "peer", config_file: str | None = None
+) -> Any:
+    """An open `zenoh.Session` (blocking call: a client waits for its router or peer)."""
+    zenoh = _zenoh()
+    conf = make_config(listen=listen, connect=connect, mode=mode, config_file=config_file)
+    try:
+        return zenoh.open(conf)
+    except Exception as exc:  # e.g. an endpoint already in use, nothing to connect to
+        where = ", ".join([*listen, *connect]) or "no endpoint"
+        raise TransportError(f"cannot open a Zenoh session ({mode}, {where}): {exc}") from None

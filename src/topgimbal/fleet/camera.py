@@ -1,0 +1,231 @@
+"""One camera served on a Zenoh session: its SDK client, what it publishes (attitude, state,
+link), its liveliness token and its queryables (`call/<method>`, `info`).
+
+Zenoh runs its callbacks on its own threads; every query is handed to this camera's asyncio loop
+(`call_soon_threadsafe`) and answered from there, so the SDK client is only ever used on its loop.
+Calls are bounded per camera (`max_calls` at once; more are refused at once with kind "busy"), as
+are their arguments (client/remote_keys.py). A call is answered "ok" only with what the SDK method
+returned: the SDK's truth rules hold unchanged (no success the camera did not confirm)."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import logging
+import time
+from collections.abc import Callable
+from typing import Any
+
+from ..client import AsyncClient, StateCache
+from ..client.remote_keys import (
+    KIND_BUSY,
+    METHODS,
+    RemoteCallError,
+    bind_arguments,
+    call_key,
+    encode_result,
+    error_reply,
+    key,
+    liveliness_key,
+    split_call_key,
+)
+from ..client.state import attitude_of
+from ..errors import TopGimbalError
+from ..protocol import Message
+from .specs import CameraSpec
+
+log = logging.getLogger("topgimbal.fleet")
+
+MAX_CALLS = 8  # calls in progress per camera
+STATE_POLL_S = 0.25  # how often the state is compared with what was last published
+STATE_KEYS = ("zoom", "recording", "mode", "sd", "version", "model_name", "range_m", "temperature")
+BUSY_LOG_EVERY_S = 10.0
+
+
+class ServedCamera:
+    def __init__(
+        self,
+        spec: CameraSpec,
+        session: Any,
+        *,
+        rate_hz: float = 50.0,
+        max_calls: int = MAX_CALLS,
+        client_options: dict[str, Any] | None = None,
+    ) -> None:
+        self.spec = spec
+        self.name = spec.name
+        self.session = session
+        self.rate_hz = rate_hz
+        self.max_calls = max_calls
+        self.client = AsyncClient(spec.url, spec.model, **(client_options or {}))
+        self.loop: asyncio.AbstractEventLoop | None = None
+        self.inflight = 0
+        self.published = 0  # attitude samples
+        self.calls = 0
+        self.refused = 0
+        self._seq = 0
+        self._decls: list[Any] = []
+        self._tasks: list[asyncio.Task[None]] = []
+        self._calls: set[asyncio.Task[None]] = set()
+        self._last_state: str | None = None
+        self._busy_logged = 0.0
+        self._closing = False
+        self._unsubscribe: list[Callable[[], None]] = []
+
+    async def start(self) -> ServedCamera:
+        self.loop = asyncio.get_running_loop()
+        await self.client.open()
+        s = self.session
+        self._att = s.declare_publisher(key(self.name, "attitude"))
+        self._state = s.declare_publisher(key(self.name, "state"))
+        self._link = s.declare_publisher(key(self.name, "link"))
+        self._decls += [self._att, self._state, self._link]
+        self._decls.append(s.declare_queryable(key(self.name, "call/*"), self._on_query_thread))
+        self._decls.append(s.declare_queryable(key(self.name, "info"), self._on_info_thread))
+        self._decls.append(s.liveliness().declare_token(liveliness_key(self.name)))
+        self._unsubscribe = [self.client.on_link_change(self._on_link), self.client.subscribe(self._on_frame)]
+        self._tasks.append(asyncio.ensure_future(self._attitude_loop()))
+        self._tasks.append(asyncio.ensure_future(self._state_loop()))
+        return self
+
+    async def close(self) -> None:
+        self._closing = True
+        for remove in self._unsubscribe:
+            remove()
+        for t in [*self._tasks, *self._calls]:
+            t.cancel()
+        for t in [*self._tasks, *self._calls]:
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await t
+        for d in reversed(self._decls):
+            with contextlib.suppress(Exception):
+                d.undeclare()
+        self._decls.clear()
+        await self.client.close()
+
+    # -- what it publishes --------------------------------------------------------------------------
+
+    async def _attitude_loop(self) -> None:
+        """Asks the camera for its attitude stream at `rate_hz` until it has accepted once; the SDK
+        keeps it on from then (asked again after a link loss). Samples are published by `_on_frame`,
+        every frame the camera sends: a stream consumer would wake a task per sample and thin out
+        samples that come a little early (one in three under load on a busy host)."""
+        while True:
+            try:
+                await self.client.attitude_stream(self.rate_hz)
+                return
+            except TopGimbalError as exc:
+                log.debug("%s: attitude stream not started: %s", self.name, exc)
+            await asyncio.sleep(1.0)
+
+    def _on_frame(self, message: Message) -> None:
+        if self._closing:
+            return
+        att = attitude_of(StateCache.values_of(message), "attitude", message.ident)
+        if att is None:
+            return
+        self._seq += 1
+        payload = {"yaw_deg": att.yaw_deg, "pitch_deg": att.pitch_deg, "roll_deg": att.roll_deg,
+                   "t": att.wall, "seq": self._seq}  # fmt: skip
+        self._att.put(json.dumps(payload))
+        self.published += 1
+
+    def state(self) -> dict[str, Any]:
+        c = self.client
+        out: dict[str, Any] = {"name": self.name, "model": c.model.name, **c.link_state}
+        out.pop("silent_s", None)
+        for k in STATE_KEYS:
+            s = getattr(c.state, k)
+            out[k] = None if s is None else encode_result(s.value)
+        out["model_check"] = c.model_check.status
+        return out
+
+    async def _state_loop(self) -> None:
+        while True:
+            state = self.state()
+            text = json.dumps(state, sort_keys=True)
+            if text != self._last_state:
+                self._last_state = text
+                state["stats"] = self.client.stats.as_dict()
+                state["t"] = time.time()
+                self._state.put(json.dumps(state))
+            await asyncio.sleep(STATE_POLL_S)
+
+    def _on_link(self, up: bool, reason: str) -> None:
+        if not self._closing:
+            self._link.put(json.dumps({"up": up, "reason": reason, "t": time.time()}))
+
+    # -- queries ------------------------------------------------------------------------------------
+
+    def _on_query_thread(self, query: Any) -> None:
+        loop = self.loop
+        if loop is None or self._closing or loop.is_closed():
+            with contextlib.suppress(Exception):
+                query.drop()
+            return
+        try:
+            loop.call_soon_threadsafe(self._on_query, query)
+        except RuntimeError:  # the loop closed meanwhile
+            with contextlib.suppress(Exception):
+                query.drop()
+
+    def _on_info_thread(self, query: Any) -> None:
+        try:
+            with query:
+                query.reply(key(self.name, "info"), json.dumps(self.info()))
+        except Exception as exc:  # a querier gone: nothing to answer
+            log.debug("%s: info reply failed: %s", self.name, exc)
+
+    def info(self) -> dict[str, Any]:
+        return {"name": self.name, "model": self.client.model.name, "dialect": self.client.dialect.name,
+                "methods": sorted(METHODS), "max_calls": self.max_calls, "rate_hz": self.rate_hz}  # fmt: skip
+
+    def _on_query(self, query: Any) -> None:
+        where = split_call_key(str(query.key_expr))
+        if where is None or where[0] != self.name:
+            self._reply(query, call_key(self.name, "*"), error_reply(RemoteCallError(
+                "one call names one camera and one method (no wildcards): topgimbal/NAME/call/METHOD")))  # fmt: skip
+            return
+        reply_key = call_key(*where)
+        if self.inflight >= self.max_calls:
+            self.refused += 1
+            now = time.monotonic()
+            if now - self._busy_logged >= BUSY_LOG_EVERY_S:
+                self._busy_logged = now
+                log.warning("%s: %d calls in progress, refusing more (limit %d)", self.name, self.inflight,
+                            self.max_calls)  # fmt: skip
+            self._reply(query, reply_key, error_reply(RemoteCallError(
+                f"{self.name}: {self.max_calls} calls are in progress; try again", KIND_BUSY)))  # fmt: skip
+            return
+        self.inflight += 1
+        task = asyncio.ensure_future(self._call(query, reply_key, where[1]))
+        self._calls.add(task)
+        task.add_done_callback(self._calls.discard)
+
+    async def _call(self, query: Any, reply_key: str, method: str) -> None:
+        self.calls += 1
+        try:
+            payload = query.payload
+            _spec, kwargs = bind_arguments(method, None if payload is None else payload.to_bytes())
+            result = await getattr(self.client, method)(**kwargs)
+            out: dict[str, Any] = {"ok": True, "result": encode_result(result)}
+        except asyncio.CancelledError:
+            out = error_reply(RemoteCallError(f"{self.name}: the server is closing", "closing"))
+            self._reply(query, reply_key, out)
+            raise
+        except Exception as exc:  # the SDK's errors, and anything unexpected: a reply either way
+            if not isinstance(exc, TopGimbalError):
+                log.warning("%s: %s failed unexpectedly: %r", self.name, method, exc)
+            out = error_reply(exc)
+        finally:
+            self.inflight -= 1
+        self._reply(query, reply_key, out)
+
+    @staticmethod
+    def _reply(query: Any, reply_key: str, body: dict[str, Any]) -> None:
+        try:
+            with query:
+                query.reply(reply_key, json.dumps(body))
+        except Exception as exc:  # the querier timed out or left
+            log.debug("reply on %s failed: %s", reply_key, exc)
