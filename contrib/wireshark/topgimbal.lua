@@ -62,6 +62,7 @@ local GEN = {
   hot_y_px="double",
   hue="double",
   image="string",
+  image_code="double",
   interval_s="double",
   lat_deg="double",
   led="string",
@@ -81,6 +82,8 @@ local GEN = {
   primary="string",
   range="string",
   rate_hz="double",
+  ratio_mark="string",
+  ratio_x="double",
   remaining_mb="double",
   reserved="string",
   resolution="string",
@@ -205,6 +208,9 @@ local GEN = {
    numeric=false
   },
   {unit="x", k="dec", w=4, scale=0.1, dec=1, int=false, numeric=true},
+  {unit="", k="hex", w=2, signed=false, scale=1, div=0, dec=0, int=true, none={}, numeric=true},
+  {unit="", k="literal", text="F", numeric=false},
+  {unit="x", k="hex", w=3, signed=false, scale=0.1, div=10, dec=1, int=false, none={}, numeric=true},
   {unit="", k="literal", text="!!", numeric=false},
   {unit="", k="raw", numeric=false},
   {unit="", k="enum", w=1, map={["0"]={name="zero", label="zero"}}, numeric=false},
@@ -272,7 +278,6 @@ local GEN = {
    },
    numeric=false
   },
-  {unit="", k="hex", w=2, signed=false, scale=1, div=0, dec=0, int=true, none={}, numeric=true},
   {unit="", k="hex", w=1, signed=false, scale=1, div=0, dec=0, int=true, none={}, numeric=true},
   {
    unit="",
@@ -373,6 +378,13 @@ local GEN = {
   },
   {unit="MB", k="hex", w=5, signed=false, scale=1, div=0, dec=0, int=true, none={}, numeric=true},
   {unit="m", k="hex", w=4, signed=false, scale=0.1, div=10, dec=1, int=false, none={}, numeric=true},
+  {
+   unit="",
+   k="enum",
+   w=2,
+   map={["01"]={name="measure", label="Fire one measurement (read it after)"}},
+   numeric=false
+  },
   {
    unit="",
    k="enum",
@@ -637,7 +649,11 @@ local GEN = {
    unit="",
    k="enum",
    w=2,
-   map={["00"]={name="stop", label="stop"}, ["01"]={name="start", label="start"}},
+   map={
+    ["00"]={name="stop", label="stop"},
+    ["01"]={name="start", label="start"},
+    ["02"]={name="ready", label="Ready to track: wait for a target box (LOC)"}
+   },
    numeric=false
   },
   {unit="", k="raw", w=1, numeric=false},
@@ -928,6 +944,46 @@ local GEN = {
         {n="image", c=7, a=0, b=2, s="image", d=""},
         {n="magnification_x", c=9, a=2, b=6, s="magnification", d=""}
        }
+      },
+      {
+       rw="w",
+       dir="request",
+       title="image code and ratio (F + 3 hex digits)",
+       role="",
+       min=6,
+       max=6,
+       fields={
+        {
+         n="image_code",
+         c=10,
+         a=0,
+         b=2,
+         s="image_code",
+         d="image / camera: 00 visible, 01 thermal, others as the model numbers them"
+        },
+        {n="ratio_mark", c=11, a=2, b=3, s="ratio_mark", d="always F: a zoom ratio follows"},
+        {n="ratio_x", c=12, a=3, b=6, s="ratio", d="zoom ratio in 0.1x (three hex digits)"}
+       }
+      },
+      {
+       rw="w",
+       dir="response",
+       title="echo of image code and ratio (F + 3 hex digits)",
+       role="echo",
+       min=6,
+       max=6,
+       fields={
+        {
+         n="image_code",
+         c=10,
+         a=0,
+         b=2,
+         s="image_code",
+         d="image / camera: 00 visible, 01 thermal, others as the model numbers them"
+        },
+        {n="ratio_mark", c=11, a=2, b=3, s="ratio_mark", d="always F: a zoom ratio follows"},
+        {n="ratio_x", c=12, a=3, b=6, s="ratio", d="zoom ratio in 0.1x (three hex digits)"}
+       }
       }
      }
     },
@@ -942,7 +998,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="error", c=10, a=0, b=2, s="error", d="always '!!'"}}
+       fields={{n="error", c=13, a=0, b=2, s="error", d="always '!!'"}}
       }
      }
     },
@@ -957,7 +1013,7 @@ local GEN = {
        role="",
        min=0,
        max=15,
-       fields={{n="data", c=11, a=0, s="data", d="layout not documented"}}
+       fields={{n="data", c=14, a=0, s="data", d="layout not documented"}}
       },
       {
        rw="w",
@@ -966,7 +1022,7 @@ local GEN = {
        role="echo",
        min=0,
        max=15,
-       fields={{n="data", c=11, a=0, s="data", d="layout not documented"}}
+       fields={{n="data", c=14, a=0, s="data", d="layout not documented"}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -976,7 +1032,7 @@ local GEN = {
        role="",
        min=0,
        max=15,
-       fields={{n="data", c=11, a=0, s="data", d="layout not documented"}}
+       fields={{n="data", c=14, a=0, s="data", d="layout not documented"}}
       }
      }
     },
@@ -992,10 +1048,10 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="reserved", c=12, a=0, b=1, s="reserved", d=""},
-        {n="dish_calibration", c=13, a=1, b=2, s="dish_calibration", d=""},
-        {n="osd", c=13, a=2, b=3, s="osd", d=""},
-        {n="led", c=13, a=3, b=4, s="led", d=""}
+        {n="reserved", c=15, a=0, b=1, s="reserved", d=""},
+        {n="dish_calibration", c=16, a=1, b=2, s="dish_calibration", d=""},
+        {n="osd", c=16, a=2, b=3, s="osd", d=""},
+        {n="led", c=16, a=3, b=4, s="led", d=""}
        }
       },
       {
@@ -1006,10 +1062,10 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="reserved", c=12, a=0, b=1, s="reserved", d=""},
-        {n="dish_calibration", c=13, a=1, b=2, s="dish_calibration", d=""},
-        {n="osd", c=13, a=2, b=3, s="osd", d=""},
-        {n="led", c=13, a=3, b=4, s="led", d=""}
+        {n="reserved", c=15, a=0, b=1, s="reserved", d=""},
+        {n="dish_calibration", c=16, a=1, b=2, s="dish_calibration", d=""},
+        {n="osd", c=16, a=2, b=3, s="osd", d=""},
+        {n="led", c=16, a=3, b=4, s="led", d=""}
        }
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
@@ -1021,10 +1077,10 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="reserved", c=12, a=0, b=1, s="reserved", d=""},
-        {n="dish_calibration", c=13, a=1, b=2, s="dish_calibration", d=""},
-        {n="osd", c=13, a=2, b=3, s="osd", d=""},
-        {n="led", c=13, a=3, b=4, s="led", d=""}
+        {n="reserved", c=15, a=0, b=1, s="reserved", d=""},
+        {n="dish_calibration", c=16, a=1, b=2, s="dish_calibration", d=""},
+        {n="osd", c=16, a=2, b=3, s="osd", d=""},
+        {n="led", c=16, a=3, b=4, s="led", d=""}
        }
       }
      }
@@ -1040,7 +1096,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {
        rw="w",
@@ -1049,7 +1105,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       }
      }
     },
@@ -1065,9 +1121,9 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="vehicle yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="vehicle pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="vehicle roll"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="vehicle yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="vehicle pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="vehicle roll"}
        }
       },
       {
@@ -1078,9 +1134,9 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="vehicle yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="vehicle pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="vehicle roll"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="vehicle yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="vehicle pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="vehicle roll"}
        }
       },
       {
@@ -1091,10 +1147,10 @@ local GEN = {
        min=14,
        max=14,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="vehicle yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="vehicle pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="vehicle roll"},
-        {n="flight_mode", c=16, a=12, b=14, s="flight_mode", d=""}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="vehicle yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="vehicle pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="vehicle roll"},
+        {n="flight_mode", c=19, a=12, b=14, s="flight_mode", d=""}
        }
       },
       {
@@ -1105,10 +1161,10 @@ local GEN = {
        min=14,
        max=14,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="vehicle yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="vehicle pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="vehicle roll"},
-        {n="flight_mode", c=16, a=12, b=14, s="flight_mode", d=""}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="vehicle yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="vehicle pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="vehicle roll"},
+        {n="flight_mode", c=19, a=12, b=14, s="flight_mode", d=""}
        }
       }
      }
@@ -1124,7 +1180,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=17, a=0, b=2, s="action", d="+ and - continue until stop"}}
+       fields={{n="action", c=20, a=0, b=2, s="action", d="+ and - continue until stop"}}
       },
       {
        rw="w",
@@ -1133,7 +1189,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=17, a=0, b=2, s="action", d="+ and - continue until stop"}}
+       fields={{n="action", c=20, a=0, b=2, s="action", d="+ and - continue until stop"}}
       }
      }
     },
@@ -1148,7 +1204,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="rate_hz", c=18, a=0, b=2, s="rate", d="1..100 Hz, 0 = off"}}
+       fields={{n="rate_hz", c=21, a=0, b=2, s="rate", d="1..100 Hz, 0 = off"}}
       },
       {
        rw="w",
@@ -1157,7 +1213,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="rate_hz", c=18, a=0, b=2, s="rate", d="1..100 Hz, 0 = off"}}
+       fields={{n="rate_hz", c=21, a=0, b=2, s="rate", d="1..100 Hz, 0 = off"}}
       }
      }
     },
@@ -1174,9 +1230,9 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="gimbal yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="gimbal pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="gimbal roll"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="gimbal yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="gimbal pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="gimbal roll"}
        }
       }
      }
@@ -1193,10 +1249,10 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw, right-positive"},
-        {n="yaw_speed_deg_s", c=19, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
-        {n="pitch_deg", c=15, a=6, b=10, s="pitch", d="pitch, up-positive"},
-        {n="pitch_speed_deg_s", c=19, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw, right-positive"},
+        {n="yaw_speed_deg_s", c=22, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
+        {n="pitch_deg", c=18, a=6, b=10, s="pitch", d="pitch, up-positive"},
+        {n="pitch_speed_deg_s", c=22, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -1207,10 +1263,10 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw, right-positive"},
-        {n="yaw_speed_deg_s", c=19, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
-        {n="pitch_deg", c=15, a=6, b=10, s="pitch", d="pitch, up-positive"},
-        {n="pitch_speed_deg_s", c=19, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw, right-positive"},
+        {n="yaw_speed_deg_s", c=22, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
+        {n="pitch_deg", c=18, a=6, b=10, s="pitch", d="pitch, up-positive"},
+        {n="pitch_speed_deg_s", c=22, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -1227,8 +1283,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="pitch_deg", c=15, a=0, b=4, s="pitch", d="pitch, up-positive"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="pitch_deg", c=18, a=0, b=4, s="pitch", d="pitch, up-positive"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -1239,8 +1295,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="pitch_deg", c=15, a=0, b=4, s="pitch", d="pitch, up-positive"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="pitch_deg", c=18, a=0, b=4, s="pitch", d="pitch, up-positive"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -1257,8 +1313,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="roll_deg", c=15, a=0, b=4, s="roll", d="roll (struck out in V1.0.7: not supported for now)"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="roll_deg", c=18, a=0, b=4, s="roll", d="roll (struck out in V1.0.7: not supported for now)"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -1269,8 +1325,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="roll_deg", c=15, a=0, b=4, s="roll", d="roll (struck out in V1.0.7: not supported for now)"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="roll_deg", c=18, a=0, b=4, s="roll", d="roll (struck out in V1.0.7: not supported for now)"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -1287,8 +1343,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw, right-positive"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw, right-positive"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -1299,8 +1355,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw, right-positive"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw, right-positive"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -1316,7 +1372,7 @@ local GEN = {
        role="",
        min=8,
        max=8,
-       fields={{n="x_px", c=20, a=0, b=4, s="x", d=""}, {n="y_px", c=20, a=4, b=8, s="y", d=""}}
+       fields={{n="x_px", c=23, a=0, b=4, s="x", d=""}, {n="y_px", c=23, a=4, b=8, s="y", d=""}}
       },
       {
        rw="w",
@@ -1325,7 +1381,7 @@ local GEN = {
        role="echo",
        min=8,
        max=8,
-       fields={{n="x_px", c=20, a=0, b=4, s="x", d=""}, {n="y_px", c=20, a=4, b=8, s="y", d=""}}
+       fields={{n="x_px", c=23, a=0, b=4, s="x", d=""}, {n="y_px", c=23, a=4, b=8, s="y", d=""}}
       }
      }
     },
@@ -1341,8 +1397,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="yaw_rate_deg_s", c=21, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps"},
-        {n="pitch_rate_deg_s", c=21, a=2, b=4, s="pitch_rate", d="pitch rate, -127..127 steps"}
+        {n="yaw_rate_deg_s", c=24, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps"},
+        {n="pitch_rate_deg_s", c=24, a=2, b=4, s="pitch_rate", d="pitch rate, -127..127 steps"}
        }
       },
       {
@@ -1353,8 +1409,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="yaw_rate_deg_s", c=21, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps"},
-        {n="pitch_rate_deg_s", c=21, a=2, b=4, s="pitch_rate", d="pitch rate, -127..127 steps"}
+        {n="yaw_rate_deg_s", c=24, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps"},
+        {n="pitch_rate_deg_s", c=24, a=2, b=4, s="pitch_rate", d="pitch rate, -127..127 steps"}
        }
       }
      }
@@ -1370,7 +1426,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="pitch_rate_deg_s", c=21, a=0, b=2, s="pitch_rate", d="pitch rate, -127..127 steps; up positive"}}
+       fields={{n="pitch_rate_deg_s", c=24, a=0, b=2, s="pitch_rate", d="pitch rate, -127..127 steps; up positive"}}
       },
       {
        rw="w",
@@ -1379,7 +1435,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="pitch_rate_deg_s", c=21, a=0, b=2, s="pitch_rate", d="pitch rate, -127..127 steps; up positive"}}
+       fields={{n="pitch_rate_deg_s", c=24, a=0, b=2, s="pitch_rate", d="pitch rate, -127..127 steps; up positive"}}
       }
      }
     },
@@ -1394,7 +1450,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="roll_rate_deg_s", c=21, a=0, b=2, s="roll_rate", d="roll rate, -127..127 steps"}}
+       fields={{n="roll_rate_deg_s", c=24, a=0, b=2, s="roll_rate", d="roll rate, -127..127 steps"}}
       },
       {
        rw="w",
@@ -1403,7 +1459,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="roll_rate_deg_s", c=21, a=0, b=2, s="roll_rate", d="roll rate, -127..127 steps"}}
+       fields={{n="roll_rate_deg_s", c=24, a=0, b=2, s="roll_rate", d="roll rate, -127..127 steps"}}
       }
      }
     },
@@ -1418,7 +1474,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="yaw_rate_deg_s", c=21, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps; right positive"}}
+       fields={{n="yaw_rate_deg_s", c=24, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps; right positive"}}
       },
       {
        rw="w",
@@ -1427,7 +1483,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="yaw_rate_deg_s", c=21, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps; right positive"}}
+       fields={{n="yaw_rate_deg_s", c=24, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps; right positive"}}
       }
      }
     },
@@ -1477,7 +1533,7 @@ local GEN = {
        role="",
        min=1,
        max=15,
-       fields={{n="hardware_version", c=22, a=0, s="hardware_version", d=""}}
+       fields={{n="hardware_version", c=25, a=0, s="hardware_version", d=""}}
       }
      }
     },
@@ -1492,7 +1548,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="palette", c=23, a=0, b=2, s="palette", d=""}}
+       fields={{n="palette", c=26, a=0, b=2, s="palette", d=""}}
       },
       {
        rw="w",
@@ -1501,7 +1557,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="palette", c=23, a=0, b=2, s="palette", d=""}}
+       fields={{n="palette", c=26, a=0, b=2, s="palette", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -1511,7 +1567,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="palette", c=23, a=0, b=2, s="palette", d=""}}
+       fields={{n="palette", c=26, a=0, b=2, s="palette", d=""}}
       },
       {
        rw="w",
@@ -1521,8 +1577,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="channel", c=24, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
-        {n="palette", c=23, a=2, b=4, s="palette", d=""}
+        {n="channel", c=10, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
+        {n="palette", c=26, a=2, b=4, s="palette", d=""}
        }
       },
       {
@@ -1533,8 +1589,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="channel", c=24, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
-        {n="palette", c=23, a=2, b=4, s="palette", d=""}
+        {n="channel", c=10, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
+        {n="palette", c=26, a=2, b=4, s="palette", d=""}
        }
       },
       {
@@ -1545,8 +1601,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="channel", c=24, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
-        {n="palette", c=23, a=2, b=4, s="palette", d=""}
+        {n="channel", c=10, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
+        {n="palette", c=26, a=2, b=4, s="palette", d=""}
        }
       }
      }
@@ -1597,13 +1653,13 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="lens", c=25, a=0, b=1, s="lens", d="lens id"},
-        {n="style", c=26, a=1, b=2, s="style", d=""},
-        {n="hue", c=24, a=2, b=4, s="hue", d=""},
-        {n="brightness", c=24, a=4, b=6, s="brightness", d=""},
-        {n="saturation", c=24, a=6, b=8, s="saturation", d=""},
-        {n="contrast", c=24, a=8, b=10, s="contrast", d=""},
-        {n="sharpness", c=24, a=10, b=12, s="sharpness", d=""}
+        {n="lens", c=27, a=0, b=1, s="lens", d="lens id"},
+        {n="style", c=28, a=1, b=2, s="style", d=""},
+        {n="hue", c=10, a=2, b=4, s="hue", d=""},
+        {n="brightness", c=10, a=4, b=6, s="brightness", d=""},
+        {n="saturation", c=10, a=6, b=8, s="saturation", d=""},
+        {n="contrast", c=10, a=8, b=10, s="contrast", d=""},
+        {n="sharpness", c=10, a=10, b=12, s="sharpness", d=""}
        }
       },
       {
@@ -1614,13 +1670,13 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="lens", c=25, a=0, b=1, s="lens", d="lens id"},
-        {n="style", c=26, a=1, b=2, s="style", d=""},
-        {n="hue", c=24, a=2, b=4, s="hue", d=""},
-        {n="brightness", c=24, a=4, b=6, s="brightness", d=""},
-        {n="saturation", c=24, a=6, b=8, s="saturation", d=""},
-        {n="contrast", c=24, a=8, b=10, s="contrast", d=""},
-        {n="sharpness", c=24, a=10, b=12, s="sharpness", d=""}
+        {n="lens", c=27, a=0, b=1, s="lens", d="lens id"},
+        {n="style", c=28, a=1, b=2, s="style", d=""},
+        {n="hue", c=10, a=2, b=4, s="hue", d=""},
+        {n="brightness", c=10, a=4, b=6, s="brightness", d=""},
+        {n="saturation", c=10, a=6, b=8, s="saturation", d=""},
+        {n="contrast", c=10, a=8, b=10, s="contrast", d=""},
+        {n="sharpness", c=10, a=10, b=12, s="sharpness", d=""}
        }
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
@@ -1632,13 +1688,13 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="lens", c=25, a=0, b=1, s="lens", d="lens id"},
-        {n="style", c=26, a=1, b=2, s="style", d=""},
-        {n="hue", c=24, a=2, b=4, s="hue", d=""},
-        {n="brightness", c=24, a=4, b=6, s="brightness", d=""},
-        {n="saturation", c=24, a=6, b=8, s="saturation", d=""},
-        {n="contrast", c=24, a=8, b=10, s="contrast", d=""},
-        {n="sharpness", c=24, a=10, b=12, s="sharpness", d=""}
+        {n="lens", c=27, a=0, b=1, s="lens", d="lens id"},
+        {n="style", c=28, a=1, b=2, s="style", d=""},
+        {n="hue", c=10, a=2, b=4, s="hue", d=""},
+        {n="brightness", c=10, a=4, b=6, s="brightness", d=""},
+        {n="saturation", c=10, a=6, b=8, s="saturation", d=""},
+        {n="contrast", c=10, a=8, b=10, s="contrast", d=""},
+        {n="sharpness", c=10, a=10, b=12, s="sharpness", d=""}
        }
       }
      }
@@ -1654,7 +1710,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="mode", c=27, a=0, b=2, s="mode", d=""}}
+       fields={{n="mode", c=29, a=0, b=2, s="mode", d=""}}
       },
       {
        rw="w",
@@ -1663,7 +1719,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="mode", c=27, a=0, b=2, s="mode", d=""}}
+       fields={{n="mode", c=29, a=0, b=2, s="mode", d=""}}
       }
      }
     },
@@ -1678,7 +1734,7 @@ local GEN = {
        role="",
        min=10,
        max=10,
-       fields={{n="lat_deg", c=28, a=0, b=10, s="lat", d="vehicle latitude, south negative"}}
+       fields={{n="lat_deg", c=30, a=0, b=10, s="lat", d="vehicle latitude, south negative"}}
       },
       {
        rw="w",
@@ -1687,7 +1743,7 @@ local GEN = {
        role="echo",
        min=10,
        max=10,
-       fields={{n="lat_deg", c=28, a=0, b=10, s="lat", d="vehicle latitude, south negative"}}
+       fields={{n="lat_deg", c=30, a=0, b=10, s="lat", d="vehicle latitude, south negative"}}
       }
      }
     },
@@ -1702,7 +1758,7 @@ local GEN = {
        role="",
        min=11,
        max=11,
-       fields={{n="lon_deg", c=29, a=0, b=11, s="lon", d="vehicle longitude, west negative"}}
+       fields={{n="lon_deg", c=31, a=0, b=11, s="lon", d="vehicle longitude, west negative"}}
       },
       {
        rw="w",
@@ -1711,7 +1767,7 @@ local GEN = {
        role="echo",
        min=11,
        max=11,
-       fields={{n="lon_deg", c=29, a=0, b=11, s="lon", d="vehicle longitude, west negative"}}
+       fields={{n="lon_deg", c=31, a=0, b=11, s="lon", d="vehicle longitude, west negative"}}
       }
      }
     },
@@ -1726,7 +1782,7 @@ local GEN = {
        role="",
        min=0,
        max=15,
-       fields={{n="data", c=11, a=0, s="data", d="layout not documented"}}
+       fields={{n="data", c=14, a=0, s="data", d="layout not documented"}}
       },
       {
        rw="w",
@@ -1735,7 +1791,7 @@ local GEN = {
        role="echo",
        min=0,
        max=15,
-       fields={{n="data", c=11, a=0, s="data", d="layout not documented"}}
+       fields={{n="data", c=14, a=0, s="data", d="layout not documented"}}
       }
      }
     },
@@ -1751,7 +1807,7 @@ local GEN = {
        role="",
        min=1,
        max=15,
-       fields={{n="model", c=22, a=0, s="model", d="e.g. C11"}}
+       fields={{n="model", c=25, a=0, s="model", d="e.g. C11"}}
       }
      }
     },
@@ -1766,7 +1822,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=30, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=32, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -1775,7 +1831,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=30, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=32, a=0, b=2, s="action", d=""}}
       }
      }
     },
@@ -1790,7 +1846,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=31, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=33, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -1799,7 +1855,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=31, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=33, a=0, b=2, s="action", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -1809,7 +1865,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=32, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=34, a=0, b=2, s="state", d=""}}
       }
      }
     },
@@ -1824,7 +1880,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=33, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=35, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -1833,7 +1889,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=33, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=35, a=0, b=2, s="action", d=""}}
       }
      }
     },
@@ -1848,7 +1904,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=34, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=36, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -1857,7 +1913,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=34, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=36, a=0, b=2, s="action", d=""}}
       }
      }
     },
@@ -1874,8 +1930,8 @@ local GEN = {
        min=10,
        max=10,
        fields={
-        {n="remaining_mb", c=35, a=0, b=5, s="remaining", d="0 with total 0 = no card"},
-        {n="total_mb", c=35, a=5, b=10, s="total", d=""}
+        {n="remaining_mb", c=37, a=0, b=5, s="remaining", d="0 with total 0 = no card"},
+        {n="total_mb", c=37, a=5, b=10, s="total", d=""}
        }
       }
      }
@@ -1892,7 +1948,7 @@ local GEN = {
        role="",
        min=4,
        max=4,
-       fields={{n="distance_m", c=36, a=0, b=4, s="distance", d="0.5..100.0 m (5..1000 dm)"}}
+       fields={{n="distance_m", c=38, a=0, b=4, s="distance", d="0.5..100.0 m (5..1000 dm)"}}
       },
       {
        rw="w",
@@ -1904,7 +1960,7 @@ local GEN = {
        fields={
         {
          n="limit_m",
-         c=36,
+         c=38,
          a=0,
          b=4,
          s="limit",
@@ -1922,13 +1978,31 @@ local GEN = {
        fields={
         {
          n="limit_m",
-         c=36,
+         c=38,
          a=0,
          b=4,
          s="limit",
          d="measurement range limit, decimetres on the wire (0x32..0x2710)"
         }
        }
+      },
+      {
+       rw="w",
+       dir="request",
+       title="fire",
+       role="",
+       min=2,
+       max=2,
+       fields={{n="action", c=39, a=0, b=2, s="action", d=""}}
+      },
+      {
+       rw="w",
+       dir="response",
+       title="echo of fire",
+       role="echo",
+       min=2,
+       max=2,
+       fields={{n="action", c=39, a=0, b=2, s="action", d=""}}
       }
      }
     },
@@ -1943,7 +2017,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=37, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=40, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -1952,7 +2026,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=37, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=40, a=0, b=2, s="action", d=""}}
       }
      }
     },
@@ -1967,7 +2041,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="spatial_denoise", c=24, a=0, b=2, s="spatial_denoise", d=""}}
+       fields={{n="spatial_denoise", c=10, a=0, b=2, s="spatial_denoise", d=""}}
       },
       {
        rw="w",
@@ -1976,7 +2050,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="spatial_denoise", c=24, a=0, b=2, s="spatial_denoise", d=""}}
+       fields={{n="spatial_denoise", c=10, a=0, b=2, s="spatial_denoise", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -1986,7 +2060,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="spatial_denoise", c=24, a=0, b=2, s="spatial_denoise", d=""}}
+       fields={{n="spatial_denoise", c=10, a=0, b=2, s="spatial_denoise", d=""}}
       }
      }
     },
@@ -2001,7 +2075,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="interval_s", c=38, a=0, b=2, s="interval", d="C12: 0..25 (0 = off); C13: 5..100"}}
+       fields={{n="interval_s", c=41, a=0, b=2, s="interval", d="C12: 0..25 (0 = off); C13: 5..100"}}
       },
       {
        rw="w",
@@ -2010,7 +2084,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="interval_s", c=38, a=0, b=2, s="interval", d="C12: 0..25 (0 = off); C13: 5..100"}}
+       fields={{n="interval_s", c=41, a=0, b=2, s="interval", d="C12: 0..25 (0 = off); C13: 5..100"}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2020,7 +2094,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="interval_s", c=38, a=0, b=2, s="interval", d=""}}
+       fields={{n="interval_s", c=41, a=0, b=2, s="interval", d=""}}
       }
      }
     },
@@ -2035,7 +2109,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="detail", c=24, a=0, b=2, s="detail", d=""}}
+       fields={{n="detail", c=10, a=0, b=2, s="detail", d=""}}
       },
       {
        rw="w",
@@ -2044,7 +2118,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="detail", c=24, a=0, b=2, s="detail", d=""}}
+       fields={{n="detail", c=10, a=0, b=2, s="detail", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2054,7 +2128,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="detail", c=24, a=0, b=2, s="detail", d=""}}
+       fields={{n="detail", c=10, a=0, b=2, s="detail", d=""}}
       }
      }
     },
@@ -2069,7 +2143,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="gamma", c=24, a=0, b=2, s="gamma", d=""}}
+       fields={{n="gamma", c=10, a=0, b=2, s="gamma", d=""}}
       },
       {
        rw="w",
@@ -2078,7 +2152,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="gamma", c=24, a=0, b=2, s="gamma", d=""}}
+       fields={{n="gamma", c=10, a=0, b=2, s="gamma", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2088,7 +2162,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="gamma", c=24, a=0, b=2, s="gamma", d=""}}
+       fields={{n="gamma", c=10, a=0, b=2, s="gamma", d=""}}
       }
      }
     },
@@ -2103,7 +2177,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="brightness", c=24, a=0, b=2, s="brightness", d=""}}
+       fields={{n="brightness", c=10, a=0, b=2, s="brightness", d=""}}
       },
       {
        rw="w",
@@ -2112,7 +2186,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="brightness", c=24, a=0, b=2, s="brightness", d=""}}
+       fields={{n="brightness", c=10, a=0, b=2, s="brightness", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2122,7 +2196,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="brightness", c=24, a=0, b=2, s="brightness", d=""}}
+       fields={{n="brightness", c=10, a=0, b=2, s="brightness", d=""}}
       }
      }
     },
@@ -2137,7 +2211,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="contrast", c=24, a=0, b=2, s="contrast", d=""}}
+       fields={{n="contrast", c=10, a=0, b=2, s="contrast", d=""}}
       },
       {
        rw="w",
@@ -2146,7 +2220,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="contrast", c=24, a=0, b=2, s="contrast", d=""}}
+       fields={{n="contrast", c=10, a=0, b=2, s="contrast", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2156,7 +2230,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="contrast", c=24, a=0, b=2, s="contrast", d=""}}
+       fields={{n="contrast", c=10, a=0, b=2, s="contrast", d=""}}
       }
      }
     },
@@ -2171,7 +2245,7 @@ local GEN = {
        role="",
        min=15,
        max=15,
-       fields={{n="time", c=39, a=0, b=15, s="time", d="hhmmss.ss DDMMYY"}}
+       fields={{n="time", c=42, a=0, b=15, s="time", d="hhmmss.ss DDMMYY"}}
       },
       {
        rw="w",
@@ -2180,7 +2254,7 @@ local GEN = {
        role="echo",
        min=15,
        max=15,
-       fields={{n="time", c=39, a=0, b=15, s="time", d="hhmmss.ss DDMMYY"}}
+       fields={{n="time", c=42, a=0, b=15, s="time", d="hhmmss.ss DDMMYY"}}
       }
      }
     },
@@ -2196,7 +2270,7 @@ local GEN = {
        role="",
        min=0,
        max=15,
-       fields={{n="data", c=11, a=0, s="data", d="layout not documented"}}
+       fields={{n="data", c=14, a=0, s="data", d="layout not documented"}}
       },
       {
        rw="w",
@@ -2205,7 +2279,7 @@ local GEN = {
        role="",
        min=0,
        max=15,
-       fields={{n="data", c=11, a=0, s="data", d="layout not documented"}}
+       fields={{n="data", c=14, a=0, s="data", d="layout not documented"}}
       }
      }
     },
@@ -2220,7 +2294,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="scene", c=40, a=0, b=2, s="scene", d=""}}
+       fields={{n="scene", c=43, a=0, b=2, s="scene", d=""}}
       },
       {
        rw="w",
@@ -2229,7 +2303,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="scene", c=40, a=0, b=2, s="scene", d=""}}
+       fields={{n="scene", c=43, a=0, b=2, s="scene", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2239,7 +2313,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="scene", c=40, a=0, b=2, s="scene", d=""}}
+       fields={{n="scene", c=43, a=0, b=2, s="scene", d=""}}
       }
      }
     },
@@ -2254,7 +2328,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="temporal_denoise", c=24, a=0, b=2, s="temporal_denoise", d=""}}
+       fields={{n="temporal_denoise", c=10, a=0, b=2, s="temporal_denoise", d=""}}
       },
       {
        rw="w",
@@ -2263,7 +2337,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="temporal_denoise", c=24, a=0, b=2, s="temporal_denoise", d=""}}
+       fields={{n="temporal_denoise", c=10, a=0, b=2, s="temporal_denoise", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2273,7 +2347,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="temporal_denoise", c=24, a=0, b=2, s="temporal_denoise", d=""}}
+       fields={{n="temporal_denoise", c=10, a=0, b=2, s="temporal_denoise", d=""}}
       }
      }
     },
@@ -2288,7 +2362,7 @@ local GEN = {
        role="",
        min=8,
        max=8,
-       fields={{n="uid", c=41, a=0, b=8, s="uid", d=""}}
+       fields={{n="uid", c=44, a=0, b=8, s="uid", d=""}}
       },
       {
        rw="w",
@@ -2297,7 +2371,7 @@ local GEN = {
        role="echo",
        min=8,
        max=8,
-       fields={{n="uid", c=41, a=0, b=8, s="uid", d=""}}
+       fields={{n="uid", c=44, a=0, b=8, s="uid", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2307,7 +2381,7 @@ local GEN = {
        role="",
        min=8,
        max=8,
-       fields={{n="uid", c=41, a=0, b=8, s="uid", d=""}}
+       fields={{n="uid", c=44, a=0, b=8, s="uid", d=""}}
       }
      }
     },
@@ -2323,7 +2397,7 @@ local GEN = {
        role="",
        min=1,
        max=15,
-       fields={{n="version", c=22, a=0, s="version", d="e.g. V1.0.0"}}
+       fields={{n="version", c=25, a=0, s="version", d="e.g. V1.0.0"}}
       }
      }
     },
@@ -2339,8 +2413,8 @@ local GEN = {
        min=2,
        max=2,
        fields={
-        {n="secondary", c=42, a=0, b=1, s="secondary", d="second visible lens (dual-visible models)"},
-        {n="primary", c=42, a=1, b=2, s="primary", d=""}
+        {n="secondary", c=45, a=0, b=1, s="secondary", d="second visible lens (dual-visible models)"},
+        {n="primary", c=45, a=1, b=2, s="primary", d=""}
        }
       },
       {
@@ -2351,8 +2425,8 @@ local GEN = {
        min=2,
        max=2,
        fields={
-        {n="secondary", c=42, a=0, b=1, s="secondary", d="second visible lens (dual-visible models)"},
-        {n="primary", c=42, a=1, b=2, s="primary", d=""}
+        {n="secondary", c=45, a=0, b=1, s="secondary", d="second visible lens (dual-visible models)"},
+        {n="primary", c=45, a=1, b=2, s="primary", d=""}
        }
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
@@ -2364,8 +2438,8 @@ local GEN = {
        min=2,
        max=2,
        fields={
-        {n="secondary", c=42, a=0, b=1, s="secondary", d=""},
-        {n="primary", c=42, a=1, b=2, s="primary", d=""}
+        {n="secondary", c=45, a=0, b=1, s="secondary", d=""},
+        {n="primary", c=45, a=1, b=2, s="primary", d=""}
        }
       }
      }
@@ -2382,12 +2456,12 @@ local GEN = {
        min=11,
        max=11,
        fields={
-        {n="h_flip", c=13, a=0, b=1, s="h_flip", d=""},
-        {n="v_flip", c=13, a=1, b=2, s="v_flip", d=""},
-        {n="fps", c=43, a=2, b=4, s="fps", d=""},
-        {n="gop", c=44, a=4, b=6, s="gop", d="frames between key frames"},
-        {n="bitrate_kbps", c=45, a=6, b=10, s="bitrate", d=""},
-        {n="output", c=13, a=10, b=11, s="output", d="video data output"}
+        {n="h_flip", c=16, a=0, b=1, s="h_flip", d=""},
+        {n="v_flip", c=16, a=1, b=2, s="v_flip", d=""},
+        {n="fps", c=46, a=2, b=4, s="fps", d=""},
+        {n="gop", c=47, a=4, b=6, s="gop", d="frames between key frames"},
+        {n="bitrate_kbps", c=48, a=6, b=10, s="bitrate", d=""},
+        {n="output", c=16, a=10, b=11, s="output", d="video data output"}
        }
       },
       {
@@ -2398,12 +2472,12 @@ local GEN = {
        min=11,
        max=11,
        fields={
-        {n="h_flip", c=13, a=0, b=1, s="h_flip", d=""},
-        {n="v_flip", c=13, a=1, b=2, s="v_flip", d=""},
-        {n="fps", c=43, a=2, b=4, s="fps", d=""},
-        {n="gop", c=44, a=4, b=6, s="gop", d="frames between key frames"},
-        {n="bitrate_kbps", c=45, a=6, b=10, s="bitrate", d=""},
-        {n="output", c=13, a=10, b=11, s="output", d="video data output"}
+        {n="h_flip", c=16, a=0, b=1, s="h_flip", d=""},
+        {n="v_flip", c=16, a=1, b=2, s="v_flip", d=""},
+        {n="fps", c=46, a=2, b=4, s="fps", d=""},
+        {n="gop", c=47, a=4, b=6, s="gop", d="frames between key frames"},
+        {n="bitrate_kbps", c=48, a=6, b=10, s="bitrate", d=""},
+        {n="output", c=16, a=10, b=11, s="output", d="video data output"}
        }
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
@@ -2415,12 +2489,12 @@ local GEN = {
        min=11,
        max=11,
        fields={
-        {n="h_flip", c=13, a=0, b=1, s="h_flip", d=""},
-        {n="v_flip", c=13, a=1, b=2, s="v_flip", d=""},
-        {n="fps", c=43, a=2, b=4, s="fps", d=""},
-        {n="gop", c=44, a=4, b=6, s="gop", d="frames between key frames"},
-        {n="bitrate_kbps", c=45, a=6, b=10, s="bitrate", d=""},
-        {n="output", c=13, a=10, b=11, s="output", d="video data output"}
+        {n="h_flip", c=16, a=0, b=1, s="h_flip", d=""},
+        {n="v_flip", c=16, a=1, b=2, s="v_flip", d=""},
+        {n="fps", c=46, a=2, b=4, s="fps", d=""},
+        {n="gop", c=47, a=4, b=6, s="gop", d="frames between key frames"},
+        {n="bitrate_kbps", c=48, a=6, b=10, s="bitrate", d=""},
+        {n="output", c=16, a=10, b=11, s="output", d="video data output"}
        }
       }
      }
@@ -2437,10 +2511,10 @@ local GEN = {
        min=8,
        max=8,
        fields={
-        {n="zoom_pos", c=46, a=0, b=4, s="zoom_pos", d="zoom motor position"},
+        {n="zoom_pos", c=49, a=0, b=4, s="zoom_pos", d="zoom motor position"},
         {
          n="focus_pos",
-         c=47,
+         c=50,
          a=4,
          b=8,
          s="focus_pos",
@@ -2456,10 +2530,10 @@ local GEN = {
        min=8,
        max=8,
        fields={
-        {n="zoom_pos", c=46, a=0, b=4, s="zoom_pos", d="zoom motor position"},
+        {n="zoom_pos", c=49, a=0, b=4, s="zoom_pos", d="zoom motor position"},
         {
          n="focus_pos",
-         c=47,
+         c=50,
          a=4,
          b=8,
          s="focus_pos",
@@ -2480,7 +2554,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=48, a=0, b=2, s="action", d="in and out continue until stop"}}
+       fields={{n="action", c=51, a=0, b=2, s="action", d="in and out continue until stop"}}
       },
       {
        rw="w",
@@ -2489,7 +2563,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=48, a=0, b=2, s="action", d="in and out continue until stop"}}
+       fields={{n="action", c=51, a=0, b=2, s="action", d="in and out continue until stop"}}
       }
      }
     }
@@ -2513,8 +2587,8 @@ local GEN = {
     ["DNS|w|response"]={2, 1},
     ["DZM|r|request"]={3, 4},
     ["DZM|r|response"]={4, 3},
-    ["DZM|w|request"]={1, 5, 7, 2, 6, 8},
-    ["DZM|w|response"]={2, 6, 8, 1, 5, 7},
+    ["DZM|w|request"]={1, 5, 7, 9, 2, 6, 8, 10},
+    ["DZM|w|response"]={2, 6, 8, 10, 1, 5, 7, 9},
     ["ERE|w|request"]={1},
     ["ERE|w|response"]={1},
     ["EVS|r|request"]={3, 4},
@@ -2595,8 +2669,8 @@ local GEN = {
     ["SDC|r|response"]={2, 1},
     ["SLR|r|request"]={1, 2},
     ["SLR|r|response"]={2, 1},
-    ["SLR|w|request"]={3, 4},
-    ["SLR|w|response"]={4, 3},
+    ["SLR|w|request"]={3, 5, 4, 6},
+    ["SLR|w|response"]={4, 6, 3, 5},
     ["SUM|w|request"]={1, 2},
     ["SUM|w|response"]={2, 1},
     ["TAR|r|request"]={3, 4},
@@ -2697,7 +2771,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=49, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=52, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -2706,7 +2780,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=49, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=52, a=0, b=2, s="action", d=""}}
       }
      }
     },
@@ -2721,7 +2795,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {
        rw="w",
@@ -2730,7 +2804,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       }
      }
     },
@@ -2745,7 +2819,7 @@ local GEN = {
        role="",
        min=1,
        max=15,
-       fields={{n="azimuth_deg", c=50, a=0, s="azimuth", d=""}}
+       fields={{n="azimuth_deg", c=53, a=0, s="azimuth", d=""}}
       },
       {
        rw="w",
@@ -2754,7 +2828,7 @@ local GEN = {
        role="echo",
        min=1,
        max=15,
-       fields={{n="azimuth_deg", c=50, a=0, s="azimuth", d=""}}
+       fields={{n="azimuth_deg", c=53, a=0, s="azimuth", d=""}}
       }
      }
     },
@@ -2769,7 +2843,7 @@ local GEN = {
        role="",
        min=1,
        max=6,
-       fields={{n="bitrate_kbps", c=51, a=0, s="bitrate", d=""}}
+       fields={{n="bitrate_kbps", c=54, a=0, s="bitrate", d=""}}
       },
       {
        rw="w",
@@ -2778,7 +2852,7 @@ local GEN = {
        role="echo",
        min=1,
        max=6,
-       fields={{n="bitrate_kbps", c=51, a=0, s="bitrate", d=""}}
+       fields={{n="bitrate_kbps", c=54, a=0, s="bitrate", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2788,7 +2862,7 @@ local GEN = {
        role="",
        min=1,
        max=6,
-       fields={{n="bitrate_kbps", c=51, a=0, s="bitrate", d=""}}
+       fields={{n="bitrate_kbps", c=54, a=0, s="bitrate", d=""}}
       }
      }
     },
@@ -2803,7 +2877,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="mode", c=52, a=0, b=2, s="mode", d=""}}
+       fields={{n="mode", c=55, a=0, b=2, s="mode", d=""}}
       },
       {
        rw="w",
@@ -2812,7 +2886,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="mode", c=52, a=0, b=2, s="mode", d=""}}
+       fields={{n="mode", c=55, a=0, b=2, s="mode", d=""}}
       },
       {
        rw="w",
@@ -2822,8 +2896,8 @@ local GEN = {
        min=10,
        max=10,
        fields={
-        {n="state", c=53, a=0, b=2, s="state", d=""},
-        {n="file_index", c=41, a=2, b=10, s="file_index", d="snap_0_<idx>.jpeg"}
+        {n="state", c=56, a=0, b=2, s="state", d=""},
+        {n="file_index", c=44, a=2, b=10, s="file_index", d="snap_0_<idx>.jpeg"}
        }
       }
      }
@@ -2839,7 +2913,7 @@ local GEN = {
        role="",
        min=3,
        max=3,
-       fields={{n="mode", c=54, a=0, b=1, s="mode", d=""}, {n="strength", c=24, a=1, b=3, s="strength", d="0..255"}}
+       fields={{n="mode", c=57, a=0, b=1, s="mode", d=""}, {n="strength", c=10, a=1, b=3, s="strength", d="0..255"}}
       },
       {
        rw="w",
@@ -2848,7 +2922,7 @@ local GEN = {
        role="echo",
        min=3,
        max=3,
-       fields={{n="mode", c=54, a=0, b=1, s="mode", d=""}, {n="strength", c=24, a=1, b=3, s="strength", d="0..255"}}
+       fields={{n="mode", c=57, a=0, b=1, s="mode", d=""}, {n="strength", c=10, a=1, b=3, s="strength", d="0..255"}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2858,7 +2932,7 @@ local GEN = {
        role="",
        min=3,
        max=3,
-       fields={{n="mode", c=54, a=0, b=1, s="mode", d=""}, {n="strength", c=24, a=1, b=3, s="strength", d=""}}
+       fields={{n="mode", c=57, a=0, b=1, s="mode", d=""}, {n="strength", c=10, a=1, b=3, s="strength", d=""}}
       }
      }
     },
@@ -2874,7 +2948,7 @@ local GEN = {
        min=3,
        max=3,
        fields={
-        {n="lens", c=55, a=0, b=1, s="lens", d=""},
+        {n="lens", c=58, a=0, b=1, s="lens", d=""},
         {n="zoom", c=8, a=1, b=3, s="zoom", d="magnification step 0.1 (decimal 00..80), or an action"}
        }
       },
@@ -2886,7 +2960,7 @@ local GEN = {
        min=3,
        max=3,
        fields={
-        {n="lens", c=55, a=0, b=1, s="lens", d=""},
+        {n="lens", c=58, a=0, b=1, s="lens", d=""},
         {n="zoom", c=8, a=1, b=3, s="zoom", d="magnification step 0.1 (decimal 00..80), or an action"}
        }
       },
@@ -2899,8 +2973,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="thermal_zoom_x", c=56, a=0, b=2, s="thermal_zoom", d=""},
-        {n="visible_zoom_x", c=56, a=2, b=4, s="visible_zoom", d=""}
+        {n="thermal_zoom_x", c=59, a=0, b=2, s="thermal_zoom", d=""},
+        {n="visible_zoom_x", c=59, a=2, b=4, s="visible_zoom", d=""}
        }
       },
       {
@@ -2968,6 +3042,46 @@ local GEN = {
         {n="image", c=7, a=0, b=2, s="image", d=""},
         {n="magnification_x", c=9, a=2, b=6, s="magnification", d=""}
        }
+      },
+      {
+       rw="w",
+       dir="request",
+       title="image code and ratio (F + 3 hex digits)",
+       role="",
+       min=6,
+       max=6,
+       fields={
+        {
+         n="image_code",
+         c=10,
+         a=0,
+         b=2,
+         s="image_code",
+         d="image / camera: 00 visible, 01 thermal, others as the model numbers them"
+        },
+        {n="ratio_mark", c=11, a=2, b=3, s="ratio_mark", d="always F: a zoom ratio follows"},
+        {n="ratio_x", c=12, a=3, b=6, s="ratio", d="zoom ratio in 0.1x (three hex digits)"}
+       }
+      },
+      {
+       rw="w",
+       dir="response",
+       title="echo of image code and ratio (F + 3 hex digits)",
+       role="echo",
+       min=6,
+       max=6,
+       fields={
+        {
+         n="image_code",
+         c=10,
+         a=0,
+         b=2,
+         s="image_code",
+         d="image / camera: 00 visible, 01 thermal, others as the model numbers them"
+        },
+        {n="ratio_mark", c=11, a=2, b=3, s="ratio_mark", d="always F: a zoom ratio follows"},
+        {n="ratio_x", c=12, a=3, b=6, s="ratio", d="zoom ratio in 0.1x (three hex digits)"}
+       }
       }
      }
     },
@@ -2982,7 +3096,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="stream", c=57, a=0, b=1, s="stream", d=""}, {n="codec", c=58, a=1, b=2, s="codec", d=""}}
+       fields={{n="stream", c=60, a=0, b=1, s="stream", d=""}, {n="codec", c=61, a=1, b=2, s="codec", d=""}}
       },
       {
        rw="w",
@@ -2991,7 +3105,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="stream", c=57, a=0, b=1, s="stream", d=""}, {n="codec", c=58, a=1, b=2, s="codec", d=""}}
+       fields={{n="stream", c=60, a=0, b=1, s="stream", d=""}, {n="codec", c=61, a=1, b=2, s="codec", d=""}}
       }
      }
     },
@@ -3006,7 +3120,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="error", c=10, a=0, b=2, s="error", d="always '!!'"}}
+       fields={{n="error", c=13, a=0, b=2, s="error", d="always '!!'"}}
       }
      }
     },
@@ -3021,7 +3135,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=17, a=0, b=2, s="action", d="+ and - continue until stop"}}
+       fields={{n="action", c=20, a=0, b=2, s="action", d="+ and - continue until stop"}}
       },
       {
        rw="w",
@@ -3030,7 +3144,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=17, a=0, b=2, s="action", d="+ and - continue until stop"}}
+       fields={{n="action", c=20, a=0, b=2, s="action", d="+ and - continue until stop"}}
       }
      }
     },
@@ -3046,7 +3160,7 @@ local GEN = {
        role="",
        min=4,
        max=4,
-       fields={{n="focus_pos", c=46, a=0, b=4, s="focus_pos", d="focus motor position"}}
+       fields={{n="focus_pos", c=49, a=0, b=4, s="focus_pos", d="focus motor position"}}
       }
      }
     },
@@ -3061,7 +3175,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {
        rw="w",
@@ -3070,7 +3184,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -3080,7 +3194,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       }
      }
     },
@@ -3097,9 +3211,9 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="gimbal yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="gimbal pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="gimbal roll"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="gimbal yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="gimbal pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="gimbal roll"}
        }
       }
      }
@@ -3116,17 +3230,17 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw (body frame), right-positive"},
-        {n="yaw_speed_deg_s", c=19, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw (body frame), right-positive"},
+        {n="yaw_speed_deg_s", c=22, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
         {
          n="pitch_deg",
-         c=15,
+         c=18,
          a=6,
          b=10,
          s="pitch",
          d="pitch (body frame); the document says up-positive, ArduPilot finds down-positive"
         },
-        {n="pitch_speed_deg_s", c=19, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="pitch_speed_deg_s", c=22, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -3137,17 +3251,17 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw (body frame), right-positive"},
-        {n="yaw_speed_deg_s", c=19, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw (body frame), right-positive"},
+        {n="yaw_speed_deg_s", c=22, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
         {
          n="pitch_deg",
-         c=15,
+         c=18,
          a=6,
          b=10,
          s="pitch",
          d="pitch (body frame); the document says up-positive, ArduPilot finds down-positive"
         },
-        {n="pitch_speed_deg_s", c=19, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="pitch_speed_deg_s", c=22, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -3166,13 +3280,13 @@ local GEN = {
        fields={
         {
          n="pitch_deg",
-         c=15,
+         c=18,
          a=0,
          b=4,
          s="pitch",
          d="pitch (body frame); the document says up-positive, ArduPilot finds down-positive"
         },
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -3185,13 +3299,13 @@ local GEN = {
        fields={
         {
          n="pitch_deg",
-         c=15,
+         c=18,
          a=0,
          b=4,
          s="pitch",
          d="pitch (body frame); the document says up-positive, ArduPilot finds down-positive"
         },
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -3208,8 +3322,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="roll_deg", c=15, a=0, b=4, s="roll", d="roll (body frame)"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="roll_deg", c=18, a=0, b=4, s="roll", d="roll (body frame)"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -3220,8 +3334,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="roll_deg", c=15, a=0, b=4, s="roll", d="roll (body frame)"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="roll_deg", c=18, a=0, b=4, s="roll", d="roll (body frame)"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -3238,8 +3352,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw (body frame), right-positive"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw (body frame), right-positive"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -3250,8 +3364,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw (body frame), right-positive"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw (body frame), right-positive"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -3267,7 +3381,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {
        rw="w",
@@ -3276,7 +3390,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -3286,7 +3400,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {
        rw="r",
@@ -3296,9 +3410,9 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="gimbal yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="gimbal pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="gimbal roll"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="gimbal yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="gimbal pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="gimbal roll"}
        }
       },
       {
@@ -3309,10 +3423,10 @@ local GEN = {
        min=13,
        max=267,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="gimbal yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="gimbal pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="gimbal roll"},
-        {n="extra", c=11, a=12, s="extra", d="characters after the first 12"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="gimbal yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="gimbal pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="gimbal roll"},
+        {n="extra", c=14, a=12, s="extra", d="characters after the first 12"}
        }
       },
       {
@@ -3323,9 +3437,9 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="gimbal yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="gimbal pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="gimbal roll"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="gimbal yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="gimbal pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="gimbal roll"}
        }
       }
      }
@@ -3343,9 +3457,9 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="gimbal yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="gimbal pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="gimbal roll"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="gimbal yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="gimbal pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="gimbal roll"}
        }
       }
      }
@@ -3362,17 +3476,17 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw (earth frame), right-positive"},
-        {n="yaw_speed_deg_s", c=19, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw (earth frame), right-positive"},
+        {n="yaw_speed_deg_s", c=22, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
         {
          n="pitch_deg",
-         c=15,
+         c=18,
          a=6,
          b=10,
          s="pitch",
          d="pitch (earth frame); the document says up-positive, ArduPilot finds down-positive"
         },
-        {n="pitch_speed_deg_s", c=19, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="pitch_speed_deg_s", c=22, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -3383,17 +3497,17 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw (earth frame), right-positive"},
-        {n="yaw_speed_deg_s", c=19, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw (earth frame), right-positive"},
+        {n="yaw_speed_deg_s", c=22, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
         {
          n="pitch_deg",
-         c=15,
+         c=18,
          a=6,
          b=10,
          s="pitch",
          d="pitch (earth frame); the document says up-positive, ArduPilot finds down-positive"
         },
-        {n="pitch_speed_deg_s", c=19, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="pitch_speed_deg_s", c=22, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -3412,13 +3526,13 @@ local GEN = {
        fields={
         {
          n="pitch_deg",
-         c=15,
+         c=18,
          a=0,
          b=4,
          s="pitch",
          d="pitch (earth frame); the document says up-positive, ArduPilot finds down-positive"
         },
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -3431,13 +3545,13 @@ local GEN = {
        fields={
         {
          n="pitch_deg",
-         c=15,
+         c=18,
          a=0,
          b=4,
          s="pitch",
          d="pitch (earth frame); the document says up-positive, ArduPilot finds down-positive"
         },
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -3454,8 +3568,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="roll_deg", c=15, a=0, b=4, s="roll", d="roll (earth frame)"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="roll_deg", c=18, a=0, b=4, s="roll", d="roll (earth frame)"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -3466,8 +3580,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="roll_deg", c=15, a=0, b=4, s="roll", d="roll (earth frame)"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="roll_deg", c=18, a=0, b=4, s="roll", d="roll (earth frame)"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -3484,8 +3598,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw (earth frame), right-positive"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw (earth frame), right-positive"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -3496,8 +3610,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw (earth frame), right-positive"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw (earth frame), right-positive"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -3513,7 +3627,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {
        rw="w",
@@ -3522,7 +3636,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -3532,7 +3646,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       }
      }
     },
@@ -3550,15 +3664,15 @@ local GEN = {
        fields={
         {
          n="heading_deg",
-         c=59,
+         c=62,
          a=0,
          b=2,
          s="heading",
          d="vehicle heading (unit not stated; 0.01 deg assumed)"
         },
-        {n="lon_deg", c=60, a=2, b=6, s="lon", d=""},
-        {n="lat_deg", c=60, a=6, b=10, s="lat", d=""},
-        {n="alt_m", c=61, a=10, b=14, s="alt", d=""}
+        {n="lon_deg", c=63, a=2, b=6, s="lon", d=""},
+        {n="lat_deg", c=63, a=6, b=10, s="lat", d=""},
+        {n="alt_m", c=64, a=10, b=14, s="alt", d=""}
        }
       },
       {
@@ -3571,15 +3685,15 @@ local GEN = {
        fields={
         {
          n="heading_deg",
-         c=59,
+         c=62,
          a=0,
          b=2,
          s="heading",
          d="vehicle heading (unit not stated; 0.01 deg assumed)"
         },
-        {n="lon_deg", c=60, a=2, b=6, s="lon", d=""},
-        {n="lat_deg", c=60, a=6, b=10, s="lat", d=""},
-        {n="alt_m", c=61, a=10, b=14, s="alt", d=""}
+        {n="lon_deg", c=63, a=2, b=6, s="lon", d=""},
+        {n="lat_deg", c=63, a=6, b=10, s="lat", d=""},
+        {n="alt_m", c=64, a=10, b=14, s="alt", d=""}
        }
       }
      }
@@ -3596,10 +3710,10 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="yaw_rate_deg_s", c=62, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"},
+        {n="yaw_rate_deg_s", c=65, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"},
         {
          n="pitch_rate_deg_s",
-         c=62,
+         c=65,
          a=2,
          b=4,
          s="pitch_rate",
@@ -3615,10 +3729,10 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="yaw_rate_deg_s", c=62, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"},
+        {n="yaw_rate_deg_s", c=65, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"},
         {
          n="pitch_rate_deg_s",
-         c=62,
+         c=65,
          a=2,
          b=4,
          s="pitch_rate",
@@ -3642,7 +3756,7 @@ local GEN = {
        fields={
         {
          n="pitch_rate_deg_s",
-         c=62,
+         c=65,
          a=0,
          b=2,
          s="pitch_rate",
@@ -3660,7 +3774,7 @@ local GEN = {
        fields={
         {
          n="pitch_rate_deg_s",
-         c=62,
+         c=65,
          a=0,
          b=2,
          s="pitch_rate",
@@ -3681,7 +3795,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="roll_rate_deg_s", c=62, a=0, b=2, s="roll_rate", d="roll rate, -99..99 steps"}}
+       fields={{n="roll_rate_deg_s", c=65, a=0, b=2, s="roll_rate", d="roll rate, -99..99 steps"}}
       },
       {
        rw="w",
@@ -3690,7 +3804,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="roll_rate_deg_s", c=62, a=0, b=2, s="roll_rate", d="roll rate, -99..99 steps"}}
+       fields={{n="roll_rate_deg_s", c=65, a=0, b=2, s="roll_rate", d="roll rate, -99..99 steps"}}
       }
      }
     },
@@ -3705,7 +3819,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="yaw_rate_deg_s", c=62, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"}}
+       fields={{n="yaw_rate_deg_s", c=65, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"}}
       },
       {
        rw="w",
@@ -3714,7 +3828,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="yaw_rate_deg_s", c=62, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"}}
+       fields={{n="yaw_rate_deg_s", c=65, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"}}
       }
      }
     },
@@ -3763,7 +3877,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="palette", c=63, a=0, b=2, s="palette", d=""}}
+       fields={{n="palette", c=66, a=0, b=2, s="palette", d=""}}
       },
       {
        rw="w",
@@ -3772,7 +3886,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="palette", c=63, a=0, b=2, s="palette", d=""}}
+       fields={{n="palette", c=66, a=0, b=2, s="palette", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -3782,7 +3896,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="palette", c=63, a=0, b=2, s="palette", d=""}}
+       fields={{n="palette", c=66, a=0, b=2, s="palette", d=""}}
       },
       {
        rw="w",
@@ -3792,8 +3906,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="channel", c=24, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
-        {n="palette", c=63, a=2, b=4, s="palette", d=""}
+        {n="channel", c=10, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
+        {n="palette", c=66, a=2, b=4, s="palette", d=""}
        }
       },
       {
@@ -3804,8 +3918,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="channel", c=24, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
-        {n="palette", c=63, a=2, b=4, s="palette", d=""}
+        {n="channel", c=10, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
+        {n="palette", c=66, a=2, b=4, s="palette", d=""}
        }
       },
       {
@@ -3816,8 +3930,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="channel", c=24, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
-        {n="palette", c=63, a=2, b=4, s="palette", d=""}
+        {n="channel", c=10, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
+        {n="palette", c=66, a=2, b=4, s="palette", d=""}
        }
       }
      }
@@ -3867,7 +3981,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="mode", c=27, a=0, b=2, s="mode", d=""}}
+       fields={{n="mode", c=29, a=0, b=2, s="mode", d=""}}
       },
       {
        rw="w",
@@ -3876,7 +3990,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="mode", c=27, a=0, b=2, s="mode", d=""}}
+       fields={{n="mode", c=29, a=0, b=2, s="mode", d=""}}
       }
      }
     },
@@ -3891,7 +4005,7 @@ local GEN = {
        role="",
        min=10,
        max=10,
-       fields={{n="lat_deg", c=28, a=0, b=10, s="lat", d="vehicle latitude, south negative"}}
+       fields={{n="lat_deg", c=30, a=0, b=10, s="lat", d="vehicle latitude, south negative"}}
       },
       {
        rw="w",
@@ -3900,7 +4014,7 @@ local GEN = {
        role="echo",
        min=10,
        max=10,
-       fields={{n="lat_deg", c=28, a=0, b=10, s="lat", d="vehicle latitude, south negative"}}
+       fields={{n="lat_deg", c=30, a=0, b=10, s="lat", d="vehicle latitude, south negative"}}
       },
       {
        rw="w",
@@ -3909,7 +4023,7 @@ local GEN = {
        role="",
        min=10,
        max=10,
-       fields={{n="lat_deg", c=64, a=0, b=10, s="lat", d="target latitude"}}
+       fields={{n="lat_deg", c=67, a=0, b=10, s="lat", d="target latitude"}}
       }
      }
     },
@@ -3925,11 +4039,11 @@ local GEN = {
        min=10,
        max=10,
        fields={
-        {n="x_px", c=65, a=0, b=2, s="x_px", d=""},
-        {n="y_px", c=65, a=2, b=4, s="y_px", d=""},
-        {n="width_px", c=65, a=4, b=6, s="width_px", d=""},
-        {n="height_px", c=65, a=6, b=8, s="height_px", d=""},
-        {n="reserved", c=66, a=8, b=10, s="reserved", d=""}
+        {n="x_px", c=68, a=0, b=2, s="x_px", d=""},
+        {n="y_px", c=68, a=2, b=4, s="y_px", d=""},
+        {n="width_px", c=68, a=4, b=6, s="width_px", d=""},
+        {n="height_px", c=68, a=6, b=8, s="height_px", d=""},
+        {n="reserved", c=69, a=8, b=10, s="reserved", d=""}
        }
       },
       {
@@ -3940,11 +4054,11 @@ local GEN = {
        min=10,
        max=10,
        fields={
-        {n="x_px", c=65, a=0, b=2, s="x_px", d=""},
-        {n="y_px", c=65, a=2, b=4, s="y_px", d=""},
-        {n="width_px", c=65, a=4, b=6, s="width_px", d=""},
-        {n="height_px", c=65, a=6, b=8, s="height_px", d=""},
-        {n="reserved", c=66, a=8, b=10, s="reserved", d=""}
+        {n="x_px", c=68, a=0, b=2, s="x_px", d=""},
+        {n="y_px", c=68, a=2, b=4, s="y_px", d=""},
+        {n="width_px", c=68, a=4, b=6, s="width_px", d=""},
+        {n="height_px", c=68, a=6, b=8, s="height_px", d=""},
+        {n="reserved", c=69, a=8, b=10, s="reserved", d=""}
        }
       }
      }
@@ -3960,7 +4074,7 @@ local GEN = {
        role="",
        min=11,
        max=11,
-       fields={{n="lon_deg", c=29, a=0, b=11, s="lon", d="vehicle longitude, west negative"}}
+       fields={{n="lon_deg", c=31, a=0, b=11, s="lon", d="vehicle longitude, west negative"}}
       },
       {
        rw="w",
@@ -3969,7 +4083,7 @@ local GEN = {
        role="echo",
        min=11,
        max=11,
-       fields={{n="lon_deg", c=29, a=0, b=11, s="lon", d="vehicle longitude, west negative"}}
+       fields={{n="lon_deg", c=31, a=0, b=11, s="lon", d="vehicle longitude, west negative"}}
       },
       {
        rw="w",
@@ -3978,7 +4092,7 @@ local GEN = {
        role="",
        min=11,
        max=11,
-       fields={{n="lon_deg", c=67, a=0, b=11, s="lon", d="target longitude"}}
+       fields={{n="lon_deg", c=70, a=0, b=11, s="lon", d="target longitude"}}
       }
      }
     },
@@ -3993,7 +4107,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=68, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=71, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -4002,7 +4116,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=68, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=71, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -4011,7 +4125,7 @@ local GEN = {
        role="",
        min=1,
        max=15,
-       fields={{n="distance_m", c=69, a=0, s="distance", d="distance, or null when the measurement failed (ERR)"}}
+       fields={{n="distance_m", c=72, a=0, s="distance", d="distance, or null when the measurement failed (ERR)"}}
       }
      }
     },
@@ -4061,7 +4175,7 @@ local GEN = {
        role="",
        min=1,
        max=15,
-       fields={{n="model", c=22, a=0, s="model", d=""}}
+       fields={{n="model", c=25, a=0, s="model", d=""}}
       }
      }
     },
@@ -4077,8 +4191,8 @@ local GEN = {
        min=2,
        max=2,
        fields={
-        {n="secondary", c=70, a=0, b=1, s="secondary", d="second visible lens (dual-visible models)"},
-        {n="mode", c=70, a=1, b=2, s="mode", d=""}
+        {n="secondary", c=73, a=0, b=1, s="secondary", d="second visible lens (dual-visible models)"},
+        {n="mode", c=73, a=1, b=2, s="mode", d=""}
        }
       },
       {
@@ -4089,8 +4203,8 @@ local GEN = {
        min=2,
        max=2,
        fields={
-        {n="secondary", c=70, a=0, b=1, s="secondary", d="second visible lens (dual-visible models)"},
-        {n="mode", c=70, a=1, b=2, s="mode", d=""}
+        {n="secondary", c=73, a=0, b=1, s="secondary", d="second visible lens (dual-visible models)"},
+        {n="mode", c=73, a=1, b=2, s="mode", d=""}
        }
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
@@ -4101,7 +4215,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="secondary", c=70, a=0, b=1, s="secondary", d=""}, {n="mode", c=70, a=1, b=2, s="mode", d=""}}
+       fields={{n="secondary", c=73, a=0, b=1, s="secondary", d=""}, {n="mode", c=73, a=1, b=2, s="mode", d=""}}
       }
      }
     },
@@ -4116,7 +4230,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=71, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=74, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -4125,7 +4239,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=71, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=74, a=0, b=2, s="action", d=""}}
       }
      }
     },
@@ -4140,7 +4254,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=31, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=33, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -4149,7 +4263,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=31, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=33, a=0, b=2, s="action", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -4159,7 +4273,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=32, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=34, a=0, b=2, s="state", d=""}}
       },
       {
        rw="w",
@@ -4169,8 +4283,8 @@ local GEN = {
        min=10,
        max=10,
        fields={
-        {n="state", c=72, a=0, b=2, s="state", d=""},
-        {n="file_index", c=41, a=2, b=10, s="file_index", d="stream_0_<idx>.h264"}
+        {n="state", c=75, a=0, b=2, s="state", d=""},
+        {n="file_index", c=44, a=2, b=10, s="file_index", d="stream_0_<idx>.h264"}
        }
       }
      }
@@ -4186,7 +4300,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="rotation", c=73, a=0, b=2, s="rotation", d=""}}
+       fields={{n="rotation", c=76, a=0, b=2, s="rotation", d=""}}
       },
       {
        rw="w",
@@ -4195,7 +4309,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="rotation", c=73, a=0, b=2, s="rotation", d=""}}
+       fields={{n="rotation", c=76, a=0, b=2, s="rotation", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -4205,7 +4319,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="rotation", c=73, a=0, b=2, s="rotation", d=""}}
+       fields={{n="rotation", c=76, a=0, b=2, s="rotation", d=""}}
       }
      }
     },
@@ -4221,10 +4335,10 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="roll_rate_deg_s", c=62, a=0, b=2, s="roll_rate", d="roll rate, -99..99 steps"},
+        {n="roll_rate_deg_s", c=65, a=0, b=2, s="roll_rate", d="roll rate, -99..99 steps"},
         {
          n="pitch_rate_deg_s",
-         c=62,
+         c=65,
          a=2,
          b=4,
          s="pitch_rate",
@@ -4240,10 +4354,10 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="roll_rate_deg_s", c=62, a=0, b=2, s="roll_rate", d="roll rate, -99..99 steps"},
+        {n="roll_rate_deg_s", c=65, a=0, b=2, s="roll_rate", d="roll rate, -99..99 steps"},
         {
          n="pitch_rate_deg_s",
-         c=62,
+         c=65,
          a=2,
          b=4,
          s="pitch_rate",
@@ -4264,7 +4378,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=33, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=35, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -4273,7 +4387,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=33, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=35, a=0, b=2, s="action", d=""}}
       }
      }
     },
@@ -4288,7 +4402,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="which", c=74, a=0, b=2, s="which", d=""}}
+       fields={{n="which", c=77, a=0, b=2, s="which", d=""}}
       },
       {
        rw="r",
@@ -4297,7 +4411,7 @@ local GEN = {
        role="",
        min=5,
        max=5,
-       fields={{n="capacity_mb", c=75, a=0, b=5, s="capacity", d="null = no card"}}
+       fields={{n="capacity_mb", c=78, a=0, b=5, s="capacity", d="null = no card"}}
       }
      }
     },
@@ -4312,7 +4426,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="device", c=76, a=0, b=1, s="device", d=""}, {n="state", c=13, a=1, b=2, s="state", d=""}}
+       fields={{n="device", c=79, a=0, b=1, s="device", d=""}, {n="state", c=16, a=1, b=2, s="state", d=""}}
       },
       {
        rw="w",
@@ -4321,7 +4435,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="device", c=76, a=0, b=1, s="device", d=""}, {n="state", c=13, a=1, b=2, s="state", d=""}}
+       fields={{n="device", c=79, a=0, b=1, s="device", d=""}, {n="state", c=16, a=1, b=2, s="state", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -4331,7 +4445,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="device", c=76, a=0, b=1, s="device", d=""}, {n="state", c=13, a=1, b=2, s="state", d=""}}
+       fields={{n="device", c=79, a=0, b=1, s="device", d=""}, {n="state", c=16, a=1, b=2, s="state", d=""}}
       }
      }
     },
@@ -4346,7 +4460,7 @@ local GEN = {
        role="",
        min=14,
        max=14,
-       fields={{n="time", c=77, a=0, b=14, s="time", d=""}}
+       fields={{n="time", c=80, a=0, b=14, s="time", d=""}}
       },
       {
        rw="w",
@@ -4355,7 +4469,7 @@ local GEN = {
        role="echo",
        min=14,
        max=14,
-       fields={{n="time", c=77, a=0, b=14, s="time", d=""}}
+       fields={{n="time", c=80, a=0, b=14, s="time", d=""}}
       }
      }
     },
@@ -4371,10 +4485,10 @@ local GEN = {
        min=13,
        max=13,
        fields={
-        {n="hot_x_px", c=78, a=0, b=3, s="hot_x_px", d=""},
-        {n="hot_y_px", c=24, a=3, b=5, s="hot_y_px", d=""},
-        {n="hot_temp_c", c=79, a=5, b=9, s="hot_temp_c", d=""},
-        {n="center_temp_c", c=79, a=9, b=13, s="center_temp_c", d=""}
+        {n="hot_x_px", c=81, a=0, b=3, s="hot_x_px", d=""},
+        {n="hot_y_px", c=10, a=3, b=5, s="hot_y_px", d=""},
+        {n="hot_temp_c", c=82, a=5, b=9, s="hot_temp_c", d=""},
+        {n="center_temp_c", c=82, a=9, b=13, s="center_temp_c", d=""}
        }
       },
       {
@@ -4385,13 +4499,13 @@ local GEN = {
        min=22,
        max=22,
        fields={
-        {n="hot_x_px", c=78, a=0, b=3, s="hot_x_px", d=""},
-        {n="hot_y_px", c=24, a=3, b=5, s="hot_y_px", d=""},
-        {n="hot_temp_c", c=80, a=5, b=9, s="hot_temp_c", d=""},
-        {n="cold_x_px", c=78, a=9, b=12, s="cold_x_px", d=""},
-        {n="cold_y_px", c=24, a=12, b=14, s="cold_y_px", d=""},
-        {n="cold_temp_c", c=80, a=14, b=18, s="cold_temp_c", d=""},
-        {n="center_temp_c", c=80, a=18, b=22, s="center_temp_c", d=""}
+        {n="hot_x_px", c=81, a=0, b=3, s="hot_x_px", d=""},
+        {n="hot_y_px", c=10, a=3, b=5, s="hot_y_px", d=""},
+        {n="hot_temp_c", c=83, a=5, b=9, s="hot_temp_c", d=""},
+        {n="cold_x_px", c=81, a=9, b=12, s="cold_x_px", d=""},
+        {n="cold_y_px", c=10, a=12, b=14, s="cold_y_px", d=""},
+        {n="cold_temp_c", c=83, a=14, b=18, s="cold_temp_c", d=""},
+        {n="center_temp_c", c=83, a=18, b=22, s="center_temp_c", d=""}
        }
       },
       {
@@ -4402,10 +4516,10 @@ local GEN = {
        min=10,
        max=10,
        fields={
-        {n="x_px", c=78, a=0, b=3, s="x_px", d=""},
-        {n="y_px", c=78, a=3, b=6, s="y_px", d=""},
-        {n="width_px", c=24, a=6, b=8, s="width_px", d="0 = spot"},
-        {n="height_px", c=24, a=8, b=10, s="height_px", d="0 = spot"}
+        {n="x_px", c=81, a=0, b=3, s="x_px", d=""},
+        {n="y_px", c=81, a=3, b=6, s="y_px", d=""},
+        {n="width_px", c=10, a=6, b=8, s="width_px", d="0 = spot"},
+        {n="height_px", c=10, a=8, b=10, s="height_px", d="0 = spot"}
        }
       },
       {
@@ -4416,11 +4530,11 @@ local GEN = {
        min=14,
        max=14,
        fields={
-        {n="x_px", c=78, a=0, b=3, s="x_px", d=""},
-        {n="y_px", c=78, a=3, b=6, s="y_px", d=""},
-        {n="width_px", c=24, a=6, b=8, s="width_px", d=""},
-        {n="height_px", c=24, a=8, b=10, s="height_px", d=""},
-        {n="avg_temp_c", c=79, a=10, b=14, s="avg_temp_c", d=""}
+        {n="x_px", c=81, a=0, b=3, s="x_px", d=""},
+        {n="y_px", c=81, a=3, b=6, s="y_px", d=""},
+        {n="width_px", c=10, a=6, b=8, s="width_px", d=""},
+        {n="height_px", c=10, a=8, b=10, s="height_px", d=""},
+        {n="avg_temp_c", c=82, a=10, b=14, s="avg_temp_c", d=""}
        }
       }
      }
@@ -4436,7 +4550,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="range", c=81, a=0, b=2, s="range", d=""}}
+       fields={{n="range", c=84, a=0, b=2, s="range", d=""}}
       },
       {
        rw="w",
@@ -4445,7 +4559,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="range", c=81, a=0, b=2, s="range", d=""}}
+       fields={{n="range", c=84, a=0, b=2, s="range", d=""}}
       }
      }
     },
@@ -4460,7 +4574,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=82, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=85, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -4469,7 +4583,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=82, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=85, a=0, b=2, s="action", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -4479,7 +4593,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="reserved", c=83, a=0, b=1, s="reserved", d=""}, {n="state", c=84, a=1, b=2, s="state", d=""}}
+       fields={{n="reserved", c=86, a=0, b=1, s="reserved", d=""}, {n="state", c=87, a=1, b=2, s="state", d=""}}
       }
      }
     },
@@ -4495,11 +4609,11 @@ local GEN = {
        min=10,
        max=10,
        fields={
-        {n="yaw_deg", c=85, a=0, b=2, s="yaw", d="declared int16 but 0..36000: sent unsigned"},
-        {n="pitch_deg", c=59, a=2, b=4, s="pitch", d="down-positive (struct comment)"},
-        {n="roll_deg", c=59, a=4, b=6, s="roll", d="right-positive"},
-        {n="speed_m_s", c=86, a=6, b=8, s="speed", d=""},
-        {n="path_angle_deg", c=85, a=8, b=10, s="path_angle", d=""}
+        {n="yaw_deg", c=88, a=0, b=2, s="yaw", d="declared int16 but 0..36000: sent unsigned"},
+        {n="pitch_deg", c=62, a=2, b=4, s="pitch", d="down-positive (struct comment)"},
+        {n="roll_deg", c=62, a=4, b=6, s="roll", d="right-positive"},
+        {n="speed_m_s", c=89, a=6, b=8, s="speed", d=""},
+        {n="path_angle_deg", c=88, a=8, b=10, s="path_angle", d=""}
        }
       },
       {
@@ -4510,11 +4624,11 @@ local GEN = {
        min=10,
        max=10,
        fields={
-        {n="yaw_deg", c=85, a=0, b=2, s="yaw", d="declared int16 but 0..36000: sent unsigned"},
-        {n="pitch_deg", c=59, a=2, b=4, s="pitch", d="down-positive (struct comment)"},
-        {n="roll_deg", c=59, a=4, b=6, s="roll", d="right-positive"},
-        {n="speed_m_s", c=86, a=6, b=8, s="speed", d=""},
-        {n="path_angle_deg", c=85, a=8, b=10, s="path_angle", d=""}
+        {n="yaw_deg", c=88, a=0, b=2, s="yaw", d="declared int16 but 0..36000: sent unsigned"},
+        {n="pitch_deg", c=62, a=2, b=4, s="pitch", d="down-positive (struct comment)"},
+        {n="roll_deg", c=62, a=4, b=6, s="roll", d="right-positive"},
+        {n="speed_m_s", c=89, a=6, b=8, s="speed", d=""},
+        {n="path_angle_deg", c=88, a=8, b=10, s="path_angle", d=""}
        }
       }
      }
@@ -4530,7 +4644,7 @@ local GEN = {
        role="",
        min=12,
        max=12,
-       fields={{n="time", c=87, a=0, b=12, s="time", d=""}}
+       fields={{n="time", c=90, a=0, b=12, s="time", d=""}}
       },
       {
        rw="w",
@@ -4539,7 +4653,7 @@ local GEN = {
        role="echo",
        min=12,
        max=12,
-       fields={{n="time", c=87, a=0, b=12, s="time", d=""}}
+       fields={{n="time", c=90, a=0, b=12, s="time", d=""}}
       }
      }
     },
@@ -4555,7 +4669,7 @@ local GEN = {
        role="",
        min=1,
        max=15,
-       fields={{n="serial", c=22, a=0, s="serial", d="14 characters"}}
+       fields={{n="serial", c=25, a=0, s="serial", d="14 characters"}}
       }
      }
     },
@@ -4571,8 +4685,8 @@ local GEN = {
        min=2,
        max=2,
        fields={
-        {n="stream", c=88, a=0, b=1, s="stream", d=""},
-        {n="resolution", c=89, a=1, b=2, s="resolution", d=""}
+        {n="stream", c=91, a=0, b=1, s="stream", d=""},
+        {n="resolution", c=92, a=1, b=2, s="resolution", d=""}
        }
       },
       {
@@ -4583,8 +4697,8 @@ local GEN = {
        min=2,
        max=2,
        fields={
-        {n="stream", c=88, a=0, b=1, s="stream", d=""},
-        {n="resolution", c=89, a=1, b=2, s="resolution", d=""}
+        {n="stream", c=91, a=0, b=1, s="stream", d=""},
+        {n="resolution", c=92, a=1, b=2, s="resolution", d=""}
        }
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
@@ -4596,8 +4710,8 @@ local GEN = {
        min=2,
        max=2,
        fields={
-        {n="stream", c=88, a=0, b=1, s="stream", d=""},
-        {n="resolution", c=89, a=1, b=2, s="resolution", d=""}
+        {n="stream", c=91, a=0, b=1, s="stream", d=""},
+        {n="resolution", c=92, a=1, b=2, s="resolution", d=""}
        }
       }
      }
@@ -4617,7 +4731,7 @@ local GEN = {
        fields={
         {
          n="version",
-         c=22,
+         c=25,
          a=0,
          s="version",
          d="version text: M3326 (lens), two characters (system), 1.2.3 or 123 (ArduPilot)"
@@ -4638,16 +4752,16 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="yaw_rate_deg_s", c=62, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"},
+        {n="yaw_rate_deg_s", c=65, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"},
         {
          n="pitch_rate_deg_s",
-         c=62,
+         c=65,
          a=2,
          b=4,
          s="pitch_rate",
          d="pitch rate, -99..99 steps; down-positive on the wire, as the document says for speeds"
         },
-        {n="roll_rate_deg_s", c=62, a=4, b=6, s="roll_rate", d="roll rate, -99..99 steps"}
+        {n="roll_rate_deg_s", c=65, a=4, b=6, s="roll_rate", d="roll rate, -99..99 steps"}
        }
       },
       {
@@ -4658,16 +4772,16 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="yaw_rate_deg_s", c=62, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"},
+        {n="yaw_rate_deg_s", c=65, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"},
         {
          n="pitch_rate_deg_s",
-         c=62,
+         c=65,
          a=2,
          b=4,
          s="pitch_rate",
          d="pitch rate, -99..99 steps; down-positive on the wire, as the document says for speeds"
         },
-        {n="roll_rate_deg_s", c=62, a=4, b=6, s="roll_rate", d="roll rate, -99..99 steps"}
+        {n="roll_rate_deg_s", c=65, a=4, b=6, s="roll_rate", d="roll rate, -99..99 steps"}
        }
       }
      }
@@ -4684,10 +4798,10 @@ local GEN = {
        min=8,
        max=8,
        fields={
-        {n="zoom_pos", c=46, a=0, b=4, s="zoom_pos", d="zoom motor position"},
+        {n="zoom_pos", c=49, a=0, b=4, s="zoom_pos", d="zoom motor position"},
         {
          n="focus_pos",
-         c=47,
+         c=50,
          a=4,
          b=8,
          s="focus_pos",
@@ -4703,10 +4817,10 @@ local GEN = {
        min=8,
        max=8,
        fields={
-        {n="zoom_pos", c=46, a=0, b=4, s="zoom_pos", d="zoom motor position"},
+        {n="zoom_pos", c=49, a=0, b=4, s="zoom_pos", d="zoom motor position"},
         {
          n="focus_pos",
-         c=47,
+         c=50,
          a=4,
          b=8,
          s="focus_pos",
@@ -4727,7 +4841,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=48, a=0, b=2, s="action", d="in and out continue until stop"}}
+       fields={{n="action", c=51, a=0, b=2, s="action", d="in and out continue until stop"}}
       },
       {
        rw="w",
@@ -4736,7 +4850,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=48, a=0, b=2, s="action", d="in and out continue until stop"}}
+       fields={{n="action", c=51, a=0, b=2, s="action", d="in and out continue until stop"}}
       }
      }
     },
@@ -4752,8 +4866,8 @@ local GEN = {
        min=7,
        max=7,
        fields={
-        {n="magnification_x", c=90, a=0, b=3, s="magnification", d="optical magnification"},
-        {n="zoom_pos", c=46, a=3, b=7, s="zoom_pos", d="zoom motor position"}
+        {n="magnification_x", c=93, a=0, b=3, s="magnification", d="optical magnification"},
+        {n="zoom_pos", c=49, a=3, b=7, s="zoom_pos", d="zoom motor position"}
        }
       }
      }
@@ -4770,7 +4884,7 @@ local GEN = {
        role="",
        min=4,
        max=4,
-       fields={{n="zoom_pos", c=46, a=0, b=4, s="zoom_pos", d="zoom motor position"}}
+       fields={{n="zoom_pos", c=49, a=0, b=4, s="zoom_pos", d="zoom motor position"}}
       }
      }
     }
@@ -4796,8 +4910,8 @@ local GEN = {
     ["DFG|w|response"]={2, 1},
     ["DZM|r|request"]={3, 4},
     ["DZM|r|response"]={4, 3},
-    ["DZM|w|request"]={1, 5, 7, 9, 2, 6, 8, 10},
-    ["DZM|w|response"]={2, 6, 8, 10, 1, 5, 7, 9},
+    ["DZM|w|request"]={1, 5, 7, 9, 11, 2, 6, 8, 10, 12},
+    ["DZM|w|response"]={2, 6, 8, 10, 12, 1, 5, 7, 9, 11},
     ["ENT|w|request"]={1, 2},
     ["ENT|w|response"]={2, 1},
     ["ERE|w|request"]={1},
@@ -4961,8 +5075,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="yaw_rate_deg_s", c=91, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps"},
-        {n="pitch_rate_deg_s", c=91, a=2, b=4, s="pitch_rate", d="pitch rate, -127..127 steps"}
+        {n="yaw_rate_deg_s", c=94, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps"},
+        {n="pitch_rate_deg_s", c=94, a=2, b=4, s="pitch_rate", d="pitch rate, -127..127 steps"}
        }
       },
       {
@@ -4973,8 +5087,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="yaw_rate_deg_s", c=91, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps"},
-        {n="pitch_rate_deg_s", c=91, a=2, b=4, s="pitch_rate", d="pitch rate, -127..127 steps"}
+        {n="yaw_rate_deg_s", c=94, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps"},
+        {n="pitch_rate_deg_s", c=94, a=2, b=4, s="pitch_rate", d="pitch rate, -127..127 steps"}
        }
       }
      }
@@ -4990,7 +5104,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="pitch_rate_deg_s", c=91, a=0, b=2, s="pitch_rate", d="pitch rate, -127..127 steps; up positive"}}
+       fields={{n="pitch_rate_deg_s", c=94, a=0, b=2, s="pitch_rate", d="pitch rate, -127..127 steps; up positive"}}
       },
       {
        rw="w",
@@ -4999,7 +5113,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="pitch_rate_deg_s", c=91, a=0, b=2, s="pitch_rate", d="pitch rate, -127..127 steps; up positive"}}
+       fields={{n="pitch_rate_deg_s", c=94, a=0, b=2, s="pitch_rate", d="pitch rate, -127..127 steps; up positive"}}
       }
      }
     },
@@ -5014,7 +5128,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="roll_rate_deg_s", c=91, a=0, b=2, s="roll_rate", d="roll rate, -127..127 steps"}}
+       fields={{n="roll_rate_deg_s", c=94, a=0, b=2, s="roll_rate", d="roll rate, -127..127 steps"}}
       },
       {
        rw="w",
@@ -5023,7 +5137,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="roll_rate_deg_s", c=91, a=0, b=2, s="roll_rate", d="roll rate, -127..127 steps"}}
+       fields={{n="roll_rate_deg_s", c=94, a=0, b=2, s="roll_rate", d="roll rate, -127..127 steps"}}
       }
      }
     },
@@ -5038,7 +5152,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="yaw_rate_deg_s", c=91, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps; right positive"}}
+       fields={{n="yaw_rate_deg_s", c=94, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps; right positive"}}
       },
       {
        rw="w",
@@ -5047,7 +5161,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="yaw_rate_deg_s", c=91, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps; right positive"}}
+       fields={{n="yaw_rate_deg_s", c=94, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps; right positive"}}
       }
      }
     }

@@ -8,17 +8,20 @@ built for it (its `dialect_options` and `destinations` applied): the C11's diale
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
+from functools import partial
 from typing import Any
 
 from ... import _speedups
 from ...errors import UnknownCommandError
 from ..dialect import Dialect
 from ..frame import Frame
-from ..message import Message
+from ..message import LazyText, Message
 from ..models import DeviceModel
 from . import skydroid_models, topotek_models
 from .skydroid import skydroid
 from .topotek import topotek
+
+_new_tuple = tuple.__new__
 
 BUILDERS: dict[str, Callable[..., Dialect]] = {"skydroid": skydroid, "topotek": topotek}
 DIALECT_NAMES = tuple(BUILDERS)
@@ -163,8 +166,16 @@ def _decode_any_py(
             return msg
         messages.append(msg)
     head = messages[0]
+    if len(messages) == 1:
+        return head
+    # Worded only when read (LazyText): every reason, the preferred dialect's first.
+    error = LazyText(partial(_all_reasons, messages))
+    return _new_tuple(Message, (head[0], head[1], head[2], head[3], error, head[5]))
+
+
+def _all_reasons(messages: list[Message]) -> str:
     others = "; ".join(f"{m.dialect}: {m.error}" for m in messages[1:])
-    return head._replace(error=f"{head.error} (also tried {others})" if others else head.error)
+    return f"{messages[0].error} (also tried {others})"
 
 
 __all__ = [
