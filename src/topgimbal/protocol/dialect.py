@@ -295,29 +295,36 @@ class Dialect:
         """Dialect.decode, every case with its error text (what the hot path above falls back to)."""
         spec = self.commands.get(frame.ident)
         if spec is None:
-            return Message(frame, None, None, None, f"{frame.ident!r} is not in the {self.name} catalog", self.name)
+            return _new_tuple(
+                Message, (frame, None, None, None, f"{frame.ident!r} is not in the {self.name} catalog", self.name)
+            )
         direction = RESPONSE if frame.src in DEVICE_ADDRESSES and frame.dst in HOST_ADDRESSES else REQUEST
         rw = frame.rw or "w"
         data = frame.data
         forms = self._decode_index.get((frame.ident, rw, direction))
         if forms is None:
-            return Message(
-                frame, spec, None, None, f"unknown form: control {rw!r} (a frame's control is r or w)", self.name
+            return _new_tuple(
+                Message,
+                (frame, spec, None, None, f"unknown form: control {rw!r} (a frame's control is r or w)", self.name),
             )
         if not forms:
-            return Message(frame, spec, None, None, f"unknown form: {spec.ident} has no {rw!r} form", self.name)
+            return _new_tuple(
+                Message, (frame, spec, None, None, f"unknown form: {spec.ident} has no {rw!r} form", self.name)
+            )
         wrong: Form | None = None
         for form in forms:
             if form.accepts_length(len(data)):
                 try:
-                    return Message(frame, spec, form, form.decoder(data), None, self.name)
+                    return _new_tuple(Message, (frame, spec, form, form.decoder(data), None, self.name))
                 except ValueError:
                     wrong = wrong or form
         # Worded only when read (LazyText): a capture of unusual traffic must not pay for every text.
         if wrong is not None:  # a form of the right length, wrong content: the first says what it lacks
-            return Message(frame, spec, None, None, LazyText(partial(_content_error, spec, wrong, data)), self.name)
+            return _new_tuple(
+                Message, (frame, spec, None, None, LazyText(partial(_content_error, spec, wrong, data)), self.name)
+            )
         error = LazyText(partial(_length_error, spec, rw, forms, len(data)))
-        return Message(frame, spec, None, None, error, self.name)
+        return _new_tuple(Message, (frame, spec, None, None, error, self.name))
 
     def check_values(self, model: DeviceModel, ident: str, values: Mapping[str, Any]) -> None:
         """Raise if `model` does not support `ident` or a value is outside the model's limits."""
