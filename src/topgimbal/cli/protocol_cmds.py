@@ -11,13 +11,18 @@ from typing import Any
 from ..errors import FieldValueError, UnknownCommandError
 from ..protocol import DIALECT_NAMES, Dialect, Dissection, Message, decode_any, dissect, get_dialect, get_model
 from ..protocol.catalog import REQUEST
-from ..protocol.frame import Frame
+from ..protocol.frame import Frame, bytes_from_text
 from .args import add_dialect_argument, add_json_argument
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("decode", help="decode frames given as arguments or one per line on stdin")
-    p.add_argument("frames", nargs="*", metavar="FRAME", help="frame text, e.g. '#TPUG2wPTZ006A'")
+    p.add_argument(
+        "frames",
+        nargs="*",
+        metavar="FRAME",
+        help="frame text, e.g. '#TPUG2wPTZ006A' (binary bytes as encode prints them: \\xNN, \\\\ for a backslash)",
+    )
     p.add_argument("--hex", action="store_true", help="frames are given as hex (binary data: GPS, UAV, LOC)")
     add_dialect_argument(p)
     add_json_argument(p)
@@ -89,11 +94,12 @@ def decode_line(line: str, *, as_hex: bool, dialect: Dialect | None) -> dict[str
     """Everything `decode --json` prints for one input line (always the keys of RECORD_KEYS)."""
     text = line.strip()
     try:
-        raw = bytes.fromhex(text) if as_hex else text.encode("latin-1")
+        # as `encode` prints a frame: \xNN for a byte outside printable ASCII, \\ for a backslash
+        raw = bytes.fromhex(text) if as_hex else bytes_from_text(text)
+    except UnicodeEncodeError:  # a ValueError too: caught first
+        return _failed(text, "frames are ASCII; give binary bytes as \\xNN escapes or the frame with --hex")
     except ValueError as exc:
         return _failed(text, f"not valid hex: {exc}")
-    except UnicodeEncodeError:
-        return _failed(text, "frames are ASCII; give binary frames with --hex")
     return dissection_record(dissect(raw), dialect)
 
 
