@@ -101,3 +101,22 @@ def test_a_dead_camera_still_exits_1(capsys):
     finally:
         s.close()
     assert code == 1 and "nothing at all has come from" in err
+
+
+def test_monitor_shows_the_sd_card_as_words_not_a_dict(sims, capsys):
+    bg = sims["C12"]
+    code, out, _ = run(capsys, "--url", bg.url, "--model", "C12", "monitor", "--count", "1")
+    assert code == 0
+    flat = " ".join(out.split())  # the table may wrap a long cell
+    assert "present: True, remaining_mb: " in flat and "{'present'" not in out and "'total_mb'" not in out
+
+
+def test_a_reply_prints_short(sims):
+    """print(reply) showed about 3 KB of CommandSpec; now one line, as pymavlink's messages."""
+    from topgimbal import Gimbal
+
+    with Gimbal(sims["C12"].url, model="C12") as cam:
+        reply = cam.request("REC", read=True)
+    text = str(reply)
+    assert text.startswith("<Message REC ") and "fields={'state':" in text and len(text) < 200
+    assert "CommandSpec" not in text and "Form(" not in text
