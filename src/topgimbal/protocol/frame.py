@@ -54,9 +54,7 @@ def bytes_from_text(text: str) -> bytes:
     UnicodeEncodeError for characters beyond latin-1."""
     if "\\" not in text:
         return text.encode("latin-1")
-    return _ESCAPE.sub(lambda m: "\\" if m.group(1) == "\\" else chr(int(m.group(1)[1:], 16)), text).encode(
-        "latin-1"
-    )
+    return _ESCAPE.sub(lambda m: "\\" if m.group(1) == "\\" else chr(int(m.group(1)[1:], 16)), text).encode("latin-1")
 
 
 def is_identifier(ident: str) -> bool:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from operator import itemgetter
 from typing import Any, NamedTuple
 
 from .commands import CommandSpec
@@ -48,7 +49,7 @@ class _MessageTuple(NamedTuple):
     dialect: str | None = None
 
 
-_error_slot = _MessageTuple.error  # the tuple's own getter of position 4
+_error_slot = itemgetter(4)  # the tuple's own position of `error` (the property below reads it)
 
 
 class Message(_MessageTuple):
@@ -64,7 +65,7 @@ class Message(_MessageTuple):
 
     @property  # type: ignore[override]
     def error(self) -> str | None:
-        e = _error_slot.__get__(self)
+        e = _error_slot(self)
         return e if e is None or e.__class__ is str else str(e)
 
     def __repr__(self) -> str:
