@@ -79,9 +79,9 @@ def test_every_command(bg, capsys, tmp_path, kind):
     if model == "SIP":  # no altitude sent: no distance, and it says what is missing
         code, _, err = run(capsys, *base, "range")
         assert code == 1 and "ALT" in err
-    else:
+    else:  # the C12 has no rangefinder: refused before sending, a usage error (issue 26, item 5)
         code, _, err = run(capsys, *base, "range")
-        assert code == 1 and err.startswith("topgimbal: error:") and len(err.strip().splitlines()) == 1
+        assert code == 2 and err.startswith("topgimbal: error:") and len(err.strip().splitlines()) == 1
     snap = ok("monitor", "--count", "2", "--fps", "20")
     assert snap["state"]["attitude"] is not None and snap["link"]["connected"] is True
     code, out, _ = run(capsys, *base, "monitor", "--count", "2", "--fps", "20")
