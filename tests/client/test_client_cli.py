@@ -109,7 +109,7 @@ def test_every_command(bg, capsys, tmp_path, kind):
 def test_errors_are_one_line_and_nonzero(bg, capsys):
     url, model = bg.url, bg.sim.model
     code, _, err = run(capsys, "--url", url, "--model", model, "point", "500", "0")
-    assert code == 1 and err.count("\n") == 1 and "YAW=500" in err  # named as typed
+    assert code == 2 and err.count("\n") == 1 and "YAW=500" in err  # named as typed; refused before sending
     code, _, err = run(capsys, "--model", model, "photo")
     assert code != 0 and "--url" in err
     code, _, err = run(
