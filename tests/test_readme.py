@@ -43,3 +43,22 @@ def test_offline_example_gives_what_its_comments_say() -> None:
         expr, promised = re.split(r"\s{2,}# ", line, maxsplit=1)  # frames contain '#' too
         value = eval(expr.strip(), ns)
         assert repr(value) == promised.strip(), (expr, value)
+
+
+def test_blocking_example_runs_against_the_simulator() -> None:
+    """The blocking facade's lines after the async example (issue 26: they opened a serial port no
+    machine without hardware has, and the README did not say so)."""
+    from topgimbal.sim import BackgroundSimulator
+
+    block = next(b for b in BLOCKS if "topgimbal.Gimbal(" in b)
+    code = "import topgimbal\n" + block.split("asyncio.run(main())")[1]
+    assert "udp://127.0.0.1:5000" in code and "serial://" not in code.split("#")[0]
+    with BackgroundSimulator("C12", seed=4, listen={"udp": [("127.0.0.1", 0)]}) as bg:
+        exec(code.replace("udp://127.0.0.1:5000", bg.url), {})  # the README's own code
+        target = bg.call(lambda s: (s.gimbal.axis("yaw").target, s.gimbal.axis("pitch").target))
+    assert target == (10.0, -20.0)
+
+
+def test_readme_says_what_the_example_needs() -> None:
+    intro = README.split("## From Python", 1)[1].split("```python", 1)[0]
+    assert "topgimbal sim --model C12 --udp 127.0.0.1:5000" in intro and "RequestTimeoutError" in intro

@@ -386,6 +386,16 @@ static const tg_field tg_skydroid_DZM_6_fields[] = {
 static const tg_field tg_skydroid_DZM_7_fields[] = {
     {"image", &tg_codec_24, 0, 1, 0, NULL, 0, 0},
     {"magnification_x", &tg_codec_27, 2, 1, 0, NULL, 0, 0}};
+static const tg_codec tg_codec_28 = {TG_K_LITERAL, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, "F", NULL};
+static const tg_codec tg_codec_29 = {TG_K_HEXINT, 3, 3, 3, 0, 0, 0, 0, 1, -1, 0, 0, 0, 0, 0, 1, 0LL, 4095LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_field tg_skydroid_DZM_8_fields[] = {
+    {"image_code", &tg_codec_20, 0, 1, 0, NULL, 0, 0},
+    {"ratio_mark", &tg_codec_28, 2, 1, 0, "F", 1, 1},
+    {"ratio_x", &tg_codec_29, 3, 1, 0, NULL, 0, 0}};
+static const tg_field tg_skydroid_DZM_9_fields[] = {
+    {"image_code", &tg_codec_20, 0, 1, 0, NULL, 0, 0},
+    {"ratio_mark", &tg_codec_28, 2, 1, 0, "F", 1, 1},
+    {"ratio_x", &tg_codec_29, 3, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_DZM_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_skydroid_DZM_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_skydroid_DZM_1_fields, NULL, 0},
@@ -394,31 +404,33 @@ static const tg_form tg_skydroid_DZM_forms[] = {
     {'w', TG_REQUEST, 0, 2, 4, 4, 4, tg_skydroid_DZM_4_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 2, 4, 4, 4, tg_skydroid_DZM_5_fields, NULL, 0},
     {'w', TG_REQUEST, 0, 2, 6, 6, 6, tg_skydroid_DZM_6_fields, NULL, 0},
-    {'w', TG_RESPONSE, 1, 2, 6, 6, 6, tg_skydroid_DZM_7_fields, NULL, 0}};
+    {'w', TG_RESPONSE, 1, 2, 6, 6, 6, tg_skydroid_DZM_7_fields, NULL, 0},
+    {'w', TG_REQUEST, 0, 3, 6, 6, 6, tg_skydroid_DZM_8_fields, NULL, 0},
+    {'w', TG_RESPONSE, 1, 3, 6, 6, 6, tg_skydroid_DZM_9_fields, NULL, 0}};
 static const uint8_t tg_skydroid_DZM_orreq[] = {2, 3};
 static const uint8_t tg_skydroid_DZM_orres[] = {3, 2};
-static const uint8_t tg_skydroid_DZM_owreq[] = {0, 4, 6, 1, 5, 7};
-static const uint8_t tg_skydroid_DZM_owres[] = {1, 5, 7, 0, 4, 6};
-static const char *const tg_codec_28_names[] = {"white_hot", "sepia", "ironbow", "rainbow", "night", "aurora", "red_hot", "jungle", "medical", "black_hot", "glory_hot"};
-static const char *const tg_codec_28_raws[] = {"01", "03", "04", "05", "06", "07", "08", "09", "0A", "0B", "0C"};
-static const uint8_t tg_codec_28_idem[] = {1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1};
-static const tg_spelling tg_codec_28_spell[] = {{"01", 0}, {"03", 1}, {"04", 2}, {"05", 3}, {"06", 4}, {"07", 5}, {"08", 6}, {"09", 7}, {"0A", 8}, {"0a", 8}, {"0B", 9}, {"0b", 9}, {"0C", 10}, {"0c", 10}};
-static const tg_codec tg_codec_28 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 11, 14, 0, 1, 0LL, 0LL, tg_codec_28_names, tg_codec_28_raws, tg_codec_28_idem, tg_codec_28_spell, NULL, NULL, NULL};
+static const uint8_t tg_skydroid_DZM_owreq[] = {0, 4, 6, 8, 1, 5, 7, 9};
+static const uint8_t tg_skydroid_DZM_owres[] = {1, 5, 7, 9, 0, 4, 6, 8};
+static const char *const tg_codec_30_names[] = {"white_hot", "sepia", "ironbow", "rainbow", "night", "aurora", "red_hot", "jungle", "medical", "black_hot", "glory_hot"};
+static const char *const tg_codec_30_raws[] = {"01", "03", "04", "05", "06", "07", "08", "09", "0A", "0B", "0C"};
+static const uint8_t tg_codec_30_idem[] = {1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1};
+static const tg_spelling tg_codec_30_spell[] = {{"01", 0}, {"03", 1}, {"04", 2}, {"05", 3}, {"06", 4}, {"07", 5}, {"08", 6}, {"09", 7}, {"0A", 8}, {"0a", 8}, {"0B", 9}, {"0b", 9}, {"0C", 10}, {"0c", 10}};
+static const tg_codec tg_codec_30 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 11, 14, 0, 1, 0LL, 0LL, tg_codec_30_names, tg_codec_30_raws, tg_codec_30_idem, tg_codec_30_spell, NULL, NULL, NULL};
 static const tg_field tg_skydroid_IMG_0_fields[] = {
-    {"palette", &tg_codec_28, 0, 1, 0, NULL, 0, 0}};
+    {"palette", &tg_codec_30, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_IMG_1_fields[] = {
-    {"palette", &tg_codec_28, 0, 1, 0, NULL, 0, 0}};
+    {"palette", &tg_codec_30, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_IMG_3_fields[] = {
-    {"palette", &tg_codec_28, 0, 1, 0, NULL, 0, 0}};
+    {"palette", &tg_codec_30, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_IMG_4_fields[] = {
     {"channel", &tg_codec_20, 0, 1, 0, NULL, 0, 0},
-    {"palette", &tg_codec_28, 2, 1, 0, NULL, 0, 0}};
+    {"palette", &tg_codec_30, 2, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_IMG_5_fields[] = {
     {"channel", &tg_codec_20, 0, 1, 0, NULL, 0, 0},
-    {"palette", &tg_codec_28, 2, 1, 0, NULL, 0, 0}};
+    {"palette", &tg_codec_30, 2, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_IMG_6_fields[] = {
     {"channel", &tg_codec_20, 0, 1, 0, NULL, 0, 0},
-    {"palette", &tg_codec_28, 2, 1, 0, NULL, 0, 0}};
+    {"palette", &tg_codec_30, 2, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_IMG_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_skydroid_IMG_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_skydroid_IMG_1_fields, NULL, 0},
@@ -431,13 +443,13 @@ static const uint8_t tg_skydroid_IMG_orreq[] = {2, 3, 6};
 static const uint8_t tg_skydroid_IMG_orres[] = {3, 6, 2};
 static const uint8_t tg_skydroid_IMG_owreq[] = {0, 4, 1, 5};
 static const uint8_t tg_skydroid_IMG_owres[] = {1, 5, 0, 4};
-static const tg_codec tg_codec_29 = {TG_K_IPV4, 0, 7, 15, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_31 = {TG_K_IPV4, 0, 7, 15, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_skydroid_IPV_0_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_IPV_1_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_IPV_3_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_IPV_forms[] = {
     {'w', TG_REQUEST, 0, 1, 7, 15, 0, tg_skydroid_IPV_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 7, 15, 0, tg_skydroid_IPV_1_fields, NULL, 0},
@@ -448,11 +460,11 @@ static const uint8_t tg_skydroid_IPV_orres[] = {3, 2};
 static const uint8_t tg_skydroid_IPV_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_IPV_owres[] = {1, 0};
 static const tg_field tg_skydroid_GTW_0_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_GTW_1_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_GTW_3_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_GTW_forms[] = {
     {'w', TG_REQUEST, 0, 1, 7, 15, 0, tg_skydroid_GTW_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 7, 15, 0, tg_skydroid_GTW_1_fields, NULL, 0},
@@ -463,11 +475,11 @@ static const uint8_t tg_skydroid_GTW_orres[] = {3, 2};
 static const uint8_t tg_skydroid_GTW_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_GTW_owres[] = {1, 0};
 static const tg_field tg_skydroid_DNS_0_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_DNS_1_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_DNS_3_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_DNS_forms[] = {
     {'w', TG_REQUEST, 0, 1, 7, 15, 0, tg_skydroid_DNS_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 7, 15, 0, tg_skydroid_DNS_1_fields, NULL, 0},
@@ -478,11 +490,11 @@ static const uint8_t tg_skydroid_DNS_orres[] = {3, 2};
 static const uint8_t tg_skydroid_DNS_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_DNS_owres[] = {1, 0};
 static const tg_field tg_skydroid_BNS_0_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_BNS_1_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_BNS_3_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_BNS_forms[] = {
     {'w', TG_REQUEST, 0, 1, 7, 15, 0, tg_skydroid_BNS_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 7, 15, 0, tg_skydroid_BNS_1_fields, NULL, 0},
@@ -492,63 +504,63 @@ static const uint8_t tg_skydroid_BNS_orreq[] = {2, 3};
 static const uint8_t tg_skydroid_BNS_orres[] = {3, 2};
 static const uint8_t tg_skydroid_BNS_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_BNS_owres[] = {1, 0};
-static const char *const tg_codec_30_names[] = {"reset", "keep"};
-static const char *const tg_codec_30_raws[] = {"01", "00"};
-static const uint8_t tg_codec_30_idem[] = {1, 1};
-static const tg_spelling tg_codec_30_spell[] = {{"01", 0}, {"00", 1}};
-static const tg_codec tg_codec_30 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_30_names, tg_codec_30_raws, tg_codec_30_idem, tg_codec_30_spell, NULL, NULL, NULL};
+static const char *const tg_codec_32_names[] = {"reset", "keep"};
+static const char *const tg_codec_32_raws[] = {"01", "00"};
+static const uint8_t tg_codec_32_idem[] = {1, 1};
+static const tg_spelling tg_codec_32_spell[] = {{"01", 0}, {"00", 1}};
+static const tg_codec tg_codec_32 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_32_names, tg_codec_32_raws, tg_codec_32_idem, tg_codec_32_spell, NULL, NULL, NULL};
 static const tg_field tg_skydroid_RST_0_fields[] = {
-    {"action", &tg_codec_30, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_32, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_RST_1_fields[] = {
-    {"action", &tg_codec_30, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_32, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_RST_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_skydroid_RST_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_skydroid_RST_1_fields, NULL, 0}};
 static const uint8_t tg_skydroid_RST_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_RST_owres[] = {1, 0};
-static const char *const tg_codec_31_names[] = {"reboot", "factory_reset"};
-static const char *const tg_codec_31_raws[] = {"00", "01"};
-static const uint8_t tg_codec_31_idem[] = {1, 1};
-static const tg_spelling tg_codec_31_spell[] = {{"00", 0}, {"01", 1}};
-static const tg_codec tg_codec_31 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_31_names, tg_codec_31_raws, tg_codec_31_idem, tg_codec_31_spell, NULL, NULL, NULL};
+static const char *const tg_codec_33_names[] = {"reboot", "factory_reset"};
+static const char *const tg_codec_33_raws[] = {"00", "01"};
+static const uint8_t tg_codec_33_idem[] = {1, 1};
+static const tg_spelling tg_codec_33_spell[] = {{"00", 0}, {"01", 1}};
+static const tg_codec tg_codec_33 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_33_names, tg_codec_33_raws, tg_codec_33_idem, tg_codec_33_spell, NULL, NULL, NULL};
 static const tg_field tg_skydroid_RTF_0_fields[] = {
-    {"action", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_33, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_RTF_1_fields[] = {
-    {"action", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_33, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_RTF_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_skydroid_RTF_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_skydroid_RTF_1_fields, NULL, 0}};
 static const uint8_t tg_skydroid_RTF_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_RTF_owres[] = {1, 0};
-static const char *const tg_codec_32_names[] = {"off", "on"};
-static const char *const tg_codec_32_raws[] = {"0", "1"};
-static const uint8_t tg_codec_32_idem[] = {1, 1};
-static const tg_spelling tg_codec_32_spell[] = {{"0", 0}, {"1", 1}};
-static const tg_codec tg_codec_32 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_32_names, tg_codec_32_raws, tg_codec_32_idem, tg_codec_32_spell, NULL, NULL, NULL};
-static const tg_codec tg_codec_33 = {TG_K_HEXINT, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1LL, 60LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
-static const tg_codec tg_codec_34 = {TG_K_HEXINT, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1LL, 255LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
-static const tg_codec tg_codec_35 = {TG_K_HEXINT, 4, 4, 4, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 100LL, 10240LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const char *const tg_codec_34_names[] = {"off", "on"};
+static const char *const tg_codec_34_raws[] = {"0", "1"};
+static const uint8_t tg_codec_34_idem[] = {1, 1};
+static const tg_spelling tg_codec_34_spell[] = {{"0", 0}, {"1", 1}};
+static const tg_codec tg_codec_34 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_34_names, tg_codec_34_raws, tg_codec_34_idem, tg_codec_34_spell, NULL, NULL, NULL};
+static const tg_codec tg_codec_35 = {TG_K_HEXINT, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1LL, 60LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_36 = {TG_K_HEXINT, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1LL, 255LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_37 = {TG_K_HEXINT, 4, 4, 4, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 100LL, 10240LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_skydroid_VOM_0_fields[] = {
-    {"h_flip", &tg_codec_32, 0, 1, 0, NULL, 0, 0},
-    {"v_flip", &tg_codec_32, 1, 1, 0, NULL, 0, 0},
-    {"fps", &tg_codec_33, 2, 1, 0, NULL, 0, 0},
-    {"gop", &tg_codec_34, 4, 1, 0, NULL, 0, 0},
-    {"bitrate_kbps", &tg_codec_35, 6, 1, 0, NULL, 0, 0},
-    {"output", &tg_codec_32, 10, 1, 0, NULL, 0, 0}};
+    {"h_flip", &tg_codec_34, 0, 1, 0, NULL, 0, 0},
+    {"v_flip", &tg_codec_34, 1, 1, 0, NULL, 0, 0},
+    {"fps", &tg_codec_35, 2, 1, 0, NULL, 0, 0},
+    {"gop", &tg_codec_36, 4, 1, 0, NULL, 0, 0},
+    {"bitrate_kbps", &tg_codec_37, 6, 1, 0, NULL, 0, 0},
+    {"output", &tg_codec_34, 10, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_VOM_1_fields[] = {
-    {"h_flip", &tg_codec_32, 0, 1, 0, NULL, 0, 0},
-    {"v_flip", &tg_codec_32, 1, 1, 0, NULL, 0, 0},
-    {"fps", &tg_codec_33, 2, 1, 0, NULL, 0, 0},
-    {"gop", &tg_codec_34, 4, 1, 0, NULL, 0, 0},
-    {"bitrate_kbps", &tg_codec_35, 6, 1, 0, NULL, 0, 0},
-    {"output", &tg_codec_32, 10, 1, 0, NULL, 0, 0}};
+    {"h_flip", &tg_codec_34, 0, 1, 0, NULL, 0, 0},
+    {"v_flip", &tg_codec_34, 1, 1, 0, NULL, 0, 0},
+    {"fps", &tg_codec_35, 2, 1, 0, NULL, 0, 0},
+    {"gop", &tg_codec_36, 4, 1, 0, NULL, 0, 0},
+    {"bitrate_kbps", &tg_codec_37, 6, 1, 0, NULL, 0, 0},
+    {"output", &tg_codec_34, 10, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_VOM_3_fields[] = {
-    {"h_flip", &tg_codec_32, 0, 1, 0, NULL, 0, 0},
-    {"v_flip", &tg_codec_32, 1, 1, 0, NULL, 0, 0},
-    {"fps", &tg_codec_33, 2, 1, 0, NULL, 0, 0},
-    {"gop", &tg_codec_34, 4, 1, 0, NULL, 0, 0},
-    {"bitrate_kbps", &tg_codec_35, 6, 1, 0, NULL, 0, 0},
-    {"output", &tg_codec_32, 10, 1, 0, NULL, 0, 0}};
+    {"h_flip", &tg_codec_34, 0, 1, 0, NULL, 0, 0},
+    {"v_flip", &tg_codec_34, 1, 1, 0, NULL, 0, 0},
+    {"fps", &tg_codec_35, 2, 1, 0, NULL, 0, 0},
+    {"gop", &tg_codec_36, 4, 1, 0, NULL, 0, 0},
+    {"bitrate_kbps", &tg_codec_37, 6, 1, 0, NULL, 0, 0},
+    {"output", &tg_codec_34, 10, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_VOM_forms[] = {
     {'w', TG_REQUEST, 0, 6, 11, 11, 11, tg_skydroid_VOM_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 6, 11, 11, 11, tg_skydroid_VOM_1_fields, NULL, 0},
@@ -558,34 +570,34 @@ static const uint8_t tg_skydroid_VOM_orreq[] = {2, 3};
 static const uint8_t tg_skydroid_VOM_orres[] = {3, 2};
 static const uint8_t tg_skydroid_VOM_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_VOM_owres[] = {1, 0};
-static const tg_codec tg_codec_36 = {TG_K_TEXT, 0, 1, 15, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_38 = {TG_K_TEXT, 0, 1, 15, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_skydroid_VER_1_fields[] = {
-    {"version", &tg_codec_36, 0, 1, 0, NULL, 0, 0}};
+    {"version", &tg_codec_38, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_VER_forms[] = {
     {'r', TG_REQUEST, 0, 0, 2, 2, 0, NULL, (const uint8_t *)"00", 2},
     {'r', TG_RESPONSE, 0, 1, 1, 15, 0, tg_skydroid_VER_1_fields, NULL, 0}};
 static const uint8_t tg_skydroid_VER_orreq[] = {0, 1};
 static const uint8_t tg_skydroid_VER_orres[] = {1, 0};
-static const char *const tg_codec_37_names[] = {"zero"};
-static const char *const tg_codec_37_raws[] = {"0"};
-static const uint8_t tg_codec_37_idem[] = {1};
-static const tg_spelling tg_codec_37_spell[] = {{"0", 0}};
-static const tg_codec tg_codec_37 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 0, 1, 0LL, 0LL, tg_codec_37_names, tg_codec_37_raws, tg_codec_37_idem, tg_codec_37_spell, NULL, NULL, NULL};
+static const char *const tg_codec_39_names[] = {"zero"};
+static const char *const tg_codec_39_raws[] = {"0"};
+static const uint8_t tg_codec_39_idem[] = {1};
+static const tg_spelling tg_codec_39_spell[] = {{"0", 0}};
+static const tg_codec tg_codec_39 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 0, 1, 0LL, 0LL, tg_codec_39_names, tg_codec_39_raws, tg_codec_39_idem, tg_codec_39_spell, NULL, NULL, NULL};
 static const tg_field tg_skydroid_EXT_0_fields[] = {
-    {"reserved", &tg_codec_37, 0, 1, 0, "0", 1, 1},
-    {"dish_calibration", &tg_codec_32, 1, 1, 0, "0", 1, 1},
-    {"osd", &tg_codec_32, 2, 1, 0, NULL, 0, 0},
-    {"led", &tg_codec_32, 3, 1, 0, NULL, 0, 0}};
+    {"reserved", &tg_codec_39, 0, 1, 0, "0", 1, 1},
+    {"dish_calibration", &tg_codec_34, 1, 1, 0, "0", 1, 1},
+    {"osd", &tg_codec_34, 2, 1, 0, NULL, 0, 0},
+    {"led", &tg_codec_34, 3, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_EXT_1_fields[] = {
-    {"reserved", &tg_codec_37, 0, 1, 0, "0", 1, 1},
-    {"dish_calibration", &tg_codec_32, 1, 1, 0, "0", 1, 1},
-    {"osd", &tg_codec_32, 2, 1, 0, NULL, 0, 0},
-    {"led", &tg_codec_32, 3, 1, 0, NULL, 0, 0}};
+    {"reserved", &tg_codec_39, 0, 1, 0, "0", 1, 1},
+    {"dish_calibration", &tg_codec_34, 1, 1, 0, "0", 1, 1},
+    {"osd", &tg_codec_34, 2, 1, 0, NULL, 0, 0},
+    {"led", &tg_codec_34, 3, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_EXT_3_fields[] = {
-    {"reserved", &tg_codec_37, 0, 1, 0, NULL, 0, 0},
-    {"dish_calibration", &tg_codec_32, 1, 1, 0, NULL, 0, 0},
-    {"osd", &tg_codec_32, 2, 1, 0, NULL, 0, 0},
-    {"led", &tg_codec_32, 3, 1, 0, NULL, 0, 0}};
+    {"reserved", &tg_codec_39, 0, 1, 0, NULL, 0, 0},
+    {"dish_calibration", &tg_codec_34, 1, 1, 0, NULL, 0, 0},
+    {"osd", &tg_codec_34, 2, 1, 0, NULL, 0, 0},
+    {"led", &tg_codec_34, 3, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_EXT_forms[] = {
     {'w', TG_REQUEST, 0, 4, 4, 4, 4, tg_skydroid_EXT_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 4, 4, 4, 4, tg_skydroid_EXT_1_fields, NULL, 0},
@@ -595,13 +607,13 @@ static const uint8_t tg_skydroid_EXT_orreq[] = {2, 3};
 static const uint8_t tg_skydroid_EXT_orres[] = {3, 2};
 static const uint8_t tg_skydroid_EXT_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_EXT_owres[] = {1, 0};
-static const tg_codec tg_codec_38 = {TG_K_HEXINT, 8, 8, 8, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 4294967295LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_40 = {TG_K_HEXINT, 8, 8, 8, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 4294967295LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_skydroid_UID_0_fields[] = {
-    {"uid", &tg_codec_38, 0, 1, 0, NULL, 0, 0}};
+    {"uid", &tg_codec_40, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_UID_1_fields[] = {
-    {"uid", &tg_codec_38, 0, 1, 0, NULL, 0, 0}};
+    {"uid", &tg_codec_40, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_UID_3_fields[] = {
-    {"uid", &tg_codec_38, 0, 1, 0, NULL, 0, 0}};
+    {"uid", &tg_codec_40, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_UID_forms[] = {
     {'w', TG_REQUEST, 0, 1, 8, 8, 8, tg_skydroid_UID_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 8, 8, 8, tg_skydroid_UID_1_fields, NULL, 0},
@@ -611,17 +623,17 @@ static const uint8_t tg_skydroid_UID_orreq[] = {2, 3};
 static const uint8_t tg_skydroid_UID_orres[] = {3, 2};
 static const uint8_t tg_skydroid_UID_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_UID_owres[] = {1, 0};
-static const char *const tg_codec_39_names[] = {"general", "low_temp_highlight", "linear_stretch", "low_contrast", "high_contrast", "highlight"};
-static const char *const tg_codec_39_raws[] = {"00", "03", "04", "05", "06", "07"};
-static const uint8_t tg_codec_39_idem[] = {1, 1, 1, 1, 1, 1};
-static const tg_spelling tg_codec_39_spell[] = {{"00", 0}, {"03", 1}, {"04", 2}, {"05", 3}, {"06", 4}, {"07", 5}};
-static const tg_codec tg_codec_39 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 6, 6, 0, 1, 0LL, 0LL, tg_codec_39_names, tg_codec_39_raws, tg_codec_39_idem, tg_codec_39_spell, NULL, NULL, NULL};
+static const char *const tg_codec_41_names[] = {"general", "low_temp_highlight", "linear_stretch", "low_contrast", "high_contrast", "highlight"};
+static const char *const tg_codec_41_raws[] = {"00", "03", "04", "05", "06", "07"};
+static const uint8_t tg_codec_41_idem[] = {1, 1, 1, 1, 1, 1};
+static const tg_spelling tg_codec_41_spell[] = {{"00", 0}, {"03", 1}, {"04", 2}, {"05", 3}, {"06", 4}, {"07", 5}};
+static const tg_codec tg_codec_41 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 6, 6, 0, 1, 0LL, 0LL, tg_codec_41_names, tg_codec_41_raws, tg_codec_41_idem, tg_codec_41_spell, NULL, NULL, NULL};
 static const tg_field tg_skydroid_TSM_0_fields[] = {
-    {"scene", &tg_codec_39, 0, 1, 0, NULL, 0, 0}};
+    {"scene", &tg_codec_41, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_TSM_1_fields[] = {
-    {"scene", &tg_codec_39, 0, 1, 0, NULL, 0, 0}};
+    {"scene", &tg_codec_41, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_TSM_3_fields[] = {
-    {"scene", &tg_codec_39, 0, 1, 0, NULL, 0, 0}};
+    {"scene", &tg_codec_41, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_TSM_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_skydroid_TSM_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_skydroid_TSM_1_fields, NULL, 0},
@@ -736,125 +748,136 @@ static const uint8_t tg_skydroid_TGM_orreq[] = {2, 3};
 static const uint8_t tg_skydroid_TGM_orres[] = {3, 2};
 static const uint8_t tg_skydroid_TGM_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_TGM_owres[] = {1, 0};
-static const tg_codec tg_codec_40 = {TG_K_HEXINT, 4, 4, 4, 0, 0, 0, 0, 1, -1, 0, 0, 0, 0, 0, 1, 0LL, 65535LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_42 = {TG_K_HEXINT, 4, 4, 4, 0, 0, 0, 0, 1, -1, 0, 0, 0, 0, 0, 1, 0LL, 65535LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_skydroid_SLR_1_fields[] = {
-    {"distance_m", &tg_codec_40, 0, 1, 0, NULL, 0, 0}};
-static const tg_codec tg_codec_41 = {TG_K_HEXINT, 4, 4, 4, 0, 0, 0, 0, 1, -1, 0, 0, 0, 0, 0, 1, 50LL, 10000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+    {"distance_m", &tg_codec_42, 0, 1, 0, NULL, 0, 0}};
+static const tg_codec tg_codec_43 = {TG_K_HEXINT, 4, 4, 4, 0, 0, 0, 0, 1, -1, 0, 0, 0, 0, 0, 1, 50LL, 10000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_skydroid_SLR_2_fields[] = {
-    {"limit_m", &tg_codec_41, 0, 1, 0, NULL, 0, 0}};
+    {"limit_m", &tg_codec_43, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_SLR_3_fields[] = {
-    {"limit_m", &tg_codec_41, 0, 1, 0, NULL, 0, 0}};
+    {"limit_m", &tg_codec_43, 0, 1, 0, NULL, 0, 0}};
+static const char *const tg_codec_44_names[] = {"measure"};
+static const char *const tg_codec_44_raws[] = {"01"};
+static const uint8_t tg_codec_44_idem[] = {1};
+static const tg_spelling tg_codec_44_spell[] = {{"01", 0}};
+static const tg_codec tg_codec_44 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 0, 1, 0LL, 0LL, tg_codec_44_names, tg_codec_44_raws, tg_codec_44_idem, tg_codec_44_spell, NULL, NULL, NULL};
+static const tg_field tg_skydroid_SLR_4_fields[] = {
+    {"action", &tg_codec_44, 0, 1, 0, NULL, 0, 0}};
+static const tg_field tg_skydroid_SLR_5_fields[] = {
+    {"action", &tg_codec_44, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_SLR_forms[] = {
     {'r', TG_REQUEST, 0, 0, 2, 2, 0, NULL, (const uint8_t *)"00", 2},
     {'r', TG_RESPONSE, 0, 1, 4, 4, 4, tg_skydroid_SLR_1_fields, NULL, 0},
     {'w', TG_REQUEST, 0, 1, 4, 4, 4, tg_skydroid_SLR_2_fields, NULL, 0},
-    {'w', TG_RESPONSE, 1, 1, 4, 4, 4, tg_skydroid_SLR_3_fields, NULL, 0}};
+    {'w', TG_RESPONSE, 1, 1, 4, 4, 4, tg_skydroid_SLR_3_fields, NULL, 0},
+    {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_skydroid_SLR_4_fields, NULL, 0},
+    {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_skydroid_SLR_5_fields, NULL, 0}};
 static const uint8_t tg_skydroid_SLR_orreq[] = {0, 1};
 static const uint8_t tg_skydroid_SLR_orres[] = {1, 0};
-static const uint8_t tg_skydroid_SLR_owreq[] = {2, 3};
-static const uint8_t tg_skydroid_SLR_owres[] = {3, 2};
-static const char *const tg_codec_42_names[] = {"stop", "zoom_out", "zoom_in"};
-static const char *const tg_codec_42_raws[] = {"00", "01", "02"};
-static const uint8_t tg_codec_42_idem[] = {1, 1, 1};
-static const tg_spelling tg_codec_42_spell[] = {{"00", 0}, {"01", 1}, {"02", 2}};
-static const tg_codec tg_codec_42 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 3, 3, 0, 1, 0LL, 0LL, tg_codec_42_names, tg_codec_42_raws, tg_codec_42_idem, tg_codec_42_spell, NULL, NULL, NULL};
+static const uint8_t tg_skydroid_SLR_owreq[] = {2, 4, 3, 5};
+static const uint8_t tg_skydroid_SLR_owres[] = {3, 5, 2, 4};
+static const char *const tg_codec_45_names[] = {"stop", "zoom_out", "zoom_in"};
+static const char *const tg_codec_45_raws[] = {"00", "01", "02"};
+static const uint8_t tg_codec_45_idem[] = {1, 1, 1};
+static const tg_spelling tg_codec_45_spell[] = {{"00", 0}, {"01", 1}, {"02", 2}};
+static const tg_codec tg_codec_45 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 3, 3, 0, 1, 0LL, 0LL, tg_codec_45_names, tg_codec_45_raws, tg_codec_45_idem, tg_codec_45_spell, NULL, NULL, NULL};
 static const tg_field tg_skydroid_ZMC_0_fields[] = {
-    {"action", &tg_codec_42, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_45, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_ZMC_1_fields[] = {
-    {"action", &tg_codec_42, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_45, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_ZMC_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_skydroid_ZMC_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_skydroid_ZMC_1_fields, NULL, 0}};
 static const uint8_t tg_skydroid_ZMC_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_ZMC_owres[] = {1, 0};
-static const char *const tg_codec_43_names[] = {"stop", "focus_plus", "focus_minus", "auto", "manual", "manual_save", "auto_save"};
-static const char *const tg_codec_43_raws[] = {"00", "01", "02", "10", "11", "12", "13"};
-static const uint8_t tg_codec_43_idem[] = {1, 1, 1, 1, 1, 1, 1};
-static const tg_spelling tg_codec_43_spell[] = {{"00", 0}, {"01", 1}, {"02", 2}, {"10", 3}, {"11", 4}, {"12", 5}, {"13", 6}};
-static const tg_codec tg_codec_43 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 7, 7, 0, 1, 0LL, 0LL, tg_codec_43_names, tg_codec_43_raws, tg_codec_43_idem, tg_codec_43_spell, NULL, NULL, NULL};
+static const char *const tg_codec_46_names[] = {"stop", "focus_plus", "focus_minus", "auto", "manual", "manual_save", "auto_save"};
+static const char *const tg_codec_46_raws[] = {"00", "01", "02", "10", "11", "12", "13"};
+static const uint8_t tg_codec_46_idem[] = {1, 1, 1, 1, 1, 1, 1};
+static const tg_spelling tg_codec_46_spell[] = {{"00", 0}, {"01", 1}, {"02", 2}, {"10", 3}, {"11", 4}, {"12", 5}, {"13", 6}};
+static const tg_codec tg_codec_46 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 7, 7, 0, 1, 0LL, 0LL, tg_codec_46_names, tg_codec_46_raws, tg_codec_46_idem, tg_codec_46_spell, NULL, NULL, NULL};
 static const tg_field tg_skydroid_FCC_0_fields[] = {
-    {"action", &tg_codec_43, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_46, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_FCC_1_fields[] = {
-    {"action", &tg_codec_43, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_46, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_FCC_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_skydroid_FCC_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_skydroid_FCC_1_fields, NULL, 0}};
 static const uint8_t tg_skydroid_FCC_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_FCC_owres[] = {1, 0};
-static const tg_codec tg_codec_44 = {TG_K_HEXINT, 4, 4, 4, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, -32768LL, 32767LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
-static const char *const tg_codec_45_none[] = {"NNNN"};
-static const tg_codec tg_codec_45 = {TG_K_HEXINT, 4, 4, 4, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, -32768LL, 32767LL, NULL, NULL, NULL, NULL, tg_codec_45_none, NULL, NULL};
+static const tg_codec tg_codec_47 = {TG_K_HEXINT, 4, 4, 4, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, -32768LL, 32767LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const char *const tg_codec_48_none[] = {"NNNN"};
+static const tg_codec tg_codec_48 = {TG_K_HEXINT, 4, 4, 4, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, -32768LL, 32767LL, NULL, NULL, NULL, NULL, tg_codec_48_none, NULL, NULL};
 static const tg_field tg_skydroid_ZFP_0_fields[] = {
-    {"zoom_pos", &tg_codec_44, 0, 1, 0, NULL, 0, 0},
-    {"focus_pos", &tg_codec_45, 4, 1, 0, NULL, 0, 0}};
+    {"zoom_pos", &tg_codec_47, 0, 1, 0, NULL, 0, 0},
+    {"focus_pos", &tg_codec_48, 4, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_ZFP_1_fields[] = {
-    {"zoom_pos", &tg_codec_44, 0, 1, 0, NULL, 0, 0},
-    {"focus_pos", &tg_codec_45, 4, 1, 0, NULL, 0, 0}};
+    {"zoom_pos", &tg_codec_47, 0, 1, 0, NULL, 0, 0},
+    {"focus_pos", &tg_codec_48, 4, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_ZFP_forms[] = {
     {'w', TG_REQUEST, 0, 2, 8, 8, 8, tg_skydroid_ZFP_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 2, 8, 8, 8, tg_skydroid_ZFP_1_fields, NULL, 0}};
 static const uint8_t tg_skydroid_ZFP_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_ZFP_owres[] = {1, 0};
-static const char *const tg_codec_46_names[] = {"day", "night", "toggle"};
-static const char *const tg_codec_46_raws[] = {"00", "01", "0A"};
-static const uint8_t tg_codec_46_idem[] = {1, 1, 0};
-static const tg_spelling tg_codec_46_spell[] = {{"00", 0}, {"01", 1}, {"0A", 2}, {"0a", 2}};
-static const tg_codec tg_codec_46 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 3, 4, 0, 1, 0LL, 0LL, tg_codec_46_names, tg_codec_46_raws, tg_codec_46_idem, tg_codec_46_spell, NULL, NULL, NULL};
+static const char *const tg_codec_49_names[] = {"day", "night", "toggle"};
+static const char *const tg_codec_49_raws[] = {"00", "01", "0A"};
+static const uint8_t tg_codec_49_idem[] = {1, 1, 0};
+static const tg_spelling tg_codec_49_spell[] = {{"00", 0}, {"01", 1}, {"0A", 2}, {"0a", 2}};
+static const tg_codec tg_codec_49 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 3, 4, 0, 1, 0LL, 0LL, tg_codec_49_names, tg_codec_49_raws, tg_codec_49_idem, tg_codec_49_spell, NULL, NULL, NULL};
 static const tg_field tg_skydroid_IRC_0_fields[] = {
-    {"mode", &tg_codec_46, 0, 1, 0, NULL, 0, 0}};
+    {"mode", &tg_codec_49, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_IRC_1_fields[] = {
-    {"mode", &tg_codec_46, 0, 1, 0, NULL, 0, 0}};
+    {"mode", &tg_codec_49, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_IRC_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_skydroid_IRC_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_skydroid_IRC_1_fields, NULL, 0}};
 static const uint8_t tg_skydroid_IRC_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_IRC_owres[] = {1, 0};
-static const tg_codec tg_codec_47 = {TG_K_GEODM, 10, 10, 10, 0, 0, 1, 0, 1, -7, 0, 0, 0, 0, 0, 1, -900000000LL, 900000000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_50 = {TG_K_GEODM, 10, 10, 10, 0, 0, 1, 0, 1, -7, 0, 0, 0, 0, 0, 1, -900000000LL, 900000000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_skydroid_LAT_0_fields[] = {
-    {"lat_deg", &tg_codec_47, 0, 1, 0, NULL, 0, 0}};
+    {"lat_deg", &tg_codec_50, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_LAT_1_fields[] = {
-    {"lat_deg", &tg_codec_47, 0, 1, 0, NULL, 0, 0}};
+    {"lat_deg", &tg_codec_50, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_LAT_forms[] = {
     {'w', TG_REQUEST, 0, 1, 10, 10, 10, tg_skydroid_LAT_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 10, 10, 10, tg_skydroid_LAT_1_fields, NULL, 0}};
 static const uint8_t tg_skydroid_LAT_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_LAT_owres[] = {1, 0};
-static const tg_codec tg_codec_48 = {TG_K_GEODM, 11, 11, 11, 0, 0, 0, 0, 1, -7, 0, 0, 0, 0, 0, 1, -1800000000LL, 1800000000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_51 = {TG_K_GEODM, 11, 11, 11, 0, 0, 0, 0, 1, -7, 0, 0, 0, 0, 0, 1, -1800000000LL, 1800000000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_skydroid_LON_0_fields[] = {
-    {"lon_deg", &tg_codec_48, 0, 1, 0, NULL, 0, 0}};
+    {"lon_deg", &tg_codec_51, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_LON_1_fields[] = {
-    {"lon_deg", &tg_codec_48, 0, 1, 0, NULL, 0, 0}};
+    {"lon_deg", &tg_codec_51, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_LON_forms[] = {
     {'w', TG_REQUEST, 0, 1, 11, 11, 11, tg_skydroid_LON_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 11, 11, 11, tg_skydroid_LON_1_fields, NULL, 0}};
 static const uint8_t tg_skydroid_LON_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_LON_owres[] = {1, 0};
-static const tg_codec tg_codec_49 = {TG_K_DECFLOAT, 0, 1, 15, 0, 0, 0, 0, 1, -1, 1, 8, 0, 0, 0, 1, -99999LL, 99999LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_52 = {TG_K_DECFLOAT, 0, 1, 15, 0, 0, 0, 0, 1, -1, 1, 8, 0, 0, 0, 1, -99999LL, 99999LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_skydroid_ALT_0_fields[] = {
-    {"alt_m", &tg_codec_49, 0, 1, 0, NULL, 0, 0}};
+    {"alt_m", &tg_codec_52, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_ALT_1_fields[] = {
-    {"alt_m", &tg_codec_49, 0, 1, 0, NULL, 0, 0}};
+    {"alt_m", &tg_codec_52, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_ALT_forms[] = {
     {'w', TG_REQUEST, 0, 1, 1, 15, 0, tg_skydroid_ALT_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 1, 15, 0, tg_skydroid_ALT_1_fields, NULL, 0}};
 static const uint8_t tg_skydroid_ALT_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_ALT_owres[] = {1, 0};
-static const tg_codec tg_codec_50 = {TG_K_RAW, 0, 0, 15, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_53 = {TG_K_RAW, 0, 0, 15, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_skydroid_MNU_0_fields[] = {
-    {"data", &tg_codec_50, 0, 1, 0, NULL, 0, 0}};
+    {"data", &tg_codec_53, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_MNU_1_fields[] = {
-    {"data", &tg_codec_50, 0, 1, 0, NULL, 0, 0}};
+    {"data", &tg_codec_53, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_MNU_forms[] = {
     {'w', TG_REQUEST, 0, 1, 0, 15, 0, tg_skydroid_MNU_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 0, 15, 0, tg_skydroid_MNU_1_fields, NULL, 0}};
 static const uint8_t tg_skydroid_MNU_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_MNU_owres[] = {1, 0};
 static const tg_field tg_skydroid_EVS_0_fields[] = {
-    {"data", &tg_codec_50, 0, 1, 0, NULL, 0, 0}};
+    {"data", &tg_codec_53, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_EVS_1_fields[] = {
-    {"data", &tg_codec_50, 0, 1, 0, NULL, 0, 0}};
+    {"data", &tg_codec_53, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_EVS_3_fields[] = {
-    {"data", &tg_codec_50, 0, 1, 0, NULL, 0, 0}};
+    {"data", &tg_codec_53, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_EVS_forms[] = {
     {'w', TG_REQUEST, 0, 1, 0, 15, 0, tg_skydroid_EVS_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 0, 15, 0, tg_skydroid_EVS_1_fields, NULL, 0},
@@ -865,9 +888,9 @@ static const uint8_t tg_skydroid_EVS_orres[] = {3, 2};
 static const uint8_t tg_skydroid_EVS_owreq[] = {0, 1};
 static const uint8_t tg_skydroid_EVS_owres[] = {1, 0};
 static const tg_field tg_skydroid_TMP_1_fields[] = {
-    {"data", &tg_codec_50, 0, 1, 0, NULL, 0, 0}};
+    {"data", &tg_codec_53, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_skydroid_TMP_2_fields[] = {
-    {"data", &tg_codec_50, 0, 1, 0, NULL, 0, 0}};
+    {"data", &tg_codec_53, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_TMP_forms[] = {
     {'r', TG_REQUEST, 0, 0, 2, 2, 0, NULL, (const uint8_t *)"00", 2},
     {'r', TG_RESPONSE, 0, 1, 0, 15, 0, tg_skydroid_TMP_1_fields, NULL, 0},
@@ -877,14 +900,14 @@ static const uint8_t tg_skydroid_TMP_orres[] = {1, 0};
 static const uint8_t tg_skydroid_TMP_owreq[] = {2};
 static const uint8_t tg_skydroid_TMP_owres[] = {2};
 static const tg_field tg_skydroid_HWV_1_fields[] = {
-    {"hardware_version", &tg_codec_36, 0, 1, 0, NULL, 0, 0}};
+    {"hardware_version", &tg_codec_38, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_HWV_forms[] = {
     {'r', TG_REQUEST, 0, 0, 2, 2, 0, NULL, (const uint8_t *)"00", 2},
     {'r', TG_RESPONSE, 0, 1, 1, 15, 0, tg_skydroid_HWV_1_fields, NULL, 0}};
 static const uint8_t tg_skydroid_HWV_orreq[] = {0, 1};
 static const uint8_t tg_skydroid_HWV_orres[] = {1, 0};
 static const tg_field tg_skydroid_MOD_1_fields[] = {
-    {"model", &tg_codec_36, 0, 1, 0, NULL, 0, 0}};
+    {"model", &tg_codec_38, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_skydroid_MOD_forms[] = {
     {'r', TG_REQUEST, 0, 0, 2, 2, 0, NULL, (const uint8_t *)"00", 2},
     {'r', TG_RESPONSE, 0, 1, 1, 15, 0, tg_skydroid_MOD_1_fields, NULL, 0}};
@@ -914,7 +937,7 @@ static const tg_command tg_skydroid_commands[] = {
     {"AWB", "white_balance", 'D', TG_HDR_NONE, 4, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_skydroid_AWB_forms, {{tg_skydroid_AWB_orreq, tg_skydroid_AWB_orres}, {tg_skydroid_AWB_owreq, tg_skydroid_AWB_owres}}, {{2, 2}, {2, 2}}},
     {"IQE", "image_params", 'D', TG_HDR_NONE, 4, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_skydroid_IQE_forms, {{tg_skydroid_IQE_orreq, tg_skydroid_IQE_orres}, {tg_skydroid_IQE_owreq, tg_skydroid_IQE_owres}}, {{2, 2}, {2, 2}}},
     {"TIM", "time", 'D', TG_HDR_tp, 2, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_skydroid_TIM_forms, {{NULL, NULL}, {tg_skydroid_TIM_owreq, tg_skydroid_TIM_owres}}, {{0, 0}, {2, 2}}},
-    {"DZM", "digital_zoom", 'D', TG_HDR_NONE, 8, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_skydroid_DZM_forms, {{tg_skydroid_DZM_orreq, tg_skydroid_DZM_orres}, {tg_skydroid_DZM_owreq, tg_skydroid_DZM_owres}}, {{2, 2}, {6, 6}}},
+    {"DZM", "digital_zoom", 'D', TG_HDR_NONE, 10, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_skydroid_DZM_forms, {{tg_skydroid_DZM_orreq, tg_skydroid_DZM_orres}, {tg_skydroid_DZM_owreq, tg_skydroid_DZM_owres}}, {{2, 2}, {8, 8}}},
     {"IMG", "palette", 'D', TG_HDR_NONE, 7, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_skydroid_IMG_forms, {{tg_skydroid_IMG_orreq, tg_skydroid_IMG_orres}, {tg_skydroid_IMG_owreq, tg_skydroid_IMG_owres}}, {{3, 3}, {4, 4}}},
     {"IPV", "ip_address", 'D', TG_HDR_tp, 4, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_skydroid_IPV_forms, {{tg_skydroid_IPV_orreq, tg_skydroid_IPV_orres}, {tg_skydroid_IPV_owreq, tg_skydroid_IPV_owres}}, {{2, 2}, {2, 2}}},
     {"GTW", "gateway", 'D', TG_HDR_tp, 4, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_skydroid_GTW_forms, {{tg_skydroid_GTW_orreq, tg_skydroid_GTW_orres}, {tg_skydroid_GTW_owreq, tg_skydroid_GTW_owres}}, {{2, 2}, {2, 2}}},
@@ -934,7 +957,7 @@ static const tg_command tg_skydroid_commands[] = {
     {"TAR", "thermal_spatial_denoise", 'D', TG_HDR_NONE, 4, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_skydroid_TAR_forms, {{tg_skydroid_TAR_orreq, tg_skydroid_TAR_orres}, {tg_skydroid_TAR_owreq, tg_skydroid_TAR_owres}}, {{2, 2}, {2, 2}}},
     {"TTR", "thermal_temporal_denoise", 'D', TG_HDR_NONE, 4, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_skydroid_TTR_forms, {{tg_skydroid_TTR_orreq, tg_skydroid_TTR_orres}, {tg_skydroid_TTR_owreq, tg_skydroid_TTR_owres}}, {{2, 2}, {2, 2}}},
     {"TGM", "thermal_gamma", 'D', TG_HDR_NONE, 4, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_skydroid_TGM_forms, {{tg_skydroid_TGM_orreq, tg_skydroid_TGM_orres}, {tg_skydroid_TGM_owreq, tg_skydroid_TGM_owres}}, {{2, 2}, {2, 2}}},
-    {"SLR", "laser_range", 'D', TG_HDR_NONE, 4, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_skydroid_SLR_forms, {{tg_skydroid_SLR_orreq, tg_skydroid_SLR_orres}, {tg_skydroid_SLR_owreq, tg_skydroid_SLR_owres}}, {{2, 2}, {2, 2}}},
+    {"SLR", "laser_range", 'D', TG_HDR_NONE, 6, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_skydroid_SLR_forms, {{tg_skydroid_SLR_orreq, tg_skydroid_SLR_orres}, {tg_skydroid_SLR_owreq, tg_skydroid_SLR_owres}}, {{2, 2}, {4, 4}}},
     {"ZMC", "zoom_control", 'M', TG_HDR_NONE, 2, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_skydroid_ZMC_forms, {{NULL, NULL}, {tg_skydroid_ZMC_owreq, tg_skydroid_ZMC_owres}}, {{0, 0}, {2, 2}}},
     {"FCC", "focus_control", 'M', TG_HDR_NONE, 2, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_skydroid_FCC_forms, {{NULL, NULL}, {tg_skydroid_FCC_owreq, tg_skydroid_FCC_owres}}, {{0, 0}, {2, 2}}},
     {"ZFP", "zoom_focus_position", 'M', TG_HDR_NONE, 2, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_skydroid_ZFP_forms, {{NULL, NULL}, {tg_skydroid_ZFP_owreq, tg_skydroid_ZFP_owres}}, {{0, 0}, {2, 2}}},
@@ -956,79 +979,79 @@ static const tg_form tg_topotek_ERE_forms[] = {
 static const uint8_t tg_topotek_ERE_owreq[] = {0};
 static const uint8_t tg_topotek_ERE_owres[] = {0};
 static const tg_field tg_topotek_ZMC_0_fields[] = {
-    {"action", &tg_codec_42, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_45, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_ZMC_1_fields[] = {
-    {"action", &tg_codec_42, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_45, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_ZMC_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_ZMC_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_topotek_ZMC_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_ZMC_owreq[] = {0, 1};
 static const uint8_t tg_topotek_ZMC_owres[] = {1, 0};
 static const tg_field tg_topotek_FCC_0_fields[] = {
-    {"action", &tg_codec_43, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_46, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_FCC_1_fields[] = {
-    {"action", &tg_codec_43, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_46, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_FCC_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_FCC_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_topotek_FCC_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_FCC_owreq[] = {0, 1};
 static const uint8_t tg_topotek_FCC_owres[] = {1, 0};
 static const tg_field tg_topotek_ZFP_0_fields[] = {
-    {"zoom_pos", &tg_codec_44, 0, 1, 0, NULL, 0, 0},
-    {"focus_pos", &tg_codec_45, 4, 1, 0, NULL, 0, 0}};
+    {"zoom_pos", &tg_codec_47, 0, 1, 0, NULL, 0, 0},
+    {"focus_pos", &tg_codec_48, 4, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_ZFP_1_fields[] = {
-    {"zoom_pos", &tg_codec_44, 0, 1, 0, NULL, 0, 0},
-    {"focus_pos", &tg_codec_45, 4, 1, 0, NULL, 0, 0}};
+    {"zoom_pos", &tg_codec_47, 0, 1, 0, NULL, 0, 0},
+    {"focus_pos", &tg_codec_48, 4, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_ZFP_forms[] = {
     {'w', TG_REQUEST, 0, 2, 8, 8, 8, tg_topotek_ZFP_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 2, 8, 8, 8, tg_topotek_ZFP_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_ZFP_owreq[] = {0, 1};
 static const uint8_t tg_topotek_ZFP_owres[] = {1, 0};
 static const tg_field tg_topotek_IRC_0_fields[] = {
-    {"mode", &tg_codec_46, 0, 1, 0, NULL, 0, 0}};
+    {"mode", &tg_codec_49, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_IRC_1_fields[] = {
-    {"mode", &tg_codec_46, 0, 1, 0, NULL, 0, 0}};
+    {"mode", &tg_codec_49, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_IRC_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_IRC_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_topotek_IRC_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_IRC_owreq[] = {0, 1};
 static const uint8_t tg_topotek_IRC_owres[] = {1, 0};
 static const tg_field tg_topotek_ZOM_1_fields[] = {
-    {"zoom_pos", &tg_codec_44, 0, 1, 0, NULL, 0, 0}};
+    {"zoom_pos", &tg_codec_47, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_ZOM_forms[] = {
     {'r', TG_REQUEST, 0, 0, 2, 2, 0, NULL, (const uint8_t *)"00", 2},
     {'r', TG_RESPONSE, 0, 1, 4, 4, 4, tg_topotek_ZOM_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_ZOM_orreq[] = {0, 1};
 static const uint8_t tg_topotek_ZOM_orres[] = {1, 0};
 static const tg_field tg_topotek_FOC_1_fields[] = {
-    {"focus_pos", &tg_codec_44, 0, 1, 0, NULL, 0, 0}};
+    {"focus_pos", &tg_codec_47, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_FOC_forms[] = {
     {'r', TG_REQUEST, 0, 0, 2, 2, 0, NULL, (const uint8_t *)"00", 2},
     {'r', TG_RESPONSE, 0, 1, 4, 4, 4, tg_topotek_FOC_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_FOC_orreq[] = {0, 1};
 static const uint8_t tg_topotek_FOC_orres[] = {1, 0};
-static const tg_codec tg_codec_51 = {TG_K_DECINT, 3, 3, 3, 0, 0, 0, 0, 1, -1, 0, 0, 0, 0, 0, 1, 0LL, 999LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_54 = {TG_K_DECINT, 3, 3, 3, 0, 0, 0, 0, 1, -1, 0, 0, 0, 0, 0, 1, 0LL, 999LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_ZMP_0_fields[] = {
-    {"magnification_x", &tg_codec_51, 0, 1, 0, NULL, 0, 0},
-    {"zoom_pos", &tg_codec_44, 3, 1, 0, NULL, 0, 0}};
+    {"magnification_x", &tg_codec_54, 0, 1, 0, NULL, 0, 0},
+    {"zoom_pos", &tg_codec_47, 3, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_ZMP_forms[] = {
     {'r', TG_RESPONSE, 0, 2, 7, 7, 7, tg_topotek_ZMP_0_fields, NULL, 0}};
 static const uint8_t tg_topotek_ZMP_orreq[] = {0};
 static const uint8_t tg_topotek_ZMP_orres[] = {0};
-static const char *const tg_codec_52_names[] = {"rangefinder_5v", "light_12v"};
-static const char *const tg_codec_52_raws[] = {"5", "C"};
-static const uint8_t tg_codec_52_idem[] = {1, 1};
-static const tg_spelling tg_codec_52_spell[] = {{"5", 0}, {"C", 1}, {"c", 1}};
-static const tg_codec tg_codec_52 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 2, 3, 0, 1, 0LL, 0LL, tg_codec_52_names, tg_codec_52_raws, tg_codec_52_idem, tg_codec_52_spell, NULL, NULL, NULL};
+static const char *const tg_codec_55_names[] = {"rangefinder_5v", "light_12v"};
+static const char *const tg_codec_55_raws[] = {"5", "C"};
+static const uint8_t tg_codec_55_idem[] = {1, 1};
+static const tg_spelling tg_codec_55_spell[] = {{"5", 0}, {"C", 1}, {"c", 1}};
+static const tg_codec tg_codec_55 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 2, 3, 0, 1, 0LL, 0LL, tg_codec_55_names, tg_codec_55_raws, tg_codec_55_idem, tg_codec_55_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_SWH_0_fields[] = {
-    {"device", &tg_codec_52, 0, 1, 0, NULL, 0, 0},
-    {"state", &tg_codec_32, 1, 1, 0, NULL, 0, 0}};
+    {"device", &tg_codec_55, 0, 1, 0, NULL, 0, 0},
+    {"state", &tg_codec_34, 1, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_SWH_1_fields[] = {
-    {"device", &tg_codec_52, 0, 1, 0, NULL, 0, 0},
-    {"state", &tg_codec_32, 1, 1, 0, NULL, 0, 0}};
+    {"device", &tg_codec_55, 0, 1, 0, NULL, 0, 0},
+    {"state", &tg_codec_34, 1, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_SWH_3_fields[] = {
-    {"device", &tg_codec_52, 0, 1, 0, NULL, 0, 0},
-    {"state", &tg_codec_32, 1, 1, 0, NULL, 0, 0}};
+    {"device", &tg_codec_55, 0, 1, 0, NULL, 0, 0},
+    {"state", &tg_codec_34, 1, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_SWH_forms[] = {
     {'w', TG_REQUEST, 0, 2, 2, 2, 2, tg_topotek_SWH_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 2, 2, 2, 2, tg_topotek_SWH_1_fields, NULL, 0},
@@ -1048,20 +1071,20 @@ static const tg_form tg_topotek_ATE_forms[] = {
 static const uint8_t tg_topotek_ATE_owreq[] = {0, 1};
 static const uint8_t tg_topotek_ATE_owres[] = {1, 0};
 static const tg_field tg_topotek_VSN_1_fields[] = {
-    {"version", &tg_codec_36, 0, 1, 0, NULL, 0, 0}};
+    {"version", &tg_codec_38, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_VSN_forms[] = {
     {'r', TG_REQUEST, 0, 0, 2, 2, 0, NULL, (const uint8_t *)"00", 2},
     {'r', TG_RESPONSE, 0, 1, 1, 15, 0, tg_topotek_VSN_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_VSN_orreq[] = {0, 1};
 static const uint8_t tg_topotek_VSN_orres[] = {1, 0};
-static const tg_codec tg_codec_53 = {TG_K_DECINT, 4, 4, 4, 0, 0, 0, 0, 1, -1, 0, 0, 0, 0, 0, 1, 10LL, 9999LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_56 = {TG_K_DECINT, 4, 4, 4, 0, 0, 0, 0, 1, -1, 0, 0, 0, 0, 0, 1, 10LL, 9999LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_MUL_0_fields[] = {
-    {"magnification_x", &tg_codec_53, 0, 1, 0, NULL, 0, 0}};
+    {"magnification_x", &tg_codec_56, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_MUL_1_fields[] = {
-    {"magnification_x", &tg_codec_53, 0, 1, 0, NULL, 0, 0}};
-static const tg_codec tg_codec_54 = {TG_K_DECINT, 4, 4, 4, 0, 0, 0, 0, 1, -1, 0, 0, 0, 0, 0, 1, 0LL, 9999LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+    {"magnification_x", &tg_codec_56, 0, 1, 0, NULL, 0, 0}};
+static const tg_codec tg_codec_57 = {TG_K_DECINT, 4, 4, 4, 0, 0, 0, 0, 1, -1, 0, 0, 0, 0, 0, 1, 0LL, 9999LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_MUL_3_fields[] = {
-    {"magnification_x", &tg_codec_54, 0, 1, 0, NULL, 0, 0}};
+    {"magnification_x", &tg_codec_57, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_MUL_forms[] = {
     {'w', TG_REQUEST, 0, 1, 4, 4, 4, tg_topotek_MUL_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 4, 4, 4, tg_topotek_MUL_1_fields, NULL, 0},
@@ -1071,122 +1094,122 @@ static const uint8_t tg_topotek_MUL_orreq[] = {2, 3};
 static const uint8_t tg_topotek_MUL_orres[] = {3, 2};
 static const uint8_t tg_topotek_MUL_owreq[] = {0, 1};
 static const uint8_t tg_topotek_MUL_owres[] = {1, 0};
-static const char *const tg_codec_55_names[] = {"stop", "close", "open"};
-static const char *const tg_codec_55_raws[] = {"00", "01", "02"};
-static const uint8_t tg_codec_55_idem[] = {1, 1, 1};
-static const tg_spelling tg_codec_55_spell[] = {{"00", 0}, {"01", 1}, {"02", 2}};
-static const tg_codec tg_codec_55 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 3, 3, 0, 1, 0LL, 0LL, tg_codec_55_names, tg_codec_55_raws, tg_codec_55_idem, tg_codec_55_spell, NULL, NULL, NULL};
+static const char *const tg_codec_58_names[] = {"stop", "close", "open"};
+static const char *const tg_codec_58_raws[] = {"00", "01", "02"};
+static const uint8_t tg_codec_58_idem[] = {1, 1, 1};
+static const tg_spelling tg_codec_58_spell[] = {{"00", 0}, {"01", 1}, {"02", 2}};
+static const tg_codec tg_codec_58 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 3, 3, 0, 1, 0LL, 0LL, tg_codec_58_names, tg_codec_58_raws, tg_codec_58_idem, tg_codec_58_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_APC_0_fields[] = {
-    {"action", &tg_codec_55, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_58, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_APC_1_fields[] = {
-    {"action", &tg_codec_55, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_58, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_APC_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_APC_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_topotek_APC_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_APC_owreq[] = {0, 1};
 static const uint8_t tg_topotek_APC_owres[] = {1, 0};
-static const char *const tg_codec_56_names[] = {"stop", "on", "single", "continuous"};
-static const char *const tg_codec_56_raws[] = {"00", "01", "02", "03"};
-static const uint8_t tg_codec_56_idem[] = {1, 1, 0, 1};
-static const tg_spelling tg_codec_56_spell[] = {{"00", 0}, {"01", 1}, {"02", 2}, {"03", 3}};
-static const tg_codec tg_codec_56 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 4, 4, 0, 1, 0LL, 0LL, tg_codec_56_names, tg_codec_56_raws, tg_codec_56_idem, tg_codec_56_spell, NULL, NULL, NULL};
+static const char *const tg_codec_59_names[] = {"stop", "on", "single", "continuous"};
+static const char *const tg_codec_59_raws[] = {"00", "01", "02", "03"};
+static const uint8_t tg_codec_59_idem[] = {1, 1, 0, 1};
+static const tg_spelling tg_codec_59_spell[] = {{"00", 0}, {"01", 1}, {"02", 2}, {"03", 3}};
+static const tg_codec tg_codec_59 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 4, 4, 0, 1, 0LL, 0LL, tg_codec_59_names, tg_codec_59_raws, tg_codec_59_idem, tg_codec_59_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_LRF_0_fields[] = {
-    {"action", &tg_codec_56, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_59, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_LRF_1_fields[] = {
-    {"action", &tg_codec_56, 0, 1, 0, NULL, 0, 0}};
-static const char *const tg_codec_57_none[] = {"ERR"};
-static const tg_codec tg_codec_57 = {TG_K_DECFLOAT, 0, 1, 15, 0, 0, 0, 0, 1, -1, 1, 7, 0, 0, 1, 1, 0LL, 999999LL, NULL, NULL, NULL, NULL, tg_codec_57_none, NULL, NULL};
+    {"action", &tg_codec_59, 0, 1, 0, NULL, 0, 0}};
+static const char *const tg_codec_60_none[] = {"ERR"};
+static const tg_codec tg_codec_60 = {TG_K_DECFLOAT, 0, 1, 15, 0, 0, 0, 0, 1, -1, 1, 7, 0, 0, 1, 1, 0LL, 999999LL, NULL, NULL, NULL, NULL, tg_codec_60_none, NULL, NULL};
 static const tg_field tg_topotek_LRF_2_fields[] = {
-    {"distance_m", &tg_codec_57, 0, 1, 0, NULL, 0, 0}};
+    {"distance_m", &tg_codec_60, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_LRF_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_LRF_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_topotek_LRF_1_fields, NULL, 0},
     {'w', TG_RESPONSE, 0, 1, 1, 15, 0, tg_topotek_LRF_2_fields, NULL, 0}};
 static const uint8_t tg_topotek_LRF_owreq[] = {0, 1, 2};
 static const uint8_t tg_topotek_LRF_owres[] = {1, 2, 0};
-static const char *const tg_codec_58_names[] = {"stop", "up", "down", "left", "right", "center", "lock", "follow", "toggle_follow_lock", "calibrate", "look_down"};
-static const char *const tg_codec_58_raws[] = {"00", "01", "02", "03", "04", "05", "06", "07", "08", "09", "0A"};
-static const uint8_t tg_codec_58_idem[] = {1, 0, 0, 0, 0, 1, 1, 1, 0, 0, 1};
-static const tg_spelling tg_codec_58_spell[] = {{"00", 0}, {"01", 1}, {"02", 2}, {"03", 3}, {"04", 4}, {"05", 5}, {"06", 6}, {"07", 7}, {"08", 8}, {"09", 9}, {"0A", 10}, {"0a", 10}};
-static const tg_codec tg_codec_58 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 11, 12, 0, 1, 0LL, 0LL, tg_codec_58_names, tg_codec_58_raws, tg_codec_58_idem, tg_codec_58_spell, NULL, NULL, NULL};
+static const char *const tg_codec_61_names[] = {"stop", "up", "down", "left", "right", "center", "lock", "follow", "toggle_follow_lock", "calibrate", "look_down"};
+static const char *const tg_codec_61_raws[] = {"00", "01", "02", "03", "04", "05", "06", "07", "08", "09", "0A"};
+static const uint8_t tg_codec_61_idem[] = {1, 0, 0, 0, 0, 1, 1, 1, 0, 0, 1};
+static const tg_spelling tg_codec_61_spell[] = {{"00", 0}, {"01", 1}, {"02", 2}, {"03", 3}, {"04", 4}, {"05", 5}, {"06", 6}, {"07", 7}, {"08", 8}, {"09", 9}, {"0A", 10}, {"0a", 10}};
+static const tg_codec tg_codec_61 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 11, 12, 0, 1, 0LL, 0LL, tg_codec_61_names, tg_codec_61_raws, tg_codec_61_idem, tg_codec_61_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_PTZ_0_fields[] = {
-    {"action", &tg_codec_58, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_61, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_PTZ_1_fields[] = {
-    {"action", &tg_codec_58, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_61, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_PTZ_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_PTZ_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_topotek_PTZ_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_PTZ_owreq[] = {0, 1};
 static const uint8_t tg_topotek_PTZ_owres[] = {1, 0};
-static const tg_codec tg_codec_59 = {TG_K_HEXINT, 2, 2, 2, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, -99LL, 99LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_62 = {TG_K_HEXINT, 2, 2, 2, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, -99LL, 99LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_GSY_0_fields[] = {
-    {"yaw_rate_deg_s", &tg_codec_59, 0, 1, 'y', NULL, 0, 0}};
+    {"yaw_rate_deg_s", &tg_codec_62, 0, 1, 'y', NULL, 0, 0}};
 static const tg_field tg_topotek_GSY_1_fields[] = {
-    {"yaw_rate_deg_s", &tg_codec_59, 0, 1, 'y', NULL, 0, 0}};
+    {"yaw_rate_deg_s", &tg_codec_62, 0, 1, 'y', NULL, 0, 0}};
 static const tg_form tg_topotek_GSY_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_GSY_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_topotek_GSY_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_GSY_owreq[] = {0, 1};
 static const uint8_t tg_topotek_GSY_owres[] = {1, 0};
 static const tg_field tg_topotek_GSP_0_fields[] = {
-    {"pitch_rate_deg_s", &tg_codec_59, 0, 1, 'p', NULL, 0, 0}};
+    {"pitch_rate_deg_s", &tg_codec_62, 0, 1, 'p', NULL, 0, 0}};
 static const tg_field tg_topotek_GSP_1_fields[] = {
-    {"pitch_rate_deg_s", &tg_codec_59, 0, 1, 'p', NULL, 0, 0}};
+    {"pitch_rate_deg_s", &tg_codec_62, 0, 1, 'p', NULL, 0, 0}};
 static const tg_form tg_topotek_GSP_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_GSP_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_topotek_GSP_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_GSP_owreq[] = {0, 1};
 static const uint8_t tg_topotek_GSP_owres[] = {1, 0};
 static const tg_field tg_topotek_GSR_0_fields[] = {
-    {"roll_rate_deg_s", &tg_codec_59, 0, 1, 'r', NULL, 0, 0}};
+    {"roll_rate_deg_s", &tg_codec_62, 0, 1, 'r', NULL, 0, 0}};
 static const tg_field tg_topotek_GSR_1_fields[] = {
-    {"roll_rate_deg_s", &tg_codec_59, 0, 1, 'r', NULL, 0, 0}};
+    {"roll_rate_deg_s", &tg_codec_62, 0, 1, 'r', NULL, 0, 0}};
 static const tg_form tg_topotek_GSR_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_GSR_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_topotek_GSR_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_GSR_owreq[] = {0, 1};
 static const uint8_t tg_topotek_GSR_owres[] = {1, 0};
 static const tg_field tg_topotek_GSM_0_fields[] = {
-    {"yaw_rate_deg_s", &tg_codec_59, 0, 1, 'y', NULL, 0, 0},
-    {"pitch_rate_deg_s", &tg_codec_59, 2, 1, 'p', NULL, 0, 0}};
+    {"yaw_rate_deg_s", &tg_codec_62, 0, 1, 'y', NULL, 0, 0},
+    {"pitch_rate_deg_s", &tg_codec_62, 2, 1, 'p', NULL, 0, 0}};
 static const tg_field tg_topotek_GSM_1_fields[] = {
-    {"yaw_rate_deg_s", &tg_codec_59, 0, 1, 'y', NULL, 0, 0},
-    {"pitch_rate_deg_s", &tg_codec_59, 2, 1, 'p', NULL, 0, 0}};
+    {"yaw_rate_deg_s", &tg_codec_62, 0, 1, 'y', NULL, 0, 0},
+    {"pitch_rate_deg_s", &tg_codec_62, 2, 1, 'p', NULL, 0, 0}};
 static const tg_form tg_topotek_GSM_forms[] = {
     {'w', TG_REQUEST, 0, 2, 4, 4, 4, tg_topotek_GSM_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 2, 4, 4, 4, tg_topotek_GSM_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_GSM_owreq[] = {0, 1};
 static const uint8_t tg_topotek_GSM_owres[] = {1, 0};
 static const tg_field tg_topotek_RPS_0_fields[] = {
-    {"roll_rate_deg_s", &tg_codec_59, 0, 1, 'r', NULL, 0, 0},
-    {"pitch_rate_deg_s", &tg_codec_59, 2, 1, 'p', NULL, 0, 0}};
+    {"roll_rate_deg_s", &tg_codec_62, 0, 1, 'r', NULL, 0, 0},
+    {"pitch_rate_deg_s", &tg_codec_62, 2, 1, 'p', NULL, 0, 0}};
 static const tg_field tg_topotek_RPS_1_fields[] = {
-    {"roll_rate_deg_s", &tg_codec_59, 0, 1, 'r', NULL, 0, 0},
-    {"pitch_rate_deg_s", &tg_codec_59, 2, 1, 'p', NULL, 0, 0}};
+    {"roll_rate_deg_s", &tg_codec_62, 0, 1, 'r', NULL, 0, 0},
+    {"pitch_rate_deg_s", &tg_codec_62, 2, 1, 'p', NULL, 0, 0}};
 static const tg_form tg_topotek_RPS_forms[] = {
     {'w', TG_REQUEST, 0, 2, 4, 4, 4, tg_topotek_RPS_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 2, 4, 4, 4, tg_topotek_RPS_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_RPS_owreq[] = {0, 1};
 static const uint8_t tg_topotek_RPS_owres[] = {1, 0};
 static const tg_field tg_topotek_YPR_0_fields[] = {
-    {"yaw_rate_deg_s", &tg_codec_59, 0, 1, 'y', NULL, 0, 0},
-    {"pitch_rate_deg_s", &tg_codec_59, 2, 1, 'p', NULL, 0, 0},
-    {"roll_rate_deg_s", &tg_codec_59, 4, 1, 'r', NULL, 0, 0}};
+    {"yaw_rate_deg_s", &tg_codec_62, 0, 1, 'y', NULL, 0, 0},
+    {"pitch_rate_deg_s", &tg_codec_62, 2, 1, 'p', NULL, 0, 0},
+    {"roll_rate_deg_s", &tg_codec_62, 4, 1, 'r', NULL, 0, 0}};
 static const tg_field tg_topotek_YPR_1_fields[] = {
-    {"yaw_rate_deg_s", &tg_codec_59, 0, 1, 'y', NULL, 0, 0},
-    {"pitch_rate_deg_s", &tg_codec_59, 2, 1, 'p', NULL, 0, 0},
-    {"roll_rate_deg_s", &tg_codec_59, 4, 1, 'r', NULL, 0, 0}};
+    {"yaw_rate_deg_s", &tg_codec_62, 0, 1, 'y', NULL, 0, 0},
+    {"pitch_rate_deg_s", &tg_codec_62, 2, 1, 'p', NULL, 0, 0},
+    {"roll_rate_deg_s", &tg_codec_62, 4, 1, 'r', NULL, 0, 0}};
 static const tg_form tg_topotek_YPR_forms[] = {
     {'w', TG_REQUEST, 0, 3, 6, 6, 6, tg_topotek_YPR_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 3, 6, 6, 6, tg_topotek_YPR_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_YPR_owreq[] = {0, 1};
 static const uint8_t tg_topotek_YPR_owres[] = {1, 0};
-static const tg_codec tg_codec_60 = {TG_K_HEXINT, 4, 4, 4, 1, 0, 0, 0, 1, -2, 0, 0, 0, 0, 0, 1, -15000LL, 15000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_63 = {TG_K_HEXINT, 4, 4, 4, 1, 0, 0, 0, 1, -2, 0, 0, 0, 0, 0, 1, -15000LL, 15000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_GAY_0_fields[] = {
-    {"yaw_deg", &tg_codec_60, 0, 1, 'y', NULL, 0, 0},
+    {"yaw_deg", &tg_codec_63, 0, 1, 'y', NULL, 0, 0},
     {"speed_deg_s", &tg_codec_4, 4, 1, 0, "63", 2, 1}};
 static const tg_field tg_topotek_GAY_1_fields[] = {
-    {"yaw_deg", &tg_codec_60, 0, 1, 'y', NULL, 0, 0},
+    {"yaw_deg", &tg_codec_63, 0, 1, 'y', NULL, 0, 0},
     {"speed_deg_s", &tg_codec_4, 4, 1, 0, "63", 2, 1}};
 static const tg_form tg_topotek_GAY_forms[] = {
     {'w', TG_REQUEST, 0, 2, 6, 6, 6, tg_topotek_GAY_0_fields, NULL, 0},
@@ -1216,12 +1239,12 @@ static const tg_form tg_topotek_GAR_forms[] = {
 static const uint8_t tg_topotek_GAR_owreq[] = {0, 1};
 static const uint8_t tg_topotek_GAR_owres[] = {1, 0};
 static const tg_field tg_topotek_GAM_0_fields[] = {
-    {"yaw_deg", &tg_codec_60, 0, 1, 'y', NULL, 0, 0},
+    {"yaw_deg", &tg_codec_63, 0, 1, 'y', NULL, 0, 0},
     {"yaw_speed_deg_s", &tg_codec_4, 4, 1, 0, "63", 2, 1},
     {"pitch_deg", &tg_codec_3, 6, 1, 'p', NULL, 0, 0},
     {"pitch_speed_deg_s", &tg_codec_4, 10, 1, 0, "63", 2, 1}};
 static const tg_field tg_topotek_GAM_1_fields[] = {
-    {"yaw_deg", &tg_codec_60, 0, 1, 'y', NULL, 0, 0},
+    {"yaw_deg", &tg_codec_63, 0, 1, 'y', NULL, 0, 0},
     {"yaw_speed_deg_s", &tg_codec_4, 4, 1, 0, "63", 2, 1},
     {"pitch_deg", &tg_codec_3, 6, 1, 'p', NULL, 0, 0},
     {"pitch_speed_deg_s", &tg_codec_4, 10, 1, 0, "63", 2, 1}};
@@ -1231,10 +1254,10 @@ static const tg_form tg_topotek_GAM_forms[] = {
 static const uint8_t tg_topotek_GAM_owreq[] = {0, 1};
 static const uint8_t tg_topotek_GAM_owres[] = {1, 0};
 static const tg_field tg_topotek_GIY_0_fields[] = {
-    {"yaw_deg", &tg_codec_60, 0, 1, 'y', NULL, 0, 0},
+    {"yaw_deg", &tg_codec_63, 0, 1, 'y', NULL, 0, 0},
     {"speed_deg_s", &tg_codec_4, 4, 1, 0, "63", 2, 1}};
 static const tg_field tg_topotek_GIY_1_fields[] = {
-    {"yaw_deg", &tg_codec_60, 0, 1, 'y', NULL, 0, 0},
+    {"yaw_deg", &tg_codec_63, 0, 1, 'y', NULL, 0, 0},
     {"speed_deg_s", &tg_codec_4, 4, 1, 0, "63", 2, 1}};
 static const tg_form tg_topotek_GIY_forms[] = {
     {'w', TG_REQUEST, 0, 2, 6, 6, 6, tg_topotek_GIY_0_fields, NULL, 0},
@@ -1264,12 +1287,12 @@ static const tg_form tg_topotek_GIR_forms[] = {
 static const uint8_t tg_topotek_GIR_owreq[] = {0, 1};
 static const uint8_t tg_topotek_GIR_owres[] = {1, 0};
 static const tg_field tg_topotek_GIM_0_fields[] = {
-    {"yaw_deg", &tg_codec_60, 0, 1, 'y', NULL, 0, 0},
+    {"yaw_deg", &tg_codec_63, 0, 1, 'y', NULL, 0, 0},
     {"yaw_speed_deg_s", &tg_codec_4, 4, 1, 0, "63", 2, 1},
     {"pitch_deg", &tg_codec_3, 6, 1, 'p', NULL, 0, 0},
     {"pitch_speed_deg_s", &tg_codec_4, 10, 1, 0, "63", 2, 1}};
 static const tg_field tg_topotek_GIM_1_fields[] = {
-    {"yaw_deg", &tg_codec_60, 0, 1, 'y', NULL, 0, 0},
+    {"yaw_deg", &tg_codec_63, 0, 1, 'y', NULL, 0, 0},
     {"yaw_speed_deg_s", &tg_codec_4, 4, 1, 0, "63", 2, 1},
     {"pitch_deg", &tg_codec_3, 6, 1, 'p', NULL, 0, 0},
     {"pitch_speed_deg_s", &tg_codec_4, 10, 1, 0, "63", 2, 1}};
@@ -1321,12 +1344,12 @@ static const tg_field tg_topotek_GIA_4_fields[] = {
     {"yaw_deg", &tg_codec_6, 0, 1, 'y', NULL, 0, 0},
     {"pitch_deg", &tg_codec_6, 4, 1, 'p', NULL, 0, 0},
     {"roll_deg", &tg_codec_6, 8, 1, 'r', NULL, 0, 0}};
-static const tg_codec tg_codec_61 = {TG_K_RAW, 0, 1, 255, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_64 = {TG_K_RAW, 0, 1, 255, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_GIA_5_fields[] = {
     {"yaw_deg", &tg_codec_6, 0, 1, 'y', NULL, 0, 0},
     {"pitch_deg", &tg_codec_6, 4, 1, 'p', NULL, 0, 0},
     {"roll_deg", &tg_codec_6, 8, 1, 'r', NULL, 0, 0},
-    {"extra", &tg_codec_61, 12, 1, 0, NULL, 0, 0}};
+    {"extra", &tg_codec_64, 12, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_GIA_6_fields[] = {
     {"yaw_deg", &tg_codec_6, 0, 1, 'y', NULL, 0, 0},
     {"pitch_deg", &tg_codec_6, 4, 1, 'p', NULL, 0, 0},
@@ -1359,7 +1382,7 @@ static const uint8_t tg_topotek_GMS_orres[] = {3, 2};
 static const uint8_t tg_topotek_GMS_owreq[] = {0, 1};
 static const uint8_t tg_topotek_GMS_owres[] = {1, 0};
 static const tg_field tg_topotek_VER_1_fields[] = {
-    {"serial", &tg_codec_36, 0, 1, 0, NULL, 0, 0}};
+    {"serial", &tg_codec_38, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_VER_forms[] = {
     {'r', TG_REQUEST, 0, 0, 2, 2, 0, NULL, (const uint8_t *)"00", 2},
     {'r', TG_RESPONSE, 0, 1, 1, 15, 0, tg_topotek_VER_1_fields, NULL, 0}};
@@ -1371,14 +1394,14 @@ static const tg_field tg_topotek_REC_1_fields[] = {
     {"action", &tg_codec_12, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_REC_3_fields[] = {
     {"state", &tg_codec_13, 0, 1, 0, NULL, 0, 0}};
-static const char *const tg_codec_62_names[] = {"stopped", "started"};
-static const char *const tg_codec_62_raws[] = {"00", "11"};
-static const uint8_t tg_codec_62_idem[] = {1, 1};
-static const tg_spelling tg_codec_62_spell[] = {{"00", 0}, {"11", 1}};
-static const tg_codec tg_codec_62 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_62_names, tg_codec_62_raws, tg_codec_62_idem, tg_codec_62_spell, NULL, NULL, NULL};
+static const char *const tg_codec_65_names[] = {"stopped", "started"};
+static const char *const tg_codec_65_raws[] = {"00", "11"};
+static const uint8_t tg_codec_65_idem[] = {1, 1};
+static const tg_spelling tg_codec_65_spell[] = {{"00", 0}, {"11", 1}};
+static const tg_codec tg_codec_65 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_65_names, tg_codec_65_raws, tg_codec_65_idem, tg_codec_65_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_REC_4_fields[] = {
-    {"state", &tg_codec_62, 0, 1, 0, NULL, 0, 0},
-    {"file_index", &tg_codec_38, 2, 1, 0, NULL, 0, 0}};
+    {"state", &tg_codec_65, 0, 1, 0, NULL, 0, 0},
+    {"file_index", &tg_codec_40, 2, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_REC_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_REC_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_topotek_REC_1_fields, NULL, 0},
@@ -1389,48 +1412,48 @@ static const uint8_t tg_topotek_REC_orreq[] = {2, 3};
 static const uint8_t tg_topotek_REC_orres[] = {3, 2};
 static const uint8_t tg_topotek_REC_owreq[] = {0, 1, 4};
 static const uint8_t tg_topotek_REC_owres[] = {1, 4, 0};
-static const char *const tg_codec_63_names[] = {"visible_thermal", "visible", "thermal", "radiometric"};
-static const char *const tg_codec_63_raws[] = {"01", "02", "03", "05"};
-static const uint8_t tg_codec_63_idem[] = {1, 1, 1, 1};
-static const tg_spelling tg_codec_63_spell[] = {{"01", 0}, {"02", 1}, {"03", 2}, {"05", 3}};
-static const tg_codec tg_codec_63 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 4, 4, 0, 1, 0LL, 0LL, tg_codec_63_names, tg_codec_63_raws, tg_codec_63_idem, tg_codec_63_spell, NULL, NULL, NULL};
+static const char *const tg_codec_66_names[] = {"visible_thermal", "visible", "thermal", "radiometric"};
+static const char *const tg_codec_66_raws[] = {"01", "02", "03", "05"};
+static const uint8_t tg_codec_66_idem[] = {1, 1, 1, 1};
+static const tg_spelling tg_codec_66_spell[] = {{"01", 0}, {"02", 1}, {"03", 2}, {"05", 3}};
+static const tg_codec tg_codec_66 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 4, 4, 0, 1, 0LL, 0LL, tg_codec_66_names, tg_codec_66_raws, tg_codec_66_idem, tg_codec_66_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_CAP_0_fields[] = {
-    {"mode", &tg_codec_63, 0, 1, 0, "01", 2, 1}};
+    {"mode", &tg_codec_66, 0, 1, 0, "01", 2, 1}};
 static const tg_field tg_topotek_CAP_1_fields[] = {
-    {"mode", &tg_codec_63, 0, 1, 0, "01", 2, 1}};
-static const char *const tg_codec_64_names[] = {"taken"};
-static const char *const tg_codec_64_raws[] = {"11"};
-static const uint8_t tg_codec_64_idem[] = {1};
-static const tg_spelling tg_codec_64_spell[] = {{"11", 0}};
-static const tg_codec tg_codec_64 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 0, 1, 0LL, 0LL, tg_codec_64_names, tg_codec_64_raws, tg_codec_64_idem, tg_codec_64_spell, NULL, NULL, NULL};
+    {"mode", &tg_codec_66, 0, 1, 0, "01", 2, 1}};
+static const char *const tg_codec_67_names[] = {"taken"};
+static const char *const tg_codec_67_raws[] = {"11"};
+static const uint8_t tg_codec_67_idem[] = {1};
+static const tg_spelling tg_codec_67_spell[] = {{"11", 0}};
+static const tg_codec tg_codec_67 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 0, 1, 0LL, 0LL, tg_codec_67_names, tg_codec_67_raws, tg_codec_67_idem, tg_codec_67_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_CAP_2_fields[] = {
-    {"state", &tg_codec_64, 0, 1, 0, NULL, 0, 0},
-    {"file_index", &tg_codec_38, 2, 1, 0, NULL, 0, 0}};
+    {"state", &tg_codec_67, 0, 1, 0, NULL, 0, 0},
+    {"file_index", &tg_codec_40, 2, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_CAP_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_CAP_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_topotek_CAP_1_fields, NULL, 0},
     {'w', TG_RESPONSE, 0, 2, 10, 10, 10, tg_topotek_CAP_2_fields, NULL, 0}};
 static const uint8_t tg_topotek_CAP_owreq[] = {0, 1, 2};
 static const uint8_t tg_topotek_CAP_owres[] = {1, 2, 0};
-static const char *const tg_codec_65_names[] = {"record", "photo", "rtsp"};
-static const char *const tg_codec_65_raws[] = {"0", "1", "2"};
-static const uint8_t tg_codec_65_idem[] = {1, 1, 1};
-static const tg_spelling tg_codec_65_spell[] = {{"0", 0}, {"1", 1}, {"2", 2}};
-static const tg_codec tg_codec_65 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 3, 3, 0, 1, 0LL, 0LL, tg_codec_65_names, tg_codec_65_raws, tg_codec_65_idem, tg_codec_65_spell, NULL, NULL, NULL};
-static const char *const tg_codec_66_names[] = {"3840x2160", "1920x1080", "1280x720", "640x480"};
-static const char *const tg_codec_66_raws[] = {"0", "1", "2", "3"};
-static const uint8_t tg_codec_66_idem[] = {1, 1, 1, 1};
-static const tg_spelling tg_codec_66_spell[] = {{"0", 0}, {"1", 1}, {"2", 2}, {"3", 3}};
-static const tg_codec tg_codec_66 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 4, 4, 0, 1, 0LL, 0LL, tg_codec_66_names, tg_codec_66_raws, tg_codec_66_idem, tg_codec_66_spell, NULL, NULL, NULL};
+static const char *const tg_codec_68_names[] = {"record", "photo", "rtsp"};
+static const char *const tg_codec_68_raws[] = {"0", "1", "2"};
+static const uint8_t tg_codec_68_idem[] = {1, 1, 1};
+static const tg_spelling tg_codec_68_spell[] = {{"0", 0}, {"1", 1}, {"2", 2}};
+static const tg_codec tg_codec_68 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 3, 3, 0, 1, 0LL, 0LL, tg_codec_68_names, tg_codec_68_raws, tg_codec_68_idem, tg_codec_68_spell, NULL, NULL, NULL};
+static const char *const tg_codec_69_names[] = {"3840x2160", "1920x1080", "1280x720", "640x480"};
+static const char *const tg_codec_69_raws[] = {"0", "1", "2", "3"};
+static const uint8_t tg_codec_69_idem[] = {1, 1, 1, 1};
+static const tg_spelling tg_codec_69_spell[] = {{"0", 0}, {"1", 1}, {"2", 2}, {"3", 3}};
+static const tg_codec tg_codec_69 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 4, 4, 0, 1, 0LL, 0LL, tg_codec_69_names, tg_codec_69_raws, tg_codec_69_idem, tg_codec_69_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_VID_0_fields[] = {
-    {"stream", &tg_codec_65, 0, 1, 0, NULL, 0, 0},
-    {"resolution", &tg_codec_66, 1, 1, 0, NULL, 0, 0}};
+    {"stream", &tg_codec_68, 0, 1, 0, NULL, 0, 0},
+    {"resolution", &tg_codec_69, 1, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_VID_1_fields[] = {
-    {"stream", &tg_codec_65, 0, 1, 0, NULL, 0, 0},
-    {"resolution", &tg_codec_66, 1, 1, 0, NULL, 0, 0}};
+    {"stream", &tg_codec_68, 0, 1, 0, NULL, 0, 0},
+    {"resolution", &tg_codec_69, 1, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_VID_3_fields[] = {
-    {"stream", &tg_codec_65, 0, 1, 0, NULL, 0, 0},
-    {"resolution", &tg_codec_66, 1, 1, 0, NULL, 0, 0}};
+    {"stream", &tg_codec_68, 0, 1, 0, NULL, 0, 0},
+    {"resolution", &tg_codec_69, 1, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_VID_forms[] = {
     {'w', TG_REQUEST, 0, 2, 2, 2, 2, tg_topotek_VID_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 2, 2, 2, 2, tg_topotek_VID_1_fields, NULL, 0},
@@ -1440,13 +1463,13 @@ static const uint8_t tg_topotek_VID_orreq[] = {2, 3};
 static const uint8_t tg_topotek_VID_orres[] = {3, 2};
 static const uint8_t tg_topotek_VID_owreq[] = {0, 1};
 static const uint8_t tg_topotek_VID_owres[] = {1, 0};
-static const tg_codec tg_codec_67 = {TG_K_BITRATE, 0, 1, 6, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 50LL, 99999LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_70 = {TG_K_BITRATE, 0, 1, 6, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 50LL, 99999LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_BIT_0_fields[] = {
-    {"bitrate_kbps", &tg_codec_67, 0, 1, 0, NULL, 0, 0}};
+    {"bitrate_kbps", &tg_codec_70, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_BIT_1_fields[] = {
-    {"bitrate_kbps", &tg_codec_67, 0, 1, 0, NULL, 0, 0}};
+    {"bitrate_kbps", &tg_codec_70, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_BIT_3_fields[] = {
-    {"bitrate_kbps", &tg_codec_67, 0, 1, 0, NULL, 0, 0}};
+    {"bitrate_kbps", &tg_codec_70, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_BIT_forms[] = {
     {'w', TG_REQUEST, 0, 1, 1, 6, 0, tg_topotek_BIT_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 1, 6, 0, tg_topotek_BIT_1_fields, NULL, 0},
@@ -1456,33 +1479,33 @@ static const uint8_t tg_topotek_BIT_orreq[] = {2, 3};
 static const uint8_t tg_topotek_BIT_orres[] = {3, 2};
 static const uint8_t tg_topotek_BIT_owreq[] = {0, 1};
 static const uint8_t tg_topotek_BIT_owres[] = {1, 0};
-static const char *const tg_codec_68_names[] = {"remaining", "total"};
-static const char *const tg_codec_68_raws[] = {"00", "01"};
-static const uint8_t tg_codec_68_idem[] = {1, 1};
-static const tg_spelling tg_codec_68_spell[] = {{"00", 0}, {"01", 1}};
-static const tg_codec tg_codec_68 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_68_names, tg_codec_68_raws, tg_codec_68_idem, tg_codec_68_spell, NULL, NULL, NULL};
+static const char *const tg_codec_71_names[] = {"remaining", "total"};
+static const char *const tg_codec_71_raws[] = {"00", "01"};
+static const uint8_t tg_codec_71_idem[] = {1, 1};
+static const tg_spelling tg_codec_71_spell[] = {{"00", 0}, {"01", 1}};
+static const tg_codec tg_codec_71 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_71_names, tg_codec_71_raws, tg_codec_71_idem, tg_codec_71_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_SDC_0_fields[] = {
-    {"which", &tg_codec_68, 0, 1, 0, "00", 2, 1}};
-static const char *const tg_codec_69_none[] = {"NNNNN"};
-static const tg_codec tg_codec_69 = {TG_K_HEXINT, 5, 5, 5, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 0LL, 1048575LL, NULL, NULL, NULL, NULL, tg_codec_69_none, NULL, NULL};
+    {"which", &tg_codec_71, 0, 1, 0, "00", 2, 1}};
+static const char *const tg_codec_72_none[] = {"NNNNN"};
+static const tg_codec tg_codec_72 = {TG_K_HEXINT, 5, 5, 5, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 0LL, 1048575LL, NULL, NULL, NULL, NULL, tg_codec_72_none, NULL, NULL};
 static const tg_field tg_topotek_SDC_1_fields[] = {
-    {"capacity_mb", &tg_codec_69, 0, 1, 0, NULL, 0, 0}};
+    {"capacity_mb", &tg_codec_72, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_SDC_forms[] = {
     {'r', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_SDC_0_fields, NULL, 0},
     {'r', TG_RESPONSE, 0, 1, 5, 5, 5, tg_topotek_SDC_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_SDC_orreq[] = {0, 1};
 static const uint8_t tg_topotek_SDC_orres[] = {1, 0};
-static const char *const tg_codec_70_names[] = {"normal", "rotate_180"};
-static const char *const tg_codec_70_raws[] = {"00", "02"};
-static const uint8_t tg_codec_70_idem[] = {1, 1};
-static const tg_spelling tg_codec_70_spell[] = {{"00", 0}, {"02", 1}};
-static const tg_codec tg_codec_70 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_70_names, tg_codec_70_raws, tg_codec_70_idem, tg_codec_70_spell, NULL, NULL, NULL};
+static const char *const tg_codec_73_names[] = {"normal", "rotate_180"};
+static const char *const tg_codec_73_raws[] = {"00", "02"};
+static const uint8_t tg_codec_73_idem[] = {1, 1};
+static const tg_spelling tg_codec_73_spell[] = {{"00", 0}, {"02", 1}};
+static const tg_codec tg_codec_73 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_73_names, tg_codec_73_raws, tg_codec_73_idem, tg_codec_73_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_ROT_0_fields[] = {
-    {"rotation", &tg_codec_70, 0, 1, 0, NULL, 0, 0}};
+    {"rotation", &tg_codec_73, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_ROT_1_fields[] = {
-    {"rotation", &tg_codec_70, 0, 1, 0, NULL, 0, 0}};
+    {"rotation", &tg_codec_73, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_ROT_3_fields[] = {
-    {"rotation", &tg_codec_70, 0, 1, 0, NULL, 0, 0}};
+    {"rotation", &tg_codec_73, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_ROT_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_ROT_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_topotek_ROT_1_fields, NULL, 0},
@@ -1493,11 +1516,11 @@ static const uint8_t tg_topotek_ROT_orres[] = {3, 2};
 static const uint8_t tg_topotek_ROT_owreq[] = {0, 1};
 static const uint8_t tg_topotek_ROT_owres[] = {1, 0};
 static const tg_field tg_topotek_IPV_0_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_IPV_1_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_IPV_3_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_IPV_forms[] = {
     {'w', TG_REQUEST, 0, 1, 7, 15, 0, tg_topotek_IPV_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 7, 15, 0, tg_topotek_IPV_1_fields, NULL, 0},
@@ -1508,11 +1531,11 @@ static const uint8_t tg_topotek_IPV_orres[] = {3, 2};
 static const uint8_t tg_topotek_IPV_owreq[] = {0, 1};
 static const uint8_t tg_topotek_IPV_owres[] = {1, 0};
 static const tg_field tg_topotek_GTW_0_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_GTW_1_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_GTW_3_fields[] = {
-    {"address", &tg_codec_29, 0, 1, 0, NULL, 0, 0}};
+    {"address", &tg_codec_31, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_GTW_forms[] = {
     {'w', TG_REQUEST, 0, 1, 7, 15, 0, tg_topotek_GTW_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 7, 15, 0, tg_topotek_GTW_1_fields, NULL, 0},
@@ -1523,21 +1546,21 @@ static const uint8_t tg_topotek_GTW_orres[] = {3, 2};
 static const uint8_t tg_topotek_GTW_owreq[] = {0, 1};
 static const uint8_t tg_topotek_GTW_owres[] = {1, 0};
 static const tg_field tg_topotek_RST_0_fields[] = {
-    {"action", &tg_codec_30, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_32, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_RST_1_fields[] = {
-    {"action", &tg_codec_30, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_32, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_RST_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_RST_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_topotek_RST_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_RST_owreq[] = {0, 1};
 static const uint8_t tg_topotek_RST_owres[] = {1, 0};
 static const tg_field tg_topotek_LAT_0_fields[] = {
-    {"lat_deg", &tg_codec_47, 0, 1, 0, NULL, 0, 0}};
+    {"lat_deg", &tg_codec_50, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_LAT_1_fields[] = {
-    {"lat_deg", &tg_codec_47, 0, 1, 0, NULL, 0, 0}};
-static const tg_codec tg_codec_71 = {TG_K_GEODEG, 10, 10, 10, 0, 0, 1, 0, 1, -7, 0, 0, 0, 0, 0, 1, -900000000LL, 900000000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+    {"lat_deg", &tg_codec_50, 0, 1, 0, NULL, 0, 0}};
+static const tg_codec tg_codec_74 = {TG_K_GEODEG, 10, 10, 10, 0, 0, 1, 0, 1, -7, 0, 0, 0, 0, 0, 1, -900000000LL, 900000000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_LAT_2_fields[] = {
-    {"lat_deg", &tg_codec_71, 0, 1, 0, NULL, 0, 0}};
+    {"lat_deg", &tg_codec_74, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_LAT_forms[] = {
     {'w', TG_REQUEST, 0, 1, 10, 10, 10, tg_topotek_LAT_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 10, 10, 10, tg_topotek_LAT_1_fields, NULL, 0},
@@ -1545,12 +1568,12 @@ static const tg_form tg_topotek_LAT_forms[] = {
 static const uint8_t tg_topotek_LAT_owreq[] = {0, 1, 2};
 static const uint8_t tg_topotek_LAT_owres[] = {1, 2, 0};
 static const tg_field tg_topotek_LON_0_fields[] = {
-    {"lon_deg", &tg_codec_48, 0, 1, 0, NULL, 0, 0}};
+    {"lon_deg", &tg_codec_51, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_LON_1_fields[] = {
-    {"lon_deg", &tg_codec_48, 0, 1, 0, NULL, 0, 0}};
-static const tg_codec tg_codec_72 = {TG_K_GEODEG, 11, 11, 11, 0, 0, 0, 0, 1, -7, 0, 0, 0, 0, 0, 1, -1800000000LL, 1800000000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+    {"lon_deg", &tg_codec_51, 0, 1, 0, NULL, 0, 0}};
+static const tg_codec tg_codec_75 = {TG_K_GEODEG, 11, 11, 11, 0, 0, 0, 0, 1, -7, 0, 0, 0, 0, 0, 1, -1800000000LL, 1800000000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_LON_2_fields[] = {
-    {"lon_deg", &tg_codec_72, 0, 1, 0, NULL, 0, 0}};
+    {"lon_deg", &tg_codec_75, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_LON_forms[] = {
     {'w', TG_REQUEST, 0, 1, 11, 11, 11, tg_topotek_LON_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 11, 11, 11, tg_topotek_LON_1_fields, NULL, 0},
@@ -1558,97 +1581,97 @@ static const tg_form tg_topotek_LON_forms[] = {
 static const uint8_t tg_topotek_LON_owreq[] = {0, 1, 2};
 static const uint8_t tg_topotek_LON_owres[] = {1, 2, 0};
 static const tg_field tg_topotek_ALT_0_fields[] = {
-    {"alt_m", &tg_codec_49, 0, 1, 0, NULL, 0, 0}};
+    {"alt_m", &tg_codec_52, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_ALT_1_fields[] = {
-    {"alt_m", &tg_codec_49, 0, 1, 0, NULL, 0, 0}};
+    {"alt_m", &tg_codec_52, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_ALT_forms[] = {
     {'w', TG_REQUEST, 0, 1, 1, 15, 0, tg_topotek_ALT_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 1, 15, 0, tg_topotek_ALT_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_ALT_owreq[] = {0, 1};
 static const uint8_t tg_topotek_ALT_owres[] = {1, 0};
-static const tg_codec tg_codec_73 = {TG_K_DECFLOAT, 0, 1, 15, 0, 0, 0, 0, 1, -1, 1, 5, 0, 0, 0, 1, 0LL, 3599LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_76 = {TG_K_DECFLOAT, 0, 1, 15, 0, 0, 0, 0, 1, -1, 1, 5, 0, 0, 0, 1, 0LL, 3599LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_AZI_0_fields[] = {
-    {"azimuth_deg", &tg_codec_73, 0, 1, 0, NULL, 0, 0}};
+    {"azimuth_deg", &tg_codec_76, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_AZI_1_fields[] = {
-    {"azimuth_deg", &tg_codec_73, 0, 1, 0, NULL, 0, 0}};
+    {"azimuth_deg", &tg_codec_76, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_AZI_forms[] = {
     {'w', TG_REQUEST, 0, 1, 1, 15, 0, tg_topotek_AZI_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 1, 15, 0, tg_topotek_AZI_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_AZI_owreq[] = {0, 1};
 static const uint8_t tg_topotek_AZI_owres[] = {1, 0};
-static const tg_codec tg_codec_74 = {TG_K_BININT, 2, 2, 2, 1, 1, 0, 0, 1, -2, 0, 0, 0, 0, 0, 1, -32768LL, 32767LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
-static const tg_codec tg_codec_75 = {TG_K_BININT, 4, 4, 4, 1, 1, 0, 0, 1, -7, 0, 0, 0, 0, 0, 1, -1800000000LL, 1800000000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
-static const tg_codec tg_codec_76 = {TG_K_BININT, 4, 4, 4, 1, 1, 0, 0, 1, -7, 0, 0, 0, 0, 0, 1, -900000000LL, 900000000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
-static const tg_codec tg_codec_77 = {TG_K_BININT, 4, 4, 4, 1, 1, 0, 0, 1, -3, 0, 0, 0, 0, 0, 1, -500000LL, 10000000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_77 = {TG_K_BININT, 2, 2, 2, 1, 1, 0, 0, 1, -2, 0, 0, 0, 0, 0, 1, -32768LL, 32767LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_78 = {TG_K_BININT, 4, 4, 4, 1, 1, 0, 0, 1, -7, 0, 0, 0, 0, 0, 1, -1800000000LL, 1800000000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_79 = {TG_K_BININT, 4, 4, 4, 1, 1, 0, 0, 1, -7, 0, 0, 0, 0, 0, 1, -900000000LL, 900000000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_80 = {TG_K_BININT, 4, 4, 4, 1, 1, 0, 0, 1, -3, 0, 0, 0, 0, 0, 1, -500000LL, 10000000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_GPS_0_fields[] = {
-    {"heading_deg", &tg_codec_74, 0, 1, 0, NULL, 0, 0},
-    {"lon_deg", &tg_codec_75, 2, 1, 0, NULL, 0, 0},
-    {"lat_deg", &tg_codec_76, 6, 1, 0, NULL, 0, 0},
-    {"alt_m", &tg_codec_77, 10, 1, 0, NULL, 0, 0}};
+    {"heading_deg", &tg_codec_77, 0, 1, 0, NULL, 0, 0},
+    {"lon_deg", &tg_codec_78, 2, 1, 0, NULL, 0, 0},
+    {"lat_deg", &tg_codec_79, 6, 1, 0, NULL, 0, 0},
+    {"alt_m", &tg_codec_80, 10, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_GPS_1_fields[] = {
-    {"heading_deg", &tg_codec_74, 0, 1, 0, NULL, 0, 0},
-    {"lon_deg", &tg_codec_75, 2, 1, 0, NULL, 0, 0},
-    {"lat_deg", &tg_codec_76, 6, 1, 0, NULL, 0, 0},
-    {"alt_m", &tg_codec_77, 10, 1, 0, NULL, 0, 0}};
+    {"heading_deg", &tg_codec_77, 0, 1, 0, NULL, 0, 0},
+    {"lon_deg", &tg_codec_78, 2, 1, 0, NULL, 0, 0},
+    {"lat_deg", &tg_codec_79, 6, 1, 0, NULL, 0, 0},
+    {"alt_m", &tg_codec_80, 10, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_GPS_forms[] = {
     {'w', TG_REQUEST, 0, 4, 14, 14, 14, tg_topotek_GPS_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 4, 14, 14, 14, tg_topotek_GPS_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_GPS_owreq[] = {0, 1};
 static const uint8_t tg_topotek_GPS_owres[] = {1, 0};
-static const tg_codec tg_codec_78 = {TG_K_BININT, 2, 2, 2, 0, 1, 0, 0, 1, -2, 0, 0, 0, 0, 0, 1, 0LL, 36000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
-static const tg_codec tg_codec_79 = {TG_K_BININT, 2, 2, 2, 1, 1, 0, 0, 1, -2, 0, 0, 0, 0, 0, 1, -9000LL, 9000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
-static const tg_codec tg_codec_80 = {TG_K_BININT, 2, 2, 2, 0, 1, 0, 0, 1, -2, 0, 0, 0, 0, 0, 1, 0LL, 20000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_81 = {TG_K_BININT, 2, 2, 2, 0, 1, 0, 0, 1, -2, 0, 0, 0, 0, 0, 1, 0LL, 36000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_82 = {TG_K_BININT, 2, 2, 2, 1, 1, 0, 0, 1, -2, 0, 0, 0, 0, 0, 1, -9000LL, 9000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_83 = {TG_K_BININT, 2, 2, 2, 0, 1, 0, 0, 1, -2, 0, 0, 0, 0, 0, 1, 0LL, 20000LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_UAV_0_fields[] = {
-    {"yaw_deg", &tg_codec_78, 0, 1, 0, NULL, 0, 0},
-    {"pitch_deg", &tg_codec_79, 2, -1, 0, NULL, 0, 0},
-    {"roll_deg", &tg_codec_79, 4, 1, 0, NULL, 0, 0},
-    {"speed_m_s", &tg_codec_80, 6, 1, 0, NULL, 0, 0},
-    {"path_angle_deg", &tg_codec_78, 8, 1, 0, NULL, 0, 0}};
+    {"yaw_deg", &tg_codec_81, 0, 1, 0, NULL, 0, 0},
+    {"pitch_deg", &tg_codec_82, 2, -1, 0, NULL, 0, 0},
+    {"roll_deg", &tg_codec_82, 4, 1, 0, NULL, 0, 0},
+    {"speed_m_s", &tg_codec_83, 6, 1, 0, NULL, 0, 0},
+    {"path_angle_deg", &tg_codec_81, 8, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_UAV_1_fields[] = {
-    {"yaw_deg", &tg_codec_78, 0, 1, 0, NULL, 0, 0},
-    {"pitch_deg", &tg_codec_79, 2, -1, 0, NULL, 0, 0},
-    {"roll_deg", &tg_codec_79, 4, 1, 0, NULL, 0, 0},
-    {"speed_m_s", &tg_codec_80, 6, 1, 0, NULL, 0, 0},
-    {"path_angle_deg", &tg_codec_78, 8, 1, 0, NULL, 0, 0}};
+    {"yaw_deg", &tg_codec_81, 0, 1, 0, NULL, 0, 0},
+    {"pitch_deg", &tg_codec_82, 2, -1, 0, NULL, 0, 0},
+    {"roll_deg", &tg_codec_82, 4, 1, 0, NULL, 0, 0},
+    {"speed_m_s", &tg_codec_83, 6, 1, 0, NULL, 0, 0},
+    {"path_angle_deg", &tg_codec_81, 8, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_UAV_forms[] = {
     {'w', TG_REQUEST, 0, 5, 10, 10, 10, tg_topotek_UAV_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 5, 10, 10, 10, tg_topotek_UAV_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_UAV_owreq[] = {0, 1};
 static const uint8_t tg_topotek_UAV_owres[] = {1, 0};
-static const tg_codec tg_codec_81 = {TG_K_TIMESTAMP, 14, 14, 14, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, "%Y%m%d%H%M%S", NULL};
+static const tg_codec tg_codec_84 = {TG_K_TIMESTAMP, 14, 14, 14, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, "%Y%m%d%H%M%S", NULL};
 static const tg_field tg_topotek_TIM_0_fields[] = {
-    {"time", &tg_codec_81, 0, 1, 0, NULL, 0, 0}};
+    {"time", &tg_codec_84, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_TIM_1_fields[] = {
-    {"time", &tg_codec_81, 0, 1, 0, NULL, 0, 0}};
+    {"time", &tg_codec_84, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_TIM_forms[] = {
     {'w', TG_REQUEST, 0, 1, 14, 14, 14, tg_topotek_TIM_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 14, 14, 14, tg_topotek_TIM_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_TIM_owreq[] = {0, 1};
 static const uint8_t tg_topotek_TIM_owres[] = {1, 0};
-static const tg_codec tg_codec_82 = {TG_K_TIMESTAMP, 12, 12, 12, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, "%H%M%S%d%m%y", NULL};
+static const tg_codec tg_codec_85 = {TG_K_TIMESTAMP, 12, 12, 12, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, "%H%M%S%d%m%y", NULL};
 static const tg_field tg_topotek_UTC_0_fields[] = {
-    {"time", &tg_codec_82, 0, 1, 0, NULL, 0, 0}};
+    {"time", &tg_codec_85, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_UTC_1_fields[] = {
-    {"time", &tg_codec_82, 0, 1, 0, NULL, 0, 0}};
+    {"time", &tg_codec_85, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_UTC_forms[] = {
     {'w', TG_REQUEST, 0, 1, 12, 12, 12, tg_topotek_UTC_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 12, 12, 12, tg_topotek_UTC_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_UTC_owreq[] = {0, 1};
 static const uint8_t tg_topotek_UTC_owres[] = {1, 0};
-static const char *const tg_codec_83_names[] = {"main_only", "main_sub", "sub_main", "sub_only", "next", "previous"};
-static const char *const tg_codec_83_raws[] = {"0", "1", "2", "3", "A", "B"};
-static const uint8_t tg_codec_83_idem[] = {1, 1, 1, 1, 0, 0};
-static const tg_spelling tg_codec_83_spell[] = {{"0", 0}, {"1", 1}, {"2", 2}, {"3", 3}, {"A", 4}, {"a", 4}, {"B", 5}, {"b", 5}};
-static const tg_codec tg_codec_83 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 6, 8, 0, 1, 0LL, 0LL, tg_codec_83_names, tg_codec_83_raws, tg_codec_83_idem, tg_codec_83_spell, NULL, NULL, NULL};
+static const char *const tg_codec_86_names[] = {"main_only", "main_sub", "sub_main", "sub_only", "next", "previous"};
+static const char *const tg_codec_86_raws[] = {"0", "1", "2", "3", "A", "B"};
+static const uint8_t tg_codec_86_idem[] = {1, 1, 1, 1, 0, 0};
+static const tg_spelling tg_codec_86_spell[] = {{"0", 0}, {"1", 1}, {"2", 2}, {"3", 3}, {"A", 4}, {"a", 4}, {"B", 5}, {"b", 5}};
+static const tg_codec tg_codec_86 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 6, 8, 0, 1, 0LL, 0LL, tg_codec_86_names, tg_codec_86_raws, tg_codec_86_idem, tg_codec_86_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_PIP_0_fields[] = {
-    {"secondary", &tg_codec_83, 0, 1, 0, "0", 1, 1},
-    {"mode", &tg_codec_83, 1, 1, 0, NULL, 0, 0}};
+    {"secondary", &tg_codec_86, 0, 1, 0, "0", 1, 1},
+    {"mode", &tg_codec_86, 1, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_PIP_1_fields[] = {
-    {"secondary", &tg_codec_83, 0, 1, 0, "0", 1, 1},
-    {"mode", &tg_codec_83, 1, 1, 0, NULL, 0, 0}};
+    {"secondary", &tg_codec_86, 0, 1, 0, "0", 1, 1},
+    {"mode", &tg_codec_86, 1, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_PIP_3_fields[] = {
-    {"secondary", &tg_codec_83, 0, 1, 0, NULL, 0, 0},
-    {"mode", &tg_codec_83, 1, 1, 0, NULL, 0, 0}};
+    {"secondary", &tg_codec_86, 0, 1, 0, NULL, 0, 0},
+    {"mode", &tg_codec_86, 1, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_PIP_forms[] = {
     {'w', TG_REQUEST, 0, 2, 2, 2, 2, tg_topotek_PIP_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 2, 2, 2, 2, tg_topotek_PIP_1_fields, NULL, 0},
@@ -1658,32 +1681,32 @@ static const uint8_t tg_topotek_PIP_orreq[] = {2, 3};
 static const uint8_t tg_topotek_PIP_orres[] = {3, 2};
 static const uint8_t tg_topotek_PIP_owreq[] = {0, 1};
 static const uint8_t tg_topotek_PIP_owres[] = {1, 0};
-static const tg_codec tg_codec_84 = {TG_K_HEXINT, 3, 3, 3, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 4095LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_87 = {TG_K_HEXINT, 3, 3, 3, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 4095LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_TMP_0_fields[] = {
-    {"hot_x_px", &tg_codec_84, 0, 1, 0, NULL, 0, 0},
+    {"hot_x_px", &tg_codec_87, 0, 1, 0, NULL, 0, 0},
     {"hot_y_px", &tg_codec_20, 3, 1, 0, NULL, 0, 0},
     {"hot_temp_c", &tg_codec_6, 5, 1, 0, NULL, 0, 0},
     {"center_temp_c", &tg_codec_6, 9, 1, 0, NULL, 0, 0}};
-static const tg_codec tg_codec_85 = {TG_K_HEXINT, 4, 4, 4, 1, 0, 0, 0, 1, -1, 0, 0, 0, 0, 0, 1, -32768LL, 32767LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_88 = {TG_K_HEXINT, 4, 4, 4, 1, 0, 0, 0, 1, -1, 0, 0, 0, 0, 0, 1, -32768LL, 32767LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_TMP_1_fields[] = {
-    {"hot_x_px", &tg_codec_84, 0, 1, 0, NULL, 0, 0},
+    {"hot_x_px", &tg_codec_87, 0, 1, 0, NULL, 0, 0},
     {"hot_y_px", &tg_codec_20, 3, 1, 0, NULL, 0, 0},
-    {"hot_temp_c", &tg_codec_85, 5, 1, 0, NULL, 0, 0},
-    {"cold_x_px", &tg_codec_84, 9, 1, 0, NULL, 0, 0},
+    {"hot_temp_c", &tg_codec_88, 5, 1, 0, NULL, 0, 0},
+    {"cold_x_px", &tg_codec_87, 9, 1, 0, NULL, 0, 0},
     {"cold_y_px", &tg_codec_20, 12, 1, 0, NULL, 0, 0},
-    {"cold_temp_c", &tg_codec_85, 14, 1, 0, NULL, 0, 0},
-    {"center_temp_c", &tg_codec_85, 18, 1, 0, NULL, 0, 0}};
-static const tg_codec tg_codec_86 = {TG_K_HEXINT, 3, 3, 3, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 640LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
-static const tg_codec tg_codec_87 = {TG_K_HEXINT, 3, 3, 3, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 512LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
-static const tg_codec tg_codec_88 = {TG_K_HEXINT, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 64LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+    {"cold_temp_c", &tg_codec_88, 14, 1, 0, NULL, 0, 0},
+    {"center_temp_c", &tg_codec_88, 18, 1, 0, NULL, 0, 0}};
+static const tg_codec tg_codec_89 = {TG_K_HEXINT, 3, 3, 3, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 640LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_90 = {TG_K_HEXINT, 3, 3, 3, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 512LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_91 = {TG_K_HEXINT, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 64LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_TMP_2_fields[] = {
-    {"x_px", &tg_codec_86, 0, 1, 0, NULL, 0, 0},
-    {"y_px", &tg_codec_87, 3, 1, 0, NULL, 0, 0},
-    {"width_px", &tg_codec_88, 6, 1, 0, "00", 2, 1},
-    {"height_px", &tg_codec_88, 8, 1, 0, "00", 2, 1}};
+    {"x_px", &tg_codec_89, 0, 1, 0, NULL, 0, 0},
+    {"y_px", &tg_codec_90, 3, 1, 0, NULL, 0, 0},
+    {"width_px", &tg_codec_91, 6, 1, 0, "00", 2, 1},
+    {"height_px", &tg_codec_91, 8, 1, 0, "00", 2, 1}};
 static const tg_field tg_topotek_TMP_3_fields[] = {
-    {"x_px", &tg_codec_84, 0, 1, 0, NULL, 0, 0},
-    {"y_px", &tg_codec_84, 3, 1, 0, NULL, 0, 0},
+    {"x_px", &tg_codec_87, 0, 1, 0, NULL, 0, 0},
+    {"y_px", &tg_codec_87, 3, 1, 0, NULL, 0, 0},
     {"width_px", &tg_codec_20, 6, 1, 0, NULL, 0, 0},
     {"height_px", &tg_codec_20, 8, 1, 0, NULL, 0, 0},
     {"avg_temp_c", &tg_codec_6, 10, 1, 0, NULL, 0, 0}};
@@ -1696,40 +1719,40 @@ static const uint8_t tg_topotek_TMP_orreq[] = {2, 3};
 static const uint8_t tg_topotek_TMP_orres[] = {3, 2};
 static const uint8_t tg_topotek_TMP_owreq[] = {0, 1};
 static const uint8_t tg_topotek_TMP_owres[] = {0, 1};
-static const char *const tg_codec_89_names[] = {"low", "high"};
-static const char *const tg_codec_89_raws[] = {"00", "01"};
-static const uint8_t tg_codec_89_idem[] = {1, 1};
-static const tg_spelling tg_codec_89_spell[] = {{"00", 0}, {"01", 1}};
-static const tg_codec tg_codec_89 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_89_names, tg_codec_89_raws, tg_codec_89_idem, tg_codec_89_spell, NULL, NULL, NULL};
+static const char *const tg_codec_92_names[] = {"low", "high"};
+static const char *const tg_codec_92_raws[] = {"00", "01"};
+static const uint8_t tg_codec_92_idem[] = {1, 1};
+static const tg_spelling tg_codec_92_spell[] = {{"00", 0}, {"01", 1}};
+static const tg_codec tg_codec_92 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_92_names, tg_codec_92_raws, tg_codec_92_idem, tg_codec_92_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_TMR_0_fields[] = {
-    {"range", &tg_codec_89, 0, 1, 0, NULL, 0, 0}};
+    {"range", &tg_codec_92, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_TMR_1_fields[] = {
-    {"range", &tg_codec_89, 0, 1, 0, NULL, 0, 0}};
+    {"range", &tg_codec_92, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_TMR_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_TMR_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_topotek_TMR_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_TMR_owreq[] = {0, 1};
 static const uint8_t tg_topotek_TMR_owres[] = {1, 0};
-static const char *const tg_codec_90_names[] = {"white_hot", "lava", "ironbow", "hot_iron", "medical", "arctic", "rainbow1", "rainbow2", "red_tint", "black_hot", "next", "previous"};
-static const char *const tg_codec_90_raws[] = {"00", "01", "02", "03", "04", "05", "06", "07", "08", "09", "0A", "0B"};
-static const uint8_t tg_codec_90_idem[] = {1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 0, 0};
-static const tg_spelling tg_codec_90_spell[] = {{"00", 0}, {"01", 1}, {"02", 2}, {"03", 3}, {"04", 4}, {"05", 5}, {"06", 6}, {"07", 7}, {"08", 8}, {"09", 9}, {"0A", 10}, {"0a", 10}, {"0B", 11}, {"0b", 11}};
-static const tg_codec tg_codec_90 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 12, 14, 0, 1, 0LL, 0LL, tg_codec_90_names, tg_codec_90_raws, tg_codec_90_idem, tg_codec_90_spell, NULL, NULL, NULL};
+static const char *const tg_codec_93_names[] = {"white_hot", "lava", "ironbow", "hot_iron", "medical", "arctic", "rainbow1", "rainbow2", "red_tint", "black_hot", "next", "previous"};
+static const char *const tg_codec_93_raws[] = {"00", "01", "02", "03", "04", "05", "06", "07", "08", "09", "0A", "0B"};
+static const uint8_t tg_codec_93_idem[] = {1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 0, 0};
+static const tg_spelling tg_codec_93_spell[] = {{"00", 0}, {"01", 1}, {"02", 2}, {"03", 3}, {"04", 4}, {"05", 5}, {"06", 6}, {"07", 7}, {"08", 8}, {"09", 9}, {"0A", 10}, {"0a", 10}, {"0B", 11}, {"0b", 11}};
+static const tg_codec tg_codec_93 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 12, 14, 0, 1, 0LL, 0LL, tg_codec_93_names, tg_codec_93_raws, tg_codec_93_idem, tg_codec_93_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_IMG_0_fields[] = {
-    {"palette", &tg_codec_90, 0, 1, 0, NULL, 0, 0}};
+    {"palette", &tg_codec_93, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_IMG_1_fields[] = {
-    {"palette", &tg_codec_90, 0, 1, 0, NULL, 0, 0}};
+    {"palette", &tg_codec_93, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_IMG_3_fields[] = {
-    {"palette", &tg_codec_90, 0, 1, 0, NULL, 0, 0}};
+    {"palette", &tg_codec_93, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_IMG_4_fields[] = {
     {"channel", &tg_codec_20, 0, 1, 0, NULL, 0, 0},
-    {"palette", &tg_codec_90, 2, 1, 0, NULL, 0, 0}};
+    {"palette", &tg_codec_93, 2, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_IMG_5_fields[] = {
     {"channel", &tg_codec_20, 0, 1, 0, NULL, 0, 0},
-    {"palette", &tg_codec_90, 2, 1, 0, NULL, 0, 0}};
+    {"palette", &tg_codec_93, 2, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_IMG_6_fields[] = {
     {"channel", &tg_codec_20, 0, 1, 0, NULL, 0, 0},
-    {"palette", &tg_codec_90, 2, 1, 0, NULL, 0, 0}};
+    {"palette", &tg_codec_93, 2, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_IMG_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_IMG_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_topotek_IMG_1_fields, NULL, 0},
@@ -1742,21 +1765,21 @@ static const uint8_t tg_topotek_IMG_orreq[] = {2, 3, 6};
 static const uint8_t tg_topotek_IMG_orres[] = {3, 6, 2};
 static const uint8_t tg_topotek_IMG_owreq[] = {0, 4, 1, 5};
 static const uint8_t tg_topotek_IMG_owres[] = {1, 5, 0, 4};
-static const char *const tg_codec_91_names[] = {"visible", "thermal"};
-static const char *const tg_codec_91_raws[] = {"0", "1"};
-static const uint8_t tg_codec_91_idem[] = {1, 1};
-static const tg_spelling tg_codec_91_spell[] = {{"0", 0}, {"1", 1}};
-static const tg_codec tg_codec_91 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_91_names, tg_codec_91_raws, tg_codec_91_idem, tg_codec_91_spell, NULL, NULL, NULL};
+static const char *const tg_codec_94_names[] = {"visible", "thermal"};
+static const char *const tg_codec_94_raws[] = {"0", "1"};
+static const uint8_t tg_codec_94_idem[] = {1, 1};
+static const tg_spelling tg_codec_94_spell[] = {{"0", 0}, {"1", 1}};
+static const tg_codec tg_codec_94 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_94_names, tg_codec_94_raws, tg_codec_94_idem, tg_codec_94_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_DZM_0_fields[] = {
-    {"lens", &tg_codec_91, 0, 1, 0, "0", 1, 1},
+    {"lens", &tg_codec_94, 0, 1, 0, "0", 1, 1},
     {"zoom", &tg_codec_26, 1, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_DZM_1_fields[] = {
-    {"lens", &tg_codec_91, 0, 1, 0, "0", 1, 1},
+    {"lens", &tg_codec_94, 0, 1, 0, "0", 1, 1},
     {"zoom", &tg_codec_26, 1, 1, 0, NULL, 0, 0}};
-static const tg_codec tg_codec_92 = {TG_K_DECINT, 2, 2, 2, 0, 0, 0, 0, 1, -1, 0, 0, 0, 0, 0, 1, 0LL, 99LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_95 = {TG_K_DECINT, 2, 2, 2, 0, 0, 0, 0, 1, -1, 0, 0, 0, 0, 0, 1, 0LL, 99LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_DZM_3_fields[] = {
-    {"thermal_zoom_x", &tg_codec_92, 0, 1, 0, NULL, 0, 0},
-    {"visible_zoom_x", &tg_codec_92, 2, 1, 0, NULL, 0, 0}};
+    {"thermal_zoom_x", &tg_codec_95, 0, 1, 0, NULL, 0, 0},
+    {"visible_zoom_x", &tg_codec_95, 2, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_DZM_4_fields[] = {
     {"zoom", &tg_codec_26, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_DZM_5_fields[] = {
@@ -1773,6 +1796,14 @@ static const tg_field tg_topotek_DZM_8_fields[] = {
 static const tg_field tg_topotek_DZM_9_fields[] = {
     {"image", &tg_codec_24, 0, 1, 0, NULL, 0, 0},
     {"magnification_x", &tg_codec_27, 2, 1, 0, NULL, 0, 0}};
+static const tg_field tg_topotek_DZM_10_fields[] = {
+    {"image_code", &tg_codec_20, 0, 1, 0, NULL, 0, 0},
+    {"ratio_mark", &tg_codec_28, 2, 1, 0, "F", 1, 1},
+    {"ratio_x", &tg_codec_29, 3, 1, 0, NULL, 0, 0}};
+static const tg_field tg_topotek_DZM_11_fields[] = {
+    {"image_code", &tg_codec_20, 0, 1, 0, NULL, 0, 0},
+    {"ratio_mark", &tg_codec_28, 2, 1, 0, "F", 1, 1},
+    {"ratio_x", &tg_codec_29, 3, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_DZM_forms[] = {
     {'w', TG_REQUEST, 0, 2, 3, 3, 3, tg_topotek_DZM_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 2, 3, 3, 3, tg_topotek_DZM_1_fields, NULL, 0},
@@ -1783,24 +1814,26 @@ static const tg_form tg_topotek_DZM_forms[] = {
     {'w', TG_REQUEST, 0, 2, 4, 4, 4, tg_topotek_DZM_6_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 2, 4, 4, 4, tg_topotek_DZM_7_fields, NULL, 0},
     {'w', TG_REQUEST, 0, 2, 6, 6, 6, tg_topotek_DZM_8_fields, NULL, 0},
-    {'w', TG_RESPONSE, 1, 2, 6, 6, 6, tg_topotek_DZM_9_fields, NULL, 0}};
+    {'w', TG_RESPONSE, 1, 2, 6, 6, 6, tg_topotek_DZM_9_fields, NULL, 0},
+    {'w', TG_REQUEST, 0, 3, 6, 6, 6, tg_topotek_DZM_10_fields, NULL, 0},
+    {'w', TG_RESPONSE, 1, 3, 6, 6, 6, tg_topotek_DZM_11_fields, NULL, 0}};
 static const uint8_t tg_topotek_DZM_orreq[] = {2, 3};
 static const uint8_t tg_topotek_DZM_orres[] = {3, 2};
-static const uint8_t tg_topotek_DZM_owreq[] = {0, 4, 6, 8, 1, 5, 7, 9};
-static const uint8_t tg_topotek_DZM_owres[] = {1, 5, 7, 9, 0, 4, 6, 8};
-static const char *const tg_codec_93_names[] = {"off", "auto", "manual"};
-static const char *const tg_codec_93_raws[] = {"0", "1", "2"};
-static const uint8_t tg_codec_93_idem[] = {1, 1, 1};
-static const tg_spelling tg_codec_93_spell[] = {{"0", 0}, {"1", 1}, {"2", 2}};
-static const tg_codec tg_codec_93 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 3, 3, 0, 1, 0LL, 0LL, tg_codec_93_names, tg_codec_93_raws, tg_codec_93_idem, tg_codec_93_spell, NULL, NULL, NULL};
+static const uint8_t tg_topotek_DZM_owreq[] = {0, 4, 6, 8, 10, 1, 5, 7, 9, 11};
+static const uint8_t tg_topotek_DZM_owres[] = {1, 5, 7, 9, 11, 0, 4, 6, 8, 10};
+static const char *const tg_codec_96_names[] = {"off", "auto", "manual"};
+static const char *const tg_codec_96_raws[] = {"0", "1", "2"};
+static const uint8_t tg_codec_96_idem[] = {1, 1, 1};
+static const tg_spelling tg_codec_96_spell[] = {{"0", 0}, {"1", 1}, {"2", 2}};
+static const tg_codec tg_codec_96 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 3, 3, 0, 1, 0LL, 0LL, tg_codec_96_names, tg_codec_96_raws, tg_codec_96_idem, tg_codec_96_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_DFG_0_fields[] = {
-    {"mode", &tg_codec_93, 0, 1, 0, NULL, 0, 0},
+    {"mode", &tg_codec_96, 0, 1, 0, NULL, 0, 0},
     {"strength", &tg_codec_20, 1, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_DFG_1_fields[] = {
-    {"mode", &tg_codec_93, 0, 1, 0, NULL, 0, 0},
+    {"mode", &tg_codec_96, 0, 1, 0, NULL, 0, 0},
     {"strength", &tg_codec_20, 1, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_DFG_3_fields[] = {
-    {"mode", &tg_codec_93, 0, 1, 0, NULL, 0, 0},
+    {"mode", &tg_codec_96, 0, 1, 0, NULL, 0, 0},
     {"strength", &tg_codec_20, 1, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_DFG_forms[] = {
     {'w', TG_REQUEST, 0, 2, 3, 3, 3, tg_topotek_DFG_0_fields, NULL, 0},
@@ -1811,52 +1844,52 @@ static const uint8_t tg_topotek_DFG_orreq[] = {2, 3};
 static const uint8_t tg_topotek_DFG_orres[] = {3, 2};
 static const uint8_t tg_topotek_DFG_owreq[] = {0, 1};
 static const uint8_t tg_topotek_DFG_owres[] = {1, 0};
-static const char *const tg_codec_94_names[] = {"stream0", "stream1", "main_record", "second_record"};
-static const char *const tg_codec_94_raws[] = {"0", "1", "2", "3"};
-static const uint8_t tg_codec_94_idem[] = {1, 1, 1, 1};
-static const tg_spelling tg_codec_94_spell[] = {{"0", 0}, {"1", 1}, {"2", 2}, {"3", 3}};
-static const tg_codec tg_codec_94 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 4, 4, 0, 1, 0LL, 0LL, tg_codec_94_names, tg_codec_94_raws, tg_codec_94_idem, tg_codec_94_spell, NULL, NULL, NULL};
-static const char *const tg_codec_95_names[] = {"h264", "h265"};
-static const char *const tg_codec_95_raws[] = {"0", "1"};
-static const uint8_t tg_codec_95_idem[] = {1, 1};
-static const tg_spelling tg_codec_95_spell[] = {{"0", 0}, {"1", 1}};
-static const tg_codec tg_codec_95 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_95_names, tg_codec_95_raws, tg_codec_95_idem, tg_codec_95_spell, NULL, NULL, NULL};
+static const char *const tg_codec_97_names[] = {"stream0", "stream1", "main_record", "second_record"};
+static const char *const tg_codec_97_raws[] = {"0", "1", "2", "3"};
+static const uint8_t tg_codec_97_idem[] = {1, 1, 1, 1};
+static const tg_spelling tg_codec_97_spell[] = {{"0", 0}, {"1", 1}, {"2", 2}, {"3", 3}};
+static const tg_codec tg_codec_97 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 4, 4, 0, 1, 0LL, 0LL, tg_codec_97_names, tg_codec_97_raws, tg_codec_97_idem, tg_codec_97_spell, NULL, NULL, NULL};
+static const char *const tg_codec_98_names[] = {"h264", "h265"};
+static const char *const tg_codec_98_raws[] = {"0", "1"};
+static const uint8_t tg_codec_98_idem[] = {1, 1};
+static const tg_spelling tg_codec_98_spell[] = {{"0", 0}, {"1", 1}};
+static const tg_codec tg_codec_98 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_98_names, tg_codec_98_raws, tg_codec_98_idem, tg_codec_98_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_ENT_0_fields[] = {
-    {"stream", &tg_codec_94, 0, 1, 0, NULL, 0, 0},
-    {"codec", &tg_codec_95, 1, 1, 0, NULL, 0, 0}};
+    {"stream", &tg_codec_97, 0, 1, 0, NULL, 0, 0},
+    {"codec", &tg_codec_98, 1, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_ENT_1_fields[] = {
-    {"stream", &tg_codec_94, 0, 1, 0, NULL, 0, 0},
-    {"codec", &tg_codec_95, 1, 1, 0, NULL, 0, 0}};
+    {"stream", &tg_codec_97, 0, 1, 0, NULL, 0, 0},
+    {"codec", &tg_codec_98, 1, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_ENT_forms[] = {
     {'w', TG_REQUEST, 0, 2, 2, 2, 2, tg_topotek_ENT_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 2, 2, 2, 2, tg_topotek_ENT_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_ENT_owreq[] = {0, 1};
 static const uint8_t tg_topotek_ENT_owres[] = {1, 0};
 static const tg_field tg_topotek_PA2_1_fields[] = {
-    {"model", &tg_codec_36, 0, 1, 0, NULL, 0, 0}};
+    {"model", &tg_codec_38, 0, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_PA2_forms[] = {
     {'r', TG_REQUEST, 0, 0, 2, 2, 0, NULL, (const uint8_t *)"00", 2},
     {'r', TG_RESPONSE, 0, 1, 1, 15, 0, tg_topotek_PA2_1_fields, NULL, 0}};
 static const uint8_t tg_topotek_PA2_orreq[] = {0, 1};
 static const uint8_t tg_topotek_PA2_orres[] = {1, 0};
-static const char *const tg_codec_96_names[] = {"stop", "start"};
-static const char *const tg_codec_96_raws[] = {"00", "01"};
-static const uint8_t tg_codec_96_idem[] = {1, 1};
-static const tg_spelling tg_codec_96_spell[] = {{"00", 0}, {"01", 1}};
-static const tg_codec tg_codec_96 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 2, 2, 0, 1, 0LL, 0LL, tg_codec_96_names, tg_codec_96_raws, tg_codec_96_idem, tg_codec_96_spell, NULL, NULL, NULL};
+static const char *const tg_codec_99_names[] = {"stop", "start", "ready"};
+static const char *const tg_codec_99_raws[] = {"00", "01", "02"};
+static const uint8_t tg_codec_99_idem[] = {1, 1, 1};
+static const tg_spelling tg_codec_99_spell[] = {{"00", 0}, {"01", 1}, {"02", 2}};
+static const tg_codec tg_codec_99 = {TG_K_ENUM, 2, 2, 2, 0, 0, 0, 0, 0, 0, 0, 0, 3, 3, 0, 1, 0LL, 0LL, tg_codec_99_names, tg_codec_99_raws, tg_codec_99_idem, tg_codec_99_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_TRC_0_fields[] = {
-    {"action", &tg_codec_96, 0, 1, 0, NULL, 0, 0}};
+    {"action", &tg_codec_99, 0, 1, 0, NULL, 0, 0}};
 static const tg_field tg_topotek_TRC_1_fields[] = {
-    {"action", &tg_codec_96, 0, 1, 0, NULL, 0, 0}};
-static const tg_codec tg_codec_97 = {TG_K_RAW, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
-static const char *const tg_codec_98_names[] = {"stopped", "waiting", "tracking", "lens_cannot_track"};
-static const char *const tg_codec_98_raws[] = {"0", "1", "2", "4"};
-static const uint8_t tg_codec_98_idem[] = {1, 1, 1, 1};
-static const tg_spelling tg_codec_98_spell[] = {{"0", 0}, {"1", 1}, {"2", 2}, {"4", 3}};
-static const tg_codec tg_codec_98 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 4, 4, 0, 1, 0LL, 0LL, tg_codec_98_names, tg_codec_98_raws, tg_codec_98_idem, tg_codec_98_spell, NULL, NULL, NULL};
+    {"action", &tg_codec_99, 0, 1, 0, NULL, 0, 0}};
+static const tg_codec tg_codec_100 = {TG_K_RAW, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const char *const tg_codec_101_names[] = {"stopped", "waiting", "tracking", "lens_cannot_track"};
+static const char *const tg_codec_101_raws[] = {"0", "1", "2", "4"};
+static const uint8_t tg_codec_101_idem[] = {1, 1, 1, 1};
+static const tg_spelling tg_codec_101_spell[] = {{"0", 0}, {"1", 1}, {"2", 2}, {"4", 3}};
+static const tg_codec tg_codec_101 = {TG_K_ENUM, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 4, 4, 0, 1, 0LL, 0LL, tg_codec_101_names, tg_codec_101_raws, tg_codec_101_idem, tg_codec_101_spell, NULL, NULL, NULL};
 static const tg_field tg_topotek_TRC_3_fields[] = {
-    {"reserved", &tg_codec_97, 0, 1, 0, NULL, 0, 0},
-    {"state", &tg_codec_98, 1, 1, 0, NULL, 0, 0}};
+    {"reserved", &tg_codec_100, 0, 1, 0, NULL, 0, 0},
+    {"state", &tg_codec_101, 1, 1, 0, NULL, 0, 0}};
 static const tg_form tg_topotek_TRC_forms[] = {
     {'w', TG_REQUEST, 0, 1, 2, 2, 2, tg_topotek_TRC_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 1, 2, 2, 2, tg_topotek_TRC_1_fields, NULL, 0},
@@ -1866,20 +1899,20 @@ static const uint8_t tg_topotek_TRC_orreq[] = {2, 3};
 static const uint8_t tg_topotek_TRC_orres[] = {3, 2};
 static const uint8_t tg_topotek_TRC_owreq[] = {0, 1};
 static const uint8_t tg_topotek_TRC_owres[] = {1, 0};
-static const tg_codec tg_codec_99 = {TG_K_BININT, 2, 2, 2, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, -32768LL, 32767LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
-static const tg_codec tg_codec_100 = {TG_K_RAW, 2, 2, 2, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_102 = {TG_K_BININT, 2, 2, 2, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, -32768LL, 32767LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+static const tg_codec tg_codec_103 = {TG_K_RAW, 2, 2, 2, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 1, 0LL, 0LL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
 static const tg_field tg_topotek_LOC_0_fields[] = {
-    {"x_px", &tg_codec_99, 0, 1, 0, NULL, 0, 0},
-    {"y_px", &tg_codec_99, 2, 1, 0, NULL, 0, 0},
-    {"width_px", &tg_codec_99, 4, 1, 0, NULL, 0, 0},
-    {"height_px", &tg_codec_99, 6, 1, 0, NULL, 0, 0},
-    {"reserved", &tg_codec_100, 8, 1, 0, "\000\000", 2, 1}};
+    {"x_px", &tg_codec_102, 0, 1, 0, NULL, 0, 0},
+    {"y_px", &tg_codec_102, 2, 1, 0, NULL, 0, 0},
+    {"width_px", &tg_codec_102, 4, 1, 0, NULL, 0, 0},
+    {"height_px", &tg_codec_102, 6, 1, 0, NULL, 0, 0},
+    {"reserved", &tg_codec_103, 8, 1, 0, "\000\000", 2, 1}};
 static const tg_field tg_topotek_LOC_1_fields[] = {
-    {"x_px", &tg_codec_99, 0, 1, 0, NULL, 0, 0},
-    {"y_px", &tg_codec_99, 2, 1, 0, NULL, 0, 0},
-    {"width_px", &tg_codec_99, 4, 1, 0, NULL, 0, 0},
-    {"height_px", &tg_codec_99, 6, 1, 0, NULL, 0, 0},
-    {"reserved", &tg_codec_100, 8, 1, 0, "\000\000", 2, 1}};
+    {"x_px", &tg_codec_102, 0, 1, 0, NULL, 0, 0},
+    {"y_px", &tg_codec_102, 2, 1, 0, NULL, 0, 0},
+    {"width_px", &tg_codec_102, 4, 1, 0, NULL, 0, 0},
+    {"height_px", &tg_codec_102, 6, 1, 0, NULL, 0, 0},
+    {"reserved", &tg_codec_103, 8, 1, 0, "\000\000", 2, 1}};
 static const tg_form tg_topotek_LOC_forms[] = {
     {'w', TG_REQUEST, 0, 5, 10, 10, 10, tg_topotek_LOC_0_fields, NULL, 0},
     {'w', TG_RESPONSE, 1, 5, 10, 10, 10, tg_topotek_LOC_1_fields, NULL, 0}};
@@ -1942,7 +1975,7 @@ static const tg_command tg_topotek_commands[] = {
     {"TMP", "temperature", 'D', TG_HDR_NONE, 4, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_topotek_TMP_forms, {{tg_topotek_TMP_orreq, tg_topotek_TMP_orres}, {tg_topotek_TMP_owreq, tg_topotek_TMP_owres}}, {{2, 2}, {2, 2}}},
     {"TMR", "temperature_range", 'D', TG_HDR_NONE, 2, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_topotek_TMR_forms, {{NULL, NULL}, {tg_topotek_TMR_owreq, tg_topotek_TMR_owres}}, {{0, 0}, {2, 2}}},
     {"IMG", "palette", 'D', TG_HDR_NONE, 7, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_topotek_IMG_forms, {{tg_topotek_IMG_orreq, tg_topotek_IMG_orres}, {tg_topotek_IMG_owreq, tg_topotek_IMG_owres}}, {{3, 3}, {4, 4}}},
-    {"DZM", "digital_zoom", 'D', TG_HDR_NONE, 10, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_topotek_DZM_forms, {{tg_topotek_DZM_orreq, tg_topotek_DZM_orres}, {tg_topotek_DZM_owreq, tg_topotek_DZM_owres}}, {{2, 2}, {8, 8}}},
+    {"DZM", "digital_zoom", 'D', TG_HDR_NONE, 12, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_topotek_DZM_forms, {{tg_topotek_DZM_orreq, tg_topotek_DZM_orres}, {tg_topotek_DZM_owreq, tg_topotek_DZM_owres}}, {{2, 2}, {10, 10}}},
     {"DFG", "defog", 'D', TG_HDR_NONE, 4, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_topotek_DFG_forms, {{tg_topotek_DFG_orreq, tg_topotek_DFG_orres}, {tg_topotek_DFG_owreq, tg_topotek_DFG_owres}}, {{2, 2}, {2, 2}}},
     {"ENT", "encoding", 'D', TG_HDR_NONE, 2, TG_CMD_DOCUMENTED | TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_topotek_ENT_forms, {{NULL, NULL}, {tg_topotek_ENT_owreq, tg_topotek_ENT_owres}}, {{0, 0}, {2, 2}}},
     {"PA2", "model_name", 'D', TG_HDR_NONE, 2, TG_CMD_ECHO | TG_CMD_REPEATABLE, tg_topotek_PA2_forms, {{tg_topotek_PA2_orreq, tg_topotek_PA2_orres}, {NULL, NULL}}, {{2, 2}, {0, 0}}},

@@ -3,5 +3,5 @@
 #define TG_LIMITS_H
 #define TG_CATALOG_MAX_DATA 267 /* longest form's data */
 #define TG_CATALOG_MAX_FIELDS 7
-#define TG_CATALOG_FINGERPRINT "15005312891e5160"
+#define TG_CATALOG_FINGERPRINT "86775acfa2aa7f02"
 #endif

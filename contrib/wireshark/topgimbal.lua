@@ -69,6 +69,7 @@ local GEN = {
   hot_y_px="double",
   hue="double",
   image="string",
+  image_code="double",
   interval_s="double",
   lat_deg="double",
   led="string",
@@ -88,6 +89,8 @@ local GEN = {
   primary="string",
   range="string",
   rate_hz="double",
+  ratio_mark="string",
+  ratio_x="double",
   remaining_mb="double",
   reserved="string",
   resolution="string",
@@ -212,6 +215,9 @@ local GEN = {
    numeric=false
   },
   {unit="x", k="dec", w=4, scale=0.1, dec=1, int=false, numeric=true},
+  {unit="", k="hex", w=2, signed=false, scale=1, div=0, dec=0, int=true, none={}, numeric=true},
+  {unit="", k="literal", text="F", numeric=false},
+  {unit="x", k="hex", w=3, signed=false, scale=0.1, div=10, dec=1, int=false, none={}, numeric=true},
   {unit="", k="literal", text="!!", numeric=false},
   {unit="", k="raw", numeric=false},
   {unit="", k="enum", w=1, map={["0"]={name="zero", label="zero"}}, numeric=false},
@@ -279,7 +285,6 @@ local GEN = {
    },
    numeric=false
   },
-  {unit="", k="hex", w=2, signed=false, scale=1, div=0, dec=0, int=true, none={}, numeric=true},
   {unit="", k="hex", w=1, signed=false, scale=1, div=0, dec=0, int=true, none={}, numeric=true},
   {
    unit="",
@@ -380,6 +385,13 @@ local GEN = {
   },
   {unit="MB", k="hex", w=5, signed=false, scale=1, div=0, dec=0, int=true, none={}, numeric=true},
   {unit="m", k="hex", w=4, signed=false, scale=0.1, div=10, dec=1, int=false, none={}, numeric=true},
+  {
+   unit="",
+   k="enum",
+   w=2,
+   map={["01"]={name="measure", label="Fire one measurement (read it after)"}},
+   numeric=false
+  },
   {
    unit="",
    k="enum",
@@ -644,7 +656,11 @@ local GEN = {
    unit="",
    k="enum",
    w=2,
-   map={["00"]={name="stop", label="stop"}, ["01"]={name="start", label="start"}},
+   map={
+    ["00"]={name="stop", label="stop"},
+    ["01"]={name="start", label="start"},
+    ["02"]={name="ready", label="Ready to track: wait for a target box (LOC)"}
+   },
    numeric=false
   },
   {unit="", k="raw", w=1, numeric=false},
@@ -935,6 +951,46 @@ local GEN = {
         {n="image", c=7, a=0, b=2, s="image", d=""},
         {n="magnification_x", c=9, a=2, b=6, s="magnification", d=""}
        }
+      },
+      {
+       rw="w",
+       dir="request",
+       title="image code and ratio (F + 3 hex digits)",
+       role="",
+       min=6,
+       max=6,
+       fields={
+        {
+         n="image_code",
+         c=10,
+         a=0,
+         b=2,
+         s="image_code",
+         d="image / camera: 00 visible, 01 thermal, others as the model numbers them"
+        },
+        {n="ratio_mark", c=11, a=2, b=3, s="ratio_mark", d="always F: a zoom ratio follows"},
+        {n="ratio_x", c=12, a=3, b=6, s="ratio", d="zoom ratio in 0.1x (three hex digits)"}
+       }
+      },
+      {
+       rw="w",
+       dir="response",
+       title="echo of image code and ratio (F + 3 hex digits)",
+       role="echo",
+       min=6,
+       max=6,
+       fields={
+        {
+         n="image_code",
+         c=10,
+         a=0,
+         b=2,
+         s="image_code",
+         d="image / camera: 00 visible, 01 thermal, others as the model numbers them"
+        },
+        {n="ratio_mark", c=11, a=2, b=3, s="ratio_mark", d="always F: a zoom ratio follows"},
+        {n="ratio_x", c=12, a=3, b=6, s="ratio", d="zoom ratio in 0.1x (three hex digits)"}
+       }
       }
      }
     },
@@ -949,7 +1005,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="error", c=10, a=0, b=2, s="error", d="always '!!'"}}
+       fields={{n="error", c=13, a=0, b=2, s="error", d="always '!!'"}}
       }
      }
     },
@@ -964,7 +1020,7 @@ local GEN = {
        role="",
        min=0,
        max=15,
-       fields={{n="data", c=11, a=0, s="data", d="layout not documented"}}
+       fields={{n="data", c=14, a=0, s="data", d="layout not documented"}}
       },
       {
        rw="w",
@@ -973,7 +1029,7 @@ local GEN = {
        role="echo",
        min=0,
        max=15,
-       fields={{n="data", c=11, a=0, s="data", d="layout not documented"}}
+       fields={{n="data", c=14, a=0, s="data", d="layout not documented"}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -983,7 +1039,7 @@ local GEN = {
        role="",
        min=0,
        max=15,
-       fields={{n="data", c=11, a=0, s="data", d="layout not documented"}}
+       fields={{n="data", c=14, a=0, s="data", d="layout not documented"}}
       }
      }
     },
@@ -999,10 +1055,10 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="reserved", c=12, a=0, b=1, s="reserved", d=""},
-        {n="dish_calibration", c=13, a=1, b=2, s="dish_calibration", d=""},
-        {n="osd", c=13, a=2, b=3, s="osd", d=""},
-        {n="led", c=13, a=3, b=4, s="led", d=""}
+        {n="reserved", c=15, a=0, b=1, s="reserved", d=""},
+        {n="dish_calibration", c=16, a=1, b=2, s="dish_calibration", d=""},
+        {n="osd", c=16, a=2, b=3, s="osd", d=""},
+        {n="led", c=16, a=3, b=4, s="led", d=""}
        }
       },
       {
@@ -1013,10 +1069,10 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="reserved", c=12, a=0, b=1, s="reserved", d=""},
-        {n="dish_calibration", c=13, a=1, b=2, s="dish_calibration", d=""},
-        {n="osd", c=13, a=2, b=3, s="osd", d=""},
-        {n="led", c=13, a=3, b=4, s="led", d=""}
+        {n="reserved", c=15, a=0, b=1, s="reserved", d=""},
+        {n="dish_calibration", c=16, a=1, b=2, s="dish_calibration", d=""},
+        {n="osd", c=16, a=2, b=3, s="osd", d=""},
+        {n="led", c=16, a=3, b=4, s="led", d=""}
        }
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
@@ -1028,10 +1084,10 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="reserved", c=12, a=0, b=1, s="reserved", d=""},
-        {n="dish_calibration", c=13, a=1, b=2, s="dish_calibration", d=""},
-        {n="osd", c=13, a=2, b=3, s="osd", d=""},
-        {n="led", c=13, a=3, b=4, s="led", d=""}
+        {n="reserved", c=15, a=0, b=1, s="reserved", d=""},
+        {n="dish_calibration", c=16, a=1, b=2, s="dish_calibration", d=""},
+        {n="osd", c=16, a=2, b=3, s="osd", d=""},
+        {n="led", c=16, a=3, b=4, s="led", d=""}
        }
       }
      }
@@ -1047,7 +1103,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {
        rw="w",
@@ -1056,7 +1112,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       }
      }
     },
@@ -1072,9 +1128,9 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="vehicle yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="vehicle pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="vehicle roll"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="vehicle yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="vehicle pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="vehicle roll"}
        }
       },
       {
@@ -1085,9 +1141,9 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="vehicle yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="vehicle pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="vehicle roll"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="vehicle yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="vehicle pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="vehicle roll"}
        }
       },
       {
@@ -1098,10 +1154,10 @@ local GEN = {
        min=14,
        max=14,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="vehicle yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="vehicle pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="vehicle roll"},
-        {n="flight_mode", c=16, a=12, b=14, s="flight_mode", d=""}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="vehicle yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="vehicle pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="vehicle roll"},
+        {n="flight_mode", c=19, a=12, b=14, s="flight_mode", d=""}
        }
       },
       {
@@ -1112,10 +1168,10 @@ local GEN = {
        min=14,
        max=14,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="vehicle yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="vehicle pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="vehicle roll"},
-        {n="flight_mode", c=16, a=12, b=14, s="flight_mode", d=""}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="vehicle yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="vehicle pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="vehicle roll"},
+        {n="flight_mode", c=19, a=12, b=14, s="flight_mode", d=""}
        }
       }
      }
@@ -1131,7 +1187,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=17, a=0, b=2, s="action", d="+ and - continue until stop"}}
+       fields={{n="action", c=20, a=0, b=2, s="action", d="+ and - continue until stop"}}
       },
       {
        rw="w",
@@ -1140,7 +1196,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=17, a=0, b=2, s="action", d="+ and - continue until stop"}}
+       fields={{n="action", c=20, a=0, b=2, s="action", d="+ and - continue until stop"}}
       }
      }
     },
@@ -1155,7 +1211,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="rate_hz", c=18, a=0, b=2, s="rate", d="1..100 Hz, 0 = off"}}
+       fields={{n="rate_hz", c=21, a=0, b=2, s="rate", d="1..100 Hz, 0 = off"}}
       },
       {
        rw="w",
@@ -1164,7 +1220,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="rate_hz", c=18, a=0, b=2, s="rate", d="1..100 Hz, 0 = off"}}
+       fields={{n="rate_hz", c=21, a=0, b=2, s="rate", d="1..100 Hz, 0 = off"}}
       }
      }
     },
@@ -1181,9 +1237,9 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="gimbal yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="gimbal pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="gimbal roll"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="gimbal yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="gimbal pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="gimbal roll"}
        }
       }
      }
@@ -1200,10 +1256,10 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw, right-positive"},
-        {n="yaw_speed_deg_s", c=19, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
-        {n="pitch_deg", c=15, a=6, b=10, s="pitch", d="pitch, up-positive"},
-        {n="pitch_speed_deg_s", c=19, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw, right-positive"},
+        {n="yaw_speed_deg_s", c=22, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
+        {n="pitch_deg", c=18, a=6, b=10, s="pitch", d="pitch, up-positive"},
+        {n="pitch_speed_deg_s", c=22, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -1214,10 +1270,10 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw, right-positive"},
-        {n="yaw_speed_deg_s", c=19, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
-        {n="pitch_deg", c=15, a=6, b=10, s="pitch", d="pitch, up-positive"},
-        {n="pitch_speed_deg_s", c=19, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw, right-positive"},
+        {n="yaw_speed_deg_s", c=22, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
+        {n="pitch_deg", c=18, a=6, b=10, s="pitch", d="pitch, up-positive"},
+        {n="pitch_speed_deg_s", c=22, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -1234,8 +1290,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="pitch_deg", c=15, a=0, b=4, s="pitch", d="pitch, up-positive"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="pitch_deg", c=18, a=0, b=4, s="pitch", d="pitch, up-positive"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -1246,8 +1302,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="pitch_deg", c=15, a=0, b=4, s="pitch", d="pitch, up-positive"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="pitch_deg", c=18, a=0, b=4, s="pitch", d="pitch, up-positive"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -1264,8 +1320,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="roll_deg", c=15, a=0, b=4, s="roll", d="roll (struck out in V1.0.7: not supported for now)"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="roll_deg", c=18, a=0, b=4, s="roll", d="roll (struck out in V1.0.7: not supported for now)"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -1276,8 +1332,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="roll_deg", c=15, a=0, b=4, s="roll", d="roll (struck out in V1.0.7: not supported for now)"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="roll_deg", c=18, a=0, b=4, s="roll", d="roll (struck out in V1.0.7: not supported for now)"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -1294,8 +1350,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw, right-positive"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw, right-positive"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -1306,8 +1362,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw, right-positive"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw, right-positive"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -1323,7 +1379,7 @@ local GEN = {
        role="",
        min=8,
        max=8,
-       fields={{n="x_px", c=20, a=0, b=4, s="x", d=""}, {n="y_px", c=20, a=4, b=8, s="y", d=""}}
+       fields={{n="x_px", c=23, a=0, b=4, s="x", d=""}, {n="y_px", c=23, a=4, b=8, s="y", d=""}}
       },
       {
        rw="w",
@@ -1332,7 +1388,7 @@ local GEN = {
        role="echo",
        min=8,
        max=8,
-       fields={{n="x_px", c=20, a=0, b=4, s="x", d=""}, {n="y_px", c=20, a=4, b=8, s="y", d=""}}
+       fields={{n="x_px", c=23, a=0, b=4, s="x", d=""}, {n="y_px", c=23, a=4, b=8, s="y", d=""}}
       }
      }
     },
@@ -1348,8 +1404,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="yaw_rate_deg_s", c=21, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps"},
-        {n="pitch_rate_deg_s", c=21, a=2, b=4, s="pitch_rate", d="pitch rate, -127..127 steps"}
+        {n="yaw_rate_deg_s", c=24, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps"},
+        {n="pitch_rate_deg_s", c=24, a=2, b=4, s="pitch_rate", d="pitch rate, -127..127 steps"}
        }
       },
       {
@@ -1360,8 +1416,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="yaw_rate_deg_s", c=21, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps"},
-        {n="pitch_rate_deg_s", c=21, a=2, b=4, s="pitch_rate", d="pitch rate, -127..127 steps"}
+        {n="yaw_rate_deg_s", c=24, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps"},
+        {n="pitch_rate_deg_s", c=24, a=2, b=4, s="pitch_rate", d="pitch rate, -127..127 steps"}
        }
       }
      }
@@ -1377,7 +1433,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="pitch_rate_deg_s", c=21, a=0, b=2, s="pitch_rate", d="pitch rate, -127..127 steps; up positive"}}
+       fields={{n="pitch_rate_deg_s", c=24, a=0, b=2, s="pitch_rate", d="pitch rate, -127..127 steps; up positive"}}
       },
       {
        rw="w",
@@ -1386,7 +1442,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="pitch_rate_deg_s", c=21, a=0, b=2, s="pitch_rate", d="pitch rate, -127..127 steps; up positive"}}
+       fields={{n="pitch_rate_deg_s", c=24, a=0, b=2, s="pitch_rate", d="pitch rate, -127..127 steps; up positive"}}
       }
      }
     },
@@ -1401,7 +1457,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="roll_rate_deg_s", c=21, a=0, b=2, s="roll_rate", d="roll rate, -127..127 steps"}}
+       fields={{n="roll_rate_deg_s", c=24, a=0, b=2, s="roll_rate", d="roll rate, -127..127 steps"}}
       },
       {
        rw="w",
@@ -1410,7 +1466,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="roll_rate_deg_s", c=21, a=0, b=2, s="roll_rate", d="roll rate, -127..127 steps"}}
+       fields={{n="roll_rate_deg_s", c=24, a=0, b=2, s="roll_rate", d="roll rate, -127..127 steps"}}
       }
      }
     },
@@ -1425,7 +1481,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="yaw_rate_deg_s", c=21, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps; right positive"}}
+       fields={{n="yaw_rate_deg_s", c=24, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps; right positive"}}
       },
       {
        rw="w",
@@ -1434,7 +1490,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="yaw_rate_deg_s", c=21, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps; right positive"}}
+       fields={{n="yaw_rate_deg_s", c=24, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps; right positive"}}
       }
      }
     },
@@ -1484,7 +1540,7 @@ local GEN = {
        role="",
        min=1,
        max=15,
-       fields={{n="hardware_version", c=22, a=0, s="hardware_version", d=""}}
+       fields={{n="hardware_version", c=25, a=0, s="hardware_version", d=""}}
       }
      }
     },
@@ -1499,7 +1555,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="palette", c=23, a=0, b=2, s="palette", d=""}}
+       fields={{n="palette", c=26, a=0, b=2, s="palette", d=""}}
       },
       {
        rw="w",
@@ -1508,7 +1564,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="palette", c=23, a=0, b=2, s="palette", d=""}}
+       fields={{n="palette", c=26, a=0, b=2, s="palette", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -1518,7 +1574,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="palette", c=23, a=0, b=2, s="palette", d=""}}
+       fields={{n="palette", c=26, a=0, b=2, s="palette", d=""}}
       },
       {
        rw="w",
@@ -1528,8 +1584,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="channel", c=24, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
-        {n="palette", c=23, a=2, b=4, s="palette", d=""}
+        {n="channel", c=10, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
+        {n="palette", c=26, a=2, b=4, s="palette", d=""}
        }
       },
       {
@@ -1540,8 +1596,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="channel", c=24, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
-        {n="palette", c=23, a=2, b=4, s="palette", d=""}
+        {n="channel", c=10, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
+        {n="palette", c=26, a=2, b=4, s="palette", d=""}
        }
       },
       {
@@ -1552,8 +1608,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="channel", c=24, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
-        {n="palette", c=23, a=2, b=4, s="palette", d=""}
+        {n="channel", c=10, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
+        {n="palette", c=26, a=2, b=4, s="palette", d=""}
        }
       }
      }
@@ -1604,13 +1660,13 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="lens", c=25, a=0, b=1, s="lens", d="lens id"},
-        {n="style", c=26, a=1, b=2, s="style", d=""},
-        {n="hue", c=24, a=2, b=4, s="hue", d=""},
-        {n="brightness", c=24, a=4, b=6, s="brightness", d=""},
-        {n="saturation", c=24, a=6, b=8, s="saturation", d=""},
-        {n="contrast", c=24, a=8, b=10, s="contrast", d=""},
-        {n="sharpness", c=24, a=10, b=12, s="sharpness", d=""}
+        {n="lens", c=27, a=0, b=1, s="lens", d="lens id"},
+        {n="style", c=28, a=1, b=2, s="style", d=""},
+        {n="hue", c=10, a=2, b=4, s="hue", d=""},
+        {n="brightness", c=10, a=4, b=6, s="brightness", d=""},
+        {n="saturation", c=10, a=6, b=8, s="saturation", d=""},
+        {n="contrast", c=10, a=8, b=10, s="contrast", d=""},
+        {n="sharpness", c=10, a=10, b=12, s="sharpness", d=""}
        }
       },
       {
@@ -1621,13 +1677,13 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="lens", c=25, a=0, b=1, s="lens", d="lens id"},
-        {n="style", c=26, a=1, b=2, s="style", d=""},
-        {n="hue", c=24, a=2, b=4, s="hue", d=""},
-        {n="brightness", c=24, a=4, b=6, s="brightness", d=""},
-        {n="saturation", c=24, a=6, b=8, s="saturation", d=""},
-        {n="contrast", c=24, a=8, b=10, s="contrast", d=""},
-        {n="sharpness", c=24, a=10, b=12, s="sharpness", d=""}
+        {n="lens", c=27, a=0, b=1, s="lens", d="lens id"},
+        {n="style", c=28, a=1, b=2, s="style", d=""},
+        {n="hue", c=10, a=2, b=4, s="hue", d=""},
+        {n="brightness", c=10, a=4, b=6, s="brightness", d=""},
+        {n="saturation", c=10, a=6, b=8, s="saturation", d=""},
+        {n="contrast", c=10, a=8, b=10, s="contrast", d=""},
+        {n="sharpness", c=10, a=10, b=12, s="sharpness", d=""}
        }
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
@@ -1639,13 +1695,13 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="lens", c=25, a=0, b=1, s="lens", d="lens id"},
-        {n="style", c=26, a=1, b=2, s="style", d=""},
-        {n="hue", c=24, a=2, b=4, s="hue", d=""},
-        {n="brightness", c=24, a=4, b=6, s="brightness", d=""},
-        {n="saturation", c=24, a=6, b=8, s="saturation", d=""},
-        {n="contrast", c=24, a=8, b=10, s="contrast", d=""},
-        {n="sharpness", c=24, a=10, b=12, s="sharpness", d=""}
+        {n="lens", c=27, a=0, b=1, s="lens", d="lens id"},
+        {n="style", c=28, a=1, b=2, s="style", d=""},
+        {n="hue", c=10, a=2, b=4, s="hue", d=""},
+        {n="brightness", c=10, a=4, b=6, s="brightness", d=""},
+        {n="saturation", c=10, a=6, b=8, s="saturation", d=""},
+        {n="contrast", c=10, a=8, b=10, s="contrast", d=""},
+        {n="sharpness", c=10, a=10, b=12, s="sharpness", d=""}
        }
       }
      }
@@ -1661,7 +1717,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="mode", c=27, a=0, b=2, s="mode", d=""}}
+       fields={{n="mode", c=29, a=0, b=2, s="mode", d=""}}
       },
       {
        rw="w",
@@ -1670,7 +1726,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="mode", c=27, a=0, b=2, s="mode", d=""}}
+       fields={{n="mode", c=29, a=0, b=2, s="mode", d=""}}
       }
      }
     },
@@ -1685,7 +1741,7 @@ local GEN = {
        role="",
        min=10,
        max=10,
-       fields={{n="lat_deg", c=28, a=0, b=10, s="lat", d="vehicle latitude, south negative"}}
+       fields={{n="lat_deg", c=30, a=0, b=10, s="lat", d="vehicle latitude, south negative"}}
       },
       {
        rw="w",
@@ -1694,7 +1750,7 @@ local GEN = {
        role="echo",
        min=10,
        max=10,
-       fields={{n="lat_deg", c=28, a=0, b=10, s="lat", d="vehicle latitude, south negative"}}
+       fields={{n="lat_deg", c=30, a=0, b=10, s="lat", d="vehicle latitude, south negative"}}
       }
      }
     },
@@ -1709,7 +1765,7 @@ local GEN = {
        role="",
        min=11,
        max=11,
-       fields={{n="lon_deg", c=29, a=0, b=11, s="lon", d="vehicle longitude, west negative"}}
+       fields={{n="lon_deg", c=31, a=0, b=11, s="lon", d="vehicle longitude, west negative"}}
       },
       {
        rw="w",
@@ -1718,7 +1774,7 @@ local GEN = {
        role="echo",
        min=11,
        max=11,
-       fields={{n="lon_deg", c=29, a=0, b=11, s="lon", d="vehicle longitude, west negative"}}
+       fields={{n="lon_deg", c=31, a=0, b=11, s="lon", d="vehicle longitude, west negative"}}
       }
      }
     },
@@ -1733,7 +1789,7 @@ local GEN = {
        role="",
        min=0,
        max=15,
-       fields={{n="data", c=11, a=0, s="data", d="layout not documented"}}
+       fields={{n="data", c=14, a=0, s="data", d="layout not documented"}}
       },
       {
        rw="w",
@@ -1742,7 +1798,7 @@ local GEN = {
        role="echo",
        min=0,
        max=15,
-       fields={{n="data", c=11, a=0, s="data", d="layout not documented"}}
+       fields={{n="data", c=14, a=0, s="data", d="layout not documented"}}
       }
      }
     },
@@ -1758,7 +1814,7 @@ local GEN = {
        role="",
        min=1,
        max=15,
-       fields={{n="model", c=22, a=0, s="model", d="e.g. C11"}}
+       fields={{n="model", c=25, a=0, s="model", d="e.g. C11"}}
       }
      }
     },
@@ -1773,7 +1829,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=30, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=32, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -1782,7 +1838,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=30, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=32, a=0, b=2, s="action", d=""}}
       }
      }
     },
@@ -1797,7 +1853,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=31, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=33, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -1806,7 +1862,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=31, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=33, a=0, b=2, s="action", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -1816,7 +1872,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=32, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=34, a=0, b=2, s="state", d=""}}
       }
      }
     },
@@ -1831,7 +1887,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=33, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=35, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -1840,7 +1896,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=33, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=35, a=0, b=2, s="action", d=""}}
       }
      }
     },
@@ -1855,7 +1911,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=34, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=36, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -1864,7 +1920,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=34, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=36, a=0, b=2, s="action", d=""}}
       }
      }
     },
@@ -1881,8 +1937,8 @@ local GEN = {
        min=10,
        max=10,
        fields={
-        {n="remaining_mb", c=35, a=0, b=5, s="remaining", d="0 with total 0 = no card"},
-        {n="total_mb", c=35, a=5, b=10, s="total", d=""}
+        {n="remaining_mb", c=37, a=0, b=5, s="remaining", d="0 with total 0 = no card"},
+        {n="total_mb", c=37, a=5, b=10, s="total", d=""}
        }
       }
      }
@@ -1899,7 +1955,7 @@ local GEN = {
        role="",
        min=4,
        max=4,
-       fields={{n="distance_m", c=36, a=0, b=4, s="distance", d="0.5..100.0 m (5..1000 dm)"}}
+       fields={{n="distance_m", c=38, a=0, b=4, s="distance", d="0.5..100.0 m (5..1000 dm)"}}
       },
       {
        rw="w",
@@ -1911,7 +1967,7 @@ local GEN = {
        fields={
         {
          n="limit_m",
-         c=36,
+         c=38,
          a=0,
          b=4,
          s="limit",
@@ -1929,13 +1985,31 @@ local GEN = {
        fields={
         {
          n="limit_m",
-         c=36,
+         c=38,
          a=0,
          b=4,
          s="limit",
          d="measurement range limit, decimetres on the wire (0x32..0x2710)"
         }
        }
+      },
+      {
+       rw="w",
+       dir="request",
+       title="fire",
+       role="",
+       min=2,
+       max=2,
+       fields={{n="action", c=39, a=0, b=2, s="action", d=""}}
+      },
+      {
+       rw="w",
+       dir="response",
+       title="echo of fire",
+       role="echo",
+       min=2,
+       max=2,
+       fields={{n="action", c=39, a=0, b=2, s="action", d=""}}
       }
      }
     },
@@ -1950,7 +2024,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=37, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=40, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -1959,7 +2033,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=37, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=40, a=0, b=2, s="action", d=""}}
       }
      }
     },
@@ -1974,7 +2048,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="spatial_denoise", c=24, a=0, b=2, s="spatial_denoise", d=""}}
+       fields={{n="spatial_denoise", c=10, a=0, b=2, s="spatial_denoise", d=""}}
       },
       {
        rw="w",
@@ -1983,7 +2057,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="spatial_denoise", c=24, a=0, b=2, s="spatial_denoise", d=""}}
+       fields={{n="spatial_denoise", c=10, a=0, b=2, s="spatial_denoise", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -1993,7 +2067,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="spatial_denoise", c=24, a=0, b=2, s="spatial_denoise", d=""}}
+       fields={{n="spatial_denoise", c=10, a=0, b=2, s="spatial_denoise", d=""}}
       }
      }
     },
@@ -2008,7 +2082,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="interval_s", c=38, a=0, b=2, s="interval", d="C12: 0..25 (0 = off); C13: 5..100"}}
+       fields={{n="interval_s", c=41, a=0, b=2, s="interval", d="C12: 0..25 (0 = off); C13: 5..100"}}
       },
       {
        rw="w",
@@ -2017,7 +2091,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="interval_s", c=38, a=0, b=2, s="interval", d="C12: 0..25 (0 = off); C13: 5..100"}}
+       fields={{n="interval_s", c=41, a=0, b=2, s="interval", d="C12: 0..25 (0 = off); C13: 5..100"}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2027,7 +2101,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="interval_s", c=38, a=0, b=2, s="interval", d=""}}
+       fields={{n="interval_s", c=41, a=0, b=2, s="interval", d=""}}
       }
      }
     },
@@ -2042,7 +2116,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="detail", c=24, a=0, b=2, s="detail", d=""}}
+       fields={{n="detail", c=10, a=0, b=2, s="detail", d=""}}
       },
       {
        rw="w",
@@ -2051,7 +2125,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="detail", c=24, a=0, b=2, s="detail", d=""}}
+       fields={{n="detail", c=10, a=0, b=2, s="detail", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2061,7 +2135,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="detail", c=24, a=0, b=2, s="detail", d=""}}
+       fields={{n="detail", c=10, a=0, b=2, s="detail", d=""}}
       }
      }
     },
@@ -2076,7 +2150,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="gamma", c=24, a=0, b=2, s="gamma", d=""}}
+       fields={{n="gamma", c=10, a=0, b=2, s="gamma", d=""}}
       },
       {
        rw="w",
@@ -2085,7 +2159,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="gamma", c=24, a=0, b=2, s="gamma", d=""}}
+       fields={{n="gamma", c=10, a=0, b=2, s="gamma", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2095,7 +2169,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="gamma", c=24, a=0, b=2, s="gamma", d=""}}
+       fields={{n="gamma", c=10, a=0, b=2, s="gamma", d=""}}
       }
      }
     },
@@ -2110,7 +2184,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="brightness", c=24, a=0, b=2, s="brightness", d=""}}
+       fields={{n="brightness", c=10, a=0, b=2, s="brightness", d=""}}
       },
       {
        rw="w",
@@ -2119,7 +2193,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="brightness", c=24, a=0, b=2, s="brightness", d=""}}
+       fields={{n="brightness", c=10, a=0, b=2, s="brightness", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2129,7 +2203,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="brightness", c=24, a=0, b=2, s="brightness", d=""}}
+       fields={{n="brightness", c=10, a=0, b=2, s="brightness", d=""}}
       }
      }
     },
@@ -2144,7 +2218,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="contrast", c=24, a=0, b=2, s="contrast", d=""}}
+       fields={{n="contrast", c=10, a=0, b=2, s="contrast", d=""}}
       },
       {
        rw="w",
@@ -2153,7 +2227,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="contrast", c=24, a=0, b=2, s="contrast", d=""}}
+       fields={{n="contrast", c=10, a=0, b=2, s="contrast", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2163,7 +2237,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="contrast", c=24, a=0, b=2, s="contrast", d=""}}
+       fields={{n="contrast", c=10, a=0, b=2, s="contrast", d=""}}
       }
      }
     },
@@ -2178,7 +2252,7 @@ local GEN = {
        role="",
        min=15,
        max=15,
-       fields={{n="time", c=39, a=0, b=15, s="time", d="hhmmss.ss DDMMYY"}}
+       fields={{n="time", c=42, a=0, b=15, s="time", d="hhmmss.ss DDMMYY"}}
       },
       {
        rw="w",
@@ -2187,7 +2261,7 @@ local GEN = {
        role="echo",
        min=15,
        max=15,
-       fields={{n="time", c=39, a=0, b=15, s="time", d="hhmmss.ss DDMMYY"}}
+       fields={{n="time", c=42, a=0, b=15, s="time", d="hhmmss.ss DDMMYY"}}
       }
      }
     },
@@ -2203,7 +2277,7 @@ local GEN = {
        role="",
        min=0,
        max=15,
-       fields={{n="data", c=11, a=0, s="data", d="layout not documented"}}
+       fields={{n="data", c=14, a=0, s="data", d="layout not documented"}}
       },
       {
        rw="w",
@@ -2212,7 +2286,7 @@ local GEN = {
        role="",
        min=0,
        max=15,
-       fields={{n="data", c=11, a=0, s="data", d="layout not documented"}}
+       fields={{n="data", c=14, a=0, s="data", d="layout not documented"}}
       }
      }
     },
@@ -2227,7 +2301,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="scene", c=40, a=0, b=2, s="scene", d=""}}
+       fields={{n="scene", c=43, a=0, b=2, s="scene", d=""}}
       },
       {
        rw="w",
@@ -2236,7 +2310,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="scene", c=40, a=0, b=2, s="scene", d=""}}
+       fields={{n="scene", c=43, a=0, b=2, s="scene", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2246,7 +2320,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="scene", c=40, a=0, b=2, s="scene", d=""}}
+       fields={{n="scene", c=43, a=0, b=2, s="scene", d=""}}
       }
      }
     },
@@ -2261,7 +2335,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="temporal_denoise", c=24, a=0, b=2, s="temporal_denoise", d=""}}
+       fields={{n="temporal_denoise", c=10, a=0, b=2, s="temporal_denoise", d=""}}
       },
       {
        rw="w",
@@ -2270,7 +2344,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="temporal_denoise", c=24, a=0, b=2, s="temporal_denoise", d=""}}
+       fields={{n="temporal_denoise", c=10, a=0, b=2, s="temporal_denoise", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2280,7 +2354,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="temporal_denoise", c=24, a=0, b=2, s="temporal_denoise", d=""}}
+       fields={{n="temporal_denoise", c=10, a=0, b=2, s="temporal_denoise", d=""}}
       }
      }
     },
@@ -2295,7 +2369,7 @@ local GEN = {
        role="",
        min=8,
        max=8,
-       fields={{n="uid", c=41, a=0, b=8, s="uid", d=""}}
+       fields={{n="uid", c=44, a=0, b=8, s="uid", d=""}}
       },
       {
        rw="w",
@@ -2304,7 +2378,7 @@ local GEN = {
        role="echo",
        min=8,
        max=8,
-       fields={{n="uid", c=41, a=0, b=8, s="uid", d=""}}
+       fields={{n="uid", c=44, a=0, b=8, s="uid", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2314,7 +2388,7 @@ local GEN = {
        role="",
        min=8,
        max=8,
-       fields={{n="uid", c=41, a=0, b=8, s="uid", d=""}}
+       fields={{n="uid", c=44, a=0, b=8, s="uid", d=""}}
       }
      }
     },
@@ -2330,7 +2404,7 @@ local GEN = {
        role="",
        min=1,
        max=15,
-       fields={{n="version", c=22, a=0, s="version", d="e.g. V1.0.0"}}
+       fields={{n="version", c=25, a=0, s="version", d="e.g. V1.0.0"}}
       }
      }
     },
@@ -2346,8 +2420,8 @@ local GEN = {
        min=2,
        max=2,
        fields={
-        {n="secondary", c=42, a=0, b=1, s="secondary", d="second visible lens (dual-visible models)"},
-        {n="primary", c=42, a=1, b=2, s="primary", d=""}
+        {n="secondary", c=45, a=0, b=1, s="secondary", d="second visible lens (dual-visible models)"},
+        {n="primary", c=45, a=1, b=2, s="primary", d=""}
        }
       },
       {
@@ -2358,8 +2432,8 @@ local GEN = {
        min=2,
        max=2,
        fields={
-        {n="secondary", c=42, a=0, b=1, s="secondary", d="second visible lens (dual-visible models)"},
-        {n="primary", c=42, a=1, b=2, s="primary", d=""}
+        {n="secondary", c=45, a=0, b=1, s="secondary", d="second visible lens (dual-visible models)"},
+        {n="primary", c=45, a=1, b=2, s="primary", d=""}
        }
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
@@ -2371,8 +2445,8 @@ local GEN = {
        min=2,
        max=2,
        fields={
-        {n="secondary", c=42, a=0, b=1, s="secondary", d=""},
-        {n="primary", c=42, a=1, b=2, s="primary", d=""}
+        {n="secondary", c=45, a=0, b=1, s="secondary", d=""},
+        {n="primary", c=45, a=1, b=2, s="primary", d=""}
        }
       }
      }
@@ -2389,12 +2463,12 @@ local GEN = {
        min=11,
        max=11,
        fields={
-        {n="h_flip", c=13, a=0, b=1, s="h_flip", d=""},
-        {n="v_flip", c=13, a=1, b=2, s="v_flip", d=""},
-        {n="fps", c=43, a=2, b=4, s="fps", d=""},
-        {n="gop", c=44, a=4, b=6, s="gop", d="frames between key frames"},
-        {n="bitrate_kbps", c=45, a=6, b=10, s="bitrate", d=""},
-        {n="output", c=13, a=10, b=11, s="output", d="video data output"}
+        {n="h_flip", c=16, a=0, b=1, s="h_flip", d=""},
+        {n="v_flip", c=16, a=1, b=2, s="v_flip", d=""},
+        {n="fps", c=46, a=2, b=4, s="fps", d=""},
+        {n="gop", c=47, a=4, b=6, s="gop", d="frames between key frames"},
+        {n="bitrate_kbps", c=48, a=6, b=10, s="bitrate", d=""},
+        {n="output", c=16, a=10, b=11, s="output", d="video data output"}
        }
       },
       {
@@ -2405,12 +2479,12 @@ local GEN = {
        min=11,
        max=11,
        fields={
-        {n="h_flip", c=13, a=0, b=1, s="h_flip", d=""},
-        {n="v_flip", c=13, a=1, b=2, s="v_flip", d=""},
-        {n="fps", c=43, a=2, b=4, s="fps", d=""},
-        {n="gop", c=44, a=4, b=6, s="gop", d="frames between key frames"},
-        {n="bitrate_kbps", c=45, a=6, b=10, s="bitrate", d=""},
-        {n="output", c=13, a=10, b=11, s="output", d="video data output"}
+        {n="h_flip", c=16, a=0, b=1, s="h_flip", d=""},
+        {n="v_flip", c=16, a=1, b=2, s="v_flip", d=""},
+        {n="fps", c=46, a=2, b=4, s="fps", d=""},
+        {n="gop", c=47, a=4, b=6, s="gop", d="frames between key frames"},
+        {n="bitrate_kbps", c=48, a=6, b=10, s="bitrate", d=""},
+        {n="output", c=16, a=10, b=11, s="output", d="video data output"}
        }
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
@@ -2422,12 +2496,12 @@ local GEN = {
        min=11,
        max=11,
        fields={
-        {n="h_flip", c=13, a=0, b=1, s="h_flip", d=""},
-        {n="v_flip", c=13, a=1, b=2, s="v_flip", d=""},
-        {n="fps", c=43, a=2, b=4, s="fps", d=""},
-        {n="gop", c=44, a=4, b=6, s="gop", d="frames between key frames"},
-        {n="bitrate_kbps", c=45, a=6, b=10, s="bitrate", d=""},
-        {n="output", c=13, a=10, b=11, s="output", d="video data output"}
+        {n="h_flip", c=16, a=0, b=1, s="h_flip", d=""},
+        {n="v_flip", c=16, a=1, b=2, s="v_flip", d=""},
+        {n="fps", c=46, a=2, b=4, s="fps", d=""},
+        {n="gop", c=47, a=4, b=6, s="gop", d="frames between key frames"},
+        {n="bitrate_kbps", c=48, a=6, b=10, s="bitrate", d=""},
+        {n="output", c=16, a=10, b=11, s="output", d="video data output"}
        }
       }
      }
@@ -2444,10 +2518,10 @@ local GEN = {
        min=8,
        max=8,
        fields={
-        {n="zoom_pos", c=46, a=0, b=4, s="zoom_pos", d="zoom motor position"},
+        {n="zoom_pos", c=49, a=0, b=4, s="zoom_pos", d="zoom motor position"},
         {
          n="focus_pos",
-         c=47,
+         c=50,
          a=4,
          b=8,
          s="focus_pos",
@@ -2463,10 +2537,10 @@ local GEN = {
        min=8,
        max=8,
        fields={
-        {n="zoom_pos", c=46, a=0, b=4, s="zoom_pos", d="zoom motor position"},
+        {n="zoom_pos", c=49, a=0, b=4, s="zoom_pos", d="zoom motor position"},
         {
          n="focus_pos",
-         c=47,
+         c=50,
          a=4,
          b=8,
          s="focus_pos",
@@ -2487,7 +2561,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=48, a=0, b=2, s="action", d="in and out continue until stop"}}
+       fields={{n="action", c=51, a=0, b=2, s="action", d="in and out continue until stop"}}
       },
       {
        rw="w",
@@ -2496,7 +2570,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=48, a=0, b=2, s="action", d="in and out continue until stop"}}
+       fields={{n="action", c=51, a=0, b=2, s="action", d="in and out continue until stop"}}
       }
      }
     }
@@ -2520,8 +2594,8 @@ local GEN = {
     ["DNS|w|response"]={2, 1},
     ["DZM|r|request"]={3, 4},
     ["DZM|r|response"]={4, 3},
-    ["DZM|w|request"]={1, 5, 7, 2, 6, 8},
-    ["DZM|w|response"]={2, 6, 8, 1, 5, 7},
+    ["DZM|w|request"]={1, 5, 7, 9, 2, 6, 8, 10},
+    ["DZM|w|response"]={2, 6, 8, 10, 1, 5, 7, 9},
     ["ERE|w|request"]={1},
     ["ERE|w|response"]={1},
     ["EVS|r|request"]={3, 4},
@@ -2602,8 +2676,8 @@ local GEN = {
     ["SDC|r|response"]={2, 1},
     ["SLR|r|request"]={1, 2},
     ["SLR|r|response"]={2, 1},
-    ["SLR|w|request"]={3, 4},
-    ["SLR|w|response"]={4, 3},
+    ["SLR|w|request"]={3, 5, 4, 6},
+    ["SLR|w|response"]={4, 6, 3, 5},
     ["SUM|w|request"]={1, 2},
     ["SUM|w|response"]={2, 1},
     ["TAR|r|request"]={3, 4},
@@ -2704,7 +2778,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=49, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=52, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -2713,7 +2787,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=49, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=52, a=0, b=2, s="action", d=""}}
       }
      }
     },
@@ -2728,7 +2802,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {
        rw="w",
@@ -2737,7 +2811,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       }
      }
     },
@@ -2752,7 +2826,7 @@ local GEN = {
        role="",
        min=1,
        max=15,
-       fields={{n="azimuth_deg", c=50, a=0, s="azimuth", d=""}}
+       fields={{n="azimuth_deg", c=53, a=0, s="azimuth", d=""}}
       },
       {
        rw="w",
@@ -2761,7 +2835,7 @@ local GEN = {
        role="echo",
        min=1,
        max=15,
-       fields={{n="azimuth_deg", c=50, a=0, s="azimuth", d=""}}
+       fields={{n="azimuth_deg", c=53, a=0, s="azimuth", d=""}}
       }
      }
     },
@@ -2776,7 +2850,7 @@ local GEN = {
        role="",
        min=1,
        max=6,
-       fields={{n="bitrate_kbps", c=51, a=0, s="bitrate", d=""}}
+       fields={{n="bitrate_kbps", c=54, a=0, s="bitrate", d=""}}
       },
       {
        rw="w",
@@ -2785,7 +2859,7 @@ local GEN = {
        role="echo",
        min=1,
        max=6,
-       fields={{n="bitrate_kbps", c=51, a=0, s="bitrate", d=""}}
+       fields={{n="bitrate_kbps", c=54, a=0, s="bitrate", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2795,7 +2869,7 @@ local GEN = {
        role="",
        min=1,
        max=6,
-       fields={{n="bitrate_kbps", c=51, a=0, s="bitrate", d=""}}
+       fields={{n="bitrate_kbps", c=54, a=0, s="bitrate", d=""}}
       }
      }
     },
@@ -2810,7 +2884,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="mode", c=52, a=0, b=2, s="mode", d=""}}
+       fields={{n="mode", c=55, a=0, b=2, s="mode", d=""}}
       },
       {
        rw="w",
@@ -2819,7 +2893,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="mode", c=52, a=0, b=2, s="mode", d=""}}
+       fields={{n="mode", c=55, a=0, b=2, s="mode", d=""}}
       },
       {
        rw="w",
@@ -2829,8 +2903,8 @@ local GEN = {
        min=10,
        max=10,
        fields={
-        {n="state", c=53, a=0, b=2, s="state", d=""},
-        {n="file_index", c=41, a=2, b=10, s="file_index", d="snap_0_<idx>.jpeg"}
+        {n="state", c=56, a=0, b=2, s="state", d=""},
+        {n="file_index", c=44, a=2, b=10, s="file_index", d="snap_0_<idx>.jpeg"}
        }
       }
      }
@@ -2846,7 +2920,7 @@ local GEN = {
        role="",
        min=3,
        max=3,
-       fields={{n="mode", c=54, a=0, b=1, s="mode", d=""}, {n="strength", c=24, a=1, b=3, s="strength", d="0..255"}}
+       fields={{n="mode", c=57, a=0, b=1, s="mode", d=""}, {n="strength", c=10, a=1, b=3, s="strength", d="0..255"}}
       },
       {
        rw="w",
@@ -2855,7 +2929,7 @@ local GEN = {
        role="echo",
        min=3,
        max=3,
-       fields={{n="mode", c=54, a=0, b=1, s="mode", d=""}, {n="strength", c=24, a=1, b=3, s="strength", d="0..255"}}
+       fields={{n="mode", c=57, a=0, b=1, s="mode", d=""}, {n="strength", c=10, a=1, b=3, s="strength", d="0..255"}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -2865,7 +2939,7 @@ local GEN = {
        role="",
        min=3,
        max=3,
-       fields={{n="mode", c=54, a=0, b=1, s="mode", d=""}, {n="strength", c=24, a=1, b=3, s="strength", d=""}}
+       fields={{n="mode", c=57, a=0, b=1, s="mode", d=""}, {n="strength", c=10, a=1, b=3, s="strength", d=""}}
       }
      }
     },
@@ -2881,7 +2955,7 @@ local GEN = {
        min=3,
        max=3,
        fields={
-        {n="lens", c=55, a=0, b=1, s="lens", d=""},
+        {n="lens", c=58, a=0, b=1, s="lens", d=""},
         {n="zoom", c=8, a=1, b=3, s="zoom", d="magnification step 0.1 (decimal 00..80), or an action"}
        }
       },
@@ -2893,7 +2967,7 @@ local GEN = {
        min=3,
        max=3,
        fields={
-        {n="lens", c=55, a=0, b=1, s="lens", d=""},
+        {n="lens", c=58, a=0, b=1, s="lens", d=""},
         {n="zoom", c=8, a=1, b=3, s="zoom", d="magnification step 0.1 (decimal 00..80), or an action"}
        }
       },
@@ -2906,8 +2980,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="thermal_zoom_x", c=56, a=0, b=2, s="thermal_zoom", d=""},
-        {n="visible_zoom_x", c=56, a=2, b=4, s="visible_zoom", d=""}
+        {n="thermal_zoom_x", c=59, a=0, b=2, s="thermal_zoom", d=""},
+        {n="visible_zoom_x", c=59, a=2, b=4, s="visible_zoom", d=""}
        }
       },
       {
@@ -2975,6 +3049,46 @@ local GEN = {
         {n="image", c=7, a=0, b=2, s="image", d=""},
         {n="magnification_x", c=9, a=2, b=6, s="magnification", d=""}
        }
+      },
+      {
+       rw="w",
+       dir="request",
+       title="image code and ratio (F + 3 hex digits)",
+       role="",
+       min=6,
+       max=6,
+       fields={
+        {
+         n="image_code",
+         c=10,
+         a=0,
+         b=2,
+         s="image_code",
+         d="image / camera: 00 visible, 01 thermal, others as the model numbers them"
+        },
+        {n="ratio_mark", c=11, a=2, b=3, s="ratio_mark", d="always F: a zoom ratio follows"},
+        {n="ratio_x", c=12, a=3, b=6, s="ratio", d="zoom ratio in 0.1x (three hex digits)"}
+       }
+      },
+      {
+       rw="w",
+       dir="response",
+       title="echo of image code and ratio (F + 3 hex digits)",
+       role="echo",
+       min=6,
+       max=6,
+       fields={
+        {
+         n="image_code",
+         c=10,
+         a=0,
+         b=2,
+         s="image_code",
+         d="image / camera: 00 visible, 01 thermal, others as the model numbers them"
+        },
+        {n="ratio_mark", c=11, a=2, b=3, s="ratio_mark", d="always F: a zoom ratio follows"},
+        {n="ratio_x", c=12, a=3, b=6, s="ratio", d="zoom ratio in 0.1x (three hex digits)"}
+       }
       }
      }
     },
@@ -2989,7 +3103,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="stream", c=57, a=0, b=1, s="stream", d=""}, {n="codec", c=58, a=1, b=2, s="codec", d=""}}
+       fields={{n="stream", c=60, a=0, b=1, s="stream", d=""}, {n="codec", c=61, a=1, b=2, s="codec", d=""}}
       },
       {
        rw="w",
@@ -2998,7 +3112,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="stream", c=57, a=0, b=1, s="stream", d=""}, {n="codec", c=58, a=1, b=2, s="codec", d=""}}
+       fields={{n="stream", c=60, a=0, b=1, s="stream", d=""}, {n="codec", c=61, a=1, b=2, s="codec", d=""}}
       }
      }
     },
@@ -3013,7 +3127,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="error", c=10, a=0, b=2, s="error", d="always '!!'"}}
+       fields={{n="error", c=13, a=0, b=2, s="error", d="always '!!'"}}
       }
      }
     },
@@ -3028,7 +3142,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=17, a=0, b=2, s="action", d="+ and - continue until stop"}}
+       fields={{n="action", c=20, a=0, b=2, s="action", d="+ and - continue until stop"}}
       },
       {
        rw="w",
@@ -3037,7 +3151,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=17, a=0, b=2, s="action", d="+ and - continue until stop"}}
+       fields={{n="action", c=20, a=0, b=2, s="action", d="+ and - continue until stop"}}
       }
      }
     },
@@ -3053,7 +3167,7 @@ local GEN = {
        role="",
        min=4,
        max=4,
-       fields={{n="focus_pos", c=46, a=0, b=4, s="focus_pos", d="focus motor position"}}
+       fields={{n="focus_pos", c=49, a=0, b=4, s="focus_pos", d="focus motor position"}}
       }
      }
     },
@@ -3068,7 +3182,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {
        rw="w",
@@ -3077,7 +3191,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -3087,7 +3201,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       }
      }
     },
@@ -3104,9 +3218,9 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="gimbal yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="gimbal pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="gimbal roll"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="gimbal yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="gimbal pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="gimbal roll"}
        }
       }
      }
@@ -3123,17 +3237,17 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw (body frame), right-positive"},
-        {n="yaw_speed_deg_s", c=19, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw (body frame), right-positive"},
+        {n="yaw_speed_deg_s", c=22, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
         {
          n="pitch_deg",
-         c=15,
+         c=18,
          a=6,
          b=10,
          s="pitch",
          d="pitch (body frame); the document says up-positive, ArduPilot finds down-positive"
         },
-        {n="pitch_speed_deg_s", c=19, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="pitch_speed_deg_s", c=22, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -3144,17 +3258,17 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw (body frame), right-positive"},
-        {n="yaw_speed_deg_s", c=19, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw (body frame), right-positive"},
+        {n="yaw_speed_deg_s", c=22, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
         {
          n="pitch_deg",
-         c=15,
+         c=18,
          a=6,
          b=10,
          s="pitch",
          d="pitch (body frame); the document says up-positive, ArduPilot finds down-positive"
         },
-        {n="pitch_speed_deg_s", c=19, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="pitch_speed_deg_s", c=22, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -3173,13 +3287,13 @@ local GEN = {
        fields={
         {
          n="pitch_deg",
-         c=15,
+         c=18,
          a=0,
          b=4,
          s="pitch",
          d="pitch (body frame); the document says up-positive, ArduPilot finds down-positive"
         },
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -3192,13 +3306,13 @@ local GEN = {
        fields={
         {
          n="pitch_deg",
-         c=15,
+         c=18,
          a=0,
          b=4,
          s="pitch",
          d="pitch (body frame); the document says up-positive, ArduPilot finds down-positive"
         },
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -3215,8 +3329,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="roll_deg", c=15, a=0, b=4, s="roll", d="roll (body frame)"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="roll_deg", c=18, a=0, b=4, s="roll", d="roll (body frame)"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -3227,8 +3341,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="roll_deg", c=15, a=0, b=4, s="roll", d="roll (body frame)"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="roll_deg", c=18, a=0, b=4, s="roll", d="roll (body frame)"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -3245,8 +3359,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw (body frame), right-positive"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw (body frame), right-positive"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -3257,8 +3371,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw (body frame), right-positive"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw (body frame), right-positive"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -3274,7 +3388,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {
        rw="w",
@@ -3283,7 +3397,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -3293,7 +3407,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {
        rw="r",
@@ -3303,9 +3417,9 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="gimbal yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="gimbal pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="gimbal roll"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="gimbal yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="gimbal pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="gimbal roll"}
        }
       },
       {
@@ -3316,10 +3430,10 @@ local GEN = {
        min=13,
        max=267,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="gimbal yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="gimbal pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="gimbal roll"},
-        {n="extra", c=11, a=12, s="extra", d="characters after the first 12"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="gimbal yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="gimbal pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="gimbal roll"},
+        {n="extra", c=14, a=12, s="extra", d="characters after the first 12"}
        }
       },
       {
@@ -3330,9 +3444,9 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="gimbal yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="gimbal pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="gimbal roll"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="gimbal yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="gimbal pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="gimbal roll"}
        }
       }
      }
@@ -3350,9 +3464,9 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="gimbal yaw"},
-        {n="pitch_deg", c=15, a=4, b=8, s="pitch", d="gimbal pitch"},
-        {n="roll_deg", c=15, a=8, b=12, s="roll", d="gimbal roll"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="gimbal yaw"},
+        {n="pitch_deg", c=18, a=4, b=8, s="pitch", d="gimbal pitch"},
+        {n="roll_deg", c=18, a=8, b=12, s="roll", d="gimbal roll"}
        }
       }
      }
@@ -3369,17 +3483,17 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw (earth frame), right-positive"},
-        {n="yaw_speed_deg_s", c=19, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw (earth frame), right-positive"},
+        {n="yaw_speed_deg_s", c=22, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
         {
          n="pitch_deg",
-         c=15,
+         c=18,
          a=6,
          b=10,
          s="pitch",
          d="pitch (earth frame); the document says up-positive, ArduPilot finds down-positive"
         },
-        {n="pitch_speed_deg_s", c=19, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="pitch_speed_deg_s", c=22, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -3390,17 +3504,17 @@ local GEN = {
        min=12,
        max=12,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw (earth frame), right-positive"},
-        {n="yaw_speed_deg_s", c=19, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw (earth frame), right-positive"},
+        {n="yaw_speed_deg_s", c=22, a=4, b=6, s="yaw_speed", d="slew speed 0..99 x 0.1 deg/s"},
         {
          n="pitch_deg",
-         c=15,
+         c=18,
          a=6,
          b=10,
          s="pitch",
          d="pitch (earth frame); the document says up-positive, ArduPilot finds down-positive"
         },
-        {n="pitch_speed_deg_s", c=19, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="pitch_speed_deg_s", c=22, a=10, b=12, s="pitch_speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -3419,13 +3533,13 @@ local GEN = {
        fields={
         {
          n="pitch_deg",
-         c=15,
+         c=18,
          a=0,
          b=4,
          s="pitch",
          d="pitch (earth frame); the document says up-positive, ArduPilot finds down-positive"
         },
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -3438,13 +3552,13 @@ local GEN = {
        fields={
         {
          n="pitch_deg",
-         c=15,
+         c=18,
          a=0,
          b=4,
          s="pitch",
          d="pitch (earth frame); the document says up-positive, ArduPilot finds down-positive"
         },
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -3461,8 +3575,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="roll_deg", c=15, a=0, b=4, s="roll", d="roll (earth frame)"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="roll_deg", c=18, a=0, b=4, s="roll", d="roll (earth frame)"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -3473,8 +3587,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="roll_deg", c=15, a=0, b=4, s="roll", d="roll (earth frame)"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="roll_deg", c=18, a=0, b=4, s="roll", d="roll (earth frame)"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -3491,8 +3605,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw (earth frame), right-positive"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw (earth frame), right-positive"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       },
       {
@@ -3503,8 +3617,8 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="yaw_deg", c=15, a=0, b=4, s="yaw", d="yaw (earth frame), right-positive"},
-        {n="speed_deg_s", c=19, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
+        {n="yaw_deg", c=18, a=0, b=4, s="yaw", d="yaw (earth frame), right-positive"},
+        {n="speed_deg_s", c=22, a=4, b=6, s="speed", d="slew speed 0..99 x 0.1 deg/s"}
        }
       }
      }
@@ -3520,7 +3634,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {
        rw="w",
@@ -3529,7 +3643,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -3539,7 +3653,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=14, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=17, a=0, b=2, s="state", d=""}}
       }
      }
     },
@@ -3557,15 +3671,15 @@ local GEN = {
        fields={
         {
          n="heading_deg",
-         c=59,
+         c=62,
          a=0,
          b=2,
          s="heading",
          d="vehicle heading (unit not stated; 0.01 deg assumed)"
         },
-        {n="lon_deg", c=60, a=2, b=6, s="lon", d=""},
-        {n="lat_deg", c=60, a=6, b=10, s="lat", d=""},
-        {n="alt_m", c=61, a=10, b=14, s="alt", d=""}
+        {n="lon_deg", c=63, a=2, b=6, s="lon", d=""},
+        {n="lat_deg", c=63, a=6, b=10, s="lat", d=""},
+        {n="alt_m", c=64, a=10, b=14, s="alt", d=""}
        }
       },
       {
@@ -3578,15 +3692,15 @@ local GEN = {
        fields={
         {
          n="heading_deg",
-         c=59,
+         c=62,
          a=0,
          b=2,
          s="heading",
          d="vehicle heading (unit not stated; 0.01 deg assumed)"
         },
-        {n="lon_deg", c=60, a=2, b=6, s="lon", d=""},
-        {n="lat_deg", c=60, a=6, b=10, s="lat", d=""},
-        {n="alt_m", c=61, a=10, b=14, s="alt", d=""}
+        {n="lon_deg", c=63, a=2, b=6, s="lon", d=""},
+        {n="lat_deg", c=63, a=6, b=10, s="lat", d=""},
+        {n="alt_m", c=64, a=10, b=14, s="alt", d=""}
        }
       }
      }
@@ -3603,10 +3717,10 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="yaw_rate_deg_s", c=62, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"},
+        {n="yaw_rate_deg_s", c=65, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"},
         {
          n="pitch_rate_deg_s",
-         c=62,
+         c=65,
          a=2,
          b=4,
          s="pitch_rate",
@@ -3622,10 +3736,10 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="yaw_rate_deg_s", c=62, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"},
+        {n="yaw_rate_deg_s", c=65, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"},
         {
          n="pitch_rate_deg_s",
-         c=62,
+         c=65,
          a=2,
          b=4,
          s="pitch_rate",
@@ -3649,7 +3763,7 @@ local GEN = {
        fields={
         {
          n="pitch_rate_deg_s",
-         c=62,
+         c=65,
          a=0,
          b=2,
          s="pitch_rate",
@@ -3667,7 +3781,7 @@ local GEN = {
        fields={
         {
          n="pitch_rate_deg_s",
-         c=62,
+         c=65,
          a=0,
          b=2,
          s="pitch_rate",
@@ -3688,7 +3802,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="roll_rate_deg_s", c=62, a=0, b=2, s="roll_rate", d="roll rate, -99..99 steps"}}
+       fields={{n="roll_rate_deg_s", c=65, a=0, b=2, s="roll_rate", d="roll rate, -99..99 steps"}}
       },
       {
        rw="w",
@@ -3697,7 +3811,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="roll_rate_deg_s", c=62, a=0, b=2, s="roll_rate", d="roll rate, -99..99 steps"}}
+       fields={{n="roll_rate_deg_s", c=65, a=0, b=2, s="roll_rate", d="roll rate, -99..99 steps"}}
       }
      }
     },
@@ -3712,7 +3826,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="yaw_rate_deg_s", c=62, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"}}
+       fields={{n="yaw_rate_deg_s", c=65, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"}}
       },
       {
        rw="w",
@@ -3721,7 +3835,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="yaw_rate_deg_s", c=62, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"}}
+       fields={{n="yaw_rate_deg_s", c=65, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"}}
       }
      }
     },
@@ -3770,7 +3884,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="palette", c=63, a=0, b=2, s="palette", d=""}}
+       fields={{n="palette", c=66, a=0, b=2, s="palette", d=""}}
       },
       {
        rw="w",
@@ -3779,7 +3893,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="palette", c=63, a=0, b=2, s="palette", d=""}}
+       fields={{n="palette", c=66, a=0, b=2, s="palette", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -3789,7 +3903,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="palette", c=63, a=0, b=2, s="palette", d=""}}
+       fields={{n="palette", c=66, a=0, b=2, s="palette", d=""}}
       },
       {
        rw="w",
@@ -3799,8 +3913,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="channel", c=24, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
-        {n="palette", c=63, a=2, b=4, s="palette", d=""}
+        {n="channel", c=10, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
+        {n="palette", c=66, a=2, b=4, s="palette", d=""}
        }
       },
       {
@@ -3811,8 +3925,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="channel", c=24, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
-        {n="palette", c=63, a=2, b=4, s="palette", d=""}
+        {n="channel", c=10, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
+        {n="palette", c=66, a=2, b=4, s="palette", d=""}
        }
       },
       {
@@ -3823,8 +3937,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="channel", c=24, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
-        {n="palette", c=63, a=2, b=4, s="palette", d=""}
+        {n="channel", c=10, a=0, b=2, s="channel", d="thermal channel, 00 on single-thermal models"},
+        {n="palette", c=66, a=2, b=4, s="palette", d=""}
        }
       }
      }
@@ -3874,7 +3988,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="mode", c=27, a=0, b=2, s="mode", d=""}}
+       fields={{n="mode", c=29, a=0, b=2, s="mode", d=""}}
       },
       {
        rw="w",
@@ -3883,7 +3997,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="mode", c=27, a=0, b=2, s="mode", d=""}}
+       fields={{n="mode", c=29, a=0, b=2, s="mode", d=""}}
       }
      }
     },
@@ -3898,7 +4012,7 @@ local GEN = {
        role="",
        min=10,
        max=10,
-       fields={{n="lat_deg", c=28, a=0, b=10, s="lat", d="vehicle latitude, south negative"}}
+       fields={{n="lat_deg", c=30, a=0, b=10, s="lat", d="vehicle latitude, south negative"}}
       },
       {
        rw="w",
@@ -3907,7 +4021,7 @@ local GEN = {
        role="echo",
        min=10,
        max=10,
-       fields={{n="lat_deg", c=28, a=0, b=10, s="lat", d="vehicle latitude, south negative"}}
+       fields={{n="lat_deg", c=30, a=0, b=10, s="lat", d="vehicle latitude, south negative"}}
       },
       {
        rw="w",
@@ -3916,7 +4030,7 @@ local GEN = {
        role="",
        min=10,
        max=10,
-       fields={{n="lat_deg", c=64, a=0, b=10, s="lat", d="target latitude"}}
+       fields={{n="lat_deg", c=67, a=0, b=10, s="lat", d="target latitude"}}
       }
      }
     },
@@ -3932,11 +4046,11 @@ local GEN = {
        min=10,
        max=10,
        fields={
-        {n="x_px", c=65, a=0, b=2, s="x_px", d=""},
-        {n="y_px", c=65, a=2, b=4, s="y_px", d=""},
-        {n="width_px", c=65, a=4, b=6, s="width_px", d=""},
-        {n="height_px", c=65, a=6, b=8, s="height_px", d=""},
-        {n="reserved", c=66, a=8, b=10, s="reserved", d=""}
+        {n="x_px", c=68, a=0, b=2, s="x_px", d=""},
+        {n="y_px", c=68, a=2, b=4, s="y_px", d=""},
+        {n="width_px", c=68, a=4, b=6, s="width_px", d=""},
+        {n="height_px", c=68, a=6, b=8, s="height_px", d=""},
+        {n="reserved", c=69, a=8, b=10, s="reserved", d=""}
        }
       },
       {
@@ -3947,11 +4061,11 @@ local GEN = {
        min=10,
        max=10,
        fields={
-        {n="x_px", c=65, a=0, b=2, s="x_px", d=""},
-        {n="y_px", c=65, a=2, b=4, s="y_px", d=""},
-        {n="width_px", c=65, a=4, b=6, s="width_px", d=""},
-        {n="height_px", c=65, a=6, b=8, s="height_px", d=""},
-        {n="reserved", c=66, a=8, b=10, s="reserved", d=""}
+        {n="x_px", c=68, a=0, b=2, s="x_px", d=""},
+        {n="y_px", c=68, a=2, b=4, s="y_px", d=""},
+        {n="width_px", c=68, a=4, b=6, s="width_px", d=""},
+        {n="height_px", c=68, a=6, b=8, s="height_px", d=""},
+        {n="reserved", c=69, a=8, b=10, s="reserved", d=""}
        }
       }
      }
@@ -3967,7 +4081,7 @@ local GEN = {
        role="",
        min=11,
        max=11,
-       fields={{n="lon_deg", c=29, a=0, b=11, s="lon", d="vehicle longitude, west negative"}}
+       fields={{n="lon_deg", c=31, a=0, b=11, s="lon", d="vehicle longitude, west negative"}}
       },
       {
        rw="w",
@@ -3976,7 +4090,7 @@ local GEN = {
        role="echo",
        min=11,
        max=11,
-       fields={{n="lon_deg", c=29, a=0, b=11, s="lon", d="vehicle longitude, west negative"}}
+       fields={{n="lon_deg", c=31, a=0, b=11, s="lon", d="vehicle longitude, west negative"}}
       },
       {
        rw="w",
@@ -3985,7 +4099,7 @@ local GEN = {
        role="",
        min=11,
        max=11,
-       fields={{n="lon_deg", c=67, a=0, b=11, s="lon", d="target longitude"}}
+       fields={{n="lon_deg", c=70, a=0, b=11, s="lon", d="target longitude"}}
       }
      }
     },
@@ -4000,7 +4114,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=68, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=71, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -4009,7 +4123,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=68, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=71, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -4018,7 +4132,7 @@ local GEN = {
        role="",
        min=1,
        max=15,
-       fields={{n="distance_m", c=69, a=0, s="distance", d="distance, or null when the measurement failed (ERR)"}}
+       fields={{n="distance_m", c=72, a=0, s="distance", d="distance, or null when the measurement failed (ERR)"}}
       }
      }
     },
@@ -4068,7 +4182,7 @@ local GEN = {
        role="",
        min=1,
        max=15,
-       fields={{n="model", c=22, a=0, s="model", d=""}}
+       fields={{n="model", c=25, a=0, s="model", d=""}}
       }
      }
     },
@@ -4084,8 +4198,8 @@ local GEN = {
        min=2,
        max=2,
        fields={
-        {n="secondary", c=70, a=0, b=1, s="secondary", d="second visible lens (dual-visible models)"},
-        {n="mode", c=70, a=1, b=2, s="mode", d=""}
+        {n="secondary", c=73, a=0, b=1, s="secondary", d="second visible lens (dual-visible models)"},
+        {n="mode", c=73, a=1, b=2, s="mode", d=""}
        }
       },
       {
@@ -4096,8 +4210,8 @@ local GEN = {
        min=2,
        max=2,
        fields={
-        {n="secondary", c=70, a=0, b=1, s="secondary", d="second visible lens (dual-visible models)"},
-        {n="mode", c=70, a=1, b=2, s="mode", d=""}
+        {n="secondary", c=73, a=0, b=1, s="secondary", d="second visible lens (dual-visible models)"},
+        {n="mode", c=73, a=1, b=2, s="mode", d=""}
        }
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
@@ -4108,7 +4222,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="secondary", c=70, a=0, b=1, s="secondary", d=""}, {n="mode", c=70, a=1, b=2, s="mode", d=""}}
+       fields={{n="secondary", c=73, a=0, b=1, s="secondary", d=""}, {n="mode", c=73, a=1, b=2, s="mode", d=""}}
       }
      }
     },
@@ -4123,7 +4237,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=71, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=74, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -4132,7 +4246,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=71, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=74, a=0, b=2, s="action", d=""}}
       }
      }
     },
@@ -4147,7 +4261,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=31, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=33, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -4156,7 +4270,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=31, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=33, a=0, b=2, s="action", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -4166,7 +4280,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="state", c=32, a=0, b=2, s="state", d=""}}
+       fields={{n="state", c=34, a=0, b=2, s="state", d=""}}
       },
       {
        rw="w",
@@ -4176,8 +4290,8 @@ local GEN = {
        min=10,
        max=10,
        fields={
-        {n="state", c=72, a=0, b=2, s="state", d=""},
-        {n="file_index", c=41, a=2, b=10, s="file_index", d="stream_0_<idx>.h264"}
+        {n="state", c=75, a=0, b=2, s="state", d=""},
+        {n="file_index", c=44, a=2, b=10, s="file_index", d="stream_0_<idx>.h264"}
        }
       }
      }
@@ -4193,7 +4307,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="rotation", c=73, a=0, b=2, s="rotation", d=""}}
+       fields={{n="rotation", c=76, a=0, b=2, s="rotation", d=""}}
       },
       {
        rw="w",
@@ -4202,7 +4316,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="rotation", c=73, a=0, b=2, s="rotation", d=""}}
+       fields={{n="rotation", c=76, a=0, b=2, s="rotation", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -4212,7 +4326,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="rotation", c=73, a=0, b=2, s="rotation", d=""}}
+       fields={{n="rotation", c=76, a=0, b=2, s="rotation", d=""}}
       }
      }
     },
@@ -4228,10 +4342,10 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="roll_rate_deg_s", c=62, a=0, b=2, s="roll_rate", d="roll rate, -99..99 steps"},
+        {n="roll_rate_deg_s", c=65, a=0, b=2, s="roll_rate", d="roll rate, -99..99 steps"},
         {
          n="pitch_rate_deg_s",
-         c=62,
+         c=65,
          a=2,
          b=4,
          s="pitch_rate",
@@ -4247,10 +4361,10 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="roll_rate_deg_s", c=62, a=0, b=2, s="roll_rate", d="roll rate, -99..99 steps"},
+        {n="roll_rate_deg_s", c=65, a=0, b=2, s="roll_rate", d="roll rate, -99..99 steps"},
         {
          n="pitch_rate_deg_s",
-         c=62,
+         c=65,
          a=2,
          b=4,
          s="pitch_rate",
@@ -4271,7 +4385,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=33, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=35, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -4280,7 +4394,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=33, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=35, a=0, b=2, s="action", d=""}}
       }
      }
     },
@@ -4295,7 +4409,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="which", c=74, a=0, b=2, s="which", d=""}}
+       fields={{n="which", c=77, a=0, b=2, s="which", d=""}}
       },
       {
        rw="r",
@@ -4304,7 +4418,7 @@ local GEN = {
        role="",
        min=5,
        max=5,
-       fields={{n="capacity_mb", c=75, a=0, b=5, s="capacity", d="null = no card"}}
+       fields={{n="capacity_mb", c=78, a=0, b=5, s="capacity", d="null = no card"}}
       }
      }
     },
@@ -4319,7 +4433,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="device", c=76, a=0, b=1, s="device", d=""}, {n="state", c=13, a=1, b=2, s="state", d=""}}
+       fields={{n="device", c=79, a=0, b=1, s="device", d=""}, {n="state", c=16, a=1, b=2, s="state", d=""}}
       },
       {
        rw="w",
@@ -4328,7 +4442,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="device", c=76, a=0, b=1, s="device", d=""}, {n="state", c=13, a=1, b=2, s="state", d=""}}
+       fields={{n="device", c=79, a=0, b=1, s="device", d=""}, {n="state", c=16, a=1, b=2, s="state", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -4338,7 +4452,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="device", c=76, a=0, b=1, s="device", d=""}, {n="state", c=13, a=1, b=2, s="state", d=""}}
+       fields={{n="device", c=79, a=0, b=1, s="device", d=""}, {n="state", c=16, a=1, b=2, s="state", d=""}}
       }
      }
     },
@@ -4353,7 +4467,7 @@ local GEN = {
        role="",
        min=14,
        max=14,
-       fields={{n="time", c=77, a=0, b=14, s="time", d=""}}
+       fields={{n="time", c=80, a=0, b=14, s="time", d=""}}
       },
       {
        rw="w",
@@ -4362,7 +4476,7 @@ local GEN = {
        role="echo",
        min=14,
        max=14,
-       fields={{n="time", c=77, a=0, b=14, s="time", d=""}}
+       fields={{n="time", c=80, a=0, b=14, s="time", d=""}}
       }
      }
     },
@@ -4378,10 +4492,10 @@ local GEN = {
        min=13,
        max=13,
        fields={
-        {n="hot_x_px", c=78, a=0, b=3, s="hot_x_px", d=""},
-        {n="hot_y_px", c=24, a=3, b=5, s="hot_y_px", d=""},
-        {n="hot_temp_c", c=79, a=5, b=9, s="hot_temp_c", d=""},
-        {n="center_temp_c", c=79, a=9, b=13, s="center_temp_c", d=""}
+        {n="hot_x_px", c=81, a=0, b=3, s="hot_x_px", d=""},
+        {n="hot_y_px", c=10, a=3, b=5, s="hot_y_px", d=""},
+        {n="hot_temp_c", c=82, a=5, b=9, s="hot_temp_c", d=""},
+        {n="center_temp_c", c=82, a=9, b=13, s="center_temp_c", d=""}
        }
       },
       {
@@ -4392,13 +4506,13 @@ local GEN = {
        min=22,
        max=22,
        fields={
-        {n="hot_x_px", c=78, a=0, b=3, s="hot_x_px", d=""},
-        {n="hot_y_px", c=24, a=3, b=5, s="hot_y_px", d=""},
-        {n="hot_temp_c", c=80, a=5, b=9, s="hot_temp_c", d=""},
-        {n="cold_x_px", c=78, a=9, b=12, s="cold_x_px", d=""},
-        {n="cold_y_px", c=24, a=12, b=14, s="cold_y_px", d=""},
-        {n="cold_temp_c", c=80, a=14, b=18, s="cold_temp_c", d=""},
-        {n="center_temp_c", c=80, a=18, b=22, s="center_temp_c", d=""}
+        {n="hot_x_px", c=81, a=0, b=3, s="hot_x_px", d=""},
+        {n="hot_y_px", c=10, a=3, b=5, s="hot_y_px", d=""},
+        {n="hot_temp_c", c=83, a=5, b=9, s="hot_temp_c", d=""},
+        {n="cold_x_px", c=81, a=9, b=12, s="cold_x_px", d=""},
+        {n="cold_y_px", c=10, a=12, b=14, s="cold_y_px", d=""},
+        {n="cold_temp_c", c=83, a=14, b=18, s="cold_temp_c", d=""},
+        {n="center_temp_c", c=83, a=18, b=22, s="center_temp_c", d=""}
        }
       },
       {
@@ -4409,10 +4523,10 @@ local GEN = {
        min=10,
        max=10,
        fields={
-        {n="x_px", c=78, a=0, b=3, s="x_px", d=""},
-        {n="y_px", c=78, a=3, b=6, s="y_px", d=""},
-        {n="width_px", c=24, a=6, b=8, s="width_px", d="0 = spot"},
-        {n="height_px", c=24, a=8, b=10, s="height_px", d="0 = spot"}
+        {n="x_px", c=81, a=0, b=3, s="x_px", d=""},
+        {n="y_px", c=81, a=3, b=6, s="y_px", d=""},
+        {n="width_px", c=10, a=6, b=8, s="width_px", d="0 = spot"},
+        {n="height_px", c=10, a=8, b=10, s="height_px", d="0 = spot"}
        }
       },
       {
@@ -4423,11 +4537,11 @@ local GEN = {
        min=14,
        max=14,
        fields={
-        {n="x_px", c=78, a=0, b=3, s="x_px", d=""},
-        {n="y_px", c=78, a=3, b=6, s="y_px", d=""},
-        {n="width_px", c=24, a=6, b=8, s="width_px", d=""},
-        {n="height_px", c=24, a=8, b=10, s="height_px", d=""},
-        {n="avg_temp_c", c=79, a=10, b=14, s="avg_temp_c", d=""}
+        {n="x_px", c=81, a=0, b=3, s="x_px", d=""},
+        {n="y_px", c=81, a=3, b=6, s="y_px", d=""},
+        {n="width_px", c=10, a=6, b=8, s="width_px", d=""},
+        {n="height_px", c=10, a=8, b=10, s="height_px", d=""},
+        {n="avg_temp_c", c=82, a=10, b=14, s="avg_temp_c", d=""}
        }
       }
      }
@@ -4443,7 +4557,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="range", c=81, a=0, b=2, s="range", d=""}}
+       fields={{n="range", c=84, a=0, b=2, s="range", d=""}}
       },
       {
        rw="w",
@@ -4452,7 +4566,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="range", c=81, a=0, b=2, s="range", d=""}}
+       fields={{n="range", c=84, a=0, b=2, s="range", d=""}}
       }
      }
     },
@@ -4467,7 +4581,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=82, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=85, a=0, b=2, s="action", d=""}}
       },
       {
        rw="w",
@@ -4476,7 +4590,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=82, a=0, b=2, s="action", d=""}}
+       fields={{n="action", c=85, a=0, b=2, s="action", d=""}}
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
       {
@@ -4486,7 +4600,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="reserved", c=83, a=0, b=1, s="reserved", d=""}, {n="state", c=84, a=1, b=2, s="state", d=""}}
+       fields={{n="reserved", c=86, a=0, b=1, s="reserved", d=""}, {n="state", c=87, a=1, b=2, s="state", d=""}}
       }
      }
     },
@@ -4502,11 +4616,11 @@ local GEN = {
        min=10,
        max=10,
        fields={
-        {n="yaw_deg", c=85, a=0, b=2, s="yaw", d="declared int16 but 0..36000: sent unsigned"},
-        {n="pitch_deg", c=59, a=2, b=4, s="pitch", d="down-positive (struct comment)"},
-        {n="roll_deg", c=59, a=4, b=6, s="roll", d="right-positive"},
-        {n="speed_m_s", c=86, a=6, b=8, s="speed", d=""},
-        {n="path_angle_deg", c=85, a=8, b=10, s="path_angle", d=""}
+        {n="yaw_deg", c=88, a=0, b=2, s="yaw", d="declared int16 but 0..36000: sent unsigned"},
+        {n="pitch_deg", c=62, a=2, b=4, s="pitch", d="down-positive (struct comment)"},
+        {n="roll_deg", c=62, a=4, b=6, s="roll", d="right-positive"},
+        {n="speed_m_s", c=89, a=6, b=8, s="speed", d=""},
+        {n="path_angle_deg", c=88, a=8, b=10, s="path_angle", d=""}
        }
       },
       {
@@ -4517,11 +4631,11 @@ local GEN = {
        min=10,
        max=10,
        fields={
-        {n="yaw_deg", c=85, a=0, b=2, s="yaw", d="declared int16 but 0..36000: sent unsigned"},
-        {n="pitch_deg", c=59, a=2, b=4, s="pitch", d="down-positive (struct comment)"},
-        {n="roll_deg", c=59, a=4, b=6, s="roll", d="right-positive"},
-        {n="speed_m_s", c=86, a=6, b=8, s="speed", d=""},
-        {n="path_angle_deg", c=85, a=8, b=10, s="path_angle", d=""}
+        {n="yaw_deg", c=88, a=0, b=2, s="yaw", d="declared int16 but 0..36000: sent unsigned"},
+        {n="pitch_deg", c=62, a=2, b=4, s="pitch", d="down-positive (struct comment)"},
+        {n="roll_deg", c=62, a=4, b=6, s="roll", d="right-positive"},
+        {n="speed_m_s", c=89, a=6, b=8, s="speed", d=""},
+        {n="path_angle_deg", c=88, a=8, b=10, s="path_angle", d=""}
        }
       }
      }
@@ -4537,7 +4651,7 @@ local GEN = {
        role="",
        min=12,
        max=12,
-       fields={{n="time", c=87, a=0, b=12, s="time", d=""}}
+       fields={{n="time", c=90, a=0, b=12, s="time", d=""}}
       },
       {
        rw="w",
@@ -4546,7 +4660,7 @@ local GEN = {
        role="echo",
        min=12,
        max=12,
-       fields={{n="time", c=87, a=0, b=12, s="time", d=""}}
+       fields={{n="time", c=90, a=0, b=12, s="time", d=""}}
       }
      }
     },
@@ -4562,7 +4676,7 @@ local GEN = {
        role="",
        min=1,
        max=15,
-       fields={{n="serial", c=22, a=0, s="serial", d="14 characters"}}
+       fields={{n="serial", c=25, a=0, s="serial", d="14 characters"}}
       }
      }
     },
@@ -4578,8 +4692,8 @@ local GEN = {
        min=2,
        max=2,
        fields={
-        {n="stream", c=88, a=0, b=1, s="stream", d=""},
-        {n="resolution", c=89, a=1, b=2, s="resolution", d=""}
+        {n="stream", c=91, a=0, b=1, s="stream", d=""},
+        {n="resolution", c=92, a=1, b=2, s="resolution", d=""}
        }
       },
       {
@@ -4590,8 +4704,8 @@ local GEN = {
        min=2,
        max=2,
        fields={
-        {n="stream", c=88, a=0, b=1, s="stream", d=""},
-        {n="resolution", c=89, a=1, b=2, s="resolution", d=""}
+        {n="stream", c=91, a=0, b=1, s="stream", d=""},
+        {n="resolution", c=92, a=1, b=2, s="resolution", d=""}
        }
       },
       {rw="r", dir="request", title="query", role="", const="00", min=2, max=2, fields={}},
@@ -4603,8 +4717,8 @@ local GEN = {
        min=2,
        max=2,
        fields={
-        {n="stream", c=88, a=0, b=1, s="stream", d=""},
-        {n="resolution", c=89, a=1, b=2, s="resolution", d=""}
+        {n="stream", c=91, a=0, b=1, s="stream", d=""},
+        {n="resolution", c=92, a=1, b=2, s="resolution", d=""}
        }
       }
      }
@@ -4624,7 +4738,7 @@ local GEN = {
        fields={
         {
          n="version",
-         c=22,
+         c=25,
          a=0,
          s="version",
          d="version text: M3326 (lens), two characters (system), 1.2.3 or 123 (ArduPilot)"
@@ -4645,16 +4759,16 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="yaw_rate_deg_s", c=62, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"},
+        {n="yaw_rate_deg_s", c=65, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"},
         {
          n="pitch_rate_deg_s",
-         c=62,
+         c=65,
          a=2,
          b=4,
          s="pitch_rate",
          d="pitch rate, -99..99 steps; down-positive on the wire, as the document says for speeds"
         },
-        {n="roll_rate_deg_s", c=62, a=4, b=6, s="roll_rate", d="roll rate, -99..99 steps"}
+        {n="roll_rate_deg_s", c=65, a=4, b=6, s="roll_rate", d="roll rate, -99..99 steps"}
        }
       },
       {
@@ -4665,16 +4779,16 @@ local GEN = {
        min=6,
        max=6,
        fields={
-        {n="yaw_rate_deg_s", c=62, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"},
+        {n="yaw_rate_deg_s", c=65, a=0, b=2, s="yaw_rate", d="yaw rate, -99..99 steps"},
         {
          n="pitch_rate_deg_s",
-         c=62,
+         c=65,
          a=2,
          b=4,
          s="pitch_rate",
          d="pitch rate, -99..99 steps; down-positive on the wire, as the document says for speeds"
         },
-        {n="roll_rate_deg_s", c=62, a=4, b=6, s="roll_rate", d="roll rate, -99..99 steps"}
+        {n="roll_rate_deg_s", c=65, a=4, b=6, s="roll_rate", d="roll rate, -99..99 steps"}
        }
       }
      }
@@ -4691,10 +4805,10 @@ local GEN = {
        min=8,
        max=8,
        fields={
-        {n="zoom_pos", c=46, a=0, b=4, s="zoom_pos", d="zoom motor position"},
+        {n="zoom_pos", c=49, a=0, b=4, s="zoom_pos", d="zoom motor position"},
         {
          n="focus_pos",
-         c=47,
+         c=50,
          a=4,
          b=8,
          s="focus_pos",
@@ -4710,10 +4824,10 @@ local GEN = {
        min=8,
        max=8,
        fields={
-        {n="zoom_pos", c=46, a=0, b=4, s="zoom_pos", d="zoom motor position"},
+        {n="zoom_pos", c=49, a=0, b=4, s="zoom_pos", d="zoom motor position"},
         {
          n="focus_pos",
-         c=47,
+         c=50,
          a=4,
          b=8,
          s="focus_pos",
@@ -4734,7 +4848,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="action", c=48, a=0, b=2, s="action", d="in and out continue until stop"}}
+       fields={{n="action", c=51, a=0, b=2, s="action", d="in and out continue until stop"}}
       },
       {
        rw="w",
@@ -4743,7 +4857,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="action", c=48, a=0, b=2, s="action", d="in and out continue until stop"}}
+       fields={{n="action", c=51, a=0, b=2, s="action", d="in and out continue until stop"}}
       }
      }
     },
@@ -4759,8 +4873,8 @@ local GEN = {
        min=7,
        max=7,
        fields={
-        {n="magnification_x", c=90, a=0, b=3, s="magnification", d="optical magnification"},
-        {n="zoom_pos", c=46, a=3, b=7, s="zoom_pos", d="zoom motor position"}
+        {n="magnification_x", c=93, a=0, b=3, s="magnification", d="optical magnification"},
+        {n="zoom_pos", c=49, a=3, b=7, s="zoom_pos", d="zoom motor position"}
        }
       }
      }
@@ -4777,7 +4891,7 @@ local GEN = {
        role="",
        min=4,
        max=4,
-       fields={{n="zoom_pos", c=46, a=0, b=4, s="zoom_pos", d="zoom motor position"}}
+       fields={{n="zoom_pos", c=49, a=0, b=4, s="zoom_pos", d="zoom motor position"}}
       }
      }
     }
@@ -4803,8 +4917,8 @@ local GEN = {
     ["DFG|w|response"]={2, 1},
     ["DZM|r|request"]={3, 4},
     ["DZM|r|response"]={4, 3},
-    ["DZM|w|request"]={1, 5, 7, 9, 2, 6, 8, 10},
-    ["DZM|w|response"]={2, 6, 8, 10, 1, 5, 7, 9},
+    ["DZM|w|request"]={1, 5, 7, 9, 11, 2, 6, 8, 10, 12},
+    ["DZM|w|response"]={2, 6, 8, 10, 12, 1, 5, 7, 9, 11},
     ["ENT|w|request"]={1, 2},
     ["ENT|w|response"]={2, 1},
     ["ERE|w|request"]={1},
@@ -4968,8 +5082,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="yaw_rate_deg_s", c=91, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps"},
-        {n="pitch_rate_deg_s", c=91, a=2, b=4, s="pitch_rate", d="pitch rate, -127..127 steps"}
+        {n="yaw_rate_deg_s", c=94, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps"},
+        {n="pitch_rate_deg_s", c=94, a=2, b=4, s="pitch_rate", d="pitch rate, -127..127 steps"}
        }
       },
       {
@@ -4980,8 +5094,8 @@ local GEN = {
        min=4,
        max=4,
        fields={
-        {n="yaw_rate_deg_s", c=91, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps"},
-        {n="pitch_rate_deg_s", c=91, a=2, b=4, s="pitch_rate", d="pitch rate, -127..127 steps"}
+        {n="yaw_rate_deg_s", c=94, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps"},
+        {n="pitch_rate_deg_s", c=94, a=2, b=4, s="pitch_rate", d="pitch rate, -127..127 steps"}
        }
       }
      }
@@ -4997,7 +5111,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="pitch_rate_deg_s", c=91, a=0, b=2, s="pitch_rate", d="pitch rate, -127..127 steps; up positive"}}
+       fields={{n="pitch_rate_deg_s", c=94, a=0, b=2, s="pitch_rate", d="pitch rate, -127..127 steps; up positive"}}
       },
       {
        rw="w",
@@ -5006,7 +5120,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="pitch_rate_deg_s", c=91, a=0, b=2, s="pitch_rate", d="pitch rate, -127..127 steps; up positive"}}
+       fields={{n="pitch_rate_deg_s", c=94, a=0, b=2, s="pitch_rate", d="pitch rate, -127..127 steps; up positive"}}
       }
      }
     },
@@ -5021,7 +5135,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="roll_rate_deg_s", c=91, a=0, b=2, s="roll_rate", d="roll rate, -127..127 steps"}}
+       fields={{n="roll_rate_deg_s", c=94, a=0, b=2, s="roll_rate", d="roll rate, -127..127 steps"}}
       },
       {
        rw="w",
@@ -5030,7 +5144,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="roll_rate_deg_s", c=91, a=0, b=2, s="roll_rate", d="roll rate, -127..127 steps"}}
+       fields={{n="roll_rate_deg_s", c=94, a=0, b=2, s="roll_rate", d="roll rate, -127..127 steps"}}
       }
      }
     },
@@ -5045,7 +5159,7 @@ local GEN = {
        role="",
        min=2,
        max=2,
-       fields={{n="yaw_rate_deg_s", c=91, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps; right positive"}}
+       fields={{n="yaw_rate_deg_s", c=94, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps; right positive"}}
       },
       {
        rw="w",
@@ -5054,7 +5168,7 @@ local GEN = {
        role="echo",
        min=2,
        max=2,
-       fields={{n="yaw_rate_deg_s", c=91, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps; right positive"}}
+       fields={{n="yaw_rate_deg_s", c=94, a=0, b=2, s="yaw_rate", d="yaw rate, -127..127 steps; right positive"}}
       }
      }
     }

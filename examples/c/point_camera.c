@@ -4,10 +4,14 @@
  *     point_camera udp 127.0.0.1 5000 YAW PITCH          (a camera, or `topgimbal sim --model C12`)
  *     point_camera serial /dev/ttyUSB0 115200 YAW PITCH
  *
- * Sends GAM (yaw and pitch angles, degrees as on the wire), then asks GAC (attitude) ten times a
- * second until both axes are within 0.5 degrees, and prints the attitude. Exit 0 when reached,
- * 1 on timeout (15 s), 2 on a usage or I/O error (a message on stderr says which argument or
- * call failed and what is allowed).
+ * Sends GAM (yaw and pitch angles, degrees as on the wire) and waits up to 1 s for its echo, then
+ * asks GAC (attitude) ten times a second until both axes are within 0.5 degrees, and prints the
+ * attitude. Exit 0 when reached, 1 on timeout (15 s), 2 on a usage or I/O error (a message on
+ * stderr says which argument or call failed and what is allowed), 3 when the camera refuses with
+ * its error frame (ERE): at once, e.g. pitch -60 on a C12, whose pitch range is -45..45 (the GAM
+ * field here allows -90..90: the model's own range is the camera's to enforce). An ERE names no
+ * command: it is the GAM's while only the GAM waits for an answer, the GAC's after that. Firmware
+ * that does not echo motion commands (C13) is polled after the 1 s.
  *
  * What the library needs from this host program is what an RTOS port supplies (docs/c.md): a way
  * to send bytes (send_bytes), bytes received (fed to the parser) and a clock (now_ms).
@@ -139,12 +143,24 @@ static int degrees(const char *what, const char *text, unsigned field, tg_value 
     return 0;
 }
 
+/* What a received frame is to this program. */
+enum { OTHER, REFUSED, GAM_ECHO, ATTITUDE };
+
+static int classify(const tg_frame *frame, tg_message *m) {
+    if (tg_decode(&tg_skydroid, frame, m) != TG_OK) return OTHER;
+    if (m->cmd == &tg_skydroid.commands[TG_SKYDROID_ERE]) return REFUSED;
+    if (m->form->direction != TG_RESPONSE) return OTHER;
+    if (m->cmd == &tg_skydroid.commands[TG_SKYDROID_GAM]) return GAM_ECHO;
+    if (m->cmd == &tg_skydroid.commands[TG_SKYDROID_GAC]) return ATTITUDE;
+    return OTHER;
+}
+
 int main(int argc, char **argv) {
     static tg_parser parser;
     tg_value gam[4], none[1];
     int64_t want_yaw, want_pitch;
-    long deadline, next_query = 0;
-    int opened;
+    long deadline, next_query = 0, echo_deadline;
+    int opened, polling = 0;
     if (argc != 6 || (strcmp(argv[1], "udp") != 0 && strcmp(argv[1], "serial") != 0)) {
         fprintf(stderr, "usage: %s udp HOST PORT YAW PITCH | serial DEVICE BAUD YAW PITCH\n",
                 argc > 0 ? argv[0] : "point_camera");
@@ -162,13 +178,15 @@ int main(int argc, char **argv) {
     tg_parser_init(&parser, NULL);
     if (request(TG_SKYDROID_GAM, TG_SKYDROID_GAM_W_REQ, gam) != 0) return 2;
     deadline = now_ms() + 15000;
+    echo_deadline = now_ms() + 1000;
     while (now_ms() < deadline) {
         struct pollfd pfd = {0, POLLIN, 0};
         uint8_t buf[512];
         ssize_t n;
         tg_event ev;
         pfd.fd = fd;
-        if (now_ms() >= next_query) {
+        if (!polling && now_ms() >= echo_deadline) polling = 1; /* no echo (C13): poll anyway */
+        if (polling && now_ms() >= next_query) {
             if (request(TG_SKYDROID_GAC, TG_SKYDROID_GAC_R_REQ, none) != 0) return 2;
             next_query = now_ms() + 100;
         }
@@ -184,8 +202,17 @@ int main(int argc, char **argv) {
         while (tg_parser_next(&parser, &ev)) {
             tg_message m;
             int64_t yaw, pitch;
-            if (ev.type != TG_EV_FRAME || tg_decode(&tg_skydroid, &ev.frame, &m) != TG_OK) continue;
-            if (m.cmd != &tg_skydroid.commands[TG_SKYDROID_GAC] || m.form->direction != TG_RESPONSE) continue;
+            int kind = ev.type == TG_EV_FRAME ? classify(&ev.frame, &m) : OTHER;
+            if (kind == REFUSED) {
+                if (polling)
+                    fprintf(stderr, "the camera refused the attitude query (GAC) with its error frame (ERE)\n");
+                else
+                    fprintf(stderr, "the camera refused the angles (GAM yaw %.2f pitch %.2f) with its error frame "
+                            "(ERE): outside this model's range?\n", (double)want_yaw / 100, (double)want_pitch / 100);
+                return 3;
+            }
+            if (kind == GAM_ECHO) polling = 1; /* accepted: watch the attitude */
+            if (kind != ATTITUDE) continue;
             if (tg_value_rescale(&m.values[TG_SKYDROID_GAC_R_RSP_YAW_DEG], -2, &yaw) != TG_OK ||
                 tg_value_rescale(&m.values[TG_SKYDROID_GAC_R_RSP_PITCH_DEG], -2, &pitch) != TG_OK)
                 continue; /* not a number (a "no value" token): nothing to compare */

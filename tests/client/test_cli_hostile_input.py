@@ -97,7 +97,7 @@ def test_sim_refuses_a_stream_rate_that_would_stop_or_spin_the_stream(capsys, va
 def test_zoom_to_a_non_finite_magnification_is_a_clear_error(sim, capsys, value):
     # was: OverflowError traceback (inf), "cannot convert float NaN to integer" (nan)
     code, _, err = run(capsys, *sim, "zoom", value)
-    assert code == 1 and "zoom=" in err and "in, out, stop or a magnification" in err
+    assert code == 2 and "zoom=" in err and "in, out, stop or a magnification" in err
 
 
 @pytest.mark.parametrize(
@@ -110,7 +110,7 @@ def test_zoom_to_a_non_finite_magnification_is_a_clear_error(sim, capsys, value)
 )
 def test_a_rate_out_of_range_is_reported_as_typed(sim, capsys, argv, shown):
     code, _, err = run(capsys, *sim, *argv)
-    assert code == 1 and shown in err and "-12.7..12.7" in err
+    assert code == 2 and shown in err and "-12.7..12.7" in err
 
 
 # -- input files -----------------------------------------------------------------------------------

@@ -79,9 +79,9 @@ def test_every_command(bg, capsys, tmp_path, kind):
     if model == "SIP":  # no altitude sent: no distance, and it says what is missing
         code, _, err = run(capsys, *base, "range")
         assert code == 1 and "ALT" in err
-    else:
+    else:  # the C12 has no rangefinder: refused before sending, a usage error (issue 26, item 5)
         code, _, err = run(capsys, *base, "range")
-        assert code == 1 and err.startswith("topgimbal: error:") and len(err.strip().splitlines()) == 1
+        assert code == 2 and err.startswith("topgimbal: error:") and len(err.strip().splitlines()) == 1
     snap = ok("monitor", "--count", "2", "--fps", "20")
     assert snap["state"]["attitude"] is not None and snap["link"]["connected"] is True
     code, out, _ = run(capsys, *base, "monitor", "--count", "2", "--fps", "20")
@@ -109,7 +109,7 @@ def test_every_command(bg, capsys, tmp_path, kind):
 def test_errors_are_one_line_and_nonzero(bg, capsys):
     url, model = bg.url, bg.sim.model
     code, _, err = run(capsys, "--url", url, "--model", model, "point", "500", "0")
-    assert code == 1 and err.count("\n") == 1 and "YAW=500" in err  # named as typed
+    assert code == 2 and err.count("\n") == 1 and "YAW=500" in err  # named as typed; refused before sending
     code, _, err = run(capsys, "--model", model, "photo")
     assert code != 0 and "--url" in err
     code, _, err = run(

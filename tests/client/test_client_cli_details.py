@@ -115,9 +115,9 @@ def test_timeout_must_be_above_zero(capsys, value):
 
 def test_point_errors_name_the_cli_option_and_help_shows_ranges(capsys, sims):
     code, _, err = run(capsys, "--url", sims["C12"].url, "--model", "C12", "point", "3", "2", "--speed", "20")
-    assert code == 1 and "--speed=20" in err and "0..9.9 deg/s" in err and "yaw_speed_deg_s" not in err
+    assert code == 2 and "--speed=20" in err and "0..9.9 deg/s" in err and "yaw_speed_deg_s" not in err
     code, _, err = run(capsys, "--url", sims["C12"].url, "--model", "C12", "point", "300", "2")
-    assert code == 1 and "YAW=300" in err and "-90..90" in err
+    assert code == 2 and "YAW=300" in err and "-90..90" in err
     help_text = _help("point")
     assert "SIP: -150..150" in help_text and "-90..90" in help_text and "0..9.9 deg/s" in help_text
 
@@ -130,7 +130,7 @@ def _help(command: str) -> str:
 def test_focus_help_and_errors_list_the_same_names(capsys, sims):
     help_names = re.search(r"focus: ([a-z_| ]+)", _help("focus")).group(1).split(" | ")
     code, _, err = run(capsys, "--url", sims["C12"].url, "--model", "C12", "focus", "sideways")
-    assert code == 1
+    assert code == 2
     listed = err.split("one of ", 1)[1].strip().split(", ")
     assert listed == help_names and "plus" in listed and "auto" in listed
 

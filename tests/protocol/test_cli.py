@@ -118,7 +118,7 @@ def test_encode_errors_are_one_line_and_non_zero(
     argv: list[str], message: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
     rc, out, err = run(argv, capsys)
-    assert rc == 1 and out == ""
+    assert rc == 2 and out == ""  # refused before anything is sent: a usage error (issue 26, item 5)
     assert err.startswith("topgimbal: error: ") and message in err and err.count("\n") == 1
 
 
@@ -194,4 +194,4 @@ def test_encode_picks_a_form_by_title(capsys: pytest.CaptureFixture[str]) -> Non
     rc, out, _ = run(["encode", "DZM", "zoom=2.5", "--dialect", "topotek", "--form", "zoom (2 characters)"], capsys)
     assert rc == 0 and out.strip() == "#TPUD2wDZM255B"
     rc, _, err = run(["encode", "GAC", "--read", "--header", "#Tp", "--dialect", "topotek"], capsys)
-    assert rc == 1 and "#Tp frame has no r/w" in err
+    assert rc == 2 and "#Tp frame has no r/w" in err

@@ -99,3 +99,24 @@ def test_example_refuses_bad_arguments_before_sending(sanitized_example: Path, a
         assert message in r.stderr and "runtime error" not in r.stderr, r.stderr
         with pytest.raises(BlockingIOError):
             camera.recv(512)
+
+
+@pytest.mark.integration
+def test_example_reports_the_cameras_refusal_at_once(sanitized_example: Path) -> None:
+    """Pitch -60 on a C12 (range -45..45): the camera answers GAM with its error frame. The example
+    used to ignore it and poll GAC for 15 s, then print the same timeout as for a silent camera;
+    now it says the camera refused the angles, exit 3 (under ASan + UBSan)."""
+    from topgimbal.sim import BackgroundSimulator
+
+    with BackgroundSimulator("C12", seed=26, listen={"udp": [("127.0.0.1", 0)]}) as bg:
+        host, port = bg.url.split("//", 1)[1].rsplit(":", 1)
+        r = subprocess.run(
+            [str(sanitized_example), "udp", host, port, "10", "-60"], capture_output=True, text=True, timeout=60
+        )
+        assert r.returncode == 3, (r.returncode, r.stdout, r.stderr)
+        assert "refused the angles" in r.stderr and "timeout" not in r.stderr and "runtime error" not in r.stderr
+        assert bg.call(lambda s: abs(s.gimbal.axis("pitch").target) < 1.0)  # nothing moved toward -60
+        r = subprocess.run(
+            [str(sanitized_example), "udp", host, port, "10", "-5"], capture_output=True, text=True, timeout=60
+        )
+        assert r.returncode == 0 and "reached yaw 10.00 pitch -5.00" in r.stdout, (r.stdout, r.stderr)

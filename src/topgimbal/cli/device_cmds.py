@@ -1,7 +1,7 @@
 """Device commands: talk to a camera (or the simulator) at `--url` as `--model`.
 
-Every command takes `--json` and `--timeout`; errors end as one line on stderr with exit code 1
-(main.py). Stable forms scripts rely on: `attitude --json` (one object with yaw_deg, pitch_deg,
+Every command takes `--json` and `--timeout`; errors end as one line on stderr with exit code 1,
+2 for input refused before sending (main.py). Motion commands: device_motion.py. Stable forms scripts rely on: `attitude --json` (one object with yaw_deg, pitch_deg,
 roll_deg), `point YAW PITCH`, `photo`, `record start|stop|status`."""
 
 from __future__ import annotations
@@ -23,10 +23,10 @@ from ..client.requesting import model_hint
 from ..client.roles import focus_actions, role_ident
 from ..client.state import SdCard
 from ..errors import FieldValueError, RequestTimeoutError, TopGimbalError, TransportError
-from ..protocol import DIALECT_NAMES, all_models, get_dialect, get_model
+from ..protocol import DIALECT_NAMES, get_dialect
 from ..protocol.fields import FieldValue
-from . import device_session
-from .args import COUNT, HZ, add_json_argument, number
+from . import device_motion, device_session
+from .args import COUNT, HZ, add_json_argument
 from .device_output import attitude_dict, ok, show
 
 # A command's result is what `show` prints (an int is the exit status instead).
@@ -176,57 +176,6 @@ async def _attitude(cam: AsyncClient, args: argparse.Namespace) -> dict[str, obj
     return 0
 
 
-# API argument -> the CLI's words for it (errors name what the user typed)
-_POINT_OPTIONS = {
-    "yaw_deg": "YAW",
-    "pitch_deg": "PITCH",
-    "speed_deg_s": "--speed",
-    "yaw_speed_deg_s": "--speed",
-    "pitch_speed_deg_s": "--speed",
-    "tolerance_deg": "--tolerance",
-    "timeout_s": "--wait",
-}
-
-
-async def _point(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
-    try:
-        att = await cam.point(
-            args.yaw, args.pitch, tolerance_deg=args.tolerance, timeout_s=args.wait, speed_deg_s=args.speed
-        )
-    except FieldValueError as exc:
-        option = _POINT_OPTIONS.get(exc.field)
-        if option is None:
-            raise
-        raise FieldValueError(option, exc.value, exc.allowed) from None
-    return attitude_dict(att)
-
-
-# The rate fields (API and wire names) -> the CLI's words and the argument holding what was typed:
-# the wire value has the model's sign applied, and "-20 is not allowed" after typing 20 misleads.
-_RATE_OPTIONS = {
-    "yaw": ("YAW_RATE", "yaw_rate"),
-    "pitch": ("PITCH_RATE", "pitch_rate"),
-    "roll": ("--roll-rate", "roll_rate"),
-}
-
-
-async def _rate(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
-    try:
-        if args.duration:
-            async with cam.rate_control(interval_s=0.1) as joy:
-                joy.set(args.yaw_rate, args.pitch_rate, args.roll_rate)
-                await asyncio.sleep(args.duration)
-            return ok("rate", stopped=True)
-        await cam.rates(args.yaw_rate, args.pitch_rate, args.roll_rate)
-    except FieldValueError as exc:
-        axis = exc.field.split("_", 1)[0]
-        if axis not in _RATE_OPTIONS or "deg_s" not in exc.field:
-            raise
-        option, dest = _RATE_OPTIONS[axis]
-        raise FieldValueError(option, getattr(args, dest), exc.allowed) from None
-    return ok("rate")
-
-
 async def _stop(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     await cam.stop()
     return ok("stop")
@@ -357,31 +306,6 @@ async def _command_generic(cam: AsyncClient, args: argparse.Namespace) -> dict[s
 
 # -- registration --------------------------------------------------------------------------------
 
-RATE = number(what="a rate in deg/s")
-
-
-def _point_ranges() -> tuple[str, str, str]:
-    """Help text with the limits each model has, from the catalog and the model profiles."""
-    yaw: dict[str, list[str]] = {}
-    pitch: dict[str, list[str]] = {}
-    speeds: dict[str, str] = {}
-    for name in all_models():
-        dialect, model = get_model(name)
-        yaw.setdefault("{:g}..{:g}".format(*model.yaw_range_deg), []).append(name)
-        pitch.setdefault("{:g}..{:g}".format(*model.pitch_range_deg), []).append(name)
-        gay = dialect.command("GAY").request_form("w")
-        speeds[dialect.name] = next(f.codec.allowed() for f in gay.fields if f.name == "speed_deg_s")
-
-    def join(ranges: dict[str, list[str]]) -> str:
-        return "; ".join(f"{', '.join(models)}: {r}" for r, models in ranges.items())
-
-    speed = (
-        "; ".join(f"{d}: {a}" for d, a in speeds.items())
-        if len(set(speeds.values())) > 1
-        else next(iter(speeds.values()))
-    )
-    return join(yaw), join(pitch), speed
-
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     _command(sub, "info", _info, "identify the device: dialect, model, version, link statistics")
@@ -391,25 +315,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--rate", type=HZ, default=10.0, help="--watch sample rate in Hz (default 10)")
     p.add_argument("--count", type=COUNT, default=0, help="--watch: stop after N samples (default 0: never)")
 
-    yaw_help, pitch_help, speed_help = _point_ranges()
-    p = _command(sub, "point", _point, "move to YAW PITCH (degrees) and return once reached")
-    p.add_argument("yaw", type=float, help=f"degrees, right-positive ({yaw_help})")
-    p.add_argument("pitch", type=float, help=f"degrees, up-positive ({pitch_help})")
-    p.add_argument("--tolerance", type=float, default=0.5, help="degrees (default 0.5)")
-    p.add_argument("--speed", type=float, default=None, help=f"slew speed: {speed_help}")
-    p.add_argument("--wait", type=_seconds, default=None, metavar="S", help="give up after S seconds")
-
-    p = _command(sub, "rate", _rate, "turn at constant rates in deg/s (stop with `stop`)")
-    p.add_argument("yaw_rate", type=RATE, metavar="YAW_RATE", help="deg/s, right-positive")
-    p.add_argument("pitch_rate", type=RATE, nargs="?", default=0.0, metavar="PITCH_RATE", help="deg/s, up-positive")
-    p.add_argument("--roll-rate", dest="roll_rate", type=RATE, default=0.0)
-    p.add_argument(
-        "--duration",
-        type=number(low=0, what="a duration"),
-        default=0.0,
-        metavar="S",
-        help="keep the rates alive for S seconds, then stop (default 0: set them and return)",
-    )
+    device_motion.register(sub, _command, _seconds)
 
     _command(sub, "stop", _stop, "stop all gimbal motion")
     _command(sub, "center", _center, "centre the gimbal")

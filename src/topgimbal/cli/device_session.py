@@ -23,6 +23,7 @@ from ..errors import RequestTimeoutError, TopGimbalError
 from ..protocol import Frame, Message
 from .args import COUNT, HZ, input_file, number, writable_output
 from .device_output import plain as _plain
+from .device_output import text as _text
 
 Register = Callable[..., argparse.ArgumentParser]
 
@@ -48,13 +49,21 @@ def _monitor_table(cam: AsyncClient) -> Table:
         table.add_row("attitude", "-")
     for name in ("zoom", "recording", "sd", "range_m", "mode", "version"):
         s = getattr(cam.state, name)
-        table.add_row(name, "-" if s is None else str(_plain(s.value)))
+        table.add_row(name, "-" if s is None else _cell(_plain(s.value)))
     st = cam.stats
     table.add_row("frames in / out", f"{st.frames_in} / {st.frames_out}")
     table.add_row("timeouts / retries / late", f"{st.timeouts} / {st.retries} / {st.late_replies}")
     table.add_row("rtt last / avg", f"{st.rtt_ms_last or 0:.2f} / {st.rtt_ms_avg or 0:.2f} ms")
     table.add_row("connected", str(st.connected))
     return table
+
+
+def _cell(value: object) -> str:
+    """A state value as the table shows it: a record (the SD card) as `name: value` pairs, never a
+    Python dict; `-` for nothing."""
+    if isinstance(value, dict):
+        return ", ".join(f"{k}: {_text(k, v)}" for k, v in value.items()) or "-"
+    return _text("", value)
 
 
 async def _monitor(cam: AsyncClient, args: argparse.Namespace) -> int:

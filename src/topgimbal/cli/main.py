@@ -1,7 +1,9 @@
 """Entry point: builds the parser from the subcommand modules and runs the chosen one.
 
 Each module in COMMAND_MODULES has `register(subparsers)`; each subparser sets `func(args) -> int`.
-Errors from topgimbal end as one line on stderr and a non-zero exit code."""
+Errors from topgimbal end as one line on stderr and a non-zero exit code: 2 when the input was
+refused before anything was sent (a value out of the model's range, an unknown command, a command
+the model lacks: CatalogError), 1 when the device, the link or a file failed."""
 
 from __future__ import annotations
 
@@ -12,9 +14,10 @@ import os
 import sys
 from collections.abc import Sequence
 
-from ..errors import TopGimbalError
+from ..errors import CatalogError, TopGimbalError
 from . import args as common
 
+USAGE_ERROR = 2  # as argparse exits for a malformed command line: the input, not the device, was wrong
 COMMAND_MODULES = (
     "protocol_cmds",
     "sim_cmd",
@@ -61,6 +64,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # the reader left (`| head`): not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except CatalogError as exc:  # refused before anything was sent: a value, command or model the user gave
+        print(f"topgimbal: error: {exc}", file=sys.stderr)
+        return USAGE_ERROR
     except (TopGimbalError, ValueError, OSError) as exc:
         print(f"topgimbal: error: {exc}", file=sys.stderr)
         return 1

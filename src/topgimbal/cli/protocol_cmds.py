@@ -11,13 +11,18 @@ from typing import Any
 from ..errors import FieldValueError, UnknownCommandError
 from ..protocol import DIALECT_NAMES, Dialect, Dissection, Message, decode_any, dissect, get_dialect, get_model
 from ..protocol.catalog import REQUEST
-from ..protocol.frame import Frame
+from ..protocol.frame import Frame, bytes_from_text
 from .args import add_dialect_argument, add_json_argument
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("decode", help="decode frames given as arguments or one per line on stdin")
-    p.add_argument("frames", nargs="*", metavar="FRAME", help="frame text, e.g. '#TPUG2wPTZ006A'")
+    p.add_argument(
+        "frames",
+        nargs="*",
+        metavar="FRAME",
+        help="frame text, e.g. '#TPUG2wPTZ006A' (binary bytes as encode prints them: \\xNN, \\\\ for a backslash)",
+    )
     p.add_argument("--hex", action="store_true", help="frames are given as hex (binary data: GPS, UAV, LOC)")
     add_dialect_argument(p)
     add_json_argument(p)
@@ -89,11 +94,12 @@ def decode_line(line: str, *, as_hex: bool, dialect: Dialect | None) -> dict[str
     """Everything `decode --json` prints for one input line (always the keys of RECORD_KEYS)."""
     text = line.strip()
     try:
-        raw = bytes.fromhex(text) if as_hex else text.encode("latin-1")
+        # as `encode` prints a frame: \xNN for a byte outside printable ASCII, \\ for a backslash
+        raw = bytes.fromhex(text) if as_hex else bytes_from_text(text)
+    except UnicodeEncodeError:  # a ValueError too: caught first
+        return _failed(text, "frames are ASCII; give binary bytes as \\xNN escapes or the frame with --hex")
     except ValueError as exc:
         return _failed(text, f"not valid hex: {exc}")
-    except UnicodeEncodeError:
-        return _failed(text, "frames are ASCII; give binary frames with --hex")
     return dissection_record(dissect(raw), dialect)
 
 
@@ -234,6 +240,32 @@ def cmd_encode(args: argparse.Namespace) -> int:
 # -- catalog --------------------------------------------------------------------------------------
 
 
+def model_limits(dialect: Dialect, ident: str) -> dict[str, dict[str, tuple[float, float]]]:
+    """{model: {field: (lo, hi)}} where a model's profile narrows `ident`'s field ranges (the C12's
+    pitch to -45..45): what that model accepts, next to the catalog's field range."""
+    spec = dialect.command(ident)
+    angles = {
+        f.name: (f.axis, f.codec) for form in spec.forms for f in form.fields if f.sign_kind == "angle" and f.axis
+    }
+    out: dict[str, dict[str, tuple[float, float]]] = {}
+    for name, model in dialect.models.items():
+        if not dialect.supports(model, ident):
+            continue
+        narrowed: dict[str, tuple[float, float]] = {}
+        for field_name, (axis, codec) in angles.items():  # the model's gimbal range for the axis
+            lo, hi = getattr(model, f"{axis}_range_deg")
+            cmin, cmax = getattr(codec, "min", None), getattr(codec, "max", None)
+            if (cmin is not None and lo > cmin) or (cmax is not None and hi < cmax):
+                narrowed[field_name] = (lo, hi)
+        for (lim_ident, field_name), (lo, hi) in model.limits.items():
+            if lim_ident == ident:
+                old = narrowed.get(field_name, (lo, hi))
+                narrowed[field_name] = (max(lo, old[0]), min(hi, old[1]))
+        if narrowed:
+            out[name] = narrowed
+    return out
+
+
 def cmd_catalog(args: argparse.Namespace) -> int:
     dialects = [_dialect_from_args(args)] if _dialect_from_args(args) else [get_dialect(n) for n in DIALECT_NAMES]
     if args.ident:
@@ -245,6 +277,7 @@ def cmd_catalog(args: argparse.Namespace) -> int:
             spec = d.command(args.ident)
             entry: dict[str, Any] = {"dialect": d.name, **spec.describe()}
             entry["models"] = entry["models"] or sorted(d.models)
+            entry["model_limits"] = model_limits(d, spec.ident)
             out.append(entry)
         if not out:
             raise UnknownCommandError(f"{args.ident!r} is in no catalog")
@@ -254,6 +287,9 @@ def cmd_catalog(args: argparse.Namespace) -> int:
             for e in out:
                 print(f"{e['dialect']} {e['id']} ({e['name']}): {e['title']}  -> {e['address']}  [{e['section']}]")
                 print(f"    role: {e['role'] or '-'}  group: {e['group'] or '-'}  models: {', '.join(e['models'])}")
+                for model, limits in e["model_limits"].items():
+                    narrowed = ", ".join(f"{name} {lo:g}..{hi:g}" for name, (lo, hi) in limits.items())
+                    print(f"    on the {model} (its profile): {narrowed}")
                 for f in e["forms"]:
                     arrow = "host->device" if f["direction"] == REQUEST else "device->host"
                     body = (

@@ -155,6 +155,10 @@ class CommandSpec:
             by[(f.rw, f.direction)] = (*by.get((f.rw, f.direction), ()), f)
         object.__setattr__(self, "_by_rw_direction", by)
 
+    def __repr__(self) -> str:
+        """One line (the generated one printed every form and field: about 3 KB a command)."""
+        return f"<CommandSpec {self.ident} {self.name}: {self.title!r}, {len(self.forms)} forms>"
+
     def describe(self) -> dict[str, Any]:
         """The command's metadata as JSON-able data; `models` is None when every model has it."""
         return {

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import replace
+from functools import partial
 from typing import Any
 
 from .. import _speedups
@@ -16,7 +17,7 @@ from ..errors import FieldValueError, UnknownCommandError, UnsupportedError
 from .commands import MANY_ROLES, ROLES, CommandSpec
 from .forms import REQUEST, RESPONSE, Form
 from .frame import DEVICE_ADDRESSES, HOST_ADDRESSES, MAX_LENGTH, Frame, make_frame
-from .message import Message
+from .message import LazyText, Message
 from .models import DeviceModel
 
 NO_CONTROL_HEADER = "#Tp"  # its control position carries length: such a frame has no r/w
@@ -263,52 +264,67 @@ class Dialect:
         return dec  # type: ignore[no-any-return]
 
     def _decode_py(self, frame: Frame) -> Message:
-        """Dialect.decode in pure Python (the reference the fast path is tested against)."""
+        """Dialect.decode in pure Python (the reference the fast path is tested against). A frame no
+        form takes costs little more than one that decodes: its error is worded only when read."""
         hot = self._hot.get(frame[4])
         if hot is not None:
             per_direction = hot[1].get(frame[3])
             if per_direction is not None:
                 data = frame[5]
                 n = len(data)
+                wrong = None
                 # frame.src in DEVICE_ADDRESSES and frame.dst in HOST_ADDRESSES: a response
-                for form, lo, hi, decoder in per_direction[frame[1] in "MDEG" and frame[2] in "UP"]:
+                hot_forms = per_direction[frame[1] in "MDEG" and frame[2] in "UP"]
+                for form, lo, hi, decoder in hot_forms:
                     if lo <= n <= hi:
                         try:
                             return _new_tuple(Message, (frame, hot[0], form, decoder(data), None, self.name))
                         except ValueError:
-                            break  # the full path below says which field
+                            wrong = wrong or form
+                if wrong is not None:  # a form of the right length, wrong content: the first says what
+                    error = LazyText(partial(_content_error, hot[0], wrong, data))
+                elif hot_forms:
+                    forms = tuple(f[0] for f in hot_forms)
+                    error = LazyText(partial(_length_error, hot[0], frame[3] or "w", forms, n))
+                else:
+                    return self._decode_explained(frame)
+                return _new_tuple(Message, (frame, hot[0], None, None, error, self.name))
         return self._decode_explained(frame)
 
     def _decode_explained(self, frame: Frame) -> Message:
         """Dialect.decode, every case with its error text (what the hot path above falls back to)."""
         spec = self.commands.get(frame.ident)
         if spec is None:
-            return Message(frame, None, None, None, f"{frame.ident!r} is not in the {self.name} catalog", self.name)
+            return _new_tuple(
+                Message, (frame, None, None, None, f"{frame.ident!r} is not in the {self.name} catalog", self.name)
+            )
         direction = RESPONSE if frame.src in DEVICE_ADDRESSES and frame.dst in HOST_ADDRESSES else REQUEST
         rw = frame.rw or "w"
         data = frame.data
         forms = self._decode_index.get((frame.ident, rw, direction))
         if forms is None:
-            return Message(
-                frame, spec, None, None, f"unknown form: control {rw!r} (a frame's control is r or w)", self.name
+            return _new_tuple(
+                Message,
+                (frame, spec, None, None, f"unknown form: control {rw!r} (a frame's control is r or w)", self.name),
             )
         if not forms:
-            return Message(frame, spec, None, None, f"unknown form: {spec.ident} has no {rw!r} form", self.name)
-        data_error = ""
+            return _new_tuple(
+                Message, (frame, spec, None, None, f"unknown form: {spec.ident} has no {rw!r} form", self.name)
+            )
+        wrong: Form | None = None
         for form in forms:
             if form.accepts_length(len(data)):
                 try:
-                    return Message(frame, spec, form, form.decode(data), None, self.name)
-                except ValueError as exc:
-                    data_error = data_error or f"{spec.ident}: {exc}"
-        if data_error:  # a form of the right length, wrong content: say what the content lacks
-            return Message(frame, spec, None, None, data_error, self.name)
-        lengths = " or ".join(
-            f"{f.min_length}" + (f"..{f.max_length}" if f.max_length != f.min_length else "") for f in forms
-        )
-        return Message(
-            frame, spec, None, None, f"{len(data)} data bytes; {spec.ident} ({rw}) takes {lengths}", self.name
-        )
+                    return _new_tuple(Message, (frame, spec, form, form.decoder(data), None, self.name))
+                except ValueError:
+                    wrong = wrong or form
+        # Worded only when read (LazyText): a capture of unusual traffic must not pay for every text.
+        if wrong is not None:  # a form of the right length, wrong content: the first says what it lacks
+            return _new_tuple(
+                Message, (frame, spec, None, None, LazyText(partial(_content_error, spec, wrong, data)), self.name)
+            )
+        error = LazyText(partial(_length_error, spec, rw, forms, len(data)))
+        return _new_tuple(Message, (frame, spec, None, None, error, self.name))
 
     def check_values(self, model: DeviceModel, ident: str, values: Mapping[str, Any]) -> None:
         """Raise if `model` does not support `ident` or a value is outside the model's limits."""
@@ -323,6 +339,24 @@ class Dialect:
                 and not lo <= value <= hi
             ):
                 raise FieldValueError(fname, value, f"{lo:g}..{hi:g} on the {model.name}")
+
+
+def _content_error(spec: CommandSpec, form: Form, data: bytes) -> str:
+    """What `form` finds wrong with `data` (the field, its bytes, what it takes)."""
+    try:
+        form.decode(data)
+    except ValueError as exc:
+        return f"{spec.ident}: {exc}"
+    return (
+        f"{spec.ident}: {data!r} does not fit {form.title or 'its form'}"  # pragma: no cover - decoder and decode agree
+    )
+
+
+def _length_error(spec: CommandSpec, rw: str, forms: tuple[Form, ...], n: int) -> str:
+    lengths = " or ".join(
+        f"{f.min_length}" + (f"..{f.max_length}" if f.max_length != f.min_length else "") for f in forms
+    )
+    return f"{n} data bytes; {spec.ident} ({rw}) takes {lengths}"
 
 
 __all__ = ["Dialect"]

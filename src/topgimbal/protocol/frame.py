@@ -15,6 +15,7 @@ The checksum is the sum of every byte before it, mod 256, as two upper-case hex 
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -41,6 +42,19 @@ _HEX_UPPER = [b"%02X" % i for i in range(256)]
 _ESCAPES = {i: f"\\x{i:02x}" for i in range(256) if not 0x20 <= i < 0x7F}
 _ESCAPES[0x5C] = "\\\\"
 _IDENT_CHARS = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789")
+
+
+_ESCAPE = re.compile(r"\\(\\|x[0-9A-Fa-f]{2})")
+
+
+def bytes_from_text(text: str) -> bytes:
+    """The bytes of a frame written as `Frame.text()` writes it: `\\xNN` is that byte, `\\\\` a
+    backslash, everything else latin-1 (a backslash before anything else stays as typed). What
+    `topgimbal encode` prints for a binary payload (TOPOTEK GPS, UAV, LOC) decodes again this way.
+    UnicodeEncodeError for characters beyond latin-1."""
+    if "\\" not in text:
+        return text.encode("latin-1")
+    return _ESCAPE.sub(lambda m: "\\" if m.group(1) == "\\" else chr(int(m.group(1)[1:], 16)), text).encode("latin-1")
 
 
 def is_identifier(ident: str) -> bool:

@@ -8,17 +8,21 @@ built for it (its `dialect_options` and `destinations` applied): the C11's diale
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
+from functools import partial
 from typing import Any
 
 from ... import _speedups
 from ...errors import UnknownCommandError
 from ..dialect import Dialect
 from ..frame import Frame
-from ..message import Message
+from ..message import LazyText, Message
 from ..models import DeviceModel
 from . import skydroid_models, topotek_models
 from .skydroid import skydroid
 from .topotek import topotek
+
+_new_tuple = tuple.__new__
+_HOSTS = frozenset("UP")
 
 BUILDERS: dict[str, Callable[..., Dialect]] = {"skydroid": skydroid, "topotek": topotek}
 DIALECT_NAMES = tuple(BUILDERS)
@@ -95,13 +99,14 @@ def guess_dialects(frame: Frame, dialects: Iterable[Dialect] | None = None) -> l
     has the identifier, whose host addresses include the frame's host side and whose headers include
     its header ranks first; ties keep the default order."""
     candidates = list(dialects) if dialects is not None else [get_dialect(n) for n in DIALECT_NAMES]
+    ident, header = frame.ident, frame.header
+    host = {frame.src, frame.dst} & _HOSTS  # computed once per frame: this runs for every frame no dialect took
 
     def score(d: Dialect) -> int:
-        host = {frame.src, frame.dst} & {"U", "P"}
         return (
-            (frame.ident in d.commands) * 4
-            + (frame.header in d.headers) * 2
-            + (bool(host) and host <= set(d.host_addresses))
+            (ident in d.commands) * 4
+            + (header in d.headers) * 2
+            + (bool(host) and all(a in d.host_addresses for a in host))
         )
 
     return sorted(candidates, key=lambda d: -score(d))
@@ -116,6 +121,7 @@ def decode_any(frame: Frame, prefer: str | Dialect | None = None) -> Message:
 
 _ANY_DECODERS: dict[Any, Callable[[Frame], Message]] = {}
 _ANY_DECODERS_MAX = 64  # distinct preferences kept (a user's own dialects would otherwise pile up)
+_ORDERS_MAX = 1024  # rankings kept per decoder (header, addresses, identifier): bounded for hostile input
 
 
 def any_decoder(prefer: str | Dialect | None = None) -> Callable[[Frame], Message]:
@@ -127,9 +133,10 @@ def any_decoder(prefer: str | Dialect | None = None) -> Callable[[Frame], Messag
     if dec is None:
         first = get_dialect(prefer) if prefer is not None else None
         defaults = [get_dialect(n) for n in DIALECT_NAMES]
+        orders: dict[tuple[str, ...], list[Dialect]] = {}
 
         def pure(frame: Frame) -> Message:
-            return _decode_any_py(frame, first, defaults)
+            return _decode_any_py(frame, first, defaults, orders=orders)
 
         fast = _speedups.make_any_decoder(
             first.decoder() if first is not None else None, [d.decoder() for d in defaults], pure
@@ -146,25 +153,43 @@ def _decode_any_py(
     first: Dialect | None,
     defaults: list[Dialect],
     decode: Callable[[Dialect, Frame], Message] = Dialect.decode,
+    *,
+    orders: dict[tuple[str, ...], list[Dialect]] | None = None,
 ) -> Message:
-    """decode_any in Python (`decode`: how one dialect decodes; the tests pass the pure one)."""
+    """decode_any in Python (`decode`: how one dialect decodes; the tests pass the pure one).
+    `orders` keeps the ranking per (header, addresses, identifier): the frames no dialect decodes
+    natively come here, and ranking them anew each time was most of their cost."""
     if first is not None:
         msg = decode(first, frame)
         if msg.fields is not None:  # the common case: no ranking needed
             return msg
         messages = [msg]
-        order = [d for d in guess_dialects(frame, defaults) if d.name != first.name]
     else:
         messages = []
-        order = guess_dialects(frame, defaults)
+    key = (frame[0], frame[1], frame[2], frame[4])
+    order = orders.get(key) if orders is not None else None
+    if order is None:
+        order = [d for d in guess_dialects(frame, defaults) if first is None or d.name != first.name]
+        if orders is not None:
+            if len(orders) >= _ORDERS_MAX:
+                orders.clear()
+            orders[key] = order
     for d in order:
         msg = decode(d, frame)
         if msg.fields is not None:
             return msg
         messages.append(msg)
     head = messages[0]
+    if len(messages) == 1:
+        return head
+    # Worded only when read (LazyText): every reason, the preferred dialect's first.
+    error = LazyText(partial(_all_reasons, messages))
+    return _new_tuple(Message, (head[0], head[1], head[2], head[3], error, head[5]))
+
+
+def _all_reasons(messages: list[Message]) -> str:
     others = "; ".join(f"{m.dialect}: {m.error}" for m in messages[1:])
-    return head._replace(error=f"{head.error} (also tried {others})" if others else head.error)
+    return f"{messages[0].error} (also tried {others})"
 
 
 __all__ = [

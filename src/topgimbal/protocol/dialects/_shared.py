@@ -75,9 +75,9 @@ def dzm_zoom(description: str = "magnification step 0.1 (decimal 00..80), or an 
 
 def digital_zoom_client_forms(*, two_char: bool) -> list[Form]:
     """DZM layouts public clients send beyond the documents (errata E30): a 2-character zoom
-    (TOPOTEK only: SkyDroid's own 2-character form is documented), a 4-character image + zoom and a
-    6-character image + magnification (4 decimal digits, 0.1x). Picked with `encode(form=title)` or
-    by their field names."""
+    (TOPOTEK only: SkyDroid's own 2-character form is documented), a 4-character image + zoom, a
+    6-character image + magnification (4 decimal digits, 0.1x) and a 6-character image code + `F` +
+    ratio (3 hex digits, 0.1x). Picked with `encode(form=title)` or by their field names."""
     section = f"{BEYOND} (public clients; layout inferred)"
     forms: list[Form] = []
     if two_char:
@@ -87,6 +87,17 @@ def digital_zoom_client_forms(*, two_char: bool) -> list[Form]:
         [F("image", DZM_IMAGE), F("magnification_x", DecInt(4, scale=0.1, unit="x", max=99.9))],
         "image and magnification (6 characters)",
         section=section,
+    )
+    # A public C13 ground station's absolute zoom ("PROTOCAL §14.1", errata E30): image code, `F`,
+    # the ratio in 0.1x as three hex digits (14x -> 00F08C); it sends image codes beyond 00 / 01.
+    forms += write_forms(
+        [
+            F("image_code", HexInt(2), "image / camera: 00 visible, 01 thermal, others as the model numbers them"),
+            F("ratio_mark", Literal("F"), "always F: a zoom ratio follows", default="F"),
+            F("ratio_x", HexInt(3, scale=0.1, unit="x", max=409.5), "zoom ratio in 0.1x (three hex digits)"),
+        ],
+        "image code and ratio (F + 3 hex digits)",
+        section=f"{BEYOND} (public C13 ground station, 'PROTOCAL §14.1')",
     )
     return forms
 

@@ -242,10 +242,15 @@ def commands(u: float) -> list[CommandSpec]:
                 section=f"{DOC} §4.22", role="range", address="D", group="range",
                 read=[F("distance_m", HexInt(4, scale=0.1, unit="m"), "0.5..100.0 m (5..1000 dm)",
                         state_key="range_m")],
-                extra_forms=write_forms(
-                    [F("limit_m", HexInt(4, scale=0.1, unit="m", min=5.0, max=1000.0),
-                       "measurement range limit, decimetres on the wire (0x32..0x2710)")],
-                    "range limit", section=CLIENTS)),
+                extra_forms=[
+                    *write_forms(
+                        [F("limit_m", HexInt(4, scale=0.1, unit="m", min=5.0, max=1000.0),
+                           "measurement range limit, decimetres on the wire (0x32..0x2710)")],
+                        "range limit", section=CLIENTS),
+                    # a public C13 ground station fires one measurement, then reads it (errata E30)
+                    *write_forms([F("action", enum(2, {"01": ("measure", "Fire one measurement (read it after)")}))],
+                                 "fire", section=f"{CLIENTS} (public C13 ground station)"),
+                ]),
         # -- Appendix I only ---------------------------------------------------------------------
         *shared.lens_commands({"ZMC": APPENDIX, "FCC": APPENDIX, "ZFP": APPENDIX, "IRC": APPENDIX}),
         *shared.position_commands({"LAT": APPENDIX, "LON": APPENDIX, "ALT": APPENDIX}, target=False),

@@ -35,6 +35,8 @@ class Enum(Codec):
     kind: ClassVar[str] = "enum"
     _by_raw: Mapping[bytes, EnumValue] = field(default_factory=dict, init=False, repr=False, compare=False)
     _by_name: Mapping[str, EnumValue] = field(default_factory=dict, init=False, repr=False, compare=False)
+    # the spellings as a decode error lists them, joined once: a failed decode must stay cheap
+    _table: str = field(default="", init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         by_raw: dict[bytes, EnumValue] = {}
@@ -50,6 +52,7 @@ class Enum(Codec):
             by_raw.setdefault(v.raw.lower().encode("ascii"), v)
         object.__setattr__(self, "_by_raw", by_raw)
         object.__setattr__(self, "_by_name", by_name)
+        object.__setattr__(self, "_table", ", ".join(x.raw for x in self.values))
 
     def allowed(self) -> str:
         return "one of " + ", ".join(f"{v.name} ({v.raw})" for v in self.values)
@@ -79,7 +82,7 @@ class Enum(Codec):
     def decode(self, raw: bytes) -> str:
         v = self._by_raw.get(raw)
         if v is None:
-            raise ValueError(f"{raw!r} is not in the table ({', '.join(x.raw for x in self.values)})")
+            raise ValueError(f"{raw!r} is not in the table ({self._table})")
         return v.name
 
     def is_idempotent(self, raw: bytes) -> bool:

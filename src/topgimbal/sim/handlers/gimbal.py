@@ -195,7 +195,7 @@ def tracking(state: SimState, msg: Message, req: Request) -> dict[str, Any] | Re
     cam = state.camera
     if req.frame.rw == "r":
         return {"reserved": "30", "state": cam.tracking}
-    cam.tracking = "waiting" if fields(msg)["action"] == "start" else "stopped"
+    cam.tracking = "waiting" if fields(msg)["action"] in ("start", "ready") else "stopped"
     return None
 
 

@@ -119,10 +119,12 @@ def digital_zoom(state: SimState, msg: Message, req: Request) -> dict[str, Any] 
     if req.frame.rw == "r":
         return _digital_zoom_answer(state, msg)
     f = fields(msg)
-    thermal = f.get("lens", f.get("image")) == "thermal"
+    # image code 01 is the thermal image in every form; what codes beyond 01 select is unknown
+    # (errata E30): the simulator zooms the visible image for them
+    thermal = f.get("lens", f.get("image")) == "thermal" or f.get("image_code") == 1
     current = cam.thermal_digital_zoom_x if thermal else cam.digital_zoom_x
-    if "magnification_x" in f:
-        target = float(f["magnification_x"])
+    if "magnification_x" in f or "ratio_x" in f:
+        target = float(f.get("magnification_x", f.get("ratio_x")))
     else:
         z = f["zoom"]
         token = _token(msg, "zoom", z)

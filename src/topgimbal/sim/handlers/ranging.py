@@ -78,12 +78,15 @@ def rangefinder(state: SimState, msg: Message, req: Request) -> None:
 
 def laser_range(state: SimState, msg: Message, req: Request) -> dict[str, Any] | None:
     """SkyDroid SLR: a query answers one measurement (no ERR token: out of range is the error
-    frame); a write sets the measuring range limit, which later queries honour."""
+    frame); a write sets the measuring range limit, which later queries honour, or fires one
+    measurement (`measure`, public clients), which the next query reads."""
     assert msg.spec is not None
     if state.model.lrf_range_m is None:
         raise RefusedError(f"the {state.model.name} has no rangefinder")
     store = state.settings.setdefault(msg.spec.ident, {})
     if req.frame.rw == "w":
+        if fields(msg).get("action") == "measure":
+            return None  # fire one measurement: every query measures anew here
         store.update(fields(msg))
         state.dirty = True
         return None
