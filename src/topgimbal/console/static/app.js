@@ -268,9 +268,9 @@ function meaningOf(it) {
 function rowHeard(it) {
   const row = document.querySelector(`[data-cmd="${CSS.escape(it.id || "")}"]`);
   if (!row?.show) return;
-  if (!it.echo) row.show(it.fields);
+  if (!it.echo) row.show(it.fields, { heard: true });
   else if (row.readBack) row.readBack();
-  else row.show(it.fields);
+  else row.show(it.fields, { heard: true, echo: true });
 }
 
 const MAX_ROWS = 300;

@@ -214,7 +214,9 @@ export function commandRow(ctx, ident, title) {
   const acts = el("span", { class: "acts" });
   // What the row shows is what the camera last said: its answer, the value read back after a Set,
   // or (a command that cannot be read) the Set's echo; a refusal shows the camera's value and why.
-  row.show = (fields, { refused = null, echo = false } = {}) => {
+  row.show = (fields, { refused = null, echo = false, heard = false } = {}) => {
+    // an answer seen in the traffic that repeats what the row shows keeps its note (a refusal)
+    if (heard && fields && result.dataset.raw === formatFields(fields)) return;
     if (fields && Object.keys(fields).length) {
       if (!asks) inputs.set(fields);
       showResult(result, spec, fields);
