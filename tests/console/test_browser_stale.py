@@ -37,7 +37,6 @@ class UrlConsole(BackgroundConsole):
         self.sim_video: Any = None
 
     def __enter__(self) -> UrlConsole:
-        from topgimbal.console import ConsoleServer
         from topgimbal.sim import Simulator
 
         self.thread.start()
@@ -78,9 +77,7 @@ def c13() -> Iterator[BackgroundConsole]:
 
 def video_ready(page: Any, lens: str = "visible") -> None:
     page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=15_000)
-    page.wait_for_function(
-        f"document.querySelector('[data-testid=video-{lens}]').naturalWidth > 0", timeout=30_000
-    )
+    page.wait_for_function(f"document.querySelector('[data-testid=video-{lens}]').naturalWidth > 0", timeout=30_000)
 
 
 def palette_label(page: Any, name: str) -> str:

@@ -90,7 +90,9 @@ def _play_and_point(page: Any, console_c12: BackgroundConsole, artifacts: Any, e
     page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
     page.mouse.wheel(0, -100)
     wait_for(lambda: console_c12.call(lambda: console_c12.sim.camera.digital_zoom_x) == 2.0, 10, what="2x zoom")
-    wait_for(lambda: "zoom 2.0" in page.get_by_test_id("video-overlay-visible").inner_text(), 5, what="the overlay's zoom")
+    wait_for(
+        lambda: "zoom 2.0" in page.get_by_test_id("video-overlay-visible").inner_text(), 5, what="the overlay's zoom"
+    )
     assert not [e for e in errors if "video" in e.lower()], errors
 
 

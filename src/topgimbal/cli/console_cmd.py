@@ -171,7 +171,9 @@ def video_urls(model: str | None, given: list[str]) -> dict[str, str]:
         if not sep or "://" in lens:  # a bare URL (its query may hold '=')
             lens, url = next((n for n in lenses if n not in out), ""), text
             if not lens:
-                raise ValueError(f"--video-url {text}: the {model} has {len(lenses)} lens(es) ({', '.join(lenses)}), all given")
+                raise ValueError(
+                    f"--video-url {text}: the {model} has {len(lenses)} lens(es) ({', '.join(lenses)}), all given"
+                )
         if lens in out:
             raise ValueError(f"--video-url: the {lens} lens is given twice")
         out[lens] = url

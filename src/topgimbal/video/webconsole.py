@@ -115,7 +115,13 @@ class ConsoleVideo:
         for lens, relay in self.relays.items():
             s = self.specs[lens]
             lenses.append(
-                {"lens": lens, "hfov_deg": s.hfov_deg, "url": _shown(relay.url), **relay.status(), "size": list(relay.size or s.size)}
+                {
+                    "lens": lens,
+                    "hfov_deg": s.hfov_deg,
+                    "url": _shown(relay.url),
+                    **relay.status(),
+                    "size": list(relay.size or s.size),
+                }
             )
         state = self.console.cam.state if self.console.cam is not None else None
         att = state.attitude if state is not None else None
