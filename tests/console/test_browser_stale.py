@@ -160,6 +160,15 @@ def test_the_digital_zoom_row_shows_the_cameras_level(browser: Any, c12: Backgro
     assert errors == [], errors
 
 
+def test_folded_camera_settings_are_read_when_unfolded(page: Any) -> None:
+    rows = page.get_by_test_id("camera-settings").locator(".cmdrow:has([data-testid^=read-])")
+    assert rows.count() >= 3
+    results = page.get_by_test_id("camera-settings").locator(".cmdrow:has([data-testid^=read-]) [data-testid^=result-]")
+    assert all(t == "" for t in results.all_inner_texts())  # folded: nothing shown, nothing read
+    page.locator("#camera-more > summary").click()
+    wait_for(lambda: all(t != "" for t in results.all_inner_texts()), 15, what="every readable row read on unfolding")
+
+
 def test_a_click_on_the_video_moves_the_commanded_yaw_marker(page: Any, c12: BackgroundConsole) -> None:
     video_ready(page)
     heading = page.get_by_test_id("heading")
@@ -237,6 +246,33 @@ def test_tracking_started_by_a_box_shows_its_state_and_stops(page: Any, c12: Bac
     wait_for(lambda: c12.call(lambda: c12.sim.camera.tracking) == "stopped", 10, what="tracking stopped")
     wait_for(lambda: "stopped" in state.inner_text(), 10, what="the stopped state")
     assert stop.is_hidden()
+
+
+def test_tracking_on_a_sip_shows_the_cameras_state_and_stops(browser: Any, sip: BackgroundConsole) -> None:
+    """TOPOTEK: the box goes as LOC, the state is the camera's answer to the tracking query, and
+    Stop is the tracking command's stop."""
+    errors: list[str] = []
+    page = open_console(browser, sip, errors)
+    try:
+        video_ready(page)
+        state = page.get_by_test_id("video-tracking")
+        box = page.get_by_test_id("video-visible").bounding_box()
+        x0, y0 = box["x"] + box["width"] * 0.4, box["y"] + box["height"] * 0.4
+        page.mouse.move(x0, y0)
+        page.mouse.down()
+        page.mouse.move(x0 + 60, y0 + 40, steps=4)
+        page.mouse.up()
+        wait_for(lambda: sip.call(lambda: sip.sim.camera.tracking) != "stopped", 10, what="tracking in the camera")
+        wait_for(lambda: "(the camera's state)" in state.inner_text(), 10, what="the state the camera answered")
+        have = sip.call(lambda: sip.sim.camera.tracking)
+        assert have in state.inner_text().lower() and state.get_attribute("data-state") == "tracking"
+        page.get_by_test_id("btn-track-stop").click()
+        wait_for(lambda: sip.call(lambda: sip.sim.camera.tracking) == "stopped", 10, what="tracking stopped")
+        wait_for(lambda: state.get_attribute("data-state") == "stopped", 10, what="the stopped state")
+        assert "stopped" in state.inner_text() and page.get_by_test_id("btn-track-stop").is_hidden()
+    finally:
+        page.context.close()
+    assert errors == [], errors
 
 
 def _inside(inner: dict[str, float], outer: dict[str, float]) -> bool:

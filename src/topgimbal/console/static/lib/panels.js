@@ -117,17 +117,26 @@ export function buildCamera(ui) {
   }
   $("zoom-note").textContent = zoom.note;
   $("zoom-note").title = zoom.tip || "";
-  // the rows show the camera's current settings: those read without arguments are read on load
+  // the rows show the camera's current settings: those read without arguments are read when
+  // shown (the lens rows on load, the folded image and video settings when unfolded)
   const rows = (box, specs) => {
+    const reads = [];
     for (const spec of specs) {
       const row = commandRow(ui, spec.id);
       box.append(row);
-      if (row.readBack) ui.reads.push(row.read);
+      if (row.readBack) reads.push(row.read);
     }
+    return reads;
   };
-  rows($("lens-settings"), groupRows(cat, "lens", CAMERA_CONTROLS));
+  ui.reads.push(...rows($("lens-settings"), groupRows(cat, "lens", CAMERA_CONTROLS)));
   const more = groupRows(cat, "camera", CAMERA_CONTROLS);
-  rows($("camera-settings"), more);
+  const moreReads = rows($("camera-settings"), more);
+  $("camera-more").addEventListener("toggle", () => {
+    if ($("camera-more").open && !$("camera-more").dataset.read) {
+      $("camera-more").dataset.read = "1";
+      for (const read of moreReads) read();
+    }
+  });
   $("camera-more").hidden = !more.length;
   $("camera-more-summary").textContent = `${cat.groups.camera.replace(/^./, (c) => c.toUpperCase())} (${more.length})`;
   if (!byRole(cat, "sd_capacity")) {
