@@ -78,6 +78,7 @@ def c13() -> Iterator[BackgroundConsole]:
 def video_ready(page: Any, lens: str = "visible") -> None:
     page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=15_000)
     page.wait_for_function(f"document.querySelector('[data-testid=video-{lens}]').naturalWidth > 0", timeout=30_000)
+    page.get_by_test_id(f"video-{lens}").wait_for(state="visible", timeout=10_000)
 
 
 def palette_label(page: Any, name: str) -> str:

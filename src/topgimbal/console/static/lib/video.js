@@ -150,7 +150,7 @@ async function start() {
         const moving = l.pictures !== v.pictures; v.pictures = l.pictures;
         v.still = moving ? 0 : v.still + 1;
         let text = "", state = l.state;
-        const never = !l.pictures && (l.state === "reconnecting" || l.state === "connecting");
+        const never = !l.pictures && !v.img.naturalWidth && (l.state === "reconnecting" || l.state === "connecting");
         if (never && l.state === "reconnecting") { text = noVideoText(l); state = "novideo"; }
         else if (l.state === "reconnecting") text = `stream lost: reconnecting… (${shortError(l.error, l.url)})`;
         else if (l.state === "connecting") text = "connecting…";
