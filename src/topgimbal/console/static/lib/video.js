@@ -46,12 +46,12 @@ function shortError(error, url) {
   let e = String(error || "");
   if (url) e = e.split(`'${url}'`).join("").split(url).join("");
   e = e.replace(/\[Errno \d+\]\s*/g, "").replace(/^cannot open\s*:\s*/, "").replace(/[:\s]+$/, "");
-  return e || "no answer";
+  return e;
 }
 
 // The message for a lens that has never shown a picture: which URL, why, and how to give another.
 function noVideoText(lensInfo) {
-  const why = lensInfo.state === "reconnecting" ? shortError(lensInfo.error, lensInfo.url) : "connecting";
+  const why = shortError(lensInfo.error, lensInfo.url) || "nothing came";
   return `${cap(lensInfo.lens)}: no video from ${lensInfo.url || "the camera"} (${why}); retrying. ` +
     `Elsewhere? Start the console with --video-url ${lensInfo.lens}=rtsp://HOST:PORT/PATH or --video-port PORT.`;
 }
@@ -152,7 +152,10 @@ async function start() {
         let text = "", state = l.state;
         const never = !l.pictures && !v.img.naturalWidth && (l.state === "reconnecting" || l.state === "connecting");
         if (never && l.state === "reconnecting") { text = noVideoText(l); state = "novideo"; }
-        else if (l.state === "reconnecting") text = `stream lost: reconnecting… (${shortError(l.error, l.url)})`;
+        else if (l.state === "reconnecting") {
+          const why = shortError(l.error, l.url);
+          text = `stream lost: reconnecting…${why ? ` (${why})` : ""}`;
+        }
         else if (l.state === "connecting") text = "connecting…";
         else if (l.state === "playing" && v.still >= 4) { text = "stream stalled"; state = "stalled"; }
         v.state.textContent = text; v.state.hidden = !text; v.wrap.dataset.state = state;
