@@ -78,7 +78,7 @@ def _play_and_point(page: Any, console_c12: BackgroundConsole, artifacts: Any, e
 
     wait_for(aimed, 20, what="the gimbal pointing at landmark 18 within 1 deg")
     # The overlay follows the attitude.
-    wait_for(lambda: "yaw -2" in page.get_by_test_id("video-overlay").inner_text(), 5, what="the overlay's yaw")
+    wait_for(lambda: "yaw -2" in page.get_by_test_id("video-overlay-visible").inner_text(), 5, what="the overlay's yaw")
 
     # Drag a box: the C12 is told to track what it holds (GOT); the wheel zooms (digital on a C12).
     x0, y0 = box["x"] + box["width"] * 0.45, box["y"] + box["height"] * 0.45
@@ -90,7 +90,9 @@ def _play_and_point(page: Any, console_c12: BackgroundConsole, artifacts: Any, e
     page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
     page.mouse.wheel(0, -100)
     wait_for(lambda: console_c12.call(lambda: console_c12.sim.camera.digital_zoom_x) == 2.0, 10, what="2x zoom")
-    wait_for(lambda: "zoom 2.0" in page.get_by_test_id("video-overlay").inner_text(), 5, what="the overlay's zoom")
+    wait_for(
+        lambda: "zoom 2.0" in page.get_by_test_id("video-overlay-visible").inner_text(), 5, what="the overlay's zoom"
+    )
     assert not [e for e in errors if "video" in e.lower()], errors
 
 

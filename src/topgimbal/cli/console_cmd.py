@@ -61,6 +61,21 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="also answer requests for this host name or address (repeatable; loopback names and "
         "the --host address are always allowed, any other Host is refused as DNS rebinding)",
     )
+    p.add_argument(
+        "--video-url",
+        metavar="[LENS=]URL",
+        action="append",
+        default=[],
+        help="where the camera's video is, when not at the model's documented RTSP URL (repeatable, one per "
+        "lens: e.g. --video-url visible=rtsp://10.0.0.5:8554/main --video-url thermal=rtsp://...; a URL without "
+        "LENS= goes to the model's lenses in order: visible, then thermal)",
+    )
+    p.add_argument(
+        "--video-port",
+        metavar="PORT",
+        type=int,
+        help="the camera's RTSP port, when not the documented one (a port forward): the documented paths on it",
+    )
     p.add_argument("--attitude-hz", type=float, default=50.0, help="attitude push rate to the page, at most 50")
     p.add_argument(
         "--seconds", type=float, default=None, help="stop after this many seconds (default: run until Ctrl-C)"
@@ -108,6 +123,8 @@ def build_server(args: argparse.Namespace) -> object:
         if args.sim is not None:
             raise ValueError("--proxy watches the camera behind it: give --listen and --to, not --sim")
         return ConsoleServer(proxy_listen=args.listen or "", proxy_to=args.to or "", model=model, **page)
+    if args.video_url or args.video_port is not None:
+        _video_options(args, model)
     if args.sim is None and url and not model:
         raise ValueError("give --model with --url (it picks the dialect), e.g. --model SIP")
     if args.sim is not None and url:
@@ -118,8 +135,49 @@ def build_server(args: argparse.Namespace) -> object:
         sim_model=args.sim,
         sim_seed=args.seed,
         sim_faults=args.faults,
+        video_urls=video_urls(model, args.video_url),
+        video_port=args.video_port,
         **page,
     )
+
+
+class VideoOptionError(ValueError):
+    """A bad --video-url / --video-port: a usage error (exit status 2)."""
+
+
+def _video_options(args: argparse.Namespace, model: str | None) -> None:
+    from ..console.server import check_video_options
+
+    if args.sim is not None or args.proxy:
+        raise VideoOptionError(
+            "--video-url and --video-port are for a camera given with --url: the simulator of --sim serves its own "
+            "video and a watched proxy has no video panel"
+        )
+    try:
+        check_video_options(model, video_urls(model, args.video_url), args.video_port)
+    except ValueError as exc:
+        raise VideoOptionError(str(exc)) from None
+
+
+def video_urls(model: str | None, given: list[str]) -> dict[str, str]:
+    """`--video-url` values as {lens: URL}: `LENS=URL`, or a bare URL for the next lens of the model
+    in order (visible, then thermal). Raises ValueError naming the lenses the model has."""
+    from ..video.lens import streams_for
+
+    lenses = [s.lens for s in streams_for(model or "C12")] if given else []
+    out: dict[str, str] = {}
+    for text in given:
+        lens, sep, url = text.partition("=")
+        if not sep or "://" in lens:  # a bare URL (its query may hold '=')
+            lens, url = next((n for n in lenses if n not in out), ""), text
+            if not lens:
+                raise ValueError(
+                    f"--video-url {text}: the {model} has {len(lenses)} lens(es) ({', '.join(lenses)}), all given"
+                )
+        if lens in out:
+            raise ValueError(f"--video-url: the {lens} lens is given twice")
+        out[lens] = url
+    return out
 
 
 async def _serve(server: object, seconds: float | None, taken: int | None = None) -> None:
@@ -145,6 +203,12 @@ def run(args: argparse.Namespace) -> int:
     except ImportError:
         print("topgimbal: error: the console needs aiohttp: pip install 'topgimbal[console]'", file=sys.stderr)
         return 1
+    try:
+        if args.video_url or args.video_port is not None:
+            _video_options(args, getattr(args, "model", None))
+    except VideoOptionError as exc:
+        print(f"topgimbal: error: {exc}", file=sys.stderr)
+        return 2
     args.port, taken = choose_port(args.host, args.port)
     server = build_server(args)
     with contextlib.suppress(KeyboardInterrupt):

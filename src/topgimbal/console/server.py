@@ -12,7 +12,7 @@ import contextlib
 import importlib.resources
 import logging
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -37,6 +37,7 @@ log = logging.getLogger(__name__)
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8080
+VIDEO_SCHEMES = ("rtsp", "rtsps", "http", "https")  # what --video-url accepts (the relay opens them with FFmpeg)
 LINK_TIMEOUT_S = 3.0  # the client declares the camera's link lost after this long without a frame
 HUB_KEY = web.AppKey("hub", PageHub)
 
@@ -111,6 +112,29 @@ async def _no_video(request: web.Request) -> web.Response:
     return web.Response(status=204)
 
 
+def check_video_options(model: str | None, urls: dict[str, str], port: int | None) -> dict[str, str]:
+    """The operator's video URLs, checked: lenses the model has, URLs a player can open (ValueError)."""
+    from urllib.parse import urlsplit
+
+    from ..video.lens import streams_for
+
+    if port is not None and not 0 < port <= 65535:
+        raise ValueError(f"--video-port {port}: give a port from 1 to 65535")
+    if not urls:
+        return urls
+    lenses = [s.lens for s in streams_for(model or "C12")]
+    for lens, url in urls.items():
+        if lens not in lenses:
+            raise ValueError(f"--video-url: the {model} has no lens {lens!r}; its lenses: {', '.join(lenses)}")
+        parts = urlsplit(url)
+        if parts.scheme not in VIDEO_SCHEMES or not parts.hostname:
+            raise ValueError(
+                f"--video-url {lens}={url}: expected a stream URL such as rtsp://HOST:PORT/PATH "
+                f"(schemes: {', '.join(VIDEO_SCHEMES)})"
+            )
+    return urls
+
+
 def _dumps(obj: object) -> str:
     import json
 
@@ -139,6 +163,8 @@ class ConsoleServer:
         timeout_s: float = 1.0,
         retries: int = 2,
         link_timeout_s: float = LINK_TIMEOUT_S,
+        video_urls: Mapping[str, str] | None = None,
+        video_port: int | None = None,
     ) -> None:
         watch = proxy_listen is not None or proxy_to is not None
         if watch and not (proxy_listen and proxy_to):
@@ -153,6 +179,13 @@ class ConsoleServer:
             raise ValueError("--sim runs its own simulator: give either --url or --sim, not both")
         if sim_faults is not None and sim_model is None:
             raise ValueError("--faults applies to the simulator: use it with --sim")
+        if (video_urls or video_port is not None) and not url:
+            raise ValueError(
+                "--video-url and --video-port are for a camera given with --url (the simulator of --sim serves its "
+                "own video; a watched proxy has no video panel)"
+            )
+        self.video_urls = check_video_options(model, dict(video_urls or {}), video_port)
+        self.video_port = video_port
         self.url = url
         self.model = model or sim_model
         self.sim_model = sim_model

@@ -19,8 +19,9 @@ import contextlib
 import logging
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, Protocol
+from urllib.parse import urlsplit, urlunsplit
 
-from .lens import StreamSpec, VideoError, View, hfov_at, host_of, streams_for, tracking_requests, video_url, wrap180
+from .lens import StreamSpec, VideoError, View, hfov_at, host_of, stream_urls, streams_for, tracking_requests, wrap180
 
 if TYPE_CHECKING:  # named for the type checker only: aiohttp is imported by the routes when they run
     from aiohttp import web
@@ -51,6 +52,10 @@ class VideoHost(Protocol):
     def sim(self) -> Simulator | None: ...
     @property  # a client.CameraAPI; video/ sits below client/, so it cannot name the type
     def cam(self) -> Any: ...
+    @property  # {lens: URL} given by the operator (`console --video-url`), instead of the documented ones
+    def video_urls(self) -> Mapping[str, str]: ...
+    @property  # the port the camera's video is on, if not the documented one (`console --video-port`)
+    def video_port(self) -> int | None: ...
 
 
 OriginCheck = Callable[["web.Request"], bool]
@@ -77,9 +82,13 @@ class ConsoleVideo:
             urls = dict(self.sim_video.urls)
         else:
             model, url = self.console.model, self.console.url
-            if not model or not url:
+            given = dict(self.console.video_urls)
+            if not model or not (url or len(given) == len(self.specs)):
                 raise VideoError("the console has no camera URL and model to take the video from")
-            urls = {lens: video_url(model, host_of(url), lens) for lens in self.specs}
+            missing = [lens for lens in self.specs if lens not in given]
+            # the documented URLs at the camera's address (on --video-port, keeping their spacing)
+            documented = stream_urls(model, host_of(url), port=self.console.video_port) if missing and url else {}
+            urls = {lens: given.get(lens) or documented[lens] for lens in self.specs}
         self.relays = {lens: self._relay_cls(lens, url) for lens, url in urls.items()}
         return self
 
@@ -105,7 +114,15 @@ class ConsoleVideo:
         lenses = []
         for lens, relay in self.relays.items():
             s = self.specs[lens]
-            lenses.append({"lens": lens, "hfov_deg": s.hfov_deg, **relay.status(), "size": list(relay.size or s.size)})
+            lenses.append(
+                {
+                    "lens": lens,
+                    "hfov_deg": s.hfov_deg,
+                    "url": _shown(relay.url),
+                    **relay.status(),
+                    "size": list(relay.size or s.size),
+                }
+            )
         state = self.console.cam.state if self.console.cam is not None else None
         att = state.attitude if state is not None else None
         rec = state.recording if state is not None else None
@@ -273,6 +290,15 @@ class ConsoleVideo:
         await asyncio.sleep(ZOOM_STEP_S)
         with contextlib.suppress(Exception):
             await cam.zoom("stop")
+
+
+def _shown(url: str) -> str:
+    """A stream URL as the page shows it: a password given in it is not repeated."""
+    parts = urlsplit(url)
+    if parts.password is None:
+        return url
+    host = parts.netloc.rsplit("@", 1)[1]
+    return urlunsplit(parts._replace(netloc=f"{parts.username}:***@{host}"))
 
 
 def _error(status: int, message: str) -> web.Response:

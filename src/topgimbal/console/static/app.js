@@ -9,6 +9,7 @@ import { drawHeading, drawHorizon, drawNoAttitude } from "./lib/gauges.js";
 import { describeFields, el, formatFields } from "./lib/fields.js";
 import { lockControls, showLink } from "./lib/link.js";
 import { buildAttitude, buildBuilder, buildCamera, buildNetwork, buildPointing, buildRange, buildThermal, showReport } from "./lib/panels.js";
+import { provide } from "./lib/bus.js";
 
 const $ = (id) => document.getElementById(id);
 
@@ -67,6 +68,17 @@ function run(op, args = {}, okText = null) {
     (err) => {
       showError(err.message || String(err));
       return undefined;
+    },
+  );
+}
+
+// Run an op and hand back the outcome either way (the error is shown too): {ok, result} or {ok: false, error}.
+function attempt(op, args = {}) {
+  return conn.op(op, args).then(
+    (result) => ({ ok: true, result }),
+    (err) => {
+      showError(err.message || String(err));
+      return { ok: false, error: err };
     },
   );
 }
@@ -224,7 +236,10 @@ function onTraffic(items) {
   for (const it of items) {
     it.seq = ++trafficSeq;
     S.traffic.push(it);
-    if (it.dir === "in" && it.fields && S.catalog) showReport(S.catalog, it);
+    if (it.dir === "in" && it.fields && S.catalog) {
+      showReport(S.catalog, it);
+      rowHeard(it);
+    }
   }
   if (S.traffic.length > 3000) S.traffic.splice(0, S.traffic.length - 3000);
   if (!$("traffic-pause").checked) S.trafficDirty = true;
@@ -246,6 +261,17 @@ function meaningOf(it) {
   if (!spec) return `${it.name || it.id || ""} ${formatFields(it.fields)}`.trim();
   const fields = it.fields && Object.keys(it.fields).length ? describeFields(spec, it.fields, { single: true }) : "";
   return fields ? `${spec.title}: ${fields}` : spec.title;
+}
+
+// What the camera said about a command that has a row (whoever asked: this page, another page, the
+// video panel's wheel): an answer is shown as it is; a write's echo makes the row read the value
+// back (an echo may carry a step such as "zoom in", not the value it led to).
+function rowHeard(it) {
+  const row = document.querySelector(`[data-cmd="${CSS.escape(it.id || "")}"]`);
+  if (!row?.show) return;
+  if (!it.echo) row.show(it.fields, { heard: true });
+  else if (row.readBack) row.readBack();
+  else row.show(it.fields, { heard: true, echo: true });
 }
 
 const MAX_ROWS = 300;
@@ -342,7 +368,7 @@ function disable(node, reason) {
 // What the panel builders get (lib/panels.js).
 const ui = {
   get catalog() { return S.catalog; },
-  run, toast, showError, showReason, disable,
+  run, attempt, toast, showError, showReason, disable,
   reads: [],
   onReport: (it) => showReport(S.catalog, it),
 };
@@ -414,7 +440,7 @@ for (const b of document.querySelectorAll("[data-hold-role]")) {
     run("request", { id: b.dataset.id, values: { action: "stop" } });
   };
   b.addEventListener("pointerdown", (e) => {
-    if (b.disabled) return;
+    if (b.disabled || !b.dataset.id) return; // a digital zoom step is a click (lib/panels.js)
     held = true;
     b.setPointerCapture?.(e.pointerId);
     b.classList.add("held");
@@ -633,6 +659,12 @@ async function main() {
   } else if (hello.mode !== "watch") {
     await Promise.all(ui.reads.map((read) => read()));
   }
+  provide({
+    catalog: S.catalog, run, attempt, showError,
+    motionStart() { const seq = ++S.motionSeq; setTarget(null); return seq; },
+    motionEnd(seq, yaw) { if (seq === S.motionSeq) setTarget(yaw); },
+    refresh(ident) { document.querySelector(`[data-cmd="${CSS.escape(ident)}"]`)?.readBack?.(); },
+  });
   document.body.dataset.ready = "1";
   requestAnimationFrame(frame);
 }

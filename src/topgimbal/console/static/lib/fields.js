@@ -106,7 +106,13 @@ export function fieldInputs(fields, { prefix = "" } = {}) {
     const unit = f.unit ? ` (${unitText(f.unit)})` : "";
     wrap.append(el("label", { class: "field", title: tip }, el("span", { text: (f.label || f.name) + unit }), input));
     getters.push([f.name, read]);
-    setters[f.name] = (v) => { if (v != null) input.value = v; };
+    setters[f.name] = (v) => {
+      if (v == null) return;
+      // a select keeps its choice when the camera names a value it has no option for
+      if (input.tagName === "SELECT" && ![...input.options].some((o) => o.value === String(v))) return;
+      input.value = v;
+      input.dispatchEvent(new Event("change"));
+    };
   }
   return {
     node: wrap,
@@ -185,7 +191,8 @@ export function showResult(node, spec, fields) {
 }
 
 // A row "title | inputs | Set / Read" for one command, or its reason when unsupported.
-// `ctx` = { catalog, run(op, args, okText) -> Promise }.
+// `ctx` = { catalog, run(op, args, okText) -> Promise, attempt(op, args) -> Promise<{ok, result | error}>, toast }.
+// The row element gets `show(fields)` (what the camera said), `read()` and, when readable, `readBack()`.
 export function commandRow(ctx, ident, title) {
   const spec = ctx.catalog.commands[ident];
   const row = el("div", { class: "cmdrow", "data-testid": `cmd-${ident}`, "data-cmd": ident });
@@ -205,19 +212,47 @@ export function commandRow(ctx, ident, title) {
   const inputs = fieldInputs(wForm ? wForm.fields : asks ? rForm.fields : [], { prefix: `${ident}-` });
   const result = el("span", { class: "small muted", "data-testid": `result-${ident}` });
   const acts = el("span", { class: "acts" });
+  // What the row shows is what the camera last said: its answer, the value read back after a Set,
+  // or (a command that cannot be read) the Set's echo; a refusal shows the camera's value and why.
+  row.show = (fields, { refused = null, echo = false, heard = false } = {}) => {
+    // an answer seen in the traffic that repeats what the row shows keeps its note (a refusal)
+    if (heard && fields && result.dataset.raw === formatFields(fields)) return;
+    if (fields && Object.keys(fields).length) {
+      if (!asks) inputs.set(fields);
+      showResult(result, spec, fields);
+      if (echo) result.textContent += " (the camera's echo)";
+    } else {
+      result.textContent = "";
+    }
+    if (refused) result.textContent = `${result.textContent ? result.textContent + " — " : ""}not set: ${refused}`;
+    result.classList.toggle("bad", !!refused);
+    result.dataset.state = refused ? "refused" : echo ? "echo" : "camera";
+  };
+  const readable = rForm && !asks;
   if (wForm) {
     acts.append(el("button", {
       "data-testid": `set-${ident}`, text: "Set",
-      onclick: () => ctx.run("request", { id: ident, values: inputs.get() }, `${ident} set`),
+      onclick: async () => {
+        const r = await ctx.attempt("request", { id: ident, values: inputs.get() });
+        if (r.ok) ctx.toast(`${ident} set`, "ok", 2500);
+        const why = r.ok ? null : r.error.message || String(r.error);
+        if (readable) {
+          const m = await ctx.run("request", { id: ident, read: true });
+          if (m?.fields) return row.show(m.fields, { refused: why });
+        }
+        if (r.ok) row.show(r.result?.fields, { echo: true });
+        else row.show(null, { refused: why });
+      },
     }));
   }
   if (rForm) {
     row.read = () => ctx.run("request", { id: ident, read: true, values: asks ? inputs.get() : undefined }).then((m) => {
-      if (m?.fields) {
-        if (!asks) inputs.set(m.fields);
-        showResult(result, spec, m.fields);
-      }
+      if (m?.fields) row.show(m.fields);
     });
+    if (readable) {
+      let pending = null; // reads asked for within a moment of each other are one read
+      row.readBack = () => (pending ??= new Promise((ok) => setTimeout(ok, 150)).then(row.read).finally(() => { pending = null; }));
+    }
     acts.append(el("button", { "data-testid": `read-${ident}`, text: "Read", onclick: () => row.read() }));
   }
   const mid = el("span", { class: "inputs" }, inputs.node, result);

@@ -99,8 +99,13 @@ export function buildCamera(ui) {
   if (!byRole(cat, "photo")) ui.disable($("btn-photo"), roleReason(cat, "photo"));
   if (!byRole(cat, "recording")) ui.disable($("btn-record"), roleReason(cat, "recording"));
   // zoom and focus buttons: the command playing the role, if its action table has the button's action
+  const zoom = zoomPlan(cat);
   for (const b of document.querySelectorAll("[data-hold-role], [data-once-role]")) {
     const role = b.dataset.holdRole || b.dataset.onceRole;
+    if (role === "zoom_control" && zoom.kind !== "optical") {
+      zoomButton(ui, b, zoom);
+      continue;
+    }
     const spec = byRole(cat, role);
     const value = requestForm(spec, "w")?.fields?.[0]?.values?.find((v) => v.name === b.dataset.action);
     if (!spec) ui.disable(b, roleReason(cat, role));
@@ -110,15 +115,67 @@ export function buildCamera(ui) {
       b.title = `${value.label} (${spec.id} ${value.name})`;
     }
   }
-  for (const spec of groupRows(cat, "lens", CAMERA_CONTROLS)) $("lens-settings").append(commandRow(ui, spec.id));
+  $("zoom-note").textContent = zoom.note;
+  $("zoom-note").title = zoom.tip || "";
+  // the rows show the camera's current settings: those read without arguments are read when
+  // shown (the lens rows on load, the folded image and video settings when unfolded)
+  const rows = (box, specs) => {
+    const reads = [];
+    for (const spec of specs) {
+      const row = commandRow(ui, spec.id);
+      box.append(row);
+      if (row.readBack) reads.push(row.read);
+    }
+    return reads;
+  };
+  ui.reads.push(...rows($("lens-settings"), groupRows(cat, "lens", CAMERA_CONTROLS)));
   const more = groupRows(cat, "camera", CAMERA_CONTROLS);
-  for (const spec of more) $("camera-settings").append(commandRow(ui, spec.id));
+  const moreReads = rows($("camera-settings"), more);
+  $("camera-more").addEventListener("toggle", () => {
+    if ($("camera-more").open && !$("camera-more").dataset.read) {
+      $("camera-more").dataset.read = "1";
+      for (const read of moreReads) read();
+    }
+  });
   $("camera-more").hidden = !more.length;
   $("camera-more-summary").textContent = `${cat.groups.camera.replace(/^./, (c) => c.toUpperCase())} (${more.length})`;
   if (!byRole(cat, "sd_capacity")) {
     $("sd").textContent = "not available";
     $("sd").title = roleReason(cat, "sd_capacity");
   }
+}
+
+// What "- wide / + tele" can do on this model, from the catalog and the model profile: run the
+// zoom motor (an optical zoom), step the digital zoom (a fixed lens with a digital zoom whose table
+// has steps, e.g. the C12), or nothing (a fixed lens without one: the motor command would be
+// acknowledged and change nothing, so the buttons are disabled with that reason).
+function zoomPlan(cat) {
+  const m = cat.model, motor = byRole(cat, "zoom_control");
+  if (motor && m.optical_zoom_max > 1) {
+    return { kind: "optical", note: `optical zoom 1..${m.optical_zoom_max}×: hold to zoom` };
+  }
+  const fixed = `the ${m.name}'s lens is fixed (no optical zoom)`;
+  const digital = byRole(cat, "digital_zoom");
+  const field = (requestForm(digital, "w")?.fields || []).find((f) => f.kind === "enum");
+  const steps = field && ["zoom_in", "zoom_out"].every((a) => field.values.some((v) => v.name === a));
+  if (digital && steps) {
+    return { kind: "digital", spec: digital, field: field.name, note: `${cap(fixed)}: each click is one digital zoom step (1..${m.digital_zoom_max}×)`,
+             tip: `${digital.title} (${digital.id})` };
+  }
+  const reason = motor
+    ? `${fixed} and it has no stepped digital zoom: the zoom command would be acknowledged and change nothing`
+    : roleReason(cat, "zoom_control");
+  return { kind: "none", reason, note: `${cap(reason)}.` };
+}
+
+function zoomButton(ui, b, zoom) {
+  if (zoom.kind === "none") return ui.disable(b, zoom.reason);
+  b.dataset.stepId = zoom.spec.id;
+  b.title = `one digital zoom step (${zoom.spec.id} ${b.dataset.action}): ${zoom.note}`;
+  b.addEventListener("click", async () => {
+    await ui.run("request", { id: zoom.spec.id, values: { [zoom.field]: b.dataset.action } });
+    document.querySelector(`[data-cmd="${CSS.escape(zoom.spec.id)}"]`)?.readBack?.(); // the level the camera reached, in its row
+  });
 }
 
 // -- thermal ------------------------------------------------------------------------------------

@@ -2,6 +2,11 @@
 // server's MJPEG relay, an attitude/zoom/recording overlay, click to point, drag a box to track,
 // wheel to zoom, thermal as picture-in-picture or side by side, the stream's state when it drops,
 // and the glass-to-glass latency read from the timestamp the simulator burns into its pictures.
+// A click moves the page's commanded-yaw marker like Point does (lib/bus.js); tracking started by a
+// box shows its state and has a Stop (the catalog's tracking command with a `stop` action).
+import { consoleReady } from "./bus.js";
+import { byRole } from "./catalog.js";
+import { requestForm } from "./fields.js";
 import { fetchJSON, token, withToken } from "./conn.js";
 
 const STAMP_CELLS = 80, STAMP_BITS = 48;   // as topgimbal/video/render.py draws them
@@ -23,12 +28,49 @@ function el(tag, attrs = {}, ...kids) {
   return e;
 }
 
+// One picture with its own state line and its own yaw/pitch/zoom overlay (in side by side each
+// picture carries its overlay; in picture-in-picture the inset's is hidden).
 function view(lens) {
   const img = el("img", { alt: `${lens} video`, "data-testid": `video-${lens}`, draggable: "false" });
   const state = el("div", { class: "vstate", "data-testid": `video-state-${lens}` }, "connecting…");
   const box = el("div", { class: "vbox", hidden: "" });
-  const wrap = el("div", { class: `vview ${lens}`, "data-lens": lens }, img, state, box);
-  return { lens, img, state, box, wrap, pictures: -1, still: 0 };
+  const overlay = el("div", { class: "voverlay", "data-testid": `video-overlay-${lens}` }, "");
+  const wrap = el("div", { class: `vview ${lens}`, "data-lens": lens }, img, overlay, state, box);
+  return { lens, img, state, box, overlay, wrap, pictures: -1, still: 0 };
+}
+
+const cap = (t) => t.charAt(0).toUpperCase() + t.slice(1);
+
+// The relay's error without the URL it repeats ("cannot open URL: [Errno 111] Connection refused: 'URL'").
+function shortError(error, url) {
+  let e = String(error || "");
+  if (url) e = e.split(`'${url}'`).join("").split(url).join("");
+  e = e.replace(/\[Errno \d+\]\s*/g, "").replace(/^cannot open\s*:\s*/, "").replace(/[:\s]+$/, "");
+  return e;
+}
+
+// The message for a lens that has never shown a picture: which URL, why, and how to give another.
+function noVideoText(lensInfo) {
+  const why = shortError(lensInfo.error, lensInfo.url) || "nothing came";
+  return `${cap(lensInfo.lens)}: no video from ${lensInfo.url || "the camera"} (${why}); retrying. ` +
+    `Elsewhere? Start the console with --video-url ${lensInfo.lens}=rtsp://HOST:PORT/PATH or --video-port PORT.`;
+}
+
+// Tracking, from the catalog: what stops it (the tracking command whose action table has `stop`)
+// and what reads its state (a readable tracking command whose answer has an enum `state`).
+function trackingPlan(cat) {
+  const starts = byRole(cat, "tracking_target") || byRole(cat, "tracking_box");
+  let stop = null;
+  for (const role of ["tracking", "tracking_confirm"]) {
+    const spec = byRole(cat, role);
+    const field = (requestForm(spec, "w")?.fields || []).find((f) => f.kind === "enum" && f.values.some((v) => v.name === "stop"));
+    if (spec && field) { stop = { spec, field: field.name }; break; }
+  }
+  const q = byRole(cat, "tracking");
+  const answer = (q?.forms || []).find((f) => f.rw === "r" && f.direction === "response");
+  const stateField = (answer?.fields || []).find((f) => f.kind === "enum" && f.name === "state");
+  const query = q && requestForm(q, "r") && stateField ? { spec: q, field: stateField } : null;
+  return { starts, stop, query };
 }
 
 function decodeStamp(ctx, w, h) {
@@ -51,12 +93,11 @@ async function start() {
   panel.hidden = false;
   const views = Object.fromEntries(info.lenses.map((l) => [l.lens, view(l.lens)]));
   const stage = el("div", { class: "vstage pip", "data-testid": "video-stage" });
-  const overlay = el("div", { class: "voverlay", "data-testid": "video-overlay" }, "");
   const latency = el("span", { class: "vlatency", "data-testid": "video-latency" }, "");
   const lensNames = Object.keys(views);
   let main = lensNames[0];
   const layout = () => {
-    stage.replaceChildren(...lensNames.map((n) => views[n].wrap), overlay);
+    stage.replaceChildren(...lensNames.map((n) => views[n].wrap));
     for (const n of lensNames) views[n].wrap.classList.toggle("main", n === main);
   };
   const tools = el("div", { class: "vtools" });
@@ -71,17 +112,21 @@ async function start() {
     };
     tools.append(swap, mode);
   }
-  tools.append(latency);
-  panel.append(stage, tools,
-    el("p", { class: "muted small" }, "click: point there · drag: track the box · wheel: zoom"));
+  const tracking = el("span", { class: "vtracking", "data-testid": "video-tracking" }, "");
+  const trackStop = el("button", { type: "button", "data-testid": "btn-track-stop", hidden: "" }, "Stop tracking");
+  tools.append(tracking, trackStop, latency);
+  const hint = el("p", { class: "muted small", "data-testid": "video-hint" }, "click: point there · drag: track the box · wheel: zoom");
+  panel.append(stage, tools, hint);
   layout();
+  const track = { views, tracking, trackStop, hint, plan: null };
+  consoleReady.then((api) => setUpTracking(api, track));
   for (const v of Object.values(views)) {
     v.img.src = withToken(`/video/${v.lens}.mjpg`);
     v.img.addEventListener("error", () => {           // the relay went away: try again
       v.state.textContent = "no video: reconnecting…"; v.wrap.dataset.state = "lost";
       setTimeout(() => { v.img.src = withToken(`/video/${v.lens}.mjpg?t=${Date.now()}`); }, 1000);
     });
-    attachPointer(v);
+    attachPointer(v, track);
   }
   const canvas = document.createElement("canvas");
   const ctx = canvas.getContext("2d", { willReadFrequently: true });
@@ -99,29 +144,41 @@ async function start() {
   const poll = async () => {
     try {
       const now = await fetchJSON("/api/video");
+      let nopic = false;
       for (const l of now.lenses) {
         const v = views[l.lens]; if (!v) continue;
         const moving = l.pictures !== v.pictures; v.pictures = l.pictures;
         v.still = moving ? 0 : v.still + 1;
         let text = "", state = l.state;
-        if (l.state === "reconnecting") text = `stream lost: reconnecting… (${l.error || ""})`;
+        const never = !l.pictures && !v.img.naturalWidth && (l.state === "reconnecting" || l.state === "connecting");
+        if (never && l.state === "reconnecting") { text = noVideoText(l); state = "novideo"; }
+        else if (l.state === "reconnecting") {
+          const why = shortError(l.error, l.url);
+          text = `stream lost: reconnecting…${why ? ` (${why})` : ""}`;
+        }
         else if (l.state === "connecting") text = "connecting…";
         else if (l.state === "playing" && v.still >= 4) { text = "stream stalled"; state = "stalled"; }
         v.state.textContent = text; v.state.hidden = !text; v.wrap.dataset.state = state;
+        v.wrap.classList.toggle("nopic", never);
+        nopic ||= never;
       }
+      // a lens without any picture: one message per lens, one under the other (no inset on top)
+      stage.classList.toggle("nopic", nopic);
       const a = now.attitude, parts = [];
       if (a) parts.push(`yaw ${a.yaw_deg.toFixed(1)}°  pitch ${a.pitch_deg.toFixed(1)}°  roll ${a.roll_deg.toFixed(1)}°`);
       parts.push(`zoom ${now.zoom_x.toFixed(1)}×`);
       if (now.recording) parts.push("● REC");
-      overlay.textContent = parts.join("   ");
-      overlay.classList.toggle("rec", !!now.recording);
+      for (const v of Object.values(views)) {
+        v.overlay.textContent = parts.join("   ");
+        v.overlay.classList.toggle("rec", !!now.recording);
+      }
     } catch { /* the link pane says why */ }
     setTimeout(poll, 500);
   };
   poll();
 }
 
-function attachPointer(v) {
+function attachPointer(v, track) {
   let down = null;
   const frac = (e) => {
     const r = v.img.getBoundingClientRect();
@@ -141,14 +198,20 @@ function attachPointer(v) {
     if (!down) return;
     const start = down; down = null;
     const [x1, y1] = frac(e);
+    const api = await Promise.race([consoleReady, Promise.resolve(null)]);
+    const seq = api?.motionStart();                 // the marker follows what the camera acknowledges
     if (Math.hypot(e.clientX - start.x, e.clientY - start.y) < 6) {
       const r = await post("/api/video/point", { lens: v.lens, x: x1, y: y1 });
       v.wrap.dataset.last = r.ok ? `point ${r.body.yaw_deg} ${r.body.pitch_deg}` : `error ${r.body.message}`;
+      if (r.ok) api?.motionEnd(seq, r.body.yaw_deg);
+      else api?.showError(`Point at the picture: ${r.body.message || "refused"}`);
     } else {
       const [x0, y0] = start.f;
       const r = await post("/api/video/track", { lens: v.lens, x0, y0, x1, y1 });
       v.wrap.dataset.last = r.ok ? "tracking" : `error ${r.body.message}`;
       setTimeout(() => { v.box.hidden = true; }, r.ok ? 1500 : 300);
+      if (r.ok) track.started?.((r.body.requests || []).map((q) => q.id).join(", "));
+      else api?.showError(`Tracking: ${r.body.message || "refused"}`);
     }
   });
   let lastWheel = 0;
@@ -157,6 +220,41 @@ function attachPointer(v) {
     const now = Date.now(); if (now - lastWheel < 250) return; lastWheel = now;
     post("/api/video/zoom", { direction: e.deltaY < 0 ? "in" : "out" });
   }, { passive: false });
+}
+
+// Tracking state (what the camera acknowledged or answered) and its Stop.
+function setUpTracking(api, track) {
+  const plan = trackingPlan(api.catalog);
+  const name = api.catalog.model.name;
+  if (!plan.starts) {
+    track.hint.textContent = `click: point there · wheel: zoom · the ${name} does not track targets`;
+    return;
+  }
+  const show = (text, on) => {
+    track.tracking.textContent = text;
+    track.tracking.dataset.state = on ? "tracking" : "stopped";
+    track.trackStop.hidden = !on;
+  };
+  const readState = async (fallback, on) => {
+    if (!plan.query) return show(fallback, on);
+    const m = await api.run("request", { id: plan.query.spec.id, read: true });
+    const value = m?.fields?.[plan.query.field.name];
+    if (value == null) return show(fallback, on);
+    const label = plan.query.field.values.find((x) => x.name === value)?.label || value;
+    show(`tracking: ${label.toLowerCase()} (the camera's state)`, value !== "stopped");
+  };
+  track.started = (ids) => readState(`tracking: on (the camera acknowledged ${ids})`, true);
+  if (!plan.stop) {
+    track.trackStop.disabled = true;
+    track.trackStop.title = `the ${name} has no command that stops tracking`;
+  } else {
+    track.trackStop.title = `${plan.stop.spec.title} (${plan.stop.spec.id} stop)`;
+  }
+  track.trackStop.onclick = async () => {
+    const r = await api.attempt("request", { id: plan.stop.spec.id, values: { [plan.stop.field]: "stop" } });
+    if (r.ok) readState(`tracking: stopped (the camera acknowledged ${plan.stop.spec.id} stop)`, false);
+    else show(`tracking: stop refused: ${r.error.message}`, true);
+  };
 }
 
 start();
