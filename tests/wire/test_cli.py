@@ -241,7 +241,9 @@ def test_the_live_json_line_reuses_the_proxys_decoding(monkeypatch):
     def no_second_decoding(*args: object, **kwargs: object) -> None:
         raise AssertionError("the frame was decoded again")
 
-    monkeypatch.setattr(protocol_cmds, "decode_with", no_second_decoding)
+    from topgimbal.protocol import decoded
+
+    monkeypatch.setattr(decoded, "decode_with", no_second_decoding)
     for (frame, d), want in zip(cases, wanted, strict=True):
         msg = decode_any(frame, prefer=d)
         event = ProxyEvent(12.5, "in", "udp 127.0.0.1:1", frame, get_dialect(msg.dialect or d.name), msg)

@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import asyncio
 import logging
 import sys
 
 from ..video.cli import add_video_port_argument
 from .args import add_camera_subcommand
-from .runtime import stop_on_signals, wait_stopped
 
 GIMBAL_COMPIDS = (154, 171, 172, 173, 174, 175)
 CAMERA_COMPIDS = (100, 101, 102, 103, 104)
@@ -88,7 +86,10 @@ def build_config(args: argparse.Namespace) -> object:
 
 
 def run(args: argparse.Namespace) -> int:
+    import asyncio
+
     from ..mavlink import Bridge
+    from .runtime import stop_on_signals, wait_stopped
 
     config = build_config(args)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
