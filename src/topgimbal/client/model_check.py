@@ -14,6 +14,7 @@ from __future__ import annotations
 import asyncio
 import logging
 from collections.abc import Callable, Iterable
+
 from ..errors import DeviceError, LinkLostError, RequestTimeoutError, TopGimbalError
 from ..protocol import DIALECT_NAMES, DeviceModel, Dialect, Frame, Message, decode_any, get_dialect
 from . import identity, roles

@@ -25,6 +25,7 @@ import math
 import time
 import weakref
 from collections import deque
+
 from ..errors import RequestTimeoutError, TopGimbalError
 from . import roles
 from .ports import StreamPort
