@@ -51,6 +51,10 @@ REGISTRY: tuple[Target, ...] = (
         "cli-index", "src/topgimbal/cli/command_index.py", "topgimbal.cli.main:index_text",
         "the CLI's subcommand index (a fast start)",
     ),
+    Target(
+        "request-types", "src/topgimbal/client/catalog_types.pyi", "topgimbal.tools.typestubs:render",
+        "request()'s typed signature per command (mypy)",
+    ),
 )  # fmt: skip
 
 
