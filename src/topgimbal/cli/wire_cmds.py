@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import datetime
 import gc
+import heapq
 import ipaddress
 import json
 import signal
@@ -106,13 +107,37 @@ def _direction(rec: dict[str, Any]) -> str | None:
     return "in" if rec["src"] in DEVICE_ADDRESSES and rec["dst"] in HOST_ADDRESSES else "out"
 
 
+# `decode --pcap` prints as it reads, in time order through a window of this many records: a
+# capture's packets are in time order but for a few (several interfaces, TCP reassembly), and a
+# record more than this many records out of place is printed where it falls. Memory stays bounded
+# whatever the capture's size.
+REORDER_WINDOW = 4096
+
+
 def decode_pcap(args: argparse.Namespace) -> int:
-    """`decode --pcap FILE`: every frame in the capture, in time order."""
+    """`decode --pcap FILE`: every frame in the capture, in time order (within REORDER_WINDOW)."""
     from ..wire import CaptureProblem, PacketNote, frames_in_capture
 
     forced = _dialect_from_args(args)
-    items: list[tuple[float, int, dict[str, Any]]] = []
-    problems = 0
+    window: list[tuple[float, int, dict[str, Any]]] = []
+    problems = bad = printed = 0
+    start: float | None = None
+
+    def emit() -> None:
+        nonlocal bad, printed, start
+        ts, _, rec = heapq.heappop(window)
+        start = ts if start is None else start
+        bad += not rec["ok"]
+        printed += 1
+        if args.json:
+            print(json.dumps(rec, ensure_ascii=False))
+        else:
+            print(
+                f"#{rec['packet']} +{ts - start:.6f}s {rec['transport']} {rec['src_addr']} -> {rec['dst_addr']}"
+                f" {rec['dir'] or ''}".rstrip()
+            )
+            print(_human(rec))
+
     input_file(args.pcap, "capture")
     for seq, got in enumerate(frames_in_capture(args.pcap, ports=args.port or (), addresses=args.address or ())):
         if isinstance(got, (PacketNote, CaptureProblem)):
@@ -122,21 +147,12 @@ def decode_pcap(args: argparse.Namespace) -> int:
             continue
         if isinstance(got.item, Diagnostic) and got.item.kind == "length_mismatch":
             continue  # the recovered frame follows, with the same note as its anomaly
-        items.append((got.ts, seq, _pcap_record(got, forced)))
-    items.sort(key=lambda x: (x[0], x[1]))
-    start = items[0][0] if items else 0.0
-    bad = 0
-    for ts, _, rec in items:
-        bad += not rec["ok"]
-        if args.json:
-            print(json.dumps(rec, ensure_ascii=False))
-        else:
-            print(
-                f"#{rec['packet']} +{ts - start:.6f}s {rec['transport']} {rec['src_addr']} -> {rec['dst_addr']}"
-                f" {rec['dir'] or ''}".rstrip()
-            )
-            print(_human(rec))
-    if not items:
+        heapq.heappush(window, (got.ts, seq, _pcap_record(got, forced)))
+        if len(window) > REORDER_WINDOW:
+            emit()
+    while window:
+        emit()
+    if not printed:
         print(f"topgimbal: {args.pcap}: no TOP frames found", file=sys.stderr)
     return 1 if bad or problems else 0
 
