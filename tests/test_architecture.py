@@ -237,7 +237,7 @@ def _all_imports(path: Path, modules: set[str]) -> set[str]:
 
 
 def _import_graph(root: Path) -> dict[str, set[str]]:
-    files = list(root.rglob("*.py"))
+    files = [*root.rglob("*.py"), *root.rglob("*.pyi")]  # a stub-only module (catalog_types.pyi) too
     modules = {_module_name(f) for f in files}
     return {_module_name(f): _all_imports(f, modules) for f in files}
 
