@@ -298,3 +298,26 @@ def test_cli_help_imports_no_command_module() -> None:
     assert "topgimbal.cli.protocol_cmds" in loaded, loaded
     assert not [m for m in loaded if m.startswith(("asyncio", "topgimbal.sim", "topgimbal.client"))], loaded
     assert not {"topgimbal.cli.device_cmds", "topgimbal.cli.console_cmd"} & set(loaded), loaded
+
+
+def test_lazy_packages_still_give_their_names_and_submodules() -> None:
+    """The PEP 562 `__getattr__`s (topgimbal, client, sim, sim.servers) load a name on first use,
+    a submodule too (as the eager imports made it an attribute), and refuse anything else."""
+    import subprocess
+
+    code = (
+        "import topgimbal, topgimbal.client as c, topgimbal.sim as s, topgimbal.sim.servers as v\n"
+        "assert topgimbal.Frame.__name__ == 'Frame' and topgimbal.Gimbal.__name__ == 'Gimbal'\n"
+        "assert topgimbal.protocol.Frame is topgimbal.Frame and c.engine.Engine is c.Engine\n"
+        "assert s.Simulator.__name__ == 'Simulator' and v.UdpServer.__name__ == 'UdpServer'\n"
+        "for mod in (topgimbal, c, s, v):\n"
+        "    try:\n"
+        "        mod.no_such_name\n"
+        "    except AttributeError:\n"
+        "        pass\n"
+        "    else:\n"
+        "        raise SystemExit(f'{mod.__name__}.no_such_name did not raise')\n"
+        "print('ok')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
+    assert out.stdout.strip() == "ok", out.stderr

@@ -33,6 +33,10 @@ def __getattr__(name: str) -> object:
         value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
         globals()[name] = value
         return value
+    import importlib.util
+
+    if not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
+        return importlib.import_module(f".{name}", __name__)  # a submodule, as eager imports made it one
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
