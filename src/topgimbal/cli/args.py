@@ -7,7 +7,6 @@ import contextlib
 import math
 import os
 import stat
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -173,6 +172,8 @@ def writable_output(path: str, what: str = "output file") -> str:
 def write_whole(path: str, text: str) -> None:
     """Write `text` to `path` all or nothing: a failure (disk full, interrupted) leaves the old
     file as it was, never a truncated one."""
+    import tempfile  # here: it loads shutil, random and the compressors, which `--help` need not
+
     writable_output(path)
     fd, tmp = tempfile.mkstemp(dir=Path(path).parent, prefix=f".{Path(path).name}.", suffix=".tmp")
     try:
