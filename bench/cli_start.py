@@ -3,7 +3,10 @@
 Each command runs --runs times as a fresh process; printed: the median wall time, the median CPU
 time of the child (user + system, which a busy shared machine disturbs far less than the wall
 time), the number of modules it imported (all / topgimbal's) and the ten slowest imports from
-`python -X importtime`. Python's own start (`python -c pass`) is printed as the floor. `--src DIR`
+`python -X importtime`. Modules load from cached bytecode, as in any install: the bench unsets
+PYTHONDONTWRITEBYTECODE, points PYTHONPYCACHEPREFIX at a temporary directory (the work tree stays
+clean) and runs each case once before timing it. `--no-bytecode` times compiling every module from
+source on every start instead (what an environment with PYTHONDONTWRITEBYTECODE=1 pays). Python's own start (`python -c pass`) is printed as the floor. `--src DIR`
 runs another checkout's `src` (a before/after comparison in one run: `git archive BASE src | tar -x
 -C /tmp/base` then `--src /tmp/base/src`).
 
@@ -18,6 +21,7 @@ import resource
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 
 FRAME = "#TPUG6wGAYEC78324D"
@@ -74,12 +78,21 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--src", help="run this source tree instead of the installed topgimbal")
     ap.add_argument("--importtime", action="store_true", help="also print the slowest imports")
+    ap.add_argument("--no-bytecode", action="store_true", help="compile every module on every start")
     a = ap.parse_args()
     env = dict(os.environ)
+    cache = tempfile.TemporaryDirectory(prefix="cli_start_pycache.")
+    if a.no_bytecode:
+        env["PYTHONDONTWRITEBYTECODE"] = "1"
+    else:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env["PYTHONPYCACHEPREFIX"] = cache.name
     if a.src:
         env["PYTHONPATH"] = os.path.abspath(a.src)
+    print("bytecode: " + ("compiled on every start" if a.no_bytecode else "cached (as installed)"))
     print(f"{'case':<26} {'wall median':>12} {'cpu median':>11}  modules (all / topgimbal)")
     for label, args in CASES.items():
+        _run([sys.executable, *args], env)  # warms the bytecode cache
         runs = [_run([sys.executable, *args], env) for _ in range(a.runs)]
         wall = statistics.median(r[0] for r in runs)
         cpu = statistics.median(r[1] for r in runs)
@@ -88,6 +101,7 @@ def main() -> None:
         if a.importtime and args[0] == "-m":
             for row in _slowest(args, env):
                 print("    " + row)
+    cache.cleanup()
 
 
 if __name__ == "__main__":

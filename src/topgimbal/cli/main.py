@@ -28,8 +28,9 @@ COMMAND_MODULES = ("protocol_cmds", "sim_cmd", "device_cmds", "console_cmd", "ma
 
 
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
-    """The whole parser; with `only`, a module of COMMAND_MODULES, that module's subcommands in full
-    and every other indexed subcommand as a placeholder (its name and help)."""
+    """The whole parser. With `only=""`, every indexed subcommand as a placeholder (its name and
+    help); with `only` a module of COMMAND_MODULES, that module's subcommands alone (and any module
+    the index does not know yet)."""
     parser = argparse.ArgumentParser(
         prog="topgimbal",
         description="Control and simulate TOP-protocol gimbal cameras (TOPOTEK SIP, SkyDroid C10..C20).",
@@ -39,6 +40,8 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     indexed = {module for module, _ in COMMANDS.values()}
     for name in COMMAND_MODULES:
         if only is not None and name != only and name in indexed:
+            if only:  # the command is known to be `only`'s: the others need not even be named
+                continue
             for cmd, (module, help_text) in COMMANDS.items():
                 if module == name:
                     _placeholder(sub, cmd, module, help_text)
