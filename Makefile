@@ -61,15 +61,13 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy
 
+# Every file made from the catalog (docs/protocol.md, the Lua dissector, c/generated/, the CLI's
+# command index, ...): one command, its REGISTRY in src/topgimbal/tools/regen.py.
 docs: $(STAMP)
-	$(BIN)/python -m topgimbal.tools.gendocs docs/protocol.md
-	$(BIN)/topgimbal dissector -o contrib/wireshark/topgimbal.lua
-	$(BIN)/python -m topgimbal.mavlink.camdef_files contrib/camera-definitions
+	$(BIN)/python -m topgimbal.tools.regen
 
 docs-check: $(STAMP)
-	$(BIN)/python -m topgimbal.tools.gendocs --check docs/protocol.md
-	$(BIN)/topgimbal dissector --check contrib/wireshark/topgimbal.lua
-	$(BIN)/python -m topgimbal.mavlink.camdef_files --check contrib/camera-definitions
+	$(BIN)/python -m topgimbal.tools.regen --check
 
 # The whole suite on the C fast path, then the protocol, client and fast-path tests again on the pure
 # Python path (what runs where no compiler built the extension; tests/speedups compares the two).
@@ -91,7 +89,7 @@ c-deps:
 c-test: $(STAMP) c-deps
 	$(MAKE) -C c test PYTHON=$(CURDIR)/$(BIN)/python
 
-test: $(STAMP) browser-deps tshark-deps video-deps exiftool-deps mavproxy-deps c-deps lint typecheck pytest c-test
+test: $(STAMP) browser-deps tshark-deps video-deps exiftool-deps mavproxy-deps c-deps lint typecheck docs-check pytest c-test
 
 demo: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.demo
@@ -105,6 +103,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/proxy.py
 	$(BIN)/python bench/faults.py
 	$(BIN)/python bench/video.py
+	$(BIN)/python bench/cli_start.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache test-artifacts

@@ -60,6 +60,7 @@ NOT_RUN: dict[str, str] = {
     "make bench": "benchmarks: minutes of CPU, figures only",
     "make docs": "rewrites docs/protocol.md in the work tree (tests/protocol checks it is current)",
     "python -m topgimbal.tools.cgen": "rewrites c/generated/ in the work tree; the --check beside it runs",
+    "python -m topgimbal.tools.regen": "rewrites generated files in the work tree; the --check beside it runs",
     "make -C c test": "the C library's own suite (sanitizers, fuzzers): minutes; `make test` runs it",
     "make -C c deps": "apt-get install as root",
     "ffplay -rtsp_transport tcp rtsp://127.0.0.1:8554/stream=0": "a video window (GUI); tests/video play the streams",
@@ -215,7 +216,11 @@ def _other_runner(ex: Example) -> list[str] | None:
     """Commands beside topgimbal that a test can run: tshark, curl, the C code generator's check,
     the C example's build and run (in a copy of the tree's c/ and examples/)."""
     argv = ex.argv
-    if argv[0] == "python" and argv[1:3] == ["-m", "topgimbal.tools.cgen"] and "--check" in argv:
+    if (
+        argv[0] == "python"
+        and argv[1:3] in (["-m", "topgimbal.tools.cgen"], ["-m", "topgimbal.tools.regen"])
+        and ("--check" in argv or "--list" in argv)
+    ):
         return [sys.executable, *argv[1:]]
     if argv[0] in ("tshark", "curl", "examples/c/point_camera") or argv == ["make", "-C", "examples/c"]:
         return argv

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from topgimbal.protocol import get_model
-from topgimbal.sim.physics import Gimbal
+from topgimbal.sim.physics import Gimbal, GimbalPhysics
 
 
 def gimbal_for(model: str) -> Gimbal:
@@ -151,3 +151,10 @@ def test_idle_time_costs_no_integration_steps(monkeypatch: pytest.MonkeyPatch) -
     g.angle("yaw", 20.0, None, "body")
     g.advance(1.0)
     assert checks > 3 and g.yaw_deg > 10.0  # motion is still integrated
+
+
+def test_the_physics_class_has_its_own_name_and_the_old_one_still_works() -> None:
+    import topgimbal
+
+    assert Gimbal is GimbalPhysics and GimbalPhysics is not topgimbal.Gimbal
+    assert GimbalPhysics.__name__ == "GimbalPhysics"

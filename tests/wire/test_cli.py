@@ -241,10 +241,36 @@ def test_the_live_json_line_reuses_the_proxys_decoding(monkeypatch):
     def no_second_decoding(*args: object, **kwargs: object) -> None:
         raise AssertionError("the frame was decoded again")
 
-    monkeypatch.setattr(protocol_cmds, "decode_with", no_second_decoding)
+    from topgimbal.protocol import decoded
+
+    monkeypatch.setattr(decoded, "decode_with", no_second_decoding)
     for (frame, d), want in zip(cases, wanted, strict=True):
         msg = decode_any(frame, prefer=d)
         event = ProxyEvent(12.5, "in", "udp 127.0.0.1:1", frame, get_dialect(msg.dialect or d.name), msg)
         line = json.loads(wire_cmds._live_line(event, as_json=True))
         assert {k: line[k] for k in RECORD_KEYS} == want
         assert (line["time"], line["dir"], line["client"]) == (12.5, "in", "udp 127.0.0.1:1")
+
+
+def test_decode_pcap_streams_through_a_bounded_window(tmp_path, capsys, monkeypatch):
+    """Issue 28: `decode --pcap` holds at most REORDER_WINDOW records (it used to hold them all to
+    sort): disorder within the window is sorted, a record further out of place prints where it falls."""
+    from topgimbal.cli import wire_cmds
+
+    path = tmp_path / "w.pcap"
+    with CaptureWriter(path) as w:
+        for ts in (10.0, 12.0, 11.0, 13.0, 14.0, 15.0, 1.0):  # 11.0: one late; 1.0: far out of place
+            w.udp(HOST, SKY, PTZ, ts=ts)
+    held: list[int] = []
+    real_push = wire_cmds.heapq.heappush
+
+    def push(heap, item):
+        real_push(heap, item)
+        held.append(len(heap))
+
+    monkeypatch.setattr(wire_cmds, "REORDER_WINDOW", 2)
+    monkeypatch.setattr(wire_cmds.heapq, "heappush", push)
+    assert main(["decode", "--pcap", str(path), "--json"]) == 0
+    times = [json.loads(x)["time"] for x in capsys.readouterr().out.splitlines()]
+    assert times == [10.0, 11.0, 12.0, 13.0, 1.0, 14.0, 15.0]
+    assert max(held) == 3  # the window plus the one just read, never the whole capture

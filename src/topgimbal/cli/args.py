@@ -7,13 +7,18 @@ import contextlib
 import math
 import os
 import stat
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import TopGimbalError
-from ..protocol import DIALECT_NAMES, all_models
+from .command_index import DIALECT_NAMES, MODEL_NAMES
+
+if TYPE_CHECKING:
+    from ..protocol import Dialect
+
+# Model and dialect names come from the generated index (tools/regen.py checks them against the
+# catalog), so building a parser does not import the protocol core (cli/main.py: a fast start).
 
 
 def add_connection_arguments(parser: argparse.ArgumentParser) -> None:
@@ -49,7 +54,7 @@ def add_camera_subcommand(
 
 def add_model_argument(parser: argparse.ArgumentParser, flag: str = "--model", **kwargs: Any) -> None:
     """A model name option, matched case-insensitively against the catalog's models."""
-    parser.add_argument(flag, type=_model_name, choices=sorted(all_models(), key=str.lower), **kwargs)
+    parser.add_argument(flag, type=_model_name, choices=sorted(MODEL_NAMES, key=str.lower), **kwargs)
 
 
 def accept_connection_arguments_after(command: argparse.ArgumentParser) -> None:
@@ -65,7 +70,7 @@ def accept_connection_arguments_after(command: argparse.ArgumentParser) -> None:
 
 
 def _model_name(text: str) -> str:
-    for name in all_models():
+    for name in MODEL_NAMES:
         if name.lower() == text.lower():
             return name
     return text  # argparse's `choices` reports the error with the list
@@ -167,6 +172,8 @@ def writable_output(path: str, what: str = "output file") -> str:
 def write_whole(path: str, text: str) -> None:
     """Write `text` to `path` all or nothing: a failure (disk full, interrupted) leaves the old
     file as it was, never a truncated one."""
+    import tempfile  # here: it loads shutil, random and the compressors, which `--help` need not
+
     writable_output(path)
     fd, tmp = tempfile.mkstemp(dir=Path(path).parent, prefix=f".{Path(path).name}.", suffix=".tmp")
     try:
@@ -182,3 +189,14 @@ def write_whole(path: str, text: str) -> None:
 class FileArgumentError(TopGimbalError, OSError):
     """A file given on the command line cannot be used as asked (missing, a directory, a FIFO, a
     directory that does not exist for an output)."""
+
+
+def dialect_from_args(args: argparse.Namespace) -> Dialect | None:
+    """The dialect `--dialect` names, else `--model`'s, else None (decide per frame)."""
+    from ..protocol import get_dialect, get_model
+
+    if getattr(args, "dialect", "auto") not in (None, "auto"):
+        return get_dialect(args.dialect)
+    if getattr(args, "model", None):
+        return get_model(args.model)[0]
+    return None

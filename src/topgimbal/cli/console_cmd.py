@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import asyncio
 import contextlib
 import sys
 from typing import Any
 
 from .args import add_camera_subcommand, add_model_argument
-from .runtime import stop_on_signals, wait_stopped
 
 DEFAULT_PORT = 8080
 
@@ -182,6 +180,7 @@ def video_urls(model: str | None, given: list[str]) -> dict[str, str]:
 
 async def _serve(server: object, seconds: float | None, taken: int | None = None) -> None:
     from ..console import ConsoleServer
+    from .runtime import stop_on_signals, wait_stopped
 
     assert isinstance(server, ConsoleServer)
     # Before start: SIGTERM (a service manager, `kill`) and Ctrl-C end the console the same orderly
@@ -198,6 +197,8 @@ async def _serve(server: object, seconds: float | None, taken: int | None = None
 
 
 def run(args: argparse.Namespace) -> int:
+    import asyncio
+
     try:
         import aiohttp  # noqa: F401
     except ImportError:

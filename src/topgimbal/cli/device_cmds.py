@@ -7,7 +7,6 @@ roll_deg), `point YAW PITCH`, `photo`, `record start|stop|status`."""
 from __future__ import annotations
 
 import argparse
-import asyncio
 import contextlib
 import copy
 import json
@@ -16,10 +15,9 @@ import math
 import sys
 import time
 from collections.abc import Awaitable, Callable, Mapping
+from typing import TYPE_CHECKING
 
-from ..client import AsyncClient, connect
 from ..client.identity import Verdict
-from ..client.requesting import model_hint
 from ..client.roles import focus_actions, role_ident
 from ..client.state import SdCard
 from ..errors import FieldValueError, RequestTimeoutError, TopGimbalError, TransportError
@@ -29,8 +27,11 @@ from . import device_motion, device_session
 from .args import COUNT, HZ, add_json_argument
 from .device_output import attitude_dict, ok, show
 
+if TYPE_CHECKING:  # the client loads when a command runs, not for `topgimbal --help` (cli/main.py)
+    from ..client import AsyncClient
+
 # A command's result is what `show` prints (an int is the exit status instead).
-Runner = Callable[[AsyncClient, argparse.Namespace], Awaitable[object]]
+Runner = Callable[["AsyncClient", argparse.Namespace], Awaitable[object]]
 MODEL_CHECK_WAIT_S = 2.0  # at most this long after a command for the device to say what it is
 
 
@@ -75,6 +76,10 @@ def _command(sub: argparse._SubParsersAction, name: str, runner: Runner, help: s
 
 
 def _run(args: argparse.Namespace, runner: Runner) -> int:
+    import asyncio
+
+    from ..client import connect
+
     client_log = logging.getLogger("topgimbal.client")
     if not any(isinstance(f, _NoModelCheckRecords) for f in client_log.filters):
         client_log.addFilter(_NoModelCheckRecords())
@@ -127,7 +132,9 @@ async def _verdict(cam: AsyncClient) -> Verdict | None:
 
 
 def _with_hint(exc: TopGimbalError, hint: str, model: str) -> TopGimbalError:
-    new = copy.copy(exc)
+    from ..client.requesting import model_hint
+
+    new = copy.copy(exc)  # keeps `request` (the frame the error is about)
     new.args = (f"{str(exc).replace(model_hint(model), '')}; {hint}",)
     return new
 
@@ -141,6 +148,8 @@ class _NoModelCheckRecords(logging.Filter):
 
 async def _detect(args: argparse.Namespace) -> str:
     """No --model: ask the device what it is (version and model name, in every dialect)."""
+    from ..client import connect
+
     async with connect(
         args.url, model="C12", timeout_s=min(args.timeout, 0.5), retries=1, check_model=False, host_feeds=False
     ) as cam:

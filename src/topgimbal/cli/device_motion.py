@@ -8,15 +8,17 @@ slew needs from the model's ranges and rates, and says plainly that the position
 from __future__ import annotations
 
 import argparse
-import asyncio
 from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING
 
-from ..client import AsyncClient
 from ..client.roles import readable
 from ..errors import FieldValueError
 from ..protocol import DeviceModel, Dialect, all_models, get_model
 from .args import number
 from .device_output import attitude_dict, ok
+
+if TYPE_CHECKING:  # the client loads when a command runs, not for `topgimbal --help` (cli/main.py)
+    from ..client import AsyncClient
 
 Register = Callable[..., argparse.ArgumentParser]
 SETTLE_S = 0.5  # added to the computed slew: the frame's trip and the gimbal's settling
@@ -106,6 +108,8 @@ async def _point_blind(cam: AsyncClient, args: argparse.Namespace) -> dict[str, 
     speed = args.speed if args.speed else default_speed_deg_s(cam.dialect, cam.model)
     targets = await _send_angles(cam, args)
     wait_s = args.wait if args.wait is not None else slew_time_s(cam.model, targets, speed)
+    import asyncio  # here, not at the top: `topgimbal --help` does not load asyncio (cli/main.py)
+
     await asyncio.sleep(wait_s)
     return _unconfirmed(cam, targets, waited_s=round(wait_s, 1))
 
@@ -125,6 +129,8 @@ _RATE_OPTIONS = {
 
 
 async def _rate(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
+    import asyncio  # here, not at the top: `topgimbal --help` does not load asyncio (cli/main.py)
+
     try:
         if args.duration:
             async with cam.rate_control(interval_s=0.1) as joy:

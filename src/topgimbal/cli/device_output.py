@@ -7,7 +7,7 @@ import argparse
 import datetime
 import json
 
-from ..client import Attitude
+from ..client.state import Attitude
 from ..protocol import Frame, Message
 
 

@@ -4,7 +4,6 @@ JSONL, and with `--pcap` as a capture Wireshark opens, written by `topgimbal.wir
 from __future__ import annotations
 
 import argparse
-import asyncio
 import contextlib
 import copy
 import json
@@ -16,9 +15,9 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from rich.table import Table
 
+    from ..client import AsyncClient, LogRecord
     from ..wire.export import ExportReport
 
-from ..client import AsyncClient, LogRecord, TrafficLog, read_log
 from ..errors import RequestTimeoutError, TopGimbalError
 from ..protocol import Frame, Message
 from .args import COUNT, HZ, input_file, number, writable_output
@@ -68,6 +67,8 @@ def _cell(value: object) -> str:
 
 async def _monitor(cam: AsyncClient, args: argparse.Namespace) -> int:
     """A live view; `--count N` renders N frames and exits (for scripts and tests)."""
+    import asyncio  # here, not at the top: `topgimbal --help` does not load asyncio (cli/main.py)
+
     from rich.console import Console
     from rich.live import Live
 
@@ -96,8 +97,12 @@ async def _monitor(cam: AsyncClient, args: argparse.Namespace) -> int:
 async def _log(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     """Record the traffic (with the attitude stream on, if asked) to a JSONL file. A failure or
     Ctrl-C keeps what was recorded and says so (with --pcap, the capture of it is still written)."""
+    import asyncio
+
     if args.pcap:  # find out now, not after --seconds of recording
         writable_output(args.pcap)
+    from ..client.traffic import TrafficLog
+
     log = TrafficLog(args.file, url=cam.url, model=cam.model.name, dialect=cam.dialect.name)
     count = 0
 
@@ -152,6 +157,8 @@ def _kept(args: argparse.Namespace, count: int, before: str) -> str:
 
 async def _replay(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     """Send the host -> device frames of a log again, with their original spacing."""
+    import asyncio
+
     records = _records(input_file(args.file, "traffic log"))
     sent = replies = 0
     start = time.monotonic()
@@ -182,6 +189,8 @@ def _records(path: str) -> list[LogRecord]:
     """The host -> device records of a traffic log; a file that holds none (or is not a log at all)
     is an error naming it, not a replay that sends nothing and succeeds."""
     try:
+        from ..client.traffic import read_log
+
         records = [r for r in read_log(path) if r.direction == "out"]
     except UnicodeDecodeError as exc:
         raise TopGimbalError(f"{path} is not a traffic log: not UTF-8 text (byte {exc.start})") from None

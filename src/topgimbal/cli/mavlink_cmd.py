@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import asyncio
 import logging
 import sys
 
 from ..video.cli import add_video_port_argument
 from .args import add_camera_subcommand
 from .mavlink_multi import add_fleet_arguments, run_multi
-from .runtime import stop_on_signals, wait_stopped
 
 GIMBAL_COMPIDS = (154, 171, 172, 173, 174, 175)
 CAMERA_COMPIDS = (100, 101, 102, 103, 104)
@@ -116,7 +114,10 @@ def build_config(args: argparse.Namespace) -> object:
 
 
 def run(args: argparse.Namespace) -> int:
+    import asyncio
+
     from ..mavlink import Bridge
+    from .runtime import stop_on_signals, wait_stopped
 
     if args.camera:  # several cameras: one component set each on shared links (mavlink_multi.py)
         return run_multi(args)

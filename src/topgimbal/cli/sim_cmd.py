@@ -11,18 +11,19 @@ clients are configured with a camera's port, so it is never moved silently.
 from __future__ import annotations
 
 import argparse
-import asyncio
 import logging
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..protocol import all_models
-from ..sim import FaultPlan, Simulator
+from ..sim import FaultPlan
 from ..sim import quirks as quirk_table
 from ..sim.servers import Limits
 from ..video import cli as video_cli
 from .args import number, writable_output
-from .runtime import stop_on_signals
+
+if TYPE_CHECKING:
+    from ..sim import Simulator
 
 # A stream faster than this is no camera's (the devices stream at most 100 Hz) and would only
 # spin the simulator's loop; nan, 0 or a negative rate stopped the stream without a word.
@@ -152,6 +153,10 @@ def _check_loopback(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import asyncio
+
+    from ..sim import Simulator
+
     _check_loopback(args)
     if getattr(args, "media_port", None) is not None and getattr(args, "media", None) is None:
         raise ValueError("--media-port serves the --media DIR: give --media DIR too")
@@ -190,6 +195,8 @@ def _log_to_stderr() -> None:
 
 
 async def _serve(sim: Simulator, listen: dict[str, Any], args: argparse.Namespace | None = None) -> int:
+    from .runtime import stop_on_signals
+
     await sim.start(**listen)
     stop = stop_on_signals()
     print(f"topgimbal sim: {sim.model} ({sim.dialect.name}), seed {sim.seed}", file=sys.stderr)

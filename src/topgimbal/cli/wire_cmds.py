@@ -9,26 +9,30 @@ topgimbal pcap from-log session.jsonl -o session.pcap
 from __future__ import annotations
 
 import argparse
-import asyncio
 import datetime
 import gc
+import heapq
 import ipaddress
 import json
 import signal
 import sys
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from ..protocol import Diagnostic, Dialect, Frame, Message, dissect, get_dialect, get_model
+from ..protocol.decoded import dissection_record
+from ..protocol.decoded import human_text as _human
 from ..protocol.frame import DEVICE_ADDRESSES, HOST_ADDRESSES
-from ..wire import CaptureProblem, PacketNote, WireFrame, frames_in_capture, generate_dissector
-from ..wire.export import log_to_pcap
-from ..wire.offload import WatcherProcess, read_config, serve
-from ..wire.proxy import MAX_CLIENTS, Proxy, ProxyEvent
-from ..wire.watcher import Watcher
 from .args import FileArgumentError, add_dialect_argument, add_json_argument, input_file, writable_output, write_whole
-from .protocol_cmds import _dialect_from_args, _human, dissection_record
-from .runtime import stop_on_signals
+from .args import dialect_from_args as _dialect_from_args
+
+if TYPE_CHECKING:
+    from ..wire import WireFrame
+    from ..wire.proxy import Proxy, ProxyEvent
+
+# The proxy's default client cap, repeated so `topgimbal --help` need not import the proxy (asyncio,
+# the transports); tests/wire/test_cli.py checks the two agree.
+MAX_CLIENTS = 8
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -103,11 +107,37 @@ def _direction(rec: dict[str, Any]) -> str | None:
     return "in" if rec["src"] in DEVICE_ADDRESSES and rec["dst"] in HOST_ADDRESSES else "out"
 
 
+# `decode --pcap` prints as it reads, in time order through a window of this many records: a
+# capture's packets are in time order but for a few (several interfaces, TCP reassembly), and a
+# record more than this many records out of place is printed where it falls. Memory stays bounded
+# whatever the capture's size.
+REORDER_WINDOW = 4096
+
+
 def decode_pcap(args: argparse.Namespace) -> int:
-    """`decode --pcap FILE`: every frame in the capture, in time order."""
+    """`decode --pcap FILE`: every frame in the capture, in time order (within REORDER_WINDOW)."""
+    from ..wire import CaptureProblem, PacketNote, frames_in_capture
+
     forced = _dialect_from_args(args)
-    items: list[tuple[float, int, dict[str, Any]]] = []
-    problems = 0
+    window: list[tuple[float, int, dict[str, Any]]] = []
+    problems = bad = printed = 0
+    start: float | None = None
+
+    def emit() -> None:
+        nonlocal bad, printed, start
+        ts, _, rec = heapq.heappop(window)
+        start = ts if start is None else start
+        bad += not rec["ok"]
+        printed += 1
+        if args.json:
+            print(json.dumps(rec, ensure_ascii=False))
+        else:
+            print(
+                f"#{rec['packet']} +{ts - start:.6f}s {rec['transport']} {rec['src_addr']} -> {rec['dst_addr']}"
+                f" {rec['dir'] or ''}".rstrip()
+            )
+            print(_human(rec))
+
     input_file(args.pcap, "capture")
     for seq, got in enumerate(frames_in_capture(args.pcap, ports=args.port or (), addresses=args.address or ())):
         if isinstance(got, (PacketNote, CaptureProblem)):
@@ -117,21 +147,12 @@ def decode_pcap(args: argparse.Namespace) -> int:
             continue
         if isinstance(got.item, Diagnostic) and got.item.kind == "length_mismatch":
             continue  # the recovered frame follows, with the same note as its anomaly
-        items.append((got.ts, seq, _pcap_record(got, forced)))
-    items.sort(key=lambda x: (x[0], x[1]))
-    start = items[0][0] if items else 0.0
-    bad = 0
-    for ts, _, rec in items:
-        bad += not rec["ok"]
-        if args.json:
-            print(json.dumps(rec, ensure_ascii=False))
-        else:
-            print(
-                f"#{rec['packet']} +{ts - start:.6f}s {rec['transport']} {rec['src_addr']} -> {rec['dst_addr']}"
-                f" {rec['dir'] or ''}".rstrip()
-            )
-            print(_human(rec))
-    if not items:
+        heapq.heappush(window, (got.ts, seq, _pcap_record(got, forced)))
+        if len(window) > REORDER_WINDOW:
+            emit()
+    while window:
+        emit()
+    if not printed:
         print(f"topgimbal: {args.pcap}: no TOP frames found", file=sys.stderr)
     return 1 if bad or problems else 0
 
@@ -155,6 +176,8 @@ def _pcap_record(got: WireFrame, forced: Dialect | None) -> dict[str, Any]:
 
 
 def cmd_dissector(args: argparse.Namespace) -> int:
+    from ..wire import generate_dissector
+
     text = generate_dissector()
     if args.check:
         try:
@@ -181,6 +204,8 @@ def cmd_dissector(args: argparse.Namespace) -> int:
 
 
 def cmd_from_log(args: argparse.Namespace) -> int:
+    from ..wire.export import log_to_pcap
+
     report = log_to_pcap(input_file(args.log_file, "traffic log"), writable_output(args.output))
     for problem in report.problems:
         print(f"topgimbal: {args.log_file}: {problem}", file=sys.stderr)
@@ -258,6 +283,11 @@ WATCHER_CODE = "from topgimbal.cli.wire_cmds import watch_main; watch_main()"
 
 
 def cmd_proxy(args: argparse.Namespace) -> int:
+    import asyncio
+
+    from ..wire.offload import WatcherProcess
+    from ..wire.proxy import Proxy
+
     dialect = args.dialect if args.dialect not in (None, "auto") else None
     for path in (args.pcap, args.traffic_log):
         if path:  # the watcher process writes them: say now, not later, when one cannot be written
@@ -284,6 +314,8 @@ def cmd_proxy(args: argparse.Namespace) -> int:
 
 
 async def _serve(proxy: Proxy) -> int:
+    from .runtime import stop_on_signals
+
     await proxy.start()
     # Everything alive now (the catalog, modules) lives for the whole run: keep the collector from
     # walking it again and again (a full collection would stall forwarding for milliseconds).
@@ -302,6 +334,9 @@ async def _serve(proxy: Proxy) -> int:
 def watch_main() -> None:
     """`topgimbal proxy`'s watcher process (the proxy starts it: argv is the print mode and the
     descriptor for its counters): decode, capture, log and print what the proxy forwarded."""
+    from ..wire.offload import read_config, serve
+    from ..wire.watcher import Watcher
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole group; the proxy says when to end
     mode = sys.argv[1]
     config = read_config(0)

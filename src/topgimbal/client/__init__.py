@@ -6,16 +6,63 @@ typed methods, written once for both clients), aio.py / sync.py (the two clients
 
 from __future__ import annotations
 
-from .aio import AsyncClient, CatalogCommand, RateKeepAlive, connect
-from .camera_api import CameraAPI
-from .engine import Engine, Inbound, Transaction
-from .link import LinkEvent, LinkMonitor
-from .signs import resolve_signs
-from .state import Attitude, SdCard, Stamped, StateCache
-from .stats import LinkStats
-from .streams import AttitudeStream
-from .sync import ClientClosedError, Gimbal, LoopThreadError, SyncAttitudeStream
-from .traffic import LogRecord, TrafficLog, read_log
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .aio import AsyncClient, CatalogCommand, RateKeepAlive, connect
+    from .camera_api import CameraAPI
+    from .engine import Engine, Inbound, Transaction
+    from .link import LinkEvent, LinkMonitor
+    from .signs import resolve_signs
+    from .state import Attitude, SdCard, Stamped, StateCache
+    from .stats import LinkStats
+    from .streams import AttitudeStream
+    from .sync import ClientClosedError, Gimbal, LoopThreadError, SyncAttitudeStream
+    from .traffic import LogRecord, TrafficLog, read_log
+
+# Every name loads on first use (PEP 562): `from topgimbal.client.roles import ...` or the CLI's
+# `--help` does not import asyncio, the engine and both clients.
+_LAZY = {
+    "AsyncClient": "aio",
+    "CatalogCommand": "aio",
+    "RateKeepAlive": "aio",
+    "connect": "aio",
+    "CameraAPI": "camera_api",
+    "Engine": "engine",
+    "Inbound": "engine",
+    "Transaction": "engine",
+    "LinkEvent": "link",
+    "LinkMonitor": "link",
+    "resolve_signs": "signs",
+    "Attitude": "state",
+    "SdCard": "state",
+    "Stamped": "state",
+    "StateCache": "state",
+    "LinkStats": "stats",
+    "AttitudeStream": "streams",
+    "ClientClosedError": "sync",
+    "Gimbal": "sync",
+    "LoopThreadError": "sync",
+    "SyncAttitudeStream": "sync",
+    "LogRecord": "traffic",
+    "TrafficLog": "traffic",
+    "read_log": "traffic",
+}
+
+
+def __getattr__(name: str) -> object:
+    if name in _LAZY:
+        import importlib
+
+        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    import importlib.util
+
+    if not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
+        return importlib.import_module(f".{name}", __name__)  # a submodule, as eager imports made it one
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "AsyncClient", "Attitude", "AttitudeStream", "CameraAPI", "CatalogCommand", "ClientClosedError", "Engine", "Gimbal", "Inbound",

@@ -23,9 +23,15 @@ from .core import ClientCore
 from .options import ConnectOptions
 from .streams import AttitudeStream
 
+if TYPE_CHECKING:
+    from .catalog_types import AsyncRequest
+
 
 class AsyncClient(ClientCore, CoreMethods, MotionMethods, CameraMethods, FeedMethods):
     """A connection to one gimbal camera. Open with `await connect(url, model=...)`."""
+
+    if TYPE_CHECKING:  # one overload per catalog command (generated): a wrong field name is a mypy error
+        request: AsyncRequest
 
     def __init__(self, url: str, model: str | DeviceModel = "C12", **options: Unpack[ConnectOptions]) -> None:
         super().__init__(url, model, **options)

@@ -1,47 +1,33 @@
-"""Keeping the link: what happens when it goes down or comes back, TCP / serial reconnection, and
-the harmless query that tells a quiet stream from a dead device. The decisions are the pure link
-monitor's (link.py); this is their asyncio side, driven by the client core."""
+"""Keeping the link: TCP / serial reconnection, and the harmless query that tells a quiet stream from
+a dead device. The decisions are the pure link monitor's (link.py); this is their asyncio side,
+driven by the client core through its `KeeperPort` (ports.py): a transition goes back to the core
+(`on_link_event`), which carries it out (pending requests, streams, callbacks)."""
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
 import logging
-from typing import TYPE_CHECKING
 
-from ..errors import LinkLostError, TopGimbalError, TransportError
+from ..errors import TopGimbalError, TransportError
 from ..transport import open_transport
 from . import roles
 from .link import LinkEvent
-
-if TYPE_CHECKING:
-    from .core import ClientCore
+from .ports import KeeperPort
 
 log = logging.getLogger("topgimbal.client")
 
 
 class LinkKeeper:
-    def __init__(self, core: ClientCore) -> None:
+    def __init__(self, core: KeeperPort) -> None:
         self.core = core
         self.reconnect_task: asyncio.Task[None] | None = None
         self.ping_task: asyncio.Task[None] | None = None
 
     def event(self, event: LinkEvent | None) -> None:
-        """Carry out a transition the link monitor reported."""
-        if event is None:
-            return
-        core = self.core
-        core.stats.connected = core.connected
-        if event.up:
-            log.info("%s: link up (%s)", core.url, event.reason)
-            core.streams.resume()
-        else:
-            core.stats.link_losses += 1
-            log.warning("%s: link lost: %s", core.url, event.reason)
-            err = LinkLostError(f"{core.url}: link lost: {event.reason}")
-            core.fail_pending(err)
-            core.streams.fail(err)
-        core.notifier.link(event.up, event.reason)
+        """Hand a transition the link monitor reported to the core, which carries it out."""
+        if event is not None:
+            self.core.on_link_event(event)
 
     def lost(self, exc: Exception | None) -> None:
         """The transport closed (TCP, serial; UDP only on local errors)."""
@@ -72,13 +58,13 @@ class LinkKeeper:
         finally:
             self.reconnect_task = None
 
-    def maybe_ping(self) -> None:
-        """Requests in flight are probes already; a ping is for streams that went quiet."""
+    def maybe_ping(self, streaming: bool) -> None:
+        """Requests in flight are probes already; a ping is for streams (`streaming`) that went quiet."""
         core, link = self.core, self.core.link
         if (
             link is not None
             and link.ping_due()
-            and core.streams.active
+            and streaming
             and not core.busy
             and self.ping_task is None
             and core.connected_transport
@@ -93,8 +79,8 @@ class LinkKeeper:
             ident = roles.ping_ident(core.dialect, core.model)
             if ident is not None:
                 with contextlib.suppress(TopGimbalError):
-                    await core._request(core.build(ident, read=True), timeout_s=core.timeout_s, retries=0)
-                    core.streams.resume()  # the device answers: make sure its stream is on
+                    await core.transact(core.build(ident, read=True), timeout_s=core.timeout_s, retries=0)
+                    core.resume_streams()  # the device answers: make sure its stream is on
         finally:
             self.ping_task = None
 

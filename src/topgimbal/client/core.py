@@ -13,7 +13,7 @@ import logging
 from collections.abc import Callable, Coroutine, Mapping
 from types import TracebackType
 
-from ..errors import FieldValueError, TopGimbalError, TransportError
+from ..errors import FieldValueError, LinkLostError, TopGimbalError, TransportError
 from ..protocol import CommandSpec, DeviceModel, Dialect, Frame, FrameParser, Message, get_model
 from ..protocol.frame import DEVICE_ADDRESSES
 from ..transport import Transport, TransportURL, open_transport, parse_url
@@ -22,7 +22,7 @@ from .builder import FrameBuilder
 from .connection import LinkKeeper
 from .engine import Engine
 from .feeds import HostFeeds
-from .link import LinkMonitor
+from .link import LinkEvent, LinkMonitor
 from .model_check import ModelChecker
 from .notifier import LinkCallback, MessageCallback, Notifier, TrafficCallback
 from .options import Behaviour, ClientOptions
@@ -251,6 +251,24 @@ class ClientCore(Requests):
         self.fail_pending(error)
         self.streams.fail(error)
 
+    def on_link_event(self, event: LinkEvent) -> None:
+        """Carry out a link transition (the link monitor's, through the keeper): counters, log,
+        streams resumed or failed with the requests in flight, callbacks."""
+        self.stats.connected = self.connected
+        if event.up:
+            log.info("%s: link up (%s)", self.url, event.reason)
+            self.streams.resume()
+        else:
+            self.stats.link_losses += 1
+            log.warning("%s: link lost: %s", self.url, event.reason)
+            err = LinkLostError(f"{self.url}: link lost: {event.reason}")
+            self.fail_pending(err)
+            self.streams.fail(err)
+        self.notifier.link(event.up, event.reason)
+
+    def resume_streams(self) -> None:
+        self.streams.resume()
+
     def reopened(self, transport: Transport) -> None:
         """A byte-stream link is back: nothing sent on the old one can be answered on it."""
         self._transport = transport
@@ -343,7 +361,7 @@ class ClientCore(Requests):
         assert self._engine is not None and self.link is not None
         self._engine.on_tick()
         self.keeper.event(self.link.check())
-        self.keeper.maybe_ping()
+        self.keeper.maybe_ping(streaming=self.streams.active)
         self._drive()
 
     def _send_frame(self, frame: Frame) -> None:

@@ -21,6 +21,7 @@ reasoning is in docs/client.md, "Matching"):
 
 from __future__ import annotations
 
+import copy
 from collections import deque
 from collections.abc import Mapping
 
@@ -106,7 +107,9 @@ class Engine:
         if key in self.live:
             queue = self._waiting.setdefault(key, deque())
             if len(queue) >= MAX_WAITING:
-                raise TopGimbalError(f"{len(queue)} {key[0]} requests to {key[1]} are already waiting; slow down")
+                raise TopGimbalError(
+                    f"{len(queue)} {key[0]} requests to {key[1]} are already waiting; slow down", request=frame
+                )
             queue.append(tx)
         else:
             self._start(tx, now)
@@ -120,7 +123,7 @@ class Engine:
         queue = self._waiting.get(tx.key)
         if tx.state == "queued" and queue is not None and tx in queue:
             queue.remove(tx)
-            tx.state, tx.error = "done", error
+            tx.state, tx.error = "done", with_request(error, tx.frame)
             return
         self._finish(tx, self.clock(), error=error)
 
@@ -132,7 +135,7 @@ class Engine:
         self.pacer.clear()
         for tx in failed:
             if not tx.done:
-                tx.state, tx.error, tx.deadline = "done", error, None
+                tx.state, tx.error, tx.deadline = "done", with_request(error, tx.frame), None
                 tx.attempts = []
                 self._finished.append(tx)
         return failed
@@ -405,7 +408,7 @@ class Engine:
     def _finish(
         self, tx: Transaction, now: float, *, reply: Message | None = None, error: Exception | None = None
     ) -> None:
-        tx.state, tx.reply, tx.error, tx.deadline = "done", reply, error, None
+        tx.state, tx.reply, tx.error, tx.deadline = "done", reply, with_request(error, tx.frame), None
         tx.attempts = []  # the ledger still knows them; no cycle left for the garbage collector
         self._finished.append(tx)
         key = tx.key
@@ -417,3 +420,16 @@ class Engine:
                 if not queue:
                     del self._waiting[key]
                 self._start(nxt, now)
+
+
+def with_request(error: Exception | None, frame: Frame) -> Exception | None:
+    """`error` carrying the request it ended (`TopGimbalError.request`, as httpx's errors carry
+    theirs): a copy, since one error may end many requests (a lost link, a closed client)."""
+    if not isinstance(error, TopGimbalError) or error.request is frame:
+        return error
+    try:
+        error = copy.copy(error)  # keeps the message and every attribute (a DecodeError's `answer`)
+    except TypeError:  # an __init__ that copy cannot call again: this one error is the request's alone
+        pass
+    error.request = frame
+    return error

@@ -14,15 +14,12 @@ from __future__ import annotations
 import asyncio
 import logging
 from collections.abc import Callable, Iterable
-from typing import TYPE_CHECKING
 
 from ..errors import DeviceError, LinkLostError, RequestTimeoutError, TopGimbalError
 from ..protocol import DIALECT_NAMES, DeviceModel, Dialect, Frame, Message, decode_any, get_dialect
 from . import identity, roles
 from .identity import Report, Verdict
-
-if TYPE_CHECKING:
-    from .core import ClientCore
+from .ports import ModelCheckPort
 
 log = logging.getLogger("topgimbal.client")
 
@@ -33,7 +30,7 @@ Listener = Callable[[Verdict], object]
 
 
 class ModelChecker:
-    def __init__(self, core: ClientCore) -> None:
+    def __init__(self, core: ModelCheckPort) -> None:
         self.core = core
         self.reports: list[Report] = []
         self.verdict = Verdict(identity.PENDING, core.model.name)
@@ -118,7 +115,7 @@ class ModelChecker:
 
 
 async def ask(
-    core: ClientCore,
+    core: ModelCheckPort,
     dialect: Dialect,
     model: DeviceModel | None,
     *,
@@ -139,7 +136,7 @@ async def ask(
         lenient = any(spec.ident in roles.recovered_ok(dialect, m) for m in models)
         probe = dialect.encode(spec.ident, read=True, src=src)
         try:
-            reply = await core._request(
+            reply = await core.transact(
                 probe, timeout_s=min(timeout_s, core.timeout_s), retries=0, slow=slow, lenient=lenient
             )
         except DeviceError:
@@ -160,7 +157,7 @@ async def ask(
     return out
 
 
-async def detect(core: ClientCore, timeout_s: float, default: str) -> str | None:
+async def detect(core: ModelCheckPort, timeout_s: float, default: str) -> str | None:
     """The model the device's identity answers fit best (see `identity.best_guess`)."""
     reports: list[Report] = []
     for name in DIALECT_NAMES:

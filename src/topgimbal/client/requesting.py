@@ -38,6 +38,11 @@ class Requests:
         raise NotImplementedError
 
     @property
+    def event_loop(self) -> asyncio.AbstractEventLoop | None:
+        """The loop the client was opened on (None before open)."""
+        return self._loop
+
+    @property
     def connected_transport(self) -> bool:
         return not self.closed and self._transport is not None and self._transport.connected
 
@@ -47,7 +52,7 @@ class Requests:
 
     def send_nowait(self, frame: Frame) -> None:
         """Send without waiting for an answer (in the engine's order and pacing)."""
-        self._check_usable()
+        self._check_usable(frame)
         assert self._engine is not None
         self._engine.submit(frame, timeout_s=self.timeout_s, expect_reply=False)
         self._drive()
@@ -68,7 +73,7 @@ class Requests:
         if wait_reply is None:
             wait_reply = read or self.behaviour.expects_echo(spec)
         exclusive = not spec.is_idempotent(frame)  # sent once (and waits as long in all)
-        reply = await self._request(
+        reply = await self.transact(
             frame,
             timeout_s=self.timeout_s if timeout_s is None else float(timeout_s),
             retries=self.retries if retries is None else retries,
@@ -81,15 +86,17 @@ class Requests:
             return Message(frame, spec, None, None, "sent without waiting for a reply")
         return reply  # already in the API convention (mapped on arrival)
 
-    def _check_usable(self) -> None:
+    def _check_usable(self, frame: Frame | None = None) -> None:
+        """Raise (with `frame` as the error's request) when nothing can be sent now."""
         if self.closed:
-            raise TransportError(f"{self.url}: the client is closed")
+            raise TransportError(f"{self.url}: the client is closed", request=frame)
         if self._engine is None or self._loop is None:
-            raise TransportError(f"{self.url}: not open (await connect(...) first)")
+            raise TransportError(f"{self.url}: not open (await connect(...) first)", request=frame)
         if not self.connected_transport:
-            raise LinkLostError(f"{self.url}: the link is down ({self.link_state['reason']}); reconnecting")
+            reason = self.link_state["reason"]
+            raise LinkLostError(f"{self.url}: the link is down ({reason}); reconnecting", request=frame)
 
-    async def _request(
+    async def transact(
         self,
         frame: Frame,
         *,
@@ -102,7 +109,7 @@ class Requests:
         lenient: bool = False,
     ) -> Message | None:
         """Hand one frame to the engine and wait for what it decides."""
-        self._check_usable()
+        self._check_usable(frame)
         engine, loop = self._engine, self._loop
         assert engine is not None and loop is not None
         tx: Transaction = engine.submit(
@@ -128,6 +135,8 @@ class Requests:
             raise
         except TopGimbalError as exc:
             raise self._explained(exc, timeout_s) from None
+
+    _request = transact  # its older name (client modules, tests)
 
     def _explained(self, exc: TopGimbalError, timeout_s: float) -> TopGimbalError:
         """The error with what the client knows about why: a silent device, a wrong model."""

@@ -25,20 +25,17 @@ import math
 import time
 import weakref
 from collections import deque
-from typing import TYPE_CHECKING
 
 from ..errors import RequestTimeoutError, TopGimbalError
 from . import roles
+from .ports import StreamPort
 from .state import Attitude
-
-if TYPE_CHECKING:
-    from .core import ClientCore
 
 QUEUE_SIZE = 64  # samples held per consumer; the oldest go first when a consumer falls behind
 
 
 class StreamControl:
-    def __init__(self, core: ClientCore) -> None:
+    def __init__(self, core: StreamPort) -> None:
         self.core = core
         # Weak: a consumer dropped without aclose() must be collectable (its __del__ releases it).
         self.consumers: weakref.WeakSet[AttitudeStream] = weakref.WeakSet()
@@ -83,7 +80,7 @@ class StreamControl:
     def kick(self) -> None:
         """Start bringing the device to the wanted state, unless that is under way."""
         if self._task is None or self._task.done():
-            loop = self.core._loop
+            loop = self.core.event_loop
             if loop is None or loop.is_closed() or self.core.closed:
                 return
             if self.wanted() == self.device_rate:
@@ -108,7 +105,7 @@ class StreamControl:
         spec = core.dialect.command(ident)
         while (want := self.wanted()) != self.device_rate:
             frame = core.build_from(ident, roles.stream_values(spec, want))
-            await core._request(frame, timeout_s=core.timeout_s, retries=core.retries)
+            await core.transact(frame, timeout_s=core.timeout_s, retries=core.retries)
             self.device_rate = want
         self._keep_renewing()
 
@@ -131,7 +128,7 @@ class StreamControl:
             if rate is None or self.wanted() != rate or core.closed or not core.connected:
                 continue
             with contextlib.suppress(TopGimbalError):
-                await core._request(core.build_from(ident, roles.stream_values(spec, rate)), timeout_s=core.timeout_s,
+                await core.transact(core.build_from(ident, roles.stream_values(spec, rate)), timeout_s=core.timeout_s,
                                     retries=core.retries)  # fmt: skip
                 self.renewals += 1
 
@@ -157,7 +154,7 @@ class StreamControl:
             return
         off = core.build_from(ident, roles.stream_values(core.dialect.command(ident), None))
         with contextlib.suppress(TopGimbalError, asyncio.TimeoutError):
-            await asyncio.wait_for(core._request(off, timeout_s=timeout_s, retries=0), timeout_s * 2)
+            await asyncio.wait_for(core.transact(off, timeout_s=timeout_s, retries=0), timeout_s * 2)
             self.device_rate = None
 
     # -- samples ---------------------------------------------------------------------------------

@@ -139,6 +139,11 @@ class Gimbal(SyncDriver, CoreMethods, MotionMethods, CameraMethods, FeedMethods)
 
     The same typed methods as AsyncClient, blocking. Callbacks run on the loop thread."""
 
+    if TYPE_CHECKING:  # one overload per catalog command (generated): a wrong field name is a mypy error
+        from .catalog_types import SyncRequest
+
+        request: SyncRequest
+
     def __init__(self, url: str, model: str = "C12", **options: Unpack[ConnectOptions]) -> None:
         self._thread = ThreadLoop()
         try:

@@ -10,6 +10,7 @@ from binascii import unhexlify
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from struct import Struct
+from types import CodeType
 from typing import Any
 
 from ..errors import FieldValueError
@@ -22,6 +23,11 @@ FORM_ROLES = ("", "echo")  # "echo": the device's copy of a write; answers and r
 
 def _no_fields(data: bytes) -> dict[str, Any]:
     return {}
+
+
+# Compiled field decoders by source text (Form._build_decoder): the catalog has a few dozen layouts.
+_COMPILED: dict[str, CodeType] = {}
+_COMPILED_MAX = 1024
 
 
 @dataclass(frozen=True)
@@ -126,9 +132,16 @@ class Form:
         if self._variable is not None:
             namespace["_dv"] = self._variable.decode
             items.append(f"{self.fields[-1].name!r}: _dv(data[{self._fixed:d}:])")
-        # Built from field names (as literals), slice bounds and decimals (ints) only.
+        # Built from field names (as literals), slice bounds and decimals (ints) only. Many forms
+        # share one text (a write and its echo): compiled once, run in each form's own namespace.
         body = "".join(f"    {line}\n" for line in lines)
-        exec(f"def decode(data):\n{body}    return {{{', '.join(items)}}}\n", namespace)
+        source = f"def decode(data):\n{body}    return {{{', '.join(items)}}}\n"
+        code = _COMPILED.get(source)
+        if code is None:
+            if len(_COMPILED) >= _COMPILED_MAX:
+                _COMPILED.clear()
+            code = _COMPILED[source] = compile(source, "<form decoder>", "exec")
+        exec(code, namespace)
         return namespace["decode"]  # type: ignore[no-any-return]
 
     @property

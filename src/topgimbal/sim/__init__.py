@@ -9,12 +9,35 @@ See docs/simulator.md."""
 
 from __future__ import annotations
 
-from .background import BackgroundSimulator
+from typing import TYPE_CHECKING
+
 from .clock import FakeClock, MonotonicClock
-from .device import Device
 from .faults import FaultInjector, FaultPlan, FaultPlanError
 from .quirks import QUIRKS
-from .simulator import Simulator
+
+if TYPE_CHECKING:
+    from .background import BackgroundSimulator
+    from .device import Device
+    from .simulator import Simulator
+
+# The device and its asyncio shell load on first use (PEP 562): the CLI builds `sim`'s options from
+# the light modules above without importing the simulator (docs/architecture.md, "A CLI that starts fast").
+_LAZY = {"BackgroundSimulator": "background", "Device": "device", "Simulator": "simulator"}
+
+
+def __getattr__(name: str) -> object:
+    if name in _LAZY:
+        import importlib
+
+        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    import importlib.util
+
+    if not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
+        return importlib.import_module(f".{name}", __name__)  # a submodule, as eager imports made it one
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "QUIRKS",

@@ -28,7 +28,7 @@ from ..errors import TopGimbalError
 from ..protocol import DeviceModel, Dialect, Frame, Message
 from ..protocol.commands import factory_values, stored_form
 from ..protocol.signs import flip
-from .physics import Gimbal
+from .physics import GimbalPhysics
 from .state import CameraState, NetworkState, Position
 from .streams import Key, ReportFn, Stream, Streams
 
@@ -80,7 +80,7 @@ class SimState:
     signs: Mapping[str, int]
     quirks: Mapping[str, bool]
     seed: int
-    gimbal: Gimbal
+    gimbal: GimbalPhysics
     camera: CameraState
     network: NetworkState = field(default_factory=NetworkState)
     position: Position = field(default_factory=Position)
@@ -202,7 +202,7 @@ class StateView:
     state: SimState
 
     @property
-    def gimbal(self) -> Gimbal:
+    def gimbal(self) -> GimbalPhysics:
         return self.state.gimbal
 
     @property
@@ -275,7 +275,7 @@ def new_state(
 ) -> SimState:
     """A device fresh from the factory."""
     m = model
-    gimbal = Gimbal.for_limits(
+    gimbal = GimbalPhysics.for_limits(
         m.yaw_range_deg, m.pitch_range_deg, m.roll_range_deg, m.max_rate_deg_s, m.max_accel_deg_s2
     )
     camera = CameraState(m)

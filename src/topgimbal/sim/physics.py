@@ -125,7 +125,7 @@ class Vehicle:
 
 
 @dataclass
-class Gimbal:
+class GimbalPhysics:
     """Three axes plus the modes the PTZ codes switch."""
 
     yaw_axis: Axis
@@ -146,7 +146,7 @@ class Gimbal:
         roll: tuple[float, float],
         max_rate: float,
         max_accel: float,
-    ) -> Gimbal:
+    ) -> GimbalPhysics:
         def mk(name: str, rng: tuple[float, float]) -> Axis:
             return Axis(name, AxisLimits(rng[0], rng[1], max_rate, max_accel))
 
@@ -244,3 +244,8 @@ class Gimbal:
             for ax, veh, hold in axes:
                 if not ax.at_rest(veh):
                     ax.step(h, veh, hold)
+
+
+# The old name, kept for code that imported it: `topgimbal.Gimbal` is the client's blocking facade,
+# and one name for two classes misled readers (issue 28). Deprecated: use GimbalPhysics.
+Gimbal = GimbalPhysics

@@ -26,7 +26,7 @@ from . import persist
 from .clock import Clock, FakeClock, MonotonicClock
 from .device import TOPOTEK_STREAM_HZ, Device, Outgoing
 from .faults import FaultInjector, FaultPlan
-from .physics import Gimbal
+from .physics import GimbalPhysics
 from .servers import LOOPBACK, Limits, SerialPeer, TcpServer, UdpServer
 from .state import CameraState, NetworkState
 
@@ -107,7 +107,7 @@ class Simulator:
         return self.device.dialect
 
     @property
-    def gimbal(self) -> Gimbal:
+    def gimbal(self) -> GimbalPhysics:
         return self.device.gimbal
 
     @property

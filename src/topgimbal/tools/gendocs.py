@@ -129,7 +129,7 @@ def render(dialects: Sequence[Dialect] | None = None) -> str:
     out = [
         "# TOP protocol reference",
         "",
-        "Generated from the catalog by `python -m topgimbal.tools.gendocs docs/protocol.md`; CI checks it is",
+        "Generated from the catalog by `python -m topgimbal.tools.regen` (`make docs`); CI checks it is",
         "current (`make docs-check`). Do not edit by hand. Values are in user units, as on the wire (no sign",
         "changes: the client maps its convention to each model's wire signs). Widths are in data characters.",
         "Decisions on what the documents leave ambiguous are in [errata.md](errata.md).",

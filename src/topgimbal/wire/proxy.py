@@ -173,7 +173,7 @@ class Proxy:
         try:
             if self.listen.scheme == "udp":
                 self._udp = await UdpSocket.bind(self.listen.host, self.listen.port or 0, self._udp_datagram)
-                self._watch(self._udp)
+                self.watch(self._udp)
                 self.listen_address = self._udp.address
                 self._sweeper = loop.call_later(min(self.idle_timeout_s, 5.0), self._sweep)
             elif self.listen.scheme == "tcp":
@@ -270,7 +270,7 @@ class Proxy:
         self.stats.clients += 1
         session.opening = asyncio.get_running_loop().create_task(session.open())
 
-    def _drop(self, session: Session, *, deliver: bool = False) -> None:
+    def drop(self, session: Session, *, deliver: bool = False) -> None:
         for key, s in list(self._sessions.items()):
             if s is session:
                 del self._sessions[key]
@@ -296,7 +296,7 @@ class Proxy:
             self._sessions.move_to_end(key)
         session.from_client(data)
 
-    def _tcp_connected(self, client: TcpClient) -> Session | None:
+    def tcp_connected(self, client: TcpClient) -> Session | None:
         assert client.transport is not None
         peer = client.transport.get_extra_info("peername")[:2]
         if len(self._sessions) >= self.max_clients and self.to.scheme != "serial":
@@ -335,7 +335,7 @@ class Proxy:
 
     # -- the data path: forwarded at once, decoded soon (backlog.py) -----------------------------
 
-    def _relay(self, session: Session, direction: str, data: bytes, send: Callable[[bytes], None]) -> None:
+    def relay(self, session: Session, direction: str, data: bytes, send: Callable[[bytes], None]) -> None:
         """Forward `data` now; decode, record and publish it soon."""
         d = session.dirs[direction]
         t = time.time()
@@ -375,7 +375,7 @@ class Proxy:
         else:
             self.backlog.queue(work)
 
-    def _watch(self, sock: UdpSocket, on: bool = True) -> None:
+    def watch(self, sock: UdpSocket, on: bool = True) -> None:
         self.backlog.watch(sock, on)
 
     def drain(self) -> None:
@@ -390,7 +390,7 @@ class Proxy:
         self.flush()
         self._flusher = asyncio.get_running_loop().call_later(FLUSH_S, self._flush_timer)
 
-    def _closed(self, session: Session) -> None:
+    def session_closed(self, session: Session) -> None:
         """A session ended: its parsers go, and its TCP connection in the pcap ends after what it sent."""
         self._queue(Chunk(time.time(), session.label, session.endpoint, CLOSED, b"", False, []))
 

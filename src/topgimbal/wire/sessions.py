@@ -1,6 +1,7 @@
 """One client's path through the proxy to the device (`Session`), the TCP client protocol that
 feeds it, and the throttled warnings peers can trigger. The `Proxy` owns the sessions and does the
-relaying, decoding and bookkeeping they call back into."""
+relaying, decoding and bookkeeping they call back into, seen here only through `SessionOwner`
+(the few attributes and calls a session needs), so this module does not import the proxy's."""
 
 from __future__ import annotations
 
@@ -10,18 +11,16 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from ..errors import TopGimbalError, TransportError
+from ..logthrottle import ThrottledLog
 from ..protocol import FrameParser
-from ..transport import Transport, open_transport
+from ..transport import Transport, TransportURL, open_transport
 from ..transport.tcp import StreamTransport
 from .packets import Endpoint
 from .udplink import UdpSocket
 from .watcher import IN, OUT
-
-if TYPE_CHECKING:
-    from .proxy import Proxy
 
 log = logging.getLogger("topgimbal.proxy")
 
@@ -29,28 +28,35 @@ MAX_QUEUED = 64 * 1024  # bytes waiting for a client's device link to open, or u
 LOG_EVERY_S = 10.0  # a warning that peers can repeat at will is logged at most this often
 
 
-class Throttle:
+class Throttle(ThrottledLog):
     """Warnings a peer can trigger again and again (a flood of new clients or datagrams): each
     kind is logged at most once per LOG_EVERY_S, the next line saying how many were left out."""
 
     def __init__(self, every_s: float = LOG_EVERY_S, clock: Callable[[], float] = time.monotonic) -> None:
-        self.every_s = every_s
-        self.clock = clock
-        self._last: dict[str, float] = {}  # one entry per kind of warning: bounded
-        self._left_out: dict[str, int] = {}
+        super().__init__(log, every_s, clock)
 
-    def warning(self, kind: str, fmt: str, *args: Any) -> None:
-        now = self.clock()
-        last = self._last.get(kind)
-        if last is not None and now - last < self.every_s:
-            self._left_out[kind] = self._left_out.get(kind, 0) + 1
-            return
-        self._last[kind] = now
-        left_out = self._left_out.pop(kind, 0)
-        if left_out:
-            fmt += " (%d more like it not logged)"
-            args = (*args, left_out)
-        log.warning(fmt, *args)
+
+class SessionOwner(Protocol):
+    """What a session reads of the proxy that owns it, and the calls it makes back (wire/proxy.py)."""
+
+    @property
+    def listen(self) -> TransportURL: ...
+
+    @property
+    def to(self) -> TransportURL: ...
+
+    @property
+    def throttle(self) -> Throttle: ...
+
+    def drop(self, session: Session, *, deliver: bool = False) -> None: ...
+
+    def tcp_connected(self, client: TcpClient) -> Session | None: ...
+
+    def relay(self, session: Session, direction: str, data: bytes, send: Callable[[bytes], None]) -> None: ...
+
+    def watch(self, sock: UdpSocket, on: bool = True) -> None: ...
+
+    def session_closed(self, session: Session) -> None: ...
 
 
 @dataclass
@@ -69,7 +75,7 @@ class Session:
 
     def __init__(
         self,
-        proxy: Proxy,
+        proxy: SessionOwner,
         label: str,
         endpoint: Endpoint,
         send_down: Callable[[bytes], None],
@@ -98,12 +104,12 @@ class Session:
         try:
             if to.scheme == "udp":
                 self.upstream = await UdpSocket.connect(to.host, to.port or 0, self._device_datagram)
-                self.proxy._watch(self.upstream)
+                self.proxy.watch(self.upstream)
             else:
                 self.upstream = await open_transport(to, self.from_device, self.device_lost)
         except (OSError, TopGimbalError) as exc:
             self.proxy.throttle.warning("unreachable", "proxy: cannot reach %s for %s: %s", to, self.label, exc)
-            self.proxy._drop(self)
+            self.proxy.drop(self)
             return
         queued, self.queued, self.queued_bytes = self.queued, [], 0
         for chunk in queued:
@@ -144,7 +150,7 @@ class Session:
         self._send_up(data)
 
     def _send_up(self, data: bytes) -> None:
-        self.proxy._relay(self, OUT, data, self._upstream_send)
+        self.proxy.relay(self, OUT, data, self._upstream_send)
 
     def _upstream_send(self, data: bytes) -> None:
         if self.upstream is not None and self.upstream.connected:
@@ -152,7 +158,7 @@ class Session:
             if unsent > MAX_QUEUED:
                 # the device stopped reading: this session ends rather than buffering without bound
                 log.warning("proxy: %s: the device has %d unread bytes; closing this client", self.label, unsent)
-                self.proxy._drop(self)
+                self.proxy.drop(self)
                 return
             try:
                 self.upstream.send(data)
@@ -164,12 +170,12 @@ class Session:
 
     def from_device(self, data: bytes) -> None:
         self.last_active = time.monotonic()
-        self.proxy._relay(self, IN, data, self.send_down)
+        self.proxy.relay(self, IN, data, self.send_down)
 
     def device_lost(self, exc: Exception | None) -> None:
         if not self.closed:
             log.info("proxy: device link of %s closed%s", self.label, f": {exc}" if exc else "")
-            self.proxy._drop(self)
+            self.proxy.drop(self)
 
     async def close(self, deliver: bool = False) -> None:
         """End the session. `deliver`: the client left (a command sent and the connection closed
@@ -189,22 +195,22 @@ class Session:
                 self.opening.cancel()
         if self.close_down is not None:
             self.close_down()
-        self.proxy._closed(self)
+        self.proxy.session_closed(self)
         if self.upstream is not None:
             if isinstance(self.upstream, UdpSocket):
-                self.proxy._watch(self.upstream, on=False)
+                self.proxy.watch(self.upstream, on=False)
             await self.upstream.close()
 
 
 class TcpClient(asyncio.Protocol):
-    def __init__(self, proxy: Proxy) -> None:
+    def __init__(self, proxy: SessionOwner) -> None:
         self.proxy = proxy
         self.session: Session | None = None
         self.transport: asyncio.Transport | None = None
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         self.transport = transport  # type: ignore[assignment]
-        self.session = self.proxy._tcp_connected(self)
+        self.session = self.proxy.tcp_connected(self)
 
     def data_received(self, data: bytes) -> None:
         if self.session is not None:
@@ -212,7 +218,7 @@ class TcpClient(asyncio.Protocol):
 
     def connection_lost(self, exc: Exception | None) -> None:
         if self.session is not None:
-            self.proxy._drop(self.session, deliver=True)
+            self.proxy.drop(self.session, deliver=True)
 
     def send(self, data: bytes) -> None:
         if self.transport is None or self.transport.is_closing():
@@ -226,7 +232,7 @@ class TcpClient(asyncio.Protocol):
             )
             self.transport.abort()
             if self.session is not None:
-                self.proxy._drop(self.session)
+                self.proxy.drop(self.session)
             return
         self.transport.write(data)
 

@@ -86,6 +86,11 @@ def get_model(model: str | DeviceModel) -> tuple[Dialect, DeviceModel]:
     return d, d.model(model)
 
 
+def model_names() -> list[str]:
+    """Every model's name, from the profiles alone (no dialect is built: cheap, for CLI choices)."""
+    return [m.name for profiles in PROFILES.values() for m in profiles]
+
+
 def all_models() -> dict[str, DeviceModel]:
     """Every model's profile as its own dialect holds it, by name."""
     return {m.name: get_model(m.name)[1] for profiles in PROFILES.values() for m in profiles}

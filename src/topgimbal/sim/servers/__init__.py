@@ -10,10 +10,35 @@ that does not read is dropped at the high-water mark). A UDP send that would blo
 congested link drops it: nothing is ever queued in user space for UDP.
 """
 
+from typing import TYPE_CHECKING
+
 from .common import LOOPBACK, Limits, ListenError, Throttled, listen_error
-from .serial import SerialPeer, configure_tty
-from .tcp import TcpPeer, TcpServer
-from .udp import UdpPeer, UdpServer
+
+if TYPE_CHECKING:
+    from .serial import SerialPeer, configure_tty
+    from .tcp import TcpPeer, TcpServer
+    from .udp import UdpPeer, UdpServer
+
+# The asyncio servers load on first use (PEP 562): `Limits` alone (the CLI's defaults) stays light.
+_LAZY = {
+    "SerialPeer": "serial", "configure_tty": "serial", "TcpPeer": "tcp", "TcpServer": "tcp", "UdpPeer": "udp",
+    "UdpServer": "udp",
+}  # fmt: skip
+
+
+def __getattr__(name: str) -> object:
+    if name in _LAZY:
+        import importlib
+
+        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    import importlib.util
+
+    if not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
+        return importlib.import_module(f".{name}", __name__)  # a submodule, as eager imports made it one
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "LOOPBACK",

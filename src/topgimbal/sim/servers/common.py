@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import errno
 import logging
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from ...errors import TopGimbalError
+from ...logthrottle import ThrottledLog
 
 Sink = Callable[[Any, bytes, bool], None]
 Forget = Callable[[Any], None]
@@ -45,23 +45,16 @@ class Limits:
             raise ValueError(f"udp_lease_s={self.udp_lease_s!r}: expected seconds >= 0 (0 = no lease)")
 
 
-class Throttled:
-    """One log line per key per `interval_s`; the next one says how many were held back."""
+class Throttled(ThrottledLog):
+    """One log line per key per `interval_s`; the next one says how many were held back (the
+    shared `logthrottle.ThrottledLog`, with the simulator's logger and words)."""
 
     def __init__(self, interval_s: float = 10.0) -> None:
-        self.interval_s = interval_s
-        self._last: dict[str, float] = {}
-        self._held: dict[str, int] = {}
+        super().__init__(log, interval_s, suffix=" ({} more like this since the last report)")
 
-    def warning(self, key: str, message: str) -> None:
-        now = time.monotonic()
-        last = self._last.get(key)
-        if last is not None and now - last < self.interval_s:
-            self._held[key] = self._held.get(key, 0) + 1
-            return
-        held = self._held.pop(key, 0)
-        self._last[key] = now
-        log.warning("%s%s", message, f" ({held} more like this since the last report)" if held else "")
+    def warning(self, kind: str, fmt: str, *args: object) -> bool:
+        """`fmt` is the whole line when no `args` follow (the servers' f-strings may hold a %)."""
+        return super().warning(kind, fmt, *args) if args else super().warning(kind, "%s", fmt)
 
 
 def listen_error(kind: str, host: str, port: int, exc: OSError) -> ListenError:

@@ -1,0 +1,47 @@
+"""Warnings a remote end can trigger again and again (a flood of new clients, datagrams, failed
+sends): each kind is logged at most once per interval, and the next line says how many were left
+out. A leaf every layer may use (like errors.py): the simulator's servers and state store, the
+proxy; the MAVLink bridge's own copy (mavlink/commands.py) should adopt it too."""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+
+MAX_KINDS = 64  # kinds remembered; kinds are names in code, so this is never reached in practice
+
+
+class ThrottledLog:
+    """`warning(kind, fmt, *args)`: at most one line per `kind` per `every_s` seconds."""
+
+    def __init__(
+        self,
+        logger: logging.Logger,
+        every_s: float = 10.0,
+        clock: Callable[[], float] = time.monotonic,
+        *,
+        suffix: str = " ({} more like it not logged)",
+    ) -> None:
+        self.logger = logger
+        self.every_s = every_s
+        self.clock = clock
+        self.suffix = suffix
+        self._last: dict[str, float] = {}  # bounded: MAX_KINDS
+        self._left_out: dict[str, int] = {}
+
+    def warning(self, kind: str, fmt: str, *args: object) -> bool:
+        """Log now, or count it for the next line of its kind; True when it was logged."""
+        now = self.clock()
+        last = self._last.get(kind)
+        if last is not None and now - last < self.every_s:
+            self._left_out[kind] = self._left_out.get(kind, 0) + 1
+            return False
+        if last is None and len(self._last) >= MAX_KINDS:
+            self._last.pop(next(iter(self._last)))  # forget the oldest kind
+        self._last[kind] = now
+        left_out = self._left_out.pop(kind, 0)
+        if left_out:
+            fmt += self.suffix.format(left_out)
+        self.logger.warning(fmt, *args)
+        return True
