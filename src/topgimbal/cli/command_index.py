@@ -12,7 +12,8 @@ COMMANDS: dict[str, tuple[str, str | None]] = {
     "sim": ("sim_cmd", "run a virtual camera (simulator)"),
     "info": ("device_cmds", "identify the device: dialect, model, version, link statistics"),
     "attitude": ("device_cmds", "print the gimbal attitude (degrees; yaw right-, pitch up-positive)"),
-    "point": ("device_cmds", "move to YAW PITCH (degrees) and return once reached"),
+    "point": ("device_cmds", "move to YAW PITCH (degrees) and return once reached; on a model that reports no attitude (C13): send, wait the slew time, report it unconfirmed"),
+    "set_angles": ("device_cmds", "send absolute angles YAW PITCH (degrees) without waiting"),
     "rate": ("device_cmds", "turn at constant rates in deg/s (stop with `stop`)"),
     "stop": ("device_cmds", "stop all gimbal motion"),
     "center": ("device_cmds", "centre the gimbal"),
@@ -35,6 +36,9 @@ COMMANDS: dict[str, tuple[str, str | None]] = {
     "dissector": ("wire_cmds", "write the Wireshark Lua dissector generated from the catalog"),
     "proxy": ("wire_cmds", "forward between a ground station and a camera, decoding every frame live"),
     "pcap": ("wire_cmds", "capture files: convert a traffic log to pcap"),
+    "media": ("media_cmd", "list and fetch a camera's photos and recordings over HTTP"),
+    "geotag": ("geotag_cmd", "write GPS and gimbal pose into photos from a log (traffic .jsonl or MAVLink .tlog)"),
+    "zenoh": ("zenoh_cmd", "serve several cameras on a Zenoh session (attitude, state, link, calls; docs/fleet.md)"),
 }
 MODEL_NAMES = ["C10", "C10Pro", "C11", "C12", "C13", "C20", "SIP"]
 DIALECT_NAMES = ["skydroid", "topotek"]

@@ -124,7 +124,9 @@ class Bridge:
         )  # fmt: skip
         self._own_node = node is None
         self.node = (
-            node if node is not None else Node(c.sysid, list(c.endpoints), max_peers=c.max_peers, signing_key=c.signing_key)
+            node
+            if node is not None
+            else Node(c.sysid, list(c.endpoints), max_peers=c.max_peers, signing_key=c.signing_key)
         )
         self.dispatcher = Dispatcher()
         self.identity: dict[str, Any] = {}

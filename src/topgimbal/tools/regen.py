@@ -55,6 +55,10 @@ REGISTRY: tuple[Target, ...] = (
         "request-types", "src/topgimbal/client/catalog_types.pyi", "topgimbal.tools.typestubs:render",
         "request()'s typed signature per command (mypy)",
     ),
+    Target(
+        "camera-definitions", "contrib/camera-definitions", "topgimbal.mavlink.camdef:all_definitions",
+        "the MAVLink camera definitions, one per model and lens",
+    ),
 )  # fmt: skip
 
 

@@ -124,7 +124,7 @@ def digital_zoom(state: SimState, msg: Message, req: Request) -> dict[str, Any] 
     thermal = f.get("lens", f.get("image")) == "thermal" or f.get("image_code") == 1
     current = cam.thermal_digital_zoom_x if thermal else cam.digital_zoom_x
     if "magnification_x" in f or "ratio_x" in f:
-        target = float(f.get("magnification_x", f.get("ratio_x")))
+        target = float(f["magnification_x"] if "magnification_x" in f else f["ratio_x"])
     else:
         z = f["zoom"]
         token = _token(msg, "zoom", z)
