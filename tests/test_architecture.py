@@ -10,7 +10,7 @@ from pathlib import Path
 PKG = Path(__file__).resolve().parents[1] / "src" / "topgimbal"
 
 # Leaf modules every layer may import: the exceptions and the throttled warning log.
-SHARED_LEAVES = ("errors", "logthrottle")
+SHARED_LEAVES = ("errors", "logthrottle", "_lazy")
 
 # What each layer may import from inside topgimbal (besides itself and SHARED_LEAVES).
 ALLOWED = {

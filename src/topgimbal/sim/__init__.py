@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from .._lazy import lazy_getattr
 from .clock import FakeClock, MonotonicClock
 from .faults import FaultInjector, FaultPlan, FaultPlanError
 from .quirks import QUIRKS
@@ -25,18 +26,7 @@ if TYPE_CHECKING:
 _LAZY = {"BackgroundSimulator": "background", "Device": "device", "Simulator": "simulator"}
 
 
-def __getattr__(name: str) -> object:
-    if name in _LAZY:
-        import importlib
-
-        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    import importlib.util
-
-    if not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
-        return importlib.import_module(f".{name}", __name__)  # a submodule, as eager imports made it one
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_getattr(__name__, _LAZY, globals())
 
 
 __all__ = [

@@ -12,6 +12,7 @@ congested link drops it: nothing is ever queued in user space for UDP.
 
 from typing import TYPE_CHECKING
 
+from ..._lazy import lazy_getattr
 from .common import LOOPBACK, Limits, ListenError, Throttled, listen_error
 
 if TYPE_CHECKING:
@@ -26,18 +27,7 @@ _LAZY = {
 }  # fmt: skip
 
 
-def __getattr__(name: str) -> object:
-    if name in _LAZY:
-        import importlib
-
-        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    import importlib.util
-
-    if not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
-        return importlib.import_module(f".{name}", __name__)  # a submodule, as eager imports made it one
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_getattr(__name__, _LAZY, globals())
 
 
 __all__ = [
