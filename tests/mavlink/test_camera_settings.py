@@ -131,7 +131,8 @@ async def test_thermal_range_has_finite_temperatures(rig_factory: Any) -> None:
     rig: Rig = await rig_factory("SIP")
     t = await rig.peer.request(101, 277, "CAMERA_THERMAL_RANGE")
     assert math.isfinite(t.max) and 0 <= t.max_point_x <= 1 and 0 <= t.max_point_y <= 1
-    assert math.isnan(t.min)  # the SIP's §12.1 report has no coldest point: unknown, not invented
+    # the simulated SIP sends §12.2 reports: the coldest point too, with its position in the picture
+    assert math.isfinite(t.min) and t.min <= t.max and 0 <= t.min_point_x <= 1 and 0 <= t.min_point_y <= 1
     ack = await rig.peer.ack(101, 511, 277, 200_000)  # streamed at 5 Hz
     assert ack.result == ACCEPTED
     await rig.peer.wait("CAMERA_THERMAL_RANGE", lambda m: m.get_srcComponent() == 101 and math.isfinite(m.max))

@@ -47,7 +47,9 @@ def centre_temperature(state: SimState, msg: Message, req: Request) -> dict[str,
 
 
 def hot_report(state: SimState, s: Stream) -> list[Frame]:
-    """TOPOTEK §12.1: hottest point and centre of the thermal picture."""
+    """TOPOTEK §12.2: hottest and coldest points and centre of the thermal picture (the fuller of
+    the document's two periodic reports, §12.1 lacking the coldest point: a ground station's
+    thermal range needs both ends; docs/errata.md)."""
     y, p = _view(state)
     tf = scene.thermal_frame(y, p, state.camera.thermal_digital_zoom_x)
     return [
@@ -58,13 +60,16 @@ def hot_report(state: SimState, s: Stream) -> list[Frame]:
             hot_x_px=tf.hot_xy[0],
             hot_y_px=tf.hot_xy[1],
             hot_temp_c=tf.hot_c,
+            cold_x_px=tf.cold_xy[0],
+            cold_y_px=tf.cold_xy[1],
+            cold_temp_c=tf.cold_c,
             center_temp_c=tf.center_c,
         )
     ]
 
 
 def area_temperature(state: SimState, msg: Message, req: Request) -> dict[str, Any]:
-    """TOPOTEK §12.3 spot / area query; the host is also subscribed to §12.1 reports."""
+    """TOPOTEK §12.3 spot / area query; the host is also subscribed to §12.2 reports."""
     _need_thermal(state)
     assert msg.spec is not None
     f = fields(msg)
@@ -74,7 +79,7 @@ def area_temperature(state: SimState, msg: Message, req: Request) -> dict[str, A
 
 
 def temperature_range(state: SimState, msg: Message, req: Request) -> dict[str, Any] | None:
-    """TMR: a stored setting; switching it starts the §12.1 reports too."""
+    """TMR: a stored setting; switching it starts the §12.2 reports too."""
     report = state.dialect.by_role("temperature", state.model)
     if report is not None:
         state.subscribe(req, report.ident, TMP_REPORT_HZ, hot_report)
