@@ -119,4 +119,8 @@ def test_example_reports_the_cameras_refusal_at_once(sanitized_example: Path) ->
         r = subprocess.run(
             [str(sanitized_example), "udp", host, port, "10", "-5"], capture_output=True, text=True, timeout=60
         )
-        assert r.returncode == 0 and "reached yaw 10.00 pitch -5.00" in r.stdout, (r.stdout, r.stderr)
+        assert r.returncode == 0, (r.stdout, r.stderr)
+        # the example stops within its 0.5 deg tolerance, wherever the moving gimbal was then
+        reached = re.search(r"reached yaw (-?[\d.]+) pitch (-?[\d.]+)", r.stdout)
+        assert reached is not None, r.stdout
+        assert abs(float(reached[1]) - 10) <= 0.5 and abs(float(reached[2]) + 5) <= 0.5, r.stdout

@@ -314,9 +314,14 @@ class Proxy:
             unsent = self._serial.write_buffer_size if isinstance(self._serial, StreamTransport) else 0
             if unsent > MAX_QUEUED:
                 # the device sends faster than the line's baud rate carries: whole chunks are dropped
+                # throttled, not once per overflow: a line hovering at the bound would log each time
                 self._serial_dropped += 1
-                if self._serial_dropped == 1:
-                    log.warning("proxy: serial port %s has %d unsent bytes; dropping chunks", self.listen.path, unsent)
+                self.throttle.warning(
+                    "serial-full",
+                    "proxy: serial port %s has %d unsent bytes; dropping chunks",
+                    self.listen.path,
+                    unsent,
+                )
                 return
             self._serial_dropped = 0
             self._serial.send(data)
