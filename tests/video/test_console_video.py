@@ -29,6 +29,7 @@ def console_c12() -> Iterator[BackgroundConsole]:
 
 def _picture(page: Any, lens: str = "visible") -> tuple[np.ndarray, dict[str, float]]:
     img = page.get_by_test_id(f"video-{lens}")
+    img.wait_for(state="visible", timeout=30_000)  # hidden while the relay reopens a stream (loaded machine)
     box = img.bounding_box()
     assert box is not None
     return np.asarray(Image.open(io.BytesIO(img.screenshot())).convert("RGB")), box
