@@ -7,6 +7,7 @@ import contextlib
 import sys
 from typing import Any
 
+from ..errors import TopGimbalError
 from .args import add_camera_subcommand, add_model_argument
 
 DEFAULT_PORT = 8080
@@ -22,7 +23,30 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "token (given with --token, or generated and printed in the URL).",
     )
     add_model_argument(
-        p, "--sim", metavar="MODEL", help="run a simulated MODEL in this process on an ephemeral loopback port"
+        p,
+        "--sim",
+        metavar="MODEL",
+        action="append",
+        help="run a simulated MODEL in this process on an ephemeral loopback port (repeatable: several cameras, "
+        "named sim1, sim2, ...)",
+    )
+    p.add_argument(
+        "--camera",
+        action="append",
+        type=_camera_arg,
+        default=[],
+        metavar="NAME=URL,MODEL",
+        help="one of several cameras, e.g. left=udp://127.0.0.1:5000,C12 (repeatable; as `topgimbal zenoh`): the "
+        "page gets a camera switcher and an overview of every camera",
+    )
+    p.add_argument("--cameras", metavar="FILE", help="cameras from a file: NAME=URL,MODEL per line, or a JSON list")
+    p.add_argument(
+        "--zenoh",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help="show the cameras a `topgimbal zenoh` server serves, found by their liveliness tokens, e.g. "
+        "tcp/127.0.0.1:7447 (repeatable; scouting stays off)",
     )
     p.add_argument("--seed", type=int, default=0, help="simulator seed (with --sim)")
     p.add_argument(
@@ -81,6 +105,41 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.set_defaults(func=run)
 
 
+def _camera_arg(text: str) -> object:
+    from .zenoh_cmd import camera_arg
+
+    return camera_arg(text)
+
+
+def _several(args: argparse.Namespace) -> bool:
+    """Several cameras (the switcher and the overview): --camera, --cameras, --zenoh or --sim twice."""
+    sims = args.sim if isinstance(args.sim, list) else []
+    return bool(args.camera or args.cameras or args.zenoh or len(sims) > 1)
+
+
+def _multi_server(args: argparse.Namespace, page: dict[str, Any]) -> object:
+    """The ConsoleServer of several cameras (ValueError, a usage error, on bad input)."""
+    from ..console import ConsoleServer
+    from ..fleet.specs import read_camera_file
+
+    specs = list(args.camera) + (read_camera_file(args.cameras) if args.cameras else [])
+    single = {"--url": getattr(args, "url", None), "--proxy": args.proxy or args.listen or args.to,
+              "--faults": args.faults, "--video-url": args.video_url, "--video-port": args.video_port}  # fmt: skip
+    given = [k for k, v in single.items() if v]
+    if given:
+        raise ValueError(
+            f"{', '.join(given)} cannot be combined with --camera, --cameras, several --sim or --zenoh: give every "
+            "camera with --camera NAME=URL,MODEL, --sim MODEL or --zenoh ENDPOINT"
+        )
+    return ConsoleServer(
+        cameras=[(c.name, c.url, c.model) for c in specs],
+        sims=list(args.sim or []),
+        zenoh=list(args.zenoh),
+        sim_seed=args.seed,
+        **page,
+    )
+
+
 def _fault_plan(text: str) -> object:
     from ..sim import FaultPlan, FaultPlanError
 
@@ -115,6 +174,10 @@ def build_server(args: argparse.Namespace) -> object:
         "allow_hosts": args.allow_host,
         "attitude_hz": args.attitude_hz,
     }
+    if _several(args):
+        return _multi_server(args, page)
+    if isinstance(args.sim, list):  # one --sim: the single-camera console, as before
+        args.sim = args.sim[0] if args.sim else None
     if args.proxy or args.listen or args.to:
         if not args.proxy:
             raise ValueError("--listen and --to go with --proxy")
@@ -211,7 +274,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"topgimbal: error: {exc}", file=sys.stderr)
         return 2
     args.port, taken = choose_port(args.host, args.port)
-    server = build_server(args)
+    if _several(args):
+        try:
+            server = build_server(args)
+        except (ValueError, TopGimbalError) as exc:  # names, the bound, a camera file, a mix of forms
+            print(f"topgimbal console: error: {exc}", file=sys.stderr)
+            return 2
+    else:
+        server = build_server(args)
     with contextlib.suppress(KeyboardInterrupt):
         asyncio.run(_serve(server, args.seconds, taken))
     return 0

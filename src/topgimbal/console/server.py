@@ -11,7 +11,6 @@ import asyncio
 import contextlib
 import importlib.resources
 import logging
-import time
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -19,14 +18,16 @@ from typing import TYPE_CHECKING, Any
 from aiohttp import web
 from aiohttp.http_exceptions import HttpProcessingError
 
+from ..client.zenoh_session import check_endpoint
 from ..video.webconsole import ConsoleVideo
 from ..video.webconsole import attach as attach_video
 from .auth import needs_token, resolve_token, token_middleware
-from .capture import pcap
-from .catalog_api import catalog_json
+from .cameras import CameraSet, local_plan, open_local
 from .guard import HostGuard, default_allowed_hosts
 from .hub import Hub
 from .pages import PageHub
+from .routes import CameraVideos, add_camera_routes, camera_handlers
+from .zenoh_cameras import ZenohCameras
 
 if TYPE_CHECKING:
     from ..client import AsyncClient
@@ -40,6 +41,13 @@ DEFAULT_PORT = 8080
 VIDEO_SCHEMES = ("rtsp", "rtsps", "http", "https")  # what --video-url accepts (the relay opens them with FFmpeg)
 LINK_TIMEOUT_S = 3.0  # the client declares the camera's link lost after this long without a frame
 HUB_KEY = web.AppKey("hub", PageHub)
+SINGLE_ROUTES = (
+    ("/", "index"),
+    ("/api/catalog", "catalog"),
+    ("/api/status", "status"),
+    ("/api/traffic.pcap", "pcap"),
+    ("/ws", "ws"),
+)
 
 
 def static_dir() -> Path:
@@ -58,37 +66,21 @@ def create_app(
     app[HUB_KEY] = hub
     root = static_dir()
 
-    async def index(request: web.Request) -> web.StreamResponse:
-        return web.FileResponse(root / "index.html", headers={"Cache-Control": "no-store"})
+    handlers = camera_handlers(lambda request: hub, root)
+    for path, name in SINGLE_ROUTES:
+        app.router.add_get(path, handlers[name])
+    app.router.add_static("/static/", root, show_index=False)
+    return app
 
-    async def catalog(request: web.Request) -> web.Response:
-        return web.json_response(catalog_json(hub.dialect, hub.model))
 
-    async def status(request: web.Request) -> web.Response:
-        return web.json_response(hub.status(), dumps=_dumps)
-
-    async def ws(request: web.Request) -> web.StreamResponse:
-        return await hub.handle_ws(request)
-
-    async def traffic_pcap(request: web.Request) -> web.Response:
-        frames = hub.recorder.frames()  # taken here, written in a thread (a temporary file)
-        data = await asyncio.to_thread(pcap, frames, hub.link)
-        stamp = time.strftime("%Y%m%d-%H%M%S")
-        return web.Response(
-            body=data,
-            content_type="application/vnd.tcpdump.pcap",
-            headers={
-                "Content-Disposition": f'attachment; filename="topgimbal-{hub.model.name}-{stamp}.pcap"',
-                "Cache-Control": "no-store",
-                "X-Topgimbal-Frames": str(len(frames)),
-            },
-        )
-
-    app.router.add_get("/", index)
-    app.router.add_get("/api/catalog", catalog)
-    app.router.add_get("/api/status", status)
-    app.router.add_get("/api/traffic.pcap", traffic_pcap)
-    app.router.add_get("/ws", ws)
+def create_multi_app(
+    cameras: CameraSet, videos: CameraVideos, *, token: str | None = None, allowed_hosts: Iterable[str] | None = None
+) -> web.Application:
+    """The app of a console with several cameras (routes.py): the same guard and token rule."""
+    guard = HostGuard(default_allowed_hosts(DEFAULT_HOST) if allowed_hosts is None else allowed_hosts)
+    app = web.Application(middlewares=[guard.middleware(), token_middleware(token)])  # type: ignore[list-item]
+    root = static_dir()
+    add_camera_routes(app, cameras, videos, root)
     app.router.add_static("/static/", root, show_index=False)
     return app
 
@@ -165,7 +157,22 @@ class ConsoleServer:
         link_timeout_s: float = LINK_TIMEOUT_S,
         video_urls: Mapping[str, str] | None = None,
         video_port: int | None = None,
+        cameras: Sequence[tuple[str, str, str]] = (),
+        sims: Sequence[str] = (),
+        zenoh: Sequence[str] = (),
     ) -> None:
+        self.multi = bool(cameras or sims or zenoh)
+        if self.multi:  # several cameras (routes.py, cameras.py): checked before anything starts
+            single = {"--url": url, "--sim MODEL (alone)": sim_model, "--proxy": proxy_listen or proxy_to,
+                      "--faults": sim_faults, "--video-url": video_urls, "--video-port": video_port}  # fmt: skip
+            given = [k for k, v in single.items() if v]
+            if given:
+                raise ValueError(f"{', '.join(given)} cannot be combined with --camera, several --sim or --zenoh: "
+                                 "give every camera with --camera NAME=URL,MODEL (or --sim MODEL, --zenoh ENDPOINT)")  # fmt: skip
+            self.plan = local_plan(cameras, sims)
+            self.zenoh_endpoints = tuple(check_endpoint(e) for e in zenoh)
+            url, model = None, None
+            sim_model = None
         watch = proxy_listen is not None or proxy_to is not None
         if watch and not (proxy_listen and proxy_to):
             raise ValueError("--proxy needs both --listen URL (where clients connect) and --to URL (the camera)")
@@ -173,7 +180,7 @@ class ConsoleServer:
             raise ValueError("--proxy watches the camera behind it: give --listen and --to, not --url or --sim")
         if watch and not model:
             raise ValueError("give --model with --proxy: the page describes the camera's commands from its model")
-        if not watch and sim_model is None and not url:
+        if not watch and sim_model is None and not url and not self.multi:
             raise ValueError("give the camera's --url (and --model), or --sim MODEL to run a simulator")
         if sim_model is not None and url:
             raise ValueError("--sim runs its own simulator: give either --url or --sim, not both")
@@ -209,6 +216,9 @@ class ConsoleServer:
         self._runner: web.AppRunner | None = None
         self.bound_port: int | None = None
         self.video: ConsoleVideo | None = None
+        self.cameras = CameraSet()  # several cameras: every camera (the single-camera forms: empty)
+        self.videos = CameraVideos(self.cameras)
+        self.zenoh: ZenohCameras | None = None
 
     @property
     def base_url(self) -> str:
@@ -222,6 +232,9 @@ class ConsoleServer:
 
     async def start(self) -> None:
         try:
+            if self.multi:
+                await self._start_multi()
+                return
             self.hub = await (self._watch() if self.proxy_listen else self._connect())
             await self.hub.start()
             self.app = create_app(self.hub, token=self.token, allowed_hosts=self.allowed_hosts)
@@ -230,18 +243,35 @@ class ConsoleServer:
                 self.video = await attach_video(self, self.app)  # topgimbal.video: streams, relay, routes
             if self.video is None:  # (the reason is logged by topgimbal.video)
                 self.app.router.add_get("/api/video", _no_video)
-            self._runner = web.AppRunner(
-                self.app, access_log=None, handle_signals=False, logger=HttpLog(logging.getLogger("aiohttp.server"))
-            )
-            await self._runner.setup()
-            site = web.TCPSite(self._runner, self.host, self.port)
-            await site.start()
-            server = getattr(site, "_server", None)
-            sockets = getattr(server, "sockets", None) or []
-            self.bound_port = sockets[0].getsockname()[1] if sockets else self.port
+            await self._serve_app()
         except BaseException:
             await self.stop()
             raise
+
+    async def _start_multi(self) -> None:
+        for name, url, model in self.plan:
+            cam = await open_local(name, url, model, attitude_hz=self.attitude_hz, timeout_s=self.timeout_s,
+                                   retries=self.retries, link_timeout_s=self.link_timeout_s, sim_seed=self.sim_seed)  # fmt: skip
+            self.cameras.add(cam)
+        for cam in self.cameras:
+            await cam.hub.start()
+        if self.zenoh_endpoints:
+            self.zenoh = ZenohCameras(self.cameras, self.zenoh_endpoints, attitude_hz=self.attitude_hz)
+            await self.zenoh.start()
+        self.app = create_multi_app(self.cameras, self.videos, token=self.token, allowed_hosts=self.allowed_hosts)
+        await self._serve_app()
+
+    async def _serve_app(self) -> None:
+        assert self.app is not None
+        self._runner = web.AppRunner(
+            self.app, access_log=None, handle_signals=False, logger=HttpLog(logging.getLogger("aiohttp.server"))
+        )
+        await self._runner.setup()
+        site = web.TCPSite(self._runner, self.host, self.port)
+        await site.start()
+        server = getattr(site, "_server", None)
+        sockets = getattr(server, "sockets", None) or []
+        self.bound_port = sockets[0].getsockname()[1] if sockets else self.port
 
     async def _connect(self) -> Hub:
         from .. import client as client_mod
@@ -275,6 +305,9 @@ class ConsoleServer:
         return WatchHub(self.proxy, dialect, model, attitude_hz=self.attitude_hz)
 
     async def stop(self) -> None:
+        await self.videos.close()
+        if self.zenoh is not None:
+            await self.zenoh.stop()
         if self.video is not None:  # first: it ends the endless picture responses
             await self.video.close()
             self.video = None
@@ -297,6 +330,10 @@ class ConsoleServer:
             with contextlib.suppress(Exception):
                 await self.sim.stop()
             self.sim = None
+        await self.cameras.close()
+        if self.zenoh is not None:
+            await self.zenoh.close()
+            self.zenoh = None
 
     async def __aenter__(self) -> ConsoleServer:
         await self.start()
@@ -307,7 +344,14 @@ class ConsoleServer:
 
     def banner(self) -> str:
         watching = " (watching the proxy: read-only)" if self.proxy is not None else ""
-        lines = [f"topgimbal console for {self.model} at {self.url}{watching}", f"open {self.page_url}"]
+        what = f"{self.model} at {self.url}{watching}"
+        if self.multi:
+            cams = ", ".join(f"{c.name} ({c.model})" for c in self.cameras) or "none yet"
+            where = (
+                f"; following the cameras served on Zenoh at {', '.join(self.zenoh_endpoints)}" if self.zenoh else ""
+            )
+            what = f"{len(self.cameras)} cameras: {cams}{where}"
+        lines = [f"topgimbal console for {what}", f"open {self.page_url}"]
         if needs_token(self.host):
             lines.append(
                 f"(answers to the names {', '.join(sorted(self.allowed_hosts))} and to the address a "
