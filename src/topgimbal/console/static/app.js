@@ -149,7 +149,22 @@ function onHello(msg) {
   onTraffic(msg.traffic || []);
   S.trafficDirty = true;
   if (msg.status) onStatus(msg.status);
+  showUnavailable(msg.unavailable || {});
   helloResolve(msg);
+}
+
+// What this camera's link does not carry (a camera reached through Zenoh: no frames, so no
+// traffic and no pcap): said in the traffic panel, not shown as an error.
+function showUnavailable(u) {
+  const reason = $("traffic-reason");
+  reason.hidden = !u.traffic;
+  reason.textContent = u.traffic ? `Traffic unavailable for this camera: ${u.traffic}` : "";
+  const pcapLink = $("traffic-pcap");
+  if (u.pcap) {
+    pcapLink.removeAttribute("href");
+    pcapLink.setAttribute("aria-disabled", "true");
+    pcapLink.dataset.reason = pcapLink.title = `No pcap for this camera: ${u.pcap}`;
+  }
 }
 
 const num = (v, d = 0) => (typeof v === "number" && Number.isFinite(v) ? v.toFixed(d) : "–");
@@ -163,7 +178,7 @@ function onStatus(st) {
   S.clockOffset = Date.now() / 1000 - st.now;
   S.status = st;
   applyLink(st);
-  if (st.recorded) {
+  if (st.recorded && !$("traffic-pcap").dataset.reason) {
     const r = st.recorded;
     $("traffic-pcap").title = `Download what the console recorded as pcap (Wireshark, tshark): the newest ${r.frames} frames ` +
       `(${(r.bytes / 1024).toFixed(0)} KiB; it keeps at most ${r.max_frames} frames and ${(r.max_bytes / 1048576).toFixed(0)} MiB)`;
@@ -630,7 +645,7 @@ async function main() {
     return;
   }
   S.model = S.catalog.model;
-  $("traffic-pcap").href = withToken("api/traffic.pcap");
+  if (!$("traffic-pcap").dataset.reason) $("traffic-pcap").href = withToken("api/traffic.pcap");
   document.title = `${S.model.name} · topgimbal console`;
   $("model-name").textContent = `${S.model.name} · ${S.catalog.dialect}`;
   $("conn-model").textContent = S.model.title;

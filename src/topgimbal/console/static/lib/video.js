@@ -89,7 +89,7 @@ function decodeStamp(ctx, w, h) {
 
 async function start() {
   let info;
-  try { info = await fetchJSON("/api/video"); } catch { return; }   // no video extra: no panel
+  try { info = await fetchJSON("api/video"); } catch { return; }   // no video extra: no panel
   panel.hidden = false;
   const views = Object.fromEntries(info.lenses.map((l) => [l.lens, view(l.lens)]));
   const stage = el("div", { class: "vstage pip", "data-testid": "video-stage" });
@@ -121,10 +121,10 @@ async function start() {
   const track = { views, tracking, trackStop, hint, plan: null };
   consoleReady.then((api) => setUpTracking(api, track));
   for (const v of Object.values(views)) {
-    v.img.src = withToken(`/video/${v.lens}.mjpg`);
+    v.img.src = withToken(`video/${v.lens}.mjpg`);
     v.img.addEventListener("error", () => {           // the relay went away: try again
       v.state.textContent = "no video: reconnecting…"; v.wrap.dataset.state = "lost";
-      setTimeout(() => { v.img.src = withToken(`/video/${v.lens}.mjpg?t=${Date.now()}`); }, 1000);
+      setTimeout(() => { v.img.src = withToken(`video/${v.lens}.mjpg?t=${Date.now()}`); }, 1000);
     });
     attachPointer(v, track);
   }
@@ -143,7 +143,7 @@ async function start() {
   }, 250);
   const poll = async () => {
     try {
-      const now = await fetchJSON("/api/video");
+      const now = await fetchJSON("api/video");
       let nopic = false;
       for (const l of now.lenses) {
         const v = views[l.lens]; if (!v) continue;
@@ -201,13 +201,13 @@ function attachPointer(v, track) {
     const api = await Promise.race([consoleReady, Promise.resolve(null)]);
     const seq = api?.motionStart();                 // the marker follows what the camera acknowledges
     if (Math.hypot(e.clientX - start.x, e.clientY - start.y) < 6) {
-      const r = await post("/api/video/point", { lens: v.lens, x: x1, y: y1 });
+      const r = await post("api/video/point", { lens: v.lens, x: x1, y: y1 });
       v.wrap.dataset.last = r.ok ? `point ${r.body.yaw_deg} ${r.body.pitch_deg}` : `error ${r.body.message}`;
       if (r.ok) api?.motionEnd(seq, r.body.yaw_deg);
       else api?.showError(`Point at the picture: ${r.body.message || "refused"}`);
     } else {
       const [x0, y0] = start.f;
-      const r = await post("/api/video/track", { lens: v.lens, x0, y0, x1, y1 });
+      const r = await post("api/video/track", { lens: v.lens, x0, y0, x1, y1 });
       v.wrap.dataset.last = r.ok ? "tracking" : `error ${r.body.message}`;
       setTimeout(() => { v.box.hidden = true; }, r.ok ? 1500 : 300);
       if (r.ok) track.started?.((r.body.requests || []).map((q) => q.id).join(", "));
@@ -218,7 +218,7 @@ function attachPointer(v, track) {
   v.img.addEventListener("wheel", (e) => {
     e.preventDefault();
     const now = Date.now(); if (now - lastWheel < 250) return; lastWheel = now;
-    post("/api/video/zoom", { direction: e.deltaY < 0 ? "in" : "out" });
+    post("api/video/zoom", { direction: e.deltaY < 0 ? "in" : "out" });
   }, { passive: false });
 }
 

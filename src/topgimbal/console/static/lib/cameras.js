@@ -1,0 +1,78 @@
+// Several cameras: the switcher in the top bar and the overview grid, from GET /api/cameras
+// (polled at the interval the server gives, 0.25 s). The page of a camera is /cam/NAME/ (its API
+// and socket are relative to it); "/" is the first camera. A console of one camera has no
+// /api/cameras (404): then neither shows.
+import { fetchJSON, withToken } from "./conn.js";
+
+const $ = (id) => document.getElementById(id);
+const here = location.pathname.match(/^\/cam\/([^/]+)\/?$/);
+const current = here ? decodeURIComponent(here[1]) : null;
+const pageOf = (name) => withToken(`/cam/${encodeURIComponent(name)}/`);
+const deg = (v) => (typeof v === "number" && Number.isFinite(v) ? `${v.toFixed(1)}°` : "–");
+
+function el(tag, attrs = {}, text = "") {
+  const e = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
+  if (text) e.textContent = text;
+  return e;
+}
+
+function tile(c, selected) {
+  const t = el("button", { class: "camtile", type: "button", "data-testid": `cam-tile-${c.name}`, "data-camera": c.name,
+    "data-link": c.link, "aria-current": selected ? "true" : "false" });
+  t.append(el("span", { class: "cname" }, c.name));
+  t.append(el("span", { class: "cmodel muted" }, `${c.model} · ${c.source}`));
+  const link = el("span", { class: "clink", "data-state": c.link, "data-testid": `cam-link-${c.name}` },
+    c.link === "lost" ? `LOST: ${c.link_reason || "no reason given"}` : c.link);
+  if (c.link_reason) link.title = c.link_reason;
+  t.append(link);
+  const a = c.attitude;
+  t.append(el("span", { class: "catt", "data-testid": `cam-att-${c.name}`, "data-yaw": a ? String(a.yaw) : "" },
+    a ? `yaw ${deg(a.yaw)} pitch ${deg(a.pitch)} roll ${deg(a.roll)}` : (c.has_attitude ? "waiting for attitude" : "no attitude")));
+  const rec = c.recording === true ? "● recording" : c.recording === false ? "not recording" : "recording: –";
+  t.append(el("span", { class: "crec", "data-rec": c.recording ? "1" : "0", "data-testid": `cam-rec-${c.name}` }, rec));
+  for (const [what, why] of Object.entries(c.unavailable || {})) {
+    t.append(el("span", { class: "cnote", title: why, "data-testid": `cam-unavailable-${c.name}-${what}` }, `${what}: unavailable`));
+  }
+  t.addEventListener("click", () => { if (!selected) location.href = pageOf(c.name); });
+  return t;
+}
+
+function render(body) {
+  const cams = body.cameras || [];
+  const selected = current ?? cams[0]?.name;
+  $("panel-cameras").hidden = false;
+  $("camera-switch").hidden = false;
+  $("cameras-count").textContent = `${cams.length} of at most ${body.max_cameras}`;
+  $("camera-grid").replaceChildren(...(cams.length ? cams.map((c) => tile(c, c.name === selected))
+    : [el("p", { class: "muted" }, "no camera yet: waiting for cameras served on Zenoh")]));
+  const sel = $("camera-select");
+  const names = cams.map((c) => c.name).join("\n");
+  if (sel.dataset.names !== names) {
+    sel.dataset.names = names;
+    sel.replaceChildren(...cams.map((c) => el("option", { value: c.name }, `${c.name} (${c.model})`)));
+  }
+  if (selected != null && sel.value !== selected) sel.value = selected;
+  document.body.dataset.camera = selected ?? "";
+}
+
+async function poll() {
+  let body;
+  try {
+    body = await fetchJSON("/api/cameras");
+  } catch (err) {
+    if (/HTTP 404/.test(err.message) && !$("panel-cameras").dataset.seen) return;  // one camera: nothing to show
+    setTimeout(poll, 2000);
+    return;
+  }
+  $("panel-cameras").dataset.seen = "1";
+  render(body);
+  setTimeout(poll, Math.max(100, (body.interval_s || 0.25) * 1000));
+}
+
+$("camera-select").addEventListener("change", (e) => {
+  const name = e.target.value;
+  if (name && name !== (current ?? document.body.dataset.camera)) location.href = pageOf(name);
+});
+
+poll();
