@@ -178,7 +178,7 @@ def add_camera_routes(app: web.Application, cameras: CameraSet, videos: CameraVi
 
     async def static(request: web.Request) -> web.StreamResponse:
         by_name(request)
-        base = (root / "static").resolve()
+        base = root.resolve()
         path = (base / request.match_info["path"]).resolve()
         if base not in path.parents or not path.is_file():
             raise web.HTTPNotFound()
