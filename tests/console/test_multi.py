@@ -205,3 +205,11 @@ def test_cameras_file(tmp_path: Any, capsys: pytest.CaptureFixture[str]) -> None
     f.write_text(json.dumps([{"name": "a", "url": "udp://127.0.0.1:9", "model": "C12"}] * 2))
     assert cli_main(["console", "--port", "0", "--seconds", "0", "--cameras", str(f)]) == 2
     assert "twice" in capsys.readouterr().err
+
+
+async def test_a_single_camera_console_says_it_has_no_switcher() -> None:
+    async with ConsoleServer(sim_model="C12", port=0) as srv, aiohttp.ClientSession() as http:
+        status, body = await _json(http, srv.base_url + "api/cameras")
+        assert status == 200 and body["several"] is False and body["cameras"] == []
+        async with http.get(srv.base_url + "cam/sim1/api/status") as r:
+            assert r.status == 404  # the per-camera routes are for a console of several cameras

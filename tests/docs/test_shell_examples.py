@@ -396,7 +396,7 @@ class Session:
                 out += [tok, "0"]
                 i += 2
                 continue
-            if sub == "zenoh" and tok in ("--listen", "--connect") and nxt is not None:
+            if (sub == "zenoh" and tok in ("--listen", "--connect") or sub == "console" and tok == "--zenoh") and nxt:
                 out += [tok, self._zenoh_endpoint(nxt)]  # tcp/127.0.0.1:7447 may be taken
                 i += 2
                 continue

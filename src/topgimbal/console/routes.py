@@ -161,6 +161,7 @@ def add_camera_routes(app: web.Application, cameras: CameraSet, videos: CameraVi
 
     async def overview(request: web.Request) -> web.Response:
         body = {
+            "several": True,
             "cameras": cameras.overview(),
             "max_cameras": cameras.max_cameras,
             "interval_s": OVERVIEW_INTERVAL_S,

@@ -41,6 +41,7 @@ DEFAULT_PORT = 8080
 VIDEO_SCHEMES = ("rtsp", "rtsps", "http", "https")  # what --video-url accepts (the relay opens them with FFmpeg)
 LINK_TIMEOUT_S = 3.0  # the client declares the camera's link lost after this long without a frame
 HUB_KEY = web.AppKey("hub", PageHub)
+ONE_CAMERA = "this console shows one camera (several: --camera, --cameras, --sim twice or --zenoh)"
 SINGLE_ROUTES = (
     ("/", "index"),
     ("/api/catalog", "catalog"),
@@ -69,6 +70,7 @@ def create_app(
     handlers = camera_handlers(lambda request: hub, root)
     for path, name in SINGLE_ROUTES:
         app.router.add_get(path, handlers[name])
+    app.router.add_get("/api/cameras", _one_camera)  # the page's overview poll: "no switcher here"
     app.router.add_static("/static/", root, show_index=False)
     return app
 
@@ -96,6 +98,10 @@ class HttpLog(logging.LoggerAdapter):  # type: ignore[type-arg]
             self.logger.info("refused a malformed HTTP request (%d): %s", exc.code, first)
             return
         super().log(level, msg, *args, **kwargs)
+
+
+async def _one_camera(request: web.Request) -> web.Response:
+    return web.json_response({"several": False, "cameras": [], "message": ONE_CAMERA})
 
 
 async def _no_video(request: web.Request) -> web.Response:

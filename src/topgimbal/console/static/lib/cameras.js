@@ -1,7 +1,7 @@
 // Several cameras: the switcher in the top bar and the overview grid, from GET /api/cameras
 // (polled at the interval the server gives, 0.25 s). The page of a camera is /cam/NAME/ (its API
-// and socket are relative to it); "/" is the first camera. A console of one camera has no
-// /api/cameras (404): then neither shows.
+// and socket are relative to it); "/" is the first camera. A console of one camera answers
+// {"several": false}: then neither shows and the page stops asking.
 import { fetchJSON, withToken } from "./conn.js";
 
 const $ = (id) => document.getElementById(id);
@@ -61,11 +61,10 @@ async function poll() {
   try {
     body = await fetchJSON("/api/cameras");
   } catch (err) {
-    if (/HTTP 404/.test(err.message) && !$("panel-cameras").dataset.seen) return;  // one camera: nothing to show
-    setTimeout(poll, 2000);
+    setTimeout(poll, 2000);  // the console is restarting or gone: the link badge says so
     return;
   }
-  $("panel-cameras").dataset.seen = "1";
+  if (!body.several) return;  // one camera: no switcher, no grid
   render(body);
   setTimeout(poll, Math.max(100, (body.interval_s || 0.25) * 1000));
 }
