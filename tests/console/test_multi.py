@@ -147,10 +147,14 @@ async def test_guard_and_token_on_per_camera_routes() -> None:
             async with http.get(base + "cam/sim2/api/status", params={"token": "s3cret"}) as r:
                 assert r.status == 200
             with pytest.raises(aiohttp.WSServerHandshakeError) as err:
-                async with http.ws_connect(base + "cam/sim2/ws?token=s3cret", headers={"Origin": "http://evil.example"}):
+                async with http.ws_connect(
+                    base + "cam/sim2/ws?token=s3cret", headers={"Origin": "http://evil.example"}
+                ):
                     pass
             assert err.value.status == 403
-            async with http.ws_connect(base + "cam/sim2/ws?token=s3cret", headers={"Origin": f"http://127.0.0.1:{port}"}) as ws:
+            async with http.ws_connect(
+                base + "cam/sim2/ws?token=s3cret", headers={"Origin": f"http://127.0.0.1:{port}"}
+            ) as ws:
                 assert (await ws.receive_json(timeout=10))["type"] == "hello"
             # a cross-site page's POST to a camera's video route is refused before anything runs
             async with http.post(base + "cam/sim2/api/video/zoom?token=s3cret", json={"direction": "in"},

@@ -33,6 +33,7 @@ def free_port() -> int:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
 
+
 pytestmark = pytest.mark.integration
 
 NAMES = ["north", "east", "south"]

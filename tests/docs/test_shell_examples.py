@@ -396,7 +396,8 @@ class Session:
                 out += [tok, "0"]
                 i += 2
                 continue
-            if (sub == "zenoh" and tok in ("--listen", "--connect") or sub == "console" and tok == "--zenoh") and nxt:
+            zenoh_opt = (sub, tok) in (("zenoh", "--listen"), ("zenoh", "--connect"), ("console", "--zenoh"))
+            if zenoh_opt and nxt is not None:
                 out += [tok, self._zenoh_endpoint(nxt)]  # tcp/127.0.0.1:7447 may be taken
                 i += 2
                 continue
