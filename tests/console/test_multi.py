@@ -84,7 +84,8 @@ async def test_overview_lists_every_camera_with_its_state(two: ConsoleServer) ->
         async def check() -> bool:
             await fetch()
             cams = body["cameras"]
-            return all(c["link"] == "up" and c["attitude"] is not None for c in cams)
+            # recording is read once at start, so the grid knows it before any page asks
+            return all(c["link"] == "up" and c["attitude"] is not None and c["recording"] is False for c in cams)
 
         loop = asyncio.get_running_loop()
         end = loop.time() + 30
@@ -102,7 +103,7 @@ async def test_overview_lists_every_camera_with_its_state(two: ConsoleServer) ->
             assert (await _op(ws, "record", action="start"))["type"] == "ack"
         _, body = await _json(http, two.base_url + "api/cameras")
         cams = {c["name"]: c for c in body["cameras"]}
-        assert cams["sim2"]["recording"] is True and cams["sim1"]["recording"] is not True
+        assert cams["sim2"]["recording"] is True and cams["sim1"]["recording"] is False
         assert cams["sim1"]["unavailable"] == {} == cams["sim2"]["unavailable"]
 
 

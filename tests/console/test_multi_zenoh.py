@@ -104,6 +104,7 @@ async def test_console_follows_the_cameras_of_a_zenoh_server() -> None:
 
             await until(lambda: sorted(overview) == sorted(NAMES) and all(
                 c["link"] == "up" and c["attitude"] is not None for c in overview.values()), "three cameras up")  # fmt: skip
+            await until(lambda: all(c["recording"] is False for c in overview.values()), "recording read once")
             for c in overview.values():
                 assert c["source"] == "zenoh" and c["model"] == "C12"
                 assert c["unavailable"]["traffic"] == NOT_CARRIED

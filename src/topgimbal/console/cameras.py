@@ -9,6 +9,7 @@ cameras served on Zenoh come and go through `zenoh_cameras.py`."""
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import logging
 import time
@@ -59,6 +60,7 @@ class Camera:
     video_port: int | None = None
     video: ConsoleVideo | None = None
     added: float = field(default_factory=time.time)
+    first_read: asyncio.Task[None] | None = None
 
     @property
     def model(self) -> str:
@@ -88,7 +90,22 @@ class Camera:
             "unavailable": _unavailable(hub),
         }
 
+    def start_first_reads(self) -> None:
+        """Ask once whether the camera records, so the grid shows it before any page has asked
+        (the hub learns it from every later answer too). A failure is the page's to show."""
+
+        async def read() -> None:
+            with contextlib.suppress(Exception):
+                await self.hub.carry_out("recording", {})
+
+        if self.hub.role("recording") is not None:
+            self.first_read = asyncio.create_task(read())
+
     async def close(self) -> None:
+        if self.first_read is not None:
+            self.first_read.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await self.first_read
         if self.video is not None:
             with contextlib.suppress(Exception):
                 await self.video.close()

@@ -261,6 +261,7 @@ class ConsoleServer:
             self.cameras.add(cam)
         for cam in self.cameras:
             await cam.hub.start()
+            cam.start_first_reads()
         if self.zenoh_endpoints:
             self.zenoh = ZenohCameras(self.cameras, self.zenoh_endpoints, attitude_hz=self.attitude_hz)
             await self.zenoh.start()

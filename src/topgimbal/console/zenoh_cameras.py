@@ -114,7 +114,7 @@ class ZenohCameras:
                 return
             hub = RemoteHub(remote, attitude_hz=self.attitude_hz)
             await hub.start()
-            self.cameras.add(Camera(name, hub, "zenoh", remote.url, remote))
+            self.cameras.add(Camera(name, hub, "zenoh", remote.url, remote)).start_first_reads()
             log.info("camera %s (%s) found on Zenoh", name, remote.model.name)
         except asyncio.CancelledError:
             await remote.close()
