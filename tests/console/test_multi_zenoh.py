@@ -7,6 +7,7 @@ the server goes away and shows them again when it comes back."""
 from __future__ import annotations
 
 import asyncio
+import logging
 import signal
 import socket
 import sys
@@ -147,3 +148,58 @@ async def test_unreachable_zenoh_endpoint_is_a_clear_error() -> None:
     with pytest.raises(Exception, match="cannot open a Zenoh session"):
         await console.start()
     assert console.zenoh is None and len(console.cameras) == 0
+
+
+async def test_zenoh_cameras_are_bounded_and_odd_tokens_ignored(caplog: pytest.LogCaptureFixture) -> None:
+    """At the console's bound a newcomer is left out with a warning; a camera no longer served
+    makes room for a new one; a token nobody answers for, or not of the fleet's layout, shows nothing."""
+    import json
+
+    import zenoh
+
+    caplog.set_level(logging.DEBUG, logger="topgimbal.console")
+    sims = []
+    for _ in range(3):
+        sim = Simulator("C12")
+        await sim.start(udp=[("127.0.0.1", 0)])
+        sims.append(sim)
+    port = free_port()
+
+    def serving(names: list[str]) -> list[str]:
+        args = ["--listen", f"tcp/127.0.0.1:{port}"]
+        for name, sim in zip(names, sims, strict=False):
+            args += ["--camera", f"{name}={sim.url},C12"]
+        return args
+
+    proc = await _serve(serving(["north", "east"]))
+    conf = zenoh.Config()
+    for k, v in (("mode", "client"), ("scouting/multicast/enabled", False), ("scouting/gossip/enabled", False),
+                 ("connect/endpoints", [f"tcp/127.0.0.1:{port}"])):  # fmt: skip
+        conf.insert_json5(k, json.dumps(v))
+    raw = await asyncio.to_thread(zenoh.open, conf)
+    console = ConsoleServer(zenoh=[f"tcp/127.0.0.1:{port}"], port=0)
+    console.cameras.max_cameras = 1
+    try:
+        tokens = [raw.liveliness().declare_token(k) for k in ("topgimbal/ghost", "topgimbal/x/y")]
+        await console.start()
+        await eventually(lambda: len(console.cameras) == 1, 60, "one camera shown")
+        await eventually(lambda: "this console shows at most 1 cameras" in caplog.text, 60, "the bound's warning")
+        await eventually(lambda: "'ghost' on Zenoh could not be opened" in caplog.text, 60, "the ghost's warning")
+        assert console.cameras.names()[0] in ("north", "east") and console.zenoh is not None
+        assert console.zenoh.left_out >= 1
+        for t in tokens:
+            t.undeclare()
+        first = console.cameras.names()[0]
+        # the server goes; another serves "west": the camera no longer served makes room for it
+        await _stop(proc)
+        await eventually(lambda: not console.cameras.get(first).served, 60, "the first camera gone")  # type: ignore[union-attr]
+        proc = await _serve(serving(["west"]))
+        await eventually(lambda: console.cameras.names() == ["west"], 90, "west in place of the gone camera")
+        assert "makes room for west" in caplog.text
+        assert "Traceback" not in caplog.text
+    finally:
+        await console.stop()
+        await asyncio.to_thread(raw.close)
+        await _stop(proc)
+        for sim in sims:
+            await sim.stop()
