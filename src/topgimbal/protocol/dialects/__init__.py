@@ -120,10 +120,28 @@ def guess_dialects(frame: Frame, dialects: Iterable[Dialect] | None = None) -> l
 def decode_any(frame: Frame, prefer: str | Dialect | None = None) -> Message:
     """Decode `frame` with `prefer` (a dialect or its name) and, when that cannot name its fields,
     with the other dialects before giving up. `Message.dialect` says which one decoded it; when none
-    did, the preferred (or most likely) dialect's message is returned with every reason in `error`."""
-    return any_decoder(prefer)(frame)
+    did, the preferred (or most likely) dialect's message is returned with every reason in `error`.
+
+    The first ONE_OFF_FRAMES frames of a preference are decoded in pure Python, building a
+    dialect only when it is needed (with `prefer`, the others only for a frame it cannot decode);
+    later ones by `any_decoder(prefer)`, whose C tables cost more to build than a few frames cost
+    to decode (a one-frame `topgimbal decode`). The results are the same either way."""
+    key = prefer.lower() if isinstance(prefer, str) else prefer
+    dec = _ANY_DECODERS.get(key)
+    if dec is None:
+        used = _one_off.get(key, 0)
+        if used >= ONE_OFF_FRAMES:
+            return any_decoder(prefer)(frame)
+        if len(_one_off) >= _ANY_DECODERS_MAX:
+            _one_off.clear()
+        _one_off[key] = used + 1
+        first = get_dialect(prefer) if prefer is not None else None
+        return _decode_any_py(frame, first, (get_dialect(n) for n in DIALECT_NAMES), Dialect._decode_py)
+    return dec(frame)
 
 
+ONE_OFF_FRAMES = 64
+_one_off: dict[Any, int] = {}  # frames decoded so far without a built decoder, per preference
 _ANY_DECODERS: dict[Any, Callable[[Frame], Message]] = {}
 _ANY_DECODERS_MAX = 64  # distinct preferences kept (a user's own dialects would otherwise pile up)
 _ORDERS_MAX = 1024  # rankings kept per decoder (header, addresses, identifier): bounded for hostile input
@@ -156,12 +174,13 @@ def any_decoder(prefer: str | Dialect | None = None) -> Callable[[Frame], Messag
 def _decode_any_py(
     frame: Frame,
     first: Dialect | None,
-    defaults: list[Dialect],
+    defaults: Iterable[Dialect],
     decode: Callable[[Dialect, Frame], Message] = Dialect.decode,
     *,
     orders: dict[tuple[str, ...], list[Dialect]] | None = None,
 ) -> Message:
     """decode_any in Python (`decode`: how one dialect decodes; the tests pass the pure one).
+    `defaults` is read only when `first` cannot decode the frame (a generator builds them then).
     `orders` keeps the ranking per (header, addresses, identifier): the frames no dialect decodes
     natively come here, and ranking them anew each time was most of their cost."""
     if first is not None:
