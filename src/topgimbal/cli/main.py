@@ -107,6 +107,7 @@ def parse(argv: Sequence[str] | None) -> tuple[argparse.ArgumentParser, argparse
     chosen command's module registered."""
     argv = list(sys.argv[1:] if argv is None else argv)
     word = _command_word(argv)
+    module: str | None
     if word is not None:
         module = COMMANDS[word][0]
     else:
