@@ -44,8 +44,15 @@ def test_a_frame_the_preferred_dialect_cannot_decode_builds_the_others() -> None
     assert _probe(b"#TPUD2rMOD0044", "topotek") == ["skydroid True", "skydroid topotek", "False False"]
 
 
-def test_without_a_preference_both_dialects_rank_the_frame() -> None:
-    assert _probe(b"#TPUG6wGAYEC78324D", None) == ["skydroid True", "skydroid topotek", "False False"]
+def test_without_a_preference_the_first_dialect_that_surely_ranks_first_decodes_alone() -> None:
+    # the SkyDroid dialect has GAY, the #TP header and the host address U: no dialect can rank
+    # above it (a tie keeps the default order), so the TOPOTEK dialect is not needed
+    assert _probe(b"#TPUG6wGAYEC78324D", None) == ["skydroid True", "skydroid", "False False"]
+
+
+def test_without_a_preference_a_frame_the_first_dialect_cannot_rank_first_builds_the_others() -> None:
+    # GIA is TOPOTEK's: the SkyDroid dialect ranks below the TOPOTEK one, which must be built
+    assert _probe(b"#TPUG2rGIA0038", None) == ["topotek True", "skydroid topotek", "False False"]
 
 
 @pytest.mark.parametrize("prefer", [None, "skydroid", "topotek"])
