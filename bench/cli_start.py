@@ -24,11 +24,13 @@ import sys
 import tempfile
 import time
 
-FRAME = "#TPUG6wGAYEC78324D"
+FRAME = "#TPUG6wGAYEC78324D"  # SkyDroid's: its dialect alone decodes it (decode_any builds one dialect)
+TOPOTEK_FRAME = "#TPUG2rGIA0038"  # TOPOTEK's: ranking it needs both dialects
 CASES = {
     "python -c pass": ["-c", "pass"],
     "topgimbal --help": ["-m", "topgimbal.cli.main", "--help"],
     "topgimbal decode FRAME": ["-m", "topgimbal.cli.main", "decode", FRAME],
+    "decode TOPOTEK_FRAME": ["-m", "topgimbal.cli.main", "decode", TOPOTEK_FRAME],
 }
 COUNT = (
     "import sys, runpy; sys.argv = {argv!r}\n"
