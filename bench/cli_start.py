@@ -8,7 +8,8 @@ PYTHONDONTWRITEBYTECODE, points PYTHONPYCACHEPREFIX at a temporary directory (th
 clean) and runs each case once before timing it. `--no-bytecode` times compiling every module from
 source on every start instead (what an environment with PYTHONDONTWRITEBYTECODE=1 pays). Python's own start (`python -c pass`) is printed as the floor. `--src DIR`
 runs another checkout's `src` (a before/after comparison in one run: `git archive BASE src | tar -x
--C /tmp/base` then `--src /tmp/base/src`).
+-C /tmp/base`, copy the built `src/topgimbal/_speedups/_ctop*.so` next to its `_ctop.c` (git archive
+leaves it out, and without it the base runs the pure path), then `--src /tmp/base/src`).
 
     .venv/bin/python bench/cli_start.py [--runs 5] [--src DIR]
 """
