@@ -55,6 +55,7 @@ class Dialect:
         cmds: dict[str, CommandSpec] = {}
         roles: dict[str, list[CommandSpec]] = {}
         self._restrict: dict[str, frozenset[str] | None] = {}
+        every_model = frozenset(self.models)
         for c in commands:
             if c.ident in cmds:
                 raise ValueError(f"{name}: {c.ident} defined twice")
@@ -62,7 +63,9 @@ class Dialect:
                 c = replace(c, address=moved.pop(c.ident))
             self._restrict[c.ident] = c.models
             supporting = frozenset(m.name for m in self.models.values() if self._allows(m, c.ident))
-            c = replace(c, models=None if supporting == frozenset(self.models) else supporting)
+            support = None if supporting == every_model else supporting
+            if support != c.models:  # most commands: no restriction either way, no copy to make
+                c = replace(c, models=support)
             cmds[c.ident] = c
             if c.role:
                 if c.role in roles and c.role not in MANY_ROLES:
