@@ -8,7 +8,8 @@ PYTHONDONTWRITEBYTECODE, points PYTHONPYCACHEPREFIX at a temporary directory (th
 clean) and runs each case once before timing it. `--no-bytecode` times compiling every module from
 source on every start instead (what an environment with PYTHONDONTWRITEBYTECODE=1 pays). Python's own start (`python -c pass`) is printed as the floor. `--src DIR`
 runs another checkout's `src` (a before/after comparison in one run: `git archive BASE src | tar -x
--C /tmp/base` then `--src /tmp/base/src`).
+-C /tmp/base`, copy the built `src/topgimbal/_speedups/_ctop*.so` next to its `_ctop.c` (git archive
+leaves it out, and without it the base runs the pure path), then `--src /tmp/base/src`).
 
     .venv/bin/python bench/cli_start.py [--runs 5] [--src DIR]
 """
@@ -24,11 +25,13 @@ import sys
 import tempfile
 import time
 
-FRAME = "#TPUG6wGAYEC78324D"
+FRAME = "#TPUG6wGAYEC78324D"  # SkyDroid's: its dialect alone decodes it (decode_any builds one dialect)
+TOPOTEK_FRAME = "#TPUG2rGIA0038"  # TOPOTEK's: ranking it needs both dialects
 CASES = {
     "python -c pass": ["-c", "pass"],
     "topgimbal --help": ["-m", "topgimbal.cli.main", "--help"],
     "topgimbal decode FRAME": ["-m", "topgimbal.cli.main", "decode", FRAME],
+    "decode TOPOTEK_FRAME": ["-m", "topgimbal.cli.main", "decode", TOPOTEK_FRAME],
 }
 COUNT = (
     "import sys, runpy; sys.argv = {argv!r}\n"

@@ -279,7 +279,8 @@ def test_the_full_count_sees_hidden_imports(tmp_path: Path) -> None:
 
 def test_cli_help_imports_no_command_module() -> None:
     """`topgimbal --help` and the dispatch to a command load neither the protocol core nor asyncio
-    nor any command module (cli/main.py, the command index); `decode` loads its own module only."""
+    nor any command module (cli/main.py, the command index); `decode` loads its own module only, and
+    of the protocol core what decoding a frame given whole needs."""
     import subprocess
 
     code = (
@@ -299,6 +300,8 @@ def test_cli_help_imports_no_command_module() -> None:
     assert "topgimbal.cli.protocol_cmds" in loaded, loaded
     assert not [m for m in loaded if m.startswith(("asyncio", "topgimbal.sim", "topgimbal.client"))], loaded
     assert not {"topgimbal.cli.device_cmds", "topgimbal.cli.console_cmd"} & set(loaded), loaded
+    # nor the capture tools (decode --pcap imports them when it runs) nor the streaming parser
+    assert not {"topgimbal.cli.wire_cmds", "topgimbal.protocol.parser"} & set(loaded), loaded
 
 
 def test_lazy_packages_still_give_their_names_and_submodules() -> None:

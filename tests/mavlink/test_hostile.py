@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as ml
 
-from topgimbal.mavlink.commands import Command, Dispatcher
+from topgimbal.mavlink.commands import BUSY_LOG_EVERY_S, Command, Dispatcher
 from topgimbal.mavlink.geo import Position
 from topgimbal.mavlink.node import Node
 from topgimbal.mavlink.pointing import Setpoint
@@ -306,3 +306,45 @@ async def test_a_broadcast_request_is_answered_only_by_components_that_send_the_
             (ml.MAV_CMD_REQUEST_CAMERA_INFORMATION, 101, 0),
         ]
     )
+
+
+async def test_the_busy_warning_comes_again_after_its_period_counting_what_it_left_out(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """The refusals' warning (logthrottle.ThrottledLog): one line per BUSY_LOG_EVERY_S, the next
+    saying how many were refused since the last line and in all."""
+    node = Node(1, [])
+    node.links.append(_Wire())  # type: ignore[arg-type]
+    dispatcher = Dispatcher(max_inflight=1)
+    now = [1000.0]
+    dispatcher.busy_log.clock = lambda: now[0]
+    release = asyncio.Event()
+
+    async def slow(cmd: Command) -> None:
+        await release.wait()
+
+    dispatcher.register(node.component(GIMBAL, "gimbal"), 31000, slow)
+    gcs = ml.MAVLink(None, srcSystem=255, srcComponent=190)
+    parser = ml.MAVLink(None)
+    seq = iter(range(1000))
+
+    def flood(n: int) -> None:
+        for _ in range(n):
+            packed = ml.MAVLink_command_long_message(1, GIMBAL, 31000, 0, next(seq), 0, 0, 0, 0, 0, 0).pack(gcs)
+            for m in parser.parse_buffer(packed) or []:
+                dispatcher.on_message(m)
+
+    def lines() -> list[str]:
+        return [r.getMessage() for r in caplog.records if "TEMPORARILY_REJECTED" in r.getMessage()]
+
+    with caplog.at_level(logging.WARNING, logger="topgimbal.mavlink"):
+        flood(6)  # one runs, five refused
+        now[0] += BUSY_LOG_EVERY_S - 0.5
+        flood(3)
+        assert len(lines()) == 1 and lines()[0].endswith("(1 rejected since the last such line, 1 in all)")
+        now[0] += 0.5
+        flood(2)
+    assert len(lines()) == 2 and lines()[1].endswith("(8 rejected since the last such line, 9 in all)"), lines()
+    assert dispatcher.busy_rejected == 10  # the last one left out: within the new period
+    release.set()
+    await asyncio.sleep(0)

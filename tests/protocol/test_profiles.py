@@ -149,12 +149,14 @@ def test_c12_c13_and_sip_profile_facts() -> None:
 
 def test_identity_strings_reported_by_each_model() -> None:
     versions = {name: m.identity.get("version") for name, m in all_models().items()}
-    assert versions == {
+    documented = {
         "C10": "V1.2.0", "C10Pro": "V1.2.0", "C11": "V1.0.78", "C12": "010502", "C13": "V1.1.0", "C20": "V1.0.3",
         "SIP": "1.2.3",
     }  # fmt: skip
-    for m in all_models().values():
+    assert {name: versions.get(name) for name in documented} == documented  # what each source reports
+    for m in all_models().values():  # every model, a new one too
         assert m.identity["model_name"] == m.name and set(m.quirks) <= set(QUIRKS)
+        assert isinstance(m.identity.get("version"), str) and m.identity["version"], m.name
 
 
 def test_users_override_a_profile_per_device() -> None:

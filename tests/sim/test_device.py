@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from topgimbal.protocol import Frame, make_frame, parse_frame
+from topgimbal.protocol import Frame, all_models, make_frame, parse_frame
 from topgimbal.sim.device import Device
 from topgimbal.sim.state import NetworkState
 
@@ -22,7 +22,7 @@ def only(frames: list[Frame]) -> Frame:
 # -- the protocol's rules --------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("model", ["C10", "C10Pro", "C12", "C13", "C20", "SIP"])
+@pytest.mark.parametrize("model", sorted(all_models()))
 def test_every_supported_query_is_answered_with_data_in_a_response_form(model: str) -> None:
     h = DeviceHarness(model)
     answered = 0

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from topgimbal.protocol import all_models
 from topgimbal.sim import Simulator, persist
 from topgimbal.sim.persist import StateFileError
 from topgimbal.sim.state import NetworkState
@@ -193,7 +194,7 @@ def test_non_regular_files_are_refused_without_hanging(tmp_path: Path) -> None:
 
 def test_a_state_file_written_after_every_kind_of_change_loads_back(tmp_path: Path) -> None:
     """The check accepts everything the simulator itself writes (every model, changed settings)."""
-    for model in ("C10", "C10Pro", "C12", "C13", "C20", "SIP"):
+    for model in sorted(all_models()):
         state = tmp_path / f"{model}.json"
         sim = Simulator(model, state_file=state)
         dev = sim.device

@@ -9,7 +9,7 @@ from datetime import datetime
 
 import pytest
 
-from topgimbal.protocol import QUIRKS, get_model, make_frame
+from topgimbal.protocol import QUIRKS, all_models, get_model, make_frame
 from topgimbal.sim import quirks as quirk_table
 from topgimbal.sim.device import Device
 
@@ -228,7 +228,7 @@ def test_every_quirk_has_its_test() -> None:
 # -- defaults, the CLI form, model facts that are not switches ----------------------------------------
 
 
-@pytest.mark.parametrize("model", ["C10", "C11", "C12", "C13", "SIP"])
+@pytest.mark.parametrize("model", sorted(all_models()))
 def test_defaults_come_from_the_profile(model: str) -> None:
     _, m = get_model(model)
     assert Device(model).quirks == {name: bool(m.quirks.get(name)) for name in QUIRKS}

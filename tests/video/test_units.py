@@ -271,3 +271,29 @@ def test_tracking_requests_per_model() -> None:
         tracking_requests(*c10, 0.5, 0.5)
     with pytest.raises(VideoError, match="fractions"):
         tracking_requests(*sip, 1.5, 0.5)
+
+
+def test_deferred_keyframe_wishes_are_logged_once_a_minute(caplog: pytest.LogCaptureFixture) -> None:
+    """Keyframes wished faster than one per KEYFRAME_MIN_INTERVAL_S wait; the info line saying so
+    comes at most once a minute (logthrottle.ThrottledLog on the stream's own clock)."""
+    import logging
+
+    from topgimbal.video.rtsp_stream import Stream
+
+    now = [100.0]
+    asked: list[float] = []
+    stream = Stream("/main", "h264", on_keyframe_wanted=lambda: asked.append(now[0]), clock=lambda: now[0])
+    with caplog.at_level(logging.INFO, logger="topgimbal.video.rtsp"):
+        stream.want_keyframe()  # asked at once
+        for _ in range(5):
+            stream.want_keyframe()  # within the interval: deferred
+        now[0] += 59.0
+        stream._last_key_t = now[0]
+        stream.want_keyframe()
+        now[0] += 1.0
+        stream._last_key_t = now[0]
+        stream.want_keyframe()  # 60 s after the first line
+    lines = [r.getMessage() for r in caplog.records if "keyframes wanted faster" in r.getMessage()]
+    assert asked == [100.0]
+    assert stream.keyframes_deferred == 7
+    assert len(lines) == 2 and lines[0].endswith("(1 deferred in all)") and lines[1].endswith("(7 deferred in all)")

@@ -18,8 +18,9 @@ from types import ModuleType
 from typing import Any
 
 # The decoders below are the C extension's objects: Dialect.decode / decode_any stand-ins whose
-# types this package cannot name (it sits below protocol/ and imports nothing from it).
-from .spec import decoder_tables
+# types this package cannot name (it sits below protocol/ and imports nothing from it). `.spec`
+# (which turns a catalog into the C tables) is imported when a decoder is first made: a
+# one-frame `topgimbal decode` makes none.
 
 ABI_VERSION = 2  # must match _ctop.c
 PARSER_METHODS = ("feed", "feed_datagram", "flush", "feed_messages")  # _ctop.c: M_FEED ... M_MESSAGES
@@ -79,6 +80,8 @@ def make_decoder(dialect: Any, message_cls: type, pure: Callable[[Any], Any], *,
     ext = ext or _ext
     if ext is None:
         return None
+    from .spec import decoder_tables
+
     return ext.Decoder(
         decoder_tables(dialect.commands.values()),
         message_cls,

@@ -8,7 +8,6 @@ import math
 import os
 import stat
 from collections.abc import Callable
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..errors import TopGimbalError
@@ -19,6 +18,8 @@ if TYPE_CHECKING:
 
 # Model and dialect names come from the generated index (tools/regen.py checks them against the
 # catalog), so building a parser does not import the protocol core (cli/main.py: a fast start).
+# For the same reason pathlib and ipaddress are imported by the functions that use them: every
+# command builds its parser, few read a path.
 
 
 def add_connection_arguments(parser: argparse.ArgumentParser) -> None:
@@ -91,6 +92,26 @@ def add_json_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="machine-readable JSON output")
 
 
+def add_pcap_arguments(p: argparse.ArgumentParser) -> None:
+    """The options `decode` gains for captures (`decode --pcap` runs in cli/wire_cmds.py, with the
+    other capture tools; declared here so that a plain `decode` does not import that module)."""
+    p.add_argument("--pcap", metavar="FILE", help="decode every frame in a pcap/pcapng capture, in time order")
+    p.add_argument("--port", type=int, action="append", metavar="N", help="with --pcap: only this port (repeatable)")
+    p.add_argument(
+        "--address", type=ip_address, action="append", metavar="IP", help="with --pcap: only this address (repeatable)"
+    )
+
+
+def ip_address(text: str) -> str:
+    """argparse type: an IPv4 or IPv6 address, in its normal spelling."""
+    import ipaddress
+
+    try:
+        return str(ipaddress.ip_address(text))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an IPv4 or IPv6 address") from None
+
+
 # -- number types: a bad value is a usage error (exit 2) naming what is allowed -------------------
 
 
@@ -158,6 +179,8 @@ def input_file(path: str, what: str) -> str:
 def writable_output(path: str, what: str = "output file") -> str:
     """`path` when a file can be written there, checked before the work that fills it (nothing is
     created here: a command that then fails leaves no empty file behind)."""
+    from pathlib import Path
+
     p = Path(path)
     if p.is_dir():
         raise FileArgumentError(f"{what} {path} is a directory: give a file path")
@@ -173,6 +196,7 @@ def write_whole(path: str, text: str) -> None:
     """Write `text` to `path` all or nothing: a failure (disk full, interrupted) leaves the old
     file as it was, never a truncated one."""
     import tempfile  # here: it loads shutil, random and the compressors, which `--help` need not
+    from pathlib import Path
 
     writable_output(path)
     fd, tmp = tempfile.mkstemp(dir=Path(path).parent, prefix=f".{Path(path).name}.", suffix=".tmp")

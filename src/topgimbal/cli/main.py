@@ -17,10 +17,10 @@ from __future__ import annotations
 import argparse
 import importlib
 import importlib.util
-import json
 import os
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from ..errors import CatalogError, TopGimbalError
 from . import args as common
@@ -76,14 +76,46 @@ def _placeholder(sub: argparse._SubParsersAction, command: str, module: str, hel
     p.set_defaults(lazy_module=module)
 
 
+class _NotSureError(Exception):
+    """The first look at a command line found something it leaves to the real parsers."""
+
+
+class _FirstLook(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:
+        raise _NotSureError(message)
+
+
+def _command_word(argv: list[str]) -> str | None:
+    """The indexed subcommand `argv` names, read by one parser of the global options (a placeholder
+    per subcommand costs more than the command's own parser). None whenever it is not plain (no
+    command, an unknown word, `--help`, a bad global option): the placeholder parse then decides,
+    and says what is wrong, as before."""
+    first = _FirstLook(prog="topgimbal", add_help=False)
+    common.add_connection_arguments(first)
+    first.add_argument("command", nargs="?")
+    first.add_argument("rest", nargs=argparse.REMAINDER)
+    try:
+        args, unknown = first.parse_known_args(argv)
+    except _NotSureError:
+        return None
+    before = argv[: len(argv) - len(args.rest)]  # up to the command word: `--` there is left to argparse
+    return args.command if not unknown and args.command in COMMANDS and "--" not in before else None
+
+
 def parse(argv: Sequence[str] | None) -> tuple[argparse.ArgumentParser, argparse.Namespace]:
-    """Parse with placeholders first, then again with the chosen command's module registered."""
+    """Find the command (`_command_word`, else a parse with placeholders), then parse again with the
+    chosen command's module registered."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    parser = build_parser(only="")
-    args = parser.parse_args(argv)
-    module = getattr(args, "lazy_module", None)
-    if module is None:
-        return parser, args  # no command, or one whose module is not in the index (registered)
+    word = _command_word(argv)
+    module: str | None
+    if word is not None:
+        module = COMMANDS[word][0]
+    else:
+        parser = build_parser(only="")
+        args = parser.parse_args(argv)
+        module = getattr(args, "lazy_module", None)
+        if module is None:
+            return parser, args  # no command, or one whose module is not in the index (registered)
     parser = build_parser(only=module)
     return parser, parser.parse_args(argv)
 
@@ -113,6 +145,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def index_text() -> str:
     """`command_index.py` as the registered parsers say it should be (tools/regen.py writes it)."""
+    import json
+
     from ..protocol import dialects
 
     sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))

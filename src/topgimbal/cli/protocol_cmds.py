@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections.abc import Iterable
 from typing import Any
@@ -15,7 +14,9 @@ from ..protocol.decoded import RECORD_KEYS, decode_line, decode_with, dissection
 from ..protocol.decoded import failed_record as _failed
 from ..protocol.decoded import human_text as _human
 from ..protocol.decoded import show_data as _show_data
-from .args import add_dialect_argument, add_json_argument, dialect_from_args
+from .args import add_dialect_argument, add_json_argument, add_pcap_arguments, dialect_from_args
+
+# json is imported by the functions that print it: most runs print text (a fast start, cli/main.py).
 
 __all__ = ["RECORD_KEYS", "decode_line", "decode_with", "dissection_record", "register"]
 
@@ -31,9 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--hex", action="store_true", help="frames are given as hex (binary data: GPS, UAV, LOC)")
     add_dialect_argument(p)
     add_json_argument(p)
-    from .wire_cmds import add_pcap_arguments  # decode --pcap lives with the other capture tools
-
-    add_pcap_arguments(p)
+    add_pcap_arguments(p)  # decode --pcap runs in wire_cmds, with the other capture tools
     p.set_defaults(func=cmd_decode)
 
     p = sub.add_parser("encode", help="print the frame for a command: encode GAY yaw_deg=-50 --dialect skydroid")
@@ -81,6 +80,8 @@ def cmd_decode(args: argparse.Namespace) -> int:
 
         return decode_pcap(args)
     dialect = _dialect_from_args(args)
+    if args.json:
+        import json
     bad = 0
     for line in _inputs(args.frames):
         try:
@@ -131,6 +132,8 @@ def cmd_encode(args: argparse.Namespace) -> int:
         args.ident, read=args.read, src=args.src, dst=args.dst, header=args.header, form=args.form, **values
     )
     if args.json:
+        import json
+
         print(json.dumps({"frame": frame.text(), "hex": frame.to_bytes().hex(), "dialect": dialect.name}))
     else:
         print(frame.text())
@@ -182,6 +185,8 @@ def cmd_catalog(args: argparse.Namespace) -> int:
         if not out:
             raise UnknownCommandError(f"{args.ident!r} is in no catalog")
         if args.json:
+            import json
+
             print(json.dumps(out, ensure_ascii=False, indent=2))
         else:
             for e in out:
@@ -216,6 +221,8 @@ def cmd_catalog(args: argparse.Namespace) -> int:
                 }
             )
     if args.json:
+        import json
+
         print(json.dumps(rows, ensure_ascii=False))
     else:
         for r in rows:

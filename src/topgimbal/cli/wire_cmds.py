@@ -12,7 +12,6 @@ import argparse
 import datetime
 import gc
 import heapq
-import ipaddress
 import json
 import signal
 import sys
@@ -24,6 +23,7 @@ from ..protocol.decoded import dissection_record
 from ..protocol.decoded import human_text as _human
 from ..protocol.frame import DEVICE_ADDRESSES, HOST_ADDRESSES
 from .args import FileArgumentError, add_dialect_argument, add_json_argument, input_file, writable_output, write_whole
+from .args import add_pcap_arguments as add_pcap_arguments  # its old home (tests, scripts)
 from .args import dialect_from_args as _dialect_from_args
 
 if TYPE_CHECKING:
@@ -67,22 +67,6 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 # -- decode --pcap ---------------------------------------------------------------------------------
-
-
-def add_pcap_arguments(p: argparse.ArgumentParser) -> None:
-    """The options `decode` gains for captures."""
-    p.add_argument("--pcap", metavar="FILE", help="decode every frame in a pcap/pcapng capture, in time order")
-    p.add_argument("--port", type=int, action="append", metavar="N", help="with --pcap: only this port (repeatable)")
-    p.add_argument(
-        "--address", type=_address, action="append", metavar="IP", help="with --pcap: only this address (repeatable)"
-    )
-
-
-def _address(text: str) -> str:
-    try:
-        return str(ipaddress.ip_address(text))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an IPv4 or IPv6 address") from None
 
 
 def _ep(ep: tuple[str, int]) -> str:

@@ -10,7 +10,8 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import time
+
+from ..logthrottle import ThrottledLog
 
 log = logging.getLogger("topgimbal.mavlink")
 
@@ -29,7 +30,7 @@ class DefinitionServer:
         self.active = 0
         self.refused = 0
         self.served = 0
-        self._logged = 0.0
+        self._refusal_log = ThrottledLog(log, LOG_EVERY_S)
 
     async def start(self) -> None:
         self.server = await asyncio.start_server(self._client, self.host, self.port, limit=MAX_HEAD_BYTES)
@@ -52,9 +53,7 @@ class DefinitionServer:
     async def _client(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         if self.active >= MAX_CONNECTIONS:
             self.refused += 1
-            now = time.monotonic()
-            if now - self._logged >= LOG_EVERY_S:
-                self._logged = now
+            if self._refusal_log.allow("full") is not None:
                 log.warning("camera definition server: %d connections open, refused %d", MAX_CONNECTIONS, self.refused)
             writer.close()
             return

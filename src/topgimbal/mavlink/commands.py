@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from ..errors import DeviceError, FieldValueError, RequestTimeoutError, TopGimbalError, TransportError, UnsupportedError
+from ..logthrottle import ThrottledLog
 from ._mav import mavlink
 from .fairness import MAX_INFLIGHT, MAX_INFLIGHT_PER_PEER, RESERVED_FOR_IDLE_PEERS, InflightLimits
 from .node import Component, link_peer
@@ -203,8 +204,7 @@ class Dispatcher:
         self._done: OrderedDict[tuple[Any, ...], _Done] = OrderedDict()
         self.counts: dict[str, int] = {}
         self.busy_rejected = 0  # commands refused because max_inflight were running
-        self._busy_logged_at: float | None = None
-        self._busy_logged_count = 0
+        self.busy_log = ThrottledLog(log, BUSY_LOG_EVERY_S)
 
     def register(
         self,
@@ -276,7 +276,7 @@ class Dispatcher:
         if not local:
             why = self.limits.refusal(peer)
             if why is not None:
-                self._busy(cmd, now, why)
+                self._busy(cmd, why)
                 self._ack(comp, cmd, TEMPORARILY_REJECTED)
                 return
             self.limits.take(peer)
@@ -290,12 +290,12 @@ class Dispatcher:
 
         task.add_done_callback(ended)
 
-    def _busy(self, cmd: Command, now: float, why: str = "") -> None:
+    def _busy(self, cmd: Command, why: str = "") -> None:
         self.busy_rejected += 1
-        if self._busy_logged_at is not None and now - self._busy_logged_at < BUSY_LOG_EVERY_S:
+        left_out = self.busy_log.allow("busy")
+        if left_out is None:
             return
-        since = self.busy_rejected - self._busy_logged_count
-        self._busy_logged_at, self._busy_logged_count = now, self.busy_rejected
+        since = left_out + 1  # this one too
         log.warning("%s: command %d from %d/%d (%s) TEMPORARILY_REJECTED "
                     "(%d rejected since the last such line, %d in all)", why, cmd.command,
                     cmd.src_system, cmd.src_component, _peer_text(cmd.peer), since, self.busy_rejected)  # fmt: skip

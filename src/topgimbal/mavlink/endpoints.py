@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..errors import TopGimbalError
+from ..logthrottle import ThrottledLog
 
 log = logging.getLogger("topgimbal.mavlink")
 
@@ -102,7 +103,7 @@ class Link(abc.ABC):
         self.dropped_out = 0
         self.refused_peers = 0
         self._closed = False
-        self._refusal_logged = 0.0
+        self._refusal_log = ThrottledLog(log, 10.0)  # a peer flood: one line per 10 s
 
     def __str__(self) -> str:
         return self.spec.text
@@ -134,9 +135,7 @@ class Link(abc.ABC):
 
     def _refuse(self, peer: object) -> None:
         self.refused_peers += 1
-        now = time.monotonic()
-        if now - self._refusal_logged > 10.0:
-            self._refusal_logged = now
+        if self._refusal_log.allow("peers") is not None:
             log.warning("%s: already %d peers (the limit); ignoring %s", self, self.max_peers, peer)
 
 

@@ -18,10 +18,10 @@ import asyncio
 import logging
 import math
 import struct
-import time
 from typing import TYPE_CHECKING, Any
 
 from ..errors import TopGimbalError
+from ..logthrottle import ThrottledLog
 from ._mav import mavlink
 from .camdef import Setting
 from .camera_link import CameraLink
@@ -67,7 +67,7 @@ class ParamsExt:
         self.known: dict[str, float] = {}  # what the camera said or confirmed last
         self.tasks: set[asyncio.Task[None]] = set()
         self.refused = 0
-        self._busy_logged = 0.0
+        self._busy_log = ThrottledLog(log, BUSY_LOG_EVERY_S)
         # One request at a time: answers leave in the order the requests came (MAVSDK's parameter
         # client takes an answer for another parameter than the one it asked as a failure).
         self._turn = asyncio.Lock()
@@ -106,9 +106,7 @@ class ParamsExt:
         if len(self.tasks) >= MAX_INFLIGHT:
             work.close()
             self.refused += 1
-            now = time.monotonic()
-            if now - self._busy_logged >= BUSY_LOG_EVERY_S:
-                self._busy_logged = now
+            if self._busy_log.allow("busy") is not None:
                 log.warning("%s: %d PARAM_EXT requests already running, refused %d", self.comp.name, MAX_INFLIGHT,
                             self.refused)  # fmt: skip
             if setting is not None:

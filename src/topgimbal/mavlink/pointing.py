@@ -16,6 +16,7 @@ import time
 from dataclasses import dataclass
 
 from ..errors import TopGimbalError
+from ..logthrottle import ThrottledLog
 from .camera_link import CameraLink
 from .commands import rejected, unsupported
 from .quaternion import wrap180
@@ -60,7 +61,7 @@ class Pointer:
         self._task: asyncio.Task[None] | None = None
         self._last_sent: tuple[Setpoint, float] | None = None
         self.stream_errors = 0
-        self._error_logged = 0.0
+        self._error_log = ThrottledLog(log, 5.0)  # a set-point stream is 50 Hz: one line per 5 s
         self.yaw_dropped = 0  # streamed earth-frame yaws left out for want of a heading
         self._no_heading_logged = False
 
@@ -201,7 +202,5 @@ class Pointer:
                 await self.apply(sp, clamp=True, partial=True)
             except (TopGimbalError, OSError) as exc:
                 self.stream_errors += 1
-                now = time.monotonic()
-                if now - self._error_logged > 5.0:
-                    self._error_logged = now
+                if self._error_log.allow("stream") is not None:
                     log.warning("streamed gimbal set-point not applied: %s", exc)

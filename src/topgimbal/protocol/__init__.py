@@ -3,8 +3,9 @@ only, no I/O."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from .._lazy import lazy_getattr
 from .catalog import (
     GROUPS,
     QUERY,
@@ -34,7 +35,13 @@ from .dialects import (
 )
 from .fields import Field
 from .frame import Dissection, Frame, checksum, dissect, make_frame, parse_frame
-from .parser import Diagnostic, FrameParser, ParserStats
+
+if TYPE_CHECKING:
+    from .parser import Diagnostic, FrameParser, ParserStats
+
+# The streaming parser loads on first use (PEP 562): decoding a frame given whole (`topgimbal
+# decode FRAME`, `decode()` below) does not need it (docs/architecture.md, "A CLI that starts fast").
+__getattr__ = lazy_getattr(__name__, dict.fromkeys(("Diagnostic", "FrameParser", "ParserStats"), "parser"), globals())
 
 
 def encode(dialect: str | Dialect, ident: str, *, read: bool = False, **values: Any) -> Frame:

@@ -55,6 +55,7 @@ class Dialect:
         cmds: dict[str, CommandSpec] = {}
         roles: dict[str, list[CommandSpec]] = {}
         self._restrict: dict[str, frozenset[str] | None] = {}
+        every_model = frozenset(self.models)
         for c in commands:
             if c.ident in cmds:
                 raise ValueError(f"{name}: {c.ident} defined twice")
@@ -62,7 +63,9 @@ class Dialect:
                 c = replace(c, address=moved.pop(c.ident))
             self._restrict[c.ident] = c.models
             supporting = frozenset(m.name for m in self.models.values() if self._allows(m, c.ident))
-            c = replace(c, models=None if supporting == frozenset(self.models) else supporting)
+            support = None if supporting == every_model else supporting
+            if support != c.models:  # most commands: no restriction either way, no copy to make
+                c = replace(c, models=support)
             cmds[c.ident] = c
             if c.role:
                 if c.role in roles and c.role not in MANY_ROLES:
@@ -85,29 +88,37 @@ class Dialect:
                 raise ValueError(f"{name}: model {m.name} lists unknown commands {', '.join(sorted(unknown))}")
         # (ident, rw, direction) -> forms to try: the direction's own first, then the other
         # direction's, for frames whose addresses are not swapped (several document examples,
-        # errata E5). Built once: decode is on the hot path.
-        index: dict[tuple[str, str, str], tuple[Form, ...]] = {}
-        for c in cmds.values():
-            for rw in ("r", "w"):
-                for direction, other in ((REQUEST, RESPONSE), (RESPONSE, REQUEST)):
-                    index[(c.ident, rw, direction)] = tuple(c.forms_for(rw, direction)) + tuple(c.forms_for(rw, other))
-        self._decode_index = index
-        # The same index for the decode hot path: identifier -> (spec, {control: (forms of a request,
-        # forms of a response)}), each form with its length range and field decoder.
+        # errata E5); and the same index for the decode hot path: identifier -> (spec, {control:
+        # (forms of a request, forms of a response)}), each form with its length range and field
+        # decoder. Filled per command on its first frame (`_hot_entry`): a short run (one
+        # `topgimbal decode`) meets a few of the ~150 commands, and indexing them all at build
+        # time was a large part of building a dialect.
+        self._decode_index: dict[tuple[str, str, str], tuple[Form, ...]] = {}
         self._hot: dict[str, tuple[CommandSpec, dict[str, tuple[tuple[_HotForm, ...], ...]]]] = {}
-        for c in cmds.values():
-            by_rw = {
-                rw: tuple(
-                    tuple((f, f.min_length, f.max_length, f.decoder) for f in index[(c.ident, rw, direction)])
-                    for direction in (REQUEST, RESPONSE)
-                )
-                for rw in ("r", "w")
-            }
-            by_rw[""] = by_rw["w"]  # a #Tp frame has no control character: decoded as a write
-            self._hot[c.ident] = (c, by_rw)
 
     def __repr__(self) -> str:
         return f"<Dialect {self.name}: {len(self.commands)} commands, models {', '.join(self.models)}>"
+
+    def _hot_entry(self, ident: str) -> tuple[CommandSpec, dict[str, tuple[tuple[_HotForm, ...], ...]]] | None:
+        """`ident`'s decode index (see __init__), built now and kept; None for an unknown identifier.
+        Two threads building it at once build equal entries: either one is kept."""
+        c = self.commands.get(ident)
+        if c is None:
+            return None
+        index = self._decode_index
+        for rw in ("r", "w"):
+            for direction, other in ((REQUEST, RESPONSE), (RESPONSE, REQUEST)):
+                index[(ident, rw, direction)] = tuple(c.forms_for(rw, direction)) + tuple(c.forms_for(rw, other))
+        by_rw = {
+            rw: tuple(
+                tuple((f, f.min_length, f.max_length, f.decoder) for f in index[(ident, rw, direction)])
+                for direction in (REQUEST, RESPONSE)
+            )
+            for rw in ("r", "w")
+        }
+        by_rw[""] = by_rw["w"]  # a #Tp frame has no control character: decoded as a write
+        entry = self._hot[ident] = (c, by_rw)
+        return entry
 
     # -- lookup ------------------------------------------------------------------------------
 
@@ -266,7 +277,7 @@ class Dialect:
     def _decode_py(self, frame: Frame) -> Message:
         """Dialect.decode in pure Python (the reference the fast path is tested against). A frame no
         form takes costs little more than one that decodes: its error is worded only when read."""
-        hot = self._hot.get(frame[4])
+        hot = self._hot.get(frame[4]) or self._hot_entry(frame[4])
         if hot is not None:
             per_direction = hot[1].get(frame[3])
             if per_direction is not None:
@@ -298,6 +309,8 @@ class Dialect:
             return _new_tuple(
                 Message, (frame, None, None, None, f"{frame.ident!r} is not in the {self.name} catalog", self.name)
             )
+        if frame.ident not in self._hot:
+            self._hot_entry(frame.ident)
         direction = RESPONSE if frame.src in DEVICE_ADDRESSES and frame.dst in HOST_ADDRESSES else REQUEST
         rw = frame.rw or "w"
         data = frame.data

@@ -21,10 +21,6 @@ RESPONSE = "response"
 FORM_ROLES = ("", "echo")  # "echo": the device's copy of a write; answers and reports leave it empty
 
 
-def _no_fields(data: bytes) -> dict[str, Any]:
-    return {}
-
-
 # Compiled field decoders by source text (Form._build_decoder): the catalog has a few dozen layouts.
 _COMPILED: dict[str, CodeType] = {}
 _COMPILED_MAX = 1024
@@ -53,7 +49,9 @@ class Form:
     _slices: tuple[tuple[str, Codec, int, int], ...] = field(init=False, repr=False, compare=False, default=())
     _min_len: int = field(init=False, repr=False, compare=False, default=0)
     _max_len: int = field(init=False, repr=False, compare=False, default=0)
-    _decoder: Callable[[bytes], dict[str, Any]] = field(init=False, repr=False, compare=False, default=_no_fields)
+    # Built on first use (`decoder`): most forms of a dialect never decode a frame in a short run
+    # (a one-frame `topgimbal decode`), and building them all was a third of a dialect's build.
+    _decoder: Callable[[bytes], dict[str, Any]] | None = field(init=False, repr=False, compare=False, default=None)
 
     def __post_init__(self) -> None:
         if self.rw not in ("r", "w") or self.direction not in (REQUEST, RESPONSE) or self.role not in FORM_ROLES:
@@ -88,7 +86,6 @@ class Form:
         set_(self, "_slices", tuple(slices))
         set_(self, "_min_len", lo)
         set_(self, "_max_len", hi)
-        set_(self, "_decoder", self._build_decoder())
 
     def _build_decoder(self) -> Callable[[bytes], dict[str, Any]]:
         """`decoder`: one function per form that calls each field's codec on its slice and builds
@@ -148,7 +145,11 @@ class Form:
     def decoder(self) -> Callable[[bytes], dict[str, Any]]:
         """The fields of data already of an accepted length, or ValueError (what `decode` does
         after its length check, without naming the field)."""
-        return self._decoder
+        dec = self._decoder
+        if dec is None:
+            dec = self._build_decoder()
+            object.__setattr__(self, "_decoder", dec)
+        return dec
 
     @property
     def min_length(self) -> int:
@@ -211,7 +212,7 @@ class Form:
         if not self._min_len <= n <= self._max_len:
             raise FieldValueError("data", data, f"{self._min_len}..{self._max_len} data bytes, not {n}")
         try:
-            return self._decoder(data)
+            return (self._decoder or self.decoder)(data)
         except ValueError:
             self._raise_for_field(data)
             raise

@@ -8,8 +8,10 @@
 path in the repository and the function that renders it, named as "module:function" and imported
 only when it runs, so this driver sits in tools/ without importing the layers above it (wire/ for
 the dissector, cli/ for the command index). A producer returns the text of one file, or a mapping
-of file name -> text for a directory. The next generator is one more `Target` row. Generated files
-are marked `linguist-generated` in `.gitattributes` (a test checks every target is)."""
+of file name -> text for a directory; a `section` target's producer gets the file's current text
+and returns it with its generated part renewed (docs/simulator.md's model behaviour tables, in a
+hand-written page). The next generator is one more `Target` row. Generated files are marked
+`linguist-generated` in `.gitattributes` (a test checks every target but a section is)."""
 
 from __future__ import annotations
 
@@ -27,14 +29,15 @@ ROOT = Path(__file__).resolve().parents[3]  # the repository (src/topgimbal/tool
 class Target:
     name: str
     path: str  # relative to the repository; a directory when the producer returns a mapping
-    producer: str  # "module:function", called with no arguments
+    producer: str  # "module:function", called with no arguments (a section: with the file's text)
     what: str
+    section: bool = False  # the producer renews a part of a hand-written file
 
-    def render(self) -> dict[Path, str]:
+    def render(self, root: Path = ROOT) -> dict[Path, str]:
         """Every file of this target and its text."""
         module, _, func = self.producer.partition(":")
-        produce: Callable[[], str | Mapping[str, str]] = getattr(importlib.import_module(module), func)
-        out = produce()
+        produce: Callable[..., str | Mapping[str, str]] = getattr(importlib.import_module(module), func)
+        out = produce((root / self.path).read_text(encoding="utf-8")) if self.section else produce()
         if isinstance(out, str):
             return {Path(self.path): out}
         return {Path(self.path) / name: text for name, text in out.items()}
@@ -59,6 +62,10 @@ REGISTRY: tuple[Target, ...] = (
         "camera-definitions", "contrib/camera-definitions", "topgimbal.mavlink.camdef:all_definitions",
         "the MAVLink camera definitions, one per model and lens",
     ),
+    Target(
+        "sim-behaviour", "docs/simulator.md", "topgimbal.sim.behaviour:replace_section",
+        "the simulator page's model behaviour tables (a section)", section=True,
+    ),
 )  # fmt: skip
 
 
@@ -66,7 +73,7 @@ def stale(targets: tuple[Target, ...] = REGISTRY, root: Path = ROOT) -> dict[Pat
     """The files that differ from what their producer renders now, with the new text."""
     out: dict[Path, str] = {}
     for target in targets:
-        for rel, text in target.render().items():
+        for rel, text in target.render(root).items():
             path = root / rel
             current = path.read_bytes() if path.exists() else None
             if current != text.encode("utf-8"):

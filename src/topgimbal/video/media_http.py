@@ -14,12 +14,12 @@ import json
 import logging
 import shutil
 import threading
-import time
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from urllib.parse import unquote, urlsplit
 
+from ..logthrottle import ThrottledLog
 from .lens import MEDIA_NAME
 
 log = logging.getLogger("topgimbal.sim")
@@ -43,7 +43,7 @@ class MediaServer:
     def __init__(self, directory: str | Path, host: str = "127.0.0.1", port: int = 0) -> None:
         self.dir = Path(directory)
         self._slots = threading.BoundedSemaphore(MAX_CLIENTS)
-        self._last_log = 0.0
+        self._refusal_log = ThrottledLog(log, LOG_EVERY_S)
         self.refused = 0
         server = self
 
@@ -81,9 +81,7 @@ class MediaServer:
     def handle(self, req: BaseHTTPRequestHandler, *, body: bool) -> None:
         if not self._slots.acquire(blocking=False):
             self.refused += 1
-            now = time.monotonic()
-            if now - self._last_log > LOG_EVERY_S:
-                self._last_log = now
+            if self._refusal_log.allow("full") is not None:
                 log.warning("media http: more than %d requests at once: refused (%d so far)", MAX_CLIENTS, self.refused)
             req.send_error(HTTPStatus.SERVICE_UNAVAILABLE, f"at most {MAX_CLIENTS} requests at once")
             return

@@ -18,6 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
+from ..logthrottle import ThrottledLog
 from .encode import AccessUnit
 from .rtp import CLOCK_HZ, Packetizer, parameter_sets, split_nals
 
@@ -61,7 +62,7 @@ class Stream:
         self.keyframes_deferred = 0  # wishes that had to wait for KEYFRAME_MIN_INTERVAL_S
         self._key_wanted = False
         self._last_key_t: float | None = None  # the last keyframe published or asked for
-        self._deferred_logged_t: float | None = None
+        self._deferred_log = ThrottledLog(log, 60.0, lambda: self.clock())  # info, once a minute
 
     def publish(self, au: AccessUnit) -> None:
         """Send one access unit to every receiver (on the server's event loop)."""
@@ -96,8 +97,7 @@ class Stream:
         last = self._last_key_t
         if last is not None and now - last < KEYFRAME_MIN_INTERVAL_S:
             self.keyframes_deferred += 1
-            if self._deferred_logged_t is None or now - self._deferred_logged_t >= 60.0:
-                self._deferred_logged_t = now
+            if self._deferred_log.allow("deferred") is not None:
                 log.info("RTSP %s: keyframes wanted faster than one per %g s: the wish waits (%d deferred in all)",
                          self.path, KEYFRAME_MIN_INTERVAL_S, self.keyframes_deferred)  # fmt: skip
             return

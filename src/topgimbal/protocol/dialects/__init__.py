@@ -106,24 +106,68 @@ def guess_dialects(frame: Frame, dialects: Iterable[Dialect] | None = None) -> l
     candidates = list(dialects) if dialects is not None else [get_dialect(n) for n in DIALECT_NAMES]
     ident, header = frame.ident, frame.header
     host = {frame.src, frame.dst} & _HOSTS  # computed once per frame: this runs for every frame no dialect took
+    return sorted(candidates, key=lambda d: -_score(d, ident, header, host))
 
-    def score(d: Dialect) -> int:
-        return (
-            (ident in d.commands) * 4
-            + (header in d.headers) * 2
-            + (bool(host) and all(a in d.host_addresses for a in host))
-        )
 
-    return sorted(candidates, key=lambda d: -score(d))
+def _score(d: Dialect, ident: str, header: str, host: set[str]) -> int:
+    """guess_dialects' rank of `d` for a frame: 4 for the identifier, 2 for the header, 1 for the
+    host side (at most 7, or 6 when the frame has no host address)."""
+    return (
+        (ident in d.commands) * 4
+        + (header in d.headers) * 2
+        + (bool(host) and all(a in d.host_addresses for a in host))
+    )
 
 
 def decode_any(frame: Frame, prefer: str | Dialect | None = None) -> Message:
     """Decode `frame` with `prefer` (a dialect or its name) and, when that cannot name its fields,
     with the other dialects before giving up. `Message.dialect` says which one decoded it; when none
-    did, the preferred (or most likely) dialect's message is returned with every reason in `error`."""
-    return any_decoder(prefer)(frame)
+    did, the preferred (or most likely) dialect's message is returned with every reason in `error`.
+
+    The first ONE_OFF_FRAMES frames of a preference are decoded in pure Python, building a
+    dialect only when it is needed (with `prefer`, the others only for a frame it cannot decode);
+    later ones by `any_decoder(prefer)`, whose C tables cost more to build than a few frames cost
+    to decode (a one-frame `topgimbal decode`). The results are the same either way."""
+    key = prefer.lower() if isinstance(prefer, str) else prefer
+    dec = _ANY_DECODERS.get(key)
+    if dec is None:
+        used = _one_off.get(key, 0)
+        if used >= ONE_OFF_FRAMES:
+            return any_decoder(prefer)(frame)
+        if len(_one_off) >= _ANY_DECODERS_MAX:
+            _one_off.clear()
+        _one_off[key] = used + 1
+        return _decode_one_off(frame, get_dialect(prefer) if prefer is not None else None)
+    return dec(frame)
 
 
+def _decode_one_off(frame: Frame, first: Dialect | None) -> Message:
+    """decode_any in pure Python, building a default dialect only when the answer depends on it.
+    `first` decodes first. Then guess_dialects' order: the first default dialect (in default order)
+    that scores the most any dialect can for this frame surely ranks first, so the ones after it are
+    built only when it cannot decode the frame (a SkyDroid frame needs the SkyDroid dialect alone).
+    Anything else goes the whole way, `_decode_any_py`, which gives the same message it always did."""
+    if first is not None:
+        msg = first._decode_py(frame)
+        if msg.fields is not None:
+            return msg
+    ident, header = frame.ident, frame.header
+    host = {frame.src, frame.dst} & _HOSTS
+    best = 6 + bool(host)
+    for name in DIALECT_NAMES:
+        if first is not None and first.name == name:
+            continue
+        d = get_dialect(name)
+        if _score(d, ident, header, host) == best:
+            msg = d._decode_py(frame)
+            if msg.fields is not None:
+                return msg
+            break
+    return _decode_any_py(frame, first, (get_dialect(n) for n in DIALECT_NAMES), Dialect._decode_py)
+
+
+ONE_OFF_FRAMES = 64
+_one_off: dict[Any, int] = {}  # frames decoded so far without a built decoder, per preference
 _ANY_DECODERS: dict[Any, Callable[[Frame], Message]] = {}
 _ANY_DECODERS_MAX = 64  # distinct preferences kept (a user's own dialects would otherwise pile up)
 _ORDERS_MAX = 1024  # rankings kept per decoder (header, addresses, identifier): bounded for hostile input
@@ -156,12 +200,13 @@ def any_decoder(prefer: str | Dialect | None = None) -> Callable[[Frame], Messag
 def _decode_any_py(
     frame: Frame,
     first: Dialect | None,
-    defaults: list[Dialect],
+    defaults: Iterable[Dialect],
     decode: Callable[[Dialect, Frame], Message] = Dialect.decode,
     *,
     orders: dict[tuple[str, ...], list[Dialect]] | None = None,
 ) -> Message:
     """decode_any in Python (`decode`: how one dialect decodes; the tests pass the pure one).
+    `defaults` is read only when `first` cannot decode the frame (a generator builds them then).
     `orders` keeps the ranking per (header, addresses, identifier): the frames no dialect decodes
     natively come here, and ranking them anew each time was most of their cost."""
     if first is not None:
