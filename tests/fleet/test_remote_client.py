@@ -17,7 +17,7 @@ from topgimbal.errors import FieldValueError, LinkLostError, UnsupportedError
 from topgimbal.fleet import CameraSpec, FleetServer
 from topgimbal.fleet.specs import parse_camera, read_camera_file
 
-from .conftest import eventually, raw_session
+from .conftest import eventually, raw_call, raw_session
 
 pytestmark = pytest.mark.integration
 
@@ -111,6 +111,32 @@ async def test_calls_in_progress_are_bounded_per_camera(sims: Any, zport: int) -
         assert isinstance(await other.version(), str)  # another camera is not affected
         att = await slow
         assert abs(att.yaw_deg - 80) <= 0.5
+
+
+async def test_clients_on_a_session_the_caller_keeps(sims: Any, zport: int) -> None:
+    """Two cameras on one session the caller opened (as the console does): each client reads its
+    own camera's state, and closing them leaves the caller's session open and usable."""
+    a, b = await sims(2)
+    specs = [CameraSpec("a", a.url, "C12"), CameraSpec("b", b.url, "C12")]
+    async with FleetServer(specs, listen=[f"tcp/127.0.0.1:{zport}"]):
+        shared = raw_session(zport)
+        try:
+            url = f"zenoh/{{}}?connect=tcp/127.0.0.1:{zport}"
+            ca = await RemoteClient(url.format("a"), session=shared).open()
+            cb = await RemoteClient(url.format("b"), session=shared).open()
+            assert ca.session is shared and cb.session is shared
+            await cb.start_recording()
+            await eventually(lambda: cb.served_state.get("recording") is True, 20, "b's state: recording")
+            await eventually(lambda: ca.served_state.get("model") == "C12", 20, "a's state")
+            assert ca.served_state.get("recording") is not True and b.camera.recording and not a.camera.recording
+            await ca.close()
+            assert ca.session is None
+            assert isinstance(await cb.version(), str)  # the other client still works on it
+            await cb.close()
+            replies = raw_call(shared, "topgimbal/a/info", None, timeout=10)  # the session is still open
+            assert replies and replies[0]["model"] == "C12"
+        finally:
+            shared.close()
 
 
 async def test_nothing_served_under_that_name(zport: int) -> None:

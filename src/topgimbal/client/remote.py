@@ -55,7 +55,17 @@ QUEUE_SAMPLES = 256  # attitude samples held per stream; the oldest go first
 class RemoteClient(CoreMethods, MotionMethods, CameraMethods):
     """A remote camera (see the module docstring). Open with `await connect("zenoh/NAME?...")`."""
 
-    def __init__(self, url: str, model: str | DeviceModel | None = None, **options: Unpack[ConnectOptions]) -> None:
+    def __init__(
+        self,
+        url: str,
+        model: str | DeviceModel | None = None,
+        *,
+        session: Any = None,
+        **options: Unpack[ConnectOptions],
+    ) -> None:
+        """`session`: a Zenoh session the caller opened and keeps (one for many cameras, as the
+        console does); the client then opens none and leaves it open when it closes. Without it,
+        the client opens its own from the URL's endpoints and closes it."""
         self.url = url
         self.target: ZenohTarget = parse_zenoh_url(url)
         self.name = self.target.name
@@ -67,7 +77,10 @@ class RemoteClient(CoreMethods, MotionMethods, CameraMethods):
         self.state = StateCache()
         self.stats = LinkStats()
         self.session: Any = None
+        self._own_session = session is None
+        self._given_session = session
         self.info: dict[str, Any] = {}
+        self.served_state: dict[str, Any] = {}  # the server's last `state` sample for this camera
         self._link: dict[str, bool | str | float | None] = {"up": False, "reason": "not opened", "silent_s": None}
         self._link_listeners: list[Callable[[bool, str], Awaitable[None] | None]] = []
         self._subs: list[Any] = []
@@ -80,9 +93,12 @@ class RemoteClient(CoreMethods, MotionMethods, CameraMethods):
     async def open(self) -> RemoteClient:
         self._loop = asyncio.get_running_loop()
         t = self.target
-        self.session = await asyncio.to_thread(
-            open_session, listen=t.listen, connect=t.connect, mode=t.mode, config_file=t.config_file
-        )
+        if self._own_session:
+            self.session = await asyncio.to_thread(
+                open_session, listen=t.listen, connect=t.connect, mode=t.mode, config_file=t.config_file
+            )
+        else:
+            self.session = self._given_session
         try:
             self.info = await self._query_json(key(self.name, "info"), None, 5.0)
         except TopGimbalError:
@@ -107,10 +123,10 @@ class RemoteClient(CoreMethods, MotionMethods, CameraMethods):
             with contextlib.suppress(Exception):
                 s.undeclare()
         self._subs.clear()
-        if self.session is not None:
+        if self.session is not None and self._own_session:
             with contextlib.suppress(Exception):
                 await asyncio.to_thread(self.session.close)
-            self.session = None
+        self.session = None
 
     async def __aenter__(self) -> RemoteClient:
         return await self.open()
@@ -171,8 +187,14 @@ class RemoteClient(CoreMethods, MotionMethods, CameraMethods):
 
     def _on_state_sample(self, sample: Any) -> None:
         data = _json(sample)
-        if isinstance(data, dict) and "up" in data and self._loop is not None and not self._loop.is_closed():
-            self._loop.call_soon_threadsafe(self._set_link, bool(data.get("up")), str(data.get("reason", "")))
+        if isinstance(data, dict) and self._loop is not None and not self._loop.is_closed():
+            with contextlib.suppress(RuntimeError):  # the loop closed between the check and the call
+                self._loop.call_soon_threadsafe(self._keep_state, data)
+
+    def _keep_state(self, data: dict[str, Any]) -> None:
+        self.served_state = data
+        if "up" in data:
+            self._set_link(bool(data.get("up")), str(data.get("reason", "")))
 
     # -- telemetry ----------------------------------------------------------------------------------
 
