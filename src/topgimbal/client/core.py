@@ -17,7 +17,7 @@ from ..errors import FieldValueError, LinkLostError, TopGimbalError, TransportEr
 from ..protocol import CommandSpec, DeviceModel, Dialect, Frame, FrameParser, Message, get_model
 from ..protocol.frame import DEVICE_ADDRESSES
 from ..transport import Transport, TransportURL, open_transport, parse_url
-from . import identity
+from . import identity, roles
 from .builder import FrameBuilder
 from .connection import LinkKeeper
 from .engine import Engine
@@ -265,6 +265,13 @@ class ClientCore(Requests):
             self.fail_pending(err)
             self.streams.fail(err)
         self.notifier.link(event.up, event.reason)
+
+    def expect_stream(self, on: bool) -> None:
+        """The attitude stream is asked for (or no longer): on the attitude answer's key, frames
+        are samples, not copies of an answer, and they answer reads there (engine.set_stream)."""
+        ident = roles.role_ident(self.dialect, self.model, "attitude")
+        if self._engine is not None and ident is not None:
+            self._engine.set_stream(ident, on)
 
     def resume_streams(self) -> None:
         self.streams.resume()

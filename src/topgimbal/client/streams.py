@@ -44,12 +44,20 @@ class StreamControl:
         self._listeners: list[tuple[float, asyncio.Future[Attitude]]] = []
         self._task: asyncio.Task[None] | None = None
         self._renewer: asyncio.Task[None] | None = None
+        self._expected = False  # what the core was last told (expect_stream)
         self.renewals = 0  # stream requests sent again to keep a UDP peer's lease
 
     @property
     def active(self) -> bool:
         """Something expects attitude frames (the link monitor watches for silence)."""
         return self.device_rate is not None or self.manual_rate is not None or len(self.consumers) > 0
+
+    def _expect(self) -> None:
+        """Tell the core whether stream frames may come (asked for, or on at the device)."""
+        on = self.wanted() is not None or self.device_rate is not None
+        if on != self._expected:
+            self._expected = on
+            self.core.expect_stream(on)
 
     def wanted(self) -> float | None:
         rates = [c.rate_hz for c in self.consumers]
@@ -84,6 +92,7 @@ class StreamControl:
             if loop is None or loop.is_closed() or self.core.closed:
                 return
             if self.wanted() == self.device_rate:
+                self._expect()
                 return
             self._task = loop.create_task(self._reconcile())
             self._task.add_done_callback(_consume_error)
@@ -104,9 +113,11 @@ class StreamControl:
         ident = roles.require_role(core.dialect, core.model, "attitude_stream", "attitude stream")
         spec = core.dialect.command(ident)
         while (want := self.wanted()) != self.device_rate:
+            self._expect()  # before the request: the first samples may come before its answer
             frame = core.build_from(ident, roles.stream_values(spec, want))
             await core.transact(frame, timeout_s=core.timeout_s, retries=core.retries)
             self.device_rate = want
+        self._expect()
         self._keep_renewing()
 
     def _keep_renewing(self) -> None:
@@ -156,6 +167,7 @@ class StreamControl:
         with contextlib.suppress(TopGimbalError, asyncio.TimeoutError):
             await asyncio.wait_for(core.transact(off, timeout_s=timeout_s, retries=0), timeout_s * 2)
             self.device_rate = None
+            self._expect()
 
     # -- samples ---------------------------------------------------------------------------------
 
@@ -184,6 +196,7 @@ class StreamControl:
             c._end(error)
         self.consumers.clear()
         self.device_rate = None
+        self._expect()
         for _, fut in self._listeners:
             if not fut.done():
                 fut.set_exception(error)
