@@ -273,10 +273,10 @@ class Engine:
         sent (any sample after the query carries a value the device held since; samples and
         answers look alike, so every open attempt there is answered alike)."""
         live = self.live.get((rkey[0], rkey[1]))
-        ledger = self._ledger.get(rkey)
-        if is_report(message) or live is None or live.state != "sent" or live.rkey != rkey or ledger is None:
+        if live is None or live.state != "sent" or live.rkey != rkey:
             return Inbound("unsolicited")
-        if not any(a.tx is live for a in ledger.open):
+        ledger = self._ledger.get(rkey)
+        if ledger is None or is_report(message) or not any(a.tx is live for a in ledger.open):
             return Inbound("unsolicited")
         for attempt in list(ledger.open):
             ledger.close(attempt)

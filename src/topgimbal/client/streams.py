@@ -21,10 +21,12 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import math
 import time
 import weakref
 from collections import deque
+from collections.abc import Callable
 
 from ..errors import RequestTimeoutError, TopGimbalError
 from . import roles
@@ -32,6 +34,9 @@ from .ports import StreamPort
 from .state import Attitude
 
 QUEUE_SIZE = 64  # samples held per consumer; the oldest go first when a consumer falls behind
+MAX_TAPS = 64
+
+log = logging.getLogger("topgimbal.client")
 
 
 class StreamControl:
@@ -42,6 +47,7 @@ class StreamControl:
         self.manual_rate: float | None = None
         self.device_rate: float | None = None  # what the device was last told; None: off or unknown
         self._listeners: list[tuple[float, asyncio.Future[Attitude]]] = []
+        self._taps: list[Callable[[Attitude], None]] = []
         self._task: asyncio.Task[None] | None = None
         self._renewer: asyncio.Task[None] | None = None
         self._expected = False  # what the core was last told (expect_stream)
@@ -171,7 +177,26 @@ class StreamControl:
 
     # -- samples ---------------------------------------------------------------------------------
 
+    def tap(self, callback: Callable[[Attitude], None]) -> Callable[[], None]:
+        """`callback(att)` (sync) for every attitude sample, whatever stream brings it, without a
+        consumer's rate thinning or queue (a server republishing every sample: fleet/camera.py).
+        Starts no stream; returns a remove function."""
+        if len(self._taps) >= MAX_TAPS:
+            raise TopGimbalError(f"{MAX_TAPS} attitude taps already registered; remove old ones")
+        self._taps.append(callback)
+
+        def remove() -> None:
+            with contextlib.suppress(ValueError):
+                self._taps.remove(callback)
+
+        return remove
+
     def publish(self, att: Attitude) -> None:
+        for cb in self._taps:
+            try:
+                cb(att)
+            except Exception:  # one tap's bug is not the link's
+                log.exception("attitude tap %r failed", cb)
         for c in list(self.consumers) if self.consumers else ():
             if c._abandoned(att.t):
                 c._started = False  # it starts again if it ever asks for a sample
