@@ -197,7 +197,7 @@ class StreamControl:
                 cb(att)
             except Exception:  # one tap's bug is not the link's
                 log.exception("attitude tap %r failed", cb)
-        for c in list(self.consumers) if self.consumers.data else ():  # (WeakSet's len is Python code)
+        for c in list(self.consumers) if self.consumers else ():
             if c._abandoned(att.t):
                 c._started = False  # it starts again if it ever asks for a sample
                 c._queue.clear()
