@@ -44,9 +44,15 @@ def pct(xs: list[float], p: float) -> float:
     return xs[min(len(xs) - 1, int(p / 100 * len(xs)))]
 
 
-def cpu_s(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+def cpu_s(pid: int, tid: int | None = None) -> float:
+    where = f"/proc/{pid}/stat" if tid is None else f"/proc/{pid}/task/{tid}/stat"
+    fields = Path(where).read_text().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / CLK_TCK  # utime + stime
+
+
+def main_thread_cpu_s(pid: int) -> float:
+    """The Python thread's CPU (the event loop: every camera's client); the rest is Zenoh's."""
+    return cpu_s(pid, pid)
 
 
 def free_port() -> int:
@@ -146,7 +152,7 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int) -> dict[str, A
                 break
             await asyncio.sleep(0.1)
         await asyncio.sleep(2.0)
-        cpu0 = (cpu_s(server.pid), cpu_s(sims.pid))
+        cpu0 = (cpu_s(server.pid), cpu_s(sims.pid), main_thread_cpu_s(server.pid))
         t0 = time.monotonic()
         with sub.lock:
             sub.counting = True
@@ -155,7 +161,7 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int) -> dict[str, A
             sub.counting = False
             count, lost, repeated, lat = sub.count, sub.lost, sub.repeated, list(sub.latency)
         wall = time.monotonic() - t0
-        cpu1 = (cpu_s(server.pid), cpu_s(sims.pid))
+        cpu1 = (cpu_s(server.pid), cpu_s(sims.pid), main_thread_cpu_s(server.pid))
         streaming = len(sub.last_seq)
 
         # command round trips: through Zenoh, then direct
@@ -191,6 +197,8 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int) -> dict[str, A
             "zenoh_call_failures": sorted(set(zfail))[:3],
             "server_cpu_pct": round(100 * (cpu1[0] - cpu0[0]) / wall, 1),
             "server_cpu_pct_per_camera": round(100 * (cpu1[0] - cpu0[0]) / wall / n, 2),
+            "server_event_loop_cpu_pct": round(100 * (cpu1[2] - cpu0[2]) / wall, 1),
+            "server_cpu_us_per_sample": round(1e6 * (cpu1[0] - cpu0[0]) / max(1, count), 1),
             "sim_cpu_pct": round(100 * (cpu1[1] - cpu0[1]) / wall, 1),
         }  # fmt: skip
     finally:

@@ -150,3 +150,33 @@ async def test_closing_a_stream_ends_the_task_waiting_on_it(fake):
         await stream.aclose()
         await asyncio.wait_for(reader, 30)
         assert reader.done() and reader.exception() is None
+
+
+@pytest.mark.integration
+async def test_get_attitude_while_a_stream_runs_is_answered_by_the_next_sample(sim_factory):
+    """The stream's frames are the attitude answer's own: they were counted as copies of the last
+    answer, so each later query waited for 50 ms without a frame on its key (never, at 50 Hz):
+    p50 282 ms, up to 9.6 s. Now a query is sent at once and the next sample answers it."""
+    sim = await sim_factory("C12", seed=32)
+    async with topgimbal.connect(dict(sim.endpoints)["udp"], model="C12", timeout_s=0.5) as cam:
+        samples = 0
+
+        async def consume() -> None:
+            nonlocal samples
+            async for _att in cam.attitude(rate_hz=50):
+                samples += 1
+
+        task = asyncio.ensure_future(consume())
+        try:
+            await until(lambda: samples >= 5)
+            await cam.point(10, -5)
+            for _ in range(10):
+                att = await cam.get_attitude()
+                assert abs(att.yaw_deg - 10) <= 0.5 and abs(att.pitch_deg + 5) <= 0.5
+            stats = cam.stats
+            assert stats.deferred == 0 and stats.duplicates == 0 and not cam._engine.copies_seen
+            assert stats.timeouts == 0 and stats.late_replies == 0
+            before = samples
+            await until(lambda: samples > before)  # the consumer still gets every sample
+        finally:
+            task.cancel()

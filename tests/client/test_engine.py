@@ -304,3 +304,45 @@ def test_topotek_rec_and_cap_are_acknowledged_by_their_feedback():
     clock.t += 0.1
     taken = d.notification("CAP", src="D", dst="P", state="taken", file_index=9)
     assert e.on_message(d.decode(taken)).tx is cap
+
+
+def test_on_a_streaming_key_samples_are_not_copies_and_answer_the_read_at_once(sky):
+    """An attitude stream (C12 GAC at 50 Hz, identical frames while the gimbal is still) sends
+    frames on the attitude query's key: they were taken for copies of the last answer, which
+    marked the link as copying, and every later read waited for a quiet key that never came."""
+    d, e, clock = sky
+    req = d.encode("GAC", read=True)
+    sample = answer(d, req, yaw_deg=0.0, pitch_deg=0.0, roll_deg=0.0)
+    e.set_stream("GAC", True)
+    for _ in range(5):  # a read while the stream runs: sent at once, answered by the next sample
+        clock.t += 0.02
+        assert e.on_message(sample).kind == "unsolicited"
+        tx = e.submit(req, timeout_s=1.0, retries=2)
+        assert tx.state == "sent" and sent(e) == [req]
+        clock.t += 0.005
+        r = e.on_message(sample)
+        assert r.kind == "answer" and r.tx is tx and tx.reply is sample
+        clock.t += 0.005
+        assert e.on_message(sample).kind == "unsolicited"  # the next sample: nobody's copy
+    assert not e.copies_seen and e.stats.duplicates == 0 and e.stats.deferred == 0
+    assert e.stats.late_replies == 0 and e.stats.stray_replies == 0 and e.stats.rtt_ms_min is None
+
+
+def test_without_the_stream_flag_the_same_frames_still_mark_copies(sky):
+    """The rule above is the stream's alone: off (and a late window after), copies are copies."""
+    d, e, clock = sky
+    req = d.encode("GAC", read=True)
+    sample = answer(d, req, yaw_deg=0.0, pitch_deg=0.0, roll_deg=0.0)
+    e.set_stream("GAC", True)
+    e.set_stream("GAC", False)  # its frames may still come for the late window
+    tx = e.submit(req, timeout_s=1.0, retries=0)
+    clock.t += 0.005
+    assert e.on_message(sample).tx is tx and sent(e) == [req]
+    clock.t += 0.01
+    assert e.on_message(sample).kind == "unsolicited" and not e.copies_seen
+    clock.t += 2.5  # the late window is over: the stream's rule no longer applies
+    tx = e.submit(req, timeout_s=1.0, retries=0)
+    clock.t += 0.005
+    assert e.on_message(sample).tx is tx
+    clock.t += 0.01
+    assert e.on_message(sample).kind == "late" and e.copies_seen  # a repeat of an answer taken

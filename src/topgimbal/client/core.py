@@ -17,7 +17,7 @@ from ..errors import FieldValueError, LinkLostError, TopGimbalError, TransportEr
 from ..protocol import CommandSpec, DeviceModel, Dialect, Frame, FrameParser, Message, get_model
 from ..protocol.frame import DEVICE_ADDRESSES
 from ..transport import Transport, TransportURL, open_transport, parse_url
-from . import identity
+from . import identity, roles
 from .builder import FrameBuilder
 from .connection import LinkKeeper
 from .engine import Engine
@@ -266,6 +266,13 @@ class ClientCore(Requests):
             self.streams.fail(err)
         self.notifier.link(event.up, event.reason)
 
+    def expect_stream(self, on: bool) -> None:
+        """The attitude stream is asked for (or no longer): on the attitude answer's key, frames
+        are samples, not copies of an answer, and they answer reads there (engine.set_stream)."""
+        ident = roles.role_ident(self.dialect, self.model, "attitude")
+        if self._engine is not None and ident is not None:
+            self._engine.set_stream(ident, on)
+
     def resume_streams(self) -> None:
         self.streams.resume()
 
@@ -280,25 +287,28 @@ class ClientCore(Requests):
 
     def on_bytes(self, data: bytes) -> None:
         self.stats.bytes_in += len(data)
-        parser = self._parser
-        items = parser.feed(data)
         transport = self._transport
-        if transport is not None and transport.is_datagram:
-            items += parser.flush()  # a datagram ends its frames
-        for item in items:
-            if isinstance(item, Frame):
-                self._on_frame(item)
+        # A datagram ends its frames; bytes to Messages in one pass (the parser's C fast path).
+        final = transport is not None and transport.is_datagram
+        engine_work = False
+        for item in self._parser.feed_messages(data, self.dialect.decode, final=final):
+            if isinstance(item, Message):
+                engine_work = self._on_message(item) or engine_work
             elif item.kind != "length_mismatch":
                 self.stats.bad_frames += 1
-        self._drive()
+        # A stream sample (or a report) changes nothing the engine decides: no frames to send, no
+        # request finished, no deadline earlier (the link's moved later). Skipped, per sample.
+        if engine_work:
+            self._drive()
 
-    def _on_frame(self, frame: Frame) -> None:
+    def _on_message(self, message: Message) -> bool:
+        """One decoded frame from the line; True when the engine took it for more than a sample."""
+        frame = message.frame
         self.stats.frames_in += 1
-        message = self.dialect.decode(frame)
         if self.notifier.wants_traffic:
             self.notifier.traffic("in", frame, message)
         if frame.src not in DEVICE_ADDRESSES:
-            return  # our own frames echoed by a loopback or a half-duplex line
+            return False  # our own frames echoed by a loopback or a half-duplex line
         assert self._engine is not None and self.link is not None
         self.keeper.event(self.link.on_frame())
         spec = message.spec
@@ -308,11 +318,11 @@ class ClientCore(Requests):
         # so it holds (and a request returns) the message already in the API convention.
         api = map_message(message, self.signs) if spec is not None and spec.signed_fields else message
         inbound = self._engine.on_message(api)
-        if not inbound.dispatch:
-            return
-        if api.fields is not None and not api.is_error:
-            self._update_state(api)
-        self.notifier.message(api)
+        if inbound.dispatch:
+            if api.fields is not None and not api.is_error:
+                self._update_state(api)
+            self.notifier.message(api)
+        return inbound.kind != "unsolicited"
 
     def _update_state(self, m: Message) -> None:
         keyed = self.state.apply(m)

@@ -22,6 +22,7 @@ reasoning is in docs/client.md, "Matching"):
 from __future__ import annotations
 
 import copy
+import math
 from collections import deque
 from collections.abc import Mapping
 
@@ -72,6 +73,7 @@ class Engine:
         self._last_error: dict[str, float] = {}  # device address -> when its last ERE came
         self.copies_seen = False  # the link has delivered a frame twice
         self._rtt_samples = 0
+        self._streams: dict[str, float] = {}  # identifier -> until when its frames come unasked
         self._out: list[Frame] = []
         self._finished: list[Transaction] = []
 
@@ -146,6 +148,19 @@ class Engine:
         self._last_frame.clear()
         self._last_error.clear()
 
+    def set_stream(self, ident: str, on: bool) -> None:
+        """A telemetry stream of `ident` frames is on (or went off: its frames may still come for
+        `late_window_s`). On its key a frame is a sample, not a copy, and it answers the live read
+        (docs/client.md, "Telemetry"): reads there are neither deferred nor taken for copies."""
+        if on:
+            self._streams[ident] = math.inf
+        elif ident in self._streams:
+            self._streams[ident] = self.clock() + self.late_window_s
+
+    def _streaming(self, ident: str, now: float) -> bool:
+        until = self._streams.get(ident)
+        return until is not None and now < until
+
     def take_frames(self) -> list[Frame]:
         out, self._out = self._out, []
         return out
@@ -194,6 +209,8 @@ class Engine:
                 return Inbound("ignored")
         last = self._last_frame.get(rkey)
         self._last_frame[rkey] = (now, frame.data)
+        if self._streams and frame.rw == "r" and self._streaming(frame.ident, now):
+            return self._on_sample(message, rkey, now)
         # Right behind an identical frame: perhaps a network copy, so it proves no other attempt answered.
         maybe_copy = last is not None and last[1] == frame.data and now - last[0] <= self.dup_window_s
         ledger = self._ledger.get(rkey)
@@ -250,6 +267,22 @@ class Engine:
         return self._unowned(message, live, now, known=known)
 
     # -- internals ----------------------------------------------------------------------------------
+
+    def _on_sample(self, message: Message, rkey: RKey, now: float) -> Inbound:
+        """A frame on a streaming key: a sample, and the live read's answer once that read is
+        sent (any sample after the query carries a value the device held since; samples and
+        answers look alike, so every open attempt there is answered alike)."""
+        live = self.live.get((rkey[0], rkey[1]))
+        if live is None or live.state != "sent" or live.rkey != rkey:
+            return Inbound("unsolicited")
+        ledger = self._ledger.get(rkey)
+        if ledger is None or is_report(message) or not any(a.tx is live for a in ledger.open):
+            return Inbound("unsolicited")
+        for attempt in list(ledger.open):
+            ledger.close(attempt)
+        self.stats.replies += 1  # no round trip: a sample may have left before the query came
+        self._finish(live, now, reply=message)
+        return Inbound("answer", live)
 
     def _unowned(self, message: Message, live: Transaction | None, now: float, *, known: bool) -> Inbound:
         """A frame that fits no open attempt: a report, a copy of an answer already taken, a
@@ -350,8 +383,12 @@ class Engine:
 
     def _blocked_until(self, tx: Transaction, now: float) -> float | None:
         """When `tx` may be sent without an earlier request's answer passing for its own."""
-        if (tx.frame.rw == "w" and not tx.exclusive) or tx.slow:
-            return None
+        if (
+            (tx.frame.rw == "w" and not tx.exclusive)
+            or tx.slow
+            or (tx.frame.rw == "r" and self._streaming(tx.frame.ident, now))
+        ):
+            return None  # (on a streaming key every sample answers: nothing to wait for)
         until: float | None = None
         ledger = self._ledger.get(tx.rkey)
         # A write's echo carries its data: an earlier write of other data cannot be taken for it

@@ -77,7 +77,8 @@ class ModelCheckPort(RequestPort, Protocol):
 
 
 class StreamPort(RequestPort, Protocol):
-    """`StreamControl`: also the options (stream renewal), the link kind and the event loop."""
+    """`StreamControl`: also the options (stream renewal), the link kind, the event loop, and
+    telling the engine whether stream frames are to be expected (samples, not copies)."""
 
     @property
     def options(self) -> ClientOptions: ...
@@ -87,6 +88,8 @@ class StreamPort(RequestPort, Protocol):
 
     @property
     def event_loop(self) -> asyncio.AbstractEventLoop | None: ...
+
+    def expect_stream(self, on: bool) -> None: ...
 
 
 class KeeperPort(RequestPort, Protocol):

@@ -21,10 +21,12 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import math
 import time
 import weakref
 from collections import deque
+from collections.abc import Callable
 
 from ..errors import RequestTimeoutError, TopGimbalError
 from . import roles
@@ -32,6 +34,9 @@ from .ports import StreamPort
 from .state import Attitude
 
 QUEUE_SIZE = 64  # samples held per consumer; the oldest go first when a consumer falls behind
+MAX_TAPS = 64
+
+log = logging.getLogger("topgimbal.client")
 
 
 class StreamControl:
@@ -42,14 +47,23 @@ class StreamControl:
         self.manual_rate: float | None = None
         self.device_rate: float | None = None  # what the device was last told; None: off or unknown
         self._listeners: list[tuple[float, asyncio.Future[Attitude]]] = []
+        self._taps: list[Callable[[Attitude], None]] = []
         self._task: asyncio.Task[None] | None = None
         self._renewer: asyncio.Task[None] | None = None
+        self._expected = False  # what the core was last told (expect_stream)
         self.renewals = 0  # stream requests sent again to keep a UDP peer's lease
 
     @property
     def active(self) -> bool:
         """Something expects attitude frames (the link monitor watches for silence)."""
         return self.device_rate is not None or self.manual_rate is not None or len(self.consumers) > 0
+
+    def _expect(self) -> None:
+        """Tell the core whether stream frames may come (asked for, or on at the device)."""
+        on = self.wanted() is not None or self.device_rate is not None
+        if on != self._expected:
+            self._expected = on
+            self.core.expect_stream(on)
 
     def wanted(self) -> float | None:
         rates = [c.rate_hz for c in self.consumers]
@@ -84,6 +98,7 @@ class StreamControl:
             if loop is None or loop.is_closed() or self.core.closed:
                 return
             if self.wanted() == self.device_rate:
+                self._expect()
                 return
             self._task = loop.create_task(self._reconcile())
             self._task.add_done_callback(_consume_error)
@@ -104,9 +119,11 @@ class StreamControl:
         ident = roles.require_role(core.dialect, core.model, "attitude_stream", "attitude stream")
         spec = core.dialect.command(ident)
         while (want := self.wanted()) != self.device_rate:
+            self._expect()  # before the request: the first samples may come before its answer
             frame = core.build_from(ident, roles.stream_values(spec, want))
             await core.transact(frame, timeout_s=core.timeout_s, retries=core.retries)
             self.device_rate = want
+        self._expect()
         self._keep_renewing()
 
     def _keep_renewing(self) -> None:
@@ -156,10 +173,30 @@ class StreamControl:
         with contextlib.suppress(TopGimbalError, asyncio.TimeoutError):
             await asyncio.wait_for(core.transact(off, timeout_s=timeout_s, retries=0), timeout_s * 2)
             self.device_rate = None
+            self._expect()
 
     # -- samples ---------------------------------------------------------------------------------
 
+    def tap(self, callback: Callable[[Attitude], None]) -> Callable[[], None]:
+        """`callback(att)` (sync) for every attitude sample, whatever stream brings it, without a
+        consumer's rate thinning or queue (a server republishing every sample: fleet/camera.py).
+        Starts no stream; returns a remove function."""
+        if len(self._taps) >= MAX_TAPS:
+            raise TopGimbalError(f"{MAX_TAPS} attitude taps already registered; remove old ones")
+        self._taps.append(callback)
+
+        def remove() -> None:
+            with contextlib.suppress(ValueError):
+                self._taps.remove(callback)
+
+        return remove
+
     def publish(self, att: Attitude) -> None:
+        for cb in self._taps:
+            try:
+                cb(att)
+            except Exception:  # one tap's bug is not the link's
+                log.exception("attitude tap %r failed", cb)
         for c in list(self.consumers) if self.consumers else ():
             if c._abandoned(att.t):
                 c._started = False  # it starts again if it ever asks for a sample
@@ -184,6 +221,7 @@ class StreamControl:
             c._end(error)
         self.consumers.clear()
         self.device_rate = None
+        self._expect()
         for _, fut in self._listeners:
             if not fut.done():
                 fut.set_exception(error)
