@@ -2,7 +2,7 @@
 sends): each kind is logged at most once per interval, and the next line says how many were left
 out. A leaf every layer may use (like errors.py): the simulator's servers and state store, the
 proxy, the MAVLink bridge (commands, parameters, endpoints, pointing, camera definitions), the
-media server and the RTSP streams.
+media server, the RTSP streams and the Zenoh fleet server.
 
 `warning(kind, fmt, *args)` writes the line itself and appends how many were left out; a caller
 whose line already counts what it refused (`%d in all`) asks `allow(kind)` and keeps its words."""

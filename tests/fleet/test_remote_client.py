@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import logging
 from typing import Any
 
 import pytest
@@ -95,7 +96,7 @@ async def test_link_down_and_up_reach_a_remote_client(sims: Any, zport: int) -> 
             await cam.close()
 
 
-async def test_calls_in_progress_are_bounded_per_camera(sims: Any, zport: int) -> None:
+async def test_calls_in_progress_are_bounded_per_camera(sims: Any, zport: int, caplog: Any) -> None:
     a, b = await sims(2)
     specs = [CameraSpec("a", a.url, "C12"), CameraSpec("b", b.url, "C12")]
     async with (
@@ -105,9 +106,13 @@ async def test_calls_in_progress_are_bounded_per_camera(sims: Any, zport: int) -
     ):
         slow = asyncio.ensure_future(cam.point(80, 40))  # a long slew holds a's only call slot
         await eventually(lambda: a.gimbal.yaw_deg > 1.0, 20, "the slew started")
-        with pytest.raises(RemoteCallError) as busy:
-            await cam.version()
-        assert busy.value.kind == "busy"
+        with caplog.at_level(logging.WARNING, logger="topgimbal"):
+            for _ in range(3):
+                with pytest.raises(RemoteCallError) as busy:
+                    await cam.version()
+                assert busy.value.kind == "busy"
+        lines = [r.getMessage() for r in caplog.records if "calls in progress" in r.getMessage()]
+        assert len(lines) == 1 and "1 refused in all" in lines[0]  # three refusals, one line per 10 s
         assert isinstance(await other.version(), str)  # another camera is not affected
         att = await slow
         assert abs(att.yaw_deg - 80) <= 0.5

@@ -33,6 +33,7 @@ from ..client.remote_keys import (
 )
 from ..client.state import Attitude
 from ..errors import TopGimbalError
+from ..logthrottle import ThrottledLog
 from .specs import CameraSpec
 
 log = logging.getLogger("topgimbal.fleet")
@@ -78,7 +79,7 @@ class ServedCamera:
         self._tasks: list[asyncio.Task[None]] = []
         self._calls: set[asyncio.Task[None]] = set()
         self._last_state: str | None = None
-        self._busy_logged = 0.0
+        self._throttle = ThrottledLog(log, BUSY_LOG_EVERY_S)
         self._closing = False
         self._unsubscribe: list[Callable[[], None]] = []
 
@@ -206,11 +207,9 @@ class ServedCamera:
         reply_key = call_key(*where)
         if self.inflight >= self.max_calls:
             self.refused += 1
-            now = time.monotonic()
-            if now - self._busy_logged >= BUSY_LOG_EVERY_S:
-                self._busy_logged = now
-                log.warning("%s: %d calls in progress, refusing more (limit %d)", self.name, self.inflight,
-                            self.max_calls)  # fmt: skip
+            if self._throttle.allow("busy") is not None:
+                log.warning("%s: %d calls in progress, refusing more (limit %d; %d refused in all)", self.name,
+                            self.inflight, self.max_calls, self.refused)  # fmt: skip
             self._reply(query, reply_key, error_reply(RemoteCallError(
                 f"{self.name}: {self.max_calls} calls are in progress; try again", KIND_BUSY)))  # fmt: skip
             return
