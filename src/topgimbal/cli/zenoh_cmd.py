@@ -6,6 +6,7 @@ import argparse
 import asyncio
 import logging
 import sys
+from typing import Any
 
 from ..errors import FieldValueError
 from .runtime import stop_on_signals, wait_stopped
@@ -45,6 +46,31 @@ def _calls(text: str) -> int:
     return int(text)
 
 
+def _check_mavlink(specs: list[Any], sysid: int) -> str | None:
+    from ..mavlink.bridge import BridgeConfigError
+    from ..mavlink.multi import allocate
+
+    if not 1 <= sysid <= 255:
+        return f"--sysid {sysid}: expected 1..255"
+    try:
+        allocate([(s.name, s.url, s.model) for s in specs])
+    except BridgeConfigError as exc:
+        return str(exc)
+    return None
+
+
+async def _start_mavlink(specs: list[Any], sysid: int, session: Any, timeout_s: float) -> Any:
+    """The MAVLink bridge of `topgimbal mavlink --camera ...` (same component ids), its only link
+    the Zenoh session in BlueOS mavlink-server's key shape (mavlink/zenoh_link.py)."""
+    from ..mavlink.multi import MultiBridge
+    from ..mavlink.zenoh_link import zenoh_link_factory
+
+    bridge = MultiBridge([(s.name, s.url, s.model) for s in specs], endpoints=[], sysid=sysid,
+                         link_factories=[zenoh_link_factory(session)], timeout_s=timeout_s)  # fmt: skip
+    await bridge.start()
+    return bridge
+
+
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = subparsers.add_parser(
         "zenoh",
@@ -65,6 +91,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--rate-hz", type=_rate, default=50.0, help="attitude stream rate asked of each camera (default 50)")
     p.add_argument("--max-calls", type=_calls, default=8, help="calls in progress per camera (default 8)")
     p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds (default 1)")
+    p.add_argument("--mavlink-keys", action="store_true",
+                   help="also run the MAVLink bridge for the cameras on this session, in BlueOS mavlink-server's keys: "
+                   "mavlink/out, mavlink/SYS/COMP/MSG[/FIELD], commands from mavlink/in (at most 7 cameras)")  # fmt: skip
+    p.add_argument("--sysid", type=int, default=1, help="MAVLink system id with --mavlink-keys (default 1)")
     p.add_argument("-v", "--verbose", action="store_true", help="log link changes and refused calls")
     p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=run)
@@ -86,6 +116,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"topgimbal zenoh: error: --timeout {args.timeout:g}: expected 0.05..30 s", file=sys.stderr)
         return 2
     specs = collect(specs)
+    if args.mavlink_keys:
+        problem = _check_mavlink(specs, args.sysid)
+        if problem:
+            print(f"topgimbal zenoh: error: --mavlink-keys: {problem}", file=sys.stderr)
+            return 2
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
 
     async def main() -> None:
@@ -93,13 +128,22 @@ def run(args: argparse.Namespace) -> int:
                              rate_hz=args.rate_hz, max_calls=args.max_calls,
                              client_options={"timeout_s": args.timeout})  # fmt: skip
         await server.start()
-        where = ", ".join(args.listen + args.connect)
-        names = ", ".join(f"{s.name} ({s.model})" for s in specs)
-        print(f"zenoh: serving {len(specs)} cameras on {where} ({args.mode}): {names}", flush=True)
-        stop = stop_on_signals()
+        bridge = None
         try:
+            if args.mavlink_keys:
+                bridge = await _start_mavlink(specs, args.sysid, server.session, args.timeout)
+            where = ", ".join(args.listen + args.connect)
+            names = ", ".join(f"{s.name} ({s.model})" for s in specs)
+            print(f"zenoh: serving {len(specs)} cameras on {where} ({args.mode}): {names}", flush=True)
+            if bridge is not None:
+                ids = "; ".join(f"{a.name}: gimbal {a.gimbal_compid}, cameras "
+                                f"{','.join(map(str, a.camera_compids)) or 'none'}" for a in bridge.allocations)  # fmt: skip
+                print(f"zenoh: MAVLink keys mavlink/{args.sysid}/COMP/MSG, commands from mavlink/in: {ids}", flush=True)
+            stop = stop_on_signals()
             await wait_stopped(stop, args.seconds)
         finally:
+            if bridge is not None:
+                await bridge.close()
             await server.close()
 
     try:

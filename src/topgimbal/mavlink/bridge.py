@@ -79,8 +79,9 @@ class BridgeConfig:
             raise BridgeConfigError(f"definition_http={self.definition_http!r}: expected HOST:PORT (port 0..65535)")
         return host.strip("[]") or "127.0.0.1", int(port)
 
-    def check(self) -> None:
-        if not self.endpoints:
+    def check(self, need_endpoints: bool = True) -> None:
+        """`need_endpoints` False: the links come from elsewhere (a shared node's, zenoh_link.py)."""
+        if need_endpoints and not self.endpoints:
             raise BridgeConfigError("at least one MAVLink endpoint is needed (--mavlink udpout:HOST:PORT)")
         for e in self.endpoints:
             parse_endpoint(e)
@@ -115,7 +116,7 @@ class Bridge:
     def __init__(self, config: BridgeConfig, node: Node | None = None) -> None:
         """`node`: a MAVLink node shared with other bridges (multi.py: N cameras on one set of
         links), started and closed by its owner; None: this bridge's own, from `endpoints`."""
-        config.check()
+        config.check(need_endpoints=node is None)
         self.config = config
         c = config
         self.cam = CameraLink(

@@ -25,7 +25,7 @@ from typing import Any
 from ..protocol import get_model
 from .bridge import CAMERA_COMPIDS, GIMBAL_COMPIDS, Bridge, BridgeConfig, BridgeConfigError
 from .endpoints import MAX_PEERS
-from .node import Node
+from .node import LinkFactory, Node
 
 log = logging.getLogger("topgimbal.mavlink")
 
@@ -79,7 +79,8 @@ def allocate(
 
 class MultiBridge:
     """N cameras as N gimbal (+ camera) component sets of one MAVLink system on shared links.
-    `common` holds the BridgeConfig fields every camera shares (role, rates, timeouts...)."""
+    `link_factories`: links made elsewhere besides `endpoints` (zenoh_link.zenoh_link_factory: the
+    BlueOS key shape on a Zenoh session; then `endpoints` may be empty). `common` holds the BridgeConfig fields every camera shares (role, rates, timeouts...)."""
 
     def __init__(
         self,
@@ -90,6 +91,7 @@ class MultiBridge:
         cameras_wanted: bool = True,
         thermal: bool = True,
         max_peers: int = MAX_PEERS,
+        link_factories: Sequence[LinkFactory] = (),
         **common: Any,
     ) -> None:
         self.allocations = allocate(cameras, cameras_wanted=cameras_wanted, thermal=thermal)
@@ -108,9 +110,10 @@ class MultiBridge:
             for a in self.allocations
         ]
         for c in configs:
-            c.check()
+            c.check(need_endpoints=not link_factories)
         signing_key = configs[0].signing_key if configs else None
-        self.node = Node(sysid, list(endpoints), max_peers=max_peers, signing_key=signing_key)
+        self.node = Node(sysid, list(endpoints), max_peers=max_peers, signing_key=signing_key,
+                         link_factories=link_factories)  # fmt: skip
         self.bridges = [Bridge(c, node=self.node) for c in configs]
         self._closed = asyncio.Event()
 

@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable, Hashable
+from collections.abc import Callable, Hashable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from ._mav import mavlink
-from .endpoints import MAX_PEERS, Link, make_link
+from .endpoints import MAX_PEERS, DataCallback, GoneCallback, Link, make_link
 from .signing import describe_refused, require_signed, sign_outgoing
 
 if TYPE_CHECKING:
@@ -26,6 +26,7 @@ if TYPE_CHECKING:
 log = logging.getLogger("topgimbal.mavlink")
 
 MessageCallback = Callable[[Any], None]
+LinkFactory = Callable[[DataCallback, GoneCallback], Link]  # a link made elsewhere (zenoh_link.py)
 _PEER_ATTR = "_topgimbal_link_peer"
 MAX_SIGNED_STREAMS = 256  # (link id, system, component) timestamps kept per peer for replay checks
 
@@ -71,13 +72,20 @@ class Component:
 
 class Node:
     def __init__(
-        self, sysid: int, endpoints: list[str], *, max_peers: int = MAX_PEERS, signing_key: bytes | None = None
+        self,
+        sysid: int,
+        endpoints: list[str],
+        *,
+        max_peers: int = MAX_PEERS,
+        signing_key: bytes | None = None,
+        link_factories: Sequence[LinkFactory] = (),
     ) -> None:
         self.sysid = sysid
         self.signing_key = signing_key
         self.unsigned_in = 0  # messages refused for a missing or wrong signature
         self._unsigned_logged: set[tuple[int, Hashable]] = set()
         self.links: list[Link] = [make_link(e, self._on_data, self._on_gone, max_peers) for e in endpoints]
+        self.links += [make(self._on_data, self._on_gone) for make in link_factories]
         self.components: dict[int, Component] = {}
         self._parsers: dict[tuple[int, Hashable], Any] = {}
         self._subscribers: list[MessageCallback] = []
