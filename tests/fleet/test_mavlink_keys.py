@@ -1,0 +1,112 @@
+"""`topgimbal zenoh --mavlink-keys` as its own process with two simulated cameras, seen by an
+independent Zenoh program (eclipse-zenoh only) in BlueOS mavlink-server's key shape: each camera's
+HEARTBEAT, GIMBAL_DEVICE_ATTITUDE_STATUS and CAMERA_INFORMATION under its own component ids, a
+COMMAND_LONG put on mavlink/in moving the second camera only and acknowledged on
+mavlink/SYS/COMP/COMMAND_ACK, hostile input on mavlink/in dropped while the server goes on."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from typing import Any
+
+import pytest
+
+from .conftest import eventually, raw_session
+from .test_zenoh_server import _serve, _stop
+
+pytestmark = pytest.mark.integration
+
+HEADER_KEYS = ["system_id", "component_id", "sequence", "message_id"]
+
+
+def _command(target_comp: int, command: str, params: list[float], seq: int = 1) -> str:
+    msg: dict[str, Any] = {"type": "COMMAND_LONG", "target_system": 1, "target_component": target_comp,
+                           "command": {"type": command}, "confirmation": 0}  # fmt: skip
+    for i, p in enumerate(params, 1):
+        msg[f"param{i}"] = p
+    return json.dumps({"header": {"system_id": 255, "component_id": 190, "sequence": seq}, "message": msg})
+
+
+async def test_two_cameras_in_blueos_keys_commanded_through_mavlink_in(sims: Any, zport: int) -> None:
+    cams = await sims(2)
+    args = ["--listen", f"tcp/127.0.0.1:{zport}", "--mavlink-keys",
+            "--camera", f"left={cams[0].url},C12", "--camera", f"right={cams[1].url},C12"]  # fmt: skip
+    proc = await _serve(args)
+    assert proc.stdout is not None
+    ids_line = (await asyncio.wait_for(proc.stdout.readline(), 30)).decode()
+    assert "left: gimbal 154, cameras 100,101; right: gimbal 171, cameras 102,103" in ids_line, ids_line
+    session = await asyncio.to_thread(raw_session, zport)
+    seen: dict[str, list[Any]] = {}
+
+    def on_sample(sample: Any) -> None:
+        if str(sample.key_expr) == "mavlink/in":
+            return  # what this test itself puts there
+        seen.setdefault(str(sample.key_expr), []).append(json.loads(sample.payload.to_string()))
+
+    try:
+        sub = session.declare_subscriber("mavlink/**", on_sample)
+        wanted = [f"mavlink/1/{c}/{m}" for c in (154, 171) for m in ("HEARTBEAT", "GIMBAL_DEVICE_ATTITUDE_STATUS")]
+        wanted += [f"mavlink/1/{c}/HEARTBEAT" for c in (100, 102)]
+        await eventually(lambda: all(seen.get(k) for k in wanted) and bool(seen.get("mavlink/out")), 60,
+                         "heartbeats and attitude of both cameras")  # fmt: skip
+
+        hb = seen["mavlink/1/171/HEARTBEAT"][-1]
+        assert list(hb) == ["header", "message"] and list(hb["header"]) == HEADER_KEYS
+        assert hb["header"]["system_id"] == 1 and hb["header"]["component_id"] == 171
+        assert hb["header"]["message_id"] == 0 and 0 <= hb["header"]["sequence"] <= 255
+        assert hb["message"]["type"] == "HEARTBEAT"
+        assert hb["message"]["mavtype"] == {"type": "MAV_TYPE_GIMBAL"}  # rust-mavlink's name for `type`
+        assert hb["message"]["autopilot"] == {"type": "MAV_AUTOPILOT_INVALID"}
+        assert isinstance(hb["message"]["base_mode"], str)  # a bit mask: bitflags' "A | B" text
+        assert seen["mavlink/1/100/HEARTBEAT"][-1]["message"]["mavtype"] == {"type": "MAV_TYPE_CAMERA"}
+        # each field alone, as mavlink-server publishes it
+        assert seen["mavlink/1/171/HEARTBEAT/mavtype"][-1] == {"type": "MAV_TYPE_GIMBAL"}
+        assert seen["mavlink/1/171/HEARTBEAT/type"][-1] == "HEARTBEAT"
+        att = seen["mavlink/1/171/GIMBAL_DEVICE_ATTITUDE_STATUS"][-1]["message"]
+        assert len(att["q"]) == 4 and att["gimbal_device_id"] in (0, 171)
+        assert any(m["header"]["component_id"] == 154 for m in seen["mavlink/out"])
+
+        # CAMERA_INFORMATION of both cameras, asked for as a ground station does
+        for comp, seq in ((100, 2), (102, 3)):
+            await asyncio.to_thread(session.put, "mavlink/in",
+                                    _command(comp, "MAV_CMD_REQUEST_MESSAGE", [259], seq))  # fmt: skip
+        await eventually(lambda: all(seen.get(f"mavlink/1/{c}/CAMERA_INFORMATION") for c in (100, 102)), 30,
+                         "CAMERA_INFORMATION of both cameras")  # fmt: skip
+        info = seen["mavlink/1/102/CAMERA_INFORMATION"][-1]["message"]
+        assert isinstance(info["cam_definition_uri"], str) and isinstance(info["vendor_name"], list)
+        assert len(info["vendor_name"]) == 32 and isinstance(info["flags"], str)
+        assert "CAMERA_CAP_FLAGS_CAPTURE_IMAGE" in info["flags"].split(" | ")
+
+        # hostile input on mavlink/in: dropped, the server goes on
+        for bad in (b"not json", b"\xff\xfe", b"[1,2]", json.dumps({"header": {}, "message": {}}).encode(),
+                    json.dumps({"header": {"system_id": 255, "component_id": 190},
+                                "message": {"type": "NO_SUCH_MESSAGE"}}).encode(),
+                    _command(171, "MAV_CMD_NO_SUCH", [0]).encode(),
+                    _command(171, "MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW", ["x"]).encode(),  # type: ignore[list-item]
+                    b"[" * 100_000, b"{" + b" " * 200_000 + b"}"):  # fmt: skip
+            await asyncio.to_thread(session.put, "mavlink/in", bad)
+
+        # point the second camera's gimbal manager (171): pitch, yaw in degrees, rates NaN (not given)
+        seen.pop("mavlink/1/171/COMMAND_ACK", None)
+        nan = float("nan")
+        await asyncio.to_thread(session.put, "mavlink/in",
+                                _command(171, "MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW", [-30.0, 25.0, nan, nan, 0, 0, 0], 4))  # fmt: skip
+        await eventually(lambda: bool(seen.get("mavlink/1/171/COMMAND_ACK")), 90, "COMMAND_ACK from component 171")
+        ack = seen["mavlink/1/171/COMMAND_ACK"][-1]
+        assert list(ack["header"]) == HEADER_KEYS and ack["header"]["message_id"] == 77
+        assert ack["message"]["command"] == {"type": "MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW"}
+        assert ack["message"]["result"] == {"type": "MAV_RESULT_ACCEPTED"}
+        assert ack["message"]["target_system"] == 255 and ack["message"]["target_component"] == 190
+        await eventually(lambda: abs(cams[1].gimbal.yaw_deg - 25.0) <= 1.0 and abs(cams[1].gimbal.pitch_deg + 30.0) <= 1.0,
+                         60, "the second camera to reach yaw 25, pitch -30")  # fmt: skip
+        assert cams[0].gimbal.yaw_deg == 0.0 and cams[0].gimbal.pitch_deg == 0.0
+        assert "mavlink/1/154/COMMAND_ACK" not in seen
+        sub.undeclare()
+    finally:
+        await asyncio.to_thread(session.close)
+        code = await _stop(proc)
+    assert proc.stderr is not None
+    err = (await proc.stderr.read()).decode()
+    assert code == 0, err
+    assert "mavlink/in: dropped a message" in err and "Traceback" not in err, err
