@@ -15,6 +15,9 @@ from topgimbal.mavlink._mav import mavlink
 mav = mavlink()
 
 
+CAMERA_INFO = (1, [65] * 32, [66] * 32, 3, 16.0, 12.0, 10.0, 1920, 1080, 0, 0x1FF, 2, b"http://x/c12.xml", 0, 154)
+
+
 def _wire(msg: Any, sysid: int = 1, compid: int = 154, seq: int = 7) -> Any:
     """The message as a peer receives it (header set by the encoder)."""
     enc = mav.MAVLink(None, srcSystem=sysid, srcComponent=compid)
@@ -58,8 +61,7 @@ def test_bit_masks_low_bit_first_empty_and_unknown_bits_dropped() -> None:
         mav.MAVLink_heartbeat_message(26, 8, 128 | 8, 0, 4, 3),
         mav.MAVLink_command_long_message(1, 171, 1000, 0, -30.0, 25.0, math.nan, math.nan, 0, 0, 0),
         mav.MAVLink_command_ack_message(1000, 0, 0, 0, 255, 190),
-        mav.MAVLink_camera_information_message(1, [65] * 32, [66] * 32, 3, 16.0, 12.0, 10.0, 1920, 1080, 0,
-                                               0x1FF, 2, b"http://127.0.0.1:8000/c12.xml", 0, 154),  # fmt: skip
+        mav.MAVLink_camera_information_message(*CAMERA_INFO),
         mav.MAVLink_param_ext_value_message(b"CAM_MODE", b"\x01\x00", 1, 10, 0),
         mav.MAVLink_gimbal_device_attitude_status_message(1, 2, 5, 36, [0.9, 0.1, -0.2, 0.3], 0.1, 0.2, 0.3, 4),
     ],
@@ -119,20 +121,35 @@ def test_per_field_payloads_as_mavlink_server_publishes_them() -> None:
         (b"[1, 2]", "expected"),
         (b'{"header": {"system_id": 1, "component_id": 1}, "message": {"type": "NOPE"}}', "NOPE"),
         (b'{"header": {"system_id": 300, "component_id": 1}, "message": {"type": "HEARTBEAT"}}', "system_id"),
-        (b'{"header": {"system_id": 1, "component_id": 1, "message_id": 5}, "message": {"type": "HEARTBEAT"}}',
-         "message_id"),
-        (b'{"header": {"system_id": 1, "component_id": 1}, "message": {"type": "HEARTBEAT", "custom_mode": "x"}}',
-         "expected a number"),
-        (b'{"header": {"system_id": 1, "component_id": 1}, "message": {"type": "HEARTBEAT", "custom_mode": -1}}',
-         "range"),
-        (b'{"header": {"system_id": 1, "component_id": 1}, "message": {"type": "HEARTBEAT", "mavtype": {"type": "X"}}}',
-         "MAV_TYPE"),
-        (b'{"header": {"system_id": 1, "component_id": 1}, "message": {"type": "HEARTBEAT", "base_mode": "NOPE"}}',
-         "no flag"),
-        (b'{"header": {"system_id": 1, "component_id": 1}, "message": {"type": "GIMBAL_DEVICE_ATTITUDE_STATUS", '
-         b'"q": [1, 0]}}', "list of 4"),
-        (b'{"header": {"system_id": 1, "component_id": 1}, "message": {"type": "PARAM_EXT_SET", "param_id": 5}}',
-         "string"),
+        (
+            b'{"header": {"system_id": 1, "component_id": 1, "message_id": 5}, "message": {"type": "HEARTBEAT"}}',
+            "message_id",
+        ),
+        (
+            b'{"header": {"system_id": 1, "component_id": 1}, "message": {"type": "HEARTBEAT", "custom_mode": "x"}}',
+            "expected a number",
+        ),
+        (
+            b'{"header": {"system_id": 1, "component_id": 1}, "message": {"type": "HEARTBEAT", "custom_mode": -1}}',
+            "range",
+        ),
+        (
+            b'{"header": {"system_id": 1, "component_id": 1}, "message": {"type": "HEARTBEAT", "mavtype": {"type": "X"}}}',
+            "MAV_TYPE",
+        ),
+        (
+            b'{"header": {"system_id": 1, "component_id": 1}, "message": {"type": "HEARTBEAT", "base_mode": "NOPE"}}',
+            "no flag",
+        ),
+        (
+            b'{"header": {"system_id": 1, "component_id": 1}, "message": {"type": "GIMBAL_DEVICE_ATTITUDE_STATUS", '
+            b'"q": [1, 0]}}',
+            "list of 4",
+        ),
+        (
+            b'{"header": {"system_id": 1, "component_id": 1}, "message": {"type": "PARAM_EXT_SET", "param_id": 5}}',
+            "string",
+        ),
     ],
 )
 def test_bad_input_raises_shape_error(payload: bytes, says: str) -> None:

@@ -158,13 +158,13 @@ def _finite(v: Any) -> Any:
 # -- JSON -> pymavlink --------------------------------------------------------------------------------
 
 
+_BY_NAME: dict[str, Any] = {}  # message name -> pymavlink class, filled on first use
+
+
 def _by_name() -> dict[str, Any]:
-    mod = mavlink()
-    cached: dict[str, Any] | None = getattr(mod, "_topgimbal_by_name", None)
-    if cached is None:
-        cached = {cls.msgname: cls for cls in mod.mavlink_map.values()}
-        mod._topgimbal_by_name = cached
-    return cached
+    if not _BY_NAME:
+        _BY_NAME.update({cls.msgname: cls for cls in mavlink().mavlink_map.values()})
+    return _BY_NAME
 
 
 def _number(where: str, ftype: str, v: Any) -> int | float:
