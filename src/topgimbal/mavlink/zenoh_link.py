@@ -6,7 +6,8 @@ Every frame the node sends is published as JSON on `mavlink/out`, on
 Zenoh driver does. JSON put on `mavlink/in` is decoded, encoded as a MAVLink frame from the
 header's system and component, and handed to the node like bytes from any peer ("zenoh").
 Bad input (not JSON, more than MAX_IN_BYTES, unknown message, wrong field) is dropped and counted
-in `bad_in`, with a warning at most every 10 s.
+in `bad_in`, with a warning at most every 10 s; so is input beyond MAX_PENDING_IN samples waiting
+for the event loop (`dropped_in`).
 
 The session is the caller's (the fleet server's); this link opens and closes none. Zenoh calls
 back on its own threads: samples are handed to the event loop the link was started on."""
@@ -16,6 +17,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import threading
 from typing import Any
 
 from ..logthrottle import ThrottledLog
@@ -28,6 +30,7 @@ log = logging.getLogger("topgimbal.mavlink")
 PREFIX = "mavlink"
 PEER = "zenoh"
 MAX_PUBLISHERS = 4096  # declared keys kept; a few components x messages x fields stays far below
+MAX_PENDING_IN = 256  # mavlink/in samples waiting for the event loop; a flood beyond is dropped
 
 
 class ZenohLink(Link):
@@ -36,12 +39,15 @@ class ZenohLink(Link):
         self.session = session
         self.published = 0
         self.bad_in = 0
+        self.dropped_in = 0  # a flood: more than MAX_PENDING_IN waiting
         self._publishers: dict[str, Any] = {}
         self._subscriber: Any = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._parser = mavlink().MAVLink(None)
         self._parser.robust_parsing = True
         self._bad_log = ThrottledLog(log, 10.0)
+        self._pending = 0
+        self._pending_lock = threading.Lock()
 
     @property
     def peer_count(self) -> int:
@@ -55,14 +61,26 @@ class ZenohLink(Link):
         loop = self._loop
         if loop is None or self._closed:
             return
+        with self._pending_lock:
+            if self._pending >= MAX_PENDING_IN:
+                self.dropped_in += 1
+                return
+            self._pending += 1
         try:
             data = bytes(sample.payload.to_bytes())
         except Exception:  # a payload Zenoh cannot hand over: nothing to decode
             data = b"\xff"
-        with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
+        try:
             loop.call_soon_threadsafe(self._received, data)
+        except RuntimeError:  # the loop closed meanwhile
+            pass
 
     def _received(self, data: bytes) -> None:
+        with self._pending_lock:
+            self._pending -= 1
+        if self.dropped_in and self._bad_log.allow("flood") is not None:
+            log.warning("%s/in: %d messages dropped in all: more than %d waiting", PREFIX, self.dropped_in,
+                        MAX_PENDING_IN)  # fmt: skip
         try:
             header, msg = json_shape.loads(data)
             frame = json_shape.encode(header, msg)
