@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import sys
 from typing import Any
 
 import pytest
@@ -110,3 +111,24 @@ async def test_two_cameras_in_blueos_keys_commanded_through_mavlink_in(sims: Any
     err = (await proc.stderr.read()).decode()
     assert code == 0, err
     assert "mavlink/in: dropped a message" in err and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize(
+    ("extra", "says"),
+    [
+        (["--sysid", "0"], "--sysid 0: expected 1..255"),
+        ([f"--camera=c{i}=udp://127.0.0.1:{5000 + i},C12" for i in range(2, 8)] + ["--no-thermal"],
+         "7 cameras: one MAVLink system has 6 gimbal component ids"),
+        ([f"--camera=c{i}=udp://127.0.0.1:{5000 + i},C12" for i in range(2, 5)],
+         "4 cameras need 8 camera component ids"),
+    ],
+)  # fmt: skip
+async def test_mavlink_keys_usage_errors_exit_2_before_opening_anything(extra: list[str], says: str) -> None:
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable, "-m", "topgimbal.cli.main", "zenoh", "--listen", "tcp/127.0.0.1:1", "--mavlink-keys",
+        "--camera", "c1=udp://127.0.0.1:5001,C12", *extra,
+        stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+    )  # fmt: skip
+    out, err = await asyncio.wait_for(proc.communicate(), 60)
+    assert proc.returncode == 2 and b"serving" not in out
+    assert f"topgimbal zenoh: error: --mavlink-keys: {says}" in err.decode()

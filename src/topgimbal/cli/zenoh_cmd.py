@@ -46,27 +46,28 @@ def _calls(text: str) -> int:
     return int(text)
 
 
-def _check_mavlink(specs: list[Any], sysid: int) -> str | None:
+def _check_mavlink(specs: list[Any], sysid: int, cameras_wanted: bool, thermal: bool) -> str | None:
     from ..mavlink.bridge import BridgeConfigError
     from ..mavlink.multi import allocate
 
     if not 1 <= sysid <= 255:
         return f"--sysid {sysid}: expected 1..255"
     try:
-        allocate([(s.name, s.url, s.model) for s in specs])
+        allocate([(s.name, s.url, s.model) for s in specs], cameras_wanted=cameras_wanted, thermal=thermal)
     except BridgeConfigError as exc:
         return str(exc)
     return None
 
 
-async def _start_mavlink(specs: list[Any], sysid: int, session: Any, timeout_s: float) -> Any:
+async def _start_mavlink(specs: list[Any], args: argparse.Namespace, session: Any) -> Any:
     """The MAVLink bridge of `topgimbal mavlink --camera ...` (same component ids), its only link
     the Zenoh session in BlueOS mavlink-server's key shape (mavlink/zenoh_link.py)."""
     from ..mavlink.multi import MultiBridge
     from ..mavlink.zenoh_link import zenoh_link_factory
 
-    bridge = MultiBridge([(s.name, s.url, s.model) for s in specs], endpoints=[], sysid=sysid,
-                         link_factories=[zenoh_link_factory(session)], timeout_s=timeout_s)  # fmt: skip
+    bridge = MultiBridge([(s.name, s.url, s.model) for s in specs], endpoints=[], sysid=args.sysid,
+                         cameras_wanted=not args.no_camera, thermal=not args.no_thermal,
+                         link_factories=[zenoh_link_factory(session)], timeout_s=args.timeout)  # fmt: skip
     await bridge.start()
     return bridge
 
@@ -93,8 +94,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds (default 1)")
     p.add_argument("--mavlink-keys", action="store_true",
                    help="also run the MAVLink bridge for the cameras on this session, in BlueOS mavlink-server's keys: "
-                   "mavlink/out, mavlink/SYS/COMP/MSG[/FIELD], commands from mavlink/in (at most 7 cameras)")  # fmt: skip
+                   "mavlink/out, mavlink/SYS/COMP/MSG[/FIELD], commands from mavlink/in (at most 6 cameras)")  # fmt: skip
     p.add_argument("--sysid", type=int, default=1, help="MAVLink system id with --mavlink-keys (default 1)")
+    p.add_argument(
+        "--no-thermal", action="store_true", help="with --mavlink-keys: no MAVLink component for thermal lenses"
+    )
+    p.add_argument("--no-camera", action="store_true", help="with --mavlink-keys: gimbal components only")
     p.add_argument("-v", "--verbose", action="store_true", help="log link changes and refused calls")
     p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=run)
@@ -117,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     specs = collect(specs)
     if args.mavlink_keys:
-        problem = _check_mavlink(specs, args.sysid)
+        problem = _check_mavlink(specs, args.sysid, not args.no_camera, not args.no_thermal)
         if problem:
             print(f"topgimbal zenoh: error: --mavlink-keys: {problem}", file=sys.stderr)
             return 2
@@ -131,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
         bridge = None
         try:
             if args.mavlink_keys:
-                bridge = await _start_mavlink(specs, args.sysid, server.session, args.timeout)
+                bridge = await _start_mavlink(specs, args, server.session)
             where = ", ".join(args.listen + args.connect)
             names = ", ".join(f"{s.name} ({s.model})" for s in specs)
             print(f"zenoh: serving {len(specs)} cameras on {where} ({args.mode}): {names}", flush=True)
