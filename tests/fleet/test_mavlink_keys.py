@@ -21,12 +21,26 @@ pytestmark = pytest.mark.integration
 HEADER_KEYS = ["system_id", "component_id", "sequence", "message_id"]
 
 
-def _command(target_comp: int, command: str, params: list[float], seq: int = 1) -> str:
+def _command(target_comp: int, command: str, params: list[float], seq: int = 1, confirmation: int = 0) -> str:
     msg: dict[str, Any] = {"type": "COMMAND_LONG", "target_system": 1, "target_component": target_comp,
-                           "command": {"type": command}, "confirmation": 0}  # fmt: skip
+                           "command": {"type": command}, "confirmation": confirmation}  # fmt: skip
     for i, p in enumerate(params, 1):
         msg[f"param{i}"] = p
     return json.dumps({"header": {"system_id": 255, "component_id": 190, "sequence": seq}, "message": msg})
+
+
+async def _send_until(session: Any, make: Any, done: Any, what: str, attempts: int = 6, wait_s: float = 10.0) -> None:
+    """Put a command on mavlink/in and, as a ground station does, send it again with the next
+    `confirmation` while nothing answers: a Zenoh put is dropped under congestion (its default),
+    as a UDP datagram may be lost."""
+    for confirmation in range(attempts):
+        await asyncio.to_thread(session.put, "mavlink/in", make(confirmation))
+        end = asyncio.get_running_loop().time() + wait_s
+        while asyncio.get_running_loop().time() < end:
+            if done():
+                return
+            await asyncio.sleep(0.05)
+    raise AssertionError(f"no answer after {attempts} attempts: {what}")
 
 
 async def test_two_cameras_in_blueos_keys_commanded_through_mavlink_in(sims: Any, zport: int) -> None:
@@ -70,10 +84,9 @@ async def test_two_cameras_in_blueos_keys_commanded_through_mavlink_in(sims: Any
 
         # CAMERA_INFORMATION of both cameras, asked for as a ground station does
         for comp, seq in ((100, 2), (102, 3)):
-            await asyncio.to_thread(session.put, "mavlink/in",
-                                    _command(comp, "MAV_CMD_REQUEST_MESSAGE", [259], seq))  # fmt: skip
-        await eventually(lambda: all(seen.get(f"mavlink/1/{c}/CAMERA_INFORMATION") for c in (100, 102)), 30,
-                         "CAMERA_INFORMATION of both cameras")  # fmt: skip
+            await _send_until(session, lambda n, comp=comp, seq=seq: _command(comp, "MAV_CMD_REQUEST_MESSAGE", [259], seq, n),
+                              lambda comp=comp: bool(seen.get(f"mavlink/1/{comp}/CAMERA_INFORMATION")),
+                              f"CAMERA_INFORMATION of {comp}")  # fmt: skip
         info = seen["mavlink/1/102/CAMERA_INFORMATION"][-1]["message"]
         assert isinstance(info["cam_definition_uri"], str) and isinstance(info["vendor_name"], list)
         assert len(info["vendor_name"]) == 32 and isinstance(info["flags"], str)
@@ -91,9 +104,9 @@ async def test_two_cameras_in_blueos_keys_commanded_through_mavlink_in(sims: Any
         # point the second camera's gimbal manager (171): pitch, yaw in degrees, rates NaN (not given)
         seen.pop("mavlink/1/171/COMMAND_ACK", None)
         nan = float("nan")
-        await asyncio.to_thread(session.put, "mavlink/in",
-                                _command(171, "MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW", [-30.0, 25.0, nan, nan, 0, 0, 0], 4))  # fmt: skip
-        await eventually(lambda: bool(seen.get("mavlink/1/171/COMMAND_ACK")), 90, "COMMAND_ACK from component 171")
+        await _send_until(session, lambda n: _command(171, "MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW",
+                                                      [-30.0, 25.0, nan, nan, 0, 0, 0], 4, n),
+                          lambda: bool(seen.get("mavlink/1/171/COMMAND_ACK")), "COMMAND_ACK from component 171")  # fmt: skip
         ack = seen["mavlink/1/171/COMMAND_ACK"][-1]
         assert list(ack["header"]) == HEADER_KEYS and ack["header"]["message_id"] == 77
         assert ack["message"]["command"] == {"type": "MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW"}
