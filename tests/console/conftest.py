@@ -160,3 +160,13 @@ def page(browser: Any, c12: BackgroundConsole, page_errors: list[str]) -> Iterat
     yield p
     p.context.close()
     assert page_errors == [], page_errors
+
+
+async def eventually(check: Callable[[], Any], timeout: float = 30.0, what: str = "condition") -> None:
+    """`wait_for` for a test that runs in the event loop: poll without blocking it."""
+    loop = asyncio.get_running_loop()
+    end = loop.time() + timeout
+    while not check():
+        if loop.time() > end:
+            raise AssertionError(f"{what} did not hold within {timeout} s")
+        await asyncio.sleep(0.05)

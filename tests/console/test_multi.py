@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import json
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 from typing import Any
 
 import aiohttp
@@ -24,14 +24,7 @@ from topgimbal.console.cameras import (
     local_plan,
 )
 
-
-async def eventually(check: Callable[[], bool], timeout: float = 30.0, what: str = "condition") -> None:
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout
-    while not check():
-        if loop.time() > end:
-            raise AssertionError(f"{what} did not hold within {timeout} s")
-        await asyncio.sleep(0.05)
+from .conftest import eventually
 
 
 @pytest.fixture

@@ -20,13 +20,7 @@ from topgimbal.console import ConsoleServer
 from topgimbal.console.remote_hub import NOT_CARRIED
 from topgimbal.sim import Simulator
 
-
-async def eventually(check: Any, timeout: float, what: str) -> None:
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout
-    while not check():
-        assert loop.time() < end, f"{what} did not hold within {timeout} s"
-        await asyncio.sleep(0.05)
+from .conftest import eventually
 
 
 def free_port() -> int:

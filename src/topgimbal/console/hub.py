@@ -40,6 +40,10 @@ PING_ROLES = ("version", "model_name", "attitude", "sd_capacity", "ip_address")
 
 
 class Hub(PageHub):
+    # Whether an attitude sample counts as something heard from the camera (`last_in`): here the
+    # traffic subscription already counts every frame; a hub without one says True.
+    samples_are_heard = False
+
     def __init__(
         self,
         cam: CameraAPI,
@@ -170,6 +174,8 @@ class Hub(PageHub):
                         "roll": float(att.roll_deg),
                         "t": float(att.wall or time.time()),
                     }
+                    if self.samples_are_heard:
+                        self.last_in = time.time()
                     self._attitude_seq += 1
                     self.clear_error("attitude")
             except asyncio.CancelledError:

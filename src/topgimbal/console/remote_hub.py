@@ -11,7 +11,6 @@ checks of its own through Zenoh."""
 
 from __future__ import annotations
 
-import asyncio
 import logging
 import time
 from typing import Any, cast
@@ -58,6 +57,7 @@ class RemoteHub(Hub):
     """`Hub` for a `SharedRemote`: no traffic subscription and no link checks (see the module)."""
 
     source = "zenoh"
+    samples_are_heard = True  # no traffic subscription here: an attitude sample is what is heard
 
     def __init__(self, cam: SharedRemote, *, attitude_hz: float = 50.0) -> None:
         # a CameraAPI but for feed/feed_from (the console feeds nothing to a remote camera)
@@ -72,26 +72,6 @@ class RemoteHub(Hub):
 
     async def _keepalive_loop(self) -> None:
         """None: the Zenoh server's own client watches the camera's link and publishes it."""
-
-    async def _attitude_loop(self) -> None:
-        """Hub's loop, also counting a sample as something heard from the camera."""
-        while True:
-            try:
-                async for att in self.cam.attitude(self.attitude_hz):
-                    self.attitude = {
-                        "yaw": float(att.yaw_deg),
-                        "pitch": float(att.pitch_deg),
-                        "roll": float(att.roll_deg),
-                        "t": float(att.wall or time.time()),
-                    }
-                    self.last_in = time.time()
-                    self._attitude_seq += 1
-                    self.clear_error("attitude")
-            except asyncio.CancelledError:
-                raise
-            except Exception as exc:
-                self._background_failure(exc, "the attitude stream", "attitude")
-            await asyncio.sleep(1.0)
 
     def link_status(self) -> dict[str, Any]:
         out = super().link_status()
