@@ -9,8 +9,8 @@ from pathlib import Path
 
 PKG = Path(__file__).resolve().parents[1] / "src" / "topgimbal"
 
-# Leaf modules every layer may import: the exceptions and the throttled warning log.
-SHARED_LEAVES = ("errors", "logthrottle", "_lazy")
+# Leaf modules every layer may import: the exceptions, the throttled warning log and the one clock.
+SHARED_LEAVES = ("errors", "logthrottle", "_lazy", "clock")
 
 # What each layer may import from inside topgimbal (besides itself and SHARED_LEAVES).
 ALLOWED = {
