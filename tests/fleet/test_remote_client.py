@@ -27,7 +27,7 @@ async def test_remote_camera_is_used_like_a_local_one(sims: Any, zport: int) -> 
     a, b = await sims(2)
     specs = [CameraSpec("a", a.url, "C12"), CameraSpec("b", b.url, "C12")]
     async with (
-        FleetServer(specs, listen=[f"tcp/127.0.0.1:{zport}"]),
+        FleetServer(specs, listen=[f"tcp/127.0.0.1:{zport}"], allow_remote=frozenset({"request"})),
         topgimbal.connect(f"zenoh/b?connect=tcp/127.0.0.1:{zport}") as cam,
         topgimbal.connect(b.url, model="C12") as local,
     ):
@@ -40,7 +40,7 @@ async def test_remote_camera_is_used_like_a_local_one(sims: Any, zport: int) -> 
         assert sd.present and sd.total_mb and sd.total_mb > 0
         m = await cam.photo()
         assert m.ident == "CAP" and b.camera.photos_taken == 1 and a.camera.photos_taken == 0
-        m = await cam.request("GAC", read=True)
+        m = await cam.request("GAC", read=True)  # a read: callable without --allow-remote
         assert m.fields is not None and abs(m.fields["yaw_deg"] + 15) <= 0.5
         # the same exception classes as a local client
         with pytest.raises(FieldValueError):

@@ -100,6 +100,11 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--no-thermal", action="store_true", help="with --mavlink-keys: no MAVLink component for thermal lenses"
     )
     p.add_argument("--no-camera", action="store_true", help="with --mavlink-keys: gimbal components only")
+    p.add_argument("--allow-remote", action="append", default=[], metavar="METHOD",
+                   help="make a restricted method remotely callable: set_network, send_raw or request (repeatable; "
+                   "off by default: they change the camera's address, persistent settings or send raw frames)")  # fmt: skip
+    p.add_argument("--insecure", action="store_true",
+                   help="serve on endpoints beyond loopback without Zenoh access control (the log repeats it)")  # fmt: skip
     p.add_argument("-v", "--verbose", action="store_true", help="log link changes and refused calls")
     p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=run)
@@ -121,6 +126,17 @@ def run(args: argparse.Namespace) -> int:
         print(f"topgimbal zenoh: error: --timeout {args.timeout:g}: expected 0.05..30 s", file=sys.stderr)
         return 2
     specs = collect(specs)
+    from ..fleet.access import AccessConfigError, check_allowed, check_exposure
+
+    try:
+        allowed = check_allowed(args.allow_remote)
+        from ..client.zenoh_session import make_config
+
+        check_exposure([*args.listen, *args.connect], make_config(listen=args.listen, connect=args.connect,
+                       mode=args.mode, config_file=args.config), args.insecure)  # fmt: skip
+    except (AccessConfigError, FieldValueError) as exc:
+        print(f"topgimbal zenoh: error: {exc}", file=sys.stderr)
+        return 2
     if args.mavlink_keys:
         problem = _check_mavlink(specs, args.sysid, not args.no_camera, not args.no_thermal)
         if problem:
@@ -131,15 +147,20 @@ def run(args: argparse.Namespace) -> int:
     async def main() -> None:
         server = FleetServer(specs, listen=args.listen, connect=args.connect, mode=args.mode, config_file=args.config,
                              rate_hz=args.rate_hz, max_calls=args.max_calls,
-                             client_options={"timeout_s": args.timeout})  # fmt: skip
+                             client_options={"timeout_s": args.timeout}, allow_remote=allowed,
+                             insecure=args.insecure)  # fmt: skip
         await server.start()
         bridge = None
         try:
             if args.mavlink_keys:
                 bridge = await _start_mavlink(specs, args, server.session)
-            where = ", ".join(args.listen + args.connect)
+            where = "; ".join(
+                [f"on {', '.join(args.listen)}"] * bool(args.listen) + [f"connected to {', '.join(args.connect)}"] * bool(args.connect)
+            )  # fmt: skip
             names = ", ".join(f"{s.name} ({s.model})" for s in specs)
-            print(f"zenoh: serving {len(specs)} cameras on {where} ({args.mode}): {names}", flush=True)
+            print(f"zenoh: serving {len(specs)} cameras {where} ({args.mode}): {names}", flush=True)
+            if server.protection.startswith("INSECURE"):
+                print(f"zenoh: {server.protection}", file=sys.stderr, flush=True)
             if bridge is not None:
                 ids = "; ".join(f"{a.name}: gimbal {a.gimbal_compid}, cameras "
                                 f"{','.join(map(str, a.camera_compids)) or 'none'}" for a in bridge.allocations)  # fmt: skip
@@ -151,8 +172,13 @@ def run(args: argparse.Namespace) -> int:
                 await bridge.close()
             await server.close()
 
+    from ..fleet.server import DuplicateCameraError
+
     try:
         asyncio.run(main())
     except KeyboardInterrupt:
         print("stopped", file=sys.stderr)
+    except DuplicateCameraError as exc:
+        print(f"topgimbal zenoh: error: {exc}", file=sys.stderr)
+        return 2
     return 0

@@ -33,6 +33,7 @@ from .identity import Verdict
 from .options import ConnectOptions
 from .remote_keys import (
     METHODS,
+    RemoteCallError,
     ZenohTarget,
     call_key,
     decode_result,
@@ -50,6 +51,7 @@ CALL_TIMEOUT_S = 30.0  # a call without its own timeout_s
 POINT_TIMEOUT_S = 120.0  # point() without timeout_s: the server allows for the whole slew
 MARGIN_S = 5.0  # over a call's own timeout_s
 QUEUE_SAMPLES = 256  # attitude samples held per stream; the oldest go first
+KIND_SERVED_TWICE = "served_twice"
 
 
 class RemoteClient(CoreMethods, MotionMethods, CameraMethods):
@@ -100,6 +102,11 @@ class RemoteClient(CoreMethods, MotionMethods, CameraMethods):
         else:
             self.session = self._given_session
         try:
+            self._querier = str(self.session.zid())
+        except Exception:  # a session double without zid(): the server counts it as anonymous
+            self._querier = ""
+        try:
+            # every server answers `info` (no consolidation): two answers are refused here, before any call acts
             self.info = await self._query_json(key(self.name, "info"), None, 5.0)
         except TopGimbalError:
             await self.close()
@@ -262,25 +269,41 @@ class RemoteClient(CoreMethods, MotionMethods, CameraMethods):
         if session is None:
             raise LinkLostError(f"{self.url}: not open")
 
+        querier = getattr(self, "_querier", "")
+        # Every answer, not Zenoh's one per key: two servers of one name must show as two answers.
+        extra: dict[str, Any] = {"consolidation": _no_consolidation()}
+        if querier:  # names this session, for the server's fair share of a camera's places
+            extra["attachment"] = querier
+
         def ask() -> list[Any]:
-            return list(session.get(k, payload=payload, timeout=wait_s))
+            return list(session.get(k, payload=payload, timeout=wait_s, **extra))
 
         self.stats.requests += 1
         replies = await asyncio.to_thread(ask)
-        errors = []
+        errors: list[str] = []
+        answers = [d for d in (_json(r.ok) for r in replies if r.ok is not None) if isinstance(d, dict)]
+        if len(answers) > 1:
+            self.stats.replies += 1
+            what = f"{method}() may have been carried out by each" if method else "which one is it?"
+            raise RemoteCallError(f"{self.url}: {len(answers)} servers answered {k}: {what}; give each camera its own "
+                                  "name", KIND_SERVED_TWICE)  # fmt: skip
+        if answers:
+            self.stats.replies += 1
+            return answers[0]
         for r in replies:
-            if r.ok is not None:
-                data = _json(r.ok)
-                if isinstance(data, dict):
-                    self.stats.replies += 1
-                    return data
-            elif r.err is not None:
+            if r.ok is None and r.err is not None:
                 errors.append(r.err.payload.to_string()[:200])
         self.stats.timeouts += 1
         if errors:
             what = f"{method}() may or may not have been carried out" if method else "no answer"
             raise RequestTimeoutError(f"{self.url}: {k}: {'; '.join(errors)}; {what}")
         raise LinkLostError(f"{self.url}: nothing answers {k} (is `topgimbal zenoh` serving {self.name!r}?)")
+
+
+def _no_consolidation() -> Any:
+    import zenoh  # a session is open, so eclipse-zenoh is installed
+
+    return zenoh.ConsolidationMode.NONE
 
 
 def _json(sample: Any) -> object:

@@ -8,12 +8,20 @@ endpoints, mode and scouting settings; a file that turns scouting back on is ove
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Sequence
 from typing import Any
 
 from ..errors import FieldValueError, TransportError
 
 MODES = ("peer", "client")
+# eclipse-zenoh's errors end with the Rust source line that raised them ("... at /root/.cargo/git/
+# checkouts/zenoh-.../orchestrator.rs:447."): of no use to a user, so it is cut.
+_RUST_AT = re.compile(r"\s+at\s+\S+\.rs:\d+\.?")
+
+
+def zenoh_error_text(exc: BaseException) -> str:
+    return _RUST_AT.sub("", str(exc)).strip() or type(exc).__name__
 
 
 def _zenoh() -> Any:
@@ -44,7 +52,9 @@ def make_config(
     try:
         conf = zenoh.Config.from_file(config_file) if config_file else zenoh.Config()
     except Exception as exc:  # zenoh's own error type: say which file
-        raise FieldValueError("config", config_file, f"a readable Zenoh configuration file ({exc})") from None
+        raise FieldValueError(
+            "config", config_file, f"a readable Zenoh configuration file ({zenoh_error_text(exc)})"
+        ) from None
     conf.insert_json5("mode", json.dumps(mode))
     conf.insert_json5("scouting/multicast/enabled", "false")
     conf.insert_json5("scouting/gossip/enabled", "false")
@@ -65,4 +75,4 @@ def open_session(
         return zenoh.open(conf)
     except Exception as exc:  # e.g. an endpoint already in use, nothing to connect to
         where = ", ".join([*listen, *connect]) or "no endpoint"
-        raise TransportError(f"cannot open a Zenoh session ({mode}, {where}): {exc}") from None
+        raise TransportError(f"cannot open a Zenoh session ({mode}, {where}): {zenoh_error_text(exc)}") from None

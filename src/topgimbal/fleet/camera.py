@@ -3,9 +3,13 @@ link), its liveliness token and its queryables (`call/<method>`, `info`).
 
 Zenoh runs its callbacks on its own threads; every query is handed to this camera's asyncio loop
 (`call_soon_threadsafe`) and answered from there, so the SDK client is only ever used on its loop.
-Calls are bounded per camera (`max_calls` at once; more are refused at once with kind "busy"), as
-are their arguments (client/remote_keys.py). A call is answered "ok" only with what the SDK method
-returned: the SDK's truth rules hold unchanged (no success the camera did not confirm)."""
+Calls are bounded per camera (`max_calls` at once; more are refused at once with kind "busy"), and
+per querier (a fair share of those places among the queriers seen in the last ACTIVE_WINDOW_S), as
+are their arguments (client/remote_keys.py) and their time (a `timeout_s` argument at most
+MAX_ARG_TIMEOUT_S, the whole call at most MAX_CALL_S). A call whose querier's session is gone is
+cancelled and its place freed. What is remotely callable is fleet/access.py's. A call is answered
+"ok" only with what the SDK method returned: the SDK's truth rules hold unchanged (no success the
+camera did not confirm)."""
 
 from __future__ import annotations
 
@@ -13,7 +17,7 @@ import asyncio
 import contextlib
 import json
 import logging
-import time
+import re
 from collections.abc import Callable
 from math import isfinite
 from typing import Any
@@ -32,8 +36,10 @@ from ..client.remote_keys import (
     split_call_key,
 )
 from ..client.state import Attitude
-from ..errors import TopGimbalError
+from ..clock import MonotonicFn, monotonic, wall_time
+from ..errors import RequestTimeoutError, TopGimbalError
 from ..logthrottle import ThrottledLog
+from .access import KIND_FORBIDDEN, callable_methods, refusal
 from .specs import CameraSpec
 
 log = logging.getLogger("topgimbal.fleet")
@@ -42,6 +48,24 @@ MAX_CALLS = 8  # calls in progress per camera
 STATE_POLL_S = 0.25  # how often the state is compared with what was last published
 STATE_KEYS = ("zoom", "recording", "mode", "sd", "version", "model_name", "range_m", "temperature")
 BUSY_LOG_EVERY_S = 10.0
+MAX_ARG_TIMEOUT_S = 60.0  # a call's `timeout_s` argument is lowered to this
+MAX_CALL_S = 150.0  # a whole call (point's slew included); then it is cancelled and answered "timeout"
+ACTIVE_WINDOW_S = 10.0  # a querier counts for the fair share this long after its last call
+MAX_QUERIERS = 1024  # queriers remembered per camera (the oldest forgotten first)
+GONE_CHECK_S = 1.0  # how often calls in progress are checked for a querier whose session is gone
+ANONYMOUS = "anonymous"  # queriers that do not name their session (attachment) share one share
+_ZID_RE = re.compile(r"[0-9a-f]{1,32}")
+
+
+def querier_of(query: Any) -> str:
+    """The querier's Zenoh session id, as its attachment names it (RemoteClient does); the
+    queriers that name none are one querier. A claim, not a proof: Zenoh's ACL says who may ask."""
+    try:
+        att = query.attachment
+        text = "" if att is None else att.to_string()
+    except Exception:  # an attachment that is not text
+        return ANONYMOUS
+    return text if _ZID_RE.fullmatch(text) else ANONYMOUS
 
 
 def attitude_json(att: Attitude, seq: int) -> str:
@@ -62,8 +86,12 @@ class ServedCamera:
         rate_hz: float = 50.0,
         max_calls: int = MAX_CALLS,
         client_options: dict[str, Any] | None = None,
+        allow_remote: frozenset[str] = frozenset(),
+        clock: MonotonicFn = monotonic,
     ) -> None:
         self.spec = spec
+        self.allow_remote = allow_remote
+        self.clock = clock
         self.name = spec.name
         self.session = session
         self.rate_hz = rate_hz
@@ -78,6 +106,11 @@ class ServedCamera:
         self._decls: list[Any] = []
         self._tasks: list[asyncio.Task[None]] = []
         self._calls: set[asyncio.Task[None]] = set()
+        self._by_querier: dict[str, int] = {}  # calls in progress per querier
+        self._seen: dict[str, float] = {}  # querier -> when it last asked (bounded: MAX_QUERIERS)
+        self._call_querier: dict[asyncio.Task[None], tuple[str, bool]] = {}  # (querier, had a transport)
+        self.gone = 0  # calls cancelled because their querier left
+        self._link_lost: str | None = None
         self._last_state: str | None = None
         self._throttle = ThrottledLog(log, BUSY_LOG_EVERY_S)
         self._closing = False
@@ -97,6 +130,7 @@ class ServedCamera:
         self._unsubscribe = [self.client.on_link_change(self._on_link), self.client.streams.tap(self._on_attitude)]
         self._tasks.append(asyncio.ensure_future(self._attitude_loop()))
         self._tasks.append(asyncio.ensure_future(self._state_loop()))
+        self._tasks.append(asyncio.ensure_future(self._gone_loop()))
         return self
 
     async def close(self) -> None:
@@ -120,7 +154,8 @@ class ServedCamera:
         """Asks the camera for its attitude stream at `rate_hz` until it has accepted once; the SDK
         keeps it on from then (asked again after a link loss). Samples are published by `_on_frame`,
         every frame the camera sends: a stream consumer would wake a task per sample and thin out
-        samples that come a little early (one in three under load on a busy host)."""
+        samples that come a little early (one in three under load on a busy host). No remote call
+        starts, re-rates or stops it (fleet/access.py: SERVER_OWNED)."""
         while True:
             try:
                 await self.client.attitude_stream(self.rate_hz)
@@ -165,13 +200,20 @@ class ServedCamera:
                 if text != self._last_state:
                     self._last_state = text
                     state["stats"] = self.client.stats.as_dict()
-                    state["t"] = time.time()
+                    state["t"] = wall_time()
                     self._state.put(json.dumps(state))
             await asyncio.sleep(STATE_POLL_S)
 
     def _on_link(self, up: bool, reason: str) -> None:
-        if not self._closing:
-            self._link.put(json.dumps({"up": up, "reason": reason, "t": time.time()}))
+        if self._closing:
+            return
+        # The SDK logs a loss; its return is said here, so a log read later shows both ends.
+        if not up:
+            self._link_lost = reason
+        elif self._link_lost is not None:
+            log.warning("%s: camera link back (it was lost: %s)", self.name, self._link_lost)
+            self._link_lost = None
+        self._link.put(json.dumps({"up": up, "reason": reason, "t": wall_time()}))
 
     # -- queries ------------------------------------------------------------------------------------
 
@@ -196,7 +238,7 @@ class ServedCamera:
 
     def info(self) -> dict[str, Any]:
         return {"name": self.name, "model": self.client.model.name, "dialect": self.client.dialect.name,
-                "methods": sorted(METHODS), "max_calls": self.max_calls, "rate_hz": self.rate_hz}  # fmt: skip
+                "methods": callable_methods(self.allow_remote), "max_calls": self.max_calls, "rate_hz": self.rate_hz}  # fmt: skip
 
     def _on_query(self, query: Any) -> None:
         where = split_call_key(str(query.key_expr))
@@ -205,27 +247,97 @@ class ServedCamera:
                 "one call names one camera and one method (no wildcards): topgimbal/NAME/call/METHOD")))  # fmt: skip
             return
         reply_key = call_key(*where)
-        if self.inflight >= self.max_calls:
+        why = refusal(where[1], self.allow_remote) if where[1] in METHODS else None
+        if why is not None:
+            self._reply(query, reply_key, error_reply(RemoteCallError(f"{self.name}: {why}", KIND_FORBIDDEN)))
+            return
+        querier = querier_of(query)
+        share = self._share(querier)
+        held = self._by_querier.get(querier, 0)
+        if self.inflight >= self.max_calls or held >= share:
             self.refused += 1
             if self._throttle.allow("busy") is not None:
-                log.warning("%s: %d calls in progress, refusing more (limit %d; %d refused in all)", self.name,
-                            self.inflight, self.max_calls, self.refused)  # fmt: skip
+                log.warning("%s: %d calls in progress (%d of them %s's, its share %d), refusing more "
+                            "(limit %d; %d refused in all)", self.name, self.inflight, held, querier, share,
+                            self.max_calls, self.refused)  # fmt: skip
             self._reply(query, reply_key, error_reply(RemoteCallError(
-                f"{self.name}: {self.max_calls} calls are in progress; try again", KIND_BUSY)))  # fmt: skip
+                f"{self.name}: {self.inflight} calls are in progress ({held} of yours, your share {share} of "
+                f"{self.max_calls}); try again", KIND_BUSY)))  # fmt: skip
             return
         self.inflight += 1
+        self._by_querier[querier] = held + 1
         task = asyncio.ensure_future(self._call(query, reply_key, where[1]))
         self._calls.add(task)
-        task.add_done_callback(self._calls.discard)
+        self._call_querier[task] = (querier, querier in self._transports())
+        task.add_done_callback(self._call_done)
+
+    def _share(self, querier: str) -> int:
+        """Places one querier may hold: the camera's `max_calls` split among the queriers that
+        asked within ACTIVE_WINDOW_S (this one included), at least one each."""
+        now = self.clock()
+        self._seen.pop(querier, None)
+        self._seen[querier] = now  # the newest last: the oldest are forgotten first
+        while len(self._seen) > MAX_QUERIERS:
+            del self._seen[next(iter(self._seen))]
+        active = sum(1 for t in self._seen.values() if now - t <= ACTIVE_WINDOW_S)
+        return max(1, self.max_calls // max(1, active))
+
+    def _call_done(self, task: asyncio.Task[None]) -> None:
+        self._calls.discard(task)
+        querier, _direct = self._call_querier.pop(task, (ANONYMOUS, False))
+        left = self._by_querier.get(querier, 1) - 1
+        if left > 0:
+            self._by_querier[querier] = left
+        else:
+            self._by_querier.pop(querier, None)
+
+    def _transports(self) -> set[str]:
+        """Session ids of the peers and clients connected to this session directly."""
+        try:
+            return {str(t.zid) for t in self.session.info.transports()}
+        except Exception:  # a session without that API (a test double) or closing
+            return set()
+
+    async def _gone_loop(self) -> None:
+        """Cancels the calls of a querier connected directly whose session has gone: its place is
+        free at once, not at the end of a wait nobody reads. (A querier behind a router cannot be
+        seen leaving; its call ends at the latest after MAX_CALL_S.)"""
+        while True:
+            await asyncio.sleep(GONE_CHECK_S)
+            watched = [(t, q) for t, (q, direct) in self._call_querier.items() if direct and not t.done()]
+            if not watched:
+                continue
+            present = self._transports()
+            for task, querier in watched:
+                if querier not in present:
+                    self.gone += 1
+                    log.info("%s: a call's querier %s has gone: cancelled (%d in all)", self.name, querier, self.gone)
+                    task.cancel(msg="querier gone")
 
     async def _call(self, query: Any, reply_key: str, method: str) -> None:
         self.calls += 1
         try:
             payload = query.payload
             _spec, kwargs = bind_arguments(method, None if payload is None else payload.to_bytes())
-            result = await getattr(self.client, method)(**kwargs)
+            why = refusal(method, self.allow_remote, kwargs)
+            if why is not None:
+                raise RemoteCallError(f"{self.name}: {why}", KIND_FORBIDDEN)
+            t = kwargs.get("timeout_s")
+            if isinstance(t, (int, float)) and not isinstance(t, bool) and t > MAX_ARG_TIMEOUT_S:
+                kwargs["timeout_s"] = MAX_ARG_TIMEOUT_S  # the server's wait is bounded, whoever asks
+            try:
+                result = await asyncio.wait_for(getattr(self.client, method)(**kwargs), MAX_CALL_S)
+            except TimeoutError as exc:
+                if isinstance(exc, TopGimbalError):
+                    raise  # the SDK's own RequestTimeoutError, as it is
+                raise RequestTimeoutError(
+                    f"{self.name}: {method} took more than the server's {MAX_CALL_S:g} s; it may or may not "
+                    "have been carried out"
+                ) from None
             out: dict[str, Any] = {"ok": True, "result": encode_result(result)}
         except asyncio.CancelledError:
+            if not self._closing:
+                return  # its querier left: nobody to answer
             out = error_reply(RemoteCallError(f"{self.name}: the server is closing", "closing"))
             self._reply(query, reply_key, out)
             raise

@@ -6,7 +6,12 @@
 
 Each camera is a `ServedCamera` (camera.py) with its own SDK client; they share the session and
 the event loop. Cameras that do not answer yet are served all the same: their `link` key says
-down, calls fail as the SDK's would, and they come up when the camera does."""
+down, calls fail as the SDK's would, and they come up when the camera does.
+
+Before serving, the session's exposure is checked (fleet/access.py: beyond loopback only with
+Zenoh access control, or `insecure=True`, logged every INSECURE_LOG_EVERY_S), and every name is
+looked up: a name whose liveliness token another server holds is refused (DuplicateCameraError),
+so one call never moves two cameras."""
 
 from __future__ import annotations
 
@@ -16,11 +21,22 @@ import logging
 from collections.abc import Sequence
 from typing import Any
 
-from ..client.zenoh_session import open_session
+from ..client.remote_keys import ROOT
+from ..client.zenoh_session import make_config, open_session
+from ..errors import TopGimbalError
+from .access import INSECURE_LOG_EVERY_S, check_exposure
 from .camera import MAX_CALLS, ServedCamera
 from .specs import CameraSpec, collect
 
 log = logging.getLogger("topgimbal.fleet")
+
+NAME_CHECK_S = 2.0  # how long the liveliness query for names already served waits for answers
+
+
+class DuplicateCameraError(TopGimbalError):
+    """Another server on the Zenoh network already serves one of the names."""
+
+    kind = "config"
 
 
 class FleetServer:
@@ -35,8 +51,13 @@ class FleetServer:
         rate_hz: float = 50.0,
         max_calls: int = MAX_CALLS,
         client_options: dict[str, Any] | None = None,
+        allow_remote: frozenset[str] = frozenset(),
+        insecure: bool = False,
     ) -> None:
         self.specs = collect(cameras)
+        self.allow_remote = allow_remote
+        self.insecure = insecure
+        self.protection = ""
         self.listen, self.connect, self.mode, self.config_file = list(listen), list(connect), mode, config_file
         self.rate_hz = rate_hz
         self.max_calls = max_calls
@@ -46,23 +67,50 @@ class FleetServer:
         self._closed = asyncio.Event()
 
     async def start(self) -> FleetServer:
+        conf = make_config(listen=self.listen, connect=self.connect, mode=self.mode, config_file=self.config_file)
+        # AccessConfigError (a ValueError) before any socket is opened
+        self.protection = check_exposure([*self.listen, *self.connect], conf, self.insecure)
+        log.info("zenoh: %s", self.protection)
         # Opening may wait for a router (client mode): off the loop.
         self.session = await asyncio.to_thread(
             open_session, listen=self.listen, connect=self.connect, mode=self.mode, config_file=self.config_file
         )
         try:
+            await asyncio.to_thread(self._check_names)
             for spec in self.specs:
                 self.cameras[spec.name] = ServedCamera(spec, self.session, rate_hz=self.rate_hz,
-                                                       max_calls=self.max_calls, client_options=self.client_options)  # fmt: skip
+                                                       max_calls=self.max_calls, client_options=self.client_options,
+                                                       allow_remote=self.allow_remote)  # fmt: skip
             # All at once: one after the other, 100 cameras took seconds to start and to close.
             await asyncio.gather(*(cam.start() for cam in self.cameras.values()))
         except BaseException:
             await self.close()
             raise
         log.info("serving %d cameras on Zenoh (%s)", len(self.cameras), ", ".join(self.listen + self.connect))
+        if self.protection.startswith("INSECURE"):
+            self._insecure_task = asyncio.ensure_future(self._repeat_insecure())
         return self
 
+    def _check_names(self) -> None:
+        """Refuses names whose liveliness token is held elsewhere (blocking: a Zenoh query)."""
+        ours = {s.name for s in self.specs}
+        replies = self.session.liveliness().get(f"{ROOT}/*", timeout=NAME_CHECK_S)
+        taken = sorted({str(r.ok.key_expr).split("/", 1)[1] for r in replies if r.ok is not None} & ours)
+        if taken:
+            raise DuplicateCameraError(
+                f"{', '.join(taken)}: already served by another topgimbal zenoh on this Zenoh network (its "
+                "liveliness token is held); one name, one server"
+            )
+
+    async def _repeat_insecure(self) -> None:
+        while True:
+            log.warning("zenoh: %s", self.protection)
+            await asyncio.sleep(INSECURE_LOG_EVERY_S)
+
     async def close(self) -> None:
+        task = getattr(self, "_insecure_task", None)
+        if task is not None:
+            task.cancel()
         await asyncio.gather(*(cam.close() for cam in self.cameras.values()), return_exceptions=True)
         if self.session is not None:
             with contextlib.suppress(Exception):

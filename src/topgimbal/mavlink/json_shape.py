@@ -185,7 +185,10 @@ def _in_value(cls: Any, field: str, ftype: str, length: int, v: Any) -> Any:
     if ftype == "char":
         if not isinstance(v, str):
             raise ShapeError(f"{where}: expected a string")
-        return v.encode("utf-8")[: max(length, 1)]  # serde's nulstr keeps the first N bytes
+        try:
+            return v.encode("utf-8")[: max(length, 1)]  # serde's nulstr keeps the first N bytes
+        except UnicodeEncodeError:  # a lone surrogate ("\udcff"), which JSON can carry and UTF-8 cannot
+            raise ShapeError(f"{where}: not UTF-8 text (a lone surrogate)") from None
     if length:
         if not isinstance(v, list) or len(v) != length:
             raise ShapeError(f"{where}: expected a list of {length} numbers")

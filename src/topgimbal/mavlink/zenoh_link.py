@@ -84,7 +84,9 @@ class ZenohLink(Link):
         try:
             header, msg = json_shape.loads(data)
             frame = json_shape.encode(header, msg)
-        except json_shape.ShapeError as exc:
+        except Exception as exc:  # ShapeError; anything else the shape check missed is dropped the same way
+            if not isinstance(exc, json_shape.ShapeError):
+                exc = json_shape.ShapeError(f"{type(exc).__name__}: {exc}"[:300])
             self.bad_in += 1
             n = self._bad_log.allow("bad")
             if n is not None:
