@@ -129,7 +129,7 @@ async def test_http_lists_and_serves_only_media_files_and_media_get_fetches_them
             rc = await asyncio.to_thread(main, ["media", "get", server.url, "-o", str(out)])
             assert rc == 0
             assert (out / "snap_0_1.jpeg").read_bytes() == (card / "snap_0_1.jpeg").read_bytes()
-            rc = await asyncio.to_thread(main, ["media", "get", server.url, "nope.jpeg", "-o", str(out)])
+            rc = await asyncio.to_thread(main, ["media", "get", server.url, "snap_0_9.jpeg", "-o", str(out)])
             assert rc == 1 and "404" in capsys.readouterr().err
         finally:
             server.stop()

@@ -5,27 +5,40 @@ GET /             JSON: [{"name", "size", "mtime"}] of the media files, oldest f
 GET /<name>       one file (only names the media store writes: no paths, no other files)
 HEAD /<name>      its size
 
-Bounded: at most `MAX_CLIENTS` requests at once (more get 503 and a rate-limited log line); a
-request line or header block that does not parse gets 400 from http.server itself."""
+Bounded: at most `MAX_CONNECTIONS` connections (each a thread) and `MAX_PER_CLIENT` per client
+address, checked when a connection is accepted (beyond them it gets a 503 line and is closed, no
+thread made); at most `MAX_CLIENTS` requests at once (more get 503); every socket wait (the request
+head, each write to a client that does not read) at most `SOCKET_TIMEOUT_S`, a whole response at
+most `MAX_RESPONSE_S`. Each refusal is counted and logged at most every LOG_EVERY_S. A request line
+or header block that does not parse gets 400 from http.server itself."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
-import shutil
+import socket
 import threading
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
+from typing import Any
 from urllib.parse import unquote, urlsplit
 
+from ..clock import monotonic
 from ..logthrottle import ThrottledLog
 from .lens import MEDIA_NAME
 
 log = logging.getLogger("topgimbal.sim")
 
-MAX_CLIENTS = 8
+MAX_CLIENTS = 8  # requests in progress
+MAX_CONNECTIONS = 32  # open connections (threads)
+MAX_PER_CLIENT = 2  # open connections per client address
+SOCKET_TIMEOUT_S = 10.0  # each wait on a client's socket
+MAX_RESPONSE_S = 600.0  # a whole response (a client reading a byte a second is cut off)
+CHUNK = 64 * 1024
 LOG_EVERY_S = 10.0
+REFUSAL = b"HTTP/1.0 503 Service Unavailable\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"
 TYPES = {".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".mp4": "video/mp4"}
 
 
@@ -45,10 +58,15 @@ class MediaServer:
         self._slots = threading.BoundedSemaphore(MAX_CLIENTS)
         self._refusal_log = ThrottledLog(log, LOG_EVERY_S)
         self.refused = 0
+        self.refused_connections = 0
+        self._conn_lock = threading.Lock()
+        self._open: dict[socket.socket, str] = {}  # connection -> client address
+        self._per_client: dict[str, int] = {}
         server = self
 
         class Handler(BaseHTTPRequestHandler):
             server_version = "topgimbal-media"
+            timeout = SOCKET_TIMEOUT_S  # StreamRequestHandler sets it on the socket
 
             def log_message(self, format: str, *args: object) -> None:
                 log.debug("media http: " + format, *args)
@@ -59,7 +77,23 @@ class MediaServer:
             def do_HEAD(self) -> None:
                 server.handle(self, body=False)
 
-        self.httpd = ThreadingHTTPServer((host, port), Handler)
+        class Bounded(ThreadingHTTPServer):
+            request_queue_size = 64  # accepted fast (a refusal makes no thread): a short queue only drops SYNs
+
+            def process_request(self, request: Any, client_address: Any) -> None:
+                if not server._admit(request, str(client_address[0])):
+                    with contextlib.suppress(OSError):
+                        request.setblocking(False)
+                        request.send(REFUSAL)
+                    self.shutdown_request(request)
+                    return
+                super().process_request(request, client_address)
+
+            def shutdown_request(self, request: Any) -> None:
+                server._release(request)
+                super().shutdown_request(request)
+
+        self.httpd = Bounded((host, port), Handler)
         self.httpd.daemon_threads = True
         self._thread = threading.Thread(target=self.httpd.serve_forever, name="media-http", daemon=True)
 
@@ -78,6 +112,30 @@ class MediaServer:
         self.httpd.server_close()
         self._thread.join(5.0)
 
+    def _admit(self, conn: socket.socket, client: str) -> bool:
+        with self._conn_lock:
+            held = self._per_client.get(client, 0)
+            if len(self._open) < MAX_CONNECTIONS and held < MAX_PER_CLIENT:
+                self._open[conn] = client
+                self._per_client[client] = held + 1
+                return True
+            self.refused_connections += 1
+            n, total = self.refused_connections, len(self._open)
+        if self._refusal_log.allow("connections") is not None:
+            log.warning("media http: %s has %d connections (limit %d per client, %d of %d in all): refused "
+                        "(%d so far)", client, held, MAX_PER_CLIENT, total, MAX_CONNECTIONS, n)  # fmt: skip
+        return False
+
+    def _release(self, conn: socket.socket) -> None:
+        with self._conn_lock:
+            client = self._open.pop(conn, None)
+            if client is not None:
+                left = self._per_client.get(client, 1) - 1
+                if left > 0:
+                    self._per_client[client] = left
+                else:
+                    self._per_client.pop(client, None)
+
     def handle(self, req: BaseHTTPRequestHandler, *, body: bool) -> None:
         if not self._slots.acquire(blocking=False):
             self.refused += 1
@@ -87,8 +145,9 @@ class MediaServer:
             return
         try:
             self._serve(req, body)
-        except (BrokenPipeError, ConnectionResetError):
-            pass  # the client went away
+        except OSError as exc:  # the client went away, or did not read within SOCKET_TIMEOUT_S
+            req.close_connection = True
+            log.debug("media http: %s: %s", req.client_address[0], exc)
         finally:
             self._slots.release()
 
@@ -113,7 +172,11 @@ class MediaServer:
             size = path.stat().st_size
             self._head(req, HTTPStatus.OK, TYPES.get(path.suffix, "application/octet-stream"), size)
             if body:
-                shutil.copyfileobj(f, req.wfile)
+                deadline = monotonic() + MAX_RESPONSE_S
+                while data := f.read(CHUNK):
+                    if monotonic() > deadline:
+                        raise TimeoutError(f"response longer than {MAX_RESPONSE_S:g} s")
+                    req.wfile.write(data)
 
     @staticmethod
     def _head(req: BaseHTTPRequestHandler, status: HTTPStatus, ctype: str, length: int) -> None:
