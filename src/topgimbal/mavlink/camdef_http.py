@@ -1,8 +1,9 @@
 """The camera definitions over HTTP: a small read-only server for `cam_definition_uri`.
 
 It serves only the files it was given (GET or HEAD of `/<name>`; anything else 404 / 405 / 400),
-answers one request per connection, and is bounded: at most MAX_CONNECTIONS at once (more are
-closed at once, with a rate-limited log line), a request head of at most MAX_HEAD_BYTES read
+answers one request per connection, and is bounded: at most MAX_CONNECTIONS at once and
+MAX_PER_CLIENT from one client address (more are closed at once, with a rate-limited log line: one
+client renewing slow connections takes its own places, not everyone's), a request head of at most MAX_HEAD_BYTES read
 within HEAD_TIMEOUT_S. It binds loopback by default (`--definition-http HOST:PORT`)."""
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from ..logthrottle import ThrottledLog
 log = logging.getLogger("topgimbal.mavlink")
 
 MAX_CONNECTIONS = 16
+MAX_PER_CLIENT = 4  # connections at once from one client address
 MAX_HEAD_BYTES = 8192
 HEAD_TIMEOUT_S = 5.0
 LOG_EVERY_S = 10.0
@@ -31,6 +33,7 @@ class DefinitionServer:
         self.refused = 0
         self.served = 0
         self._refusal_log = ThrottledLog(log, LOG_EVERY_S)
+        self._per_client: dict[str, int] = {}
 
     async def start(self) -> None:
         self.server = await asyncio.start_server(self._client, self.host, self.port, limit=MAX_HEAD_BYTES)
@@ -51,13 +54,18 @@ class DefinitionServer:
                 await self.server.wait_closed()
 
     async def _client(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        if self.active >= MAX_CONNECTIONS:
+        peer = writer.get_extra_info("peername")
+        client = str(peer[0]) if isinstance(peer, tuple) and peer else "?"
+        held = self._per_client.get(client, 0)
+        if self.active >= MAX_CONNECTIONS or held >= MAX_PER_CLIENT:
             self.refused += 1
             if self._refusal_log.allow("full") is not None:
-                log.warning("camera definition server: %d connections open, refused %d", MAX_CONNECTIONS, self.refused)
+                log.warning("camera definition server: %d connections open (%d from %s; limits %d, %d per client), "
+                            "refused %d", self.active, held, client, MAX_CONNECTIONS, MAX_PER_CLIENT, self.refused)  # fmt: skip
             writer.close()
             return
         self.active += 1
+        self._per_client[client] = held + 1
         try:
             head = await asyncio.wait_for(reader.readuntil(b"\r\n\r\n"), HEAD_TIMEOUT_S)
             status, body, ctype = self._answer(head)
@@ -76,6 +84,11 @@ class DefinitionServer:
             pass
         finally:
             self.active -= 1
+            left = self._per_client.get(client, 1) - 1
+            if left > 0:
+                self._per_client[client] = left
+            else:
+                self._per_client.pop(client, None)
             writer.close()
 
     def _answer(self, head: bytes) -> tuple[str, bytes, str]:
