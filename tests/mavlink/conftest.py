@@ -129,6 +129,10 @@ async def rig_factory() -> AsyncIterator[Callable[..., Any]]:
         bridge = Bridge(BridgeConfig(url=sim.url, model=model, **config))
         await bridge.start()
         peer = Peer()
+        if config.get("signing_key") is not None:  # an unsigned sender is no peer: it would hear nothing
+            from topgimbal.mavlink.signing import sign_outgoing
+
+            sign_outgoing(peer.mav, config["signing_key"])
         await peer.connect(bridge.addresses[0][1])  # type: ignore[index]
         await peer.wait("HEARTBEAT")
         rig = Rig(sim, bridge, peer)

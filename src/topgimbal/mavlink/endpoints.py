@@ -34,7 +34,9 @@ RECONNECT_MIN_S = 0.5
 RECONNECT_MAX_S = 5.0
 DEFAULT_BAUD = 115200
 
-DataCallback = Callable[["Link", Hashable, bytes], None]
+# Returns False when nothing in the bytes was accepted (a signing key is set and none was signed
+# with it): a UDP sender is then no peer. None or True: accepted.
+DataCallback = Callable[["Link", Hashable, bytes], "bool | None"]
 GoneCallback = Callable[["Link", Hashable], None]
 
 
@@ -126,12 +128,14 @@ class Link(abc.ABC):
     @abc.abstractmethod
     async def close(self) -> None: ...
 
-    def _deliver(self, peer: Hashable, data: bytes) -> None:
+    def _deliver(self, peer: Hashable, data: bytes) -> bool:
+        """Whether the node accepted anything in `data` (see DataCallback)."""
         self.bytes_in += len(data)
         try:
-            self._on_data(self, peer, data)
+            return self._on_data(self, peer, data) is not False
         except Exception:  # one bad packet must not end the link
             log.exception("%s: handling %d bytes from %s failed", self, len(data), peer)
+            return False
 
     def _refuse(self, peer: object) -> None:
         self.refused_peers += 1
@@ -188,16 +192,23 @@ class UdpLink(Link):
             raise EndpointError(f"{self.spec}: {exc}") from exc
 
     def _received(self, data: bytes, addr: Any) -> None:
-        if self.spec.kind == "udpin":
-            now = time.monotonic()
-            if addr not in self._peers:
-                self._expire(now)
-                if len(self._peers) >= self.max_peers:
-                    self._refuse(addr)
-                    return
-                log.info("%s: new peer %s", self, addr)
+        if self.spec.kind != "udpin":
+            self._deliver("out", data)
+            return
+        now = time.monotonic()
+        if addr in self._peers:
+            if self._deliver(addr, data):
+                self._peers[addr] = now
+            return
+        self._expire(now)
+        if len(self._peers) >= self.max_peers:
+            self._refuse(addr)
+            return
+        # A sender becomes a peer (a place, telemetry sent to it) only once the node accepts
+        # something it sent: with a signing key, a signed message.
+        if self._deliver(addr, data):
+            log.info("%s: new peer %s", self, addr)
             self._peers[addr] = now
-        self._deliver(addr if self.spec.kind == "udpin" else "out", data)
 
     def _expire(self, now: float) -> None:
         for addr, seen in list(self._peers.items()):

@@ -5,9 +5,12 @@ Everything a component sends goes out on every link (a MAVLink node broadcasts; 
 ground stations sort it out). Messages our own components sent, echoed back by a router, are
 dropped on arrival.
 
-With a signing key (`signing.py`) every component signs what it sends and every parser refuses
-what is not signed with the key; the first refusal from each peer is logged (a warning naming
-the peer, the claimed system/component and why), later ones are counted in `unsigned_in`."""
+With a signing key (`signing.py`) every component signs what it sends and the node refuses what is
+not signed with the key or is a replay (`SignedStreams`: one replay state per (link id, system,
+component) for the whole node, not per peer address); the first refusal from each peer is logged
+(a warning naming the peer, the claimed system/component and why), later ones are counted in
+`unsigned_in`. `_on_data` says whether anything in the bytes was accepted: a UDP address that sent
+nothing signed becomes no peer (it takes no place and is sent no telemetry)."""
 
 from __future__ import annotations
 
@@ -18,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 from ._mav import mavlink
 from .endpoints import MAX_PEERS, DataCallback, GoneCallback, Link, make_link
-from .signing import describe_refused, require_signed, sign_outgoing
+from .signing import SignedStreams, sign_outgoing
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkCodec, MAVLinkMessage
@@ -28,7 +31,7 @@ log = logging.getLogger("topgimbal.mavlink")
 MessageCallback = Callable[[Any], None]
 LinkFactory = Callable[[DataCallback, GoneCallback], Link]  # a link made elsewhere (zenoh_link.py)
 _PEER_ATTR = "_topgimbal_link_peer"
-MAX_SIGNED_STREAMS = 256  # (link id, system, component) timestamps kept per peer for replay checks
+MAX_REFUSAL_LOGGED = 1024  # peers whose first refusal was logged (then forgotten all at once)
 
 
 def link_peer(m: Any) -> Hashable | None:
@@ -84,6 +87,7 @@ class Node:
         self.signing_key = signing_key
         self.unsigned_in = 0  # messages refused for a missing or wrong signature
         self._unsigned_logged: set[tuple[int, Hashable]] = set()
+        self.signed = SignedStreams(signing_key) if signing_key is not None else None
         self.links: list[Link] = [make_link(e, self._on_data, self._on_gone, max_peers) for e in endpoints]
         self.links += [make(self._on_data, self._on_gone) for make in link_factories]
         self.components: dict[int, Component] = {}
@@ -134,9 +138,7 @@ class Node:
         p = self._parsers.get(key)
         if p is None:
             p = mavlink().MAVLink(None)
-            p.robust_parsing = True
-            if self.signing_key is not None:
-                require_signed(p, self.signing_key)
+            p.robust_parsing = True  # no key: signatures are checked by the node's SignedStreams
             self._parsers[key] = p
         return p
 
@@ -144,20 +146,26 @@ class Node:
         self._parsers.pop((id(link), peer), None)
         self._unsigned_logged.discard((id(link), peer))
 
-    def _refused_signature(self, link: Link, peer: Hashable, data: bytes) -> None:
+    def _refused_signature(self, link: Link, peer: Hashable, data: bytes, kind: str) -> None:
         self.unsigned_in += 1
         key = (id(link), peer)
         if key in self._unsigned_logged:
             return
+        if len(self._unsigned_logged) >= MAX_REFUSAL_LOGGED:
+            self._unsigned_logged.clear()
         self._unsigned_logged.add(key)
-        kind, sysid, compid = describe_refused(bytes(data))
+        at = 5 if data[:1] == b"\xfd" else 3  # where system and component ids are: MAVLink 2, 1
+        sysid, compid = (data[at], data[at + 1]) if len(data) > at + 1 else (0, 0)
         log.warning(
-            "%s: refusing %s messages from %s (system %d, component %d): --signing-key is set, only messages "
-            "signed with that key are accepted (logged once per peer; see docs/mavlink.md, signing)",
-            link, kind, peer, sysid, compid,
+            "%s: refusing messages from %s (system %d, component %d): %s; --signing-key is set, only messages "
+            "signed with that key and not replayed are accepted (logged once per peer; see docs/mavlink.md, signing)",
+            link, peer, sysid, compid, kind,
         )  # fmt: skip
 
-    def _on_data(self, link: Link, peer: Hashable, data: bytes) -> None:
+    def _on_data(self, link: Link, peer: Hashable, data: bytes) -> bool:
+        """Hands the messages in `data` to the subscribers; False when a signing key is set and
+        nothing in `data` was signed with it (the link then takes the sender for no peer)."""
+        known = (id(link), peer) in self._parsers
         parser = self._parser(link, peer)
         try:
             msgs = parser.parse_buffer(data) or []
@@ -165,19 +173,20 @@ class Node:
             self.bad_in += 1
             log.debug("%s: unparsable bytes from %s: %s", link, peer, exc)
             self._parsers.pop((id(link), peer), None)  # start afresh rather than trust its state
-            return
+            return self.signed is None
         _compact(parser)
-        if self.signing_key is not None and len(parser.signing.stream_timestamps) > MAX_SIGNED_STREAMS:
-            # pymavlink records a stream's timestamp before checking its signature: a peer sending
-            # frames with made-up ids would grow this without bound.
-            parser.signing.stream_timestamps.clear()
+        accepted = self.signed is None
         for m in msgs:
             if m.get_type() == "BAD_DATA":
-                if self.signing_key is not None and "signature" in str(getattr(m, "reason", "")):
-                    self._refused_signature(link, peer, m.data)
-                    continue
                 self.bad_in += 1
                 continue
+            if self.signed is not None:
+                frame = bytes(m.get_msgbuf())
+                why = self.signed.check(frame)
+                if why is not None:
+                    self._refused_signature(link, peer, frame, why)
+                    continue
+                accepted = True
             if m.get_srcSystem() == self.sysid and m.get_srcComponent() in self.components:
                 continue  # our own message, echoed by a router
             self.messages_in += 1
@@ -189,6 +198,9 @@ class Node:
                     log.exception(
                         "handling %s from %d/%d failed", m.get_type(), m.get_srcSystem(), m.get_srcComponent()
                     )
+        if not accepted and not known:
+            self._parsers.pop((id(link), peer), None)  # a sender that is no peer keeps no parser
+        return accepted
 
 
 def _compact(parser: MAVLinkCodec) -> None:

@@ -1,9 +1,13 @@
 """MAVLink 2 message signing: the key file and pymavlink's signing state (`--signing-key FILE`).
 
-With a key the bridge signs everything it sends and its parsers refuse every message that is not
-signed with the same key (unsigned, MAVLink 1, or a wrong signature; pymavlink also refuses a
-replay: a timestamp not newer than the last one of the same stream, or one over a minute older
-than the newest seen). The key is the 32-byte secret of the MAVLink 2 signing spec.
+With a key the bridge signs everything it sends and refuses every message that is not signed with
+the same key (unsigned, MAVLink 1, or a wrong signature) or that is a replay. `SignedStreams` keeps
+the replay state the MAVLink signing spec describes: one timestamp per stream (link id, system,
+component) for the whole node, whatever UDP address or connection a frame comes from, recorded only
+after the signature is checked (a frame without the key changes nothing); a stream's timestamp
+must grow, a new stream's must be at most a minute older than the newest seen, and no timestamp may
+be more than MAX_FUTURE_S ahead of this computer's clock (one far ahead would otherwise be kept as
+the stream's and refuse every later genuine frame). The key is the 32-byte secret of the spec.
 
 The key file holds one of (checked in this order):
 - 64 hexadecimal digits (optionally followed by a newline): the key itself, as QGC and MAVProxy
@@ -16,14 +20,22 @@ The key file holds one of (checked in this order):
 from __future__ import annotations
 
 import hashlib
+import logging
+import stat
 import string
-import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from ..clock import wall_time
 from ..errors import TopGimbalError
 
+log = logging.getLogger("topgimbal.mavlink")
+
 KEY_BYTES = 32
+MAX_FUTURE_S = 60.0  # a signed timestamp further ahead of this computer's clock is refused
+NEW_STREAM_WINDOW = 6000 * 1000  # 1 minute in 10 us units: how far behind a new stream may start
+MAX_SIGNED_STREAMS = 1024  # streams remembered (only frames signed with the key add one)
 MAX_KEY_FILE_BYTES = 4096
 # MAVLink signing timestamps count 10 microsecond units since 2015-01-01 00:00:00 UTC.
 SIGNING_EPOCH_S = 1420070400
@@ -66,15 +78,78 @@ def load_key(path: str | Path) -> bytes:
     if len(data) > MAX_KEY_FILE_BYTES:
         raise SigningKeyError(f"signing key {str(p)!r}: longer than {MAX_KEY_FILE_BYTES} bytes (expected {FORMS})")
     try:
-        return key_from_bytes(data)
+        key = key_from_bytes(data)
     except SigningKeyError as exc:
         raise SigningKeyError(f"signing key {str(p)!r}: {exc}") from None
+    for warning in key_warnings(p, key):
+        log.warning("signing key %r: %s", str(p), warning)
+    return key
+
+
+def key_warnings(path: Path, key: bytes) -> list[str]:
+    """What is weak about a key and its file: an all-zero key (anyone guesses it), a file others
+    may read or write (anyone on the computer can then sign)."""
+    out = []
+    if key == bytes(KEY_BYTES):
+        out.append("the key is all zeros: anyone can sign with it")
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        return out
+    if mode & (stat.S_IRWXG | stat.S_IRWXO):
+        out.append(f"the file's mode is {stat.S_IMODE(mode):04o}: others may read it; chmod 600 it")
+    return out
 
 
 def timestamp_now(now_s: float | None = None) -> int:
     """The signing timestamp for a wall-clock time (10 us units since 2015-01-01)."""
-    t = time.time() if now_s is None else now_s
+    t = wall_time() if now_s is None else now_s
     return max(0, int((t - SIGNING_EPOCH_S) * 100_000))
+
+
+class SignedStreams:
+    """The node's signature and replay check (see the module docstring). `check(frame)` is None for
+    a frame to accept, else why it is refused ("unsigned", "wrongly signed", "a replay", ...)."""
+
+    def __init__(self, key: bytes, clock: Callable[[], float] = wall_time) -> None:
+        self.key = key
+        self.clock = clock
+        self.streams: dict[tuple[int, int, int], int] = {}  # (link id, system, component) -> timestamp
+        self.newest = timestamp_now(clock())  # as pymavlink: frames over a minute old are replays
+        self.refused: dict[str, int] = {}
+
+    def check(self, frame: bytes) -> str | None:
+        why = self._check(frame)
+        if why is not None:
+            kind = why.split(":", 1)[0]
+            self.refused[kind] = self.refused.get(kind, 0) + 1
+        return why
+
+    def _check(self, frame: bytes) -> str | None:
+        if frame[:1] != b"\xfd":
+            return "MAVLink 1 (unsigned)"
+        if len(frame) < 12 + 13 or not frame[2] & 0x01:
+            return "unsigned"
+        digest = hashlib.sha256(self.key + bytes(frame[:-6])).digest()[:6]
+        if digest != bytes(frame[-6:]):
+            return "wrongly signed"
+        link_id = frame[-13]
+        ts = int.from_bytes(frame[-12:-6], "little")
+        stream = (link_id, frame[5], frame[6])
+        ahead_s = (ts - timestamp_now(self.clock())) / 100_000
+        if ahead_s > MAX_FUTURE_S:
+            return f"a timestamp from the future: {ahead_s:.0f} s ahead of this computer's clock (limit {MAX_FUTURE_S:g} s)"
+        last = self.streams.get(stream)
+        if last is not None and ts <= last:
+            return "a replay: timestamp not newer than the stream's last"
+        if last is None and ts + NEW_STREAM_WINDOW < self.newest:
+            return "a replay: a new stream over a minute older than the newest timestamp"
+        self.streams.pop(stream, None)
+        self.streams[stream] = ts  # the newest last: the oldest stream is forgotten first
+        if len(self.streams) > MAX_SIGNED_STREAMS:
+            del self.streams[next(iter(self.streams))]
+        self.newest = max(self.newest, ts)
+        return None
 
 
 def sign_outgoing(mav: Any, key: bytes, link_id: int = 0) -> None:
@@ -106,6 +181,7 @@ def describe_refused(data: bytes) -> tuple[str, int, int]:
 
 __all__ = [
     "KEY_BYTES",
+    "SignedStreams",
     "SigningKeyError",
     "describe_refused",
     "key_from_bytes",
