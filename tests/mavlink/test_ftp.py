@@ -66,7 +66,7 @@ def test_sessions_and_bursts_are_bounded() -> None:
     ftp = FtpFiles({"big": b"x" * 239 * (BURST_PACKETS + 5)})
     sessions = [parse(ftp.answer(req(4, b"big", session=n))[0])[1] for n in range(MAX_SESSIONS + 3)]
     assert sessions == list(range(MAX_SESSIONS + 3))  # the client's numbers, echoed
-    assert len(ftp.sessions) == MAX_SESSIONS and list(ftp.sessions) == sessions[-MAX_SESSIONS:]
+    assert len(ftp.sessions) == MAX_SESSIONS and [k[1] for k in ftp.sessions] == sessions[-MAX_SESSIONS:]
     burst = ftp.answer(req(15, session=sessions[-1], size=239))
     assert len(burst) == BURST_PACKETS and parse(burst[-1])[4] == 1
 

@@ -128,6 +128,10 @@ class Link(abc.ABC):
     @abc.abstractmethod
     async def close(self) -> None: ...
 
+    def send_to(self, peer: Hashable, data: bytes) -> None:
+        """To one peer (a reply only it asked for); links that cannot address one send to all."""
+        self.send(data)
+
     def _deliver(self, peer: Hashable, data: bytes) -> bool:
         """Whether the node accepted anything in `data` (see DataCallback)."""
         self.bytes_in += len(data)
@@ -229,6 +233,14 @@ class UdpLink(Link):
         self._expire(time.monotonic())
         for addr in self._peers:
             t.sendto(data, addr)
+            self.bytes_out += len(data)
+
+    def send_to(self, peer: Hashable, data: bytes) -> None:
+        t = self._transport
+        if self.spec.kind == "udpout" or t is None:
+            self.send(data)
+        elif peer in self._peers and not t.is_closing():
+            t.sendto(data, peer)  # type: ignore[arg-type]  # a UDP address: a known peer
             self.bytes_out += len(data)
 
     async def close(self) -> None:
@@ -380,6 +392,15 @@ class StreamLink(Link):
                 continue
             t.write(data)
             self.bytes_out += len(data)
+
+    def send_to(self, peer: Hashable, data: bytes) -> None:
+        proto = self._conns.get(peer)
+        t = None if proto is None else proto.transport
+        if t is None or t.is_closing() or t.get_write_buffer_size() > MAX_WRITE_BUFFER:
+            self.dropped_out += 1
+            return
+        t.write(data)
+        self.bytes_out += len(data)
 
     async def close(self) -> None:
         self._closed = True

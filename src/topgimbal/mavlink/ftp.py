@@ -3,8 +3,12 @@ what a ground station on a link without IP needs to fetch an `mftp://` cam_defin
 
 OpenFileRO, ReadFile, BurstReadFile, TerminateSession, ResetSessions, ListDirectory and
 CalcFileCRC32 over the files it was given (names at the root, `/sip-thermal.xml`); every other
-opcode is NAKed (UnknownCommand, or FileProtected for writes). Bounded: at most MAX_SESSIONS
-open files (the oldest is closed for a new one; a session number is the client's, echoed), a burst of at most BURST_PACKETS packets. A
+opcode is NAKed (UnknownCommand, or FileProtected for writes). Sessions belong to their peer (the
+link and address a request came from, and its system and component): one peer can neither read,
+close nor reset another's, and replies go to the requester only (not to every peer: no
+amplification). Bounded: at most MAX_SESSIONS open files per peer (the peer's oldest is closed for
+a new one; a session number is the client's, echoed) and MAX_ALL_SESSIONS in all (the oldest of
+all closed), a burst of at most BURST_PACKETS packets. A
 payload too short or a path that is not text is NAKed, never raised. `answer()` is pure
 (bytes in, bytes out) and tested with pymavlink's codec; `FtpServer` puts it on a component."""
 
@@ -13,9 +17,11 @@ from __future__ import annotations
 import struct
 import zlib
 from collections import OrderedDict
+from collections.abc import Hashable
 from typing import TYPE_CHECKING
 
 from ._mav import mavlink
+from .node import link_peer
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
@@ -24,7 +30,8 @@ if TYPE_CHECKING:
 HEADER = struct.Struct("<HBBBBBBI")  # seq, session, opcode, size, req_opcode, burst_complete, padding, offset
 MAX_DATA = 239
 PAYLOAD = 251
-MAX_SESSIONS = 4
+MAX_SESSIONS = 4  # per peer
+MAX_ALL_SESSIONS = 64  # all peers together
 BURST_PACKETS = 32
 (OP_TERMINATE, OP_RESET, OP_LIST, OP_OPEN_RO, OP_READ, OP_CRC32, OP_BURST) = (1, 2, 3, 4, 5, 14, 15)  # fmt: skip
 WRITE_OPS = frozenset({6, 7, 8, 9, 10, 11, 12, 13})
@@ -43,7 +50,7 @@ class FtpFiles:
 
     def __init__(self, files: dict[str, bytes]) -> None:
         self.files = dict(files)
-        self.sessions: OrderedDict[int, str] = OrderedDict()
+        self.sessions: OrderedDict[tuple[Hashable, int], str] = OrderedDict()  # (owner, session) -> file
 
     def _path(self, data: bytes) -> str | None:
         try:
@@ -52,9 +59,9 @@ class FtpFiles:
             return None
         return text.strip().lstrip("/").removeprefix("@MAV_ROOT/")
 
-    def answer(self, request: bytes) -> list[bytes]:
-        """The reply payloads (each PAYLOAD bytes) to one request payload; [] when it is too short to
-        have a sequence number to answer."""
+    def answer(self, request: bytes, owner: Hashable = None) -> list[bytes]:
+        """The reply payloads (each PAYLOAD bytes) to one request payload from `owner` (the peer:
+        its sessions are its own); [] when it is too short to have a sequence number to answer."""
         if len(request) < HEADER.size:
             return []
         seq, session, op, size, _req, _bc, _pad, offset = HEADER.unpack_from(request)
@@ -68,10 +75,11 @@ class FtpFiles:
             return [_pack(reply, session, OP_ACK, op, offset, payload)]
 
         if op == OP_RESET:
-            self.sessions.clear()
+            for k in [k for k in self.sessions if k[0] == owner]:
+                del self.sessions[k]
             return ack()
         if op == OP_TERMINATE:
-            self.sessions.pop(session, None)
+            self.sessions.pop((owner, session), None)
             return ack()
         if op in WRITE_OPS:
             return nak(ERR_PROTECTED)
@@ -95,13 +103,16 @@ class FtpFiles:
                 return ack(struct.pack("<I", zlib.crc32(body)))
             # The session is the client's number, echoed (ArduPilot's server does so; MAVProxy routes
             # replies by it; QGC and pymavlink adopt whatever the reply says).
-            self.sessions.pop(session, None)
-            while len(self.sessions) >= MAX_SESSIONS:
+            self.sessions.pop((owner, session), None)
+            mine = [k for k in self.sessions if k[0] == owner]
+            for k in mine[: max(0, len(mine) - MAX_SESSIONS + 1)]:
+                del self.sessions[k]  # this peer's oldest
+            while len(self.sessions) >= MAX_ALL_SESSIONS:
                 self.sessions.popitem(last=False)
-            self.sessions[session] = path  # type: ignore[assignment]
+            self.sessions[(owner, session)] = path  # type: ignore[assignment]
             return ack(struct.pack("<I", len(body)))
         if op in (OP_READ, OP_BURST):
-            name = self.sessions.get(session)
+            name = self.sessions.get((owner, session))
             if name is None:
                 return nak(ERR_SESSION)
             body = self.files[name]
@@ -133,6 +144,12 @@ class FtpServer:
             return
         if m.target_system != self.comp.sysid or m.target_component != self.comp.compid:
             return
-        for payload in self.proto.answer(bytes(m.payload)):
-            self.comp.send(mavlink().MAVLink_file_transfer_protocol_message(
-                0, m.get_srcSystem(), m.get_srcComponent(), list(payload)))  # fmt: skip
+        origin = link_peer(m)
+        owner = (origin, m.get_srcSystem(), m.get_srcComponent())
+        for payload in self.proto.answer(bytes(m.payload), owner):
+            reply = mavlink().MAVLink_file_transfer_protocol_message(
+                0, m.get_srcSystem(), m.get_srcComponent(), list(payload))  # fmt: skip
+            if origin is None:  # not through a node (a dispatcher fed directly): as before
+                self.comp.send(reply)
+            else:
+                self.comp.send_to(reply, origin)

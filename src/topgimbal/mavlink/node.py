@@ -51,6 +51,17 @@ class _Writer:
         self.node.broadcast(data)
 
 
+class _OneWriter:
+    """The file pymavlink's encoder writes to for a reply to one peer."""
+
+    def __init__(self, node: Node, origin: Hashable) -> None:
+        self.node = node
+        self.origin = origin
+
+    def write(self, data: bytes) -> None:
+        self.node.send_to(self.origin, data)
+
+
 class Component:
     """One MAVLink identity (system id, component id) of the bridge."""
 
@@ -67,6 +78,17 @@ class Component:
 
     def send(self, msg: MAVLinkMessage) -> None:
         self.mav.send(msg)
+        self.sent += 1
+
+    def send_to(self, msg: MAVLinkMessage, origin: Hashable) -> None:
+        """Send to one peer only: `origin` is `link_peer()` of the message answered (a reply
+        nobody else asked for, such as MAVLink FTP's). Same sequence numbers and signing."""
+        writer = self.mav.file
+        self.mav.file = _OneWriter(self.node, origin)
+        try:
+            self.mav.send(msg)
+        finally:
+            self.mav.file = writer
         self.sent += 1
 
     def __repr__(self) -> str:
@@ -132,6 +154,19 @@ class Node:
             except OSError as exc:  # a link in trouble must not stop the others
                 link.dropped_out += 1
                 log.debug("%s: send failed: %s", link, exc)
+
+    def send_to(self, origin: Hashable, data: bytes) -> None:
+        """Bytes to the one peer `origin` ((str(link), peer), as `link_peer` gives) came from."""
+        if not isinstance(origin, tuple) or len(origin) != 2:
+            return
+        for link in self.links:
+            if str(link) == origin[0]:
+                try:
+                    link.send_to(origin[1], data)
+                except OSError as exc:
+                    link.dropped_out += 1
+                    log.debug("%s: send failed: %s", link, exc)
+                return
 
     def _parser(self, link: Link, peer: Hashable) -> MAVLinkCodec:
         key = (id(link), peer)
