@@ -5,7 +5,7 @@ camera would cost threads and sockets per camera), handed to it with `session=`;
 `served_state` (the server's last `state` sample: recording, SD card, version) feeds the overview. `RemoteHub` is the console's `Hub` for it:
 the same ops and pushes, minus what Zenoh does not carry. Frames stay on the Zenoh server, so the
 traffic pane and the pcap download are unavailable for such a camera (said in `hello` and in the
-status, with the reason); the raw-frame op works (`send_raw` is one of the served methods). The
+status, with the reason); the raw-frame op works where the server allows it (`--allow-remote send_raw`). The
 server's own client watches the camera's link and publishes it, so the console sends no link
 checks of its own through Zenoh."""
 
