@@ -20,6 +20,7 @@ from topgimbal.client.remote_keys import RemoteCallError
 from topgimbal.client.zenoh_session import make_config, zenoh_error_text
 from topgimbal.fleet import CameraSpec, FleetServer
 from topgimbal.fleet import camera as camera_mod
+from topgimbal.fleet import server as server_mod
 from topgimbal.fleet.access import AccessConfigError, check_allowed, check_exposure, is_loopback
 from topgimbal.fleet.server import DuplicateCameraError
 from topgimbal.mavlink import json_shape
@@ -141,6 +142,18 @@ async def test_a_peer_without_credentials_is_refused_while_the_operator_works(
         async with topgimbal.connect(f"zenoh/a?connect={ep}&config={operator_conf}") as cam:
             att = await cam.point(12, -8)
             assert abs(att.yaw_deg - 12) <= 0.5 and abs(sim.gimbal.yaw_deg - 12) <= 0.5
+
+
+async def test_insecure_is_repeated_in_the_log(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    monkeypatch.setattr(server_mod, "INSECURE_LOG_EVERY_S", 0.05)
+    server = FleetServer([CameraSpec("a", "udp://127.0.0.1:9", "C12")], insecure=True)
+    server.protection = check_exposure(["tcp/0.0.0.0:7447"], make_config(), True)  # checked only: nothing listens
+    with caplog.at_level(logging.WARNING, logger="topgimbal.fleet"):
+        task = asyncio.ensure_future(server._repeat_insecure())
+        await eventually(lambda: caplog.text.count("INSECURE: tcp/0.0.0.0:7447") >= 3, 10, "three warnings")
+        task.cancel()
 
 
 def test_zenoh_errors_lose_their_rust_source_path() -> None:
@@ -272,6 +285,15 @@ async def test_the_cli_says_connected_and_logs_a_camera_link_coming_back(
         out, err = await asyncio.wait_for(proc.communicate(), 60)
         assert proc.returncode == 0, err
         assert f"serving 1 cameras connected to tcp/127.0.0.1:{zport} (peer)".encode() in out, out
+        # the same name as the running server's: refused, exit 2
+        proc = await asyncio.create_subprocess_exec(
+            sys.executable, "-m", "topgimbal.cli.main", "zenoh", "--connect", f"tcp/127.0.0.1:{zport}",
+            "--camera", f"a={sim.url},C12", "--seconds", "1",
+            stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+        )  # fmt: skip
+        out, err = await asyncio.wait_for(proc.communicate(), 60)
+        assert proc.returncode == 2 and b"a: already served by another topgimbal zenoh" in err, err
+        assert b"Traceback" not in err and b"serving" not in out
     served = camera_mod.ServedCamera(CameraSpec("x", "udp://127.0.0.1:9", "C12"), None)
     served._link = type("P", (), {"put": lambda self, v: None})()
     with caplog.at_level(logging.WARNING, logger="topgimbal.fleet"):
