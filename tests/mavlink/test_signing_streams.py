@@ -107,3 +107,33 @@ def test_a_weak_key_file_is_warned_about(tmp_path: Path, caplog: pytest.LogCaptu
     text = caplog.text
     assert "all zeros" in text and "mode is 0644" in text and "chmod 600" in text
     assert "good.key" not in text
+
+
+async def test_tcp_a_connection_that_signs_nothing_hears_nothing_and_is_closed() -> None:
+    from topgimbal.mavlink.bridge import Bridge, BridgeConfig
+    from topgimbal.sim import Simulator
+
+    sim = Simulator("C12")
+    await sim.start(udp=[("127.0.0.1", 0)])
+    bridge = Bridge(BridgeConfig(url=sim.url, model="C12", endpoints=["tcpin:127.0.0.1:0"], signing_key=KEY,
+                                 silence_s=0.6, timeout_s=0.3, retries=1))  # fmt: skip
+    await bridge.start()
+    port = bridge.addresses[0][1]  # type: ignore[index]
+    try:
+        good_r, good_w = await asyncio.open_connection("127.0.0.1", port)
+        bad_r, bad_w = await asyncio.open_connection("127.0.0.1", port)
+        signer = ml.MAVLink(None, srcSystem=201, srcComponent=190)
+        sign_outgoing(signer, KEY)
+        plain = ml.MAVLink(None, srcSystem=203, srcComponent=190)
+        good_w.write(ml.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3).pack(signer))
+        bad_w.write(ml.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3).pack(plain))
+        assert await asyncio.wait_for(good_r.read(1), 10) == b"\xfd"  # the signed one hears the bridge
+        await asyncio.sleep(1.0)  # a second of the bridge's telemetry
+        bad_w.write(ml.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3).pack(plain) * 200)  # > 4 KiB, none signed
+        await bad_w.drain()
+        assert await asyncio.wait_for(bad_r.read(), 10) == b""  # nothing heard, then closed
+        good_w.close()
+        bad_w.close()
+    finally:
+        await bridge.close()
+        await sim.stop()

@@ -30,6 +30,9 @@ log = logging.getLogger("topgimbal.mavlink")
 MAX_PEERS = 16
 PEER_TIMEOUT_S = 30.0
 MAX_WRITE_BUFFER = 256 * 1024
+# tcpin with a signing key: bytes a connection may send with nothing signed among them before it is
+# closed (a MAVLink 2 signed frame is at most 280 bytes; a few unsigned heartbeats pass under it)
+MAX_UNTRUSTED_BYTES = 4096
 RECONNECT_MIN_S = 0.5
 RECONNECT_MAX_S = 5.0
 DEFAULT_BAUD = 115200
@@ -104,6 +107,9 @@ class Link(abc.ABC):
         self.bytes_out = 0
         self.dropped_out = 0
         self.refused_peers = 0
+        # Set by a node with a signing key: a listening link then serves only senders whose bytes
+        # it accepted (udpin: no peer place, tcpin: no telemetry, closed after MAX_UNTRUSTED_BYTES).
+        self.needs_trust = False
         self._closed = False
         self._refusal_log = ThrottledLog(log, 10.0)  # a peer flood: one line per 10 s
 
@@ -259,6 +265,8 @@ class _StreamProtocol(asyncio.Protocol):
         self.peer = peer
         self.transport: asyncio.Transport | None = None
         self.last_heard = time.monotonic()
+        self.trusted = False  # the node accepted something it sent
+        self.untrusted_bytes = 0
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         self.transport = transport  # type: ignore[assignment]
@@ -266,7 +274,10 @@ class _StreamProtocol(asyncio.Protocol):
 
     def data_received(self, data: bytes) -> None:
         self.last_heard = time.monotonic()
-        self.owner._deliver(self.peer, data)
+        if self.owner._deliver(self.peer, data):
+            self.trusted = True
+        else:
+            self.owner._untrusted(self, len(data))
 
     def connection_lost(self, exc: Exception | None) -> None:
         self.owner._disconnected(self, exc)
@@ -378,6 +389,26 @@ class StreamLink(Link):
         if self.spec.kind != "tcpin":
             self._lost.set()
 
+    def _untrusted(self, proto: _StreamProtocol, n: int) -> None:
+        """tcpin with a signing key: a connection that sent MAX_UNTRUSTED_BYTES with nothing signed
+        among them is closed (its place freed)."""
+        if not self.needs_trust or self.spec.kind != "tcpin" or proto.trusted:
+            return
+        proto.untrusted_bytes += n
+        if proto.untrusted_bytes <= MAX_UNTRUSTED_BYTES:
+            return
+        self.refused_peers += 1
+        if self._refusal_log.allow("untrusted") is not None:
+            log.warning("%s: %s sent %d bytes and nothing signed with the key: closed (%d refused so far)", self,
+                        proto.peer, proto.untrusted_bytes, self.refused_peers)  # fmt: skip
+        if self._conns.pop(proto.peer, None) is not None:
+            self._on_gone(self, proto.peer)
+        if proto.transport is not None:
+            proto.transport.close()
+
+    def _serves(self, proto: _StreamProtocol) -> bool:
+        return proto.trusted or not self.needs_trust or self.spec.kind != "tcpin"
+
     def send(self, data: bytes) -> None:
         self._expire(time.monotonic())
         if not self._conns:
@@ -385,7 +416,7 @@ class StreamLink(Link):
             return
         for proto in list(self._conns.values()):
             t = proto.transport
-            if t is None or t.is_closing():
+            if t is None or t.is_closing() or not self._serves(proto):
                 continue
             if t.get_write_buffer_size() > MAX_WRITE_BUFFER:
                 self.dropped_out += 1  # a peer that does not read loses messages, not our memory
@@ -395,7 +426,7 @@ class StreamLink(Link):
 
     def send_to(self, peer: Hashable, data: bytes) -> None:
         proto = self._conns.get(peer)
-        t = None if proto is None else proto.transport
+        t = None if proto is None or not self._serves(proto) else proto.transport
         if t is None or t.is_closing() or t.get_write_buffer_size() > MAX_WRITE_BUFFER:
             self.dropped_out += 1
             return

@@ -112,6 +112,8 @@ class Node:
         self.signed = SignedStreams(signing_key) if signing_key is not None else None
         self.links: list[Link] = [make_link(e, self._on_data, self._on_gone, max_peers) for e in endpoints]
         self.links += [make(self._on_data, self._on_gone) for make in link_factories]
+        for link in self.links:
+            link.needs_trust = signing_key is not None
         self.components: dict[int, Component] = {}
         self._parsers: dict[tuple[int, Hashable], Any] = {}
         self._subscribers: list[MessageCallback] = []
