@@ -2,9 +2,17 @@
 pose (XMP) into photos from a camera that was not fed, from a log of the flight (geotag_track.py).
 
 Each photo's capture time: the log's CAP answer with the photo's file index where the log has one
-(the index in the name: snap_0_<n>.jpeg, IMG_<n>.jpg), else its EXIF DateTimeOriginal plus
-`--offset` seconds (the camera's clock minus UTC, negated), read as UTC. A photo whose clock was
-never set (before 2000) and that matched by index also gets the log's time as DateTimeOriginal.
+from the photo's own camera (the index in the name: snap_0_<n>.jpeg, IMG_<n>.jpg), else its EXIF
+DateTimeOriginal plus `--offset` seconds (the camera's clock minus UTC, negated), read as UTC. A
+photo whose clock was never set (before 2000) and that matched by index also gets the log's time as
+DateTimeOriginal.
+
+Which camera's capture (`_match`): a .tlog may hold the captures of several cameras on one vehicle,
+each numbering its photos from 1. A capture is another camera's when its file_url names another
+file, its component's CAMERA_INFORMATION names another vendor than the photo's EXIF Make, or (the
+photo's clock set) it was taken more than MATCH_TOLERANCE_S from the photo's DateTimeOriginal. With
+captures from several components, one is used only when the photo confirms it (same file, same
+model, or the clock agrees); what stays ambiguous is refused, naming `--camera-compid`.
 Photos that already have GPS are left alone unless `--overwrite`. The picture itself is not
 re-encoded: only the EXIF and XMP segments change. A bad file is reported on stderr and the others
 go on; the exit status is 1 when any photo was not tagged."""
@@ -22,11 +30,15 @@ import warnings
 from pathlib import Path
 
 from ..errors import TopGimbalError
-from .geotag_track import Track, TrackError, load_track
+from .geotag_track import Capture, Track, TrackError, load_track
 
 INDEX_IN_NAME = re.compile(r"^(?:snap_\d_|IMG_|DJI_)(\d+)", re.IGNORECASE)
 PHOTO_SUFFIXES = {".jpg", ".jpeg"}
 CLOCK_NEVER_SET_YEAR = 2000
+# A capture and the photo's DateTimeOriginal this far apart are not the same shot: EXIF keeps whole
+# seconds (up to 1 s early), the CAP answer and the log add latency. Two cameras fired within this
+# window were at nearly the same place, so a match inside it cannot move a photo far.
+MATCH_TOLERANCE_S = 3.0
 
 
 def _seconds(text: str) -> float:
@@ -51,6 +63,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
                    help="seconds to add to a photo's DateTimeOriginal to get UTC (default 0)")  # fmt: skip
     p.add_argument("--max-gap", type=_seconds, default=10.0, metavar="S",
                    help="no position across a gap in the log longer than S seconds (default 10)")  # fmt: skip
+    p.add_argument("--camera-compid", type=int, default=None, metavar="N",
+                   help="a .tlog with several cameras: match photos by number only to component N's captures")  # fmt: skip
     p.add_argument("--overwrite", action="store_true", help="replace GPS tags a photo already has")
     p.add_argument("--dry-run", action="store_true", help="say what would be written, change nothing")
     p.set_defaults(func=run)
@@ -91,7 +105,8 @@ def _tag_all(photos: list[Path], track: Track, args: argparse.Namespace) -> int:
     failed = 0
     for path in photos:
         try:
-            print(tag_photo(path, track, offset_s=args.offset, overwrite=args.overwrite, dry_run=args.dry_run))
+            print(tag_photo(path, track, offset_s=args.offset, overwrite=args.overwrite, dry_run=args.dry_run,
+                            camera_compid=args.camera_compid))  # fmt: skip
         except (TopGimbalError, OSError, ValueError) as exc:
             failed += 1
             print(f"topgimbal geotag: {path}: {exc}", file=sys.stderr)
@@ -105,13 +120,85 @@ class GeotagError(TopGimbalError, ValueError):
     pass
 
 
+def _shot(name: str) -> str:
+    """A file name without its lens marker and suffix: snap_0_6.jpeg and snap_1_6.jpeg are one shot."""
+    stem = name.rsplit(".", 1)[0].lower()
+    stem = re.sub(r"^snap_[01]_", "snap_", stem)
+    return stem[:-2] if stem.endswith("_t") else stem
+
+
+def _photo_vendor(make: object, name: str) -> str | None:
+    if isinstance(make, str) and make.strip("\x00 "):
+        return make.strip("\x00 ").split(" ")[0].lower()
+    return "topotek" if name.lower().startswith("snap_") else None  # TOPOTEK's own naming
+
+
+def _at(t: float) -> str:
+    return f"{datetime.datetime.fromtimestamp(t, datetime.timezone.utc):%Y-%m-%d %H:%M:%S} UTC"
+
+
+def _match(
+    name: str, cands: list[Capture], track: Track, clock_t: float | None, vendor: str | None, model: str | None,
+    chosen: int | None,
+) -> Capture | None:  # fmt: skip
+    """The capture of this photo among the log's captures with its file index (`cands`), None when
+    none is its camera's; raises GeotagError when the log cannot tell (module docstring)."""
+    if chosen is not None:
+        cands = [c for c in cands if c.compid == chosen]
+
+    def other_camera(c: Capture) -> bool:
+        return bool((c.file_name and _shot(c.file_name) != _shot(name)) or (c.vendor and vendor and c.vendor != vendor))
+
+    def clock_disagrees(c: Capture) -> bool:
+        return chosen is None and clock_t is not None and abs(c.t - clock_t) > MATCH_TOLERANCE_S
+
+    def confirmed(c: Capture) -> bool:
+        return bool((c.file_name and _shot(c.file_name) == _shot(name)) or (c.vendor and c.vendor == vendor)
+                    or (c.model and model and c.model == model)
+                    or (clock_t is not None and abs(c.t - clock_t) <= MATCH_TOLERANCE_S))  # fmt: skip
+
+    own = [c for c in cands if not other_camera(c)]
+    fits = [c for c in own if not clock_disagrees(c)]
+    cameras = sorted(str(k) for k in track.cameras() if k is not None)
+    several = len(cameras) > 1 and chosen is None
+    if fits and not several:
+        return fits[-1]
+    if fits:
+        sure = [c for c in fits if confirmed(c)]
+        if sure and len({c.compid for c in sure}) == 1:
+            return sure[-1]
+        which = ", ".join(sorted({c.camera() for c in fits}))
+        raise GeotagError(f"the log has captures from components {', '.join(cameras)} and photo {cands[0].index} "
+                          f"could be {which}'s: give --camera-compid N (nothing in the photo says which)")  # fmt: skip
+    doubtful = [c for c in own if clock_disagrees(c)]
+    if doubtful:
+        c = doubtful[-1]
+        assert clock_t is not None
+        raise GeotagError(f"the log's capture {c.index} ({c.camera()}) was at {_at(c.t)}, this photo's clock says "
+                          f"{_at(clock_t)}: another camera's? --camera-compid {c.compid if c.compid is not None else 'N'} "
+                          "matches it by number anyway; --offset S corrects a clock that was off")  # fmt: skip
+    return None
+
+
 def tag_photo(
-    path: Path, track: Track, *, offset_s: float = 0.0, overwrite: bool = False, dry_run: bool = False
-) -> str:
+    path: Path, track: Track, *, offset_s: float = 0.0, overwrite: bool = False, dry_run: bool = False,
+    camera_compid: int | None = None,
+) -> str:  # fmt: skip
     """Tag one photo; returns what was done, raises GeotagError / OSError saying why not."""
     from PIL import Image, UnidentifiedImageError
 
-    from ..video.exif import EXIF_TIME, IFD_EXIF, IFD_GPS, TAG_ORIGINAL, ExifError, PhotoMeta, Pose, tag_jpeg
+    from ..video.exif import (
+        EXIF_TIME,
+        IFD_EXIF,
+        IFD_GPS,
+        TAG_MAKE,
+        TAG_MODEL,
+        TAG_ORIGINAL,
+        ExifError,
+        PhotoMeta,
+        Pose,
+        tag_jpeg,
+    )
 
     data = path.read_bytes()
     try:
@@ -130,15 +217,27 @@ def tag_photo(
             taken = datetime.datetime.strptime(text.strip("\x00 "), EXIF_TIME)
         except ValueError:
             taken = None
+    clock_set = taken is not None and taken.year >= CLOCK_NEVER_SET_YEAR
+    clock_t = taken.replace(tzinfo=datetime.timezone.utc).timestamp() + offset_s if taken and clock_set else None
     m = INDEX_IN_NAME.match(path.name)
     index = int(m.group(1)) if m else None
+    model = exif.get(TAG_MODEL)
+    capture = None
+    if index is not None:
+        capture = _match(path.name, track.captures_of(index), track, clock_t,
+                         _photo_vendor(exif.get(TAG_MAKE), path.name),
+                         model.strip("\x00 ") if isinstance(model, str) else None, camera_compid)  # fmt: skip
     new_time = None
-    if index is not None and index in track.captures:
-        t, how = track.captures[index], f"photo {index}'s CAP in the log"
-        if taken is None or taken.year < CLOCK_NEVER_SET_YEAR:
+    if capture is not None:
+        t, how = (
+            capture.t,
+            f"photo {capture.index}'s capture in the log"
+            + (f", {capture.camera()}" if capture.compid is not None else ""),
+        )
+        if not clock_set:
             new_time = datetime.datetime.fromtimestamp(t, datetime.timezone.utc).replace(tzinfo=None)
-    elif taken is not None and taken.year >= CLOCK_NEVER_SET_YEAR:
-        t = taken.replace(tzinfo=datetime.timezone.utc).timestamp() + offset_s
+    elif taken is not None and clock_t is not None:
+        t = clock_t
         how = f"DateTimeOriginal {taken:%Y-%m-%d %H:%M:%S}" + (f" {offset_s:+g} s" if offset_s else "")
     else:
         raise GeotagError("no capture time: no CAP for its file index in the log, and no DateTimeOriginal set "
