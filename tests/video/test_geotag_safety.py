@@ -6,11 +6,17 @@ from __future__ import annotations
 
 import datetime
 import io
+import os
+import stat
 import struct
+import subprocess
+import sys
 from pathlib import Path
 
+import pytest
 from PIL import Image
 
+import topgimbal
 from topgimbal.cli.main import main
 from topgimbal.video.exif import IFD_EXIF, IFD_GPS, TAG_ORIGINAL, PhotoMeta, tag_jpeg
 
@@ -36,6 +42,7 @@ def write_tlog(
     captures: list[tuple[int, int, float, str]] = (),  # type: ignore[assignment]  # (compid, file index, s after T0, file_url)
     info: dict[int, tuple[str, str]] | None = None,  # compid -> (vendor, model)
     lat_e7: list[int] | None = None,
+    lon_e7: list[int] | None = None,
     seconds: int = 30,
 ) -> None:
     """A flight north at NORTH_PER_S, positions at 5 Hz, and the cameras' captures."""
@@ -44,7 +51,8 @@ def write_tlog(
     for i in range(seconds * 5):
         t = T0.timestamp() + i * 0.2
         lat = lat_e7[i] if lat_e7 is not None else int((LAT0 + i * 0.2 * NORTH_PER_S) * 1e7)
-        msg = ml.MAVLink_global_position_int_message(i * 200, lat, int(8.5e7), 500_000, 0, 0, 0, 0, 0)
+        lon = lon_e7[i] if lon_e7 is not None else int(8.5e7)
+        msg = ml.MAVLink_global_position_int_message(i * 200, lat, lon, 500_000, 0, 0, 0, 0, 0)
         out.append((t, msg.pack(ap)))
     for compid, (vendor, model) in (info or {}).items():
         ml, cam = _mav(compid)
@@ -155,3 +163,82 @@ def test_camera_information_tells_the_cameras_apart(tmp_path):
     assert main(["geotag", str(q), "--log", str(log)]) == 0
     lat = gps_lat(q)
     assert lat is not None and abs(lat - lat_at(20.0)) < 2e-6
+
+
+# -- 33.14: files geotag must not write, or must write through -----------------------------------
+
+
+def _flight(tmp_path: Path) -> tuple[Path, datetime.datetime]:
+    log = tmp_path / "flight.tlog"
+    write_tlog(log)
+    return log, T0 + datetime.timedelta(seconds=10)
+
+
+def test_a_read_only_photo_is_refused_and_left_as_it_was(tmp_path, capsys):
+    log, taken = _flight(tmp_path)
+    p = photo(tmp_path / "a.jpg", taken)
+    data = p.read_bytes()
+    p.chmod(0o444)
+    assert main(["geotag", str(p), "--log", str(log)]) == 1
+    assert "read-only" in capsys.readouterr().err
+    assert stat.S_IMODE(p.stat().st_mode) == 0o444 and p.read_bytes() == data
+
+
+def test_the_mode_is_kept_a_symlink_is_written_through_and_hard_links_stay_one_file(tmp_path):
+    log, taken = _flight(tmp_path)
+    shared = photo(tmp_path / "shared.jpg", taken)
+    shared.chmod(0o640)
+    target = photo(tmp_path / "card.jpg", taken)
+    link = tmp_path / "photos" / "link.jpg"
+    link.parent.mkdir()
+    link.symlink_to(target)
+    twin = tmp_path / "photos" / "twin.jpg"
+    hard = photo(tmp_path / "hard.jpg", taken)
+    os.link(hard, twin)
+    assert main(["geotag", str(shared), str(link), str(hard), "--log", str(log)]) == 0
+    assert stat.S_IMODE(shared.stat().st_mode) == 0o640
+    assert link.is_symlink() and os.readlink(link) == str(target)
+    assert gps_lat(target) is not None and abs(gps_lat(target) - lat_at(10.0)) < 2e-6  # type: ignore[operator]
+    assert os.path.samefile(hard, twin) and gps_lat(twin) is not None
+    assert sorted(q.name for q in tmp_path.iterdir() if "geotag" in q.name) == []  # no temporary left
+
+
+def test_a_fifo_named_jpg_is_reported_without_blocking_and_the_batch_goes_on(tmp_path):
+    log, taken = _flight(tmp_path)
+    fifo = tmp_path / "IMG_0002.jpg"
+    os.mkfifo(fifo)
+    good = photo(tmp_path / "IMG_0003.jpg", taken)
+    env = dict(os.environ, PYTHONPATH=str(Path(topgimbal.__file__).parents[1]))
+    try:  # today's code blocks in open(): the guard turns that into a failure, not a hung suite
+        out = subprocess.run([sys.executable, "-m", "topgimbal.cli.main", "geotag", str(fifo), str(good), "--log", str(log)],
+                             capture_output=True, text=True, timeout=120, env=env)  # fmt: skip
+    except subprocess.TimeoutExpired:
+        pytest.fail("geotag blocked on a FIFO")
+    assert out.returncode == 1 and "IMG_0002.jpg: not a regular file" in out.stderr
+    assert "1 of 2 photos tagged" in out.stderr and gps_lat(good) is not None
+
+
+# -- 33.15: positions that are no place ------------------------------------------------------------
+
+
+def test_unknown_and_impossible_positions_are_dropped(tmp_path, capsys):
+    """MAVLink's "unknown" (INT32_MAX: 214.7 deg) and 0, 0 around the photo's time: the photo gets
+    the position between the good samples on either side, never 214.7 or 0."""
+    n = 30 * 5
+    lat_e7 = [int((LAT0 + i * 0.2 * NORTH_PER_S) * 1e7) for i in range(n)]
+    for i in range(45, 50):
+        lat_e7[i] = 2**31 - 1
+    lon_e7 = [int(8.5e7)] * n
+    for i in range(50, 55):
+        lat_e7[i] = lon_e7[i] = 0
+    log = tmp_path / "flight.tlog"
+    write_tlog(log, lat_e7=lat_e7, lon_e7=lon_e7)
+    p = photo(tmp_path / "a.jpg", T0 + datetime.timedelta(seconds=10))
+    assert main(["geotag", str(p), "--log", str(log)]) == 0
+    lat = gps_lat(p)
+    assert lat is not None and abs(lat - lat_at(10.0)) < 2e-6
+    unknown = tmp_path / "unknown.tlog"
+    write_tlog(unknown, lat_e7=[2**31 - 1] * n)
+    q = photo(tmp_path / "b.jpg", T0 + datetime.timedelta(seconds=10))
+    assert main(["geotag", str(q), "--log", str(unknown)]) == 1
+    assert "no vehicle position" in capsys.readouterr().err and gps_lat(q) is None

@@ -13,6 +13,10 @@ file, its component's CAMERA_INFORMATION names another vendor than the photo's E
 photo's clock set) it was taken more than MATCH_TOLERANCE_S from the photo's DateTimeOriginal. With
 captures from several components, one is used only when the photo confirms it (same file, same
 model, or the clock agrees); what stays ambiguous is refused, naming `--camera-compid`.
+Files (`_read_photo`, `_write_photo`): only regular files are read (a FIFO is never opened for a
+blocking read), a read-only photo is refused, a symlink is written through to its target, a
+hard-linked photo is rewritten in place, any other whole or not at all with its mode kept.
+
 Photos that already have GPS are left alone unless `--overwrite`. The picture itself is not
 re-encoded: only the EXIF and XMP segments change. A bad file is reported on stderr and the others
 go on; the exit status is 1 when any photo was not tagged."""
@@ -20,12 +24,15 @@ go on; the exit status is 1 when any photo was not tagged."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime
 import io
 import math
 import os
 import re
+import stat
 import sys
+import tempfile
 import warnings
 from pathlib import Path
 
@@ -35,6 +42,7 @@ from .geotag_track import Capture, Track, TrackError, load_track
 INDEX_IN_NAME = re.compile(r"^(?:snap_\d_|IMG_|DJI_)(\d+)", re.IGNORECASE)
 PHOTO_SUFFIXES = {".jpg", ".jpeg"}
 CLOCK_NEVER_SET_YEAR = 2000
+MAX_PHOTO_BYTES = 256 * 1024 * 1024  # a photo larger than this is refused, not read into memory
 # A capture and the photo's DateTimeOriginal this far apart are not the same shot: EXIF keeps whole
 # seconds (up to 1 s early), the CAP answer and the log add latency. Two cameras fired within this
 # window were at nearly the same place, so a match inside it cannot move a photo far.
@@ -200,7 +208,7 @@ def tag_photo(
         tag_jpeg,
     )
 
-    data = path.read_bytes()
+    data, st = _read_photo(path)
     try:
         with Image.open(io.BytesIO(data)) as img:
             if img.format != "JPEG":
@@ -256,7 +264,54 @@ def tag_photo(
         out = tag_jpeg(data, meta, base=exif)
     except ExifError as exc:
         raise GeotagError(str(exc)) from None
-    tmp = path.with_name(path.name + ".geotag-tmp")
-    tmp.write_bytes(out)
-    os.replace(tmp, path)
+    _write_photo(path, st, out)
     return summary
+
+
+def _read_photo(path: Path) -> tuple[bytes, os.stat_result]:
+    """The photo's bytes and status, refusing what geotag must not read or write: anything but a
+    regular file (a FIFO named .jpg would block forever; it is opened non-blocking and never read),
+    and a file over MAX_PHOTO_BYTES."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
+    except IsADirectoryError:
+        raise GeotagError("a folder, not a photo") from None
+    with os.fdopen(fd, "rb") as fh:
+        st = os.fstat(fh.fileno())
+        if not stat.S_ISREG(st.st_mode):
+            raise GeotagError("not a regular file (a FIFO, device or socket): not read, not written")
+        if st.st_size > MAX_PHOTO_BYTES:
+            raise GeotagError(f"{st.st_size} bytes: larger than a photo ({MAX_PHOTO_BYTES} at most)")
+        data = fh.read(MAX_PHOTO_BYTES + 1)
+    if len(data) > MAX_PHOTO_BYTES:
+        raise GeotagError(f"larger than a photo ({MAX_PHOTO_BYTES} bytes at most)")
+    return data, st
+
+
+def _write_photo(path: Path, st: os.stat_result, out: bytes) -> None:
+    """Write the tagged bytes to the file `path` names, keeping what the user made of it: through a
+    symlink to its target (the link stays a link), into the same inode when the file has other hard
+    links (every name sees the tags), else whole or not at all (a temporary file in the same folder,
+    given the photo's mode, renamed over it)."""
+    if not st.st_mode & stat.S_IWUSR:  # checked on the mode, not by trying: root may write anything
+        raise GeotagError(f"read-only (mode {stat.S_IMODE(st.st_mode):04o}): not changed (chmod u+w to tag it)")
+    real = Path(os.path.realpath(path))
+    if st.st_nlink > 1:
+        with real.open("r+b") as fh:  # the same inode: its other names keep pointing at it
+            fh.write(out)
+            fh.truncate()
+            fh.flush()
+            os.fsync(fh.fileno())
+        return
+    fd, tmp = tempfile.mkstemp(dir=real.parent, prefix=f".{real.name}.", suffix=".geotag-tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            os.fchmod(fh.fileno(), stat.S_IMODE(st.st_mode))
+            fh.write(out)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, real)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
