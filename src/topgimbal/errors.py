@@ -12,7 +12,8 @@ TopGimbalError                kind
 │   └── LinkLostError         "link_lost"        the device went silent (UDP) or the link closed; resumes by itself
 ├── DeviceError               "device"           the device answered with the error frame (ERE)
 │   └── DecodeError           "decode"           the device answered, but the answer cannot be decoded
-└── RequestTimeoutError       "timeout"          no matching reply in time (also builtin TimeoutError)
+├── RequestTimeoutError       "timeout"          no matching reply in time (also builtin TimeoutError)
+└── ModelMismatchError        "model_mismatch"   the device identified itself as another model than given
 
 Every error has `kind`, a short stable string for programs (logs, JSON, the console) that does not
 change when a message is reworded, and `request`: the request frame the error concerns, when there
@@ -123,3 +124,15 @@ class DecodeError(DeviceError):
 
 class RequestTimeoutError(TopGimbalError, TimeoutError):
     kind = "timeout"
+
+
+class ModelMismatchError(TopGimbalError):
+    """The device identified itself as another model than the one given (`fits`: the models its
+    answers fit). Raised before anything that moves or changes the camera is sent: with the wrong
+    model, signs and commands would be wrong and a confirmation read through them a wrong answer."""
+
+    kind = "model_mismatch"
+
+    def __init__(self, message: str, *, fits: tuple[str, ...] = (), request: object | None = None) -> None:
+        super().__init__(message, request=request)
+        self.fits = fits

@@ -113,6 +113,27 @@ def build_config(args: argparse.Namespace) -> object:
     return config
 
 
+async def _refuse_wrong_model(url: str, model: str, timeout_s: float) -> None:
+    """Before serving: a camera that answers and says it is another model than --model is refused
+    (ModelMismatchError, exit 2). One not there yet is served; the bridge's camera link refuses it
+    later if it turns out to be another model (mavlink/camera_link.py)."""
+    from ..client import connect
+    from ..errors import TransportError
+    from .device_cmds import _refuse_wrong_model as refuse
+
+    try:
+        async with connect(url, model=model, timeout_s=timeout_s, retries=0, host_feeds=False) as cam:
+            await refuse(cam)
+    except (TransportError, OSError):
+        return  # not there (yet): the bridge keeps trying
+
+
+async def _detect(args: argparse.Namespace) -> str:
+    from .device_cmds import _detect as detect
+
+    return await detect(args)
+
+
 def run(args: argparse.Namespace) -> int:
     import asyncio
 
@@ -121,8 +142,11 @@ def run(args: argparse.Namespace) -> int:
 
     if args.camera:  # several cameras: one component set each on shared links (mavlink_multi.py)
         return run_multi(args)
+    if getattr(args, "model", None) == "auto" and getattr(args, "url", None):
+        args.model = asyncio.run(_detect(args))  # --model auto: what the camera says it is
     config = build_config(args)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
+    asyncio.run(_refuse_wrong_model(config.url, config.model, args.timeout))  # type: ignore[attr-defined]
 
     async def main() -> None:
         bridge = Bridge(config)  # type: ignore[arg-type]
