@@ -43,4 +43,3 @@ def test_model_auto_follows_the_device(sip, capsys):
     assert result["pitch_deg"] == pytest.approx(-20.0, abs=0.6) and result["confirmed"] is True
     pitch = sip.call(lambda s: s.gimbal.pitch_deg)
     assert pitch == pytest.approx(-20.0, abs=0.6)  # down, as asked: the SIP's signs were used
-
