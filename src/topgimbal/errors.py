@@ -12,7 +12,9 @@ TopGimbalError                kind
 │   └── LinkLostError         "link_lost"        the device went silent (UDP) or the link closed; resumes by itself
 ├── DeviceError               "device"           the device answered with the error frame (ERE)
 │   └── DecodeError           "decode"           the device answered, but the answer cannot be decoded
-├── RequestTimeoutError       "timeout"          no matching reply in time (also builtin TimeoutError)
+├── NoAnswerError             "no_answer"        no answer: the base of the two below (catch this one)
+│   ├── RequestTimeoutError   "timeout"          no matching reply in time (also builtin TimeoutError)
+│   └── LinkLostError         (above)            also a NoAnswerError: a silent address ends in either
 └── ModelMismatchError        "model_mismatch"   the device identified itself as another model than given
 
 Every error has `kind`, a short stable string for programs (logs, JSON, the console) that does not
@@ -98,7 +100,15 @@ class TransportError(TopGimbalError, ConnectionError):
     kind = "transport"
 
 
-class LinkLostError(TransportError):
+class NoAnswerError(TopGimbalError):
+    """Nothing (usable) came back: a request timed out, or the link went silent or closed. Catch
+    this for "the device did not answer"; which one a silent address ends in depends on timing
+    (a request's timeout, or the link monitor's silence first)."""
+
+    kind = "no_answer"
+
+
+class LinkLostError(TransportError, NoAnswerError):
     """Nothing came from the device for the link timeout (UDP), or the link closed (TCP, serial).
     Pending requests and streams end with it; the client resumes when frames come back."""
 
@@ -122,7 +132,7 @@ class DecodeError(DeviceError):
         self.answer = answer
 
 
-class RequestTimeoutError(TopGimbalError, TimeoutError):
+class RequestTimeoutError(NoAnswerError, TimeoutError):
     kind = "timeout"
 
 
