@@ -8,7 +8,9 @@ TopGimbalError                kind
 │   ├── UnknownCommandError   "unknown_command"  identifier not in the dialect's catalog (also KeyError)
 │   ├── UnsupportedError      "unsupported"      the device model does not support the command
 │   └── FieldValueError       "value"            a value is out of range / of the wrong kind (also ValueError)
+├── InputError                "input"            an address or option refused before anything was sent
 ├── TransportError            "transport"        the byte pipe failed or is closed (also ConnectionError)
+│   ├── AddressError          "address"          a device URL that is not usable (also an InputError)
 │   └── LinkLostError         "link_lost"        the device went silent (UDP) or the link closed; resumes by itself
 ├── DeviceError               "device"           the device answered with the error frame (ERE)
 │   └── DecodeError           "decode"           the device answered, but the answer cannot be decoded
@@ -96,8 +98,22 @@ def _show(value: object) -> str:
     return text if len(text) <= 80 else text[:60] + f"... ({len(text)} characters)"
 
 
+class InputError(TopGimbalError):
+    """What the user gave (a device URL, an endpoint, a missing option) is not usable: refused before
+    anything was sent. The CLI exits 2 for it, as for a malformed command line."""
+
+    kind = "input"
+
+
 class TransportError(TopGimbalError, ConnectionError):
     kind = "transport"
+
+
+class AddressError(TransportError, InputError):
+    """A device URL that is not usable (no scheme, an unknown scheme, no host, a port out of range).
+    Still a TransportError, as it was before it had a name."""
+
+    kind = "address"
 
 
 class NoAnswerError(TopGimbalError):

@@ -26,7 +26,13 @@ from typing import TYPE_CHECKING
 from ..client.identity import Verdict
 from ..client.roles import focus_actions, role_ident
 from ..client.state import SdCard
-from ..errors import FieldValueError, ModelMismatchError, RequestTimeoutError, TopGimbalError, TransportError
+from ..errors import (
+    FieldValueError,
+    InputError,
+    ModelMismatchError,
+    RequestTimeoutError,
+    TopGimbalError,
+)
 from ..protocol import DIALECT_NAMES, get_dialect
 from ..protocol.fields import FieldValue
 from . import device_motion, device_session
@@ -92,7 +98,7 @@ def _run(args: argparse.Namespace, runner: Runner) -> int:
     if not any(isinstance(f, _NoModelCheckRecords) for f in client_log.filters):
         client_log.addFilter(_NoModelCheckRecords())
     if not args.url:
-        raise TransportError("no device URL: pass --url URL (before the command) or set TOPGIMBAL_URL")
+        raise InputError("no device URL: pass --url URL (before the command) or set TOPGIMBAL_URL")
 
     async def main() -> object:
         model = args.model
@@ -174,9 +180,12 @@ def _with_hint(exc: TopGimbalError, hint: str, model: str) -> TopGimbalError:
 
 
 class _NoModelCheckRecords(logging.Filter):
-    """The CLI says what the model check found in its own one line: the log record would repeat it."""
+    """The CLI says what the model check found in its own one line: the log record would repeat it;
+    so does a link lost before anything was heard (the command's error says nothing answered)."""
 
     def filter(self, record: logging.LogRecord) -> bool:
+        if getattr(record, "link_lost", False) and not getattr(record, "heard", True):
+            return False
         return not hasattr(record, "model_check")
 
 

@@ -83,11 +83,12 @@ def _signing_key(path: str) -> bytes:
 
 
 def build_config(args: argparse.Namespace) -> object:
+    from ..errors import InputError
     from ..mavlink import BridgeConfig
 
     url, model = getattr(args, "url", None), getattr(args, "model", None)
     if not url or not model:
-        raise ValueError("give the camera's --url and --model, e.g. --url udp://127.0.0.1:5000 --model C12")
+        raise InputError("give the camera's --url and --model, e.g. --url udp://127.0.0.1:5000 --model C12")
     config = BridgeConfig(
         url=url,
         model=model,
@@ -109,7 +110,10 @@ def build_config(args: argparse.Namespace) -> object:
         signing_key=getattr(args, "signing_key", None),
         definition_http=None if args.definition_http == "off" else args.definition_http,
     )
-    config.check()
+    try:
+        config.check()
+    except ValueError as exc:  # BridgeConfigError, EndpointError: the options given, nothing sent yet
+        raise InputError(str(exc)) from None
     return config
 
 
