@@ -202,6 +202,7 @@ def tag_photo(
         TAG_MAKE,
         TAG_MODEL,
         TAG_ORIGINAL,
+        TAG_SUBSEC_ORIGINAL,
         ExifError,
         PhotoMeta,
         Pose,
@@ -225,6 +226,9 @@ def tag_photo(
             taken = datetime.datetime.strptime(text.strip("\x00 "), EXIF_TIME)
         except ValueError:
             taken = None
+    sub_s = exif.get_ifd(IFD_EXIF).get(TAG_SUBSEC_ORIGINAL)  # the fraction of that second, as digits
+    if taken is not None and isinstance(sub_s, str) and sub_s.strip("\x00 ").isdigit():
+        taken += datetime.timedelta(seconds=float("0." + sub_s.strip("\x00 ")[:6]))
     clock_set = taken is not None and taken.year >= CLOCK_NEVER_SET_YEAR
     clock_t = taken.replace(tzinfo=datetime.timezone.utc).timestamp() + offset_s if taken and clock_set else None
     m = INDEX_IN_NAME.match(path.name)
