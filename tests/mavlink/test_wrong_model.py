@@ -69,3 +69,12 @@ async def test_a_healthy_camera_is_logged_as_info_not_a_warning(caplog) -> None:
     finally:
         await bridge.close()
         await sim.stop()
+
+
+def test_model_auto_serves_the_camera_as_what_it_says(capsys):
+    with BackgroundSimulator("SIP", seed=36, listen={"udp": [("127.0.0.1", 0)]}) as sip:
+        code = main(
+            ["mavlink", "--url", sip.url, "--model", "auto", "--mavlink", "udpin:127.0.0.1:0", "--seconds", "1"]
+        )
+    out = capsys.readouterr().out
+    assert code == 0 and f"mavlink bridge: {sip.url} (SIP)" in out, out

@@ -18,7 +18,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p = add_camera_subcommand(
         subparsers,
         "mavlink",
-        model_help="device model (picks the dialect, limits and capabilities)",
+        model_help="device model (picks the dialect, limits and capabilities); auto: ask the camera at start",
+        auto=True,
         help="MAVLink bridge: the camera as a gimbal (protocol v2) and camera for QGC, MAVSDK, PX4, ArduPilot",
         description="Bridge a camera to MAVLink (pymavlink, MAVLink 2, common dialect). Endpoints use "
         "pymavlink's connection strings: udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, tcpin:HOST:PORT, "
