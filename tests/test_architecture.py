@@ -10,7 +10,7 @@ from pathlib import Path
 PKG = Path(__file__).resolve().parents[1] / "src" / "topgimbal"
 
 # Leaf modules every layer may import: the exceptions, the throttled warning log and the one clock.
-SHARED_LEAVES = ("errors", "logthrottle", "_lazy", "clock")
+SHARED_LEAVES = ("errors", "logthrottle", "_lazy", "clock", "jsonl")
 
 # What each layer may import from inside topgimbal (besides itself and SHARED_LEAVES).
 ALLOWED = {

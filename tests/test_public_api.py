@@ -7,6 +7,7 @@ import topgimbal
 PUBLIC = {
     "AsyncClient", "CatalogError", "ChecksumError", "DeviceError", "DeviceModel", "Diagnostic", "Dialect",
     "FieldValueError", "Frame", "FrameError", "FrameParser", "Gimbal", "LengthError", "Message",
+    "LinkLostError", "NoAnswerError", "ModelMismatchError",  # issue 35: one base for "no answer"
     "RequestTimeoutError", "TopGimbalError", "TransportError", "UnknownCommandError", "UnsupportedError",
     "__version__", "connect", "decode", "encode", "get_dialect", "get_model", "parse_frame",
     "speedups_enabled",
@@ -25,4 +26,9 @@ def test_exceptions_end_in_error_and_share_a_base() -> None:
         if isinstance(obj, type) and issubclass(obj, BaseException):
             assert name.endswith("Error") and issubclass(obj, topgimbal.TopGimbalError), name
     assert issubclass(topgimbal.RequestTimeoutError, TimeoutError)
+    # A silent address ends in either; both are "no answer" (issue 35.3), and keep their old bases.
+    assert issubclass(topgimbal.RequestTimeoutError, topgimbal.NoAnswerError)
+    assert issubclass(topgimbal.LinkLostError, topgimbal.NoAnswerError)
+    assert issubclass(topgimbal.LinkLostError, topgimbal.TransportError)
+    assert issubclass(topgimbal.LinkLostError, ConnectionError)
     assert issubclass(topgimbal.FieldValueError, ValueError)

@@ -8,11 +8,16 @@ TopGimbalError                kind
 │   ├── UnknownCommandError   "unknown_command"  identifier not in the dialect's catalog (also KeyError)
 │   ├── UnsupportedError      "unsupported"      the device model does not support the command
 │   └── FieldValueError       "value"            a value is out of range / of the wrong kind (also ValueError)
+├── InputError                "input"            an address or option refused before anything was sent
 ├── TransportError            "transport"        the byte pipe failed or is closed (also ConnectionError)
+│   ├── AddressError          "address"          a device URL that is not usable (also an InputError)
 │   └── LinkLostError         "link_lost"        the device went silent (UDP) or the link closed; resumes by itself
 ├── DeviceError               "device"           the device answered with the error frame (ERE)
 │   └── DecodeError           "decode"           the device answered, but the answer cannot be decoded
-└── RequestTimeoutError       "timeout"          no matching reply in time (also builtin TimeoutError)
+├── NoAnswerError             "no_answer"        no answer: the base of the two below (catch this one)
+│   ├── RequestTimeoutError   "timeout"          no matching reply in time (also builtin TimeoutError)
+│   └── LinkLostError         (above)            also a NoAnswerError: a silent address ends in either
+└── ModelMismatchError        "model_mismatch"   the device identified itself as another model than given
 
 Every error has `kind`, a short stable string for programs (logs, JSON, the console) that does not
 change when a message is reworded, and `request`: the request frame the error concerns, when there
@@ -93,11 +98,33 @@ def _show(value: object) -> str:
     return text if len(text) <= 80 else text[:60] + f"... ({len(text)} characters)"
 
 
+class InputError(TopGimbalError):
+    """What the user gave (a device URL, an endpoint, a missing option) is not usable: refused before
+    anything was sent. The CLI exits 2 for it, as for a malformed command line."""
+
+    kind = "input"
+
+
 class TransportError(TopGimbalError, ConnectionError):
     kind = "transport"
 
 
-class LinkLostError(TransportError):
+class AddressError(TransportError, InputError):
+    """A device URL that is not usable (no scheme, an unknown scheme, no host, a port out of range).
+    Still a TransportError, as it was before it had a name."""
+
+    kind = "address"
+
+
+class NoAnswerError(TopGimbalError):
+    """Nothing (usable) came back: a request timed out, or the link went silent or closed. Catch
+    this for "the device did not answer"; which one a silent address ends in depends on timing
+    (a request's timeout, or the link monitor's silence first)."""
+
+    kind = "no_answer"
+
+
+class LinkLostError(TransportError, NoAnswerError):
     """Nothing came from the device for the link timeout (UDP), or the link closed (TCP, serial).
     Pending requests and streams end with it; the client resumes when frames come back."""
 
@@ -121,5 +148,17 @@ class DecodeError(DeviceError):
         self.answer = answer
 
 
-class RequestTimeoutError(TopGimbalError, TimeoutError):
+class RequestTimeoutError(NoAnswerError, TimeoutError):
     kind = "timeout"
+
+
+class ModelMismatchError(TopGimbalError):
+    """The device identified itself as another model than the one given (`fits`: the models its
+    answers fit). Raised before anything that moves or changes the camera is sent: with the wrong
+    model, signs and commands would be wrong and a confirmation read through them a wrong answer."""
+
+    kind = "model_mismatch"
+
+    def __init__(self, message: str, *, fits: tuple[str, ...] = (), request: object | None = None) -> None:
+        super().__init__(message, request=request)
+        self.fits = fits

@@ -35,23 +35,22 @@ def run(capsys, *argv: str) -> tuple[int, str, str]:
     return code, out, err
 
 
-def test_model_c12_against_a_sip_warns_and_names_the_sip(sims, capsys):
+def test_model_c12_against_a_sip_is_refused_and_names_the_sip(sims, capsys):
     url = sims["SIP"].url
     assert run(capsys, "--url", url, "--model", "SIP", "point", "0", "-30", "--json")[0] == 0
     code, out, err = run(capsys, "--url", url, "--model", "C12", "attitude", "--json")
-    # The wrong model still reads the wrong sign (the SIP's wire pitch is down-positive) ...
-    assert code == 0 and json.loads(out)["pitch_deg"] == pytest.approx(30.0, abs=0.6)
-    # ... but now says so, once, naming the model that fits.
-    warnings = [line for line in err.splitlines() if "warning" in line]
-    assert len(warnings) == 1 and "SIP" in warnings[0] and "--model SIP" in warnings[0], err
+    # The wrong model would read the wrong sign (the SIP's wire pitch is down-positive): refused
+    # before the command, in one line naming the model that fits (issue 35.2; was a warning).
+    assert code == 2 and out == "" and len(err.splitlines()) == 1, (code, out, err)
+    assert "SIP" in err and "--model SIP" in err
     code, out, err = run(capsys, "--url", url, "--model", "SIP", "attitude", "--json")
     assert code == 0 and json.loads(out)["pitch_deg"] == pytest.approx(-30.0, abs=0.6) and err == ""
 
 
 def test_model_sip_against_a_c12_fails_in_one_line_that_names_the_c12(sims, capsys):
     code, _out, err = run(capsys, "--url", sims["C12"].url, "--model", "SIP", "attitude", "--json")
-    # The C12 refuses the SIP's attitude query; the one error line says which --model fits.
-    assert code == 1 and len(err.splitlines()) == 1 and "ERE" in err and "--model C12" in err
+    # The C12 refuses the SIP's identity queries and answers the C12's: refused before the command.
+    assert code == 2 and len(err.splitlines()) == 1 and "--model C12" in err, err
 
 
 def test_info_shows_the_check(sims, capsys):

@@ -10,6 +10,8 @@ from __future__ import annotations
 import signal
 import subprocess
 import sys
+import urllib.error
+import urllib.request
 from pathlib import Path
 from typing import Any
 
@@ -108,6 +110,15 @@ def test_grid_and_switcher(browser: Any, artifacts: Path, page_errors: list[str]
             reason = page.get_by_test_id("traffic-reason")
             assert reason.is_visible() and NOT_CARRIED in reason.inner_text()
             assert page.get_by_test_id("traffic-pcap").get_attribute("href") is None
+            # ... and seen to be disabled; the server gives no (empty) pcap for it either (issue 35.6)
+            pcap = page.get_by_test_id("traffic-pcap")
+            assert pcap.get_attribute("aria-disabled") == "true"
+            assert pcap.evaluate("(e) => getComputedStyle(e).pointerEvents") == "none"
+            try:
+                urllib.request.urlopen(page.url.split("?")[0] + "api/traffic.pcap", timeout=20)
+                raise AssertionError("a pcap was served for a Zenoh camera")
+            except urllib.error.HTTPError as exc:
+                assert exc.code == 409 and "no pcap" in exc.read().decode()
             assert page.get_by_test_id("toasts").inner_text().strip() == ""
         finally:
             context.close()

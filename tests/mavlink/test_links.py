@@ -149,6 +149,8 @@ def test_cli_runs_a_bridge(capsys) -> None:
 
 
 def test_cli_errors_are_one_line(capsys) -> None:
-    assert main(["mavlink", "--url", "udp://127.0.0.1:9", "--model", "C12", "--mavlink", "nonsense"]) == 1
+    assert (
+        main(["mavlink", "--url", "udp://127.0.0.1:9", "--model", "C12", "--mavlink", "nonsense"]) == 2
+    )  # input refused before anything was sent (issue 35.4)
     err = capsys.readouterr().err
     assert "not a MAVLink endpoint" in err and err.count("\n") == 1

@@ -34,7 +34,8 @@ def add_connection_arguments(parser: argparse.ArgumentParser) -> None:
     add_model_argument(
         parser,
         default=os.environ.get("TOPGIMBAL_MODEL"),
-        help="device model; picks the dialect, limits and wire signs (env TOPGIMBAL_MODEL)",
+        help="device model; picks the dialect, limits and wire signs; auto: ask the device (env TOPGIMBAL_MODEL)",
+        auto=True,
     )
 
 
@@ -43,19 +44,23 @@ def add_camera_subcommand(
     name: str,
     *,
     model_help: str = "device model (picks the dialect)",
+    auto: bool = False,
     **kwargs: Any,
 ) -> argparse.ArgumentParser:
     """A subcommand that talks to one camera, with its own `--url` and `--model`: they also exist
     on the main parser, and SUPPRESS keeps a value given there."""
     parser = subparsers.add_parser(name, **kwargs)
     parser.add_argument("--url", default=argparse.SUPPRESS, help="camera address, e.g. udp://HOST:5000")
-    add_model_argument(parser, default=argparse.SUPPRESS, help=model_help)
+    add_model_argument(parser, default=argparse.SUPPRESS, help=model_help, auto=auto)
     return parser
 
 
-def add_model_argument(parser: argparse.ArgumentParser, flag: str = "--model", **kwargs: Any) -> None:
-    """A model name option, matched case-insensitively against the catalog's models."""
-    parser.add_argument(flag, type=_model_name, choices=sorted(MODEL_NAMES, key=str.lower), **kwargs)
+def add_model_argument(parser: argparse.ArgumentParser, flag: str = "--model", *, auto: bool = False,
+                       **kwargs: Any) -> None:  # fmt: skip
+    """A model name option, matched case-insensitively against the catalog's models; `auto`: also
+    the word auto (ask the device what it is, for the commands that talk to one)."""
+    names = sorted(MODEL_NAMES, key=str.lower) + (["auto"] if auto else [])
+    parser.add_argument(flag, type=_model_name, choices=names, **kwargs)
 
 
 def accept_connection_arguments_after(command: argparse.ArgumentParser) -> None:
@@ -67,11 +72,11 @@ def accept_connection_arguments_after(command: argparse.ArgumentParser) -> None:
     if "--url" not in taken:
         command.add_argument("--url", default=argparse.SUPPRESS, help=f"camera address, e.g. udp://HOST:5000{after}")
     if "--model" not in taken:
-        add_model_argument(command, default=argparse.SUPPRESS, help=f"device model{after}")
+        add_model_argument(command, default=argparse.SUPPRESS, help=f"device model, or auto{after}", auto=True)
 
 
 def _model_name(text: str) -> str:
-    for name in MODEL_NAMES:
+    for name in [*MODEL_NAMES, "auto"]:
         if name.lower() == text.lower():
             return name
     return text  # argparse's `choices` reports the error with the list

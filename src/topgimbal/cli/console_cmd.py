@@ -70,9 +70,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument(
         "--port",
         type=int,
-        default=DEFAULT_PORT,
-        help=f"port to listen on (default {DEFAULT_PORT}; 0 = any free port); when it is taken a free one is "
-        "used and printed, as `make demo` does",
+        default=None,
+        help=f"port to listen on (default {DEFAULT_PORT}, and a free one printed when that is taken, as `make demo` "
+        "does; 0 = any free port); a --port given that is taken is an error",
     )
     p.add_argument("--token", help="access token; required (else generated) when --host is not a loopback address")
     p.add_argument(
@@ -169,7 +169,7 @@ def build_server(args: argparse.Namespace) -> object:
     # How the page is served, whatever it shows.
     page: dict[str, Any] = {
         "host": args.host,
-        "port": args.port,
+        "port": DEFAULT_PORT if args.port is None else args.port,
         "token": args.token,
         "allow_hosts": args.allow_host,
         "attitude_hz": args.attitude_hz,
@@ -273,7 +273,14 @@ def run(args: argparse.Namespace) -> int:
     except VideoOptionError as exc:
         print(f"topgimbal: error: {exc}", file=sys.stderr)
         return 2
-    args.port, taken = choose_port(args.host, args.port)
+    if args.port is None:  # the default port: a free one when it is taken (the page's URL is printed)
+        args.port, taken = choose_port(args.host, DEFAULT_PORT)
+    else:  # a port the user chose is meant: never another one (issue 35.6)
+        _port, taken = choose_port(args.host, args.port)
+        if taken is not None:
+            print(f"topgimbal console: error: --port {taken} is taken (another program listens there); "
+                  "choose another, or --port 0 for any free one", file=sys.stderr)  # fmt: skip
+            return 2
     if _several(args):
         try:
             server = build_server(args)

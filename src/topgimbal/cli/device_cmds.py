@@ -1,7 +1,13 @@
 """Device commands: talk to a camera (or the simulator) at `--url` as `--model`.
 
 Every command takes `--json` and `--timeout`; errors end as one line on stderr with exit code 1,
-2 for input refused before sending (main.py). Motion commands: device_motion.py. Stable forms scripts rely on: `attitude --json` (one object with yaw_deg, pitch_deg,
+2 for input refused before sending (main.py).
+
+The model: with `--model NAME` a command first waits (at most MODEL_CHECK_WAIT_S) for the model
+check (client/model_check.py); when the device identifies itself as another model, nothing is sent
+and the command exits 2 naming the model it found. `--model auto` (or no --model) asks the device
+what it is and uses that. A contradiction heard only after the command ran makes it fail (exit 1)
+without printing the answer, which was read through the wrong model's signs. Motion commands: device_motion.py. Stable forms scripts rely on: `attitude --json` (one object with yaw_deg, pitch_deg,
 roll_deg), `point YAW PITCH`, `photo`, `record start|stop|status`."""
 
 from __future__ import annotations
@@ -20,7 +26,13 @@ from typing import TYPE_CHECKING
 from ..client.identity import Verdict
 from ..client.roles import focus_actions, role_ident
 from ..client.state import SdCard
-from ..errors import FieldValueError, RequestTimeoutError, TopGimbalError, TransportError
+from ..errors import (
+    FieldValueError,
+    InputError,
+    ModelMismatchError,
+    RequestTimeoutError,
+    TopGimbalError,
+)
 from ..protocol import DIALECT_NAMES, get_dialect
 from ..protocol.fields import FieldValue
 from . import device_motion, device_session
@@ -32,7 +44,9 @@ if TYPE_CHECKING:  # the client loads when a command runs, not for `topgimbal --
 
 # A command's result is what `show` prints (an int is the exit status instead).
 Runner = Callable[["AsyncClient", argparse.Namespace], Awaitable[object]]
-MODEL_CHECK_WAIT_S = 2.0  # at most this long after a command for the device to say what it is
+MODEL_CHECK_WAIT_S = 2.0  # at most this long before / after a command for the device to say what it is
+NOTHING_HEARD_S = 0.6  # no frame at all by then: stop waiting for the model check (the port is empty)
+AUTO_MODEL = "auto"  # --model auto: ask the device what it is
 
 
 # -- plumbing ------------------------------------------------------------------------------------
@@ -84,15 +98,19 @@ def _run(args: argparse.Namespace, runner: Runner) -> int:
     if not any(isinstance(f, _NoModelCheckRecords) for f in client_log.filters):
         client_log.addFilter(_NoModelCheckRecords())
     if not args.url:
-        raise TransportError("no device URL: pass --url URL (before the command) or set TOPGIMBAL_URL")
+        raise InputError("no device URL: pass --url URL (before the command) or set TOPGIMBAL_URL")
 
     async def main() -> object:
         model = args.model
-        if model is None:
+        explicit = model is not None and model != AUTO_MODEL
+        if not explicit:
             model = await _detect(args)
         async with connect(
             args.url, model=model, timeout_s=args.timeout, retries=args.retries, log_path=args.log
         ) as cam:
+            diagnostic = runner in DIAGNOSTICS  # says what the device is: runs, and shows the check
+            if explicit and not diagnostic:
+                await _refuse_wrong_model(cam)
             try:
                 result = await runner(cam, args)
             except TopGimbalError as exc:
@@ -101,8 +119,10 @@ def _run(args: argparse.Namespace, runner: Runner) -> int:
                     raise _with_hint(exc, verdict.message, cam.model.name) from None
                 raise
             verdict = await _verdict(cam)
-            if verdict is not None:
+            if verdict is not None and diagnostic:
                 print(f"topgimbal: warning: {verdict.message}", file=sys.stderr, flush=True)
+            elif verdict is not None:  # the answer was read through the wrong model: not shown
+                raise TopGimbalError(f"{verdict.message}; the answer is not shown: it was read as a {cam.model.name}'s")
             return result
 
     started = time.monotonic()
@@ -120,6 +140,26 @@ def _run(args: argparse.Namespace, runner: Runner) -> int:
         return result
     show(args, result)
     return 0
+
+
+async def _refuse_wrong_model(cam: AsyncClient) -> None:
+    """Wait for the model check before the command (module docstring); raise ModelMismatchError when
+    the device says it is another model. Nothing heard within NOTHING_HEARD_S: go on, the command's
+    own error says there is nothing at the address."""
+    import asyncio
+
+    from ..clock import monotonic
+
+    start = monotonic()
+    while not cam.identity.done.is_set() and monotonic() - start < MODEL_CHECK_WAIT_S:
+        if monotonic() - start >= NOTHING_HEARD_S and not cam.stats.frames_in:
+            return
+        await asyncio.sleep(0.02)
+    verdict = cam.model_check
+    if verdict.status == "mismatch":
+        found = f" (found: {verdict.fits[0]})" if verdict.fits else ""
+        raise ModelMismatchError(f"{verdict.message}; nothing was sent{found}; --model auto uses what the device says",
+                                 fits=verdict.fits)  # fmt: skip
 
 
 async def _verdict(cam: AsyncClient) -> Verdict | None:
@@ -140,9 +180,12 @@ def _with_hint(exc: TopGimbalError, hint: str, model: str) -> TopGimbalError:
 
 
 class _NoModelCheckRecords(logging.Filter):
-    """The CLI says what the model check found in its own one line: the log record would repeat it."""
+    """The CLI says what the model check found in its own one line: the log record would repeat it;
+    so does a link lost before anything was heard (the command's error says nothing answered)."""
 
     def filter(self, record: logging.LogRecord) -> bool:
+        if getattr(record, "link_lost", False) and not getattr(record, "heard", True):
+            return False
         return not hasattr(record, "model_check")
 
 
@@ -167,6 +210,9 @@ async def _detect(args: argparse.Namespace) -> str:
 async def _info(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object]:
     ident = await cam.identify()
     return {**ident, "url": cam.url, "title": cam.model.title, "link": cam.stats.as_dict()}
+
+
+DIAGNOSTICS: set[Runner] = {_info}  # commands that show what the device is, whatever --model says
 
 
 async def _attitude(cam: AsyncClient, args: argparse.Namespace) -> dict[str, object] | int:

@@ -6,7 +6,16 @@ MAV_CMD_IMAGE_START_CAPTURE's CAMERA_IMAGE_CAPTURED).
 `Track.at(t)` interpolates the position linearly between the two samples around `t` (UTC seconds);
 before the first or after the last sample it holds that sample for at most `max_gap_s` (a host
 feeds a position every so often: the camera would have had that one); further out, or across a
-gap longer than `max_gap_s`, there is no position (never a guess)."""
+gap longer than `max_gap_s`, there is no position (never a guess).
+
+Positions a log holds that no place has are dropped, never written into a photo: MAVLink's "unknown"
+(INT32_MAX in lat / lon), 0, 0 (what an autopilot sends before its first fix), and anything outside
++-90 / +-180 degrees or not finite.
+
+Each capture keeps which camera it came from (`Capture`): the MAVLink component that sent
+CAMERA_IMAGE_CAPTURED, the vendor and model that component's CAMERA_INFORMATION named, the file its
+`file_url` names; for a traffic log (one camera) the log's model. geotag_cmd.py matches a photo only
+to its own camera's captures."""
 
 from __future__ import annotations
 
@@ -37,12 +46,56 @@ class Sample:
     alt_m: float
 
 
+def valid_position(lat_deg: float, lon_deg: float) -> bool:
+    """A place on Earth: finite, within +-90 / +-180, and not 0, 0 (no fix yet)."""
+    if not (math.isfinite(lat_deg) and math.isfinite(lon_deg)):
+        return False
+    if abs(lat_deg) > 90.0 or abs(lon_deg) > 180.0:
+        return False
+    return not (lat_deg == 0.0 and lon_deg == 0.0)
+
+
+@dataclass(frozen=True)
+class Capture:
+    """One photo the log says was taken, and by which camera (None: the log does not say)."""
+
+    t: float  # UTC seconds the log heard it
+    index: int  # the photo's file index (CAP feedback; CAMERA_IMAGE_CAPTURED.image_index + 1)
+    compid: int | None = None  # the MAVLink component that sent it
+    vendor: str | None = None  # lower case: "topotek", "skydroid"
+    model: str | None = None  # as CAMERA_INFORMATION / the traffic log's header names it
+    file_name: str | None = None  # the last part of CAMERA_IMAGE_CAPTURED.file_url
+
+    def camera(self) -> str:
+        parts = [f"component {self.compid}" if self.compid is not None else "", self.model or ""]
+        return " ".join(p for p in parts if p) or "the logged camera"
+
+
 @dataclass
 class Track:
     samples: list[Sample] = field(default_factory=list)
     poses: list[tuple[float, float, float, float]] = field(default_factory=list)  # (t, yaw, pitch, roll) gimbal
-    captures: dict[int, float] = field(default_factory=dict)  # photo file index -> UTC seconds of its CAP answer
+    capture_list: list[Capture] = field(default_factory=list)
     max_gap_s: float = 10.0
+    dropped_positions: int = 0  # samples that were no place (module docstring)
+
+    @property
+    def captures(self) -> dict[int, float]:
+        """File index -> UTC seconds, for a log of one camera (the last capture of each index)."""
+        return {c.index: c.t for c in self.capture_list}
+
+    def captures_of(self, index: int) -> list[Capture]:
+        return [c for c in self.capture_list if c.index == index]
+
+    def cameras(self) -> set[int | None]:
+        """The components captures came from (None for a traffic log's one camera)."""
+        return {c.compid for c in self.capture_list}
+
+    def add_sample(self, sample: Sample) -> None:
+        if valid_position(sample.lat_deg, sample.lon_deg) and math.isfinite(sample.alt_m):
+            self.samples.append(sample)
+        else:
+            self.dropped_positions += 1
 
     def at(self, t: float) -> Sample | None:
         s = self.samples
@@ -93,6 +146,8 @@ def _from_traffic(path: Path) -> Track:
     except TopGimbalError:
         dialect, model = get_dialect(str(header.get("dialect") or "skydroid")), None
     track = Track()
+    vendor = dialect.name.lower()
+    model_name = model.name if model is not None else None
     current: dict[str, float] = {}
     for rec in read_log(path):
         m = dialect.decode(rec.frame)
@@ -102,15 +157,16 @@ def _from_traffic(path: Path) -> Track:
         if rec.direction == "out" and role in POSITION_ROLES and rec.frame.rw == "w":
             current[POSITION_ROLES[role]] = float(m.fields[POSITION_ROLES[role]])  # type: ignore[arg-type]
             if role == "altitude" and {"lat_deg", "lon_deg"} <= current.keys():
-                track.samples.append(Sample(rec.t, current["lat_deg"], current["lon_deg"], current["alt_m"]))
+                track.add_sample(Sample(rec.t, current["lat_deg"], current["lon_deg"], current["alt_m"]))
         elif rec.direction == "out" and role == "vehicle_position":
             f = m.fields
-            track.samples.append(Sample(rec.t, float(f["lat_deg"]), float(f["lon_deg"]), float(f["alt_m"])))  # type: ignore[arg-type]
+            track.add_sample(Sample(rec.t, float(f["lat_deg"]), float(f["lon_deg"]), float(f["alt_m"])))  # type: ignore[arg-type]
         elif rec.direction == "in" and role == "attitude" and {"yaw_deg", "pitch_deg"} <= m.fields.keys():
             f = (map_message(m, model.wire_signs) if model is not None else m).fields or {}
             track.poses.append((rec.t, float(f["yaw_deg"]), float(f["pitch_deg"]), float(f.get("roll_deg", 0.0))))  # type: ignore[arg-type]
         elif rec.direction == "in" and role == "photo" and "file_index" in m.fields:
-            track.captures[int(m.fields["file_index"])] = rec.t  # type: ignore[call-overload]
+            index = int(m.fields["file_index"])  # type: ignore[call-overload]
+            track.capture_list.append(Capture(rec.t, index, vendor=vendor, model=model_name))
     return track
 
 
@@ -124,6 +180,8 @@ def _from_tlog(path: Path) -> Track:
     parser = ml.MAVLink(None)
     parser.robust_parsing = True
     track = Track()
+    info: dict[int, tuple[str, str]] = {}  # component -> (vendor, model) from CAMERA_INFORMATION
+    raw: list[tuple[float, int, int, str]] = []  # (t, index, component, file name)
     i = 0
     while i + 8 < len(data):
         (usec,) = struct.unpack(">Q", data[i : i + 8])
@@ -140,16 +198,33 @@ def _from_tlog(path: Path) -> Track:
         t = usec / 1e6
         for m in msgs:
             kind = m.get_type()
-            if kind == "GLOBAL_POSITION_INT" and (m.lat or m.lon):
-                track.samples.append(Sample(t, m.lat / 1e7, m.lon / 1e7, m.alt / 1000.0))
+            if kind == "GLOBAL_POSITION_INT":  # INT32_MAX = unknown, 0 / 0 = no fix: add_sample drops them
+                track.add_sample(Sample(t, m.lat / 1e7, m.lon / 1e7, m.alt / 1000.0))
             elif kind == "GIMBAL_DEVICE_ATTITUDE_STATUS" and not any(math.isnan(v) for v in m.q):
                 from ..mavlink.quaternion import to_euler_deg
 
                 e = to_euler_deg(list(m.q))
                 track.poses.append((t, e.yaw_deg, e.pitch_deg, e.roll_deg))
-            elif kind == "CAMERA_IMAGE_CAPTURED" and m.image_index >= 0:
-                track.captures[int(m.image_index) + 1] = t
+            elif kind == "CAMERA_IMAGE_CAPTURED" and m.image_index >= 0 and m.capture_result == 1:
+                url = _text(m.file_url)
+                raw.append((t, int(m.image_index) + 1, m.get_srcComponent(), url.rsplit("/", 1)[-1] if url else ""))
+            elif kind == "CAMERA_INFORMATION":
+                name = _text(m.model_name)
+                name = name[: -len(" thermal")] if name.endswith(" thermal") else name  # the bridge's thermal lens
+                info[m.get_srcComponent()] = (_text(m.vendor_name).split(" ")[0].lower(), name)
+    for t, index, compid, file_name in raw:
+        vendor, model = info.get(compid, (None, None))
+        track.capture_list.append(Capture(t, index, compid, vendor or None, model or None, file_name or None))
     return track
+
+
+def _text(value: object) -> str:
+    """A MAVLink char / uint8 array field as text (pymavlink gives str or a list of ints)."""
+    if isinstance(value, (list, tuple)):
+        value = bytes(int(v) & 0xFF for v in value)
+    if isinstance(value, (bytes, bytearray)):
+        value = bytes(value).split(b"\0", 1)[0].decode("utf-8", "replace")
+    return str(value).split("\0", 1)[0].strip()
 
 
 def _packet_length(data: bytes, i: int) -> int | None:

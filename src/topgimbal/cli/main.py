@@ -3,7 +3,7 @@
 Each module in COMMAND_MODULES has `register(subparsers)`; each subparser sets `func(args) -> int`.
 Errors from topgimbal end as one line on stderr and a non-zero exit code: 2 when the input was
 refused before anything was sent (a value out of the model's range, an unknown command, a command
-the model lacks: CatalogError), 1 when the device, the link or a file failed.
+the model lacks: CatalogError; a --model the device contradicts: ModelMismatchError; a bad --url or endpoint: InputError), 1 when the device, the link or a file failed.
 
 Starting fast: `main()` does not import every command module. `command_index.py` (generated from
 the real parsers by `python -m topgimbal.tools.regen`) names the module and the one-line help of
@@ -22,7 +22,7 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
-from ..errors import CatalogError, TopGimbalError
+from ..errors import CatalogError, InputError, ModelMismatchError, TopGimbalError
 from . import args as common
 from .command_index import COMMANDS
 
@@ -135,7 +135,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # the reader left (`| head`): not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
-    except CatalogError as exc:  # refused before anything was sent: a value, command or model the user gave
+    except (CatalogError, ModelMismatchError, InputError) as exc:  # refused before anything was sent: the input
         print(f"topgimbal: error: {exc}", file=sys.stderr)
         return USAGE_ERROR
     except (TopGimbalError, ValueError, OSError) as exc:

@@ -18,7 +18,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p = add_camera_subcommand(
         subparsers,
         "mavlink",
-        model_help="device model (picks the dialect, limits and capabilities)",
+        model_help="device model (picks the dialect, limits and capabilities); auto: ask the camera at start",
+        auto=True,
         help="MAVLink bridge: the camera as a gimbal (protocol v2) and camera for QGC, MAVSDK, PX4, ArduPilot",
         description="Bridge a camera to MAVLink (pymavlink, MAVLink 2, common dialect). Endpoints use "
         "pymavlink's connection strings: udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, tcpin:HOST:PORT, "
@@ -83,11 +84,12 @@ def _signing_key(path: str) -> bytes:
 
 
 def build_config(args: argparse.Namespace) -> object:
+    from ..errors import InputError
     from ..mavlink import BridgeConfig
 
     url, model = getattr(args, "url", None), getattr(args, "model", None)
     if not url or not model:
-        raise ValueError("give the camera's --url and --model, e.g. --url udp://127.0.0.1:5000 --model C12")
+        raise InputError("give the camera's --url and --model, e.g. --url udp://127.0.0.1:5000 --model C12")
     config = BridgeConfig(
         url=url,
         model=model,
@@ -109,8 +111,32 @@ def build_config(args: argparse.Namespace) -> object:
         signing_key=getattr(args, "signing_key", None),
         definition_http=None if args.definition_http == "off" else args.definition_http,
     )
-    config.check()
+    try:
+        config.check()
+    except ValueError as exc:  # BridgeConfigError, EndpointError: the options given, nothing sent yet
+        raise InputError(str(exc)) from None
     return config
+
+
+async def _refuse_wrong_model(url: str, model: str, timeout_s: float) -> None:
+    """Before serving: a camera that answers and says it is another model than --model is refused
+    (ModelMismatchError, exit 2). One not there yet is served; the bridge's camera link refuses it
+    later if it turns out to be another model (mavlink/camera_link.py)."""
+    from ..client import connect
+    from ..errors import TransportError
+    from .device_cmds import _refuse_wrong_model as refuse
+
+    try:
+        async with connect(url, model=model, timeout_s=timeout_s, retries=0, host_feeds=False) as cam:
+            await refuse(cam)
+    except (TransportError, OSError):
+        return  # not there (yet): the bridge keeps trying
+
+
+async def _detect(args: argparse.Namespace) -> str:
+    from .device_cmds import _detect as detect
+
+    return await detect(args)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -121,8 +147,11 @@ def run(args: argparse.Namespace) -> int:
 
     if args.camera:  # several cameras: one component set each on shared links (mavlink_multi.py)
         return run_multi(args)
+    if getattr(args, "model", None) == "auto" and getattr(args, "url", None):
+        args.model = asyncio.run(_detect(args))  # --model auto: what the camera says it is
     config = build_config(args)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
+    asyncio.run(_refuse_wrong_model(config.url, config.model, args.timeout))  # type: ignore[attr-defined]
 
     async def main() -> None:
         bridge = Bridge(config)  # type: ignore[arg-type]

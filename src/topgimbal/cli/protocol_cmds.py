@@ -81,7 +81,7 @@ def cmd_decode(args: argparse.Namespace) -> int:
         return decode_pcap(args)
     dialect = _dialect_from_args(args)
     if args.json:
-        import json
+        from .. import jsonl  # json Lines without a line breaker inside a string (jsonl.py)
     bad = 0
     for line in _inputs(args.frames):
         try:
@@ -89,7 +89,7 @@ def cmd_decode(args: argparse.Namespace) -> int:
         except Exception as exc:
             rec = _failed(_show_data(line.strip().encode("latin-1", "replace")) or "", f"internal error: {exc!r}")
         bad += not rec["ok"] or rec["fields_error"] is not None
-        print(json.dumps(rec, ensure_ascii=False) if args.json else _human(rec))
+        print(jsonl.line(rec) if args.json else _human(rec))
     return 1 if bad else 0
 
 
@@ -221,9 +221,9 @@ def cmd_catalog(args: argparse.Namespace) -> int:
                 }
             )
     if args.json:
-        import json
+        from .. import jsonl
 
-        print(json.dumps(rows, ensure_ascii=False))
+        print(jsonl.line(rows))
     else:
         for r in rows:
             print(f"{r['dialect']:<9} {r['id']}  {r['rw']:<2} {r['address']}  {r['name']:<26} {r['title']}")

@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
+from .. import jsonl
 from ..protocol import Diagnostic, Dialect, Frame, Message, dissect, get_dialect, get_model
 from ..protocol.decoded import dissection_record
 from ..protocol.decoded import human_text as _human
@@ -114,7 +115,7 @@ def decode_pcap(args: argparse.Namespace) -> int:
         bad += not rec["ok"]
         printed += 1
         if args.json:
-            print(json.dumps(rec, ensure_ascii=False))
+            print(jsonl.line(rec))
         else:
             print(
                 f"#{rec['packet']} +{ts - start:.6f}s {rec['transport']} {rec['src_addr']} -> {rec['dst_addr']}"
@@ -210,7 +211,7 @@ def _live_line(event: ProxyEvent, as_json: bool) -> str:
     if as_json:
         rec = _record(raw, item, event.dialect, event.message)
         rec.update(time=round(event.t, 6), dir=event.direction, client=event.client)
-        return json.dumps(rec, ensure_ascii=False)
+        return jsonl.line(rec)
     stamp = datetime.datetime.fromtimestamp(event.t).strftime("%H:%M:%S.%f")
     arrow = "->" if event.direction == "out" else "<-"
     if isinstance(item, Diagnostic):

@@ -260,7 +260,8 @@ class ClientCore(Requests):
             self.streams.resume()
         else:
             self.stats.link_losses += 1
-            log.warning("%s: link lost: %s", self.url, event.reason)
+            log.warning("%s: link lost: %s", self.url, event.reason,
+                        extra={"link_lost": True, "heard": bool(self.stats.frames_in)})  # fmt: skip
             err = LinkLostError(f"{self.url}: link lost: {event.reason}")
             self.fail_pending(err)
             self.streams.fail(err)

@@ -6,7 +6,9 @@ Which values a feed carries comes from its command's catalog role:
   program gave (`feed(time_utc=...)`, e.g. the autopilot's GPS time) moved on by the monotonic
   clock since. A camera without a clock (quirk `no_clock`, C11) gets it from the moment the client
   connects; any other model only once a time was given (the machine's clock may be wrong: a
-  camera with its own clock is better left alone than set from it).
+  camera with its own clock is better left alone than set from it). A frame that carries whole
+  seconds (TOPOTEK UTC) is sent as a second of the fed time starts, carrying that second: cut from
+  any moment, the camera's clock ran up to a second behind (issue 35.5).
 - `latitude` / `longitude` / `altitude` / `azimuth` (LAT, LON, ALT, AZI) and `vehicle_position`
   (TOPOTEK GPS): the last position fix given (`feed(lat_deg=..., ...)`). No fix, no feed: a fix
   older than `FIX_MAX_AGE_S` is not sent (stale), `feed(fix=False)` stops these feeds, and a zero
@@ -40,6 +42,7 @@ log = logging.getLogger("topgimbal.client")
 
 # Feeds the client can fill by itself, by catalog role.
 CLOCK_ROLES = frozenset({"time", "utc_time"})
+WHOLE_SECOND_SLACK_S = 0.02  # a whole-seconds clock frame sent this late in its second still counts as on time
 VEHICLE_ROLE = "vehicle_attitude"
 POSITION_ROLES = frozenset({"latitude", "longitude", "altitude", "azimuth", "vehicle_position"})
 FIX_MAX_AGE_S = 2.0  # a position older than this is stale: not sent
@@ -100,6 +103,7 @@ class HostFeeds:
         self.utc_offset_s: float | None = None  # given UTC minus monotonic; None: the host clock
         self.time_source = "host clock"
         self._setup_done: set[str] = set()
+        self._resolution: dict[str, bool] = {}  # clock feed ident -> carries whole seconds only
         self.source_task: asyncio.Task[None] | None = None  # `feed_from`'s poll
 
     def _spec(self, ident: str) -> CommandSpec | None:
@@ -237,10 +241,42 @@ class HostFeeds:
         role = spec.role
         if role in CLOCK_ROLES:
             name = spec.forms_for("w", "request")[0].fields[0].name
-            return {name: self.utc_now()}
+            now = self.utc_now()
+            if self._whole_seconds(ident):
+                now = (now + datetime.timedelta(microseconds=500_000)).replace(microsecond=0)
+            return {name: now}
         if role in POSITION_ROLES:
             return self._position_values(role) if self.fix_fresh() else None
         return self.values.get(ident)
+
+    def _to_whole_second(self, hz: float) -> float:
+        """Seconds until the next whole second of the fed time when the feeds of rate `hz` include a
+        clock frame that carries whole seconds only (0: send now)."""
+        clocks = [i for i, r in self.feeds().items() if r == hz and i in self.active and self._is_clock(i)]
+        if not any(self._whole_seconds(i) for i in clocks):
+            return 0.0
+        frac = self.utc_now().microsecond / 1e6
+        return 0.0 if frac < WHOLE_SECOND_SLACK_S else 1.0 - frac
+
+    def _is_clock(self, ident: str) -> bool:
+        spec = self._spec(ident)
+        return spec is not None and spec.role in CLOCK_ROLES
+
+    def _whole_seconds(self, ident: str) -> bool:
+        """Whether `ident`'s frame drops the fraction of a second (found once by encoding a time)."""
+        known = self._resolution.get(ident)
+        if known is None:
+            probe = datetime.datetime(2000, 1, 1, 0, 0, 0, 600_000, tzinfo=datetime.timezone.utc)
+            try:
+                spec = self.core.dialect.command(ident)
+                name = spec.forms_for("w", "request")[0].fields[0].name
+                back = self.core.dialect.decode(self.core.build_from(ident, {name: probe})).fields or {}
+                t = back.get(name)
+                known = isinstance(t, datetime.datetime) and t.microsecond == 0
+            except Exception:  # a form that cannot carry the probe: send the time as it is
+                known = False
+            self._resolution[ident] = known
+        return known
 
     def _position_values(self, role: str) -> dict[str, object] | None:
         fix = self.fix
@@ -262,6 +298,10 @@ class HostFeeds:
         loop = asyncio.get_running_loop()
         next_at = loop.time()
         while True:
+            wait_s = self._to_whole_second(hz)
+            if wait_s > 0:  # a whole-seconds clock frame goes out as its second starts (module docstring)
+                await asyncio.sleep(wait_s)
+                next_at = loop.time()
             for ident, rate in self.feeds().items():
                 if rate != hz or ident not in self.active:
                     continue

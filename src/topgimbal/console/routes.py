@@ -59,6 +59,10 @@ def camera_handlers(resolve: Resolve, root: Path) -> dict[str, Handler]:
 
     async def traffic_pcap(request: web.Request) -> web.Response:
         hub = resolve(request)
+        from .remote_hub import UNAVAILABLE, RemoteHub
+
+        if isinstance(hub, RemoteHub):  # a Zenoh camera: no frames cross this console, so no pcap (never an empty one)
+            raise web.HTTPConflict(text=f"no pcap for this camera: {UNAVAILABLE['pcap']}")
         frames = hub.recorder.frames()  # taken here, written in a thread (a temporary file)
         data = await asyncio.to_thread(pcap, frames, hub.link)
         stamp = time.strftime("%Y%m%d-%H%M%S")

@@ -49,6 +49,8 @@ SINGLE_ROUTES = (
     ("/api/traffic.pcap", "pcap"),
     ("/ws", "ws"),
 )
+# A wildcard listening address, and the address a browser on this machine reaches it by.
+WILDCARD_HOSTS = {"0.0.0.0": "127.0.0.1", "": "127.0.0.1", "::": "::1"}
 
 
 def static_dir() -> Path:
@@ -228,7 +230,10 @@ class ConsoleServer:
 
     @property
     def base_url(self) -> str:
-        host = self.host if ":" not in self.host else f"[{self.host}]"
+        """The URL to print: for a wildcard --host (0.0.0.0, ::) this machine's loopback address, a
+        URL a browser can open (http://0.0.0.0:PORT/ is none); `banner` says so."""
+        host = WILDCARD_HOSTS.get(self.host, self.host)
+        host = host if ":" not in host else f"[{host}]"
         return f"http://{host}:{self.bound_port or self.port}/"
 
     @property
@@ -359,6 +364,9 @@ class ConsoleServer:
             )
             what = f"{len(self.cameras)} cameras: {cams}{where}"
         lines = [f"topgimbal console for {what}", f"open {self.page_url}"]
+        if self.host in WILDCARD_HOSTS:
+            lines.append(f"(listening on every address: from another machine, its address in place of "
+                         f"{WILDCARD_HOSTS[self.host]})")  # fmt: skip
         if needs_token(self.host):
             lines.append(
                 f"(answers to the names {', '.join(sorted(self.allowed_hosts))} and to the address a "

@@ -13,7 +13,12 @@ a model without an attitude stream is asked its version whenever it has been qui
 `answering` (what the MAVLink side reports: COMMS_ERROR, MAV_STATE_CRITICAL, stream flags) is
 the client's link state with one addition: it starts false and turns true with the first frame
 heard, so a camera that was never there is never reported healthy. Commands go through
-whenever the client's link is up (`call`)."""
+whenever the client's link is up (`call`).
+
+A camera whose model check (client/model_check.py) says it is another model than `--model` is not
+served (issue 35.2): it is reported failed with the model it looks like, logged once as an error,
+and every command fails with ModelMismatchError before anything is sent; signs and commands would
+be the wrong model's. `topgimbal mavlink --model auto` asks the camera what it is instead."""
 
 from __future__ import annotations
 
@@ -28,7 +33,7 @@ from typing import Any, TypeVar
 from urllib.parse import urlsplit
 
 from ..client import AsyncClient
-from ..errors import LinkLostError, RequestTimeoutError, TopGimbalError
+from ..errors import LinkLostError, ModelMismatchError, RequestTimeoutError, TopGimbalError
 from ..protocol import Message, get_model
 from .profile import Profile, profile_of
 
@@ -98,6 +103,7 @@ class CameraLink:
         self._task: asyncio.Task[None] | None = None
         self._closed = False
         self._opened = asyncio.Event()
+        self.wrong_model = ""  # the model check's message when the camera is another model: not served
 
     # -- what the bridge uses ------------------------------------------------------------------
 
@@ -117,6 +123,8 @@ class CameraLink:
         lost while the request was in flight (the camera went quiet for `silence_s` with our
         frame sent) is SentUnansweredError: sent, outcome unknown, never "not sent"."""
         client = self.client
+        if self.wrong_model:
+            raise ModelMismatchError(f"{self.url}: not served: {self.wrong_model}")
         if client is None or not client.connected:
             reason = client.link_state["reason"] if client is not None else self.reason
             raise LinkLostError(f"{self.url}: the camera link is down ({reason})")
@@ -172,6 +180,8 @@ class CameraLink:
                 continue
             client.subscribe(self._on_message)
             client.on_link_change(self._on_link_change)
+            client.on_model_check(self._on_model_check)
+            self._on_model_check(client.model_check)  # a verdict reached before the callback was added
             self.client = client
             self.reason = "no frame from the camera yet"
             self._opened.set()
@@ -196,16 +206,25 @@ class CameraLink:
 
     # -- what the client reports ---------------------------------------------------------------
 
+    def _on_model_check(self, verdict: Any) -> None:
+        if verdict.status != "mismatch" or self.wrong_model:
+            return
+        self.wrong_model = verdict.message
+        log.error("camera %s: not served: %s", self.url, verdict.message)
+        self._set_answering(False, f"another model: {verdict.message}", force=True)
+
     def _on_link_change(self, up: bool, reason: str) -> None:
         self.link_changes += 1
         if not up:
             self._set_answering(False, reason, force=True)
-        elif self.last_frame_t and reason != "reconnected":
+        elif self.last_frame_t and reason != "reconnected" and not self.wrong_model:
             self._set_answering(True, reason)  # a frame came (a reconnected stream: wait for one)
 
     def _on_message(self, m: Message) -> None:
         self.last_frame_t = time.monotonic()
         client = self.client
+        if self.wrong_model:
+            return  # not served: no health, no attitude read through the wrong model's signs
         if not self.answering and client is not None and client.connected:
             self._set_answering(True, f"frame {m.frame.ident}")
         att = client.state.attitude if client is not None else None
@@ -239,7 +258,8 @@ class CameraLink:
         if value == self.answering and not first_down:
             return
         self.answering = value
-        log.warning("camera %s %s (%s)", self.url, "answers" if value else "stopped answering", why)
+        log.log(logging.INFO if value else logging.WARNING, "camera %s %s (%s)", self.url,
+                "answers" if value else "stopped answering", why)  # fmt: skip
         for cb in list(self._health_cbs):
             try:
                 cb(value)

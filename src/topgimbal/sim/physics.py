@@ -147,8 +147,10 @@ class GimbalPhysics:
         max_rate: float,
         max_accel: float,
     ) -> GimbalPhysics:
-        def mk(name: str, rng: tuple[float, float]) -> Axis:
-            return Axis(name, AxisLimits(rng[0], rng[1], max_rate, max_accel))
+        def mk(name: str, rng: tuple[float, float]) -> Axis:  # pitch and roll start level (stabilised)
+            return Axis(
+                name, AxisLimits(rng[0], rng[1], max_rate, max_accel), frame="body" if name == "yaw" else "earth"
+            )
 
         return cls(mk("yaw", yaw), mk("pitch", pitch), mk("roll", roll))
 
@@ -172,6 +174,12 @@ class GimbalPhysics:
     def body(self) -> tuple[float, float, float]:
         """Encoder angles (GAC)."""
         return self.yaw_axis.pos, self.pitch_axis.pos, self.roll_axis.pos
+
+    def horizon(self) -> tuple[float, float, float]:
+        """What a stabilised gimbal's own attitude sensor reports: yaw from the vehicle's nose (the
+        encoder), pitch and roll from the horizon (SkyDroid GAC, decision in docs/errata.md)."""
+        earth = self.earth()
+        return self.yaw_axis.pos, earth[1], earth[2]
 
     def earth(self) -> tuple[float, float, float]:
         """Attitude in the earth frame (GIC / GIA): body plus vehicle, yaw wrapped to ±180."""
@@ -199,8 +207,11 @@ class GimbalPhysics:
             self.axis(axis).command_rate(deg_s)
 
     def angle(self, axis: str, deg: float, speed: float | None = None, frame: str = "body") -> None:
+        """Go to `deg` on `axis`. Pitch and roll are stabilised: held from the horizon (the earth
+        frame) whatever frame the command names, on every model (issue 35.5: a C12 told "level" sat
+        at the vehicle's tilt); yaw goes where `frame` says."""
         if self.motors_on:
-            self.axis(axis).command_angle(deg, speed, frame)
+            self.axis(axis).command_angle(deg, speed, frame if axis == "yaw" else "earth")
 
     def stop(self) -> None:
         for name in AXES:

@@ -11,7 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from urllib.parse import parse_qs, urlsplit
 
-from ..errors import TopGimbalError, TransportError
+from ..errors import AddressError, TopGimbalError, TransportError
 
 BytesCallback = Callable[[bytes], None]
 LostCallback = Callable[["Exception | None"], None]
@@ -34,9 +34,9 @@ class TransportURL:
 
 
 def parse_url(url: str) -> TransportURL:
-    """Parse a device URL, raising TransportError with the reason when it is not usable."""
+    """Parse a device URL, raising AddressError (a TransportError) with the reason when it is not usable."""
     if not isinstance(url, str) or "://" not in url:
-        raise TransportError(
+        raise AddressError(
             f"device URL {url!r} must look like udp://HOST:PORT, tcp://HOST:PORT or serial:///dev/ttyUSB0?baud=115200"
         )
     parts = urlsplit(url)
@@ -46,9 +46,9 @@ def parse_url(url: str) -> TransportURL:
         try:
             port = parts.port
         except ValueError as exc:
-            raise TransportError(f"{url!r}: {exc}") from None
+            raise AddressError(f"{url!r}: {exc}") from None
         if not parts.hostname or port is None:
-            raise TransportError(f"{url!r}: a {scheme} URL needs a host and a port ({scheme}://HOST:PORT)")
+            raise AddressError(f"{url!r}: a {scheme} URL needs a host and a port ({scheme}://HOST:PORT)")
         return TransportURL(scheme, parts.hostname, port, "", params, url)
     if scheme == "serial":
         # serial:///dev/ttyUSB0 (path) or serial://COM3 (Windows names land in netloc)
@@ -56,16 +56,16 @@ def parse_url(url: str) -> TransportURL:
         if parts.netloc and parts.path:
             path = parts.netloc + parts.path
         if not path:
-            raise TransportError(f"{url!r}: a serial URL needs a device path (serial:///dev/ttyUSB0?baud=115200)")
+            raise AddressError(f"{url!r}: a serial URL needs a device path (serial:///dev/ttyUSB0?baud=115200)")
         baud = params.get("baud", "115200")
         if not baud.isdigit():
-            raise TransportError(f"{url!r}: baud={baud!r} is not a number")
+            raise AddressError(f"{url!r}: baud={baud!r} is not a number")
         return TransportURL(scheme, "", None, path, params, url)
     if scheme == "memory":
         if not parts.netloc:
-            raise TransportError(f"{url!r}: a memory URL needs a port name (memory://NAME)")
+            raise AddressError(f"{url!r}: a memory URL needs a port name (memory://NAME)")
         return TransportURL(scheme, parts.netloc, None, "", params, url)
-    raise TransportError(f"{url!r}: unknown scheme {parts.scheme!r}; use udp://, tcp://, serial:// or memory://")
+    raise AddressError(f"{url!r}: unknown scheme {parts.scheme!r}; use udp://, tcp://, serial:// or memory://")
 
 
 def network_address(url: str) -> tuple[str, str, int] | None:

@@ -1,7 +1,8 @@
 """EXIF and XMP for photos: what the camera was fed (position, time) and its pose, in the tags
 mapping tools read; written into a JPEG without re-encoding it.
 
-EXIF (built with Pillow's `Image.Exif`): Make, Model, DateTimeOriginal (the camera's clock),
+EXIF (built with Pillow's `Image.Exif`): Make, Model, DateTimeOriginal (the camera's clock, with
+SubSecTimeOriginal for the fraction of its second),
 FocalLength / FocalLengthIn35mmFilm / DigitalZoomRatio, and the GPS IFD (latitude, longitude,
 altitude above sea level). XMP (our own small packet): DJI's `drone-dji` namespace
 (GimbalYaw/Pitch/RollDegree, FlightYaw/Pitch/RollDegree, AbsoluteAltitude), which exiftool,
@@ -30,6 +31,7 @@ MAX_SEGMENT_BYTES = 65533  # an APP segment's payload (length field 16 bits, its
 IFD_EXIF, IFD_GPS = 0x8769, 0x8825
 TAG_MAKE, TAG_MODEL, TAG_DATETIME = 0x010F, 0x0110, 0x0132
 TAG_ORIGINAL, TAG_FOCAL, TAG_ZOOM, TAG_FOCAL_35 = 0x9003, 0x920A, 0xA404, 0xA405
+TAG_SUBSEC, TAG_SUBSEC_ORIGINAL = 0x9290, 0x9291  # the fraction of DateTime / DateTimeOriginal's second
 EXIF_TIME = "%Y:%m:%d %H:%M:%S"
 
 
@@ -108,7 +110,10 @@ def build_exif(meta: PhotoMeta, base: Image.Exif | None = None) -> Image.Exif:
     if meta.width_px is not None and meta.height_px is not None:
         sub[0xA002], sub[0xA003] = int(meta.width_px), int(meta.height_px)
     if meta.time is not None:
+        # EXIF cuts the time to whole seconds and keeps the fraction apart (SubSecTimeOriginal,
+        # hundredths here): a reader that adds them gets the camera's clock, not up to 1 s before it.
         exif[TAG_DATETIME] = sub[TAG_ORIGINAL] = meta.time.strftime(EXIF_TIME)
+        sub[TAG_SUBSEC] = sub[TAG_SUBSEC_ORIGINAL] = f"{meta.time.microsecond // 10_000:02d}"
     if meta.focal_mm is not None:
         sub[TAG_FOCAL] = _rational(meta.focal_mm, 100)
     if meta.focal_35mm is not None:

@@ -113,7 +113,7 @@ class MediaStore:
         return PhotoMeta(
             make=MAKES.get(device.dialect.name, device.dialect.name),
             model=device.model.name,
-            time=clock.replace(microsecond=0, tzinfo=None),
+            time=clock.replace(tzinfo=None),  # exif.py keeps the fraction in SubSecTimeOriginal
             lat_deg=pos.lat_deg if has_fix else None,
             lon_deg=pos.lon_deg if has_fix else None,
             alt_m=pos.alt_m if has_fix else None,

@@ -160,10 +160,19 @@ function showUnavailable(u) {
   reason.hidden = !u.traffic;
   reason.textContent = u.traffic ? `Traffic unavailable for this camera: ${u.traffic}` : "";
   const pcapLink = $("traffic-pcap");
-  if (u.pcap) {
+  if (u.pcap) {  // disabled, and seen to be (issue 35.6: it looked enabled for a Zenoh camera)
     pcapLink.removeAttribute("href");
     pcapLink.setAttribute("aria-disabled", "true");
+    pcapLink.classList.add("disabled");
+    pcapLink.tabIndex = -1;
     pcapLink.dataset.reason = pcapLink.title = `No pcap for this camera: ${u.pcap}`;
+  } else if (pcapLink.dataset.reason) {  // this camera has one (a page reused for another camera)
+    delete pcapLink.dataset.reason;
+    pcapLink.removeAttribute("aria-disabled");
+    pcapLink.classList.remove("disabled");
+    pcapLink.removeAttribute("tabindex");
+    pcapLink.title = "";
+    pcapLink.href = withToken("api/traffic.pcap");
   }
 }
 

@@ -100,8 +100,16 @@ def angles(state: SimState, msg: Message, req: Request) -> None:
         state.gimbal.angle(axis, float(f[name]), None if speed is None else float(speed), frame)
 
 
+def reported(state: SimState, earth: bool) -> tuple[float, float, float]:
+    """The attitude a frame carries: the earth frame (TOPOTEK GIC / GIA); else TOPOTEK's GAC the
+    encoders (its document: body frame), SkyDroid's GAC pitch and roll from the horizon (physics.py)."""
+    if earth:
+        return state.gimbal.earth()
+    return state.gimbal.body() if state.dialect.name == "topotek" else state.gimbal.horizon()
+
+
 def attitude(state: SimState, earth: bool) -> dict[str, float]:
-    y, p, r = state.gimbal.earth() if earth else state.gimbal.body()
+    y, p, r = reported(state, earth)
     return {"yaw_deg": round(y, 2), "pitch_deg": round(p, 2), "roll_deg": round(r, 2)}
 
 
@@ -118,7 +126,7 @@ def attitude_report(ident: str, earth: bool) -> ReportFn:
     frame is sent again without encoding it anew."""
 
     def report(state: SimState, s: Stream) -> list[Frame]:
-        y, p, r = state.gimbal.earth() if earth else state.gimbal.body()
+        y, p, r = reported(state, earth)
         key = (round(y, 2), round(p, 2), round(r, 2))
         if key != s.memo_key or not s.memo_frames:
             frame = state.report(ident, dst=s.host, rw="r", yaw_deg=key[0], pitch_deg=key[1], roll_deg=key[2])

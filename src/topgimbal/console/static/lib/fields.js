@@ -52,7 +52,10 @@ function numberDefault(f) {
 }
 
 // One input per field; returns { node, get(), set(values) }.
-export function fieldInputs(fields, { prefix = "" } = {}) {
+// `unknown`: the fields are a setting the camera holds (a readable command): until the camera says
+// its value, a select shows "not read" and a number is empty, never a default the camera never gave
+// (issue 35.6: a page opened while the camera was LOST showed "White hot" and 0).
+export function fieldInputs(fields, { prefix = "", unknown = false } = {}) {
   const wrap = el("span", { class: "inputs" });
   const getters = [];
   const setters = {};
@@ -64,11 +67,13 @@ export function fieldInputs(fields, { prefix = "" } = {}) {
     let read;
     if (f.kind === "enum") {
       input = el("select", { "data-field": f.name, "data-testid": `field-${id}`, title: tip });
+      if (unknown) input.append(el("option", { value: "", text: "– not read", disabled: true, selected: true }));
       for (const v of f.values) {
         input.append(el("option", { value: v.name, text: valueLabel(v), title: valueTip(v),
                                      "data-vendor-term": v.vendor_term }));
       }
-      if (f.default != null) input.value = f.default;
+      if (f.default != null && !unknown) input.value = f.default;
+      else if (unknown) input.value = "";
       // the select's own tooltip names the chosen value's vendor term too
       const sel = input;
       const retitle = () => { sel.title = [sel.selectedOptions[0]?.title, tip].filter(Boolean).join(" — "); };
@@ -80,7 +85,8 @@ export function fieldInputs(fields, { prefix = "" } = {}) {
         type: "number", "data-field": f.name, "data-testid": `field-${id}`, title: tip,
         min: f.min, max: f.max, step: f.step ?? "any",
       });
-      input.value = numberDefault(f);
+      if (unknown) input.placeholder = "–";
+      else input.value = numberDefault(f);
       read = () => (input.value === "" ? null : Number(input.value));
     } else if (f.kind === "enum_or_number") {
       const listId = `dl-${id}-${Math.random().toString(36).slice(2, 7)}`;
@@ -90,7 +96,7 @@ export function fieldInputs(fields, { prefix = "" } = {}) {
       const placeholder = n && n.min != null ? `${n.min}..${n.max}${unitText(n.unit) ? " " + unitText(n.unit) : ""} or an action` : "number or action";
       input = el("input", { type: "text", list: listId, "data-field": f.name, "data-testid": `field-${id}`, title: tip,
                             placeholder, style: fitWidth(placeholder) });
-      input.value = f.default ?? "";
+      input.value = unknown ? "" : f.default ?? "";
       wrap.append(dl);
       read = () => {
         const t = input.value.trim();
@@ -100,7 +106,7 @@ export function fieldInputs(fields, { prefix = "" } = {}) {
       const placeholder = f.kind === "ipv4" ? "a.b.c.d" : shortAllowed(f.allowed);
       input = el("input", { type: "text", "data-field": f.name, "data-testid": `field-${id}`, title: tip,
                             placeholder, style: fitWidth(placeholder) });
-      if (f.default != null) input.value = f.default;
+      if (f.default != null && !unknown) input.value = f.default;
       read = () => input.value.trim();
     }
     const unit = f.unit ? ` (${unitText(f.unit)})` : "";
@@ -209,7 +215,8 @@ export function commandRow(ctx, ident, title) {
   const rForm = requestForm(spec, "r");
   // a query that takes arguments (and has no write) gets inputs for them
   const asks = !wForm && (rForm?.fields || []).length > 0;
-  const inputs = fieldInputs(wForm ? wForm.fields : asks ? rForm.fields : [], { prefix: `${ident}-` });
+  const holds = !!(wForm && rForm && !asks);  // a setting the camera holds: unknown until read
+  const inputs = fieldInputs(wForm ? wForm.fields : asks ? rForm.fields : [], { prefix: `${ident}-`, unknown: holds });
   const result = el("span", { class: "small muted", "data-testid": `result-${ident}` });
   const acts = el("span", { class: "acts" });
   // What the row shows is what the camera last said: its answer, the value read back after a Set,

@@ -1,0 +1,80 @@
+"""The bridge never serves a camera as a model it is not (issue 35.2): `topgimbal mavlink --model
+C12` against a SIP refuses to start (exit 2, naming the SIP); a camera that turns out to be another
+model after the bridge started is reported failed and its commands are refused before sending."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+
+import pytest
+from pymavlink.dialects.v20 import common as ml
+
+from topgimbal.cli.main import main
+from topgimbal.mavlink import Bridge, BridgeConfig
+from topgimbal.sim import BackgroundSimulator, Simulator
+
+from .conftest import Peer, eventually
+
+GIMBAL = 154
+
+
+def test_the_cli_refuses_to_serve_a_sip_as_a_c12(capsys):
+    with BackgroundSimulator("SIP", seed=35, listen={"udp": [("127.0.0.1", 0)]}) as sip:
+        code = main(["mavlink", "--url", sip.url, "--model", "C12", "--mavlink", "udpin:127.0.0.1:0"])
+        targets = sip.call(lambda s: (s.gimbal.axis("yaw").target, s.gimbal.axis("pitch").target))
+    err = capsys.readouterr().err
+    assert code == 2 and "SIP" in err and "--model auto" in err and len(err.splitlines()) == 1, err
+    assert targets == pytest.approx((0.0, 0.0))
+
+
+async def test_a_camera_that_turns_out_to_be_another_model_is_not_served(caplog) -> None:
+    sim = Simulator("SIP")
+    await sim.start(udp=[("127.0.0.1", 0)])
+    bridge = Bridge(BridgeConfig(url=sim.url, model="C12", endpoints=["udpin:127.0.0.1:0"], silence_s=0.6,
+                                 timeout_s=0.3, retries=1))  # fmt: skip
+    caplog.set_level(logging.INFO, logger="topgimbal.mavlink")
+    try:
+        await bridge.start(camera_wait_s=0.5)
+        peer = await Peer().connect(bridge.addresses[0][1])  # type: ignore[index]
+        await eventually(lambda: bool(bridge.cam.wrong_model), 10)
+        assert "SIP" in bridge.cam.wrong_model and not bridge.cam.answering
+        await peer.wait(
+            "HEARTBEAT", lambda m: m.get_srcComponent() == GIMBAL and m.system_status == ml.MAV_STATE_CRITICAL
+        )
+        ack = await peer.ack(GIMBAL, ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, -20, 10)
+        assert ack.result != ml.MAV_RESULT_ACCEPTED
+        await asyncio.sleep(0.3)
+        assert (sim.gimbal.axis("yaw").target, sim.gimbal.axis("pitch").target) == pytest.approx((0.0, 0.0))
+        errors = [r for r in caplog.records if r.levelno >= logging.ERROR and "not served" in r.getMessage()]
+        assert len(errors) == 1
+        peer.close()
+    finally:
+        await bridge.close()
+        await sim.stop()
+
+
+async def test_a_healthy_camera_is_logged_as_info_not_a_warning(caplog) -> None:
+    """Issue 35.6: "camera ... answers" is good news."""
+    sim = Simulator("C12")
+    await sim.start(udp=[("127.0.0.1", 0)])
+    bridge = Bridge(BridgeConfig(url=sim.url, model="C12", endpoints=["udpin:127.0.0.1:0"], timeout_s=0.3))
+    caplog.set_level(logging.INFO, logger="topgimbal.mavlink")
+    try:
+        await bridge.start(camera_wait_s=0.5)
+        await eventually(lambda: bridge.cam.answering, 10)
+        answers = [r for r in caplog.records if "answers" in r.getMessage()]
+        assert answers and all(r.levelno == logging.INFO for r in answers)
+        assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+    finally:
+        await bridge.close()
+        await sim.stop()
+
+
+def test_model_auto_serves_the_camera_as_what_it_says(capsys):
+    with BackgroundSimulator("SIP", seed=36, listen={"udp": [("127.0.0.1", 0)]}) as sip:
+        code = main(
+            ["mavlink", "--url", sip.url, "--model", "auto", "--mavlink", "udpin:127.0.0.1:0", "--seconds", "1"]
+        )
+    out = capsys.readouterr().out
+    assert code == 0 and f"mavlink bridge: {sip.url} (SIP)" in out, out
