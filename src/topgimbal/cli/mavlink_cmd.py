@@ -49,6 +49,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--range-hz", type=float, default=1.0, help="rangefinder polling for DISTANCE_SENSOR (0: off)")
     p.add_argument("--video-url", action="append", help="RTSP URL to announce (repeatable; default: the model's)")
     add_video_port_argument(p, "the camera's first RTSP port when not the model's (as sim --video-port)")
+    p.add_argument("--video-out", action="append", metavar="[LENS=]udp://HOST:PORT",
+                   help="push the lens's stream (default visible) as RTP over UDP to a ground station "
+                   "(QGroundControl: port 5600), advertised in VIDEO_STREAM_INFORMATION; repeatable")  # fmt: skip
     p.add_argument("--media-url", metavar="URL", help="the camera's files over HTTP (sim --media-port prints it): "
                    "CAMERA_IMAGE_CAPTURED.file_url points there")  # fmt: skip
     p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds")
@@ -102,6 +105,7 @@ def build_config(args: argparse.Namespace) -> object:
         range_hz=args.range_hz,
         video_urls=args.video_url,
         video_port=args.video_port,
+        video_out=args.video_out,
         media_url=args.media_url,
         timeout_s=args.timeout,
         silence_s=args.silence,
