@@ -27,11 +27,11 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--mavlink", action="append", required=True, metavar="ENDPOINT", help="MAVLink link (repeatable)")
     add_fleet_arguments(p)
     p.add_argument("--sysid", type=int, default=1, help="MAVLink system id (default 1: the vehicle's)")
-    p.add_argument("--compid", type=int, default=154, choices=GIMBAL_COMPIDS, help="gimbal component id (default 154)")
+    p.add_argument("--compid", type=int, default=None, choices=GIMBAL_COMPIDS, help="gimbal component id (default 154)")
     p.add_argument(
         "--camera-compid",
         type=int,
-        default=100,
+        default=None,
         choices=CAMERA_COMPIDS,
         help="camera component id (default 100; the thermal lens takes the next one)",
     )
@@ -96,8 +96,8 @@ def build_config(args: argparse.Namespace) -> object:
         model=model,
         endpoints=list(args.mavlink),
         sysid=args.sysid,
-        compid=args.compid,
-        camera_compid=None if args.no_camera else args.camera_compid,
+        compid=154 if args.compid is None else args.compid,
+        camera_compid=None if args.no_camera else 100 if args.camera_compid is None else args.camera_compid,
         thermal=not args.no_thermal,
         role=args.role,
         attitude_hz=args.attitude_hz,
