@@ -334,9 +334,12 @@ class WhepServer:
             source.close()
 
     def status(self, lens: str) -> dict[str, Any]:
+        """What the page shows for a lens it plays over WebRTC (the reader's state, as the relay's)."""
         src = self.sources.get(lens)
-        return {"peers": self.peers(lens), "max_peers": MAX_PEERS,
-                "codec": src.codec if src is not None else None}  # fmt: skip
+        if src is None:
+            return {"peers": 0, "max_peers": MAX_PEERS, "codec": None}
+        return {"peers": self.peers(lens), "max_peers": MAX_PEERS, "codec": src.codec, "state": src.state,
+                "error": src.error, "pictures": src.pictures}  # fmt: skip
 
 
 def available() -> bool:
