@@ -97,3 +97,24 @@ def test_peers_per_lens_are_bounded() -> None:
     with pytest.raises(webrtc.WebRtcError) as e:
         asyncio.run(server.answer("visible", "v=0\r\nm=video 9 UDP/TLS/RTP/SAVPF 96\r\n", "127.0.0.1"))
     assert e.value.status == 503
+
+
+def test_no_session_for_a_stream_that_is_not_there() -> None:
+    async def offer() -> None:
+        server = webrtc.WhepServer({"visible": "rtsp://127.0.0.1:9/nothing"})  # port 9: refused at once
+        try:
+            await server.answer("visible", "v=0\r\nm=video 9 UDP/TLS/RTP/SAVPF 96\r\n", "127.0.0.1")
+        finally:
+            await server.close()
+
+    with pytest.raises(webrtc.WebRtcError) as e:
+        asyncio.run(offer())
+    assert e.value.status == 502 and "no picture from the visible stream" in str(e.value)
+
+
+def test_the_page_can_ask_whether_a_lens_plays_over_webrtc(console: BackgroundConsole) -> None:
+    import json
+
+    status, _, body = http(console, "GET", "/video/visible/whep")
+    assert status == 200 and json.loads(body) == {"ready": True, "codec": "h264", "why": None}
+    assert http(console, "GET", "/video/zoom/whep")[0] == 404

@@ -2,6 +2,7 @@
 
     GET  /api/video                 lenses, their picture size and field of view, relay states
     GET  /video/<lens>.mjpg         the live picture (multipart JPEG)
+    GET  /video/<lens>/whep         whether the lens plays over WebRTC now ({"ready", "codec", "why"})
     POST /video/<lens>/whep         WebRTC (WHEP): an SDP offer in, 201 + the answer (webrtc.py)
     DELETE /video/<lens>/whep/<id>  end that WebRTC session
     POST /api/video/point           {"lens", "x", "y"}: point at that spot (fractions of the picture)
@@ -116,6 +117,7 @@ class ConsoleVideo:
     def add_routes(self, app: web.Application) -> None:
         app.router.add_get("/api/video", self.info)
         app.router.add_get("/video/{lens}.mjpg", self.mjpeg)
+        app.router.add_get("/video/{lens}/whep", self.whep_ready)
         app.router.add_post("/video/{lens}/whep", self.whep_offer)
         app.router.add_delete("/video/{lens}/whep/{session}", self.whep_delete)
         app.router.add_post("/api/video/point", self.point)
@@ -223,6 +225,19 @@ class ConsoleVideo:
             return _error(exc.status, str(exc))
         return web.Response(status=201, text=answer, content_type="application/sdp",
                             headers={"Location": f"{request.path}/{sid}", "Cache-Control": "no-store"})  # fmt: skip
+
+    async def whep_ready(self, request: web.Request) -> web.StreamResponse:
+        """200 {"ready": bool, "codec", "why"}: the page asks before it offers (no failed request)."""
+        from aiohttp import web
+
+        from .webrtc import WebRtcError
+
+        if self.whep is None:
+            return web.json_response({"ready": False, "codec": None, "why": "WebRTC is off on this console"})
+        try:
+            return web.json_response(await self.whep.ready(request.match_info["lens"]))
+        except WebRtcError as exc:
+            return _error(exc.status, str(exc))
 
     async def whep_delete(self, request: web.Request) -> web.StreamResponse:
         from aiohttp import web

@@ -13,7 +13,8 @@ candidate is the address the browser reached the console on (loopback stays loop
 
 Bounds, each logged when hit: MAX_PEERS per lens (503 beyond), MAX_OFFER_BYTES per offer, a peer
 whose connection fails or that never connects within CONNECT_TIMEOUT_S is closed, a lens's reader
-stops IDLE_CLOSE_S after its last peer.
+stops IDLE_CLOSE_S after its last peer. An offer is answered only once the camera's stream gave a
+picture (FIRST_PICTURE_WAIT_S; else 502 with the reader's error, and the page plays MJPEG).
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ log = logging.getLogger("topgimbal.video.webrtc")
 MAX_PEERS = 4  # per lens
 MAX_OFFER_BYTES = 64 * 1024
 CONNECT_TIMEOUT_S = 15.0
+FIRST_PICTURE_WAIT_S = 5.0  # a WHEP offer waits this long for the camera's stream before a 502
 IDLE_CLOSE_S = 5.0
 RETRY_S = 1.0
 READ_TIMEOUT_S = 3.0
@@ -102,11 +104,24 @@ class PacketSource:
         peer = _Peer(asyncio.Queue(QUEUE_PICTURES), asyncio.get_running_loop())
         with self._lock:
             self.peers.add(peer)
+        self.warm()
+        return peer
+
+    def warm(self) -> None:
+        """Start reading (if idle) and keep reading IDLE_CLOSE_S even with no peer yet."""
+        with self._lock:
+            self._last_peer_t = self.clock()
         if self._thread is None or not self._thread.is_alive():
             self._stop.clear()
             self._thread = threading.Thread(target=self._run, name=f"topgimbal-webrtc-{self.name}", daemon=True)
             self._thread.start()
-        return peer
+
+    async def first_picture(self, wait_s: float) -> bool:
+        """Whether the stream gives pictures: the first one, or the reader's error, within `wait_s`."""
+        end = self.clock() + wait_s
+        while self.pictures == 0 and self.clock() < end and not (self.error and self.state == "reconnecting"):
+            await asyncio.sleep(0.05)
+        return self.pictures > 0
 
     def unsubscribe(self, peer: _Peer) -> None:
         with self._lock:
@@ -271,8 +286,16 @@ class WhepServer:
         if "m=video" not in offer_sdp:
             raise WebRtcError(400, "the offer has no video section (m=video)")
         _patch_aioice()
-        pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
         track = _track_class()(source)
+        # Answer only once the camera's stream is there (never a session for a stream that is
+        # not): the first picture, or the reader's error, within FIRST_PICTURE_WAIT_S.
+        if not await source.first_picture(FIRST_PICTURE_WAIT_S) or source.codec != "h264":
+            track.stop()
+            if source.codec not in (None, "h264"):
+                raise WebRtcError(415, f"the {lens} stream is {source.codec}: browsers take only H.264 over WebRTC "
+                                       f"(use /video/{lens}.mjpg)")  # fmt: skip
+            raise WebRtcError(502, f"no picture from the {lens} stream ({source.error or 'nothing came'})")
+        pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
         token = _ice_host.set(host)
         try:
             # H.264 only (and its retransmissions): the packets are the camera's, nothing re-encodes
@@ -309,6 +332,21 @@ class WhepServer:
         session.watchdog = asyncio.ensure_future(self._watch(sid))
         log.info("webrtc %s: peer %s (%d of %d)", lens, sid, self.peers(lens), MAX_PEERS)
         return sid, answer
+
+    async def ready(self, lens: str) -> dict[str, Any]:
+        """Whether a lens can play over WebRTC now (the page asks before it offers): its reader
+        started, the first picture or the error awaited (FIRST_PICTURE_WAIT_S)."""
+        source = self.sources.get(lens)
+        if source is None:
+            raise WebRtcError(404, f"no such lens; this camera has: {', '.join(self.sources)}")
+        source.warm()
+        ok = await source.first_picture(FIRST_PICTURE_WAIT_S)
+        why = None if ok else source.error or "nothing came"
+        if ok and source.codec != "h264":
+            ok, why = False, f"the stream is {source.codec}: browsers take only H.264 over WebRTC"
+        if ok and self.peers(lens) >= MAX_PEERS:
+            ok, why = False, f"{MAX_PEERS} WebRTC peers already play it"
+        return {"ready": ok, "codec": source.codec, "why": why}
 
     async def _watch(self, sid: str) -> None:
         await asyncio.sleep(CONNECT_TIMEOUT_S)

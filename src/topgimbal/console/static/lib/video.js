@@ -204,6 +204,9 @@ async function playWebRtc(v, lensInfo, track, changed) {
   if (!window.RTCPeerConnection || !lensInfo?.webrtc) return false;
   if (new URLSearchParams(location.search).get("video") === "mjpeg") return false;
   if (lensInfo.webrtc.codec && lensInfo.webrtc.codec !== "h264") return false;
+  // asked first, so a lens that cannot play over WebRTC costs no failed request
+  const ready = await fetchJSON(`video/${v.lens}/whep`).catch(() => null);
+  if (!ready?.ready) return false;
   const pc = new RTCPeerConnection({ iceServers: [] });
   let session = null;
   const end = () => {
