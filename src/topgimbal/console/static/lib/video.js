@@ -221,7 +221,12 @@ async function playWebRtc(v, lensInfo, track, changed) {
     // answers like an <img>, so what reads the picture's size (latency, scripts) works on both
     Object.defineProperty(video, "naturalWidth", { get: () => video.videoWidth });
     Object.defineProperty(video, "naturalHeight", { get: () => video.videoHeight });
-    pc.ontrack = (e) => { video.srcObject = e.streams[0] || new MediaStream([e.track]); };
+    pc.ontrack = (e) => {
+      // a live picture to steer by: ask for the smallest playout delay the browser allows
+      if ("playoutDelayHint" in e.receiver) e.receiver.playoutDelayHint = 0;
+      if ("jitterBufferTarget" in e.receiver) e.receiver.jitterBufferTarget = 0;
+      video.srcObject = e.streams[0] || new MediaStream([e.track]);
+    };
     await pc.setLocalDescription(await pc.createOffer());
     const headers = { "Content-Type": "application/sdp" };
     if (token) headers["X-Topgimbal-Token"] = token;
