@@ -64,10 +64,6 @@ NOT_RUN: dict[str, str] = {
     "make -C c test": "the C library's own suite (sanitizers, fuzzers): minutes; `make test` runs it",
     "make -C c deps": "apt-get install as root",
     "ffplay -rtsp_transport tcp rtsp://127.0.0.1:8554/stream=0": "a video window (GUI); tests/video play the streams",
-    "ffplay -protocol_whitelist file,udp,rtp cam.sdp": "a video window (GUI); tests/video/test_rtp_push.py plays it",
-    "topgimbal video relay --from rtsp://127.0.0.1:8554/stream=0 --to udp://127.0.0.1:5600 --sdp cam.sdp": "needs a camera's RTSP stream and runs until Ctrl-C; tests/video/test_rtp_push.py runs it",
-    "topgimbal mavlink --url udp://127.0.0.1:5000 --model C12 --mavlink udpout:127.0.0.1:14550 "
-    "--video-out udp://127.0.0.1:5600 --video-out thermal=udp://127.0.0.1:5601": "pushes RTP to fixed ports; tests/mavlink/test_video_out.py runs it on free ones",
 }
 
 # Output a command's doc promises, by the command's text: each string must be in the doc (its
@@ -110,7 +106,7 @@ URL_RE = re.compile(r"\b(udp|tcp)://([^/:\s?]+|\[[^\]]+\]):(\w+)")
 SERIAL_RE = re.compile(r"(serial://)?(/dev/tty\w+)")
 IPV4_RE = re.compile(r"\b(\d{1,3}\.\d{1,3}\.\d{1,3}\.\d{1,3})\b")
 DOC_PORT_MODEL = {"9003": "SIP", "9004": "SIP"}
-DAEMONS = {"sim", "proxy", "console", "mavlink", "zenoh"}
+DAEMONS = {"sim", "proxy", "console", "mavlink", "zenoh", "video"}
 
 
 # -- extraction ------------------------------------------------------------------------------------
@@ -592,6 +588,8 @@ class Session:
             url = daemon.wait_for(r"open (http://127\.0\.0\.1:\d+/)").group(1)
             with urllib.request.urlopen(url, timeout=RUN_TIMEOUT_S) as page:
                 assert page.status == 200 and b"<html" in page.read().lower(), ex.label
+        elif sub == "video":  # `video relay`: up once it names its source and target (the source may be absent)
+            daemon.wait_for(r"^video relay: rtsp://\S+ -> udp://127\.0\.0\.1:\d+ ")
         elif sub == "zenoh":
             daemon.wait_for(r"^zenoh: serving \d+ cameras on tcp/127\.0\.0\.1:\d+")
         elif sub == "mavlink":
