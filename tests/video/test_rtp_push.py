@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from topgimbal.clock import wall_time
+from topgimbal.clock import monotonic, wall_time
 from topgimbal.video.encode import Encoder
 from topgimbal.video.lens import VideoError
 from topgimbal.video.render import decode_stamp
@@ -64,9 +64,9 @@ def sim() -> Iterator[LiveSim]:
 
 
 def wait_for(cond: object, timeout_s: float = 30.0) -> None:
-    end = time.monotonic() + timeout_s  # a bound on a hang, not a speed assertion
+    end = monotonic() + timeout_s  # a bound on a hang, not a speed assertion
     while not cond():  # type: ignore[operator]
-        assert time.monotonic() < end, "gave up waiting"
+        assert monotonic() < end, "gave up waiting"
         time.sleep(0.05)
 
 
