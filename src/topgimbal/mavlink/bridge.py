@@ -30,9 +30,9 @@ from .gimbal_manager import GimbalManager
 from .node import Node
 from .pointing import Pointer
 from .reboots import RebootWatch
+from .rtp_out import VideoOutError, advertised, parse_targets
 from .services import Services
 from .vehicle import Vehicles
-from .video_out import VideoOutError, advertised, parse_targets
 
 log = logging.getLogger("topgimbal.mavlink")
 
@@ -64,7 +64,7 @@ class BridgeConfig:
     range_hz: float = 1.0
     video_urls: list[str] | None = None  # None: the model's streams at the camera's address
     video_port: int | None = None  # the first stream's RTSP port when not the profile's (others keep the spacing)
-    video_out: list[str] | None = None  # "[LENS=]udp://HOST:PORT": the lens's stream pushed as RTP (video_out.py)
+    video_out: list[str] | None = None  # "[LENS=]udp://HOST:PORT": the lens's stream pushed as RTP (rtp_out.py)
     media_url: str | None = None  # the camera's files over HTTP (sim --media-port): CAMERA_IMAGE_CAPTURED.file_url
     timeout_s: float = 1.0
     retries: int = 2

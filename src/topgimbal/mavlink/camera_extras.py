@@ -25,7 +25,7 @@ from ._mav import mavlink
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, unsupported
 from .gimbal_device import _text
-from .video_out import stream_type
+from .rtp_out import stream_type
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
