@@ -195,3 +195,22 @@ def test_video_relay_refuses_what_it_cannot_use() -> None:
         r = subprocess.run([sys.executable, "-m", "topgimbal.cli.main", "video", "relay", *args],
                            capture_output=True, text=True, env=env, timeout=60)  # fmt: skip
         assert r.returncode == 2 and why in r.stderr
+
+
+def test_h265_is_pushed_as_it_is_and_plays_in_gstreamer() -> None:
+    with LiveSim("SIP", fps=10.0, size=(320, 240), codec="h265") as live:
+        port = free_udp_port()
+        push = RtpPush(live.video.urls["visible"], f"udp://127.0.0.1:{port}", name="h265").start()
+        try:
+            wait_for(lambda: push.stats.keyframes >= 1)
+            assert push.codec == "h265" and set(push.params) == {"vps", "sps", "pps"}
+            proc = subprocess.Popen(qgc_pipeline(port, "H265"), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+            try:
+                pictures = read_pictures(proc, (320, 240), 5)
+            finally:
+                proc.kill()
+                proc.communicate()
+        finally:
+            push.stop()
+    ms = [s for s in (decode_stamp(p) for p in pictures) if s is not None]
+    assert len(ms) == 5 and ms == sorted(ms)
