@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps exiftool-deps mavproxy-deps
+.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps
 
 # The C fast path is compiled by `pip install`: rebuild it when its sources change.
 $(STAMP): pyproject.toml setup.py src/topgimbal/_speedups/_ctop.c $(wildcard c/src/*.c c/include/*.h c/generated/*)
@@ -46,6 +46,16 @@ video-deps:
 	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq ffmpeg >/dev/null; \
 	fi
 
+# Debian's GStreamer: the RTP push tests play the stream with QGroundControl's pipeline
+# (udpsrc ! rtpjitterbuffer ! rtph264depay ! avdec_h264; the decoder is in gstreamer1.0-libav).
+gstreamer-deps:
+	@if ! command -v gst-launch-1.0 >/dev/null || ! gst-inspect-1.0 avdec_h264 >/dev/null 2>&1 || ! gst-inspect-1.0 rtph265depay >/dev/null 2>&1; then \
+	  echo "installing Debian's GStreamer"; \
+	  if [ "$$(id -u)" = 0 ]; then SUDO=; else SUDO=sudo; fi; \
+	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 install -y -qq \
+	    gstreamer1.0-tools gstreamer1.0-plugins-base gstreamer1.0-plugins-good gstreamer1.0-plugins-bad gstreamer1.0-libav >/dev/null; \
+	fi
+
 # Debian's exiftool: the media and geotag tests read the photos' EXIF / XMP with it.
 exiftool-deps:
 	@if ! command -v exiftool >/dev/null; then \
@@ -71,7 +81,7 @@ docs-check: $(STAMP)
 
 # The whole suite on the C fast path, then the protocol, client and fast-path tests again on the pure
 # Python path (what runs where no compiler built the extension; tests/speedups compares the two).
-pytest: $(STAMP) browser-deps tshark-deps video-deps exiftool-deps mavproxy-deps
+pytest: $(STAMP) browser-deps tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps
 	$(BIN)/python -m pytest -q
 	TOPGIMBAL_PURE=1 $(BIN)/python -m pytest -q tests/protocol tests/client tests/speedups
 
@@ -89,7 +99,7 @@ c-deps:
 c-test: $(STAMP) c-deps
 	$(MAKE) -C c test PYTHON=$(CURDIR)/$(BIN)/python
 
-test: $(STAMP) browser-deps tshark-deps video-deps exiftool-deps mavproxy-deps c-deps lint typecheck docs-check pytest c-test
+test: $(STAMP) browser-deps tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps c-deps lint typecheck docs-check pytest c-test
 
 demo: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.demo

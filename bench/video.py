@@ -3,6 +3,7 @@ timing while video runs, and glass-to-glass latency (RTSP to a Python decoder, a
 console's relay to chromium). Figures are printed, not asserted (the machine is shared).
 
     .venv/bin/python bench/video.py [--seconds 8] [--skip-browser]
+    .venv/bin/python bench/video.py --paths [--seconds 15]   # latency per path: RTP, WebRTC, MJPEG
 
 CPU is this process's user+system time over a window while one receiver (Debian's ffmpeg, in
 another process, not counted) reads the stream; 100 % = one core. "At the full rate" scales the
@@ -251,7 +252,16 @@ async def main() -> None:
         help="before the latency figures, wait (at most --quiet-wait-s) for the 1-minute load average to fall below L",
     )  # fmt: skip
     ap.add_argument("--quiet-wait-s", type=float, default=600.0)
+    ap.add_argument("--paths", action="store_true",
+                    help="glass-to-glass per path side by side: RTP to QGC's pipeline, Chromium via WebRTC and "
+                    "via MJPEG (bench/video_paths.py)")  # fmt: skip
     args = ap.parse_args()
+    if args.paths:
+        import runpy
+
+        sys.argv = [sys.argv[0], "--seconds", str(args.seconds)] + (["--skip-browser"] if args.skip_browser else [])
+        runpy.run_path(os.path.join(os.path.dirname(os.path.abspath(__file__)), "video_paths.py"), run_name="__main__")
+        return
     print(f"load average at the start: {load()}")
     if not args.skip_encoders and not args.latency_only:
         print("== encoders (one core, this machine)")

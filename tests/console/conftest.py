@@ -29,6 +29,7 @@ LAUNCH_ARGS = [
     "--disable-background-networking",
     "--disable-component-update",
     "--disable-sync",
+    "--allow-loopback-in-peer-connection",  # WebRTC to the console on 127.0.0.1 (tests/video/test_console_webrtc.py)
 ]
 
 

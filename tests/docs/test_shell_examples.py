@@ -106,7 +106,7 @@ URL_RE = re.compile(r"\b(udp|tcp)://([^/:\s?]+|\[[^\]]+\]):(\w+)")
 SERIAL_RE = re.compile(r"(serial://)?(/dev/tty\w+)")
 IPV4_RE = re.compile(r"\b(\d{1,3}\.\d{1,3}\.\d{1,3}\.\d{1,3})\b")
 DOC_PORT_MODEL = {"9003": "SIP", "9004": "SIP"}
-DAEMONS = {"sim", "proxy", "console", "mavlink", "zenoh"}
+DAEMONS = {"sim", "proxy", "console", "mavlink", "zenoh", "video"}
 
 
 # -- extraction ------------------------------------------------------------------------------------
@@ -588,6 +588,8 @@ class Session:
             url = daemon.wait_for(r"open (http://127\.0\.0\.1:\d+/)").group(1)
             with urllib.request.urlopen(url, timeout=RUN_TIMEOUT_S) as page:
                 assert page.status == 200 and b"<html" in page.read().lower(), ex.label
+        elif sub == "video":  # `video relay`: up once it names its source and target (the source may be absent)
+            daemon.wait_for(r"^video relay: rtsp://\S+ -> udp://127\.0\.0\.1:\d+ ")
         elif sub == "zenoh":
             daemon.wait_for(r"^zenoh: serving \d+ cameras on tcp/127\.0\.0\.1:\d+")
         elif sub == "mavlink":

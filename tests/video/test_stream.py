@@ -173,6 +173,32 @@ def test_sim_cli_refuses_a_non_loopback_video_address() -> None:
     assert "loopback only" in r.stderr
 
 
+def test_two_simulated_cameras_share_their_ports_on_other_loopback_addresses() -> None:
+    """Any address of 127.0.0.0/8 is loopback: two cameras, each on its own, on the same RTSP port."""
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.2", 0))
+        port = s.getsockname()[1]
+    procs = [
+        subprocess.Popen([*SIM_CLI, "--model", "SIP", "--udp", f"{host}:0", "--video", "--video-port", str(port),
+                          "--video-fps", "5", "--video-size", "320x240"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        for host in ("127.0.0.2", "127.0.0.3")
+    ]  # fmt: skip
+    try:
+        for host, proc in zip(("127.0.0.2", "127.0.0.3"), procs, strict=True):
+            assert proc.stdout is not None
+            lines = [proc.stdout.readline().strip() for _ in range(3)]
+            assert lines[0].startswith(f"udp://{host}:"), lines
+            assert lines[1] == f"rtsp://{host}:{port}/stream=0", lines
+            assert probe(lines[1]) == {"codec_name": "h264", "width": 320, "height": 240}
+    finally:
+        for proc in procs:
+            proc.terminate()
+            proc.wait(10)
+
+
 def test_sdk_frames_yields_decoded_pictures_from_the_cameras_url(c12: LiveSim) -> None:
     from topgimbal.video.frames import frames
 

@@ -197,7 +197,16 @@ def test_client_builds_video_urls_and_imports_only_the_stream_table() -> None:
             for node in ast.walk(ast.parse(path.read_text()))
             if isinstance(node, ast.ImportFrom) and node.module and "video" in node.module
         }
-        assert used == {"video.lens"}, layer
+        # the bridge's --video-out also takes rtp_push (packetizing only: PyAV is imported by its
+        # thread, never at import; nothing renders or decodes)
+        assert used == ({"video.lens", "video.rtp_push"} if layer == "mavlink" else {"video.lens"}), layer
+    import subprocess
+    import sys
+
+    probe = "import sys, topgimbal.video.rtp_push; print(sorted(m for m in ('av', 'numpy', 'PIL') if m in sys.modules))"
+    assert (
+        subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout.strip() == "[]"
+    )
 
 
 def test_sip_streams_follow_the_ent_codec_setting() -> None:

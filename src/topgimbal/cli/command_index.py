@@ -39,6 +39,7 @@ COMMANDS: dict[str, tuple[str, str | None]] = {
     "media": ("media_cmd", "list and fetch a camera's photos and recordings over HTTP"),
     "geotag": ("geotag_cmd", "write GPS and gimbal pose into photos from a log (traffic .jsonl or MAVLink .tlog)"),
     "zenoh": ("zenoh_cmd", "serve several cameras on a Zenoh session (attitude, state, link, calls; docs/fleet.md)"),
+    "video": ("video_cmd", "video tools: relay a camera's RTSP stream as RTP over UDP"),
 }
 MODEL_NAMES = ["C10", "C10Pro", "C11", "C12", "C13", "C20", "SIP"]
 DIALECT_NAMES = ["skydroid", "topotek"]

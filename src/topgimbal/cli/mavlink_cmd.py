@@ -28,11 +28,11 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--mavlink", action="append", required=True, metavar="ENDPOINT", help="MAVLink link (repeatable)")
     add_fleet_arguments(p)
     p.add_argument("--sysid", type=int, default=1, help="MAVLink system id (default 1: the vehicle's)")
-    p.add_argument("--compid", type=int, default=154, choices=GIMBAL_COMPIDS, help="gimbal component id (default 154)")
+    p.add_argument("--compid", type=int, default=None, choices=GIMBAL_COMPIDS, help="gimbal component id (default 154)")
     p.add_argument(
         "--camera-compid",
         type=int,
-        default=100,
+        default=None,
         choices=CAMERA_COMPIDS,
         help="camera component id (default 100; the thermal lens takes the next one)",
     )
@@ -50,6 +50,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--range-hz", type=float, default=1.0, help="rangefinder polling for DISTANCE_SENSOR (0: off)")
     p.add_argument("--video-url", action="append", help="RTSP URL to announce (repeatable; default: the model's)")
     add_video_port_argument(p, "the camera's first RTSP port when not the model's (as sim --video-port)")
+    p.add_argument("--video-out", action="append", metavar="[LENS=]udp://HOST:PORT",
+                   help="push the lens's stream (default visible) as RTP over UDP to a ground station "
+                   "(QGroundControl: port 5600), advertised in VIDEO_STREAM_INFORMATION; repeatable")  # fmt: skip
     p.add_argument("--media-url", metavar="URL", help="the camera's files over HTTP (sim --media-port prints it): "
                    "CAMERA_IMAGE_CAPTURED.file_url points there")  # fmt: skip
     p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds")
@@ -95,8 +98,8 @@ def build_config(args: argparse.Namespace) -> object:
         model=model,
         endpoints=list(args.mavlink),
         sysid=args.sysid,
-        compid=args.compid,
-        camera_compid=None if args.no_camera else args.camera_compid,
+        compid=154 if args.compid is None else args.compid,
+        camera_compid=None if args.no_camera else 100 if args.camera_compid is None else args.camera_compid,
         thermal=not args.no_thermal,
         role=args.role,
         attitude_hz=args.attitude_hz,
@@ -104,6 +107,7 @@ def build_config(args: argparse.Namespace) -> object:
         range_hz=args.range_hz,
         video_urls=args.video_url,
         video_port=args.video_port,
+        video_out=args.video_out,
         media_url=args.media_url,
         timeout_s=args.timeout,
         silence_s=args.silence,

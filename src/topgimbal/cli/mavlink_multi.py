@@ -1,5 +1,7 @@
-"""`topgimbal mavlink --camera NAME=URL,MODEL ...`: several cameras behind one bridge
-(mavlink/multi.py allocates the component ids; docs/fleet.md)."""
+"""`topgimbal mavlink --camera NAME=URL,MODEL[,OPTION=VALUE...] ...`: several cameras behind one
+bridge (mavlink/multi.py allocates the component ids; docs/fleet.md). Each camera takes its own
+video options (video-url=URL, video-port=N, video-out=[LENS=]udp://HOST:PORT, each repeatable
+where it may be); the one-camera options that cannot apply to several are refused."""
 
 from __future__ import annotations
 
@@ -8,15 +10,64 @@ import asyncio
 import logging
 import os
 import sys
+from dataclasses import dataclass, field
+from typing import Any
 
 from .runtime import stop_on_signals, wait_stopped
 from .zenoh_cmd import camera_arg
 
+CAMERA_FORM = "NAME=URL,MODEL[,video-url=URL][,video-port=N][,video-out=[LENS=]udp://HOST:PORT]"
+# Per-camera options: key -> (BridgeConfig field, repeatable)
+CAMERA_OPTIONS = {"video-url": ("video_urls", True), "video-port": ("video_port", False),
+                  "video-out": ("video_out", True)}  # fmt: skip
+# One-camera options and why they do not apply with --camera (their value when not given is None).
+NOT_WITH_CAMERAS = {
+    "compid": "--compid (gimbal ids are allocated in order: 154, 171..)",
+    "camera_compid": "--camera-compid (camera ids are allocated in order from 100)",
+    "video_url": "--video-url (give video-url=URL in each --camera)",
+    "video_port": "--video-port (give video-port=N in each --camera)",
+    "video_out": "--video-out (give video-out=[LENS=]udp://HOST:PORT in each --camera)",
+    "media_url": "--media-url (one camera's files)",
+}
+
+
+@dataclass
+class CameraWithOptions:
+    name: str
+    url: str
+    model: str
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+def camera_with_options(text: str) -> CameraWithOptions:
+    """NAME=URL,MODEL followed by this camera's options (trailing `key=value` items)."""
+    parts = text.split(",")
+    options: dict[str, Any] = {}
+    while len(parts) > 2 and parts[-1].partition("=")[0].strip() in CAMERA_OPTIONS:
+        key, _, value = parts.pop().partition("=")
+        name, repeatable = CAMERA_OPTIONS[key.strip()]
+        value = value.strip()
+        if name == "video_port":
+            if not (value.isascii() and value.isdigit()) or not 1 <= int(value) <= 65535:
+                raise argparse.ArgumentTypeError(f"{text!r}: video-port={value!r}: expected 1..65535")
+            if name in options:
+                raise argparse.ArgumentTypeError(f"{text!r}: video-port given twice")
+            options[name] = int(value)
+        elif repeatable:
+            options.setdefault(name, []).insert(0, value)  # read from the end: keep the order given
+    spec = camera_arg(",".join(parts))
+    return CameraWithOptions(spec.name, spec.url, spec.model, options)  # type: ignore[attr-defined]
+
 
 def add_fleet_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--camera", action="append", type=camera_arg, default=[], metavar="NAME=URL,MODEL",
+    p.add_argument("--camera", action="append", type=camera_with_options, default=[], metavar=CAMERA_FORM,
                    help="several cameras on one bridge (repeatable, instead of --url/--model): gimbals 154, 171.., "
-                   "cameras 100.. allocated in order")  # fmt: skip
+                   "cameras 100.. allocated in order; each with its own video options")  # fmt: skip
+
+
+def refused_with_cameras(args: argparse.Namespace) -> list[str]:
+    """The one-camera options given with --camera (none of them applies to several cameras)."""
+    return [why for key, why in NOT_WITH_CAMERAS.items() if getattr(args, key, None) is not None]
 
 
 def run_multi(args: argparse.Namespace) -> int:
@@ -26,6 +77,11 @@ def run_multi(args: argparse.Namespace) -> int:
     if getattr(args, "url", None) and args.url != os.environ.get("TOPGIMBAL_URL"):
         print("topgimbal mavlink: error: give either --url/--model (one camera) or --camera (several)", file=sys.stderr)
         return 2
+    refused = refused_with_cameras(args)
+    if refused:
+        print(f"topgimbal mavlink: error: with --camera, {'; '.join(refused)} does not apply: "
+              f"each camera takes {CAMERA_FORM}", file=sys.stderr)  # fmt: skip
+        return 2
     cameras = [(c.name, c.url, c.model) for c in args.camera]
     common = dict(role=args.role, attitude_hz=args.attitude_hz, stream_hz=args.stream_hz, range_hz=args.range_hz,
                   timeout_s=args.timeout, silence_s=args.silence,
@@ -33,7 +89,8 @@ def run_multi(args: argparse.Namespace) -> int:
                   definition_http=None if args.definition_http == "off" else args.definition_http)  # fmt: skip
     try:
         multi = MultiBridge(cameras, endpoints=list(args.mavlink), sysid=args.sysid, cameras_wanted=not args.no_camera,
-                            thermal=not args.no_thermal, max_peers=args.max_peers, **common)  # fmt: skip
+                            thermal=not args.no_thermal, max_peers=args.max_peers,
+                            per_camera=[c.options for c in args.camera], **common)  # fmt: skip
     except BridgeConfigError as exc:
         print(f"topgimbal mavlink: error: {exc}", file=sys.stderr)
         return 2
@@ -46,6 +103,9 @@ def run_multi(args: argparse.Namespace) -> int:
         parts = "; ".join(f"{a.name} ({a.model}): gimbal {a.gimbal_compid}, cameras "
                           f"{','.join(map(str, a.camera_compids)) or 'none'}" for a in multi.allocations)  # fmt: skip
         print(f"mavlink bridge: {len(cameras)} cameras <-> {addrs}, system {args.sysid}: {parts}", flush=True)
+        for b, a in zip(multi.bridges, multi.allocations, strict=True):
+            for push in b.video_pushes:
+                print(f"{a.name} {push.name} video: RTP to {push.target_url}", flush=True)
         stop = stop_on_signals()
         try:
             await wait_stopped(stop, args.seconds)

@@ -148,8 +148,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 def _check_loopback(args: argparse.Namespace) -> None:
     for host, _ in (args.udp or []) + (args.tcp or []):
-        if host not in ("127.0.0.1", "localhost", "::1") and not args.allow_any_address:
-            raise ValueError(f"the simulator listens on loopback only (got {host!r}; use 127.0.0.1)")
+        if not video_cli.is_loopback(host) and not args.allow_any_address:
+            raise ValueError(f"the simulator listens on loopback only (got {host!r}; use 127.0.0.0/8 or ::1)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -217,6 +217,9 @@ def add_camera_routes(app: web.Application, cameras: CameraSet, videos: CameraVi
     for prefix, picked in (("/cam/{name}", by_name), ("", first)):
         r.add_get(f"{prefix}/api/video", video("info", picked))
         r.add_get(prefix + "/video/{lens}.mjpg", video("mjpeg", picked))
+        r.add_get(prefix + "/video/{lens}/whep", video("whep_ready", picked))
+        r.add_post(prefix + "/video/{lens}/whep", video("whep_offer", picked))
+        r.add_delete(prefix + "/video/{lens}/whep/{session}", video("whep_delete", picked))
         for action in ("point", "track", "zoom"):
             r.add_post(f"{prefix}/api/video/{action}", video(action, picked))
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import TopGimbalError
+from ..video.rtp_push import RtpPush
 from .camdef import file_name, render
 from .camdef_http import DefinitionServer
 from .camera import CameraComponent
@@ -29,6 +30,7 @@ from .gimbal_manager import GimbalManager
 from .node import Node
 from .pointing import Pointer
 from .reboots import RebootWatch
+from .rtp_out import VideoOutError, advertised, parse_targets
 from .services import Services
 from .vehicle import Vehicles
 
@@ -62,6 +64,7 @@ class BridgeConfig:
     range_hz: float = 1.0
     video_urls: list[str] | None = None  # None: the model's streams at the camera's address
     video_port: int | None = None  # the first stream's RTSP port when not the profile's (others keep the spacing)
+    video_out: list[str] | None = None  # "[LENS=]udp://HOST:PORT": the lens's stream pushed as RTP (rtp_out.py)
     media_url: str | None = None  # the camera's files over HTTP (sim --media-port): CAMERA_IMAGE_CAPTURED.file_url
     timeout_s: float = 1.0
     retries: int = 2
@@ -101,6 +104,10 @@ class BridgeConfig:
                 raise BridgeConfigError(f"{name}={v:g}: expected {lo:g}..{hi:g}")
         if self.video_port is not None and not 1 <= self.video_port <= 65535:
             raise BridgeConfigError(f"video_port={self.video_port}: expected 1..65535")
+        try:
+            parse_targets(self.video_out)
+        except VideoOutError as exc:
+            raise BridgeConfigError(str(exc)) from None
         if self.signing_key is not None and len(self.signing_key) != 32:
             raise BridgeConfigError(f"signing_key: {len(self.signing_key)} bytes, expected 32")
         self.definition_address()
@@ -148,6 +155,12 @@ class Bridge:
             managed = c.compid if c.role == "both" else NON_MAVLINK_GIMBAL_ID
             self.manager = GimbalManager(gsvc, self.cam, self.pointer, self.vehicles, gimbal_device_id=managed)
         self.cameras: list[CameraComponent] = []
+        self.video_pushes: list[RtpPush] = []  # --video-out: started and stopped with the bridge
+        pushed = parse_targets(c.video_out)
+        if pushed and c.camera_compid is None:
+            raise BridgeConfigError(
+                "video_out needs the camera components (it is advertised by them): drop --no-camera"
+            )
         if c.camera_compid is not None:
             gimbal_ref = c.compid if c.role in ("device", "both") else NON_MAVLINK_GIMBAL_ID
             lenses = ["visible"] + (["thermal"] if c.thermal and self.cam.profile.thermal else [])
@@ -161,9 +174,20 @@ class Bridge:
                     mine = urls if len(lenses) == 1 else urls[i : i + 1] if i < len(urls) else []
                 else:
                     mine = [by_lens[lens]] if lens in by_lens else []
+                if lens in pushed:
+                    if not mine:
+                        raise BridgeConfigError(
+                            f"video_out: the {lens} lens has no RTSP stream to push (give --video-url)"
+                        )
+                    self.video_pushes.append(RtpPush(mine[0], pushed.pop(lens), name=lens))
+                    mine = [*mine, advertised(self.video_pushes[-1].target_url)]
                 self.cameras.append(CameraComponent(
                     svc, self.cam, self.vehicles, lens=lens, gimbal_device_id=gimbal_ref, video_urls=mine,
                     identity=self.identity, range_hz=c.range_hz, media_url=c.media_url))  # fmt: skip
+        if pushed:
+            raise BridgeConfigError(
+                f"video_out: no {', '.join(pushed)} camera on this bridge ({self.cam.profile.model})"
+            )
         self.reboots = RebootWatch(self._peer_rebooted)
         self.node.subscribe(lambda m: self.reboots.on_message(m, time.monotonic()))
         self.node.subscribe(self.vehicles.on_message)
@@ -198,6 +222,8 @@ class Bridge:
             await self.node.start()
         await self._serve_definitions()
         await self.cam.start(wait_s=camera_wait_s)
+        for push in self.video_pushes:
+            push.start()
         self.pointer.start()
         self.device.start()
         self.feed.start()
@@ -229,6 +255,8 @@ class Bridge:
         await self.feed.close()
         await self.device.close()
         await self.pointer.close()
+        for push in self.video_pushes:
+            await asyncio.to_thread(push.stop)
         await self.cam.close()
         if self._own_node:
             await self.node.close()

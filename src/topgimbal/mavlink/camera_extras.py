@@ -25,6 +25,7 @@ from ._mav import mavlink
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, unsupported
 from .gimbal_device import _text
+from .rtp_out import stream_type
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
@@ -152,7 +153,7 @@ class CameraExtras:
         figures = await self.stream_figures() if self.lens == "visible" else {}
         fps, kbps = figures.get("fps", 0.0), figures.get("bitrate_kbps", 0.0)
         return [mavlink().MAVLink_video_stream_information_message(
-            i, len(urls), 0, self._stream_flags(), fps, w, h, int(kbps * 1000), 0, hfov,
+            i, len(urls), stream_type(url), self._stream_flags(), fps, w, h, int(kbps * 1000), 0, hfov,
             _text(f"{self.lens} {i}", 32), _text(url, 160), encoding, 0)
             for i, url in enumerate(urls, start=1) if sid in (0, i)]  # fmt: skip
 

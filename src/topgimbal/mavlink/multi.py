@@ -92,9 +92,15 @@ class MultiBridge:
         thermal: bool = True,
         max_peers: int = MAX_PEERS,
         link_factories: Sequence[LinkFactory] = (),
+        per_camera: Sequence[dict[str, Any]] = (),
         **common: Any,
     ) -> None:
+        """`per_camera`: BridgeConfig fields of each camera alone, in the order of `cameras`
+        (its video: video_urls, video_port, video_out)."""
         self.allocations = allocate(cameras, cameras_wanted=cameras_wanted, thermal=thermal)
+        if per_camera and len(per_camera) != len(cameras):
+            raise BridgeConfigError(f"per_camera: {len(per_camera)} entries for {len(cameras)} cameras")
+        own = list(per_camera) or [{} for _ in cameras]
         configs = [
             BridgeConfig(
                 url=a.url,
@@ -106,8 +112,9 @@ class MultiBridge:
                 thermal=a.thermal,
                 max_peers=max_peers,
                 **common,
+                **mine,
             )
-            for a in self.allocations
+            for a, mine in zip(self.allocations, own, strict=True)
         ]
         for c in configs:
             c.check(need_endpoints=not link_factories)

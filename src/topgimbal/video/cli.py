@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import sys
 from typing import TYPE_CHECKING
 
@@ -13,6 +14,17 @@ if TYPE_CHECKING:
 from .lens import VideoError
 
 LOOPBACK = ("127.0.0.1", "::1", "localhost")
+
+
+def is_loopback(host: str) -> bool:
+    """Any loopback address (all of 127.0.0.0/8, ::1) or `localhost`: several simulated cameras
+    can then use their documented ports side by side (127.0.0.2:554, 127.0.0.3:554...)."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -53,9 +65,9 @@ def video_host(args: argparse.Namespace, sim: Simulator) -> str:
     host = getattr(args, "video_host", None)
     if host is None:
         addrs = [a for kind in ("udp", "tcp") for a in sim.addresses.get(kind, [])]
-        host = addrs[0][0] if addrs and addrs[0][0] in LOOPBACK else "127.0.0.1"
-    if host not in LOOPBACK and not getattr(args, "allow_any_address", False):
-        raise VideoError(f"the simulator's video listens on loopback only (got {host!r}; use 127.0.0.1)")
+        host = addrs[0][0] if addrs and is_loopback(addrs[0][0]) else "127.0.0.1"
+    if not is_loopback(host) and not getattr(args, "allow_any_address", False):
+        raise VideoError(f"the simulator's video listens on loopback only (got {host!r}; use 127.0.0.0/8 or ::1)")
     return str(host)
 
 

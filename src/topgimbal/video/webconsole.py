@@ -2,6 +2,9 @@
 
     GET  /api/video                 lenses, their picture size and field of view, relay states
     GET  /video/<lens>.mjpg         the live picture (multipart JPEG)
+    GET  /video/<lens>/whep         whether the lens plays over WebRTC now ({"ready", "codec", "why"})
+    POST /video/<lens>/whep         WebRTC (WHEP): an SDP offer in, 201 + the answer (webrtc.py)
+    DELETE /video/<lens>/whep/<id>  end that WebRTC session
     POST /api/video/point           {"lens", "x", "y"}: point at that spot (fractions of the picture)
     POST /api/video/track           {"lens", "x0", "y0", "x1", "y1"}: track what the box holds
     POST /api/video/zoom            {"direction": "in" | "out"}: one zoom step
@@ -29,6 +32,7 @@ if TYPE_CHECKING:  # named for the type checker only: aiohttp is imported by the
     from ..sim.simulator import Simulator
     from .relay import Relay
     from .simvideo import SimVideo
+    from .webrtc import WhepServer
 
 log = logging.getLogger("topgimbal.video.console")
 
@@ -70,6 +74,7 @@ class ConsoleVideo:
         self.specs: dict[str, StreamSpec] = {s.lens: s for s in streams_for(console.model or "C12")}
         self.sim_video: SimVideo | None = None
         self.relays: dict[str, Relay] = {}
+        self.whep: WhepServer | None = None  # None: aiortc is not installed (the page plays MJPEG)
         self._zoom_task: asyncio.Task[None] | None = None
         self._relay_cls: type[Relay] = Relay
 
@@ -90,9 +95,17 @@ class ConsoleVideo:
             documented = stream_urls(model, host_of(url), port=self.console.video_port) if missing and url else {}
             urls = {lens: given.get(lens) or documented[lens] for lens in self.specs}
         self.relays = {lens: self._relay_cls(lens, url) for lens, url in urls.items()}
+        from .webrtc import WhepServer, available
+
+        if available():
+            self.whep = WhepServer(urls)
+        else:
+            log.info("console video: WebRTC is off (pip install 'topgimbal[webrtc]'); the page plays MJPEG")
         return self
 
     async def close(self) -> None:
+        if self.whep is not None:
+            await self.whep.close()
         for r in self.relays.values():
             await r.close()
         if self.sim_video is not None:
@@ -104,6 +117,9 @@ class ConsoleVideo:
     def add_routes(self, app: web.Application) -> None:
         app.router.add_get("/api/video", self.info)
         app.router.add_get("/video/{lens}.mjpg", self.mjpeg)
+        app.router.add_get("/video/{lens}/whep", self.whep_ready)
+        app.router.add_post("/video/{lens}/whep", self.whep_offer)
+        app.router.add_delete("/video/{lens}/whep/{session}", self.whep_delete)
         app.router.add_post("/api/video/point", self.point)
         app.router.add_post("/api/video/track", self.track)
         app.router.add_post("/api/video/zoom", self.zoom)
@@ -121,6 +137,7 @@ class ConsoleVideo:
                     "url": _shown(relay.url),
                     **relay.status(),
                     "size": list(relay.size or s.size),
+                    "webrtc": self.whep.status(lens) if self.whep is not None else None,
                 }
             )
         state = self.console.cam.state if self.console.cam is not None else None
@@ -181,6 +198,56 @@ class ConsoleVideo:
         finally:
             await pictures.aclose()
         return resp
+
+    async def whep_offer(self, request: web.Request) -> web.StreamResponse:
+        """WHEP: the SDP offer in the body (application/sdp), 201 with the answer and Location."""
+        from aiohttp import web
+
+        from .webrtc import MAX_OFFER_BYTES, WebRtcError
+
+        if self.whep is None:
+            return _error(501, "WebRTC is off on this console (pip install 'topgimbal[webrtc]'): use the MJPEG stream")
+        if not self.origin_ok(request):
+            return _error(403, "cross-origin request refused")
+        if request.content_type != "application/sdp":
+            return _error(415, "the body must be an SDP offer (Content-Type: application/sdp)")
+        if request.content_length is None or request.content_length > MAX_OFFER_BYTES:
+            return _error(413, f"an offer is at most {MAX_OFFER_BYTES} bytes, with a Content-Length")
+        try:
+            offer = (await request.read()).decode("utf-8")
+        except UnicodeDecodeError:
+            return _error(400, "the offer is not UTF-8 text")
+        lens = request.match_info["lens"]
+        sock = request.transport.get_extra_info("sockname") if request.transport is not None else None
+        try:
+            sid, answer = await self.whep.answer(lens, offer, sock[0] if sock else None)
+        except WebRtcError as exc:
+            return _error(exc.status, str(exc))
+        return web.Response(status=201, text=answer, content_type="application/sdp",
+                            headers={"Location": f"{request.path}/{sid}", "Cache-Control": "no-store"})  # fmt: skip
+
+    async def whep_ready(self, request: web.Request) -> web.StreamResponse:
+        """200 {"ready": bool, "codec", "why"}: the page asks before it offers (no failed request)."""
+        from aiohttp import web
+
+        from .webrtc import WebRtcError
+
+        if self.whep is None:
+            return web.json_response({"ready": False, "codec": None, "why": "WebRTC is off on this console"})
+        try:
+            return web.json_response(await self.whep.ready(request.match_info["lens"]))
+        except WebRtcError as exc:
+            return _error(exc.status, str(exc))
+
+    async def whep_delete(self, request: web.Request) -> web.StreamResponse:
+        from aiohttp import web
+
+        if self.whep is None:
+            return _error(404, "WebRTC is off on this console")
+        if not self.origin_ok(request):
+            return _error(403, "cross-origin request refused")
+        ended = await self.whep.end(request.match_info["session"], why="ended by the client (DELETE)")
+        return web.Response(status=200) if ended else _error(404, "no such WebRTC session")
 
     async def _body(self, request: web.Request) -> dict[str, object] | web.Response:
         if not self.origin_ok(request):

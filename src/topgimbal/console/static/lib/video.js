@@ -120,13 +120,16 @@ async function start() {
   layout();
   const track = { views, tracking, trackStop, hint, plan: null };
   consoleReady.then((api) => setUpTracking(api, track));
+  const pathLabel = el("span", { class: "vpath muted small", "data-testid": "video-path" }, "");
+  tools.append(pathLabel);
+  const showPaths = () => {
+    pathLabel.textContent = "video: " + lensNames.map((n) => `${n} ${views[n].path === "webrtc"
+      ? "WebRTC (H.264 as the camera sends it)" : "MJPEG (the server's relay)"}`).join(" · ");
+  };
+  const byLens = Object.fromEntries(info.lenses.map((l) => [l.lens, l]));
   for (const v of Object.values(views)) {
-    v.img.src = withToken(`video/${v.lens}.mjpg`);
-    v.img.addEventListener("error", () => {           // the relay went away: try again
-      v.state.textContent = "no video: reconnecting…"; v.wrap.dataset.state = "lost";
-      setTimeout(() => { v.img.src = withToken(`video/${v.lens}.mjpg?t=${Date.now()}`); }, 1000);
-    });
-    attachPointer(v, track);
+    v.path = "mjpeg";
+    playWebRtc(v, byLens[v.lens], track, showPaths).then((ok) => { if (!ok) playMjpeg(v, track); showPaths(); });
   }
   const canvas = document.createElement("canvas");
   const ctx = canvas.getContext("2d", { willReadFrequently: true });
@@ -145,8 +148,10 @@ async function start() {
     try {
       const now = await fetchJSON("api/video");
       let nopic = false;
-      for (const l of now.lenses) {
-        const v = views[l.lens]; if (!v) continue;
+      for (const info of now.lenses) {
+        const v = views[info.lens]; if (!v) continue;
+        // a lens played over WebRTC: its state is the WebRTC reader's, not the idle relay's
+        const l = v.path === "webrtc" && info.webrtc?.state ? { ...info, ...info.webrtc } : info;
         const moving = l.pictures !== v.pictures; v.pictures = l.pictures;
         v.still = moving ? 0 : v.still + 1;
         let text = "", state = l.state;
@@ -176,6 +181,83 @@ async function start() {
     setTimeout(poll, 500);
   };
   poll();
+}
+
+// MJPEG: the server's relay (decodes and JPEG-encodes); plays any codec in any browser.
+function playMjpeg(v, track) {
+  v.path = "mjpeg";
+  v.img.src = withToken(`video/${v.lens}.mjpg`);
+  v.img.addEventListener("error", () => {           // the relay went away: try again
+    v.state.textContent = "no video: reconnecting…"; v.wrap.dataset.state = "lost";
+    setTimeout(() => { v.img.src = withToken(`video/${v.lens}.mjpg?t=${Date.now()}`); }, 1000);
+  });
+  attachPointer(v, track);
+}
+
+// WebRTC through the console's WHEP endpoint (the camera's H.264 packets, no re-encoding: the
+// lowest latency). Resolves false (and the caller plays MJPEG) when the browser has no WebRTC,
+// the console has none (no aiortc), the stream is not H.264, the places are taken, or no picture
+// comes within WEBRTC_WAIT_MS; a connection lost later switches the lens to MJPEG. `?video=mjpeg`
+// in the page's URL skips it.
+const WEBRTC_WAIT_MS = 8000;
+async function playWebRtc(v, lensInfo, track, changed) {
+  if (!window.RTCPeerConnection || !lensInfo?.webrtc) return false;
+  if (new URLSearchParams(location.search).get("video") === "mjpeg") return false;
+  if (lensInfo.webrtc.codec && lensInfo.webrtc.codec !== "h264") return false;
+  // asked first, so a lens that cannot play over WebRTC costs no failed request
+  const ready = await fetchJSON(`video/${v.lens}/whep`).catch(() => null);
+  if (!ready?.ready) return false;
+  const pc = new RTCPeerConnection({ iceServers: [] });
+  let session = null;
+  const end = () => {
+    pc.close();
+    if (session) fetch(withToken(session), { method: "DELETE", headers: token ? { "X-Topgimbal-Token": token } : {} }).catch(() => {});
+    session = null;
+  };
+  try {
+    pc.addTransceiver("video", { direction: "recvonly" });
+    const video = el("video", { "data-testid": `video-${v.lens}`, "data-path": "webrtc", playsinline: "" });
+    video.muted = true; video.autoplay = true;
+    // answers like an <img>, so what reads the picture's size (latency, scripts) works on both
+    Object.defineProperty(video, "naturalWidth", { get: () => video.videoWidth });
+    Object.defineProperty(video, "naturalHeight", { get: () => video.videoHeight });
+    pc.ontrack = (e) => {
+      // a live picture to steer by: ask for the smallest playout delay the browser allows
+      if ("playoutDelayHint" in e.receiver) e.receiver.playoutDelayHint = 0;
+      if ("jitterBufferTarget" in e.receiver) e.receiver.jitterBufferTarget = 0;
+      video.srcObject = e.streams[0] || new MediaStream([e.track]);
+    };
+    await pc.setLocalDescription(await pc.createOffer());
+    const headers = { "Content-Type": "application/sdp" };
+    if (token) headers["X-Topgimbal-Token"] = token;
+    // the offer as created, without waiting for candidates: the console answers with the one
+    // address this page reached it on, and learns the browser's from its connectivity checks
+    const r = await fetch(withToken(`video/${v.lens}/whep`), { method: "POST", headers, body: pc.localDescription.sdp });
+    if (r.status !== 201) { pc.close(); return false; }
+    session = r.headers.get("Location");            // the session's path: DELETE ends it
+    await pc.setRemoteDescription({ type: "answer", sdp: await r.text() });
+    const shown = await new Promise((res) => {
+      const t = setTimeout(() => res(false), WEBRTC_WAIT_MS);
+      video.addEventListener("loadeddata", () => { clearTimeout(t); res(true); }, { once: true });
+    });
+    if (!shown) { end(); return false; }
+    v.wrap.replaceChild(video, v.img);
+    const img = v.img;
+    v.img = video; v.path = "webrtc";
+    attachPointer(v, track);
+    pc.onconnectionstatechange = () => {
+      if (pc.connectionState !== "failed" && pc.connectionState !== "closed") return;
+      end();
+      if (v.img !== video) return;
+      v.wrap.replaceChild(img, video); v.img = img;   // the connection is gone: the relay's pictures
+      playMjpeg(v, track); changed();
+    };
+    window.addEventListener("pagehide", end);
+    return true;
+  } catch {
+    end();
+    return false;
+  }
 }
 
 function attachPointer(v, track) {
