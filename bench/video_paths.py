@@ -128,6 +128,7 @@ def rtp_path(rtsp: str, seconds: float, jitter_latency_ms: int | None) -> tuple[
 
 LAUNCH_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
                "--disable-component-update", "--disable-sync", "--allow-loopback-in-peer-connection",
+               "--disable-features=WebRtcHideLocalIpsWithMdns",
                "--autoplay-policy=no-user-gesture-required"]  # fmt: skip
 
 

@@ -30,6 +30,9 @@ LAUNCH_ARGS = [
     "--disable-component-update",
     "--disable-sync",
     "--allow-loopback-in-peer-connection",  # WebRTC to the console on 127.0.0.1 (tests/video/test_console_webrtc.py)
+    # Host candidates as plain addresses, not mDNS names: no multicast name announcements or queries
+    # leave the machine; the console keeps only the loopback ones (video/webrtc.remote_candidates).
+    "--disable-features=WebRtcHideLocalIpsWithMdns",
 ]
 
 

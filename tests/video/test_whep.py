@@ -118,3 +118,25 @@ def test_the_page_can_ask_whether_a_lens_plays_over_webrtc(console: BackgroundCo
     status, _, body = http(console, "GET", "/video/visible/whep")
     assert status == 200 and json.loads(body) == {"ready": True, "codec": "h264", "why": None}
     assert http(console, "GET", "/video/zoom/whep")[0] == 404
+
+
+def test_a_loopback_console_keeps_only_loopback_candidates() -> None:
+    """A browser lists every interface and mDNS names; a console reached on loopback must put no
+    connectivity check on any other address (nor resolve x.local by multicast)."""
+    from topgimbal.video.webrtc import remote_candidates
+
+    offer = "\r\n".join([
+        "v=0",
+        "m=video 9 UDP/TLS/RTP/SAVPF 96",
+        "a=candidate:1 1 udp 2122260223 127.0.0.1 50000 typ host",
+        "a=candidate:2 1 udp 2122194687 192.0.2.2 50001 typ host",
+        "a=candidate:3 1 udp 2122129151 0f1e2d3c-aaaa.local 50002 typ host",
+        "a=candidate:4 1 udp 2122063615 ::1 50003 typ host",
+        "a=mid:0",
+    ]) + "\r\n"  # fmt: skip
+    kept = remote_candidates(offer, "127.0.0.1")
+    assert "127.0.0.1 50000" in kept and "::1 50003" in kept
+    assert "192.0.2.2" not in kept and ".local" not in kept
+    assert "a=mid:0" in kept and "m=video" in kept
+    # A console bound to a LAN address (with its token) keeps what the browser offered.
+    assert remote_candidates(offer, "192.0.2.2") == offer

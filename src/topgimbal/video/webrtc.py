@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import asyncio
 import contextvars
+import ipaddress
 import logging
 import secrets
 import threading
@@ -67,6 +68,30 @@ def _patch_aioice() -> None:
 
     ice.get_host_addresses = host_addresses
     ice._topgimbal_patched = True  # type: ignore[attr-defined]
+
+
+def _is_loopback(address: str) -> bool:
+    try:
+        return ipaddress.ip_address(address.strip("[]")).is_loopback
+    except ValueError:
+        return address == "localhost"
+
+
+def remote_candidates(offer_sdp: str, host: str | None) -> str:
+    """The offer with only the browser's candidates the console may send to. A console reached on
+    loopback checks only loopback candidates: a browser also lists its other interfaces and mDNS
+    names (`x.local`, which aioice would resolve with a multicast query), and a loopback console
+    must put nothing on any other address, not even this computer's own."""
+    if host is None or not _is_loopback(host):
+        return offer_sdp
+    kept = []
+    for line in offer_sdp.splitlines():
+        if line.startswith("a=candidate:"):
+            parts = line.split()
+            if len(parts) < 5 or not _is_loopback(parts[4]):
+                continue
+        kept.append(line)
+    return "\r\n".join(kept) + "\r\n"
 
 
 class WebRtcError(VideoError):
@@ -303,7 +328,7 @@ class WhepServer:
             caps = RTCRtpSender.getCapabilities("video").codecs
             keep = [c for c in caps if c.mimeType.lower() in ("video/h264", "video/rtx")]
             pc.addTransceiver(track, direction="sendonly").setCodecPreferences(keep)
-            await pc.setRemoteDescription(RTCSessionDescription(offer_sdp, "offer"))
+            await pc.setRemoteDescription(RTCSessionDescription(remote_candidates(offer_sdp, host), "offer"))
             await pc.setLocalDescription(await pc.createAnswer())
         except WebRtcError:
             track.stop()
