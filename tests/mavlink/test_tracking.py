@@ -5,6 +5,7 @@ stop, CAMERA_STOP_TRACKING then SET_MESSAGE_INTERVAL(275, -1) (QGCCameraControl)
 from __future__ import annotations
 
 import asyncio
+import itertools
 import math
 from typing import Any
 
@@ -60,7 +61,7 @@ async def test_qgc_sequence_status_follows_the_target_errs_when_hidden_and_idles
             assert math.hypot(cx - tx, cy - ty) < 0.05, (cx, cy, tx, ty)
         # the rate the ground station asked: 2 Hz (median spacing of the truth's times)
         times = sorted(t["t"] for _, t in got)
-        gaps = sorted(b - a for a, b in zip(times, times[1:]))
+        gaps = sorted(b - a for a, b in itertools.pairwise(times))
         assert 0.35 < gaps[len(gaps) // 2] < 0.65
         first_error = next(t for m, t in got if m.tracking_status == ml.CAMERA_TRACKING_STATUS_FLAGS_ERROR)
         assert first_error["tracking"] == "lost" and first_error["t"] - (t0 + 3) < 1.0 + 1.0 + 0.6

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import signal
 import subprocess
@@ -97,12 +98,14 @@ def test_targets_are_drawn_dark_in_visible_and_hot_in_thermal() -> None:
     assert capture(dev, wall_s=0.0).targets == ()  # hidden: not drawn
 
 
+SIM = [sys.executable, "-m", "topgimbal.cli.main", "sim", "--model", "C12", "--udp", f"{LOOP}:0"]
+
+
 @pytest.mark.integration
 def test_sim_cli_takes_targets_and_writes_truth_at_50_hz(tmp_path: Path) -> None:
     truth = tmp_path / "truth.jsonl"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "topgimbal.cli.main", "sim", "--model", "C12", "--udp", f"{LOOP}:0"]
-        + ["--target", "name=a,bearing=3,speed=10", "--target", "name=b,elevation=-10", "--truth", str(truth)],
+        [*SIM, "--target", "name=a,bearing=3,speed=10", "--target", "name=b,elevation=-10", "--truth", str(truth)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -120,7 +123,7 @@ def test_sim_cli_takes_targets_and_writes_truth_at_50_hz(tmp_path: Path) -> None
     lines = [json.loads(line) for line in truth.read_text().splitlines()]
     assert [t["name"] for t in lines[-1]["targets"]] == ["a", "b"]
     span = lines[-1]["t"] - lines[0]["t"]
-    gaps = sorted(b["t"] - a["t"] for a, b in zip(lines, lines[1:]))
+    gaps = sorted(b["t"] - a["t"] for a, b in itertools.pairwise(lines))
     assert len(lines) >= 10 and 0.015 <= gaps[len(gaps) // 2] <= 0.025  # paced at 50 Hz (median gap)
     a0, a1 = lines[0]["targets"][0]["bearing_deg"], lines[-1]["targets"][0]["bearing_deg"]
     assert a1 - a0 == pytest.approx(10 * span, abs=0.01)
