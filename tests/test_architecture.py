@@ -25,7 +25,8 @@ ALLOWED = {
     "mavlink": {"protocol", "client", "video"},  # video.lens only (streams and fields of view from the profile)
     "wire": {"protocol", "transport", "client"},  # client only for the JSONL traffic log format
     "fleet": {"protocol", "client"},  # the Zenoh fleet server: SDK clients on one session
-    "cli": {"protocol", "client", "transport", "sim", "console", "tools", "mavlink", "wire", "video", "fleet"},
+    "track": {"protocol", "client", "video"},  # the companion tracking loop: video in, rates out
+    "cli": {"protocol", "client", "transport", "sim", "console", "tools", "mavlink", "wire", "video", "fleet", "track"},
 }
 
 
