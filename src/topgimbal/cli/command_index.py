@@ -39,6 +39,7 @@ COMMANDS: dict[str, tuple[str, str | None]] = {
     "media": ("media_cmd", "list and fetch a camera's photos and recordings over HTTP"),
     "geotag": ("geotag_cmd", "write GPS and gimbal pose into photos from a log (traffic .jsonl or MAVLink .tlog)"),
     "zenoh": ("zenoh_cmd", "serve several cameras on a Zenoh session (attitude, state, link, calls; docs/fleet.md)"),
+    "track": ("track_cmd", "companion tracking: follow what is in a box of the camera's video with the gimbal"),
 }
 MODEL_NAMES = ["C10", "C10Pro", "C11", "C12", "C13", "C20", "SIP"]
 DIALECT_NAMES = ["skydroid", "topotek"]

@@ -37,6 +37,7 @@ COMMAND_MODULES = (
     "media_cmd",
     "geotag_cmd",
     "zenoh_cmd",
+    "track_cmd",
 )
 
 

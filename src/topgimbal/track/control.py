@@ -76,7 +76,8 @@ class Gains:
     kp_per_s: float = 3.0  # proportional: deg/s per degree of error
     ki_per_s2: float = 1.5  # integral: deg/s per degree-second
     feed_forward: float = 1.0  # share of the target's estimated velocity added to the rate
-    integral_limit_deg_s: float = 5.0  # the integral term's largest contribution (anti wind-up)
+    integral_limit_deg_s: float = 2.0  # the integral term's largest contribution (anti wind-up)
+    integrate_within_deg: float = 0.5  # the integral only counts errors this small (no wind-up in a pull-in)
     max_rate_deg_s: float = 30.0
     velocity_tau_s: float = 0.25  # time constant of the target velocity estimate
 
@@ -127,7 +128,8 @@ class AngleController:
         err = (wrap180(aim[0] - yaw_deg), aim[1] - pitch_deg)
         lim = g.integral_limit_deg_s
         self.integral = tuple(  # type: ignore[assignment]
-            max(-lim, min(lim, i + g.ki_per_s2 * e * dt)) for i, e in zip(self.integral, err, strict=True)
+            max(-lim, min(lim, i + (g.ki_per_s2 * e * dt if abs(e) < g.integrate_within_deg else 0.0)))
+            for i, e in zip(self.integral, err, strict=True)
         )
         out = []
         for v, e, i in zip(self.velocity, err, self.integral, strict=True):

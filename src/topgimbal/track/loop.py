@@ -62,10 +62,14 @@ class TrackConfig:
     attitude_hz: float = 50.0
     reacquire_s: float = 2.0
     hfov_1x_deg: float | None = None  # None: the model profile's visible lens
+    box_px: bool = False  # `box` is in pixels of the picture, not fractions
 
     def __post_init__(self) -> None:
         x, y, w, h = self.box
-        if not (0 <= x < 1 and 0 <= y < 1 and 0 < w <= 1 and 0 < h <= 1 and x + w <= 1 and y + h <= 1):
+        if self.box_px:
+            if min(x, y) < 0 or min(w, h) <= 0:
+                raise TrackerError(f"box must be x,y,w,h pixels, w and h above 0 (got {self.box})")
+        elif not (0 <= x < 1 and 0 <= y < 1 and 0 < w <= 1 and 0 < h <= 1 and x + w <= 1 and y + h <= 1):
             raise TrackerError(f"box must be x,y,w,h fractions of the picture within it (got {self.box})")
         if self.law not in LAWS:
             raise TrackerError(f"law must be one of {', '.join(LAWS)} (got {self.law!r})")
@@ -148,7 +152,9 @@ class CompanionTracker:
         box: tuple[int, int, int, int] | None
         if self.state == "starting":
             x, y, bw, bh = self.config.box
-            await asyncio.to_thread(self.vision.start, pic.image, (x * w, y * h, bw * w, bh * h))
+            if not self.config.box_px:
+                x, y, bw, bh = x * w, y * h, bw * w, bh * h
+            await asyncio.to_thread(self.vision.start, pic.image, (x, y, bw, bh))
             box = self.vision.box
         elif self.vision.locked:
             box = await asyncio.to_thread(self.vision.update, pic.image)

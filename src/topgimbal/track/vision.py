@@ -114,7 +114,12 @@ class VisualTracker:
 
     def start(self, image: np.ndarray, box: Box) -> None:
         h, w = image.shape[:2]
-        b = snap(_grey(image), clamp_box(box, w, h))
+        grey = _grey(image)
+        b = clamp_box(box, w, h)
+        for _ in range(3):  # an object cut by the box's edge pulls the box a part of the way
+            b, moved = snap(grey, b), b
+            if b == moved:
+                break
         self._template = _grey(image)[b[1] : b[1] + b[3], b[0] : b[0] + b[2]].copy()
         self._init(image, b)
 
