@@ -22,7 +22,7 @@ ALLOWED = {
     "console": {"protocol", "client", "sim", "video", "wire", "transport"},  # sim: `--sim`; wire: pcap, --proxy
     "video": {"protocol", "sim"},  # renders the simulator's state; relays any camera's RTSP
     "tools": {"protocol", "client", "sim", "console", "_speedups", "video"},
-    "mavlink": {"protocol", "client", "video"},  # video.lens only (streams and fields of view from the profile)
+    "mavlink": {"protocol", "client", "video", "track"},  # video.lens only; track: --companion-tracking
     "wire": {"protocol", "transport", "client"},  # client only for the JSONL traffic log format
     "fleet": {"protocol", "client"},  # the Zenoh fleet server: SDK clients on one session
     "track": {"protocol", "client", "video"},  # the companion tracking loop: video in, rates out

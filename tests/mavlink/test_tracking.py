@@ -100,3 +100,53 @@ async def test_geo_status_where_the_vehicle_position_is_known(rig_factory) -> No
     ack = await p.ack(CAMERA, 512, 276)
     assert ack.result == ml.MAV_RESULT_UNSUPPORTED  # no vehicle position or heading: no position
     assert (await p.ack(CAMERA, ml.MAV_CMD_CAMERA_STOP_TRACKING)).result == 0
+
+
+async def test_companion_tracking_from_mavlink_on_a_model_without_a_tracker() -> None:
+    from topgimbal.mavlink import Bridge, BridgeConfig
+    from topgimbal.sim import Simulator
+    from topgimbal.video.simvideo import SimVideo, VideoOptions
+
+    from .conftest import Peer
+
+    sim = Simulator("C10")  # no tracker of its own
+    await sim.start(udp=[("127.0.0.1", 0)])
+    video = SimVideo(sim, VideoOptions(port=0, size=(640, 360), fps=25.0))
+    await video.start()
+    bridge = Bridge(BridgeConfig(url=sim.url, model="C10", endpoints=["udpin:127.0.0.1:0"], silence_s=0.6,
+                                 video_urls=[video.urls["visible"]], companion_tracking=True))  # fmt: skip
+    await bridge.start()
+    p = Peer()
+    try:
+        await p.connect(bridge.addresses[0][1])  # type: ignore[index]
+        info = await p.request(CAMERA, 259, "CAMERA_INFORMATION")
+        assert info.flags & ml.CAMERA_CAP_FLAGS_HAS_TRACKING_RECTANGLE
+        dev = sim.device
+        dev.state.targets = (parse_spec("bearing=2,elevation=3,size=2,contrast=0.9"),)
+        tg = truth_record(dev)["targets"][0]
+        x, y = tg["x"], tg["y"]
+        ack = await p.ack(CAMERA, ml.MAV_CMD_CAMERA_TRACK_RECTANGLE, x - 0.04, y - 0.07, x + 0.04, y + 0.07, timeout=10)
+        assert ack.result == ml.MAV_RESULT_ACCEPTED  # the loop found the target in a picture
+        t0 = dev.now - dev.state.camera.booted_at
+        dev.state.targets = (
+            parse_spec(
+                f"bearing={2 - 10 * t0:.4f},elevation=3,size=2,contrast=0.9,speed=10,hide={t0 + 3:.3f}-{t0 + 60}"
+            ),
+        )
+        await asyncio.sleep(2.5)
+        status = await p.request(CAMERA, STATUS, "CAMERA_TRACKING_IMAGE_STATUS")
+        truth = truth_record(dev)
+        cx, cy = _centre(status)
+        assert status.tracking_status == ml.CAMERA_TRACKING_STATUS_FLAGS_ACTIVE
+        assert math.hypot(cx - truth["targets"][0]["x"], cy - truth["targets"][0]["y"]) < 0.05
+        assert abs(truth["yaw_deg"] - truth["targets"][0]["bearing_deg"]) < 1.0  # the gimbal follows
+        await eventually(lambda: bridge.cameras[0].tracker.status_message().tracking_status == 2, timeout=8,
+                         what="ERROR once the companion loop lost the hidden target")  # fmt: skip
+        assert (await p.ack(CAMERA, ml.MAV_CMD_CAMERA_STOP_TRACKING)).result == 0
+        idle = await p.request(CAMERA, STATUS, "CAMERA_TRACKING_IMAGE_STATUS")
+        assert idle.tracking_status == ml.CAMERA_TRACKING_STATUS_FLAGS_IDLE
+    finally:
+        p.close()
+        await bridge.close()
+        await video.stop()
+        await sim.stop()

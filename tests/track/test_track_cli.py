@@ -41,11 +41,13 @@ async def test_track_cli_keeps_a_crossing_target_within_a_degree() -> None:
         stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
     )  # fmt: skip
     errors: list[float] = []
+    out_lines: list[str] = []
     try:
         assert proc.stdout is not None
         while True:  # a line a second; "tracking" once it found the target in a picture
             line = (await asyncio.wait_for(proc.stdout.readline(), 30)).decode()
             assert line, (await proc.stderr.read()).decode() if proc.stderr else "no output"  # type: ignore[union-attr]
+            out_lines.append(line)
             if "tracking" in line and " found 0" not in line:
                 break
         t0 = dev.now - dev.state.camera.booted_at
@@ -60,10 +62,10 @@ async def test_track_cli_keeps_a_crossing_target_within_a_degree() -> None:
     finally:
         if proc.returncode is None:
             proc.terminate()
-        _, err = await proc.communicate()
+        rest, err = await proc.communicate()
+        out_lines.append(rest.decode())
         await video.stop()
         await sim.stop()
     rms = math.sqrt(sum(e * e for e in errors) / len(errors))
-    print(f"track CLI: RMS {rms:.3f} deg, max {max(errors):.3f} deg over {len(errors)} samples")
-    assert rms < 1.0, (rms, max(errors), err.decode())
+    assert rms < 1.0, (rms, max(errors), "".join(out_lines), err.decode())
     assert b"topgimbal track:" in err and b"pictures" in err  # the summary at the end

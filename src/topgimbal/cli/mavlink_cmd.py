@@ -49,6 +49,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--range-hz", type=float, default=1.0, help="rangefinder polling for DISTANCE_SENSOR (0: off)")
     p.add_argument("--video-url", action="append", help="RTSP URL to announce (repeatable; default: the model's)")
     add_video_port_argument(p, "the camera's first RTSP port when not the model's (as sim --video-port)")
+    p.add_argument("--companion-tracking", action="store_true",
+                   help="on a model without a tracker, run the companion loop (topgimbal track) for "
+                   "CAMERA_TRACK_POINT / _RECTANGLE on the visible stream (docs/tracking.md)")  # fmt: skip
     p.add_argument("--media-url", metavar="URL", help="the camera's files over HTTP (sim --media-port prints it): "
                    "CAMERA_IMAGE_CAPTURED.file_url points there")  # fmt: skip
     p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds")
@@ -103,6 +106,7 @@ def build_config(args: argparse.Namespace) -> object:
         video_urls=args.video_url,
         video_port=args.video_port,
         media_url=args.media_url,
+        companion_tracking=args.companion_tracking,
         timeout_s=args.timeout,
         silence_s=args.silence,
         max_peers=args.max_peers,

@@ -63,6 +63,7 @@ class BridgeConfig:
     video_urls: list[str] | None = None  # None: the model's streams at the camera's address
     video_port: int | None = None  # the first stream's RTSP port when not the profile's (others keep the spacing)
     media_url: str | None = None  # the camera's files over HTTP (sim --media-port): CAMERA_IMAGE_CAPTURED.file_url
+    companion_tracking: bool = False  # track commands run topgimbal.track on a model without a tracker
     timeout_s: float = 1.0
     retries: int = 2
     silence_s: float = 3.0
@@ -163,7 +164,8 @@ class Bridge:
                     mine = [by_lens[lens]] if lens in by_lens else []
                 self.cameras.append(CameraComponent(
                     svc, self.cam, self.vehicles, lens=lens, gimbal_device_id=gimbal_ref, video_urls=mine,
-                    identity=self.identity, range_hz=c.range_hz, media_url=c.media_url))  # fmt: skip
+                    identity=self.identity, range_hz=c.range_hz, media_url=c.media_url,
+                    companion_tracking=c.companion_tracking))  # fmt: skip
         self.reboots = RebootWatch(self._peer_rebooted)
         self.node.subscribe(lambda m: self.reboots.on_message(m, time.monotonic()))
         self.node.subscribe(self.vehicles.on_message)

@@ -56,6 +56,7 @@ class CameraComponent:
         identity: dict[str, Any] | None = None,
         range_hz: float = 0.0,
         media_url: str | None = None,
+        companion_tracking: bool = False,
     ) -> None:
         self.services = services
         self.comp = services.comp
@@ -81,7 +82,8 @@ class CameraComponent:
         self._range_task: asyncio.Task[None] | None = None
         self._last_sequence: dict[tuple[int, int], int] = {}
         self.view = CameraView(self.comp, cam, vehicles, lens=lens, range_hz=self.range_hz)
-        self.tracker = Tracker(cam, fov=self.view.fov_deg, vehicles=vehicles)
+        companion = self.video_urls[0] if companion_tracking and lens == "visible" and self.video_urls else None
+        self.tracker = Tracker(cam, fov=self.view.fov_deg, vehicles=vehicles, companion_url=companion)
         p = self.profile
         self.definition_uri = ""  # set by the bridge once its definition server listens
         self.params = ParamsExt(self.comp, cam, settings_for(p.dialect, p.model, lens))
@@ -151,11 +153,13 @@ class CameraComponent:
 
     @property
     def tracks_point(self) -> bool:
-        return self.lens == "visible" and self.profile.track_point
+        own = self.profile.track_point
+        return self.lens == "visible" and (own or self.tracker.companion_url is not None)
 
     @property
     def tracks_rect(self) -> bool:
-        return self.lens == "visible" and self.profile.track_rectangle
+        own = self.profile.track_rectangle
+        return self.lens == "visible" and (own or self.tracker.companion_url is not None)
 
     def cap_flags(self) -> int:
         """CAMERA_CAP_FLAGS: video (also in image mode) 1|16, images (also in video mode) 2|8, zoom

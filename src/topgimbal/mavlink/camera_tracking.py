@@ -31,18 +31,20 @@ from ..clock import MonotonicFn, monotonic
 from ..video.lens import VideoError, tracking_requests
 from ._mav import mavlink
 from .camera_link import CameraLink
-from .commands import Command, Outcome, denied, unsupported
+from .commands import Command, Outcome, denied, rejected, unsupported
 from .geo import ground_point
 
 if TYPE_CHECKING:
     from ..client import AsyncClient
     from ..protocol import Message
+    from ..track import CompanionTracker
     from .vehicle import Vehicles
 
 log = logging.getLogger("topgimbal.mavlink")
 
 POLL_S = 0.2  # how often a camera with a tracking state query is asked while tracking
 START_GRACE_S = 1.0  # a camera that does not say "tracking" within this after the request failed
+COMPANION_START_S = 5.0  # the companion loop must find the target in a picture within this to ack
 MAX_STATUS_HZ = 20.0
 NAN = float("nan")
 INT32_MAX = 2**31 - 1
@@ -61,6 +63,7 @@ class Tracker:
         fov: FovFn | None = None,
         vehicles: Vehicles | None = None,
         clock: MonotonicFn = monotonic,
+        companion_url: str | None = None,
     ) -> None:
         self.cam = cam
         self.profile = cam.profile
@@ -76,6 +79,13 @@ class Tracker:
         self._poll: asyncio.Task[None] | None = None
         spec = self.profile.dialect.by_role("tracking", self.profile.model)
         self.reads_state = spec is not None and any(f.rw == "r" and f.fields for f in spec.forms)
+        # The companion loop (topgimbal.track) on this RTSP stream, for a model without a tracker
+        # of its own (bridge --companion-tracking); None: the camera's tracker or nothing.
+        own = self.profile.track_point or self.profile.track_rectangle
+        self.companion_url = companion_url if not own else None
+        self.companion: CompanionTracker | None = None
+        self._companion_task: asyncio.Task[Any] | None = None
+        self._picture_size: tuple[int, int] | None = None
 
     # -- commands ----------------------------------------------------------------------------------
 
@@ -84,6 +94,11 @@ class Tracker:
         radius = cmd.p(3) if cmd.has(3) else 0.05
         if not (0 <= x <= 1 and 0 <= y <= 1):
             raise denied(f"point ({x:g}, {y:g}): expected 0..1 each")
+        if self.companion_url is not None:
+            r = max(0.02, min(0.25, radius))
+            await self._start_companion(max(0.0, x - r), max(0.0, y - r), min(1.0, x + r), min(1.0, y + r))
+            self._started(1, (x, y, radius))
+            return Outcome()
         await self._track(x, y)
         self._started(1, (x, y, radius))
         return Outcome()
@@ -92,6 +107,10 @@ class Tracker:
         x0, y0, x1, y1 = cmd.p(1), cmd.p(2), cmd.p(3), cmd.p(4)
         if not all(0 <= v <= 1 for v in (x0, y0, x1, y1)) or x1 <= x0 or y1 <= y0:
             raise denied("rectangle: expected 0 <= top-left < bottom-right <= 1")
+        if self.companion_url is not None:
+            await self._start_companion(x0, y0, x1, y1)
+            self._started(2, (x0, y0, x1, y1))
+            return Outcome()
         await self._track(x0, y0, x1, y1)
         self._started(2, (x0, y0, x1, y1))
         return Outcome()
@@ -115,7 +134,47 @@ class Tracker:
         if self.reads_state and self._poll is None:
             self._poll = asyncio.ensure_future(self._poll_loop())
 
+    async def _start_companion(self, x0: float, y0: float, x1: float, y1: float) -> None:
+        """Run the companion loop on the box; acked once it found the target in a picture."""
+        from ..track import CompanionTracker, TrackConfig, TrackerError, rtsp_frames
+
+        await self._stop_companion()
+        client = self.cam.client
+        if client is None or self.companion_url is None:
+            raise rejected("the camera is not connected")
+        try:
+            tracker = CompanionTracker(client, TrackConfig(box=(x0, y0, x1 - x0, y1 - y0)))
+        except TrackerError as exc:
+            raise denied(str(exc)) from None
+
+        def seen(pic: Any, box: Any) -> None:
+            self._picture_size = (int(pic.image.shape[1]), int(pic.image.shape[0]))
+
+        tracker.on_picture = seen
+        self.companion = tracker
+        self._companion_task = asyncio.ensure_future(tracker.run(rtsp_frames(self.companion_url)))
+        end = self.clock() + COMPANION_START_S
+        while tracker.state == "starting" and not self._companion_task.done() and self.clock() < end:
+            await asyncio.sleep(0.05)
+        if tracker.state != "tracking":
+            why = "the video could not be read" if self._companion_task.done() else "no target in the box"
+            await self._stop_companion()
+            raise rejected(f"companion tracking did not start: {why}")
+        log.info("tracking: the companion loop follows the box on %s", self.companion_url)
+
+    async def _stop_companion(self) -> None:
+        task, self._companion_task = self._companion_task, None
+        self.companion = None
+        if task is not None:
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await task  # its end stops the gimbal
+
     async def stop(self, cmd: Command) -> Outcome:
+        if self.companion_url is not None:
+            await self._stop_companion()
+            self.state = (0, ())
+            return Outcome()
         p = self.profile
         role = "tracking_confirm" if p.can("tracking_confirm") else "tracking" if p.can("tracking") else None
         if role is not None:
@@ -128,6 +187,7 @@ class Tracker:
         return Outcome()
 
     async def close(self) -> None:
+        await self._stop_companion()
         task, self._poll = self._poll, None
         if task is not None:
             task.cancel()
@@ -177,10 +237,14 @@ class Tracker:
         return math.tan(math.radians(dyaw)) / (2 * tx), -math.tan(math.radians(dpitch)) / (2 * ty)
 
     def estimated_centre(self) -> tuple[float, float] | None:
-        """The target's centre in the picture now (fractions), estimated from the gimbal."""
+        """The target's centre in the picture now (fractions): the companion loop's own
+        measurement where it runs, else estimated from the gimbal."""
         mode, v = self.state
         if not mode:
             return None
+        comp, size = self.companion, self._picture_size
+        if comp is not None and size is not None and comp.vision.centre is not None:
+            return comp.vision.centre[0] / size[0], comp.vision.centre[1] / size[1]
         cx, cy = (v[0], v[1]) if mode == 1 else ((v[0] + v[2]) / 2, (v[1] + v[3]) / 2)
         turned = self.offset_frac()
         if turned is None:
@@ -192,6 +256,8 @@ class Tracker:
         ml = mavlink()
         if not mode:
             return ml.MAVLink_camera_tracking_image_status_message(IDLE, MODE_NONE, DATA_NONE, *(NAN,) * 7)
+        if self.companion is not None and self.companion.state == "lost":
+            self.lost = True
         if self.lost:
             return ml.MAVLink_camera_tracking_image_status_message(ERROR, mode, DATA_NONE, *(NAN,) * 7)
         c = self.estimated_centre()

@@ -23,7 +23,7 @@ import logging
 import math
 import threading
 from collections.abc import AsyncIterator, Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 from ..clock import MonotonicFn, monotonic, wall_time
@@ -92,7 +92,9 @@ class CompanionTracker:
         self.config = config or TrackConfig()
         self.clock = clock
         self.history = AttitudeHistory()
-        self.controller = AngleController(self.config.gains)
+        # Never ask more than the gimbal can do: a saturated command only winds the loop up.
+        limit = min(self.config.gains.max_rate_deg_s, float(cam.model.max_rate_deg_s))
+        self.controller = AngleController(replace(self.config.gains, max_rate_deg_s=limit))
         self.vision = VisualTracker(self.config.kind)
         self.report = TrackReport()
         self.state = "starting"  # starting, tracking, searching, lost
@@ -251,7 +253,9 @@ async def rtsp_frames(
 
     def reader() -> None:
         try:
-            for image in frames(url, max_lag_s=0.1):
+            # Every picture is converted (the queue keeps only the newest): frames()' own lag cut-off
+            # would drop all of them for good once a loaded machine decodes behind real time.
+            for image in frames(url, max_lag_s=None):
                 if stop.is_set():
                     return
                 stamp = decode_stamp(image) if use_stamp else None
