@@ -208,6 +208,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seconds", type=float, default=8.0)
     ap.add_argument("--latency-ms", type=float, default=150.0)
+    ap.add_argument("--repeat", type=int, default=1, help="runs of each law (the figures vary with the load)")
     ap.add_argument("--skip-camera", action="store_true", help="only the companion loop")
     ap.add_argument("--skip-companion", action="store_true", help="only the camera's own tracker")
     a = ap.parse_args()
@@ -218,7 +219,8 @@ def main() -> None:
             f"companion loop, C10, target at 10 deg/s, 0.5 s occlusion, {a.latency_ms:g} ms video latency, {a.seconds:g} s"
         )
         print(f"{'law':28} {'RMS deg':>8} {'max deg':>8} {'reacq. s':>9} {'pictures':>9} {'found':>6}  final")
-        for law, comp in (("pi", True), ("pixel-p", True), ("pi", False)):
+        for law, comp in [(law, comp) for law, comp in (("pi", True), ("pixel-p", True), ("pi", False))
+                          for _ in range(a.repeat)]:  # fmt: skip
             r = asyncio.run(companion_run(law, lat, a.seconds, compensate=comp))
             print(f"{r['law']:28} {r['rms_deg']:8.3f} {r['max_deg']:8.3f} {r['reacquired_s']:9.2f} "
                   f"{r['pictures']:9d} {r['detections']:6d}  {r['final']}")  # fmt: skip

@@ -218,7 +218,9 @@ class CompanionTracker:
             ):
                 self._sent = (yaw, pitch, now)
                 try:
-                    await self.cam.rates(yaw, pitch)
+                    # Not waiting for the echo: a control loop must not stall on one late answer
+                    # (the command is sent again within RATE_RESEND_S anyway).
+                    await self.cam.rates(yaw, pitch, wait_reply=False)
                 except Exception as exc:  # a lost frame: the next period sends again
                     log.debug("track: rate command failed: %s", exc)
             await asyncio.sleep(period)

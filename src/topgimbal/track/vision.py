@@ -89,7 +89,15 @@ def centroid(grey: np.ndarray, b: tuple[int, int, int, int]) -> tuple[float, flo
     peak = float(diff.max())
     if peak < SNAP_MIN_CONTRAST:
         return None
-    weight = np.where(diff > peak / 2, diff, 0.0)
+    mask = (diff > peak / 2).astype(np.uint8)
+    # Only the blob nearest the box's centre: a landmark or a road crossing the box's edge must
+    # not pull the measurement off the target.
+    n, labels, _, centres = _cv2().connectedComponentsWithStats(mask, connectivity=8)
+    if n <= 1:
+        return None
+    d = [(centres[i][0] - w / 2) ** 2 + (centres[i][1] - h / 2) ** 2 for i in range(1, n)]
+    keep = 1 + int(np.argmin(d))
+    weight = np.where(labels == keep, diff, 0.0)
     total = float(weight.sum())
     if total <= 0:
         return None
