@@ -93,8 +93,12 @@ class TruthWriter:
         assert self._file is not None
         due = monotonic()
         while True:
-            self._file.write(json.dumps(truth_record(self.device), separators=(",", ":")) + "\n")
-            self._file.flush()
+            try:
+                self._file.write(json.dumps(truth_record(self.device), separators=(",", ":")) + "\n")
+                self._file.flush()
+            except OSError as exc:  # a full disk ends the truth, not the simulator
+                log.warning("truth: cannot write %s (%s); no more truth is written", self.path, exc.strerror or exc)
+                return
             self.lines += 1
             due += self.period_s
             await asyncio.sleep(max(0.0, due - monotonic()))
