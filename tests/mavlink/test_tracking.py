@@ -95,10 +95,27 @@ async def test_capability_flags_only_for_models_that_track(rig_factory) -> None:
 
 async def test_geo_status_where_the_vehicle_position_is_known(rig_factory) -> None:
     r = await rig_factory("SIP")
-    p = r.peer
-    assert (await p.ack(CAMERA, ml.MAV_CMD_CAMERA_TRACK_POINT, 0.5, 0.7)).result == 0
+    p, s = r.peer, r.sim
+    s.gimbal.angle("pitch", -45.0)
+    await eventually(lambda: abs(s.gimbal.pitch_deg + 45) < 0.01)
+    await eventually(lambda: r.bridge.cam.attitude is not None and abs(r.bridge.cam.attitude.pitch_deg + 45) < 0.01)
+    # a point at the picture's centre: the camera holds that patch of ground
+    assert (await p.ack(CAMERA, ml.MAV_CMD_CAMERA_TRACK_POINT, 0.5, 0.5)).result == 0
     ack = await p.ack(CAMERA, 512, 276)
     assert ack.result == ml.MAV_RESULT_UNSUPPORTED  # no vehicle position or heading: no position
+    autopilot = type(p)(sysid=1, compid=1)
+    await autopilot.connect(r.bridge.addresses[0][1])  # type: ignore[index]
+    try:
+        autopilot.send(ml.MAVLink_attitude_message(0, 0.0, 0.0, 0.0, 0, 0, 0))
+        autopilot.send(ml.MAVLink_global_position_int_message(0, 470000000, 80000000, 600000, 100000, 0, 0, 0, 0))
+        await eventually(lambda: r.bridge.cameras[0].tracker.geo_message() is not None, what="a position")
+        geo = await p.request(CAMERA, 276, "CAMERA_TRACKING_GEO_STATUS")
+        # 100 m above home, 45 degrees down to the north: the target is on the ground 100 m north
+        assert geo.tracking_status == ml.CAMERA_TRACKING_STATUS_FLAGS_ACTIVE
+        assert abs((geo.lat - 470000000) / 1e7 * math.pi / 180 * 6371008.8 - 100.0) < 2.0
+        assert abs(geo.lon - 80000000) < 20 and geo.alt == 500.0 and abs(geo.dist - 141.4) < 3.0
+    finally:
+        autopilot.close()
     assert (await p.ack(CAMERA, ml.MAV_CMD_CAMERA_STOP_TRACKING)).result == 0
 
 
