@@ -22,10 +22,16 @@ ALLOWED = {
     "console": {"protocol", "client", "sim", "video", "wire", "transport"},  # sim: `--sim`; wire: pcap, --proxy
     "video": {"protocol", "sim"},  # renders the simulator's state; relays any camera's RTSP
     "tools": {"protocol", "client", "sim", "console", "_speedups", "video"},
-    "mavlink": {"protocol", "client", "video"},  # video.lens (streams, fields of view) and video.rtp_push (--video-out)
+    "mavlink": {
+        "protocol",
+        "client",
+        "video",
+        "track",
+    },  # video.lens, video.rtp_push (--video-out); track: --companion-tracking
     "wire": {"protocol", "transport", "client"},  # client only for the JSONL traffic log format
     "fleet": {"protocol", "client"},  # the Zenoh fleet server: SDK clients on one session
-    "cli": {"protocol", "client", "transport", "sim", "console", "tools", "mavlink", "wire", "video", "fleet"},
+    "track": {"protocol", "client", "video"},  # the companion tracking loop: video in, rates out
+    "cli": {"protocol", "client", "transport", "sim", "console", "tools", "mavlink", "wire", "video", "fleet", "track"},
 }
 
 

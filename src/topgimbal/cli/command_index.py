@@ -40,6 +40,7 @@ COMMANDS: dict[str, tuple[str, str | None]] = {
     "geotag": ("geotag_cmd", "write GPS and gimbal pose into photos from a log (traffic .jsonl or MAVLink .tlog)"),
     "zenoh": ("zenoh_cmd", "serve several cameras on a Zenoh session (attitude, state, link, calls; docs/fleet.md)"),
     "video": ("video_cmd", "video tools: relay a camera's RTSP stream as RTP over UDP"),
+    "track": ("track_cmd", "companion tracking: follow what is in a box of the camera's video with the gimbal"),
 }
 MODEL_NAMES = ["C10", "C10Pro", "C11", "C12", "C13", "C20", "SIP"]
 DIALECT_NAMES = ["skydroid", "topotek"]

@@ -38,6 +38,7 @@ COMMAND_MODULES = (
     "geotag_cmd",
     "zenoh_cmd",
     "video_cmd",
+    "track_cmd",
 )
 
 

@@ -53,6 +53,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--video-out", action="append", metavar="[LENS=]udp://HOST:PORT",
                    help="push the lens's stream (default visible) as RTP over UDP to a ground station "
                    "(QGroundControl: port 5600), advertised in VIDEO_STREAM_INFORMATION; repeatable")  # fmt: skip
+
+    p.add_argument("--companion-tracking", action="store_true",
+                   help="on a model without a tracker, run the companion loop (topgimbal track) for "
+                   "CAMERA_TRACK_POINT / _RECTANGLE on the visible stream (docs/tracking.md)")  # fmt: skip
     p.add_argument("--media-url", metavar="URL", help="the camera's files over HTTP (sim --media-port prints it): "
                    "CAMERA_IMAGE_CAPTURED.file_url points there")  # fmt: skip
     p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds")
@@ -109,6 +113,7 @@ def build_config(args: argparse.Namespace) -> object:
         video_port=args.video_port,
         video_out=args.video_out,
         media_url=args.media_url,
+        companion_tracking=args.companion_tracking,
         timeout_s=args.timeout,
         silence_s=args.silence,
         max_peers=args.max_peers,

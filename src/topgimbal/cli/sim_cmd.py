@@ -143,7 +143,22 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--allow-any-address", action="store_true", help=argparse.SUPPRESS)
     video_cli.add_arguments(p)  # --video, --video-port, ... (topgimbal.video)
     video_cli.add_media_arguments(p)  # --media DIR, --media-port (topgimbal.video.media)
+    _add_target_arguments(p)
     p.set_defaults(func=run)
+
+
+def _add_target_arguments(p: argparse.ArgumentParser) -> None:
+    """--target / --truth (docs/tracking.md): targets in the simulated world and the truth file."""
+    p.add_argument(
+        "--target",
+        action="append",
+        metavar="SPEC",
+        help="a moving target: KEY=VALUE,... (bearing, elevation, speed, heading, span, size, contrast, "
+        "temp, hide=START-END+..., name) or a .json file of such objects (repeatable; docs/tracking.md)",
+    )
+    p.add_argument(
+        "--truth", metavar="FILE", help="write the simulator's truth to FILE as JSON lines at 50 Hz (docs/tracking.md)"
+    )
 
 
 def _check_loopback(args: argparse.Namespace) -> None:
@@ -163,6 +178,11 @@ def run(args: argparse.Namespace) -> int:
     if args.state:  # a change is saved before its reply: a state file that cannot be written fails now
         writable_output(args.state, "state file")
     model = args.sim_model or getattr(args, "model", None) or "C12"
+    from ..sim.targets import load as load_targets
+
+    targets = load_targets(getattr(args, "target", None) or [])
+    if getattr(args, "truth", None):
+        writable_output(args.truth, "truth file")
     sim = Simulator(
         model,
         seed=args.seed,
@@ -176,6 +196,7 @@ def run(args: argparse.Namespace) -> int:
             max_tcp_clients=args.max_tcp_clients,
             tcp_buffer_bytes=args.tcp_buffer_kib * 1024,
         ),
+        targets=targets,
     )
     listen: dict[str, Any] = {}
     if args.udp or args.tcp or args.serial:
@@ -203,8 +224,13 @@ async def _serve(sim: Simulator, listen: dict[str, Any], args: argparse.Namespac
 
     for _kind, url in sim.endpoints:
         print(url, flush=True)
-    video = media = None
+    video = media = truth = None
     try:
+        if args is not None and getattr(args, "truth", None):
+            from ..sim.truth import TruthWriter
+
+            truth = TruthWriter(sim.device, args.truth)
+            await truth.start()
         if args is not None and video_cli.wants_video(args):
             video = await video_cli.start(sim, args)
         if args is not None:
@@ -215,5 +241,7 @@ async def _serve(sim: Simulator, listen: dict[str, Any], args: argparse.Namespac
             await media.stop()
         if video is not None:
             await video.stop()
+        if truth is not None:
+            await truth.stop()
         await sim.stop()
     return 0

@@ -66,6 +66,7 @@ class BridgeConfig:
     video_port: int | None = None  # the first stream's RTSP port when not the profile's (others keep the spacing)
     video_out: list[str] | None = None  # "[LENS=]udp://HOST:PORT": the lens's stream pushed as RTP (rtp_out.py)
     media_url: str | None = None  # the camera's files over HTTP (sim --media-port): CAMERA_IMAGE_CAPTURED.file_url
+    companion_tracking: bool = False  # track commands run topgimbal.track on a model without a tracker
     timeout_s: float = 1.0
     retries: int = 2
     silence_s: float = 3.0
@@ -183,7 +184,8 @@ class Bridge:
                     mine = [*mine, advertised(self.video_pushes[-1].target_url)]
                 self.cameras.append(CameraComponent(
                     svc, self.cam, self.vehicles, lens=lens, gimbal_device_id=gimbal_ref, video_urls=mine,
-                    identity=self.identity, range_hz=c.range_hz, media_url=c.media_url))  # fmt: skip
+                    identity=self.identity, range_hz=c.range_hz, media_url=c.media_url,
+                    companion_tracking=c.companion_tracking))  # fmt: skip
         if pushed:
             raise BridgeConfigError(
                 f"video_out: no {', '.join(pushed)} camera on this bridge ({self.cam.profile.model})"

@@ -20,6 +20,7 @@ from .camdef import definition_version, settings_for
 from .camera_extras import CameraExtras
 from .camera_feed import file_url
 from .camera_link import CameraLink
+from .camera_tracking import MAX_STATUS_HZ as MAX_TRACKING_HZ
 from .camera_tracking import Tracker
 from .camera_view import CameraView
 from .commands import Command, Outcome, denied, unsupported
@@ -34,7 +35,7 @@ if TYPE_CHECKING:
 log = logging.getLogger("topgimbal.mavlink")
 
 (MSG_DISTANCE_SENSOR, MSG_INFO, MSG_SETTINGS, MSG_STORAGE, MSG_CAPTURE_STATUS, MSG_IMAGE_CAPTURED,
- MSG_VIDEO_INFO, MSG_VIDEO_STATUS, MSG_FOV, MSG_TRACKING) = (132, 259, 260, 261, 262, 263, 269, 270, 271, 275)  # fmt: skip
+ MSG_VIDEO_INFO, MSG_VIDEO_STATUS, MSG_FOV, MSG_TRACKING, MSG_TRACKING_GEO) = (132, 259, 260, 261, 262, 263, 269, 270, 271, 275, 276)  # fmt: skip
 (CMD_IMAGE_START, CMD_IMAGE_STOP, CMD_VIDEO_START, CMD_VIDEO_STOP, CMD_SET_MODE, CMD_ZOOM, CMD_FOCUS,
  CMD_TRACK_POINT, CMD_TRACK_RECT, CMD_TRACK_STOP) = (2000, 2001, 2500, 2501, 530, 531, 532, 2004, 2005, 2010)  # fmt: skip
 MAX_REMEMBERED_IMAGES = 64
@@ -55,6 +56,7 @@ class CameraComponent:
         identity: dict[str, Any] | None = None,
         range_hz: float = 0.0,
         media_url: str | None = None,
+        companion_tracking: bool = False,
     ) -> None:
         self.services = services
         self.comp = services.comp
@@ -80,7 +82,8 @@ class CameraComponent:
         self._range_task: asyncio.Task[None] | None = None
         self._last_sequence: dict[tuple[int, int], int] = {}
         self.view = CameraView(self.comp, cam, vehicles, lens=lens, range_hz=self.range_hz)
-        self.tracker = Tracker(cam)
+        companion = self.video_urls[0] if companion_tracking and lens == "visible" and self.video_urls else None
+        self.tracker = Tracker(cam, fov=self.view.fov_deg, vehicles=vehicles, companion_url=companion)
         p = self.profile
         self.definition_uri = ""  # set by the bridge once its definition server listens
         self.params = ParamsExt(self.comp, cam, settings_for(p.dialect, p.model, lens))
@@ -97,7 +100,12 @@ class CameraComponent:
             provide(MSG_VIDEO_INFO, lambda cmd: self.extras.video_info(cmd, self.video_urls))
             provide(MSG_VIDEO_STATUS, lambda cmd: self.extras.video_status(cmd, self.video_urls))
         if self.tracks_point or self.tracks_rect:
+            # Tracking status on request, and streamed at the interval a ground station sets
+            # (QGC: 2 Hz after a track command, -1 after a stop); off until then.
             provide(MSG_TRACKING, self.tracker.status)
+            provide(MSG_TRACKING_GEO, self.tracker.geo_status)
+            services.add_stream(MSG_TRACKING, self.tracker.status_message, 0.0, MAX_TRACKING_HZ)
+            services.add_stream(MSG_TRACKING_GEO, self.tracker.geo_message, 0.0, MAX_TRACKING_HZ)
         if self.range_hz or (lens == "visible" and p.rangefinder):
             provide(MSG_DISTANCE_SENSOR, self.view.distance_now)
         d = services.dispatcher
@@ -145,11 +153,13 @@ class CameraComponent:
 
     @property
     def tracks_point(self) -> bool:
-        return self.lens == "visible" and self.profile.track_point
+        own = self.profile.track_point
+        return self.lens == "visible" and (own or self.tracker.companion_url is not None)
 
     @property
     def tracks_rect(self) -> bool:
-        return self.lens == "visible" and self.profile.track_rectangle
+        own = self.profile.track_rectangle
+        return self.lens == "visible" and (own or self.tracker.companion_url is not None)
 
     def cap_flags(self) -> int:
         """CAMERA_CAP_FLAGS: video (also in image mode) 1|16, images (also in video mode) 2|8, zoom
@@ -167,6 +177,7 @@ class CameraComponent:
             self._range_task = asyncio.ensure_future(self.view.range_loop())
 
     async def close(self) -> None:
+        await self.tracker.close()
         await self.params.close()
         await self.extras.close()
         for t in (self._interval_task, self._range_task):

@@ -1,43 +1,118 @@
 """Object tracking for MAVLink (CAMERA_TRACK_POINT / _RECTANGLE / _STOP_TRACKING and
-CAMERA_TRACKING_IMAGE_STATUS): the model's own tracking requests, acked once the camera confirmed."""
+CAMERA_TRACKING_IMAGE_STATUS / _GEO_STATUS): the model's own tracking requests, acked once the
+camera confirmed, and a status that says what the camera says.
+
+The status is honest (docs/mavlink.md, "Object tracking"):
+- IDLE before tracking starts and after a stop;
+- ACTIVE while the camera tracks, with the target's place in the picture: the camera's own box
+  where the model reports one (none of today's profiles does), else estimated from the gimbal:
+  the camera's tracker turns the gimbal towards the target, so the box the user gave moves
+  towards the centre by the angle the gimbal has turned, and stays centred once it got there;
+- ERROR when the camera says it lost the target: on a model with a tracking state query (TOPOTEK
+  `TRC`), polled every POLL_S while tracking, a state that fell back from "tracking" to "waiting"
+  or "stopped" without a stop from us, "lens cannot track", or no "tracking" within START_GRACE_S.
+  SkyDroid cameras have no such query: their status stays ACTIVE until a stop (docs/errata.md E35).
+CAMERA_TRACKING_GEO_STATUS gives where the estimated line of sight meets flat ground
+(mavlink/geo.py) when the vehicle's position and heading are known; it is sent only then.
+Both are streamed at the interval a ground station sets (SET_MESSAGE_INTERVAL; off by default).
+"""
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import functools
-from collections.abc import Mapping
+import logging
+import math
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
+from ..clock import MonotonicFn, monotonic
 from ..video.lens import VideoError, tracking_requests
 from ._mav import mavlink
 from .camera_link import CameraLink
-from .commands import Command, Outcome, denied, unsupported
+from .commands import Command, Outcome, denied, rejected, unsupported
+from .geo import ground_point
 
 if TYPE_CHECKING:
     from ..client import AsyncClient
     from ..protocol import Message
+    from ..track import CompanionTracker
+    from .vehicle import Vehicles
+
+log = logging.getLogger("topgimbal.mavlink")
+
+POLL_S = 0.2  # how often a camera with a tracking state query is asked while tracking
+START_GRACE_S = 1.0  # a camera that does not say "tracking" within this after the request failed
+COMPANION_START_S = 5.0  # the companion loop must find the target in a picture within this to ack
+MAX_STATUS_HZ = 20.0
+NAN = float("nan")
+INT32_MAX = 2**31 - 1
+# MAVLink's CAMERA_TRACKING_STATUS_FLAGS / _MODE / _TARGET_DATA
+IDLE, ACTIVE, ERROR = 0, 1, 2
+MODE_NONE, MODE_POINT, MODE_RECTANGLE = 0, 1, 2
+DATA_NONE, DATA_IN_STATUS = 0, 4
+FovFn = Callable[[], tuple[float, float]]
 
 
 class Tracker:
-    def __init__(self, cam: CameraLink) -> None:
+    def __init__(
+        self,
+        cam: CameraLink,
+        *,
+        fov: FovFn | None = None,
+        vehicles: Vehicles | None = None,
+        clock: MonotonicFn = monotonic,
+        companion_url: str | None = None,
+    ) -> None:
         self.cam = cam
         self.profile = cam.profile
+        self.fov = fov
+        self.vehicles = vehicles
+        self.clock = clock
         self.state: tuple[int, tuple[float, ...]] = (0, ())  # (1 point | 2 rectangle | 0 none, its values)
+        self.camera_state: str | None = None  # the camera's last tracking state (a model that says it)
+        self.lost = False
+        self._seen_tracking = False
+        self._started_at = 0.0
+        self._start_attitude: tuple[float, float] | None = None  # gimbal (yaw, pitch) when tracking started
+        self._poll: asyncio.Task[None] | None = None
+        spec = self.profile.dialect.by_role("tracking", self.profile.model)
+        self.reads_state = spec is not None and any(f.rw == "r" and f.fields for f in spec.forms)
+        # The companion loop (topgimbal.track) on this RTSP stream, for a model without a tracker
+        # of its own (bridge --companion-tracking); None: the camera's tracker or nothing.
+        own = self.profile.track_point or self.profile.track_rectangle
+        self.companion_url = companion_url if not own else None
+        self.companion: CompanionTracker | None = None
+        self._companion_task: asyncio.Task[Any] | None = None
+        self._picture_size: tuple[int, int] | None = None
+
+    # -- commands ----------------------------------------------------------------------------------
 
     async def point(self, cmd: Command) -> Outcome:
         x, y = cmd.p(1), cmd.p(2)
         radius = cmd.p(3) if cmd.has(3) else 0.05
         if not (0 <= x <= 1 and 0 <= y <= 1):
             raise denied(f"point ({x:g}, {y:g}): expected 0..1 each")
+        if self.companion_url is not None:
+            r = max(0.02, min(0.25, radius))
+            await self._start_companion(max(0.0, x - r), max(0.0, y - r), min(1.0, x + r), min(1.0, y + r))
+            self._started(1, (x, y, radius))
+            return Outcome()
         await self._track(x, y)
-        self.state = (1, (x, y, radius))
+        self._started(1, (x, y, radius))
         return Outcome()
 
     async def rect(self, cmd: Command) -> Outcome:
         x0, y0, x1, y1 = cmd.p(1), cmd.p(2), cmd.p(3), cmd.p(4)
         if not all(0 <= v <= 1 for v in (x0, y0, x1, y1)) or x1 <= x0 or y1 <= y0:
             raise denied("rectangle: expected 0 <= top-left < bottom-right <= 1")
+        if self.companion_url is not None:
+            await self._start_companion(x0, y0, x1, y1)
+            self._started(2, (x0, y0, x1, y1))
+            return Outcome()
         await self._track(x0, y0, x1, y1)
-        self.state = (2, (x0, y0, x1, y1))
+        self._started(2, (x0, y0, x1, y1))
         return Outcome()
 
     async def _track(self, x0: float, y0: float, x1: float | None = None, y1: float | None = None) -> None:
@@ -50,7 +125,56 @@ class Tracker:
         for ident, values in requests:
             await self.cam.call(functools.partial(_request, ident=ident, values=values))
 
+    def _started(self, mode: int, values: tuple[float, ...]) -> None:
+        self.state = (mode, values)
+        self.lost, self._seen_tracking, self.camera_state = False, False, None
+        self._started_at = self.clock()
+        att = self.cam.attitude
+        self._start_attitude = None if att is None else (att.yaw_deg, att.pitch_deg)
+        if self.reads_state and self._poll is None:
+            self._poll = asyncio.ensure_future(self._poll_loop())
+
+    async def _start_companion(self, x0: float, y0: float, x1: float, y1: float) -> None:
+        """Run the companion loop on the box; acked once it found the target in a picture."""
+        from ..track import CompanionTracker, TrackConfig, TrackerError, rtsp_frames
+
+        await self._stop_companion()
+        client = self.cam.client
+        if client is None or self.companion_url is None:
+            raise rejected("the camera is not connected")
+        try:
+            tracker = CompanionTracker(client, TrackConfig(box=(x0, y0, x1 - x0, y1 - y0)))
+        except TrackerError as exc:
+            raise denied(str(exc)) from None
+
+        def seen(pic: Any, box: Any) -> None:
+            self._picture_size = (int(pic.image.shape[1]), int(pic.image.shape[0]))
+
+        tracker.on_picture = seen
+        self.companion = tracker
+        self._companion_task = asyncio.ensure_future(tracker.run(rtsp_frames(self.companion_url)))
+        end = self.clock() + COMPANION_START_S
+        while tracker.state == "starting" and not self._companion_task.done() and self.clock() < end:
+            await asyncio.sleep(0.05)
+        if tracker.state != "tracking":
+            why = "the video could not be read" if self._companion_task.done() else "no target in the box"
+            await self._stop_companion()
+            raise rejected(f"companion tracking did not start: {why}")
+        log.info("tracking: the companion loop follows the box on %s", self.companion_url)
+
+    async def _stop_companion(self) -> None:
+        task, self._companion_task = self._companion_task, None
+        self.companion = None
+        if task is not None:
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await task  # its end stops the gimbal
+
     async def stop(self, cmd: Command) -> Outcome:
+        if self.companion_url is not None:
+            await self._stop_companion()
+            self.state = (0, ())
+            return Outcome()
         p = self.profile
         role = "tracking_confirm" if p.can("tracking_confirm") else "tracking" if p.can("tracking") else None
         if role is not None:
@@ -58,16 +182,153 @@ class Tracker:
         else:
             raise unsupported(f"the {self.profile.model.name} cannot stop tracking")
         self.state = (0, ())
+        self.lost = False
+        await self.close()
         return Outcome()
 
-    async def status(self, cmd: Command) -> list[Any]:
+    async def close(self) -> None:
+        await self._stop_companion()
+        task, self._poll = self._poll, None
+        if task is not None:
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await task
+
+    # -- the camera's state --------------------------------------------------------------------------
+
+    async def _poll_loop(self) -> None:
+        ident = self.profile.ident("tracking")
+        while self.state[0]:
+            try:
+                m = await self.cam.call(functools.partial(_read, ident=ident))
+                self.observe(str((m.fields or {}).get("state")))
+            except Exception as exc:  # a lost link: the status keeps what the camera said last
+                log.debug("tracking state query failed: %s", exc)
+            await asyncio.sleep(POLL_S)
+
+    def observe(self, camera_state: str) -> None:
+        """What the camera answered to its tracking state query."""
+        self.camera_state = camera_state
+        if not self.state[0] or self.lost:
+            return
+        if camera_state == "tracking":
+            self._seen_tracking = True
+        elif camera_state == "lens_cannot_track" or self._seen_tracking:
+            self.lost = True
+            log.info("tracking: the camera lost the target (its state: %s)", camera_state)
+        elif self.clock() - self._started_at > START_GRACE_S:
+            self.lost = True
+            log.info("tracking: the camera did not start tracking (its state: %s)", camera_state)
+
+    # -- status ----------------------------------------------------------------------------------------
+
+    def offset_frac(self) -> tuple[float, float] | None:
+        """How far (picture fractions) the gimbal has turned towards the box since tracking started:
+        None without attitude or field of view."""
+        att, start = self.cam.attitude, self._start_attitude
+        if att is None or start is None or self.fov is None:
+            return None
+        hfov, vfov = self.fov()
+        if not (math.isfinite(hfov) and math.isfinite(vfov)) or hfov <= 0 or vfov <= 0:
+            return None
+        dyaw = (att.yaw_deg - start[0] + 180.0) % 360.0 - 180.0
+        dpitch = att.pitch_deg - start[1]
+        tx, ty = math.tan(math.radians(hfov) / 2), math.tan(math.radians(vfov) / 2)
+        return math.tan(math.radians(dyaw)) / (2 * tx), -math.tan(math.radians(dpitch)) / (2 * ty)
+
+    def estimated_centre(self) -> tuple[float, float] | None:
+        """The target's centre in the picture now (fractions): the companion loop's own
+        measurement where it runs, else estimated from the gimbal."""
         mode, v = self.state
-        nan = float("nan")
-        pt = (v[0], v[1], v[2]) if mode == 1 else (nan, nan, nan)
-        rect = tuple(v) if mode == 2 else (nan, nan, nan, nan)
-        return [mavlink().MAVLink_camera_tracking_image_status_message(
-            1 if mode else 0, mode, 1 if mode == 1 else 2 if mode == 2 else 0, *pt, *rect, 0)]  # fmt: skip
+        if not mode:
+            return None
+        comp, size = self.companion, self._picture_size
+        if comp is not None and size is not None and comp.vision.centre is not None:
+            return comp.vision.centre[0] / size[0], comp.vision.centre[1] / size[1]
+        cx, cy = (v[0], v[1]) if mode == 1 else ((v[0] + v[2]) / 2, (v[1] + v[3]) / 2)
+        turned = self.offset_frac()
+        if turned is None:
+            return cx, cy
+        return _towards_centre(cx, turned[0]), _towards_centre(cy, turned[1])
+
+    def status_message(self) -> Any:
+        mode, v = self.state
+        ml = mavlink()
+        if not mode:
+            return ml.MAVLink_camera_tracking_image_status_message(IDLE, MODE_NONE, DATA_NONE, *(NAN,) * 7)
+        if self.companion is not None and self.companion.state == "lost":
+            self.lost = True
+        if self.lost:
+            return ml.MAVLink_camera_tracking_image_status_message(ERROR, mode, DATA_NONE, *(NAN,) * 7)
+        c = self.estimated_centre()
+        assert c is not None
+        if mode == 1:
+            pt, rect = (c[0], c[1], v[2]), (NAN,) * 4
+        else:
+            hw, hh = (v[2] - v[0]) / 2, (v[3] - v[1]) / 2
+            pt, rect = (NAN,) * 3, (c[0] - hw, c[1] - hh, c[0] + hw, c[1] + hh)
+        return ml.MAVLink_camera_tracking_image_status_message(ACTIVE, mode, DATA_IN_STATUS, *pt, *rect)
+
+    async def status(self, cmd: Command) -> list[Any]:
+        return [self.status_message()]
+
+    def target_bearing(self) -> tuple[float, float] | None:
+        """Earth-frame (bearing, pitch) of the estimated target, when the heading is known."""
+        att, c = self.cam.attitude, self.estimated_centre()
+        vyaw = self.vehicles.yaw_deg if self.vehicles is not None else None
+        if att is None or c is None or vyaw is None or self.fov is None:
+            return None
+        hfov, vfov = self.fov()
+        tx, ty = math.tan(math.radians(hfov) / 2), math.tan(math.radians(vfov) / 2)
+        dx = math.degrees(math.atan((c[0] - 0.5) * 2 * tx))
+        dy = math.degrees(math.atan((0.5 - c[1]) * 2 * ty))
+        return att.yaw_deg + vyaw + dx, att.pitch_deg + dy
+
+    def geo_message(self) -> Any | None:
+        """CAMERA_TRACKING_GEO_STATUS where the target's position is known (flat ground), else None."""
+        mode = self.state[0]
+        if not mode or self.lost:
+            return None if not mode else _geo(ERROR)
+        fix = self.vehicles.fix() if self.vehicles is not None else None
+        look = self.target_bearing()
+        if fix is None or look is None:
+            return None
+        hit = ground_point(fix.position, look[0], look[1], fix.home_alt_m)
+        if hit is None:
+            return None
+        north = (hit.lat_deg - fix.position.lat_deg) * 111_195.0
+        east = (hit.lon_deg - fix.position.lon_deg) * 111_195.0 * math.cos(math.radians(fix.position.lat_deg))
+        dist = math.sqrt(north * north + east * east + (fix.position.alt_m - hit.alt_m) ** 2)
+        return mavlink().MAVLink_camera_tracking_geo_status_message(
+            ACTIVE, int(hit.lat_deg * 1e7), int(hit.lon_deg * 1e7), hit.alt_m,
+            NAN, NAN, NAN, NAN, NAN, NAN, dist, NAN, NAN)  # fmt: skip
+
+    async def geo_status(self, cmd: Command) -> list[Any]:
+        m = self.geo_message()
+        if m is None:
+            raise unsupported("the target's position is not known (no tracking, no vehicle position or heading)")
+        return [m]
+
+
+def _geo(status: int) -> Any:
+    return mavlink().MAVLink_camera_tracking_geo_status_message(
+        status, INT32_MAX, INT32_MAX, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN
+    )
+
+
+def _towards_centre(c: float, turned: float) -> float:
+    """A picture coordinate moved towards the centre (0.5) by what the gimbal turned, never past it:
+    once the camera's tracker centred the target, it keeps it there."""
+    off = c - 0.5
+    left = off - turned
+    if off * left <= 0:
+        return 0.5
+    return 0.5 + left
 
 
 async def _request(client: AsyncClient, *, ident: str, values: Mapping[str, object]) -> Message:
     return await client.send_request(client.build_from(ident, values))
+
+
+async def _read(client: AsyncClient, *, ident: str) -> Message:
+    return await client.send_request(client.build_from(ident, {}, read=True))

@@ -31,6 +31,8 @@ from ..protocol.signs import flip
 from .physics import GimbalPhysics
 from .state import CameraState, NetworkState, Position
 from .streams import Key, ReportFn, Stream, Streams
+from .targets import Target, TargetView, views
+from .tracker import CameraTracker, hfov_for
 
 # Roles whose commands are reports, not settings a device stores.
 NOT_STORED = frozenset({"error", "attitude", "earth_attitude"})
@@ -100,6 +102,32 @@ class SimState:
     # Called on the simulator's thread as (event, file index) for "photo", "record_start" and
     # "record_stop" (the media store: video/media.py). A listener must not raise.
     capture_listeners: list[Callable[[str, int], None]] = field(default_factory=list)
+    # The simulated world's targets (sim --target) and the camera's own tracker (sim/tracker.py).
+    targets: tuple[Target, ...] = ()
+    tracker: CameraTracker | None = None
+
+    def target_views(self, now: float) -> tuple[TargetView, ...]:
+        """Every target at device time `now` (target paths count from power-on)."""
+        return views(self.targets, now - self.camera.booted_at)
+
+    def tracking_hfov_deg(self) -> float:
+        """The visible picture's horizontal field of view now (what the tracker works in)."""
+        return hfov_for(self.model, self.camera.zoom_x)
+
+    def start_tracking(self, now: float, box: tuple[float, float, float, float]) -> None:
+        """The camera's tracker locks on what is in `box` (centre x, y, width, height, fractions)."""
+        assert self.tracker is not None
+        self.tracker.start(now, self.gimbal, self.tracking_hfov_deg(), box, self.target_views(now))
+        self.camera.tracking = self.tracker.state
+
+    def set_tracking(self, state: str) -> None:
+        """Arm the tracker (state "waiting") or stop it."""
+        assert self.tracker is not None
+        if state == "waiting":
+            self.tracker.arm(self.gimbal)
+        else:
+            self.tracker.stop(self.gimbal)
+        self.camera.tracking = self.tracker.state
 
     def report(self, ident: str, *, dst: str, src: str | None = None, rw: str | None = None, **values: Any) -> Frame:
         """An unsolicited frame from API-convention values (wire signs applied here)."""
@@ -280,6 +308,7 @@ def new_state(
     )
     camera = CameraState(m)
     state = SimState(m, dialect, signs, quirks, seed, gimbal, camera, stream_hz=stream_hz)
+    state.tracker = CameraTracker.for_model(m)
     state.uid = first_uid(seed)
     state.serial = serial_for(m, seed)
     state.rng = random.Random(f"{seed}/device")

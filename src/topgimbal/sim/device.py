@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import heapq
 import logging
+import math
 from collections.abc import Hashable, Mapping
 from dataclasses import dataclass, field, replace
 from datetime import datetime
@@ -35,6 +36,7 @@ from .context import Handler, RefusedError, Reply, Request, SimState, StateView,
 from .entries import Entry, build_entries
 from .handlers import handler_table
 from .handlers.lens import zoom_report
+from .tracker import TRACK_STEP_S
 
 # TOPOTEK's GAA / GIA switch a stream on without a rate; this is the simulator's (documented) rate.
 TOPOTEK_STREAM_HZ = 10.0
@@ -107,18 +109,31 @@ class Device(StateView):
         if state.coast_until is not None and state.coast_until <= t:
             # A coasting stop takes now: move up to that moment, then stop.
             if state.coast_until > self._last:
-                self._advance(state.coast_until - self._last)
+                self._advance(state.coast_until - self._last, self._last)
                 self._last = state.coast_until
             for axis in state.coast_axes:
                 if state.gimbal.axis(axis).mode == "rate":
                     state.gimbal.rate(axis, 0.0)
             state.coast_until, state.coast_axes = None, ()
-        self._advance(t - self._last)
+        self._advance(t - self._last, self._last)
         self._last = t
 
-    def _advance(self, dt: float) -> None:
-        self.state.gimbal.advance(dt)
-        self.state.camera.advance(dt)
+    def _advance(self, dt: float, t0: float) -> None:
+        state = self.state
+        tracker = state.tracker
+        if tracker is not None and tracker.state == "tracking":
+            # The camera's tracker looks once a frame and sets the gimbal's rates in between.
+            n = max(1, math.ceil(dt / TRACK_STEP_S - 1e-9))
+            h = dt / n
+            for i in range(n):
+                t = t0 + i * h
+                if tracker.state == "tracking":
+                    tracker.update(t, state.gimbal, state.tracking_hfov_deg(), state.target_views(t))
+                    state.camera.tracking = tracker.state
+                state.gimbal.advance(h)
+        else:
+            state.gimbal.advance(dt)
+        state.camera.advance(dt)
 
     @property
     def now(self) -> float:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import asyncio
 import random
-from collections.abc import Hashable, Iterable, Mapping
+from collections.abc import Hashable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, cast
 
@@ -29,6 +29,7 @@ from .faults import FaultInjector, FaultPlan
 from .physics import GimbalPhysics
 from .servers import LOOPBACK, Limits, SerialPeer, TcpServer, UdpServer
 from .state import CameraState, NetworkState
+from .targets import Target
 
 Address = tuple[str, int]
 
@@ -66,11 +67,13 @@ class Simulator:
         listen: Mapping[str, Any] | None = None,
         topotek_stream_hz: float = TOPOTEK_STREAM_HZ,
         limits: Limits | None = None,
+        targets: Sequence[Target] = (),
     ) -> None:
         self.clock: Clock = clock if clock is not None else MonotonicClock()
         self.device = Device(
             model, seed=seed, clock=self.clock, quirk_overrides=quirks, topotek_stream_hz=topotek_stream_hz
         )
+        self.device.state.targets = tuple(targets)
         self.seed = seed
         self.faults = faults or FaultPlan()
         self.state_file = Path(state_file) if state_file is not None else None

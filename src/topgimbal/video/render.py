@@ -200,10 +200,12 @@ class Renderer:
         self._draw_horizon(draw, cam, state, thermal)
         if thermal:
             self._draw_world_thermal(draw, cam)
+            self._draw_targets(draw, cam, state, thermal=True)
             img = self._colourise(img, state.palette)
             draw = ImageDraw.Draw(img)
         else:
             self._draw_world_visible(draw, cam)
+            self._draw_targets(draw, cam, state, thermal=False)
         if state.osd:
             self._draw_osd(draw, state, hfov)
         self._draw_stamp(draw, state)
@@ -281,6 +283,24 @@ class Renderer:
                 r = cam.radius_px(max(0.3, radius_deg))
                 draw.ellipse((x - r, y - r, x + r, y + r), fill=world.temperature_level(world.GROUND_C + dt))
 
+    def _draw_targets(self, draw: ImageDraw.ImageDraw, cam: Camera, state: SceneState, *, thermal: bool) -> None:
+        """The simulated world's targets (sim/targets.py): discs of their angular size, dark by
+        their contrast in the visible picture, at their temperature (hot) in the thermal one."""
+        for az, el, size_deg, contrast, temp_c in state.targets:
+            p = cam.point(world_dir(az, el))
+            if p is None:
+                continue
+            x, y = p
+            r = max(1.5, cam.radius_px(size_deg / 2.0))
+            if not (-r < x < self.width + r and -r < y < self.height + r):
+                continue
+            if thermal:
+                fill: Colour = world.temperature_level(temp_c)
+            else:
+                level = round(230 * (1.0 - contrast))
+                fill = self._c((level, level, level))
+            draw.ellipse((x - r, y - r, x + r, y + r), fill=fill)
+
     def _draw_ticks(self, draw: ImageDraw.ImageDraw, cam: Camera, colour: Colour) -> None:
         pts = cam.points(self._tick_dirs)
         h = max(4, self.height // 60)
@@ -325,6 +345,12 @@ class Renderer:
             pos = (fs // 2, fs // 2 + i * int(fs * 1.3))
             draw.text((pos[0] + 1, pos[1] + 1), line, fill=sh, font=self._font)
             draw.text(pos, line, fill=fg, font=self._font)
+        if state.track_box is not None and self.lens != "thermal":
+            # The camera tracker's box (sim/tracker.py), as a camera's OSD draws it.
+            bx, by, bw, bh = state.track_box
+            x0, y0 = (bx - bw / 2) * self.width, (by - bh / 2) * self.height
+            x1, y1 = (bx + bw / 2) * self.width, (by + bh / 2) * self.height
+            draw.rectangle((x0, y0, x1, y1), outline=self._c((0, 255, 0)), width=2)
         cx, cy, c = self.width / 2, self.height / 2, max(8, self.height // 30)
         for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
             draw.line((cx + dx * c * 0.3, cy + dy * c * 0.3, cx + dx * c, cy + dy * c), fill=fg, width=2)

@@ -4,9 +4,10 @@ the render thread can take without touching the simulator."""
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
+
+from ..clock import wall_time
 
 if TYPE_CHECKING:
     from ..sim.device import Device
@@ -27,6 +28,10 @@ class SceneState:
     tracking: str
     wall_s: float  # wall-clock time the state was taken (burned into the picture)
     frame: int = 0
+    # Visible targets of the simulated world (sim --target): (bearing, elevation, size deg,
+    # contrast 0..1, temperature °C) each; and the camera tracker's box (centre x, y, w, h).
+    targets: tuple[tuple[float, float, float, float, float], ...] = ()
+    track_box: tuple[float, float, float, float] | None = None
 
 
 def capture(device: Device, frame: int = 0, wall_s: float | None = None) -> SceneState:
@@ -35,6 +40,7 @@ def capture(device: Device, frame: int = 0, wall_s: float | None = None) -> Scen
     g = device.gimbal
     cam = device.camera
     yaw, pitch, roll = g.earth()
+    tracker = device.state.tracker
     settings = device.settings
     osd = settings.get("EXT", {}).get("osd", "on") != "off"
     dz = settings.get("DZM", {})
@@ -53,6 +59,12 @@ def capture(device: Device, frame: int = 0, wall_s: float | None = None) -> Scen
         recording=bool(cam.recording),
         record_s=max(0.0, device.now - cam.record_started) if cam.recording else 0.0,
         tracking=str(cam.tracking),
-        wall_s=time.time() if wall_s is None else wall_s,
+        wall_s=wall_time() if wall_s is None else wall_s,
         frame=frame,
+        targets=tuple(
+            (t.bearing_deg, t.elevation_deg, t.size_deg, t.contrast, t.temp_c)
+            for t in device.state.target_views(device.now)
+            if t.visible
+        ),
+        track_box=tracker.box if tracker is not None and tracker.state == "tracking" else None,
     )

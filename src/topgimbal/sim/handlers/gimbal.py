@@ -10,6 +10,7 @@ from ...protocol import Frame, Message
 from ..context import Reply, Request, SimState
 from ..physics import AXES, wrap180
 from ..streams import ReportFn, Stream
+from ..tracker import POINT_BOX
 from .common import fields
 
 NUDGE_FRACTION = 0.5  # PTZ up/down/left/right move at this fraction of the model's rate limit
@@ -189,28 +190,39 @@ def vehicle_attitude(state: SimState, msg: Message, req: Request) -> None:
         state.position.speed_m_s = float(f["speed_m_s"])
 
 
+# The camera's own tracker (sim/tracker.py) behind the tracking commands. What the documents leave
+# open is decided in docs/errata.md (E35): a SkyDroid GOT point starts tracking at
+# once (SUM 01 confirms it, SUM 00 stops); TOPOTEK's LOC box starts it (TRC 01 / 02 only arm), and
+# a lost target reads back as TRC state 1 (waiting for a new box), the code the firmware has.
+GOT_PICTURE = (1280.0, 720.0)  # the GOT fields' picture (the catalog's field ranges)
+LOC_HALF_SPAN = 1000.0  # LOC: centre 0, edges -1000 / +1000 on each axis (video/lens.py)
+
+
 def tracking_confirm(state: SimState, msg: Message, req: Request) -> None:
-    cam = state.camera
-    confirm = fields(msg)["action"] == "confirm" and cam.tracking != "stopped"
-    cam.tracking = "tracking" if confirm else "stopped"
+    if fields(msg)["action"] != "confirm":
+        state.set_tracking("stopped")
+    # A confirm keeps what GOT started; with nothing started there is nothing to confirm.
 
 
 def tracking_target(state: SimState, msg: Message, req: Request) -> None:
-    state.camera.tracking = "tracking"
+    f = fields(msg)
+    w, h = GOT_PICTURE
+    state.start_tracking(req.now, (f["x_px"] / w, f["y_px"] / h, POINT_BOX, POINT_BOX * w / h))
 
 
 def tracking(state: SimState, msg: Message, req: Request) -> dict[str, Any] | Reply | None:
     cam = state.camera
     if req.frame.rw == "r":
-        return {"reserved": "30", "state": cam.tracking}
-    cam.tracking = "waiting" if fields(msg)["action"] in ("start", "ready") else "stopped"
+        return {"reserved": "30", "state": "waiting" if cam.tracking == "lost" else cam.tracking}
+    state.set_tracking("waiting" if fields(msg)["action"] in ("start", "ready") else "stopped")
     return None
 
 
 def tracking_box(state: SimState, msg: Message, req: Request) -> None:
-    cam = state.camera
-    if cam.tracking == "stopped":
-        cam.tracking = "waiting"
     f = fields(msg)
     if f["width_px"] > 0 and f["height_px"] > 0:
-        cam.tracking = "tracking"
+        s = LOC_HALF_SPAN
+        box = ((f["x_px"] / s + 1) / 2, (f["y_px"] / s + 1) / 2, f["width_px"] / (2 * s), f["height_px"] / (2 * s))
+        state.start_tracking(req.now, box)
+    elif state.camera.tracking == "stopped":
+        state.set_tracking("waiting")

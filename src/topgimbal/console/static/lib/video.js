@@ -291,7 +291,9 @@ function attachPointer(v, track) {
       const [x0, y0] = start.f;
       const r = await post("api/video/track", { lens: v.lens, x0, y0, x1, y1 });
       v.wrap.dataset.last = r.ok ? "tracking" : `error ${r.body.message}`;
-      setTimeout(() => { v.box.hidden = true; }, r.ok ? 1500 : 300);
+      // The box the user drew stays up while the camera tracks (setUpTracking hides it after).
+      if (!r.ok) setTimeout(() => { v.box.hidden = true; }, 300);
+      else track.box = v.box;
       if (r.ok) track.started?.((r.body.requests || []).map((q) => q.id).join(", "));
       else api?.showError(`Tracking: ${r.body.message || "refused"}`);
     }
@@ -312,10 +314,15 @@ function setUpTracking(api, track) {
     track.hint.textContent = `click: point there · wheel: zoom · the ${name} does not track targets`;
     return;
   }
-  const show = (text, on) => {
+  let poll = null, seen = false;
+  const show = (text, on, state) => {
     track.tracking.textContent = text;
-    track.tracking.dataset.state = on ? "tracking" : "stopped";
+    track.tracking.dataset.state = state || (on ? "tracking" : "stopped");
     track.trackStop.hidden = !on;
+    if (!on || state === "lost") {
+      clearInterval(poll); poll = null;
+      if (track.box) track.box.hidden = true;
+    }
   };
   const readState = async (fallback, on) => {
     if (!plan.query) return show(fallback, on);
@@ -323,9 +330,21 @@ function setUpTracking(api, track) {
     const value = m?.fields?.[plan.query.field.name];
     if (value == null) return show(fallback, on);
     const label = plan.query.field.values.find((x) => x.name === value)?.label || value;
+    // A camera that was tracking and is waiting again without a stop lost its target
+    // (docs/errata.md E35): said as such, not as "waiting".
+    if (seen && on && value !== "tracking" && value !== "stopped") {
+      return show(`tracking: lost (the camera's state: ${label.toLowerCase()})`, true, "lost");
+    }
+    seen = seen || value === "tracking";
     show(`tracking: ${label.toLowerCase()} (the camera's state)`, value !== "stopped");
   };
-  track.started = (ids) => readState(`tracking: on (the camera acknowledged ${ids})`, true);
+  track.started = (ids) => {
+    seen = false;
+    readState(`tracking: on (the camera acknowledged ${ids})`, true);
+    // While tracking, ask the camera once a second so a lost target shows.
+    clearInterval(poll);
+    if (plan.query) poll = setInterval(() => readState("", true), 1000);
+  };
   if (!plan.stop) {
     track.trackStop.disabled = true;
     track.trackStop.title = `the ${name} has no command that stops tracking`;
