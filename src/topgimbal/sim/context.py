@@ -31,6 +31,7 @@ from ..protocol.signs import flip
 from .physics import GimbalPhysics
 from .state import CameraState, NetworkState, Position
 from .streams import Key, ReportFn, Stream, Streams
+from .terrain import TerrainGround
 
 # Roles whose commands are reports, not settings a device stores.
 NOT_STORED = frozenset({"error", "attitude", "earth_attitude"})
@@ -100,6 +101,9 @@ class SimState:
     # Called on the simulator's thread as (event, file index) for "photo", "record_start" and
     # "record_stop" (the media store: video/media.py). A listener must not raise.
     capture_listeners: list[Callable[[str, int], None]] = field(default_factory=list)
+    # The ground the laser measures (sim --terrain: a TerrainGround); None: flat ground at
+    # altitude 0, the host's ALT being the height above it.
+    terrain: TerrainGround | None = None
 
     def report(self, ident: str, *, dst: str, src: str | None = None, rw: str | None = None, **values: Any) -> Frame:
         """An unsolicited frame from API-convention values (wire signs applied here)."""

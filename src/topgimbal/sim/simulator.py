@@ -29,6 +29,7 @@ from .faults import FaultInjector, FaultPlan
 from .physics import GimbalPhysics
 from .servers import LOOPBACK, Limits, SerialPeer, TcpServer, UdpServer
 from .state import CameraState, NetworkState
+from .terrain import TerrainGround
 
 Address = tuple[str, int]
 
@@ -66,12 +67,15 @@ class Simulator:
         listen: Mapping[str, Any] | None = None,
         topotek_stream_hz: float = TOPOTEK_STREAM_HZ,
         limits: Limits | None = None,
+        terrain: str | Path | TerrainGround | None = None,
     ) -> None:
         self.clock: Clock = clock if clock is not None else MonotonicClock()
         self.device = Device(
             model, seed=seed, clock=self.clock, quirk_overrides=quirks, topotek_stream_hz=topotek_stream_hz
         )
         self.seed = seed
+        if terrain is not None:  # the laser's ground (sim --terrain); a bad file raises DemError here
+            self.device.state.terrain = terrain if isinstance(terrain, TerrainGround) else TerrainGround.load(terrain)
         self.faults = faults or FaultPlan()
         self.state_file = Path(state_file) if state_file is not None else None
         self.listen = dict(listen or {})
