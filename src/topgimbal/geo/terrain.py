@@ -21,7 +21,8 @@ from .frames import EARTH_RADIUS_M, LocalFrame, Vec
 class Terrain(Protocol):
     """What the geolocation needs from a terrain model."""
 
-    vertical_error_m: float
+    @property
+    def vertical_error_m(self) -> float: ...  # 1-sigma of its heights
 
     def height_m(self, lat_deg: float, lon_deg: float) -> float | None: ...
 
