@@ -70,6 +70,7 @@ class BridgeConfig:
     signing_key: bytes | None = None  # MAVLink 2 signing (signing.py): sign all, accept only signed
     client_options: dict[str, Any] = field(default_factory=dict)
     definition_http: str | None = "127.0.0.1:0"  # HOST:PORT serving the camera definitions; None: not served
+    terrain: str | None = None  # a GeoTIFF DEM: CAMERA_FOV_STATUS's image centre on it (else flat at home)
 
     def definition_address(self) -> tuple[str, int] | None:
         if not self.definition_http:
@@ -164,6 +165,12 @@ class Bridge:
                 self.cameras.append(CameraComponent(
                     svc, self.cam, self.vehicles, lens=lens, gimbal_device_id=gimbal_ref, video_urls=mine,
                     identity=self.identity, range_hz=c.range_hz, media_url=c.media_url))  # fmt: skip
+        if c.terrain is not None:  # read once, shared by the cameras (DemError for a file it cannot use)
+            from ..geo.dem import load_dem
+
+            terrain = load_dem(c.terrain)
+            for camera in self.cameras:
+                camera.view.terrain = terrain
         self.reboots = RebootWatch(self._peer_rebooted)
         self.node.subscribe(lambda m: self.reboots.on_message(m, time.monotonic()))
         self.node.subscribe(self.vehicles.on_message)
