@@ -22,6 +22,7 @@ from .camera import CameraComponent
 from .camera_feed import CameraFeed
 from .camera_link import CameraLink
 from .commands import Dispatcher
+from .cot import CotSender
 from .endpoints import MAX_PEERS, parse_endpoint
 from .ftp import FtpServer
 from .gimbal_device import GimbalDevice
@@ -71,6 +72,7 @@ class BridgeConfig:
     client_options: dict[str, Any] = field(default_factory=dict)
     definition_http: str | None = "127.0.0.1:0"  # HOST:PORT serving the camera definitions; None: not served
     terrain: str | None = None  # a GeoTIFF DEM: CAMERA_FOV_STATUS's image centre on it (else flat at home)
+    cot: str | None = None  # udp://HOST:PORT: Cursor-on-Target of what the camera looks at, 1 Hz (cot.py)
 
     def definition_address(self) -> tuple[str, int] | None:
         if not self.definition_http:
@@ -171,6 +173,11 @@ class Bridge:
             terrain = load_dem(c.terrain)
             for camera in self.cameras:
                 camera.view.terrain = terrain
+        self.cot: CotSender | None = None
+        if c.cot is not None and self.cameras:
+            view, urls = self.cameras[0].view, self.cameras[0].video_urls
+            self.cot = CotSender(c.cot, lambda: view.sighting(urls[0] if urls else None),
+                                 uid=f"topgimbal-{c.model}-{c.sysid}", callsign=f"{c.model} {c.sysid}")  # fmt: skip
         self.reboots = RebootWatch(self._peer_rebooted)
         self.node.subscribe(lambda m: self.reboots.on_message(m, time.monotonic()))
         self.node.subscribe(self.vehicles.on_message)
@@ -214,6 +221,8 @@ class Bridge:
             svc.start()
         self._tasks.append(asyncio.ensure_future(self._heartbeats()))
         self._tasks.append(asyncio.ensure_future(self._identify()))
+        if self.cot is not None:
+            self._tasks.append(asyncio.ensure_future(self.cot.run()))
         self.started = True
         links = ", ".join(str(link) for link in self.node.links)
         log.info("MAVLink bridge for %s (%s) on %s as system %d, role %s", self.config.url, self.config.model, links,

@@ -9,13 +9,14 @@ import logging
 import math
 from typing import TYPE_CHECKING, Any
 
-from ..geo import Attitude, Geodetic, Pointing, Terrain, View
+from ..geo import CORNERS, Attitude, Geodetic, Pointing, Terrain, View
 from ..geo import Fix as GeoFix
 from ..geo import locate as geo_locate
 from ..video.lens import hfov_at, vfov_for
 from ._mav import mavlink
 from .camera_link import CameraLink
 from .commands import Command, rejected
+from .cot import Sighting
 from .node import Component
 from .quaternion import from_euler_deg
 from .vehicle import Vehicles
@@ -88,6 +89,21 @@ class CameraView:
             vfov,
         )
         return geo_locate(view, terrain=self.terrain, ground_alt_m=fix.home_alt_m, x=x, y=y)
+
+    def sighting(self, video_url: str | None = None) -> Sighting | None:
+        """What Cursor-on-Target says now (cot.py): None without a fix, heading or attitude."""
+        fix = self.vehicles.fix()
+        att = self.cam.attitude
+        vyaw = self.vehicles.yaw_deg
+        if fix is None or att is None or vyaw is None:
+            return None
+        hfov, vfov = self.fov_deg()
+        corners = [self.locate(x, y) for x, y in CORNERS] if not math.isnan(hfov) else []
+        p = fix.position
+        return Sighting(
+            p.lat_deg, p.lon_deg, p.alt_m, att.yaw_deg + vyaw, att.pitch_deg, att.roll_deg,
+            hfov, vfov, self.locate(), corners, video_url,
+        )  # fmt: skip
 
     def zoom_x(self) -> float:
         """This lens's magnification as the camera last reported it (1 until it has)."""
