@@ -4,7 +4,9 @@ with the vehicle's position."""
 
 from __future__ import annotations
 
+import asyncio
 import json
+import math
 import subprocess
 import threading
 from pathlib import Path
@@ -12,6 +14,7 @@ from pathlib import Path
 import av
 import klvdata
 import pytest
+from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.mavlink.klv_record import remux
 
@@ -63,3 +66,42 @@ def test_ts_with_a_klv_stream_every_packet_parses(source: Path, tmp_path: Path) 
 def test_nothing_to_say_writes_no_klv_packet(source: Path, tmp_path: Path) -> None:
     videos, klvs = remux(str(source), tmp_path / "quiet.ts", lambda: None, threading.Event())
     assert videos == 30 and klvs == 0
+
+
+async def test_bridge_records_the_video_with_the_vehicle_position(rig_factory, source: Path, tmp_path: Path) -> None:
+    """`mavlink --record DIR` (here the "stream" is a file, re-read after each end as a stream is
+    reconnected): a file whose KLV packets all parse with the position the autopilot sends."""
+    rec = tmp_path / "rec"
+    rig = await rig_factory("SIP", record=str(rec), video_urls=[str(source)])
+    autopilot = type(rig.peer)(sysid=1, compid=1)
+    await autopilot.connect(rig.bridge.addresses[0][1])
+
+    def klv_packets() -> list[bytes]:
+        out: list[bytes] = []
+        for f in sorted(rec.glob("*.ts")):
+            try:
+                with av.open(str(f)) as c:
+                    if c.streams.data:
+                        out += [bytes(p) for p in c.demux(c.streams.data[0]) if p.size]
+            except av.error.FFmpegError:
+                pass  # the file being written
+        return out
+
+    try:
+        for _ in range(40):
+            autopilot.send(ml.MAVLink_attitude_message(0, 0.02, -0.01, math.radians(250.0), 0, 0, 0))
+            autopilot.send(ml.MAVLink_global_position_int_message(0, 470020000, 79980000, 650000, 350000, 0, 0, 0, 0))
+            await asyncio.sleep(0.25)
+            if len(klv_packets()) >= 5:
+                break
+        data = klv_packets()
+        assert len(data) >= 5
+        for d in data:
+            (ls,) = list(klvdata.StreamParser(d))
+            values = {item.LDSName: item.value.value for item in ls.items.values() if hasattr(item, "LDSName")}
+            assert values["Sensor Latitude"] == pytest.approx(47.002, abs=1e-6)
+            assert values["Sensor Longitude"] == pytest.approx(7.998, abs=1e-6)
+            assert values["Sensor True Altitude"] == pytest.approx(650.0, abs=0.3)
+            assert values["Platform Heading Angle"] == pytest.approx(250.0, abs=0.01)
+    finally:
+        autopilot.close()

@@ -52,6 +52,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--media-url", metavar="URL", help="the camera's files over HTTP (sim --media-port prints it): "
                    "CAMERA_IMAGE_CAPTURED.file_url points there")  # fmt: skip
     p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds")
+    p.add_argument("--record", metavar="DIR",
+                   help="record the camera's video into DIR as MPEG-TS with MISB ST 0601 KLV metadata (no re-encoding)")  # fmt: skip
     p.add_argument("--cot", metavar="udp://HOST:PORT",
                    help="send Cursor-on-Target (TAK) of the camera's view and target at 1 Hz, e.g. udp://239.2.3.1:6969")  # fmt: skip
     p.add_argument("--terrain", metavar="DEM.tif",
@@ -114,6 +116,7 @@ def build_config(args: argparse.Namespace) -> object:
         definition_http=None if args.definition_http == "off" else args.definition_http,
         terrain=getattr(args, "terrain", None),
         cot=getattr(args, "cot", None),
+        record=getattr(args, "record", None),
     )
     config.check()
     return config

@@ -105,6 +105,32 @@ class CameraView:
             hfov, vfov, self.locate(), corners, video_url,
         )  # fmt: skip
 
+    def klv_values(self) -> dict[int, float | None] | None:
+        """MISB ST 0601 values now (klv.py's tags): None without a vehicle fix."""
+        fix = self.vehicles.fix()
+        if fix is None:
+            return None
+        att = self.cam.attitude
+        vatt = self.vehicles.attitude_deg()
+        heading = self.vehicles.yaw_deg
+        hfov, vfov = self.fov_deg()
+        target = self.locate()
+        p = fix.position
+        return {
+            5: heading % 360.0 if heading is not None else None,
+            6: vatt[1] if vatt is not None else None,
+            7: vatt[0] if vatt is not None else None,
+            13: p.lat_deg, 14: p.lon_deg, 15: p.alt_m, 16: hfov, 17: vfov,
+            18: att.yaw_deg % 360.0 if att is not None else None,
+            # the gimbal's pitch is earth-frame; ST 0601's elevation is relative to the platform
+            19: att.pitch_deg - (vatt[1] if vatt is not None else 0.0) if att is not None else None,
+            20: att.roll_deg % 360.0 if att is not None else None,
+            21: target.range_m if target is not None else None,
+            23: target.lat_deg if target is not None else None,
+            24: target.lon_deg if target is not None else None,
+            25: target.alt_m if target is not None else None,
+        }  # fmt: skip
+
     def zoom_x(self) -> float:
         """This lens's magnification as the camera last reported it (1 until it has)."""
         client = self.cam.client
