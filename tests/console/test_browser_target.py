@@ -12,7 +12,9 @@ from .conftest import BackgroundConsole, open_console, wait_for
 TOL = 0.5
 
 
-def test_target_position_shown_and_copied(browser: Any, sip: BackgroundConsole, artifacts: Path, page_errors: list[str]) -> None:
+def test_target_position_shown_and_copied(
+    browser: Any, sip: BackgroundConsole, artifacts: Path, page_errors: list[str]
+) -> None:
     page = open_console(browser, sip, page_errors)
     try:
         copy = page.get_by_test_id("btn-copy-target")
@@ -21,7 +23,9 @@ def test_target_position_shown_and_copied(browser: Any, sip: BackgroundConsole, 
         for ident, field, value in (("ALT", "alt_m", "120"), ("LAT", "lat_deg", "46.5"), ("LON", "lon_deg", "7.25")):
             page.get_by_test_id(f"field-{ident}-{field}").fill(value)
             page.get_by_test_id(f"set-{ident}").click()
-        wait_for(lambda: sip.call(lambda: sip.sim.device.position.lon_deg) == 7.25, what="the position in the simulator")
+        wait_for(
+            lambda: sip.call(lambda: sip.sim.device.position.lon_deg) == 7.25, what="the position in the simulator"
+        )
         page.get_by_test_id("angle-yaw").fill("0")
         page.get_by_test_id("angle-pitch").fill("-45")
         page.get_by_test_id("btn-point").click()

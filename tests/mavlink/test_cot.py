@@ -33,6 +33,7 @@ async def _receive(sock: socket.socket, until: int, timeout_s: float = 8.0) -> l
     loop = asyncio.get_running_loop()
     got: list[bytes] = []
     end = loop.time() + timeout_s
+
     def vehicles() -> int:
         return sum(1 for d in got if ET.fromstring(d).get("type") == "a-f-A-M-F-Q")
 
@@ -84,7 +85,9 @@ async def test_cot_events_parse_in_takproto_with_the_right_point(rig_factory, de
             by_type.setdefault(m.cotEvent.type, []).append(m)
         assert len(by_type["a-f-A-M-F-Q"]) >= 3
         vehicle = by_type["a-f-A-M-F-Q"][-1]
-        assert vehicle.cotEvent.lat == pytest.approx(lat, abs=1e-7) and vehicle.cotEvent.lon == pytest.approx(lon, abs=1e-7)
+        assert vehicle.cotEvent.lat == pytest.approx(lat, abs=1e-7) and vehicle.cotEvent.lon == pytest.approx(
+            lon, abs=1e-7
+        )
         d = _detail(vehicle)
         sensor = d.find("sensor")
         assert sensor is not None
