@@ -17,8 +17,14 @@ ALLOWED = {
     "_speedups": set(),  # the optional C fast path: a leaf the protocol core may use
     "protocol": {"_speedups"},  # the fast path, used only where it is built (stdlib-only without it)
     "transport": {"protocol"},
-    "client": {"protocol", "transport", "video"},  # video.lens only (the stream table; tests/video checks)
-    "sim": {"protocol"},
+    "client": {
+        "protocol",
+        "transport",
+        "video",
+        "geo",
+    },  # geo: cam.locate(); video.lens only (the stream table; tests/video checks)
+    "geo": set(),  # pure geolocation (terrain, laser, flat ground); dem.py imports rasterio on use
+    "sim": {"protocol", "geo"},  # geo: the laser's truth on a terrain model (--terrain)
     "console": {"protocol", "client", "sim", "video", "wire", "transport"},  # sim: `--sim`; wire: pcap, --proxy
     "video": {"protocol", "sim"},  # renders the simulator's state; relays any camera's RTSP
     "tools": {"protocol", "client", "sim", "console", "_speedups", "video"},
@@ -27,11 +33,25 @@ ALLOWED = {
         "client",
         "video",
         "track",
-    },  # video.lens, video.rtp_push (--video-out); track: --companion-tracking
+        "geo",
+    },  # video.lens, video.rtp_push (--video-out); track: --companion-tracking; geo: CAMERA_FOV_STATUS
     "wire": {"protocol", "transport", "client"},  # client only for the JSONL traffic log format
     "fleet": {"protocol", "client"},  # the Zenoh fleet server: SDK clients on one session
     "track": {"protocol", "client", "video"},  # the companion tracking loop: video in, rates out
-    "cli": {"protocol", "client", "transport", "sim", "console", "tools", "mavlink", "wire", "video", "fleet", "track"},
+    "cli": {
+        "protocol",
+        "client",
+        "transport",
+        "sim",
+        "console",
+        "tools",
+        "mavlink",
+        "wire",
+        "video",
+        "fleet",
+        "track",
+        "geo",
+    },
 }
 
 

@@ -97,7 +97,9 @@ def test_a_taken_port_is_named_with_the_way_out(kind: str, capsys: pytest.Captur
     )
 
 
-def test_console_on_a_taken_port_falls_back_like_make_demo() -> None:
+def test_console_on_an_explicitly_taken_port_is_refused() -> None:
+    """`--port N` is the user's choice: a taken N is a usage error (exit 2, one line), never a
+    silent move to another port (issue 35.6); only the default port falls back (make demo)."""
     pytest.importorskip("aiohttp")
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         s.bind((LOOP, 0))
@@ -120,11 +122,9 @@ def test_console_on_a_taken_port_falls_back_like_make_demo() -> None:
             text=True,
             timeout=60,
         )
-    assert out.returncode == 0, out.stderr
-    first = out.stdout.splitlines()[0]
-    assert first.startswith(f"topgimbal console: port {taken} is taken: using ")
-    used = int(first.rsplit(" ", 1)[1])
-    assert used != taken and f"http://127.0.0.1:{used}/" in out.stdout
+    assert out.returncode == 2, out.stderr
+    assert f"--port {taken} is taken" in out.stderr and "--port 0" in out.stderr
+    assert "http://" not in out.stdout
 
 
 @pytest.mark.parametrize(

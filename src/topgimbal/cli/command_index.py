@@ -25,6 +25,7 @@ COMMANDS: dict[str, tuple[str, str | None]] = {
     "sd": ("device_cmds", "SD card presence and capacity"),
     "thermal": ("device_cmds", "read or set a thermal setting: thermal palette [ironbow]"),
     "range": ("device_cmds", "one laser range measurement (metres)"),
+    "locate": ("device_cmds", "where the camera looks: position, source (laser/terrain/flat) and error"),
     "net": ("device_cmds", "network settings: show | set (asks for confirmation)"),
     "raw": ("device_cmds", "send one frame as given and print the decoded reply"),
     "command": ("device_cmds", "send any catalog command: command GAY yaw_deg=10"),

@@ -35,7 +35,7 @@ from ..errors import (
 )
 from ..protocol import DIALECT_NAMES, get_dialect
 from ..protocol.fields import FieldValue
-from . import device_motion, device_session
+from . import device_motion, device_session, locate_cmd
 from .args import COUNT, HZ, add_json_argument
 from .device_output import attitude_dict, ok, show
 
@@ -392,6 +392,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("setting", help="palette, scene, shutter, detail, brightness, contrast, gamma, ...")
     p.add_argument("value", nargs="?", default=None)
     _command(sub, "range", _range, "one laser range measurement (metres)")
+    locate_cmd.register(sub, _command)  # topgimbal locate (the geo package)
 
     p = _command(sub, "net", _net, "network settings: show | set (asks for confirmation)")
     p.add_argument("action", choices=["show", "set"])

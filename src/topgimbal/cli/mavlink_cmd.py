@@ -60,6 +60,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--media-url", metavar="URL", help="the camera's files over HTTP (sim --media-port prints it): "
                    "CAMERA_IMAGE_CAPTURED.file_url points there")  # fmt: skip
     p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds")
+    p.add_argument("--record", metavar="DIR",
+                   help="record the camera's video into DIR as MPEG-TS with MISB ST 0601 KLV metadata (no re-encoding)")  # fmt: skip
+    p.add_argument("--cot", metavar="udp://HOST:PORT",
+                   help="send Cursor-on-Target (TAK) of the camera's view and target at 1 Hz, e.g. udp://239.2.3.1:6969")  # fmt: skip
+    p.add_argument("--terrain", metavar="DEM.tif",
+                   help="GeoTIFF DEM (lat/lon): CAMERA_FOV_STATUS's image centre on the terrain (default: flat at home)")  # fmt: skip
     p.add_argument(
         "--silence", type=float, default=3.0, help="seconds without a frame before the camera counts as down"
     )
@@ -119,6 +125,9 @@ def build_config(args: argparse.Namespace) -> object:
         max_peers=args.max_peers,
         signing_key=getattr(args, "signing_key", None),
         definition_http=None if args.definition_http == "off" else args.definition_http,
+        terrain=getattr(args, "terrain", None),
+        cot=getattr(args, "cot", None),
+        record=getattr(args, "record", None),
     )
     try:
         config.check()

@@ -112,6 +112,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     p.add_argument("--seed", type=int, default=0, help="seed for every random choice (default 0)")
     p.add_argument(
+        "--terrain",
+        metavar="DEM.tif",
+        help="ground for the laser (SLR, LRF): a GeoTIFF DEM in lat/lon; the host's LAT/LON/ALT (MSL) "
+        "place the camera (default: flat ground, ALT the height above it)",
+    )
+    p.add_argument(
         "--stream-hz",
         type=number(low=0, low_open=True, high=MAX_STREAM_HZ, what="a stream rate"),
         default=10.0,
@@ -190,6 +196,7 @@ def run(args: argparse.Namespace) -> int:
         state_file=args.state,
         quirks=args.quirks,
         topotek_stream_hz=args.stream_hz,
+        terrain=getattr(args, "terrain", None),
         limits=Limits(
             udp_lease_s=args.udp_lease,
             max_udp_peers=args.max_udp_peers,

@@ -7,6 +7,7 @@ import asyncio
 from typing import Protocol
 
 from ..errors import FieldValueError, RequestTimeoutError, UnsupportedError
+from ..geo import Fix, GridTerrain, Uncertainty
 from ..protocol import Message
 from . import checks, roles
 from .api_core import fields_of, request, send_values
@@ -129,6 +130,38 @@ class CameraMethods(Protocol):
             return fields_of(await request(core, ident, read=True))[name]
         await send_values(core, ident, {name: value})
         return value
+
+    @api_method
+    async def locate(
+        core: ClientCore,
+        *,
+        terrain: GridTerrain | str | None = None,  # a loaded model or a GeoTIFF path
+        laser: bool = False,
+        ground_alt_m: float | None = None,
+        position: tuple[float, float, float] | None = None,
+        heading_deg: float | None = None,
+        uncertainty: Uncertainty | None = None,
+    ) -> Fix | None:
+        """Where the camera looks now: a `topgimbal.geo.Fix` (lat/lon/alt, slant range, `source`
+        "laser+terrain", "laser", "terrain" or "flat", and a 1-sigma horizontal `error_m`), or None
+        when nothing is known to be hit (sky; off the terrain model; no flat ground given).
+        The vehicle's position and heading are the last fed (`feed()`), or `position=(lat, lon,
+        alt MSL)` and `heading_deg`; `terrain` a GeoTIFF DEM path (or a loaded GridTerrain);
+        `laser=True` measures the range first (sending `position` to the camera beforehand);
+        `ground_alt_m` the flat ground's altitude used when nothing better hits."""
+        from .locating import locate_now
+
+        fix, _ = await locate_now(
+            core,
+            terrain=terrain,
+            laser=laser,
+            ground_alt_m=ground_alt_m,
+            position=position,
+            heading_deg=heading_deg,
+            uncertainty=uncertainty or Uncertainty(),
+            measure_range=lambda: CameraMethods.range.fn(core),
+        )
+        return fix
 
     @api_method
     async def range(core: ClientCore, *, timeout_s: float | None = None) -> float | None:

@@ -23,10 +23,12 @@ from .camera import CameraComponent
 from .camera_feed import CameraFeed
 from .camera_link import CameraLink
 from .commands import Dispatcher
+from .cot import CotSender
 from .endpoints import MAX_PEERS, parse_endpoint
 from .ftp import FtpServer
 from .gimbal_device import GimbalDevice
 from .gimbal_manager import GimbalManager
+from .klv_record import Recorder
 from .node import Node
 from .pointing import Pointer
 from .reboots import RebootWatch
@@ -74,6 +76,9 @@ class BridgeConfig:
     signing_key: bytes | None = None  # MAVLink 2 signing (signing.py): sign all, accept only signed
     client_options: dict[str, Any] = field(default_factory=dict)
     definition_http: str | None = "127.0.0.1:0"  # HOST:PORT serving the camera definitions; None: not served
+    terrain: str | None = None  # a GeoTIFF DEM: CAMERA_FOV_STATUS's image centre on it (else flat at home)
+    cot: str | None = None  # udp://HOST:PORT: Cursor-on-Target of what the camera looks at, 1 Hz (cot.py)
+    record: str | None = None  # DIR: the camera's video as MPEG-TS with MISB ST 0601 KLV (klv_record.py)
 
     def definition_address(self) -> tuple[str, int] | None:
         if not self.definition_http:
@@ -190,6 +195,22 @@ class Bridge:
             raise BridgeConfigError(
                 f"video_out: no {', '.join(pushed)} camera on this bridge ({self.cam.profile.model})"
             )
+        if c.terrain is not None:  # read once, shared by the cameras (DemError for a file it cannot use)
+            from ..geo.dem import load_dem
+
+            terrain = load_dem(c.terrain)
+            for camera in self.cameras:
+                camera.view.terrain = terrain
+        self.cot: CotSender | None = None
+        if c.cot is not None and self.cameras:
+            view, urls = self.cameras[0].view, self.cameras[0].video_urls
+            self.cot = CotSender(c.cot, lambda: view.sighting(urls[0] if urls else None),
+                                 uid=f"topgimbal-{c.model}-{c.sysid}", callsign=f"{c.model} {c.sysid}")  # fmt: skip
+        self.recorder: Recorder | None = None
+        if c.record is not None:
+            if not self.cameras or not self.cameras[0].video_urls:
+                raise BridgeConfigError("--record needs the camera's video stream (a model with one, or --video-url)")
+            self.recorder = Recorder(self.cameras[0].video_urls[0], c.record, self.cameras[0].view.klv_values)
         self.reboots = RebootWatch(self._peer_rebooted)
         self.node.subscribe(lambda m: self.reboots.on_message(m, time.monotonic()))
         self.node.subscribe(self.vehicles.on_message)
@@ -235,6 +256,10 @@ class Bridge:
             svc.start()
         self._tasks.append(asyncio.ensure_future(self._heartbeats()))
         self._tasks.append(asyncio.ensure_future(self._identify()))
+        if self.cot is not None:
+            self._tasks.append(asyncio.ensure_future(self.cot.run()))
+        if self.recorder is not None:
+            self.recorder.start()
         self.started = True
         links = ", ".join(str(link) for link in self.node.links)
         log.info("MAVLink bridge for %s (%s) on %s as system %d, role %s", self.config.url, self.config.model, links,
@@ -248,6 +273,8 @@ class Bridge:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await t
         await self.dispatcher.close()
+        if self.recorder is not None:  # its thread finishes the file it writes (a few ms)
+            await asyncio.to_thread(self.recorder.close)
         if self.manager is not None:
             await self.manager.close()
         for cam in self.cameras:

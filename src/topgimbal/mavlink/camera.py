@@ -96,6 +96,7 @@ class CameraComponent:
         provide(MSG_CAPTURE_STATUS, self._capture_status)
         provide(MSG_IMAGE_CAPTURED, self._image_captured)
         provide(MSG_FOV, self.view.fov_status)
+        services.add_stream(MSG_FOV, self.view.fov_message, 0.0, 10.0)  # on SET_MESSAGE_INTERVAL only
         if self.video_urls:
             provide(MSG_VIDEO_INFO, lambda cmd: self.extras.video_info(cmd, self.video_urls))
             provide(MSG_VIDEO_STATUS, lambda cmd: self.extras.video_status(cmd, self.video_urls))

@@ -9,11 +9,14 @@ import logging
 import math
 from typing import TYPE_CHECKING, Any
 
+from ..geo import CORNERS, Attitude, Geodetic, Pointing, Terrain, View
+from ..geo import Fix as GeoFix
+from ..geo import locate as geo_locate
 from ..video.lens import hfov_at, vfov_for
 from ._mav import mavlink
 from .camera_link import CameraLink
 from .commands import Command, rejected
-from .geo import ground_point
+from .cot import Sighting
 from .node import Component
 from .quaternion import from_euler_deg
 from .vehicle import Vehicles
@@ -34,6 +37,7 @@ class CameraView:
         self.lens = lens
         self.range_hz = range_hz
         self.last_range_m: float | None = None
+        self.terrain: Terrain | None = None  # mavlink --terrain: the DEM the image centre lands on
 
     def earth_quaternion(self) -> tuple[float, float, float, float]:
         att = self.cam.attitude
@@ -48,22 +52,84 @@ class CameraView:
     def fov_message(self) -> MAVLinkMessage:
         nan = float("nan")
         fix = self.vehicles.fix()
-        att = self.cam.attitude
         vyaw = self.vehicles.yaw_deg
         lat_c = lon_c = lat_i = lon_i = INT32_MAX
         alt_c = alt_i = INT32_MAX
         if fix is not None:
             lat_c, lon_c = int(fix.position.lat_deg * 1e7), int(fix.position.lon_deg * 1e7)
             alt_c = int(fix.position.alt_m * 1000)
-            if att is not None and vyaw is not None:
-                hit = ground_point(fix.position, att.yaw_deg + vyaw, att.pitch_deg, fix.home_alt_m)
-                if hit is not None:
-                    lat_i, lon_i, alt_i = int(hit.lat_deg * 1e7), int(hit.lon_deg * 1e7), int(hit.alt_m * 1000)
+            hit = self.locate()
+            if hit is not None:
+                lat_i, lon_i, alt_i = round(hit.lat_deg * 1e7), round(hit.lon_deg * 1e7), round(hit.alt_m * 1000)
         hfov, vfov = self.fov_deg()
         q = self.earth_quaternion() if vyaw is not None else (nan, nan, nan, nan)
         return mavlink().MAVLink_camera_fov_status_message(
             self.comp.node.time_boot_ms(), lat_c, lon_c, alt_c, lat_i, lon_i, alt_i, list(q), hfov, vfov, 0
         )
+
+    def locate(self, x: float = 0.0, y: float = 0.0) -> GeoFix | None:
+        """Where the picture point (x, y) (-1..1 from left to right, top to bottom; (0, 0) the
+        centre) lands: on the --terrain DEM when there is one, else flat ground at the home
+        altitude; None without a fresh vehicle fix and heading, the camera's attitude, or a hit.
+        The gimbal's pitch is earth-frame (stabilised), its yaw relative to the vehicle's heading."""
+        fix = self.vehicles.fix()
+        att = self.cam.attitude
+        vyaw = self.vehicles.yaw_deg
+        if fix is None or att is None or vyaw is None:
+            return None
+        hfov, vfov = self.fov_deg()
+        if math.isnan(hfov):
+            hfov, vfov = 60.0, 34.0  # no stream for this lens: only the centre is meaningful
+        p = fix.position
+        view = View(
+            Geodetic(p.lat_deg, p.lon_deg, p.alt_m),
+            Attitude(yaw_deg=vyaw),
+            Pointing(att.yaw_deg + vyaw, att.pitch_deg, att.roll_deg, earth_frame=True),
+            hfov,
+            vfov,
+        )
+        return geo_locate(view, terrain=self.terrain, ground_alt_m=fix.home_alt_m, x=x, y=y)
+
+    def sighting(self, video_url: str | None = None) -> Sighting | None:
+        """What Cursor-on-Target says now (cot.py): None without a fix, heading or attitude."""
+        fix = self.vehicles.fix()
+        att = self.cam.attitude
+        vyaw = self.vehicles.yaw_deg
+        if fix is None or att is None or vyaw is None:
+            return None
+        hfov, vfov = self.fov_deg()
+        corners = [self.locate(x, y) for x, y in CORNERS] if not math.isnan(hfov) else []
+        p = fix.position
+        return Sighting(
+            p.lat_deg, p.lon_deg, p.alt_m, att.yaw_deg + vyaw, att.pitch_deg, att.roll_deg,
+            hfov, vfov, self.locate(), corners, video_url,
+        )  # fmt: skip
+
+    def klv_values(self) -> dict[int, float | None] | None:
+        """MISB ST 0601 values now (klv.py's tags): None without a vehicle fix."""
+        fix = self.vehicles.fix()
+        if fix is None:
+            return None
+        att = self.cam.attitude
+        vatt = self.vehicles.attitude_deg()
+        heading = self.vehicles.yaw_deg
+        hfov, vfov = self.fov_deg()
+        target = self.locate()
+        p = fix.position
+        return {
+            5: heading % 360.0 if heading is not None else None,
+            6: vatt[1] if vatt is not None else None,
+            7: vatt[0] if vatt is not None else None,
+            13: p.lat_deg, 14: p.lon_deg, 15: p.alt_m, 16: hfov, 17: vfov,
+            18: att.yaw_deg % 360.0 if att is not None else None,
+            # the gimbal's pitch is earth-frame; ST 0601's elevation is relative to the platform
+            19: att.pitch_deg - (vatt[1] if vatt is not None else 0.0) if att is not None else None,
+            20: att.roll_deg % 360.0 if att is not None else None,
+            21: target.range_m if target is not None else None,
+            23: target.lat_deg if target is not None else None,
+            24: target.lon_deg if target is not None else None,
+            25: target.alt_m if target is not None else None,
+        }  # fmt: skip
 
     def zoom_x(self) -> float:
         """This lens's magnification as the camera last reported it (1 until it has)."""

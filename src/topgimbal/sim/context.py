@@ -32,6 +32,7 @@ from .physics import GimbalPhysics
 from .state import CameraState, NetworkState, Position
 from .streams import Key, ReportFn, Stream, Streams
 from .targets import Target, TargetView, views
+from .terrain import TerrainGround
 from .tracker import CameraTracker, hfov_for
 
 # Roles whose commands are reports, not settings a device stores.
@@ -105,6 +106,9 @@ class SimState:
     # The simulated world's targets (sim --target) and the camera's own tracker (sim/tracker.py).
     targets: tuple[Target, ...] = ()
     tracker: CameraTracker | None = None
+    # The ground the laser measures (sim --terrain: a TerrainGround); None: flat ground at
+    # altitude 0, the host's ALT being the height above it.
+    terrain: TerrainGround | None = None
 
     def target_views(self, now: float) -> tuple[TargetView, ...]:
         """Every target at device time `now` (target paths count from power-on)."""

@@ -30,6 +30,7 @@ from .physics import GimbalPhysics
 from .servers import LOOPBACK, Limits, SerialPeer, TcpServer, UdpServer
 from .state import CameraState, NetworkState
 from .targets import Target
+from .terrain import TerrainGround
 
 Address = tuple[str, int]
 
@@ -68,6 +69,7 @@ class Simulator:
         topotek_stream_hz: float = TOPOTEK_STREAM_HZ,
         limits: Limits | None = None,
         targets: Sequence[Target] = (),
+        terrain: str | Path | TerrainGround | None = None,
     ) -> None:
         self.clock: Clock = clock if clock is not None else MonotonicClock()
         self.device = Device(
@@ -75,6 +77,8 @@ class Simulator:
         )
         self.device.state.targets = tuple(targets)
         self.seed = seed
+        if terrain is not None:  # the laser's ground (sim --terrain); a bad file raises DemError here
+            self.device.state.terrain = terrain if isinstance(terrain, TerrainGround) else TerrainGround.load(terrain)
         self.faults = faults or FaultPlan()
         self.state_file = Path(state_file) if state_file is not None else None
         self.listen = dict(listen or {})

@@ -17,15 +17,32 @@ CONTINUOUS_HZ = 1.0
 
 
 def measure(state: SimState, limit_m: float | None = None) -> float | None:
-    """The distance the rangefinder reads now, or None outside the model's range (or `limit_m`)."""
+    """The distance the rangefinder reads now, or None outside the model's range (or `limit_m`).
+    On a terrain model (sim --terrain) the ray starts at the fed position (ALT above mean sea
+    level) and needs all of LAT, LON and ALT; on flat ground ALT is the height above it."""
     _, pitch, _ = state.gimbal.earth()
-    d = scene.slant_range(state.position.alt_m, pitch)
     lo, hi = state.model.lrf_range_m or (0.0, 0.0)
     if limit_m is not None:
         hi = min(hi, limit_m)
+    pos = state.position
+    if state.terrain is not None:
+        if pos.lat_deg is None or pos.lon_deg is None or pos.alt_m is None:
+            return None
+        d = state.terrain.slant_range(pos.lat_deg, pos.lon_deg, pos.alt_m, ray_bearing(state), pitch, hi)
+    else:
+        d = scene.slant_range(pos.alt_m, pitch)
     if d is None or not lo <= d <= hi:
         return None
     return round(d, 1)
+
+
+def ray_bearing(state: SimState) -> float:
+    """Earth-frame bearing of the optical axis: the heading (AZI, else the vehicle's yaw) plus the
+    gimbal's body yaw, as the target solution (§8.7) counts it."""
+    pos = state.position
+    yaw_body, _, _ = state.gimbal.body()
+    heading = pos.azimuth_deg if pos.azimuth_deg is not None else state.gimbal.vehicle.yaw
+    return heading + yaw_body
 
 
 def target_frames(state: SimState, distance: float, host: str) -> list[Frame]:
@@ -39,10 +56,8 @@ def target_frames(state: SimState, distance: float, host: str) -> list[Frame]:
         if spec is None or not any(f.title == "target solution" for f in spec.forms):
             return []
         out.append(spec)
-    yaw_body, _, _ = state.gimbal.body()
     _, pitch, _ = state.gimbal.earth()
-    heading = pos.azimuth_deg if pos.azimuth_deg is not None else state.gimbal.vehicle.yaw
-    lat, lon = scene.target_position(pos.lat_deg, pos.lon_deg, heading + yaw_body, pitch, distance)
+    lat, lon = scene.target_position(pos.lat_deg, pos.lon_deg, ray_bearing(state), pitch, distance)
     # notification() passes the echo form (ddmm.mmmm) over and picks the §8.7 report (dd.dddddd).
     return [
         state.dialect.notification(out[0].ident, src="D", dst=host, header="#tp", lat_deg=lat),

@@ -228,6 +228,38 @@ export function buildRange(ui) {
   if (!reportsByItself(byRole(cat, "latitude"))) {
     $("target-lat").textContent = $("target-lon").textContent = "not reported by this model";
   }
+  $("btn-copy-target").onclick = () => copyTarget($("btn-copy-target"));
+}
+
+// The target as one "lat, lon" text, once both halves have come (the camera's target solution).
+const target = { lat: null, lon: null };
+
+function showTarget() {
+  if (target.lat == null || target.lon == null) return;
+  const text = `${target.lat.toFixed(7)}, ${target.lon.toFixed(7)}`;
+  $("target-pos").textContent = text;
+  $("btn-copy-target").disabled = false;
+}
+
+// Copy to the clipboard; where the page may not (plain HTTP on another host), the older
+// select-and-copy path. The button says what happened, and keeps what it copied in data-copied.
+async function copyTarget(button) {
+  const text = $("target-pos").textContent;
+  let ok = false;
+  try {
+    await navigator.clipboard.writeText(text);
+    ok = true;
+  } catch {
+    const area = el("textarea", { text });
+    document.body.append(area);
+    area.value = text;
+    area.select();
+    try { ok = document.execCommand("copy"); } catch { ok = false; }
+    area.remove();
+  }
+  button.dataset.copied = ok ? text : "";
+  button.textContent = ok ? "Copied" : "Copy failed: select the text";
+  setTimeout(() => { button.textContent = "Copy"; }, 2000);
 }
 
 // What the camera reports by itself or answers, shown where it belongs: a distance (a range
@@ -242,6 +274,8 @@ export function showReport(cat, it) {
     $("range-distance").textContent = v == null ? "no echo (out of range)" : `${v.toFixed(1)} m`;
   } else if ((spec.role === "latitude" || spec.role === "longitude") && typeof v === "number") {
     $(spec.role === "latitude" ? "target-lat" : "target-lon").textContent = `${v.toFixed(6)}°`;
+    target[spec.role === "latitude" ? "lat" : "lon"] = v;
+    showTarget();
   }
 }
 

@@ -1,0 +1,60 @@
+"""An independent ray cast for the tests: samples the raster read straight from the file with its
+own bilinear interpolation, marches in fine fixed steps, then bisects the crossing."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import rasterio
+
+R = 6371008.8
+
+
+class BruteCaster:
+    def __init__(self, path: Path) -> None:
+        with rasterio.open(path) as src:
+            self.z = src.read(1).astype("float64")
+            self.t = src.transform
+
+    def height(self, lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
+        t = self.t
+        u = (np.asarray(lon) - t.c) / t.a - 0.5  # pixel centres at +0.5
+        v = (np.asarray(lat) - t.f) / t.e - 0.5
+        self.inside = (u >= 0) & (u <= self.z.shape[1] - 1) & (v >= 0) & (v <= self.z.shape[0] - 1)
+        c = np.clip(np.floor(u).astype(int), 0, self.z.shape[1] - 2)
+        r = np.clip(np.floor(v).astype(int), 0, self.z.shape[0] - 2)
+        fu, fv = u - c, v - r
+        z = self.z
+        return (
+            z[r, c] * (1 - fu) * (1 - fv)
+            + z[r, c + 1] * fu * (1 - fv)
+            + z[r + 1, c] * (1 - fu) * fv
+            + z[r + 1, c + 1] * fu * fv
+        )
+
+    def _above(self, lat0: float, lon0: float, alt0: float, d: tuple[float, float, float], t: np.ndarray) -> np.ndarray:
+        n, e, up = d[0] * t, d[1] * t, d[2] * t
+        lat = lat0 + np.degrees(n / R)
+        lon = lon0 + np.degrees(e / (R * math.cos(math.radians(lat0))))
+        drop = (n * n + e * e) / (2 * R)  # the ground falls away from the tangent plane
+        return alt0 + up - (self.height(lat, lon) - drop)
+
+    def cast(
+        self, lat0: float, lon0: float, alt0: float, d: tuple[float, float, float], max_m: float, step_m: float = 0.25
+    ) -> float | None:
+        t = np.arange(0.0, max_m, step_m)
+        g = self._above(lat0, lon0, alt0, d, t)
+        below = np.nonzero((g <= 0) | ~self.inside)[0]
+        if len(below) == 0 or not self.inside[below[0]]:
+            return None  # misses, or leaves the model first
+        i = int(below[0])
+        lo, hi = float(t[i - 1]), float(t[i])
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            if self._above(lat0, lon0, alt0, d, np.array([mid]))[0] > 0:
+                lo = mid
+            else:
+                hi = mid
+        return hi
