@@ -143,3 +143,39 @@ async def test_without_terrain_the_image_centre_is_flat_ground_at_home(rig_facto
         assert abs((fov.lat_image - 470000000) / 1e7 * math.pi / 180 * R - 100.0) < 1.0
     finally:
         autopilot.close()
+
+
+async def test_tracked_point_geo_status_lies_on_the_terrain(rig_factory, dem: Path) -> None:
+    """CAMERA_TRACKING_GEO_STATUS (276) locates the tracked point with the same core as 271: on the
+    --terrain DEM (not flat ground at home), with the core's 1-sigma horizontal error in h_acc."""
+    rig = await rig_factory("SIP", terrain=str(dem))
+    terrain = load_dem(dem)
+    p, s = rig.peer, rig.sim
+    autopilot = type(p)(sysid=1, compid=1)
+    await autopilot.connect(rig.bridge.addresses[0][1])
+    try:
+        s.gimbal.angle("pitch", -30.0)
+        await eventually(lambda: abs(s.gimbal.pitch_deg + 30) < 0.01)
+        cam = rig.bridge.cam
+        await eventually(lambda: cam.attitude is not None and abs(cam.attitude.pitch_deg + 30) < 0.01)
+        lat, lon, alt, home = LAT0 - 0.004, LON0 + 0.003, 640.0, 300.0
+        autopilot.send(ml.MAVLink_attitude_message(0, 0.0, 0.0, math.radians(35.0), 0, 0, 0))
+        autopilot.send(ml.MAVLink_global_position_int_message(
+            0, round(lat * 1e7), round(lon * 1e7), round(alt * 1000), round((alt - home) * 1000), 0, 0, 0, 0))  # fmt: skip
+        await eventually(lambda: rig.bridge.vehicles.fix() is not None and rig.bridge.vehicles.yaw_deg is not None)
+        assert (await p.ack(CAMERA, ml.MAV_CMD_CAMERA_TRACK_POINT, 0.5, 0.5)).result == 0
+        await eventually(lambda: rig.bridge.cameras[0].tracker.geo_message() is not None, what="a located target")
+        geo = await p.request(CAMERA, 276, "CAMERA_TRACKING_GEO_STATUS")
+        fov = await p.request(CAMERA, 271, "CAMERA_FOV_STATUS")
+        assert geo.tracking_status == ml.CAMERA_TRACKING_STATUS_FLAGS_ACTIVE
+        ground = terrain.height_m(geo.lat / 1e7, geo.lon / 1e7)
+        assert ground is not None and abs(geo.alt - ground) <= 1.0 and geo.alt > home + 5
+        assert math.isfinite(geo.h_acc) and geo.h_acc > 0 and geo.dist > 0
+        # the point tracked at the picture's centre is the image centre CAMERA_FOV_STATUS gives
+        n, e, _ = LocalFrame(Geodetic(fov.lat_image / 1e7, fov.lon_image / 1e7, 0.0)).to_local(
+            geo.lat / 1e7, geo.lon / 1e7, 0.0
+        )
+        assert math.hypot(n, e) <= 3.0
+        assert (await p.ack(CAMERA, ml.MAV_CMD_CAMERA_STOP_TRACKING)).result == 0
+    finally:
+        autopilot.close()

@@ -83,7 +83,9 @@ class CameraComponent:
         self._last_sequence: dict[tuple[int, int], int] = {}
         self.view = CameraView(self.comp, cam, vehicles, lens=lens, range_hz=self.range_hz)
         companion = self.video_urls[0] if companion_tracking and lens == "visible" and self.video_urls else None
-        self.tracker = Tracker(cam, fov=self.view.fov_deg, vehicles=vehicles, companion_url=companion)
+        self.tracker = Tracker(
+            cam, fov=self.view.fov_deg, vehicles=vehicles, companion_url=companion, locate=self.view.locate
+        )
         p = self.profile
         self.definition_uri = ""  # set by the bridge once its definition server listens
         self.params = ParamsExt(self.comp, cam, settings_for(p.dialect, p.model, lens))

@@ -36,6 +36,7 @@ from .geo import ground_point
 
 if TYPE_CHECKING:
     from ..client import AsyncClient
+    from ..geo import Fix as GeoFix
     from ..protocol import Message
     from ..track import CompanionTracker
     from .vehicle import Vehicles
@@ -53,6 +54,7 @@ IDLE, ACTIVE, ERROR = 0, 1, 2
 MODE_NONE, MODE_POINT, MODE_RECTANGLE = 0, 1, 2
 DATA_NONE, DATA_IN_STATUS = 0, 4
 FovFn = Callable[[], tuple[float, float]]
+LocateFn = Callable[[float, float], "GeoFix | None"]  # picture (x, y), -1..1 from the centre
 
 
 class Tracker:
@@ -64,8 +66,12 @@ class Tracker:
         vehicles: Vehicles | None = None,
         clock: MonotonicFn = monotonic,
         companion_url: str | None = None,
+        locate: LocateFn | None = None,
     ) -> None:
         self.cam = cam
+        # Where a picture point lands (CameraView.locate: the --terrain DEM, else flat ground at
+        # home); None: the flat-ground estimate below.
+        self.locate = locate
         self.profile = cam.profile
         self.fov = fov
         self.vehicles = vehicles
@@ -285,22 +291,34 @@ class Tracker:
         return att.yaw_deg + vyaw + dx, att.pitch_deg + dy
 
     def geo_message(self) -> Any | None:
-        """CAMERA_TRACKING_GEO_STATUS where the target's position is known (flat ground), else None."""
+        """CAMERA_TRACKING_GEO_STATUS where the target's position is known, else None: the
+        estimated box centre located on the --terrain DEM (with its 1-sigma horizontal error), or
+        on flat ground at home altitude."""
         mode = self.state[0]
         if not mode or self.lost:
             return None if not mode else _geo(ERROR)
         fix = self.vehicles.fix() if self.vehicles is not None else None
+        if fix is None:
+            return None
+        centre = self.estimated_centre()
+        if self.locate is not None and centre is not None:
+            hit = self.locate(2 * centre[0] - 1, 2 * centre[1] - 1)
+            if hit is None:
+                return None
+            return mavlink().MAVLink_camera_tracking_geo_status_message(
+                ACTIVE, int(hit.lat_deg * 1e7), int(hit.lon_deg * 1e7), hit.alt_m,
+                hit.error_m, NAN, NAN, NAN, NAN, NAN, hit.range_m, NAN, NAN)  # fmt: skip
         look = self.target_bearing()
-        if fix is None or look is None:
+        if look is None:
             return None
-        hit = ground_point(fix.position, look[0], look[1], fix.home_alt_m)
-        if hit is None:
+        ground = ground_point(fix.position, look[0], look[1], fix.home_alt_m)
+        if ground is None:
             return None
-        north = (hit.lat_deg - fix.position.lat_deg) * 111_195.0
-        east = (hit.lon_deg - fix.position.lon_deg) * 111_195.0 * math.cos(math.radians(fix.position.lat_deg))
-        dist = math.sqrt(north * north + east * east + (fix.position.alt_m - hit.alt_m) ** 2)
+        north = (ground.lat_deg - fix.position.lat_deg) * 111_195.0
+        east = (ground.lon_deg - fix.position.lon_deg) * 111_195.0 * math.cos(math.radians(fix.position.lat_deg))
+        dist = math.sqrt(north * north + east * east + (fix.position.alt_m - ground.alt_m) ** 2)
         return mavlink().MAVLink_camera_tracking_geo_status_message(
-            ACTIVE, int(hit.lat_deg * 1e7), int(hit.lon_deg * 1e7), hit.alt_m,
+            ACTIVE, int(ground.lat_deg * 1e7), int(ground.lon_deg * 1e7), ground.alt_m,
             NAN, NAN, NAN, NAN, NAN, NAN, dist, NAN, NAN)  # fmt: skip
 
     async def geo_status(self, cmd: Command) -> list[Any]:
