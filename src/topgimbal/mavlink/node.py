@@ -89,6 +89,7 @@ class Node:
         self.components: dict[int, Component] = {}
         self._parsers: dict[tuple[int, Hashable], Any] = {}
         self._subscribers: list[MessageCallback] = []
+        self._peer_watchers: list[Callable[[Link, Hashable], None]] = []
         self.messages_in = 0
         self.bad_in = 0
         self.started = time.monotonic()
@@ -101,6 +102,11 @@ class Node:
 
     def subscribe(self, callback: MessageCallback) -> None:
         self._subscribers.append(callback)
+
+    def on_new_peer(self, callback: Callable[[Link, Hashable], None]) -> None:
+        """`callback(link, peer)` when a peer is first heard on a link (the bridge greets it with a
+        HEARTBEAT at once rather than at its next 1 Hz beat)."""
+        self._peer_watchers.append(callback)
 
     def time_boot_ms(self) -> int:
         return int((time.monotonic() - self.started) * 1000) & 0xFFFFFFFF
@@ -138,6 +144,11 @@ class Node:
             if self.signing_key is not None:
                 require_signed(p, self.signing_key)
             self._parsers[key] = p
+            for cb in list(self._peer_watchers):
+                try:
+                    cb(link, peer)
+                except Exception:
+                    log.exception("%s: greeting new peer %s failed", link, peer)
         return p
 
     def _on_gone(self, link: Link, peer: Hashable) -> None:
