@@ -9,8 +9,9 @@ from pathlib import Path
 
 PKG = Path(__file__).resolve().parents[1] / "src" / "topgimbal"
 
-# Leaf modules every layer may import: the exceptions, the throttled warning log and the one clock.
-SHARED_LEAVES = ("errors", "logthrottle", "_lazy", "clock")
+# Leaf modules every layer may import: the exceptions, the throttled warning log, the one clock and
+# the escaping of a peer's text for the log.
+SHARED_LEAVES = ("errors", "logthrottle", "_lazy", "clock", "logtext")
 
 # What each layer may import from inside topgimbal (besides itself and SHARED_LEAVES).
 ALLOWED = {

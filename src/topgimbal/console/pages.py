@@ -17,6 +17,7 @@ from typing import Any
 
 from aiohttp import WSMsgType, web
 
+from ..logtext import untrusted
 from ..protocol import DeviceModel, Dialect, Frame, Message
 from ..wire.packets import Endpoint
 from .capture import Link, Recorder
@@ -314,7 +315,7 @@ class PageHub:
         reply = await self.execute(msg)
         peer.send(reply)
         if reply["type"] == "error" and reply.get("kind") not in ("op", "readonly"):
-            log.info("op %s failed: %s", short(msg.get("op")), reply["message"])
+            log.info("op %s failed: %s", untrusted(short(msg.get("op"))), untrusted(reply["message"], 600))
 
 
 OP_NAMES = {

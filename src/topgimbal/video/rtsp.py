@@ -25,6 +25,7 @@ import random
 import time
 from typing import Any
 
+from ..logtext import untrusted
 from .rtp import Packetizer, sdp
 from .rtsp_request import BadUrlError, Request, Transport, cseq_ok, parse_transport, session_id, url_path
 from .rtsp_stream import KEYFRAME_MIN_INTERVAL_S, Session, Stream
@@ -152,7 +153,7 @@ class _Connection(asyncio.Protocol):
         return self.transport.get_write_buffer_size() if self.transport is not None else 0
 
     def _bad(self, why: str) -> None:
-        log.warning("RTSP %s: %s; closing", self.peer, why)
+        log.warning("RTSP %s: %s; closing", self.peer, untrusted(why))
         self.reply(Request("?", "", {}), 400, "Bad Request")
         self.buf = b""
         if self.transport is not None:
@@ -180,7 +181,7 @@ class _Connection(asyncio.Protocol):
             try:
                 await self._handle(req)
             except Exception:  # a bad request must not take the server down
-                log.exception("RTSP %s: %s failed", self.peer, req.method)
+                log.exception("RTSP %s: %s failed", self.peer, untrusted(req.method, 20))
                 self.reply(req, 500, "Internal Server Error")
 
     # -- methods ----------------------------------------------------------------------------------
