@@ -88,7 +88,7 @@ pytest: $(STAMP) browser-deps tshark-deps video-deps exiftool-deps mavproxy-deps
 
 # The virtual tier (tests/conftest.py): memory transport and fake clocks, no socket, no process.
 pytest-virtual: $(STAMP)
-	$(BIN)/python -m pytest -q -n 2 -m virtual
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m virtual
 
 # libtopgimbal (c/): clang with libFuzzer and sanitizer runtimes, installed only when missing.
 # MAVProxy as a MAVLink router in the tests (tests/mavlink/test_multi_router.py). --no-deps: its

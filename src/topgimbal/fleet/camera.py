@@ -13,7 +13,6 @@ import asyncio
 import contextlib
 import json
 import logging
-import time
 from collections.abc import Callable
 from math import isfinite
 from typing import Any
@@ -32,6 +31,7 @@ from ..client.remote_keys import (
     split_call_key,
 )
 from ..client.state import Attitude
+from ..clock import wall_time
 from ..errors import TopGimbalError
 from ..logtext import untrusted
 from ..logthrottle import ThrottledLog
@@ -166,13 +166,13 @@ class ServedCamera:
                 if text != self._last_state:
                     self._last_state = text
                     state["stats"] = self.client.stats.as_dict()
-                    state["t"] = time.time()
+                    state["t"] = wall_time()
                     self._state.put(json.dumps(state))
             await asyncio.sleep(STATE_POLL_S)
 
     def _on_link(self, up: bool, reason: str) -> None:
         if not self._closing:
-            self._link.put(json.dumps({"up": up, "reason": reason, "t": time.time()}))
+            self._link.put(json.dumps({"up": up, "reason": reason, "t": wall_time()}))
 
     # -- queries ------------------------------------------------------------------------------------
 

@@ -17,11 +17,11 @@ import abc
 import asyncio
 import contextlib
 import logging
-import time
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from typing import Any
 
+from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..logthrottle import ThrottledLog
 
@@ -189,7 +189,7 @@ class UdpLink(Link):
 
     def _received(self, data: bytes, addr: Any) -> None:
         if self.spec.kind == "udpin":
-            now = time.monotonic()
+            now = monotonic()
             if addr not in self._peers:
                 self._expire(now)
                 if len(self._peers) >= self.max_peers:
@@ -215,7 +215,7 @@ class UdpLink(Link):
             t.sendto(data)
             self.bytes_out += len(data)
             return
-        self._expire(time.monotonic())
+        self._expire(monotonic())
         for addr in self._peers:
             t.sendto(data, addr)
             self.bytes_out += len(data)
@@ -235,14 +235,14 @@ class _StreamProtocol(asyncio.Protocol):
         self.owner = owner
         self.peer = peer
         self.transport: asyncio.Transport | None = None
-        self.last_heard = time.monotonic()
+        self.last_heard = monotonic()
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         self.transport = transport  # type: ignore[assignment]
         self.owner._connected(self)
 
     def data_received(self, data: bytes) -> None:
-        self.last_heard = time.monotonic()
+        self.last_heard = monotonic()
         self.owner._deliver(self.peer, data)
 
     def connection_lost(self, exc: Exception | None) -> None:
@@ -339,7 +339,7 @@ class StreamLink(Link):
 
     def _connected(self, proto: _StreamProtocol) -> None:
         if len(self._conns) >= self.max_peers:
-            self._expire(time.monotonic())
+            self._expire(monotonic())
         if len(self._conns) >= self.max_peers:
             self._refuse(proto.peer)
             if proto.transport is not None:
@@ -356,7 +356,7 @@ class StreamLink(Link):
             self._lost.set()
 
     def send(self, data: bytes) -> None:
-        self._expire(time.monotonic())
+        self._expire(monotonic())
         if not self._conns:
             self.dropped_out += 1
             return

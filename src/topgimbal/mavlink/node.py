@@ -12,10 +12,10 @@ the peer, the claimed system/component and why), later ones are counted in `unsi
 from __future__ import annotations
 
 import logging
-import time
 from collections.abc import Callable, Hashable, Sequence
 from typing import TYPE_CHECKING, Any
 
+from ..clock import monotonic
 from ._mav import mavlink
 from .endpoints import MAX_PEERS, DataCallback, GoneCallback, Link, make_link
 from .signing import describe_refused, require_signed, sign_outgoing
@@ -92,7 +92,7 @@ class Node:
         self._peer_watchers: list[Callable[[Link, Hashable], None]] = []
         self.messages_in = 0
         self.bad_in = 0
-        self.started = time.monotonic()
+        self.started = monotonic()
 
     def component(self, compid: int, name: str) -> Component:
         if compid in self.components:
@@ -109,7 +109,7 @@ class Node:
         self._peer_watchers.append(callback)
 
     def time_boot_ms(self) -> int:
-        return int((time.monotonic() - self.started) * 1000) & 0xFFFFFFFF
+        return int((monotonic() - self.started) * 1000) & 0xFFFFFFFF
 
     async def start(self) -> None:
         started: list[Link] = []

@@ -17,10 +17,10 @@ from __future__ import annotations
 
 import hashlib
 import string
-import time
 from pathlib import Path
 from typing import Any
 
+from ..clock import wall_time
 from ..errors import TopGimbalError
 
 KEY_BYTES = 32
@@ -73,7 +73,7 @@ def load_key(path: str | Path) -> bytes:
 
 def timestamp_now(now_s: float | None = None) -> int:
     """The signing timestamp for a wall-clock time (10 us units since 2015-01-01)."""
-    t = time.time() if now_s is None else now_s
+    t = wall_time() if now_s is None else now_s
     return max(0, int((t - SIGNING_EPOCH_S) * 100_000))
 
 

@@ -372,7 +372,7 @@ class Simulator:
         self._timer_at = due
         # Wake TIMER_EARLY_S ahead: the selector rounds timeouts up to whole milliseconds.
         delay = max(0.0, due - self.clock.now() - TIMER_EARLY_S)
-        self._timer = self._loop.call_at(self._loop.time() + delay, self._on_timer)
+        self._timer = self._loop.call_later(delay, self._on_timer)
 
     def _on_timer(self) -> None:
         self._timer = None

@@ -4,9 +4,10 @@ the render thread can take without touching the simulator."""
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
+
+from ..clock import wall_time
 
 if TYPE_CHECKING:
     from ..sim.device import Device
@@ -53,6 +54,6 @@ def capture(device: Device, frame: int = 0, wall_s: float | None = None) -> Scen
         recording=bool(cam.recording),
         record_s=max(0.0, device.now - cam.record_started) if cam.recording else 0.0,
         tracking=str(cam.tracking),
-        wall_s=time.time() if wall_s is None else wall_s,
+        wall_s=wall_time() if wall_s is None else wall_s,
         frame=frame,
     )
