@@ -73,7 +73,7 @@ docs-check: $(STAMP)
 # timers, child processes), so more workers than cores pay on a 2-core machine (README, Development:
 # the figures). --dist loadfile keeps a module on one worker: module-scoped fixtures (a console, a
 # browser) start once. Tests marked `serial` share something process-wide and run alone afterwards.
-PYTEST_WORKERS ?= 4
+PYTEST_WORKERS ?= 6
 XDIST := -n $(PYTEST_WORKERS) --dist loadfile
 
 # The whole suite on the C fast path, then what the pure Python path has to prove again (what runs

@@ -19,7 +19,7 @@ ALLOWED = {
     "protocol": {"_speedups"},  # the fast path, used only where it is built (stdlib-only without it)
     "transport": {"protocol"},
     "client": {"protocol", "transport", "video"},  # video.lens only (the stream table; tests/video checks)
-    "sim": {"protocol"},
+    "sim": {"protocol", "transport"},  # transport.memory only: Simulator.listen_memory
     "console": {"protocol", "client", "sim", "video", "wire", "transport"},  # sim: `--sim`; wire: pcap, --proxy
     "video": {"protocol", "sim"},  # renders the simulator's state; relays any camera's RTSP
     "tools": {"protocol", "client", "sim", "console", "_speedups", "video"},
