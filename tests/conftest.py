@@ -3,7 +3,8 @@
 - `external`: drives a program outside Python (Chromium, ffmpeg, MAVProxy, MAVSDK, SITL, tshark,
   exiftool, a C compiler);
 - `loopback`: real sockets on 127.0.0.1/::1, a pty, or a child process (real waiting);
-- `virtual`: everything else: memory transport or a fake clock, no socket, no child process.
+- `virtual`: everything else: memory transport or a fake clock, no socket, no child process; its
+  coroutines run on looptime's virtual-time loop.
 
 A test's tier is read from its module's source and the sources of the fixtures it uses (a module
 that names a loopback address, a child process or an external program is not virtual), so no test
@@ -82,6 +83,12 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         tier = _tier(item)
         if item.get_closest_marker(tier) is None:
             item.add_marker(getattr(pytest.mark, tier))
+        # The virtual tier's coroutines run on looptime's virtual-time loop: their sleeps, timeouts
+        # and timers take no real time (memory:// delivers through the loop; no socket waits). A
+        # test opts out with `pytest.mark.looptime(False)`.
+        coroutine = inspect.iscoroutinefunction(getattr(item, "function", None))
+        if tier == "virtual" and coroutine and item.get_closest_marker("looptime") is None:
+            item.add_marker(pytest.mark.looptime)
 
 
 class VirtualTierError(AssertionError):
