@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test demo lint typecheck pytest docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps
+.PHONY: test check demo lint typecheck pytest pytest-virtual docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps
 
 # The C fast path is compiled by `pip install`: rebuild it when its sources change.
 $(STAMP): pyproject.toml setup.py src/topgimbal/_speedups/_ctop.c $(wildcard c/src/*.c c/include/*.h c/generated/*)
@@ -79,11 +79,26 @@ docs: $(STAMP)
 docs-check: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.regen --check
 
-# The whole suite on the C fast path, then the protocol, client and fast-path tests again on the pure
-# Python path (what runs where no compiler built the extension; tests/speedups compares the two).
+# The suite in parallel (pytest-xdist): its loopback and external tiers mostly wait (sockets,
+# timers, child processes), so more workers than cores pay on a 2-core machine (README, Development:
+# the figures). --dist loadfile keeps a module on one worker: module-scoped fixtures (a console, a
+# browser) start once. Tests marked `serial` share something process-wide and run alone afterwards.
+PYTEST_WORKERS ?= 6
+XDIST := -n $(PYTEST_WORKERS) --dist loadfile
+
+# The whole suite on the C fast path, then what the pure Python path has to prove again (what runs
+# where no compiler built the extension): the protocol core, the fast path compared with it, and a
+# few end-to-end client tests (every model through the engine).
+PURE_TESTS := tests/protocol tests/speedups tests/client/test_engine.py tests/client/test_every_model_e2e.py
+
 pytest: $(STAMP) browser-deps tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps
-	$(BIN)/python -m pytest -q
-	TOPGIMBAL_PURE=1 $(BIN)/python -m pytest -q tests/protocol tests/client tests/speedups
+	$(BIN)/python -m pytest -q $(XDIST) -m "not serial"
+	if grep -rqE "mark\.serial|pytest\.mark\.serial" tests; then $(BIN)/python -m pytest -q -m serial; fi
+	TOPGIMBAL_PURE=1 $(BIN)/python -m pytest -q $(XDIST) -m "not serial" $(PURE_TESTS)
+
+# The virtual tier (tests/conftest.py): memory transport and fake clocks, no socket, no process.
+pytest-virtual: $(STAMP)
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m virtual
 
 # libtopgimbal (c/): clang with libFuzzer and sanitizer runtimes, installed only when missing.
 # MAVProxy as a MAVLink router in the tests (tests/mavlink/test_multi_router.py). --no-deps: its
@@ -98,6 +113,10 @@ c-deps:
 # for a bounded time (FUZZ_SECONDS, DIFF_SECONDS; 10 s each by default).
 c-test: $(STAMP) c-deps
 	$(MAKE) -C c test PYTHON=$(CURDIR)/$(BIN)/python
+
+# The developer's loop: lint, types, regenerated files, and the virtual tier (no installs of Debian
+# packages, no real waiting).
+check: lint typecheck docs-check pytest-virtual
 
 test: $(STAMP) browser-deps tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps c-deps lint typecheck docs-check pytest c-test
 

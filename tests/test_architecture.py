@@ -9,8 +9,9 @@ from pathlib import Path
 
 PKG = Path(__file__).resolve().parents[1] / "src" / "topgimbal"
 
-# Leaf modules every layer may import: the exceptions, the throttled warning log and the one clock.
-SHARED_LEAVES = ("errors", "logthrottle", "_lazy", "clock", "jsonl")
+# Leaf modules every layer may import: the exceptions, the throttled warning log, the one clock,
+# the escaping of a peer's text for the log and the JSON Lines writer.
+SHARED_LEAVES = ("errors", "logthrottle", "_lazy", "clock", "logtext", "jsonl")
 
 # What each layer may import from inside topgimbal (besides itself and SHARED_LEAVES).
 ALLOWED = {
@@ -24,7 +25,7 @@ ALLOWED = {
         "geo",
     },  # geo: cam.locate(); video.lens only (the stream table; tests/video checks)
     "geo": set(),  # pure geolocation (terrain, laser, flat ground); dem.py imports rasterio on use
-    "sim": {"protocol", "geo"},  # geo: the laser's truth on a terrain model (--terrain)
+    "sim": {"protocol", "geo", "transport"},  # geo: the laser's truth (--terrain); transport.memory: listen_memory
     "console": {"protocol", "client", "sim", "video", "wire", "transport"},  # sim: `--sim`; wire: pcap, --proxy
     "video": {"protocol", "sim"},  # renders the simulator's state; relays any camera's RTSP
     "tools": {"protocol", "client", "sim", "console", "_speedups", "video"},
@@ -351,3 +352,83 @@ def test_lazy_packages_still_give_their_names_and_submodules() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
     assert out.stdout.strip() == "ok", out.stderr
+
+
+# -- one clock ---------------------------------------------------------------------------------------
+
+# Reading a clock directly: the monotonic and wall clocks of `time`, an event loop's `time()`, and
+# `datetime`'s now. Everything else calls `topgimbal.clock` (monotonic(), wall_time()) or takes an
+# injected `clock`, so a fake clock or a virtual-time loop moves every deadline at once.
+CLOCK_CALLS = {
+    "time": {"monotonic", "monotonic_ns", "time", "time_ns", "perf_counter", "perf_counter_ns"},
+    "datetime": {"now", "utcnow", "today"},
+    "date": {"today"},
+}
+
+# Where a direct clock read is allowed, and which: the clock module itself, and wall-time dates
+# where the clock module cannot be used (the protocol core imports only the standard library).
+CLOCK_ALLOWED: dict[str, set[str]] = {
+    "clock.py": {"*"},
+    "protocol/fields/time.py": {"datetime.now"},  # `--time now`: the operator's local date, sent once
+}
+
+
+def _clock_reads(path: Path) -> list[tuple[int, str]]:
+    """(line, what) for each direct clock read in a file: `time.monotonic()` and the like (also
+    passed uncalled as a clock), `from time import monotonic`, and `<...loop>.time` (also
+    `get_running_loop().time`)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module in CLOCK_CALLS and not node.level:
+            out += [(node.lineno, f"{node.module}.{a.name}") for a in node.names if a.name in CLOCK_CALLS[node.module]]
+        if not isinstance(node, ast.Attribute):
+            continue
+        owner = node.value
+        if isinstance(owner, ast.Attribute) and owner.attr in CLOCK_CALLS:  # datetime.datetime.now
+            name = owner.attr
+        elif isinstance(owner, ast.Name):
+            name = owner.id
+        else:
+            name = ""
+        if name in CLOCK_CALLS and node.attr in CLOCK_CALLS[name]:
+            out.append((node.lineno, f"{name}.{node.attr}"))
+            continue
+        loopish = (isinstance(owner, ast.Name) and owner.id.lstrip("_").endswith("loop")) or (
+            isinstance(owner, ast.Attribute) and owner.attr.lstrip("_").endswith("loop")
+        )
+        loop_call = (
+            isinstance(owner, ast.Call)
+            and isinstance(owner.func, ast.Attribute)
+            and owner.func.attr in ("get_running_loop", "get_event_loop")
+        )
+        if node.attr == "time" and (loopish or loop_call):
+            out.append((node.lineno, "loop.time"))
+    return out
+
+
+def test_clocks_are_read_only_through_topgimbal_clock() -> None:
+    bad = []
+    for path in sorted(PKG.rglob("*.py")):
+        rel = path.relative_to(PKG).as_posix()
+        allowed = CLOCK_ALLOWED.get(rel, set())
+        for line, what in _clock_reads(path):
+            if "*" not in allowed and what not in allowed:
+                bad.append(f"{rel}:{line}: {what} (use topgimbal.clock.monotonic/wall_time or an injected clock)")
+    assert not bad, "\n".join(bad)
+
+
+def test_the_clock_rule_finds_direct_reads(tmp_path: Path) -> None:
+    src = tmp_path / "m.py"
+    src.write_text(
+        "import asyncio, time, datetime\nfrom time import perf_counter\n"
+        "a = time.monotonic()\nb = time.time\nc = asyncio.get_running_loop().time()\n"
+        "def f(loop):\n    return loop.time() + self._loop.time()\n"
+        "d = datetime.datetime.now()\ne = time.sleep(0)\n"
+    )
+    found = sorted(_clock_reads(src))
+    assert found == [
+        (2, "time.perf_counter"), (3, "time.monotonic"), (4, "time.time"), (5, "loop.time"),
+        (7, "loop.time"), (7, "loop.time"), (8, "datetime.now"),
+    ], found  # fmt: skip
+    assert CLOCK_ALLOWED.keys() <= {p.relative_to(PKG).as_posix() for p in PKG.rglob("*.py")}

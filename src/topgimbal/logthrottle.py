@@ -10,8 +10,9 @@ whose line already counts what it refused (`%d in all`) asks `allow(kind)` and k
 from __future__ import annotations
 
 import logging
-import time
 from collections.abc import Callable
+
+from .clock import monotonic
 
 MAX_KINDS = 64  # kinds remembered; kinds are names in code, so this is never reached in practice
 
@@ -23,7 +24,7 @@ class ThrottledLog:
         self,
         logger: logging.Logger,
         every_s: float = 10.0,
-        clock: Callable[[], float] = time.monotonic,
+        clock: Callable[[], float] = monotonic,
         *,
         suffix: str = " ({} more like it not logged)",
     ) -> None:

@@ -155,6 +155,24 @@ async def sim_factory():
         await sim.stop()
 
 
+@pytest.fixture
+async def memory_sim():
+    """Start simulators that serve only `memory://` (no socket): with `pytest.mark.looptime` their
+    faults, delays and the client's timeouts run in virtual time. `make(model, **kw)` -> (sim, url)."""
+    from topgimbal.sim import Simulator
+
+    started = []
+
+    async def make(model: str = "C12", **kw):
+        sim = await Simulator(model=model, **kw).start(udp=[])
+        started.append(sim)
+        return sim, sim.listen_memory(f"sim-{next(_names)}")
+
+    yield make
+    for sim in started:
+        await sim.stop()
+
+
 class KinematicFake:
     """A gimbal with physics on a `memory://` port for pointing tests (no sockets): rate commands
     accelerate each axis (at most `accel`), angle commands slew to their target unless the model's

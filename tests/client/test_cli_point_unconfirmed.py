@@ -8,6 +8,7 @@ rates and says the position is not confirmed (was: exit 1 with "use set_angles()
 from __future__ import annotations
 
 import json
+import time
 
 import pytest
 
@@ -59,7 +60,12 @@ def test_set_angles_is_a_cli_verb(sims, capsys):
     code, out, err = run(capsys, "--url", bg.url, "--model", "C13", "set_angles", "-10", "15", "--json")
     assert code == 0, err
     assert json.loads(out)["confirmed"] is False
-    target = bg.call(lambda s: (s.gimbal.axis("yaw").target, s.gimbal.axis("pitch").target))
+    # unconfirmed: the CLI may return before the simulator's thread has handled the datagram
+    for _ in range(200):
+        target = bg.call(lambda s: (s.gimbal.axis("yaw").target, s.gimbal.axis("pitch").target))
+        if target == pytest.approx((-10.0, 15.0)):
+            break
+        time.sleep(0.05)
     assert target == pytest.approx((-10.0, 15.0))
 
 

@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import asyncio
 import itertools
-import time
 
 import pytest
 
 import topgimbal
+from topgimbal.clock import monotonic
 from topgimbal.errors import TopGimbalError
-from topgimbal.sim import FaultPlan
+from topgimbal.sim import FaultPlan, Simulator
 
 pytestmark = pytest.mark.integration
 
@@ -26,11 +26,24 @@ PLANS = {
     ),
 }  # fmt: skip
 ROUNDS = {"late": 8, "drop": 4, "everything": 4}
+_names = itertools.count()
+
+# Every plan on memory:// in virtual time (looptime: the timeouts, late replies and delays take no
+# real time), and one real-time smoke over loopback UDP that proves the same with real sockets.
+CASES = [
+    *(pytest.param(plan, "memory", marks=[pytest.mark.looptime, pytest.mark.virtual], id=plan) for plan in PLANS),
+    pytest.param("everything", "udp", id="everything-udp-real-time"),
+]
 
 
-@pytest.mark.parametrize("plan", list(PLANS))
-async def test_no_wrong_answer_under_a_fault_plan(sim_factory, plan):
-    sim = await sim_factory("C12", seed=51, faults=PLANS[plan])
+@pytest.mark.parametrize(("plan", "transport"), CASES)
+async def test_no_wrong_answer_under_a_fault_plan(sim_factory, plan, transport):
+    if transport == "memory":
+        sim = await Simulator(model="C12", seed=51, faults=PLANS[plan]).start(udp=[])
+        url = sim.listen_memory(f"fault-plan-{next(_names)}")
+    else:
+        sim = await sim_factory("C12", seed=51, faults=PLANS[plan])
+        url = dict(sim.endpoints)["udp"]
     held: list[tuple[float, str, int]] = []  # (since, ip, tas) after every frame the device handled
     original = sim.device.handle
 
@@ -38,11 +51,11 @@ async def test_no_wrong_answer_under_a_fault_plan(sim_factory, plan):
         out = original(peer, frame)
         now = (sim.network.ip, sim.settings["TAS"]["interval_s"])
         if not held or held[-1][1:] != now:
-            held.append((time.monotonic(), *now))
+            held.append((monotonic(), *now))
         return out
 
     sim.device.handle = handle
-    held.append((time.monotonic(), sim.network.ip, sim.settings["TAS"]["interval_s"]))
+    held.append((monotonic(), sim.network.ip, sim.settings["TAS"]["interval_s"]))
     outcomes = {"ok": 0, "failed": 0}
     photos_acked = 0
 
@@ -54,14 +67,14 @@ async def test_no_wrong_answer_under_a_fault_plan(sim_factory, plan):
     async def worker(cam, ident: str, field: str, column: int, values) -> None:
         for v in itertools.islice(values, ROUNDS[plan]):
             for read in (False, True):
-                start = time.monotonic()
+                start = monotonic()
                 try:
                     m = await (cam.request(ident, read=True) if read else cam.request(ident, **{field: v}))
                 except TopGimbalError:
                     outcomes["failed"] += 1
                     continue
                 got = m.fields[field] if read else v
-                assert got in values_between(column, start, time.monotonic()), (plan, ident, read, got)
+                assert got in values_between(column, start, monotonic()), (plan, ident, read, got)
                 outcomes["ok"] += 1
 
     async def photographer(cam) -> None:
@@ -74,7 +87,6 @@ async def test_no_wrong_answer_under_a_fault_plan(sim_factory, plan):
                 assert "may or may not have been taken" in str(exc) or "link" in str(exc)
 
     async def body() -> None:
-        url = dict(sim.endpoints)["udp"]
         async with topgimbal.connect(url, model="C12", timeout_s=0.3, retries=2, dup_window_s=0.25) as cam:
             before = sim.camera.photos_taken
             ips = (f"10.1.{i}.{i + 1}" for i in itertools.count(1))
@@ -87,5 +99,9 @@ async def test_no_wrong_answer_under_a_fault_plan(sim_factory, plan):
             sent = sum(1 for f in sim.received if f.ident == "CAP")
             assert sent <= 4 * (2 if PLANS[plan].duplicate else 1)  # never retried
 
-    await asyncio.wait_for(body(), 120)
+    try:
+        await asyncio.wait_for(body(), 120)
+    finally:
+        if transport == "memory":
+            await sim.stop()
     assert outcomes["ok"] >= 8, outcomes

@@ -22,10 +22,26 @@ PALETTES = ["white_hot", "ironbow", "rainbow", "black_hot"]
 PALETTES_SIP = ["white_hot", "ironbow", "lava", "black_hot"]
 
 
-@pytest.mark.parametrize("model,kind", [("C12", "udp"), ("SIP", "tcp")])
-async def test_queries_get_the_right_answer_or_a_clear_timeout(sim_factory, model, kind):
-    sim = await sim_factory(model, seed=11, faults=FaultPlan(**HOSTILE, direction="both"))
-    url = dict(sim.endpoints)[kind]
+# Virtual time (looptime, memory://) for the behaviour; real sockets in time as the smoke test.
+VIRTUAL = [pytest.mark.looptime, pytest.mark.virtual]
+
+
+@pytest.mark.parametrize(
+    "model,kind",
+    [
+        pytest.param("C12", "memory", marks=VIRTUAL),
+        pytest.param("SIP", "memory", marks=VIRTUAL),
+        ("C12", "udp"),
+        ("SIP", "tcp"),
+    ],
+)
+async def test_queries_get_the_right_answer_or_a_clear_timeout(sim_factory, memory_sim, model, kind):
+    faults = FaultPlan(**HOSTILE, direction="both")
+    if kind == "memory":
+        sim, url = await memory_sim(model, seed=11, faults=faults)
+    else:
+        sim = await sim_factory(model, seed=11, faults=faults)
+        url = dict(sim.endpoints)[kind]
     palettes = PALETTES if model == "C12" else PALETTES_SIP
     outcomes = {"right": 0, "timeout": 0}
 
@@ -55,10 +71,15 @@ async def test_queries_get_the_right_answer_or_a_clear_timeout(sim_factory, mode
     assert sum(sim.fault_counts["out"].values()) > 0
 
 
-async def test_toggles_and_photos_are_never_sent_twice(sim_factory):
+@pytest.mark.parametrize("kind", [pytest.param("memory", marks=VIRTUAL), "udp"])
+async def test_toggles_and_photos_are_never_sent_twice(sim_factory, memory_sim, kind):
     # Faults on the device -> host side (a duplicated *request* would be the network's doing).
-    sim = await sim_factory("C12", seed=12, faults=FaultPlan(**HOSTILE, direction="out"))
-    url = dict(sim.endpoints)["udp"]
+    faults = FaultPlan(**HOSTILE, direction="out")
+    if kind == "memory":
+        sim, url = await memory_sim("C12", seed=12, faults=faults)
+    else:
+        sim = await sim_factory("C12", seed=12, faults=faults)
+        url = dict(sim.endpoints)["udp"]
     calls = {"toggle": 0, "photo": 0}
 
     async def body() -> None:

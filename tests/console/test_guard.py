@@ -282,3 +282,18 @@ def test_cli_allow_host_is_repeatable() -> None:
     banner_server = build_server(build_parser().parse_args(["console", "--sim", "C12", "--host", "0.0.0.0"]))
     assert isinstance(banner_server, ConsoleServer)
     assert "--allow-host" in banner_server.banner()
+
+
+async def test_a_host_with_undecodable_bytes_is_logged_as_escaped_utf8(
+    console: ConsoleServer, caplog: pytest.LogCaptureFixture
+) -> None:
+    # aiohttp decodes header bytes that are not UTF-8 as lone surrogates: a record holding them
+    # cannot be written to a UTF-8 log file (dropped) nor sent over pytest-xdist's channel
+    request = b"GET /api/status HTTP/1.1\r\nHost: rebind\xff\xfe.example\r\nConnection: close\r\n\r\n"
+    with caplog.at_level(logging.WARNING, logger="topgimbal.console.guard"):
+        status, _ = await _raw_get(_port(console), request)
+    assert status == 421
+    lines = [r.getMessage() for r in caplog.records if r.name == "topgimbal.console.guard"]
+    assert any("--allow-host rebind\\udcff\\udcfe.example" in line for line in lines), lines
+    for line in lines:
+        line.encode("utf-8")  # raises on a lone surrogate

@@ -54,6 +54,7 @@ LOOPBACK = {"127.0.0.1", "localhost", "::1"}
 NOT_RUN: dict[str, str] = {
     "make demo": "runs until Ctrl-C on port 8080; tests/console/test_demo.py runs it",
     "make test": "the whole suite: it is what runs this test",
+    "make check": "lint, types and the virtual tier: this test is in the loopback tier make test runs",
     "pip install -e .": "installs into the environment running the tests (make does it)",
     "pip install -e '.[serial]'": "installs into the environment running the tests (make does it)",
     "pip install -e '.[all]'": "installs into the environment running the tests (make does it)",

@@ -7,11 +7,11 @@ from __future__ import annotations
 import asyncio
 from typing import Any
 
-from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
+from mavsdk.asyncio import ComponentType, Configuration
 from mavsdk.asyncio.plugins.camera import CameraAsync
 from mavsdk.asyncio.plugins.gimbal import GimbalAsync, GimbalMode, SendMode
 
-from .conftest import eventually
+from .conftest import eventually, mavsdk_session
 
 CAMERA = 100
 
@@ -34,7 +34,7 @@ async def test_mavsdk_ground_station(rig_factory) -> None:
     sim = r.sim
     port = r.bridge.addresses[0][1]
     cfg = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
-    async with Mavsdk(cfg) as mavsdk:
+    async with mavsdk_session(cfg) as mavsdk:
         await mavsdk.add_any_connection(f"udpout://127.0.0.1:{port}")
         await eventually(lambda: mavsdk._mavsdk.system_count() > 0, 15, "MAVSDK sees the system")
         system = (await mavsdk.get_systems())[0]

@@ -8,13 +8,13 @@ import asyncio
 from typing import Any
 
 import pytest
-from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
+from mavsdk.asyncio import ComponentType, Configuration
 from mavsdk.asyncio.plugins.camera import CameraAsync
 from mavsdk.plugins.camera.camera import Option, Setting
 
 from topgimbal.mavlink.camdef import settings_for
 
-from .conftest import Rig, eventually
+from .conftest import Rig, eventually, mavsdk_session
 from .test_mavsdk import _until
 
 pytestmark = pytest.mark.integration
@@ -37,7 +37,7 @@ async def _options(camera: CameraAsync) -> Any:
 async def test_mavsdk_camera_settings(rig_factory: Any, model: str) -> None:
     rig: Rig = await rig_factory(model, timeout_s=1.0, retries=2)
     cfg = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
-    async with Mavsdk(cfg) as mavsdk:
+    async with mavsdk_session(cfg) as mavsdk:
         await mavsdk.add_any_connection(f"udpout://127.0.0.1:{rig.bridge.addresses[0][1]}")  # type: ignore[index]
         await eventually(lambda: mavsdk._mavsdk.system_count() > 0, 15, "MAVSDK sees the system")
         camera = CameraAsync((await mavsdk.get_systems())[0])

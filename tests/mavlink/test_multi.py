@@ -8,7 +8,7 @@ import asyncio
 import sys
 
 import pytest
-from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
+from mavsdk.asyncio import ComponentType, Configuration
 from mavsdk.asyncio.plugins.camera import CameraAsync
 from mavsdk.asyncio.plugins.gimbal import GimbalAsync, GimbalMode, SendMode
 
@@ -16,7 +16,7 @@ from topgimbal.mavlink.bridge import BridgeConfigError
 from topgimbal.mavlink.multi import MultiBridge, allocate
 from topgimbal.sim import Simulator
 
-from .conftest import eventually
+from .conftest import eventually, mavsdk_session
 from .test_mavsdk import _until
 
 pytestmark = pytest.mark.integration
@@ -47,7 +47,7 @@ async def test_two_cameras_through_one_bridge_are_two_in_mavsdk() -> None:
     try:
         port = multi.addresses[0][1]  # type: ignore[index]
         cfg = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
-        async with Mavsdk(cfg) as mavsdk:
+        async with mavsdk_session(cfg) as mavsdk:
             await mavsdk.add_any_connection(f"udpout://127.0.0.1:{port}")
             await eventually(lambda: mavsdk._mavsdk.system_count() > 0, 20, "MAVSDK sees the system")
             system = (await mavsdk.get_systems())[0]

@@ -19,13 +19,13 @@ import json
 import logging
 import math
 import sys
-import time
 from collections.abc import Awaitable, Callable, Mapping
 from typing import TYPE_CHECKING
 
 from ..client.identity import Verdict
 from ..client.roles import focus_actions, role_ident
 from ..client.state import SdCard
+from ..clock import monotonic
 from ..errors import (
     FieldValueError,
     InputError,
@@ -125,12 +125,12 @@ def _run(args: argparse.Namespace, runner: Runner) -> int:
                 raise TopGimbalError(f"{verdict.message}; the answer is not shown: it was read as a {cam.model.name}'s")
             return result
 
-    started = time.monotonic()
+    started = monotonic()
     try:
         result = asyncio.run(main())
     except RequestTimeoutError as exc:
         # The message counts one request's attempts; say how long the whole command waited.
-        raise RequestTimeoutError(f"{exc} [{time.monotonic() - started:.1f} s since the command started]") from None
+        raise RequestTimeoutError(f"{exc} [{monotonic() - started:.1f} s since the command started]") from None
     except TimeoutError as exc:  # a bare asyncio timeout has no message: never print an empty error
         raise RequestTimeoutError(
             f"the device at {args.url} did not answer in time ({exc or 'no reply'}); "

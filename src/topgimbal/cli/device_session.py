@@ -8,9 +8,10 @@ import contextlib
 import copy
 import json
 import sys
-import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
+
+from ..clock import monotonic
 
 if TYPE_CHECKING:
     from rich.table import Table
@@ -43,7 +44,7 @@ def _monitor_table(cam: AsyncClient) -> Table:
     att = cam.state.attitude
     if att is not None:
         table.add_row("yaw / pitch / roll", f"{att.yaw_deg:8.2f}  {att.pitch_deg:8.2f}  {att.roll_deg:8.2f}")
-        table.add_row("attitude age", f"{(time.monotonic() - att.t) * 1000:.0f} ms")
+        table.add_row("attitude age", f"{(monotonic() - att.t) * 1000:.0f} ms")
     else:
         table.add_row("attitude", "-")
     for name in ("zoom", "recording", "sd", "range_m", "mode", "version"):
@@ -161,11 +162,11 @@ async def _replay(cam: AsyncClient, args: argparse.Namespace) -> dict[str, objec
 
     records = _records(input_file(args.file, "traffic log"))
     sent = replies = 0
-    start = time.monotonic()
+    start = monotonic()
     t0 = records[0].mono if records else 0.0
     for r in records:
         if not args.fast:
-            delay = (r.mono - t0) / args.speed - (time.monotonic() - start)
+            delay = (r.mono - t0) / args.speed - (monotonic() - start)
             if delay > 0:
                 await asyncio.sleep(delay)
         try:

@@ -9,9 +9,9 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import time
 from typing import Protocol
 
+from ..clock import monotonic
 from ..errors import FieldValueError, RequestTimeoutError, TopGimbalError, UnsupportedError
 from . import checks, roles
 from .api_core import get_attitude, request, send_values
@@ -72,7 +72,7 @@ def _where(last: Attitude | None) -> str:
         return "; no attitude came from the device meanwhile"
     return (
         f"; last attitude seen: yaw {last.yaw_deg:.2f}, pitch {last.pitch_deg:.2f}, roll {last.roll_deg:.2f} "
-        f"({last.source}, {time.monotonic() - last.t:.1f} s ago)"
+        f"({last.source}, {monotonic() - last.t:.1f} s ago)"
     )
 
 
@@ -84,7 +84,6 @@ async def _closed_loop(
     core: ClientCore, targets: dict[str, float], tolerance_deg: float, deadline: float, last: Attitude | None
 ) -> Attitude:
     """Drive each axis by its rate command until the attitude is within the tolerance."""
-    loop = asyncio.get_running_loop()
     limits = {
         axis: AxisLimits(*roles.rate_limits(core.dialect, core.model, axis), core.model.max_accel_deg_s2)
         for axis in targets
@@ -97,7 +96,7 @@ async def _closed_loop(
             await stream.start()
     moving = False
     try:
-        while (remaining := deadline - loop.time()) > 0:
+        while (remaining := deadline - monotonic()) > 0:
             sample = await _sample(core, last.t if last else 0.0, min(remaining, STALE_S))
             if sample is None:
                 if moving:  # no feedback: never keep turning blind
@@ -105,7 +104,7 @@ async def _closed_loop(
                     moving = False
                 continue
             last = sample
-            rates = control.step(sample, loop.time())
+            rates = control.step(sample, monotonic())
             if rates is None:
                 if not moving:
                     return sample  # inside the tolerance on a sample taken after the stop
@@ -249,21 +248,20 @@ class MotionMethods(Protocol):
         targets = {"yaw": float(yaw_deg), "pitch": float(pitch_deg)}
         closed = core.angles_ignored or not roles.can_move(core.dialect, core.model, "angle", list(targets))
         now_att = core.state.attitude
-        if now_att is None or time.monotonic() - now_att.t > 1.0:
+        if now_att is None or monotonic() - now_att.t > 1.0:
             with contextlib.suppress(RequestTimeoutError):
                 now_att = await get_attitude(core)
         dist = 180.0 if now_att is None else max(abs(yaw_deg - now_att.yaw_deg), abs(pitch_deg - now_att.pitch_deg))
         speed = _rate_cap(core) if closed else (speed_deg_s or min(9.9, core.model.max_rate_deg_s))
         if timeout_s is None:
             timeout_s = dist / max(speed, 0.5) * 1.5 + 3.0
-        loop = asyncio.get_running_loop()
-        deadline = loop.time() + timeout_s
+        deadline = monotonic() + timeout_s
         last: Attitude | None = now_att
         if not closed:
             await set_angles(core, yaw_deg, pitch_deg, speed_deg_s=speed_deg_s)
             stall_s = max(STALL_S, 0.6 / speed_deg_s) if speed_deg_s else STALL_S
-            start, started = now_att, loop.time()
-            while (remaining := deadline - loop.time()) > 0:
+            start, started = now_att, monotonic()
+            while (remaining := deadline - monotonic()) > 0:
                 sample = await _sample(core, last.t if last else 0.0, remaining)
                 if sample is None:
                     continue
@@ -272,14 +270,14 @@ class MotionMethods(Protocol):
                     return sample
                 if (
                     start is not None
-                    and loop.time() - started >= stall_s
+                    and monotonic() - started >= stall_s
                     and stalled(start, sample, targets, tolerance_deg)
                 ):
-                    _ignore_angles(core, loop.time() - started)
-                    deadline = max(deadline, loop.time() + dist / _rate_cap(core) * 1.5 + 3.0)
+                    _ignore_angles(core, monotonic() - started)
+                    deadline = max(deadline, monotonic() + dist / _rate_cap(core) * 1.5 + 3.0)
                     break
                 if core.streams.device_rate is None:
-                    await asyncio.sleep(min(poll_s, max(0.0, deadline - loop.time())))
+                    await asyncio.sleep(min(poll_s, max(0.0, deadline - monotonic())))
             else:
                 raise RequestTimeoutError(
                     f"did not reach yaw {yaw_deg:g}, pitch {pitch_deg:g} within {timeout_s:.1f} s{_where(last)}"

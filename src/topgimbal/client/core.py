@@ -13,6 +13,7 @@ import logging
 from collections.abc import Callable, Coroutine, Mapping
 from types import TracebackType
 
+from ..clock import monotonic
 from ..errors import FieldValueError, LinkLostError, TopGimbalError, TransportError
 from ..protocol import CommandSpec, DeviceModel, Dialect, Frame, FrameParser, Message, get_model
 from ..protocol.frame import DEVICE_ADDRESSES
@@ -129,9 +130,9 @@ class ClientCore(Requests):
             raise TransportError(f"{self.url}: the client is closed; open a new one (connect(...))")
         if self._engine is not None:
             raise TransportError(f"{self.url}: the client is open already (or being opened)")
-        self._loop = loop = asyncio.get_running_loop()
+        self._loop = asyncio.get_running_loop()
         self._engine = Engine(
-            clock=loop.time,
+            clock=monotonic,
             late_window_s=self.late_window_s,
             dup_window_s=self.options.dup_window_s,
             stats=self.stats,
@@ -140,7 +141,7 @@ class ClientCore(Requests):
             min_gap_s=self.behaviour.min_gap_s,
         )
         timeout = self.options.link_timeout_s
-        self.link = LinkMonitor(clock=loop.time, timeout_s=timeout, ping_after_s=max(0.5, timeout / 3))
+        self.link = LinkMonitor(clock=monotonic, timeout_s=timeout, ping_after_s=max(0.5, timeout / 3))
         if self.options.log_path:
             self._traffic_log = TrafficLog(
                 self.options.log_path, url=self.url, model=self.model.name, dialect=self.dialect.name

@@ -30,11 +30,11 @@ import asyncio
 import datetime
 import logging
 import math
-import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Protocol
 
+from ..clock import monotonic, wall_time
 from ..errors import TopGimbalError, UnsupportedError
 from ..protocol import CommandSpec, DeviceModel, Dialect, Frame
 
@@ -151,7 +151,7 @@ class HostFeeds:
             self.fix = self.fix_at = None
             self.active -= set(self._idents(POSITION_ROLES))
             return []
-        self.fix, self.fix_at = fix, time.monotonic()
+        self.fix, self.fix_at = fix, monotonic()
         idents = self._idents(POSITION_ROLES)
         if self.enabled:
             self._activate(idents)
@@ -161,7 +161,7 @@ class HostFeeds:
         """The UTC time now (e.g. the autopilot's): the clock feeds carry it from now on."""
         if utc.tzinfo is None:
             raise ValueError("time_utc must be timezone-aware (UTC)")
-        self.utc_offset_s = utc.timestamp() - time.monotonic()
+        self.utc_offset_s = utc.timestamp() - monotonic()
         self.time_source = source
         idents = self._idents(CLOCK_ROLES)
         if self.enabled:
@@ -170,11 +170,11 @@ class HostFeeds:
 
     def utc_now(self) -> datetime.datetime:
         if self.utc_offset_s is None:
-            return datetime.datetime.now(datetime.timezone.utc)
-        return datetime.datetime.fromtimestamp(time.monotonic() + self.utc_offset_s, datetime.timezone.utc)
+            return datetime.datetime.fromtimestamp(wall_time(), datetime.timezone.utc)
+        return datetime.datetime.fromtimestamp(monotonic() + self.utc_offset_s, datetime.timezone.utc)
 
     def fix_fresh(self) -> bool:
-        return self.fix is not None and self.fix_at is not None and time.monotonic() - self.fix_at <= FIX_MAX_AGE_S
+        return self.fix is not None and self.fix_at is not None and monotonic() - self.fix_at <= FIX_MAX_AGE_S
 
     def status(self) -> dict[str, object]:
         """What is being fed now: {ident: {"hz", "sent", "what"}} plus the fix and time source."""
@@ -191,9 +191,7 @@ class HostFeeds:
         return {
             "enabled": self.enabled,
             "feeds": out,
-            "fix": None
-            if fix is None
-            else {**fix.__dict__, "age_s": round(time.monotonic() - (self.fix_at or 0.0), 2)},
+            "fix": None if fix is None else {**fix.__dict__, "age_s": round(monotonic() - (self.fix_at or 0.0), 2)},
             "time_source": self.time_source
             if self.utc_offset_s is not None or self.active & set(self._idents(CLOCK_ROLES))
             else None,
@@ -295,13 +293,12 @@ class HostFeeds:
     async def _run(self, hz: float) -> None:
         """Every feed of rate `hz`, in the profile's order, once per period."""
         period_s = 1.0 / hz
-        loop = asyncio.get_running_loop()
-        next_at = loop.time()
+        next_at = monotonic()
         while True:
             wait_s = self._to_whole_second(hz)
             if wait_s > 0:  # a whole-seconds clock frame goes out as its second starts (module docstring)
                 await asyncio.sleep(wait_s)
-                next_at = loop.time()
+                next_at = monotonic()
             for ident, rate in self.feeds().items():
                 if rate != hz or ident not in self.active:
                     continue
@@ -314,7 +311,7 @@ class HostFeeds:
                     except TopGimbalError as exc:
                         log.info("%s: %s feed not sent: %s", self.core.url, ident, exc)
             next_at += period_s
-            delay = next_at - loop.time()
+            delay = next_at - monotonic()
             if delay < 0:  # fell behind (a busy loop): carry on from now, never in a burst
-                next_at, delay = loop.time(), 0.0
+                next_at, delay = monotonic(), 0.0
             await asyncio.sleep(delay)

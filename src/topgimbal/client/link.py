@@ -99,7 +99,13 @@ class LinkMonitor:
     def next_deadline(self) -> float | None:
         if not self._expecting:
             return None
-        ping = max(self._quiet_since, self._last_ping) + self.ping_after_s
+        ping: float | None = max(self._quiet_since, self._last_ping) + self.ping_after_s
+        if ping is not None and ping <= self.clock():
+            # Overdue and not taken (a request in flight is a probe already, or nothing streams):
+            # not a deadline to wake for again. Waking for it re-armed a timer in the past, a busy
+            # loop in real time and one that never ends on a virtual-time loop.
+            ping = None
         if self.up:
-            return min(self._quiet_since + self.timeout_s, ping)
+            timeout_at = self._quiet_since + self.timeout_s
+            return timeout_at if ping is None else min(timeout_at, ping)
         return ping

@@ -20,10 +20,10 @@ import functools
 import inspect
 import json
 import logging
-import time
 from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine
 from typing import Any, Unpack
 
+from ..clock import monotonic
 from ..errors import LinkLostError, RequestTimeoutError, TopGimbalError, UnsupportedError
 from ..protocol import DeviceModel, Dialect, Frame, Message, get_model
 from .api_camera import CameraMethods
@@ -228,7 +228,7 @@ class RemoteClient(CoreMethods, MotionMethods, CameraMethods):
             if not isinstance(d, dict):
                 return
             try:
-                att = Attitude(float(d["yaw_deg"]), float(d["pitch_deg"]), float(d["roll_deg"]), time.monotonic(),
+                att = Attitude(float(d["yaw_deg"]), float(d["pitch_deg"]), float(d["roll_deg"]), monotonic(),
                                float(d.get("t", 0.0)), "zenoh")  # fmt: skip
             except (KeyError, TypeError, ValueError):
                 return

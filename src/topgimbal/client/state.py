@@ -7,10 +7,10 @@ keys by their first part, so no table of identifiers is kept here."""
 
 from __future__ import annotations
 
-import time
 from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass, field
 
+from ..clock import monotonic, wall_time
 from ..protocol import Message
 from .acks import is_report
 from .roles import sd_card_figures
@@ -79,7 +79,7 @@ class StateCache:
     values: dict[str, Stamped] = field(default_factory=dict)  # every catalog state key heard
 
     def set(self, name: str, value: object) -> None:
-        stamped = Stamped(value, time.monotonic(), time.time())
+        stamped = Stamped(value, monotonic(), wall_time())
         if name in TYPED:
             setattr(self, name, stamped)
         else:
@@ -95,7 +95,7 @@ class StateCache:
         keyed = state_values(message)
         if not keyed:
             return keyed
-        now, wall = time.monotonic(), time.time()
+        now, wall = monotonic(), wall_time()
         for key, value in keyed.items():
             self.values[key] = Stamped(value, now, wall)
         for name, value in _typed(keyed, message).items():
@@ -144,7 +144,7 @@ def attitude_of(keyed: Mapping[str, object], prefix: str, source: str) -> Attitu
     nums = [float(v) for v in map(keyed.get, keys) if isinstance(v, (int, float))]
     if len(nums) != 3:
         return None
-    return Attitude(nums[0], nums[1], nums[2], time.monotonic(), time.time(), source)
+    return Attitude(nums[0], nums[1], nums[2], monotonic(), wall_time(), source)
 
 
 _RECORDING = {"recording": True, "started": True, "start": True, "stopped": False, "stop": False}

@@ -23,11 +23,11 @@ import asyncio
 import contextlib
 import logging
 import math
-import time
 import weakref
 from collections import deque
 from collections.abc import Callable
 
+from ..clock import monotonic
 from ..errors import RequestTimeoutError, TopGimbalError
 from . import roles
 from .ports import StreamPort
@@ -258,7 +258,7 @@ class AttitudeStream:
         self._readers = 0  # tasks waiting in __anext__
         self._min_gap = 0.9 / rate_hz  # 10 % slack: device clocks drift
         self._last_t = -math.inf
-        self._last_pull = time.monotonic()
+        self._last_pull = monotonic()
         self._started = False
         self._closed = False
 
@@ -269,7 +269,7 @@ class AttitudeStream:
             raise TopGimbalError("this attitude stream was closed; call cam.attitude() again")
         if not self._started:
             self._started = True
-            self._last_pull = time.monotonic()
+            self._last_pull = monotonic()
             try:
                 await self.control.acquire(self)
             except BaseException:
@@ -304,7 +304,7 @@ class AttitudeStream:
                 self._readers -= 1
                 if not self._readers:
                     self._waiter = None  # no one waits: the stream may be abandoned
-        self._last_pull = time.monotonic()
+        self._last_pull = monotonic()
         item = self._queue[0]
         if item is None or isinstance(item, BaseException):
             self._closed = True  # the end stays queued: every task reading this stream sees it

@@ -8,12 +8,12 @@ Replay re-sends the "out" frames with their original spacing (python-can's Messa
 from __future__ import annotations
 
 import json
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
+from ..clock import monotonic, wall_time
 from ..protocol import Frame, Message, parse_frame
 
 
@@ -32,7 +32,7 @@ class TrafficLog:
     def __init__(self, path: str | Path, *, url: str = "", model: str = "", dialect: str = "") -> None:
         self.path = Path(path)
         self._fh: IO[str] | None = self.path.open("a", encoding="utf-8", buffering=1)
-        self._write({"topgimbal_log": 1, "url": url, "model": model, "dialect": dialect, "t": time.time()})
+        self._write({"topgimbal_log": 1, "url": url, "model": model, "dialect": dialect, "t": wall_time()})
 
     def _write(self, obj: dict[str, object]) -> None:
         if self._fh is not None:
@@ -41,8 +41,8 @@ class TrafficLog:
     def record(self, direction: str, frame: Frame, message: Message | None) -> None:
         self._write(
             {
-                "t": round(time.time(), 6),
-                "mono": round(time.monotonic(), 6),
+                "t": round(wall_time(), 6),
+                "mono": round(monotonic(), 6),
                 "dir": direction,
                 "raw": frame.to_bytes().decode("latin-1"),
                 "decoded": message.to_dict() if message is not None else None,

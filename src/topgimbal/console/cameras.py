@@ -12,12 +12,12 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from ..client.remote_keys import check_name
+from ..clock import wall_time
 from ..errors import FieldValueError
 from .hub import Hub
 
@@ -59,7 +59,7 @@ class Camera:
     video_urls: dict[str, str] = field(default_factory=dict)
     video_port: int | None = None
     video: ConsoleVideo | None = None
-    added: float = field(default_factory=time.time)
+    added: float = field(default_factory=wall_time)
     first_read: asyncio.Task[None] | None = None
 
     @property

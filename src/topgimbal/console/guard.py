@@ -33,6 +33,7 @@ from typing import Any
 from aiohttp import web
 
 from ..errors import TopGimbalError
+from ..logtext import untrusted
 
 log = logging.getLogger(__name__)
 
@@ -230,7 +231,10 @@ class HostGuard:
             return
         self._logged.add(key)
         peer = request.remote or "?"
-        log.warning("refused %s %s from %s (%d): %s", request.method, request.path, peer, status, message)
+        log.warning(
+            "refused %s %s from %s (%d): %s",
+            untrusted(request.method), untrusted(request.path), peer, status, untrusted(message, 600),
+        )  # fmt: skip
         if len(self._logged) > MAX_LOGGED_REFUSALS:
             log.warning("further refused requests are not logged")
 

@@ -17,12 +17,12 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import time
 from collections import Counter
 from collections.abc import Coroutine, Iterator
 from typing import Any
 
 from ..client import CameraAPI
+from ..clock import wall_time
 from ..errors import LinkLostError
 from ..protocol import CommandSpec, Frame, Message
 from .capture import link_for
@@ -103,11 +103,11 @@ class Hub(PageHub):
     def _on_link_change(self, up: bool, reason: str) -> None:
         if up:
             if self.lost_since is not None:
-                log.info("camera link back after %.1f s: %s", time.time() - self.lost_since, reason)
+                log.info("camera link back after %.1f s: %s", wall_time() - self.lost_since, reason)
             self.lost_since, self.link_reason = None, ""
         else:
             if self.lost_since is None:
-                self.lost_since = time.time()
+                self.lost_since = wall_time()
             self.link_reason = reason
             log.warning("camera link lost: %s", reason)
         try:  # at once: a page must not show "up" for another push interval
@@ -120,7 +120,7 @@ class Hub(PageHub):
         state = self.cam.link_state
         up = bool(state.get("up", True))
         if not up and self.lost_since is None:  # down before we were told (closed at start)
-            self.lost_since, self.link_reason = time.time(), str(state.get("reason") or "")
+            self.lost_since, self.link_reason = wall_time(), str(state.get("reason") or "")
         return {
             "link": "lost" if not up else ("waiting" if self.last_in is None else "up"),
             "link_reason": "" if up else (self.link_reason or str(state.get("reason") or "")),
@@ -152,7 +152,7 @@ class Hub(PageHub):
         value = getattr(stamped, "value", None)
         if isinstance(value, bool) and value != self.recording:
             self.recording = value
-            self.recording_since = time.time() if value else None
+            self.recording_since = wall_time() if value else None
 
     def _background_failure(self, exc: Exception, what: str, source: str) -> None:
         """Report a background job's failure once; a lost link is already shown as LOST."""
@@ -172,10 +172,10 @@ class Hub(PageHub):
                         "yaw": float(att.yaw_deg),
                         "pitch": float(att.pitch_deg),
                         "roll": float(att.roll_deg),
-                        "t": float(att.wall or time.time()),
+                        "t": float(att.wall or wall_time()),
                     }
                     if self.samples_are_heard:
-                        self.last_in = time.time()
+                        self.last_in = wall_time()
                     self._attitude_seq += 1
                     self.clear_error("attitude")
             except asyncio.CancelledError:
@@ -238,7 +238,7 @@ class Hub(PageHub):
             return
         while True:
             await asyncio.sleep(KEEPALIVE_IDLE_S / 4)
-            if self.last_in is not None and time.time() - self.last_in < KEEPALIVE_IDLE_S:
+            if self.last_in is not None and wall_time() - self.last_in < KEEPALIVE_IDLE_S:
                 continue
             try:
                 with self._polling(ident):
@@ -280,12 +280,12 @@ class Hub(PageHub):
     def _after(self, op: str, msg: OpArgs, result: object) -> None:
         if op == "record":
             if msg.get("action") == "start":
-                self.recording, self.recording_since = True, time.time()
+                self.recording, self.recording_since = True, wall_time()
             else:
                 self.recording, self.recording_since = False, None
         elif op == "recording" and isinstance(result, bool):
             if result and not self.recording:
-                self.recording_since = time.time()
+                self.recording_since = wall_time()
             if not result:
                 self.recording_since = None
             self.recording = result

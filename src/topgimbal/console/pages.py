@@ -10,13 +10,14 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import time
 from collections import deque
 from collections.abc import Callable, Coroutine, Mapping
 from typing import Any
 
 from aiohttp import WSMsgType, web
 
+from ..clock import monotonic, wall_time
+from ..logtext import untrusted
 from ..protocol import DeviceModel, Dialect, Frame, Message
 from ..wire.packets import Endpoint
 from .capture import Link, Recorder
@@ -103,12 +104,12 @@ class PageHub:
             self._quiet[once] = message
         self.errors += 1
         self.broadcast(
-            {"type": "error", "ref": None, "kind": kind, "source": source, "message": message, "t": time.time()}
+            {"type": "error", "ref": None, "kind": kind, "source": source, "message": message, "t": wall_time()}
         )
 
     def clear_error(self, once: str) -> None:
         if self._quiet.pop(once, None) is not None:
-            self.broadcast({"type": "recovered", "source": once, "t": time.time()})
+            self.broadcast({"type": "recovered", "source": once, "t": wall_time()})
 
     def record(
         self,
@@ -123,7 +124,7 @@ class PageHub:
         """One frame for the traffic pane and the recorder; `marks` (poll, client) are added to the
         pane's item, and `stream` to the frames of telemetry streams. Never raises: a frame the
         parser let through must not break the link."""
-        now = time.time() if t is None else t
+        now = wall_time() if t is None else t
         if direction == "in":
             self.last_in = now
         item: dict[str, Any] = {"t": now, "dir": direction, "frame": _frame_text(frame)}
@@ -153,7 +154,7 @@ class PageHub:
     ) -> dict[str, Any]:
         """Bytes that are not a frame (what the parser said about them), for the traffic pane only."""
         item: dict[str, Any] = {
-            "t": time.time() if t is None else t,
+            "t": wall_time() if t is None else t,
             "dir": direction,
             "frame": _frame_text(raw),
             "id": None,
@@ -177,7 +178,7 @@ class PageHub:
                 self.broadcast({"type": "traffic", "items": items}, essential=False)
 
     def status(self) -> dict[str, Any]:
-        now = time.time()
+        now = wall_time()
         return {
             "type": "status",
             "mode": self.mode,
@@ -268,14 +269,13 @@ class PageHub:
         peer.send(self.hello())
         running: set[asyncio.Task[None]] = set()
         rate = OpRate(*self.op_rate)
-        loop = asyncio.get_running_loop()
         try:
             async for raw in ws:
                 if peer.closed or request.transport is None or request.transport.is_closing():
                     break  # the page is gone: its buffered messages need no answer
                 # One message per turn of the loop, and at most the page's rate: buffered
                 # messages of a flooding page would otherwise be handled without yielding.
-                await asyncio.sleep(rate.delay_s(loop.time()))
+                await asyncio.sleep(rate.delay_s(monotonic()))
                 if raw.type not in (WSMsgType.TEXT, WSMsgType.BINARY):
                     continue
                 try:
@@ -314,7 +314,7 @@ class PageHub:
         reply = await self.execute(msg)
         peer.send(reply)
         if reply["type"] == "error" and reply.get("kind") not in ("op", "readonly"):
-            log.info("op %s failed: %s", short(msg.get("op")), reply["message"])
+            log.info("op %s failed: %s", untrusted(short(msg.get("op"))), untrusted(reply["message"], 600))
 
 
 OP_NAMES = {

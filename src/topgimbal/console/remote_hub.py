@@ -12,11 +12,11 @@ checks of its own through Zenoh."""
 from __future__ import annotations
 
 import logging
-import time
 from typing import Any, cast
 
 from ..client import CameraAPI
 from ..client.remote import RemoteClient
+from ..clock import wall_time
 from .hub import Hub
 from .pages import PageHub
 
@@ -84,7 +84,7 @@ class RemoteHub(Hub):
         rec = self.remote.served_state.get("recording")
         if isinstance(rec, bool) and rec != self.recording:
             self.recording = rec
-            self.recording_since = time.time() if rec else None
+            self.recording_since = wall_time() if rec else None
 
     def status(self) -> dict[str, Any]:
         out = super().status()

@@ -23,6 +23,7 @@ from pathlib import Path
 
 from aiohttp import web
 
+from ..clock import wall_time
 from .cameras import MAX_CAMERAS, NAME_RULE, Camera, CameraSet
 from .capture import pcap
 from .catalog_api import catalog_json
@@ -169,7 +170,7 @@ def add_camera_routes(app: web.Application, cameras: CameraSet, videos: CameraVi
             "cameras": cameras.overview(),
             "max_cameras": cameras.max_cameras,
             "interval_s": OVERVIEW_INTERVAL_S,
-            "now": time.time(),
+            "now": wall_time(),
         }
         return web.json_response(body, dumps=_dumps)
 

@@ -19,6 +19,7 @@ from aiohttp import web
 from aiohttp.http_exceptions import HttpProcessingError
 
 from ..client.zenoh_session import check_endpoint
+from ..logtext import untrusted
 from ..video.webconsole import ConsoleVideo
 from ..video.webconsole import attach as attach_video
 from .auth import needs_token, resolve_token, token_middleware
@@ -97,7 +98,7 @@ class HttpLog(logging.LoggerAdapter):  # type: ignore[type-arg]
         exc = kwargs.get("exc_info")
         if isinstance(exc, HttpProcessingError):
             first = (str(exc.message) or type(exc).__name__).splitlines()[0]
-            self.logger.info("refused a malformed HTTP request (%d): %s", exc.code, first)
+            self.logger.info("refused a malformed HTTP request (%d): %s", exc.code, untrusted(first))
             return
         super().log(level, msg, *args, **kwargs)
 

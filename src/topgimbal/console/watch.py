@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import time
 from collections import OrderedDict
 from typing import Any
 
+from ..clock import wall_time
 from ..protocol import DeviceModel, Diagnostic, Dialect, Frame, Message
 from ..protocol.signs import flip, resolve_signs
 from ..wire.packets import Endpoint
@@ -106,7 +106,7 @@ class WatchHub(PageHub):
 
     def status(self) -> dict[str, Any]:
         stats = self.proxy.stats.as_dict()
-        age = None if self.last_in is None else time.time() - self.last_in
+        age = None if self.last_in is None else wall_time() - self.last_in
         return {
             **super().status(),
             "link": "watching",
@@ -125,7 +125,7 @@ class WatchHub(PageHub):
             self.clients.popitem(last=False)
 
     def _clients(self) -> list[dict[str, Any]]:
-        return [{"client": c, "last_s_ago": round(time.time() - t, 1)} for c, t in self.clients.items()]
+        return [{"client": c, "last_s_ago": round(wall_time() - t, 1)} for c, t in self.clients.items()]
 
     def hello(self) -> dict[str, Any]:
         return {**super().hello(), "attitude_hz": self.attitude_hz, "readonly": self.readonly}

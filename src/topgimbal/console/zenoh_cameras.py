@@ -13,11 +13,11 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import time
 from collections.abc import Sequence
 from typing import Any
 
 from ..client.remote_keys import NAME_RE, ROOT
+from ..clock import monotonic
 from .cameras import Camera, CameraSet
 from .remote_hub import RemoteHub, SharedRemote
 
@@ -141,7 +141,7 @@ class ZenohCameras:
         return False
 
     def _warn(self, text: str) -> None:
-        now = time.monotonic()
+        now = monotonic()
         if now - self._warned_at >= WARN_EVERY_S:
             self._warned_at = now
             log.warning("%s", text)

@@ -38,6 +38,7 @@ from ..client.remote_keys import (
 from ..client.state import Attitude
 from ..clock import MonotonicFn, monotonic, wall_time
 from ..errors import RequestTimeoutError, TopGimbalError
+from ..logtext import untrusted
 from ..logthrottle import ThrottledLog
 from .access import KIND_FORBIDDEN, callable_methods, refusal
 from .specs import CameraSpec
@@ -343,7 +344,7 @@ class ServedCamera:
             raise
         except Exception as exc:  # the SDK's errors, and anything unexpected: a reply either way
             if not isinstance(exc, TopGimbalError):
-                log.warning("%s: %s failed unexpectedly: %r", self.name, method, exc)
+                log.warning("%s: %s failed unexpectedly: %r", self.name, untrusted(method), exc)
             out = error_reply(exc)
         finally:
             self.inflight -= 1

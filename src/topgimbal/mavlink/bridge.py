@@ -11,10 +11,10 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..video.rtp_push import RtpPush
 from .camdef import file_name, render
@@ -43,6 +43,7 @@ GIMBAL_COMPIDS = (154, 171, 172, 173, 174, 175)  # MAV_COMP_ID_GIMBAL, GIMBAL2..
 CAMERA_COMPIDS = (100, 101, 102, 103, 104, 105)  # MAV_COMP_ID_CAMERA..CAMERA6
 MAV_TYPE_GIMBAL, MAV_TYPE_CAMERA = 26, 30
 NON_MAVLINK_GIMBAL_ID = 1
+GREETING_GAP_S = 0.1  # HEARTBEATs sent early for new peers come at most this often
 MAV_STATE_BOOT, MAV_STATE_ACTIVE, MAV_STATE_CRITICAL = 1, 4, 5
 
 
@@ -212,7 +213,7 @@ class Bridge:
                 raise BridgeConfigError("--record needs the camera's video stream (a model with one, or --video-url)")
             self.recorder = Recorder(self.cameras[0].video_urls[0], c.record, self.cameras[0].view.klv_values)
         self.reboots = RebootWatch(self._peer_rebooted)
-        self.node.subscribe(lambda m: self.reboots.on_message(m, time.monotonic()))
+        self.node.subscribe(lambda m: self.reboots.on_message(m, monotonic()))
         self.node.subscribe(self.vehicles.on_message)
         self.feed = CameraFeed(self.cam, self.vehicles, c.sysid, own)  # position, attitude, time to the camera
         self.node.subscribe(self.feed.on_message)
@@ -233,6 +234,8 @@ class Bridge:
             svc.system_status = MAV_STATE_BOOT  # until the camera has answered (or is declared down)
         self._tasks: list[asyncio.Task[None]] = []
         self._closed = asyncio.Event()
+        self._new_peer = asyncio.Event()
+        self.node.on_new_peer(self._greet)
         self.started = False
 
     @property
@@ -324,11 +327,25 @@ class Bridge:
             self._tasks.append(asyncio.ensure_future(self._identify()))
             self._tasks = [t for t in self._tasks if not t.done()]
 
+    def _greet(self, link: object, peer: object) -> None:
+        self._new_peer.set()
+
     async def _heartbeats(self) -> None:
+        """Every component's HEARTBEAT at heartbeat_hz, and at once when a new peer is heard (a
+        ground station discovers us without waiting up to a period); early beats at most every
+        GREETING_GAP_S, so a flood of new peers cannot multiply the traffic."""
+        period_s = 1.0 / self.config.heartbeat_hz
+        gap_s = min(GREETING_GAP_S, period_s)
         while True:
             for svc in self.services:
                 svc.comp.send(svc.heartbeat())
-            await asyncio.sleep(1.0 / self.config.heartbeat_hz)
+            await asyncio.sleep(gap_s)
+            if self._new_peer.is_set():  # heard during the gap: greet now
+                self._new_peer.clear()
+                continue
+            with contextlib.suppress(asyncio.TimeoutError):
+                await asyncio.wait_for(self._new_peer.wait(), period_s - gap_s)
+            self._new_peer.clear()
 
     async def _identify(self) -> None:
         """Version and model name for the information messages (asked again after a reconnect)."""

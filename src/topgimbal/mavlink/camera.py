@@ -11,10 +11,10 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import time
 from collections import OrderedDict
 from typing import TYPE_CHECKING, Any
 
+from ..clock import monotonic, wall_time
 from ._mav import mavlink
 from .camdef import definition_version, settings_for
 from .camera_extras import CameraExtras
@@ -241,14 +241,14 @@ class CameraComponent:
         return [self._capture_status_message()]
 
     def _capture_status_message(self) -> MAVLinkMessage:
-        rec_ms = int((time.monotonic() - self.record_started) * 1000) if self.recording else 0
+        rec_ms = int((monotonic() - self.record_started) * 1000) if self.recording else 0
         return mavlink().MAVLink_camera_capture_status_message(
             self.comp.node.time_boot_ms(), self.image_status, 1 if self.recording else 0, self.interval_s,
             rec_ms, self.available_mib, self.image_count, 0)  # fmt: skip
 
     def _recording_now(self, rec: bool) -> None:
         if rec and not self.recording:
-            self.record_started = time.monotonic()
+            self.record_started = monotonic()
         self.recording = rec
 
     async def _image_captured(self, cmd: Command) -> list[Any]:
@@ -283,7 +283,7 @@ class CameraComponent:
             lat, lon = int(fix.position.lat_deg * 1e7), int(fix.position.lon_deg * 1e7)
             alt, rel = int(fix.position.alt_m * 1000), int(fix.relative_alt_m * 1000)
         msg = mavlink().MAVLink_camera_image_captured_message(
-            self.comp.node.time_boot_ms(), int(time.time() * 1e6), 0, lat, lon, alt, rel,
+            self.comp.node.time_boot_ms(), int(wall_time() * 1e6), 0, lat, lon, alt, rel,
             list(self.view.earth_quaternion()), index, 1 if ok else 0, _text(url, 205))  # fmt: skip
         self.images[index] = msg
         while len(self.images) > MAX_REMEMBERED_IMAGES:

@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import asyncio
 import math
-import time
 from typing import TYPE_CHECKING, Any
 
+from ..clock import monotonic
 from ..errors import RequestTimeoutError, TopGimbalError
 from ._mav import mavlink
 from .camera_link import CameraLink
@@ -170,7 +170,7 @@ class CameraExtras:
     def _report(self) -> dict[str, Any] | None:
         client = self.cam.client
         st = client.state.temperature if client is not None else None
-        if st is None or time.monotonic() - st.t > REPORT_STALE_S or not isinstance(st.value, dict):
+        if st is None or monotonic() - st.t > REPORT_STALE_S or not isinstance(st.value, dict):
             return None
         return st.value if isinstance(st.value.get("hot_temp_c"), (int, float)) else None
 
@@ -200,9 +200,9 @@ class CameraExtras:
         rep = self._report()
         if rep is None:
             await self._subscribe()
-            end = time.monotonic() + REPORT_WAIT_S
+            end = monotonic() + REPORT_WAIT_S
             while (rep := self._report()) is None:
-                if time.monotonic() > end:
+                if monotonic() > end:
                     raise RequestTimeoutError("the camera sent no temperature report")
                 await asyncio.sleep(0.05)
         return [self._message(rep)]

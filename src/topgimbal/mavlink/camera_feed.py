@@ -18,12 +18,12 @@ import asyncio
 import contextlib
 import datetime
 import logging
-import time
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 from ..client.api_feed import FeedSample, apply_sample
 from ..client.feeds import Fix
+from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..protocol import get_model
 from ..video.lens import photo_names
@@ -70,7 +70,7 @@ class AutopilotState:
             utc = datetime.datetime.fromtimestamp(usec / 1e6, datetime.timezone.utc)
         except (OverflowError, OSError, ValueError):
             return  # a time no calendar holds: not a time
-        self._utc, self.utc_new = (utc, time.monotonic()), True
+        self._utc, self.utc_new = (utc, monotonic()), True
 
     @property
     def has_time(self) -> bool:
@@ -84,8 +84,8 @@ class AutopilotState:
             with contextlib.suppress(ValueError):  # out-of-range numbers from the network: no fix
                 fix = Fix(f.position.lat_deg, f.position.lon_deg, f.position.alt_m, self.vehicles.yaw_deg)
         utc = None
-        if self._utc is not None and self.utc_new and time.monotonic() - self._utc[1] <= TIME_STALE_S:
-            utc = self._utc[0] + datetime.timedelta(seconds=time.monotonic() - self._utc[1])
+        if self._utc is not None and self.utc_new and monotonic() - self._utc[1] <= TIME_STALE_S:
+            utc = self._utc[0] + datetime.timedelta(seconds=monotonic() - self._utc[1])
         return FeedSample(fix=fix, time_utc=utc, attitude_deg=self.vehicles.attitude_deg())
 
 

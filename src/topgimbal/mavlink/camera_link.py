@@ -26,13 +26,13 @@ import asyncio
 import contextlib
 import logging
 import math
-import time
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import Any, TypeVar
 from urllib.parse import urlsplit
 
 from ..client import AsyncClient
+from ..clock import monotonic
 from ..errors import LinkLostError, ModelMismatchError, RequestTimeoutError, TopGimbalError
 from ..protocol import Message, get_model
 from .profile import Profile, profile_of
@@ -199,7 +199,7 @@ class CameraLink:
             return
         period = max(0.1, self.silence_s / 2)
         while not self._closed:
-            if time.monotonic() - self.last_frame_t >= period:
+            if monotonic() - self.last_frame_t >= period:
                 with contextlib.suppress(TopGimbalError, OSError):
                     await client.version()
             await asyncio.sleep(period)
@@ -221,7 +221,7 @@ class CameraLink:
             self._set_answering(True, reason)  # a frame came (a reconnected stream: wait for one)
 
     def _on_message(self, m: Message) -> None:
-        self.last_frame_t = time.monotonic()
+        self.last_frame_t = monotonic()
         client = self.client
         if self.wrong_model:
             return  # not served: no health, no attitude read through the wrong model's signs

@@ -19,12 +19,12 @@ import asyncio
 import contextlib
 import logging
 import math
-import time
 from collections import OrderedDict
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from ..clock import monotonic
 from ..errors import DeviceError, FieldValueError, RequestTimeoutError, TopGimbalError, TransportError, UnsupportedError
 from ..logthrottle import ThrottledLog
 from ._mav import mavlink
@@ -259,7 +259,7 @@ class Dispatcher:
         if key in self._inflight:
             self._ack(comp, cmd, IN_PROGRESS, progress=255)
             return
-        now = time.monotonic()
+        now = monotonic()
         self._forget_old(now)
         done = self._done.get(key)
         if done is not None and cmd.retransmits(done.confirmation):
@@ -303,13 +303,13 @@ class Dispatcher:
     async def _run(self, comp: Component, cmd: Command, handler: Handler) -> None:
         work = asyncio.ensure_future(handler(cmd))
         progress_at = self.progress_after_s
-        deadline = time.monotonic() + self.timeout_s
+        deadline = monotonic() + self.timeout_s
         try:
             while True:
                 done, _ = await asyncio.wait({work}, timeout=progress_at)
                 if done:
                     break
-                if time.monotonic() >= deadline:
+                if monotonic() >= deadline:
                     work.cancel()
                     break
                 self._ack(comp, cmd, IN_PROGRESS, progress=255)
@@ -350,7 +350,7 @@ class Dispatcher:
                      comp.name, name, outcome.text)  # fmt: skip
             if outcome.result == FAILED:
                 statustext(comp, outcome.text, severity=3)
-        self._done[cmd.key()] = _Done(time.monotonic(), outcome.result, outcome.param2, cmd.confirmation)
+        self._done[cmd.key()] = _Done(monotonic(), outcome.result, outcome.param2, cmd.confirmation)
         while len(self._done) > REMEMBER_RESULTS:
             self._done.popitem(last=False)
         for msg in outcome.after:

@@ -17,11 +17,11 @@ import abc
 import asyncio
 import contextlib
 import logging
-import time
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from typing import Any
 
+from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..logthrottle import ThrottledLog
 
@@ -205,7 +205,7 @@ class UdpLink(Link):
         if self.spec.kind != "udpin":
             self._deliver("out", data)
             return
-        now = time.monotonic()
+        now = monotonic()
         if addr in self._peers:
             if self._deliver(addr, data):
                 self._peers[addr] = now
@@ -236,7 +236,7 @@ class UdpLink(Link):
             t.sendto(data)
             self.bytes_out += len(data)
             return
-        self._expire(time.monotonic())
+        self._expire(monotonic())
         for addr in self._peers:
             t.sendto(data, addr)
             self.bytes_out += len(data)
@@ -264,7 +264,7 @@ class _StreamProtocol(asyncio.Protocol):
         self.owner = owner
         self.peer = peer
         self.transport: asyncio.Transport | None = None
-        self.last_heard = time.monotonic()
+        self.last_heard = monotonic()
         self.trusted = False  # the node accepted something it sent
         self.untrusted_bytes = 0
 
@@ -273,7 +273,7 @@ class _StreamProtocol(asyncio.Protocol):
         self.owner._connected(self)
 
     def data_received(self, data: bytes) -> None:
-        self.last_heard = time.monotonic()
+        self.last_heard = monotonic()
         if self.owner._deliver(self.peer, data):
             self.trusted = True
         else:
@@ -373,7 +373,7 @@ class StreamLink(Link):
 
     def _connected(self, proto: _StreamProtocol) -> None:
         if len(self._conns) >= self.max_peers:
-            self._expire(time.monotonic())
+            self._expire(monotonic())
         if len(self._conns) >= self.max_peers:
             self._refuse(proto.peer)
             if proto.transport is not None:
@@ -410,7 +410,7 @@ class StreamLink(Link):
         return proto.trusted or not self.needs_trust or self.spec.kind != "tcpin"
 
     def send(self, data: bytes) -> None:
-        self._expire(time.monotonic())
+        self._expire(monotonic())
         if not self._conns:
             self.dropped_out += 1
             return

@@ -11,10 +11,10 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
-import time
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
+from ..clock import monotonic
 from ._mav import mavlink
 from .camera_link import AttitudeSample, CameraLink
 from .commands import Command
@@ -138,14 +138,14 @@ class GimbalDevice:
 
     def _send_status(self) -> None:
         self.comp.send(self.status_message(self.cam.attitude))
-        self._last_sent = time.monotonic()
+        self._last_sent = monotonic()
         self.status_sent += 1
 
     def _on_attitude(self, att: AttitudeSample) -> None:
         period = self.stream.period_s
         if period <= 0:
             return
-        if time.monotonic() - self._last_sent >= period * 0.9:  # 10 % slack for clock jitter
+        if monotonic() - self._last_sent >= period * 0.9:  # 10 % slack for clock jitter
             self._send_status()
 
     def _on_health(self, answering: bool) -> None:
@@ -158,7 +158,7 @@ class GimbalDevice:
         while True:
             period = self.stream.period_s
             await asyncio.sleep(period if period > 0 else 1.0)
-            if period > 0 and time.monotonic() - self._last_sent > period * 1.5:
+            if period > 0 and monotonic() - self._last_sent > period * 1.5:
                 self._send_status()
 
     async def _status_now(self, cmd: Command) -> list[Any]:

@@ -15,10 +15,10 @@ nothing signed becomes no peer (it takes no place and is sent no telemetry)."""
 from __future__ import annotations
 
 import logging
-import time
 from collections.abc import Callable, Hashable, Sequence
 from typing import TYPE_CHECKING, Any
 
+from ..clock import monotonic
 from ._mav import mavlink
 from .endpoints import MAX_PEERS, DataCallback, GoneCallback, Link, make_link
 from .signing import SignedStreams, sign_outgoing
@@ -117,9 +117,10 @@ class Node:
         self.components: dict[int, Component] = {}
         self._parsers: dict[tuple[int, Hashable], Any] = {}
         self._subscribers: list[MessageCallback] = []
+        self._peer_watchers: list[Callable[[Link, Hashable], None]] = []
         self.messages_in = 0
         self.bad_in = 0
-        self.started = time.monotonic()
+        self.started = monotonic()
 
     def component(self, compid: int, name: str) -> Component:
         if compid in self.components:
@@ -130,8 +131,13 @@ class Node:
     def subscribe(self, callback: MessageCallback) -> None:
         self._subscribers.append(callback)
 
+    def on_new_peer(self, callback: Callable[[Link, Hashable], None]) -> None:
+        """`callback(link, peer)` when a peer is first heard on a link (the bridge greets it with a
+        HEARTBEAT at once rather than at its next 1 Hz beat)."""
+        self._peer_watchers.append(callback)
+
     def time_boot_ms(self) -> int:
-        return int((time.monotonic() - self.started) * 1000) & 0xFFFFFFFF
+        return int((monotonic() - self.started) * 1000) & 0xFFFFFFFF
 
     async def start(self) -> None:
         started: list[Link] = []
@@ -177,6 +183,11 @@ class Node:
             p = mavlink().MAVLink(None)
             p.robust_parsing = True  # no key: signatures are checked by the node's SignedStreams
             self._parsers[key] = p
+            for cb in list(self._peer_watchers):
+                try:
+                    cb(link, peer)
+                except Exception:
+                    log.exception("%s: greeting new peer %s failed", link, peer)
         return p
 
     def _on_gone(self, link: Link, peer: Hashable) -> None:

@@ -21,6 +21,7 @@ import struct
 from typing import TYPE_CHECKING, Any
 
 from ..errors import TopGimbalError
+from ..logtext import untrusted
 from ..logthrottle import ThrottledLog
 from ._mav import mavlink
 from .camdef import Setting
@@ -206,6 +207,6 @@ class ParamsExt:
         await self.cam.call(lambda c: c.request(s.ident, **values))
 
     def _refuse(self, s: Setting, result: int, why: str) -> None:
-        log.info("%s: PARAM_EXT_SET %s refused: %s", self.comp.name, s.param, why)
+        log.info("%s: PARAM_EXT_SET %s refused: %s", self.comp.name, untrusted(s.param), untrusted(why))
         statustext(self.comp, why[:50], severity=3 if result == FAILED else 4)
         self._ack(s, self._known(s), result)

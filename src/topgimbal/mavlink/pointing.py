@@ -12,9 +12,9 @@ import asyncio
 import contextlib
 import logging
 import math
-import time
 from dataclasses import dataclass
 
+from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..logthrottle import ThrottledLog
 from .camera_link import CameraLink
@@ -84,7 +84,7 @@ class Pointer:
             if not self.profile.has_neutral:
                 raise unsupported("the gimbal has no neutral position command")
             await self.cam.call(lambda c: c.center())
-            self._last_sent = (sp, time.monotonic())
+            self._last_sent = (sp, monotonic())
             return
         if sp.lock is not None and (self.profile.has_lock and self.profile.has_follow):
             want = "lock" if sp.lock else "follow"
@@ -109,7 +109,7 @@ class Pointer:
             if yaw is None and pitch is None and roll is None:
                 return
             await self.cam.call(lambda c: c.set_angles(yaw, pitch, roll, frame=frame))
-        self._last_sent = (sp, time.monotonic())
+        self._last_sent = (sp, monotonic())
 
     def _body_yaw(self, sp: Setpoint, partial: bool = False) -> tuple[float | None, str]:
         """The yaw to send and its frame. Earth-frame yaw (from North) becomes vehicle-frame yaw
@@ -196,7 +196,7 @@ class Pointer:
             await self._wake.wait()
             self._wake.clear()
             sp = self._latest
-            if sp is None or self._is_repeat(sp, time.monotonic()):
+            if sp is None or self._is_repeat(sp, monotonic()):
                 continue
             try:
                 await self.apply(sp, clamp=True, partial=True)

@@ -10,11 +10,11 @@ MAVn_EXTRA1 is set) or ATTITUDE; the heading, failing both, from GLOBAL_POSITION
 from __future__ import annotations
 
 import math
-import time
 from collections import OrderedDict
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from ..clock import monotonic
 from .geo import Position
 from .quaternion import is_valid, to_euler_deg
 
@@ -52,9 +52,7 @@ class Vehicles:
         src = m.get_srcSystem()
         if kind == "GLOBAL_POSITION_INT":
             hdg = None if m.hdg == 65535 else m.hdg / 100.0
-            fix = Fix(
-                Position(m.lat / 1e7, m.lon / 1e7, m.alt / 1000.0), m.relative_alt / 1000.0, hdg, time.monotonic()
-            )
+            fix = Fix(Position(m.lat / 1e7, m.lon / 1e7, m.alt / 1000.0), m.relative_alt / 1000.0, hdg, monotonic())
             self._fixes[src] = fix
             self._fixes.move_to_end(src)
             if len(self._fixes) > MAX_SYSTEMS:
@@ -71,16 +69,16 @@ class Vehicles:
             # carries the same attitude, so the target does not matter.
             if is_valid(list(m.q)):
                 e = to_euler_deg(list(m.q))
-                self._attitude[kind] = ((e.roll_deg, e.pitch_deg, e.yaw_deg), time.monotonic())
+                self._attitude[kind] = ((e.roll_deg, e.pitch_deg, e.yaw_deg), monotonic())
         elif kind == "ATTITUDE":
             values = (m.roll, m.pitch, m.yaw)
             if all(math.isfinite(v) for v in values):
                 roll, pitch, yaw = (math.degrees(v) for v in values)
-                self._attitude[kind] = ((roll, pitch, yaw), time.monotonic())
+                self._attitude[kind] = ((roll, pitch, yaw), monotonic())
 
     def fix(self, sysid: int | None = None) -> Fix | None:
         f = self._fixes.get(self.sysid if sysid is None else sysid)
-        if f is None or time.monotonic() - f.t > STALE_S:
+        if f is None or monotonic() - f.t > STALE_S:
             return None
         return f
 
@@ -88,7 +86,7 @@ class Vehicles:
         """Our vehicle's (roll_deg, pitch_deg, yaw_deg), earth frame (yaw from North, clockwise;
         -180..180), from AUTOPILOT_STATE_FOR_GIMBAL_DEVICE (preferred) or ATTITUDE heard within
         STALE_S; None when neither was."""
-        now = time.monotonic()
+        now = monotonic()
         for kind in ("AUTOPILOT_STATE_FOR_GIMBAL_DEVICE", "ATTITUDE"):
             got = self._attitude.get(kind)
             if got is not None and now - got[1] <= STALE_S:

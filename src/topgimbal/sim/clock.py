@@ -6,8 +6,9 @@ streams deterministically with `FakeClock` while servers use the event loop's mo
 
 from __future__ import annotations
 
-import time
 from typing import Protocol
+
+from ..clock import monotonic
 
 
 class Clock(Protocol):
@@ -17,11 +18,11 @@ class Clock(Protocol):
 
 
 class MonotonicClock:
-    """Real time. `time.monotonic` is what asyncio's default loop uses, so deadlines computed from
-    this clock can be handed to `loop.call_at` unchanged."""
+    """Real time: `topgimbal.clock.monotonic`, the running loop's own time, so deadlines computed
+    from this clock can be handed to `loop.call_at` unchanged (and a virtual-time loop moves them)."""
 
     def now(self) -> float:
-        return time.monotonic()
+        return monotonic()
 
 
 class FakeClock:

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any, cast
 
 from ..protocol import Dialect, Frame
+from ..transport.memory import MemoryPort
 from . import persist
 from .clock import Clock, FakeClock, MonotonicClock
 from .device import TOPOTEK_STREAM_HZ, Device, Outgoing
@@ -88,6 +89,7 @@ class Simulator:
         self._udp: list[UdpServer] = []
         self._tcp: list[TcpServer] = []
         self._serial: list[SerialPeer] = []
+        self._memory: list[MemoryPort] = []
         self._loop: asyncio.AbstractEventLoop | None = None
         self._timer: asyncio.TimerHandle | None = None
         self._timer_at: float | None = None
@@ -204,6 +206,18 @@ class Simulator:
         self.started = True
         return self
 
+    def listen_memory(self, name: str) -> str:
+        """Serve `memory://NAME` too (after `start()`; one client, one datagram per send): a camera
+        with no socket, for tests on a virtual-time loop and for embedding. Returns its URL."""
+        if not self.started:
+            raise RuntimeError("the simulator is not started: await sim.start() first (udp=[] for no sockets)")
+        port = MemoryPort.listen(name)
+        peer = _MemoryPeer(port)
+        port.on_bytes = lambda data: self._input(peer, data, True)
+        self._memory.append(port)
+        self.endpoints.append(("memory", port.url))
+        return port.url
+
     def documented_listen(self) -> dict[str, list[Any]]:
         """The model's documented endpoints, on loopback (a pty stands in for a UART)."""
         eps = self.device.model.endpoints
@@ -224,6 +238,9 @@ class Simulator:
         for s in self._serial:
             s.close()
         self._udp, self._tcp, self._serial = [], [], []
+        for m in self._memory:
+            m.close()
+        self._memory = []
         if self._commit is not None:
             await self._commit.drain()
             self._commit.close()
@@ -326,11 +343,14 @@ class Simulator:
 
     def pump(self) -> None:
         """Send everything due by now: delayed inbound packets, streams, delayed outbound packets."""
-        now = self.clock.now()
+        real_time = not isinstance(self.clock, FakeClock)
+        # The timer wakes TIMER_EARLY_S early: what falls due within that margin goes now, delayed
+        # packets as the device's streams do (on a virtual-time loop, where the clock stands still
+        # until nothing is ready, waking again for the last millisecond would never end).
+        now = self.clock.now() + (TIMER_EARLY_S if real_time else 0.0)
         if self._fault_in is not None:
             for p, d in self._fault_in.due(now):
                 self._deliver(p, d)
-        real_time = not isinstance(self.clock, FakeClock)
         self._send(self.device.tick(early_s=TIMER_EARLY_S if real_time else 0.0))
         if self._fault_out is not None:
             for peer, data in self._fault_out.due(now):
@@ -379,10 +399,23 @@ class Simulator:
         self._timer_at = due
         # Wake TIMER_EARLY_S ahead: the selector rounds timeouts up to whole milliseconds.
         delay = max(0.0, due - self.clock.now() - TIMER_EARLY_S)
-        self._timer = self._loop.call_at(self._loop.time() + delay, self._on_timer)
+        self._timer = self._loop.call_later(delay, self._on_timer)
 
     def _on_timer(self) -> None:
         self._timer = None
         self._timer_at = None
         self.pump()
         self._schedule()
+
+
+class _MemoryPeer:
+    """The client of a `memory://` port, as the device sees a peer: something to send to."""
+
+    def __init__(self, port: MemoryPort) -> None:
+        self.port = port
+
+    def send(self, data: bytes) -> None:
+        self.port.send(data)
+
+    def __repr__(self) -> str:
+        return f"<{self.port.url} client>"

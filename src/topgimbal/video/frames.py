@@ -12,9 +12,10 @@ lossy links better than UDP at the price of a little delay.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING
+
+from ..clock import monotonic
 
 if TYPE_CHECKING:  # PyAV is the video extra: imported where a stream is opened
     import numpy as np
@@ -54,7 +55,7 @@ class LagMeter:
     """How far behind the camera a reader is: wall-clock time elapsed since the first picture
     minus stream time elapsed. Grows when pictures arrive faster than they are consumed."""
 
-    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(self, clock: Callable[[], float] = monotonic) -> None:
         self._clock = clock
         self._origin: tuple[float, float] | None = None
 

@@ -22,11 +22,11 @@ import io
 import logging
 import os
 import threading
-import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ..clock import monotonic
 from ..sim.state import NO_CLOCK_EPOCH
 from .exif import PhotoMeta, Pose, focal_lengths, tag_jpeg
 from .lens import MEDIA_NAME, StreamSpec, photo_names, recording_name, streams_for
@@ -229,9 +229,9 @@ class _Recorder:
                 stream = out.add_stream("libx264", rate=int(RECORD_FPS))
                 stream.width, stream.height, stream.pix_fmt = w, h, "yuv420p"
                 stream.options = {"preset": "ultrafast"}
-                started = time.monotonic()
+                started = monotonic()
                 while not self._stop.wait(0 if self.frames == 0 else 1.0 / RECORD_FPS):
-                    if time.monotonic() - started > MAX_RECORD_S:
+                    if monotonic() - started > MAX_RECORD_S:
                         log.warning("media: %s reached %g s: no more frames", self.path.name, MAX_RECORD_S)
                         break
                     scene = self._scene()

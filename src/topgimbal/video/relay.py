@@ -17,10 +17,11 @@ import asyncio
 import concurrent.futures
 import logging
 import threading
-import time
 from collections.abc import AsyncGenerator
 from fractions import Fraction
 from typing import TYPE_CHECKING, Any
+
+from ..clock import monotonic
 
 if TYPE_CHECKING:  # PyAV is the video extra: imported by the reader thread
     from av.container import InputContainer
@@ -108,7 +109,7 @@ class Relay:
                     yield self.jpeg
         finally:
             self.viewers -= 1
-            self._last_viewer = time.monotonic()
+            self._last_viewer = monotonic()
 
     def _ensure_reader(self) -> None:
         if self._thread is not None and self._thread.is_alive():
@@ -138,7 +139,7 @@ class Relay:
         from .frames import open_stream
 
         while not self._stop.is_set():
-            if self.viewers == 0 and time.monotonic() - self._last_viewer > IDLE_CLOSE_S:
+            if self.viewers == 0 and monotonic() - self._last_viewer > IDLE_CLOSE_S:
                 self.state = "idle"
                 return
             self.state = "connecting" if self.pictures == 0 else "reconnecting"
@@ -173,12 +174,12 @@ class Relay:
         for frame in container.decode(video=0):
             if self._stop.is_set():
                 return
-            if self.viewers == 0 and time.monotonic() - self._last_viewer > IDLE_CLOSE_S:
+            if self.viewers == 0 and monotonic() - self._last_viewer > IDLE_CLOSE_S:
                 return
             self.state, self.error = "playing", None
             self.size = (frame.width, frame.height)
             self.pictures += 1
-            now = time.monotonic()
+            now = monotonic()
             lag = meter.lag_s(frame)
             if lag > MAX_LAG_S:
                 self.lag_resets += 1

@@ -22,9 +22,10 @@ import contextlib
 import itertools
 import logging
 import random
-import time
 from typing import Any
 
+from ..clock import monotonic
+from ..logtext import untrusted
 from .rtp import Packetizer, sdp
 from .rtsp_request import BadUrlError, Request, Transport, cseq_ok, parse_transport, session_id, url_path
 from .rtsp_stream import KEYFRAME_MIN_INTERVAL_S, Session, Stream
@@ -66,7 +67,7 @@ class _Connection(asyncio.Protocol):
         self.sessions: dict[str, Session] = {}
         self.queue: asyncio.Queue[Request] = asyncio.Queue()
         self.task: asyncio.Task[None] | None = None
-        self.last_heard = time.monotonic()
+        self.last_heard = monotonic()
         # Set while the transport's unsent bytes are under its high-water mark (MAX_BUFFERED_BYTES):
         # requests wait for it, so a client that sends requests but reads no answers makes its
         # requests pile up (and is closed past MAX_PIPELINED) instead of the answers growing
@@ -82,7 +83,7 @@ class _Connection(asyncio.Protocol):
 
     def heard(self) -> None:
         """The client showed it is alive: a request, interleaved RTCP, or RTCP over UDP."""
-        self.last_heard = time.monotonic()
+        self.last_heard = monotonic()
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         self.transport = transport  # type: ignore[assignment]
@@ -152,7 +153,7 @@ class _Connection(asyncio.Protocol):
         return self.transport.get_write_buffer_size() if self.transport is not None else 0
 
     def _bad(self, why: str) -> None:
-        log.warning("RTSP %s: %s; closing", self.peer, why)
+        log.warning("RTSP %s: %s; closing", self.peer, untrusted(why))
         self.reply(Request("?", "", {}), 400, "Bad Request")
         self.buf = b""
         if self.transport is not None:
@@ -180,7 +181,7 @@ class _Connection(asyncio.Protocol):
             try:
                 await self._handle(req)
             except Exception:  # a bad request must not take the server down
-                log.exception("RTSP %s: %s failed", self.peer, req.method)
+                log.exception("RTSP %s: %s failed", self.peer, untrusted(req.method, 20))
                 self.reply(req, 500, "Internal Server Error")
 
     # -- methods ----------------------------------------------------------------------------------
@@ -363,7 +364,7 @@ class RtspServer:
 
     def reap(self, now: float | None = None) -> int:
         """Close every connection nothing was heard from for IDLE_CLOSE_S; how many were closed."""
-        now = time.monotonic() if now is None else now
+        now = monotonic() if now is None else now
         closed = 0
         for c in list(self.connections):
             if now - c.last_heard > IDLE_CLOSE_S and c.transport is not None and not c.transport.is_closing():

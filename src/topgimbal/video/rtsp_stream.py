@@ -13,11 +13,11 @@ from __future__ import annotations
 import asyncio
 import logging
 import struct
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
+from ..clock import monotonic
 from ..logthrottle import ThrottledLog
 from .encode import AccessUnit
 from .rtp import CLOCK_HZ, Packetizer, parameter_sets, split_nals
@@ -46,7 +46,7 @@ class Stream:
         *,
         on_keyframe_wanted: Callable[[], None] | None = None,
         on_play: Callable[[], None] | None = None,
-        clock: Callable[[], float] = time.monotonic,
+        clock: Callable[[], float] = monotonic,
     ) -> None:
         self.path = path
         self.codec = codec
@@ -121,7 +121,7 @@ class Stream:
                 r.conn.transport.close()
 
     def now_rtp(self) -> int:
-        return int(time.monotonic() * CLOCK_HZ) & 0xFFFFFFFF
+        return int(monotonic() * CLOCK_HZ) & 0xFFFFFFFF
 
 
 @dataclass(eq=False)  # identity: a set member

@@ -25,9 +25,10 @@ import concurrent.futures
 import contextlib
 import logging
 import threading
-import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
+
+from ..clock import monotonic
 
 if TYPE_CHECKING:
     from ..sim.simulator import Simulator
@@ -263,10 +264,10 @@ class _Worker:
             log.exception("video %s: cannot start the encoder", self.spec.lens)
             return
         period = 1.0 / self.fps
-        next_t = time.monotonic()
+        next_t = monotonic()
         try:
             while not self._stop.is_set():
-                now = time.monotonic()
+                now = monotonic()
                 if now < next_t:
                     self._stop.wait(next_t - now)
                     continue

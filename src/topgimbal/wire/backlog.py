@@ -10,10 +10,10 @@ import asyncio
 import contextlib
 import logging
 import select
-import time
 from collections import deque
 from collections.abc import Iterator
 
+from ..clock import monotonic
 from .udplink import UdpSocket
 from .watcher import Chunk, ProxyStats, Watcher
 
@@ -48,7 +48,7 @@ class Backlog:
 
     def _drain(self) -> None:
         self._drain_handle = None
-        end = time.perf_counter() + PROCESS_SLICE_S
+        end = monotonic() + PROCESS_SLICE_S
         while not self._bytes_waiting():
             if self._current is None:
                 if not self._chunks:
@@ -56,7 +56,7 @@ class Backlog:
                 self._current = self.watcher.steps(self._take())
             if next(self._current, None) is None:
                 self._current = None
-            if time.perf_counter() > end:
+            if monotonic() > end:
                 break
         if self._chunks or self._current is not None:
             # A timer, not call_soon: asyncio runs the callbacks of sockets found readable before

@@ -25,10 +25,10 @@ import select
 import struct
 import subprocess
 import sys
-import time
 from collections.abc import Callable
 from typing import Any
 
+from ..clock import monotonic
 from .watcher import Chunk, Watcher
 
 log = logging.getLogger("topgimbal.proxy")
@@ -182,10 +182,10 @@ def serve(watcher: Watcher, on_tick: Callable[[], None], fd: int = 0, stats_fd: 
     stats_fd = stats_fd if stats_fd is not None else int(sys.argv[-1])
     buf = bytearray()
     done = False
-    next_flush = time.monotonic() + FLUSH_S
+    next_flush = monotonic() + FLUSH_S
     try:
         while not done:
-            ready, _, _ = select.select([fd], [], [], max(0.0, next_flush - time.monotonic()))
+            ready, _, _ = select.select([fd], [], [], max(0.0, next_flush - monotonic()))
             if ready:
                 piece = os.read(fd, 1 << 16)
                 if not piece:
@@ -202,10 +202,10 @@ def serve(watcher: Watcher, on_tick: Callable[[], None], fd: int = 0, stats_fd: 
                         break
                     for chunk in batch:
                         watcher.run(chunk)
-            if time.monotonic() >= next_flush:
+            if monotonic() >= next_flush:
                 watcher.flush()
                 on_tick()
-                next_flush = time.monotonic() + FLUSH_S
+                next_flush = monotonic() + FLUSH_S
     finally:
         watcher.close()
         on_tick()

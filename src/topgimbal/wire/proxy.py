@@ -34,12 +34,12 @@ import asyncio
 import ipaddress
 import logging
 import socket
-import time
 from collections import OrderedDict
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from ..clock import monotonic, wall_time
 from ..protocol import Dialect, get_dialect, get_model
 from ..transport import Transport, TransportURL, open_transport, parse_url
 from ..transport.tcp import StreamTransport
@@ -330,7 +330,7 @@ class Proxy:
         log.warning("proxy: serial port %s closed%s", self.listen.path, f": {exc}" if exc else "")
 
     def _sweep(self) -> None:
-        now = time.monotonic()
+        now = monotonic()
         for key, s in list(self._sessions.items()):
             if now - s.last_active > self.idle_timeout_s:
                 log.info("proxy: %s idle for %.0f s; forgotten", s.label, now - s.last_active)
@@ -343,7 +343,7 @@ class Proxy:
     def relay(self, session: Session, direction: str, data: bytes, send: Callable[[bytes], None]) -> None:
         """Forward `data` now; decode, record and publish it soon."""
         d = session.dirs[direction]
-        t = time.time()
+        t = wall_time()
         if not (d.to_datagram and not d.from_datagram):
             send(data)
             self._queue(Chunk(t, session.label, session.endpoint, direction, data, d.from_datagram, None))
@@ -371,7 +371,7 @@ class Proxy:
         d.flush_timer = None
         if d.held and not session.closed:
             send(d.held)
-            self._queue(Chunk(time.time(), session.label, session.endpoint, direction, d.held, False, d.parser.flush()))
+            self._queue(Chunk(wall_time(), session.label, session.endpoint, direction, d.held, False, d.parser.flush()))
             d.held = b""
 
     def _queue(self, work: Chunk) -> None:
@@ -397,7 +397,7 @@ class Proxy:
 
     def session_closed(self, session: Session) -> None:
         """A session ended: its parsers go, and its TCP connection in the pcap ends after what it sent."""
-        self._queue(Chunk(time.time(), session.label, session.endpoint, CLOSED, b"", False, []))
+        self._queue(Chunk(wall_time(), session.label, session.endpoint, CLOSED, b"", False, []))
 
 
 __all__ = [

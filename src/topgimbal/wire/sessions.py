@@ -8,11 +8,11 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from ..clock import monotonic
 from ..errors import TopGimbalError, TransportError
 from ..logthrottle import ThrottledLog
 from ..protocol import FrameParser
@@ -32,7 +32,7 @@ class Throttle(ThrottledLog):
     """Warnings a peer can trigger again and again (a flood of new clients or datagrams): each
     kind is logged at most once per LOG_EVERY_S, the next line saying how many were left out."""
 
-    def __init__(self, every_s: float = LOG_EVERY_S, clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(self, every_s: float = LOG_EVERY_S, clock: Callable[[], float] = monotonic) -> None:
         super().__init__(log, every_s, clock)
 
 
@@ -93,7 +93,7 @@ class Session:
         self.queued: list[bytes] = []
         self.queued_bytes = 0
         self.closed = False
-        self.last_active = time.monotonic()
+        self.last_active = monotonic()
         down_dgram = proxy.listen.scheme == "udp"
         up_dgram = proxy.to.scheme == "udp"
         self.dirs = {OUT: Direction(down_dgram, up_dgram), IN: Direction(up_dgram, down_dgram)}
@@ -119,7 +119,7 @@ class Session:
             self.pause_down(False)
 
     def from_client(self, data: bytes) -> None:
-        self.last_active = time.monotonic()
+        self.last_active = monotonic()
         if self.upstream is None:
             if self.pause_down is not None:
                 # A stream's bytes cannot be dropped (the frames around the hole would be cut):
@@ -169,7 +169,7 @@ class Session:
         self.from_device(data)
 
     def from_device(self, data: bytes) -> None:
-        self.last_active = time.monotonic()
+        self.last_active = monotonic()
         self.proxy.relay(self, IN, data, self.send_down)
 
     def device_lost(self, exc: Exception | None) -> None:

@@ -8,10 +8,10 @@ numbers that add up, and a FIN exchange on `close_tcp()`, so Wireshark reassembl
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..clock import wall_time
 from .packets import TCP_ACK, TCP_FIN, TCP_PSH, TCP_SYN, Endpoint, build_packet
 from .pcapfile import LINKTYPE_ETHERNET, CaptureError, PcapWriter, capture_micros, open_writer
 
@@ -51,7 +51,7 @@ class CaptureWriter:
     @staticmethod
     def _time(ts: float | None) -> float:
         """`ts` (now when None), checked before anything is written: a bad time writes nothing."""
-        ts = time.time() if ts is None else ts
+        ts = wall_time() if ts is None else ts
         capture_micros(ts)
         return ts
 

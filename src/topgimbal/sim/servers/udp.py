@@ -8,10 +8,10 @@ import errno
 import socket
 import struct
 import sys
-import time
 from collections.abc import Callable
 from typing import Any
 
+from ...clock import monotonic
 from .common import MAX_DATAGRAM, READ_BATCH, Forget, Limits, Sink, Throttled, fmt_addr, listen_error
 
 # Linux: with IP_RECVERR an unconnected UDP socket learns about ICMP errors, and the error queue
@@ -48,7 +48,7 @@ class UdpServer:
     without bound and hides which address an ICMP error is about)."""
 
     def __init__(
-        self, sink: Sink, forget: Forget, limits: Limits | None = None, clock: Callable[[], float] = time.monotonic
+        self, sink: Sink, forget: Forget, limits: Limits | None = None, clock: Callable[[], float] = monotonic
     ) -> None:
         self.sink = sink
         self.forget = forget
