@@ -206,7 +206,7 @@ class PacketSource:
             if not data:
                 continue
             nals = inserter.nals(data)
-            # FFmpeg gives the first picture it parses no time (docs/errata.md E35): one frame on
+            # FFmpeg gives the first picture it parses no time (docs/errata.md E40): one frame on
             if packet.pts is not None and tb is not None:
                 pts = int(packet.pts * tb * 90000)
             else:

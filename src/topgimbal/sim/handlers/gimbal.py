@@ -191,7 +191,7 @@ def vehicle_attitude(state: SimState, msg: Message, req: Request) -> None:
 
 
 # The camera's own tracker (sim/tracker.py) behind the tracking commands. What the documents leave
-# open is decided in docs/errata.md (E35): a SkyDroid GOT point starts tracking at
+# open is decided in docs/errata.md (E41): a SkyDroid GOT point starts tracking at
 # once (SUM 01 confirms it, SUM 00 stops); TOPOTEK's LOC box starts it (TRC 01 / 02 only arm), and
 # a lost target reads back as TRC state 1 (waiting for a new box), the code the firmware has.
 GOT_PICTURE = (1280.0, 720.0)  # the GOT fields' picture (the catalog's field ranges)

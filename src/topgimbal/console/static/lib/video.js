@@ -331,7 +331,7 @@ function setUpTracking(api, track) {
     if (value == null) return show(fallback, on);
     const label = plan.query.field.values.find((x) => x.name === value)?.label || value;
     // A camera that was tracking and is waiting again without a stop lost its target
-    // (docs/errata.md E35): said as such, not as "waiting".
+    // (docs/errata.md E41): said as such, not as "waiting".
     if (seen && on && value !== "tracking" && value !== "stopped") {
       return show(`tracking: lost (the camera's state: ${label.toLowerCase()})`, true, "lost");
     }
