@@ -10,19 +10,24 @@ MAVn_EXTRA1 is set) or ATTITUDE; the heading, failing both, from GLOBAL_POSITION
 from __future__ import annotations
 
 import math
-import time
 from collections import OrderedDict
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from ..clock import monotonic
 from .geo import Position
-from .quaternion import is_valid, to_euler_deg
+from .quaternion import is_valid, to_euler_deg, wrap180
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
 
 MAX_SYSTEMS = 32
 STALE_S = 3.0
+# A heading is carried forward at the vehicle's yaw rate for at most this long: between two
+# AUTOPILOT_STATE_FOR_GIMBAL_DEVICE (50 Hz) a turning vehicle moves on, and the camera must be
+# told where the heading is now, not where it was 20 ms ago. Beyond this, the rate is not trusted.
+EXTRAPOLATE_S = 0.25
+YAW_RATE_SMOOTHING = 0.3  # weight of a new heading difference in the smoothed yaw rate
 
 Attitude = tuple[float, float, float]  # roll_deg, pitch_deg, yaw_deg
 
@@ -46,15 +51,17 @@ class Vehicles:
         self._fixes: OrderedDict[int, Fix] = OrderedDict()
         # Our vehicle's attitude: (roll, pitch, yaw degrees, t) per source message type.
         self._attitude: dict[str, tuple[Attitude, float]] = {}
+        # Our vehicle's yaw rate (deg/s, earth frame) and the autopilot's boot time of the last
+        # AUTOPILOT_STATE_FOR_GIMBAL_DEVICE (to difference headings when it gives no rate).
+        self.yaw_rate_deg_s: float = 0.0
+        self._last_state: tuple[int, float] | None = None  # (time_boot_ms, yaw_deg)
 
     def on_message(self, m: MAVLinkMessage) -> None:
         kind = m.get_type()
         src = m.get_srcSystem()
         if kind == "GLOBAL_POSITION_INT":
             hdg = None if m.hdg == 65535 else m.hdg / 100.0
-            fix = Fix(
-                Position(m.lat / 1e7, m.lon / 1e7, m.alt / 1000.0), m.relative_alt / 1000.0, hdg, time.monotonic()
-            )
+            fix = Fix(Position(m.lat / 1e7, m.lon / 1e7, m.alt / 1000.0), m.relative_alt / 1000.0, hdg, monotonic())
             self._fixes[src] = fix
             self._fixes.move_to_end(src)
             if len(self._fixes) > MAX_SYSTEMS:
@@ -71,16 +78,38 @@ class Vehicles:
             # carries the same attitude, so the target does not matter.
             if is_valid(list(m.q)):
                 e = to_euler_deg(list(m.q))
-                self._attitude[kind] = ((e.roll_deg, e.pitch_deg, e.yaw_deg), time.monotonic())
+                self._attitude[kind] = ((e.roll_deg, e.pitch_deg, e.yaw_deg), monotonic())
+                self._state_rate(m, e.yaw_deg)
         elif kind == "ATTITUDE":
             values = (m.roll, m.pitch, m.yaw)
             if all(math.isfinite(v) for v in values):
                 roll, pitch, yaw = (math.degrees(v) for v in values)
-                self._attitude[kind] = ((roll, pitch, yaw), time.monotonic())
+                self._attitude[kind] = ((roll, pitch, yaw), monotonic())
+                if "AUTOPILOT_STATE_FOR_GIMBAL_DEVICE" not in self._attitude and math.isfinite(m.yawspeed):
+                    self.yaw_rate_deg_s = math.degrees(m.yawspeed)
+
+    def _state_rate(self, m: MAVLinkMessage, yaw_deg: float) -> None:
+        """The yaw rate from AUTOPILOT_STATE_FOR_GIMBAL_DEVICE: its angular_velocity_z (MAVLink 2
+        extension) or feed_forward_angular_velocity_z where given, else the heading's change over
+        the autopilot's own boot clock (not our arrival times, which jitter)."""
+        boot_ms = int(m.time_boot_us) // 1000
+        last, self._last_state = self._last_state, (boot_ms, yaw_deg)
+        for field in ("angular_velocity_z", "feed_forward_angular_velocity_z"):
+            v = getattr(m, field, float("nan"))
+            if isinstance(v, float) and math.isfinite(v) and v != 0.0:
+                self.yaw_rate_deg_s = math.degrees(v)
+                return
+        dt_ms = boot_ms - last[0] if last is not None else -1
+        if last is None or dt_ms <= 0 or dt_ms > 500:
+            if dt_ms != 0:  # a duplicate changes nothing; a gap or a reboot: no rate known
+                self.yaw_rate_deg_s = 0.0
+            return
+        rate = wrap180(yaw_deg - last[1]) / (dt_ms / 1000.0)
+        self.yaw_rate_deg_s += YAW_RATE_SMOOTHING * (rate - self.yaw_rate_deg_s)
 
     def fix(self, sysid: int | None = None) -> Fix | None:
         f = self._fixes.get(self.sysid if sysid is None else sysid)
-        if f is None or time.monotonic() - f.t > STALE_S:
+        if f is None or monotonic() - f.t > STALE_S:
             return None
         return f
 
@@ -88,7 +117,7 @@ class Vehicles:
         """Our vehicle's (roll_deg, pitch_deg, yaw_deg), earth frame (yaw from North, clockwise;
         -180..180), from AUTOPILOT_STATE_FOR_GIMBAL_DEVICE (preferred) or ATTITUDE heard within
         STALE_S; None when neither was."""
-        now = time.monotonic()
+        now = monotonic()
         for kind in ("AUTOPILOT_STATE_FOR_GIMBAL_DEVICE", "ATTITUDE"):
             got = self._attitude.get(kind)
             if got is not None and now - got[1] <= STALE_S:
@@ -97,9 +126,13 @@ class Vehicles:
 
     @property
     def yaw_deg(self) -> float | None:
-        """Our vehicle's heading (attitude_deg()'s yaw, else GLOBAL_POSITION_INT hdg), if heard lately."""
-        att = self.attitude_deg()
-        if att is not None:
-            return att[2]
+        """Our vehicle's heading (attitude_deg()'s yaw, else GLOBAL_POSITION_INT hdg), if heard lately.
+        An attitude's yaw is carried forward to now at the vehicle's yaw rate (EXTRAPOLATE_S at most)."""
+        now = monotonic()
+        for kind in ("AUTOPILOT_STATE_FOR_GIMBAL_DEVICE", "ATTITUDE"):
+            got = self._attitude.get(kind)
+            if got is not None and now - got[1] <= STALE_S:
+                age_s = min(max(0.0, now - got[1]), EXTRAPOLATE_S)
+                return wrap180(got[0][2] + self.yaw_rate_deg_s * age_s)
         f = self.fix()
         return f.heading_deg if f is not None else None
