@@ -11,10 +11,10 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..clock import monotonic
 from ..errors import TopGimbalError
 from .camdef import file_name, render
 from .camdef_http import DefinitionServer
@@ -165,7 +165,8 @@ class Bridge:
                     svc, self.cam, self.vehicles, lens=lens, gimbal_device_id=gimbal_ref, video_urls=mine,
                     identity=self.identity, range_hz=c.range_hz, media_url=c.media_url))  # fmt: skip
         self.reboots = RebootWatch(self._peer_rebooted)
-        self.node.subscribe(lambda m: self.reboots.on_message(m, time.monotonic()))
+        self.node.subscribe(lambda m: self.reboots.on_message(m, monotonic()))
+        self.node.on_peer_gone(self.reboots.on_peer_gone)
         self.node.subscribe(self.vehicles.on_message)
         self.feed = CameraFeed(self.cam, self.vehicles, c.sysid, own)  # position, attitude, time to the camera
         self.node.subscribe(self.feed.on_message)
@@ -246,6 +247,7 @@ class Bridge:
         await self._closed.wait()
 
     def _peer_rebooted(self, sysid: int, why: str) -> None:
+        self.dispatcher.forget_system(sysid)
         for cam in self.cameras:
             cam.forget_sequences(sysid)
 

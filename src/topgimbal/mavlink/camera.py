@@ -15,6 +15,7 @@ import time
 from collections import OrderedDict
 from typing import TYPE_CHECKING, Any
 
+from ..clock import monotonic
 from ._mav import mavlink
 from .camdef import definition_version, settings_for
 from .camera_extras import CameraExtras
@@ -22,7 +23,7 @@ from .camera_feed import file_url
 from .camera_link import CameraLink
 from .camera_tracking import Tracker
 from .camera_view import CameraView
-from .commands import Command, Outcome, denied, unsupported
+from .commands import RETRANSMIT_WINDOW_S, Command, Outcome, denied, unsupported
 from .gimbal_device import _text, firmware_code, flag_bits
 from .params_ext import ParamsExt
 from .services import Services
@@ -78,7 +79,8 @@ class CameraComponent:
         self.available_mib: float = float("nan")
         self._interval_task: asyncio.Task[None] | None = None
         self._range_task: asyncio.Task[None] | None = None
-        self._last_sequence: dict[tuple[int, int], int] = {}
+        # (sender system, component) -> (capture sequence number, when taken, image index)
+        self._last_sequence: dict[tuple[int, int], tuple[int, float, int]] = {}
         self.view = CameraView(self.comp, cam, vehicles, lens=lens, range_hz=self.range_hz)
         self.tracker = Tracker(cam)
         p = self.profile
@@ -254,6 +256,7 @@ class CameraComponent:
         """A peer rebooted (mavlink/reboots.py): its capture sequence starts again at 1."""
         for key in [k for k in self._last_sequence if k[0] == sysid]:
             del self._last_sequence[key]
+        log.info("system %d rebooted: its next capture sequence numbers are new photos", sysid)
 
     async def _take_photo(self) -> MAVLinkMessage:
         values = self.photo_values or {}
@@ -286,8 +289,18 @@ class CameraComponent:
         if total == 1:
             seq_key = (cmd.src_system, cmd.src_component)
             seq = cmd.whole(4, "capture sequence number", 0, INT32_MAX, default=0)
-            if seq and self._last_sequence.get(seq_key) == seq:
-                return Outcome()  # the same capture sequence number: already taken, not again
+            last = self._last_sequence.get(seq_key)
+            if seq and last is not None and last[0] == seq:
+                age_s = monotonic() - last[1]
+                if age_s <= RETRANSMIT_WINDOW_S:
+                    # the same capture sequence number within the retransmission window: that
+                    # photo was taken; say so and answer with it rather than take another
+                    log.info("photo request from %d/%d with capture sequence %d again after %.1f s: a "
+                             "retransmission, image %d answers it (no new photo)", *seq_key, seq, age_s, last[2])  # fmt: skip
+                    earlier = self.images.get(last[2])
+                    return Outcome(after=[earlier] if earlier is not None else [])
+                log.info("photo request from %d/%d with capture sequence %d, as %.0f s ago: a new photo (a "
+                         "sender that rebooted counts from 1 again)", *seq_key, seq, age_s)  # fmt: skip
             await self._stop_interval()
             self.image_status = 1
             try:
@@ -295,7 +308,7 @@ class CameraComponent:
             finally:
                 self.image_status = 0
             if seq:
-                self._last_sequence[seq_key] = seq
+                self._last_sequence[seq_key] = (seq, monotonic(), msg.image_index)
                 if len(self._last_sequence) > 64:
                     self._last_sequence.pop(next(iter(self._last_sequence)))
             return Outcome(after=[msg])

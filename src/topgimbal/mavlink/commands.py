@@ -356,6 +356,12 @@ class Dispatcher:
         for msg in outcome.after:
             comp.send(msg)
 
+    def forget_system(self, sysid: int) -> None:
+        """A system rebooted (reboots.py): its next commands are new orders, not retransmissions
+        of what it sent before, even if identical (its capture sequence starts again at 1)."""
+        for k in [k for k in self._done if k[0] == sysid]:
+            del self._done[k]
+
     def _forget_old(self, now: float) -> None:
         while self._done:
             k, d = next(iter(self._done.items()))
