@@ -16,6 +16,7 @@ from typing import Any
 
 from ..clock import monotonic
 from ..errors import TopGimbalError
+from .autopilot_streams import AutopilotStreams
 from .camdef import file_name, render
 from .camdef_http import DefinitionServer
 from .camera import CameraComponent
@@ -70,6 +71,7 @@ class BridgeConfig:
     signing_key: bytes | None = None  # MAVLink 2 signing (signing.py): sign all, accept only signed
     client_options: dict[str, Any] = field(default_factory=dict)
     definition_http: str | None = "127.0.0.1:0"  # HOST:PORT serving the camera definitions; None: not served
+    request_streams: bool = True  # ask the autopilot for GLOBAL_POSITION_INT and SYSTEM_TIME (autopilot_streams.py)
 
     def definition_address(self) -> tuple[str, int] | None:
         if not self.definition_http:
@@ -170,6 +172,10 @@ class Bridge:
         self.node.subscribe(self.vehicles.on_message)
         self.feed = CameraFeed(self.cam, self.vehicles, c.sysid, own)  # position, attitude, time to the camera
         self.node.subscribe(self.feed.on_message)
+        for cam in self.cameras:
+            cam.utc_at = self.feed.autopilot.utc_at
+        self.streams = AutopilotStreams(gcomp, c.sysid, own)  # what the photos need, asked on our link
+        self.node.subscribe(self.streams.on_message)
         self.node.subscribe(self.dispatcher.on_message)
         self.node.subscribe(self.device.on_message)
         if self.manager is not None:
@@ -202,6 +208,8 @@ class Bridge:
         self.pointer.start()
         self.device.start()
         self.feed.start()
+        if self.config.request_streams:
+            self.streams.start()
         for cam in self.cameras:
             cam.start()
         for svc in self.services:
@@ -228,6 +236,7 @@ class Bridge:
         for svc in self.services:
             await svc.close()
         await self.feed.close()
+        await self.streams.close()
         await self.device.close()
         await self.pointer.close()
         await self.cam.close()
@@ -248,6 +257,7 @@ class Bridge:
 
     def _peer_rebooted(self, sysid: int, why: str) -> None:
         self.dispatcher.forget_system(sysid)
+        self.streams.asked.clear()  # a rebooted autopilot forgot the rates we asked for: ask at once
         for cam in self.cameras:
             cam.forget_sequences(sysid)
 

@@ -13,9 +13,10 @@ import contextlib
 import logging
 import time
 from collections import OrderedDict
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from ..clock import monotonic
+from ..clock import monotonic, wall_time
 from ._mav import mavlink
 from .camdef import definition_version, settings_for
 from .camera_extras import CameraExtras
@@ -81,6 +82,7 @@ class CameraComponent:
         self._range_task: asyncio.Task[None] | None = None
         # (sender system, component) -> (capture sequence number, when taken, image index)
         self._last_sequence: dict[tuple[int, int], tuple[int, float, int]] = {}
+        self.utc_at: Callable[[float], float | None] | None = None  # the autopilot's UTC (camera_feed.py)
         self.view = CameraView(self.comp, cam, vehicles, lens=lens, range_hz=self.range_hz)
         self.tracker = Tracker(cam)
         p = self.profile
@@ -260,19 +262,36 @@ class CameraComponent:
 
     async def _take_photo(self) -> MAVLinkMessage:
         values = self.photo_values or {}
+        sent = monotonic()
         answer = await self.cam.call(lambda c: c.photo(**values))
-        return self._record_image(True, file_url(self.media_url, self.cam.model_name, self.lens, answer.fields))
+        # the shutter: between the request leaving and the camera's answer (half a round trip)
+        shutter = (sent + monotonic()) / 2
+        return self._record_image(
+            True, file_url(self.media_url, self.cam.model_name, self.lens, answer.fields), shutter
+        )
 
-    def _record_image(self, ok: bool, url: str = "") -> MAVLinkMessage:
+    def _record_image(self, ok: bool, url: str = "", shutter: float | None = None) -> MAVLinkMessage:
+        """CAMERA_IMAGE_CAPTURED for a photo taken at `shutter` (this clock): the vehicle's position
+        then (interpolated between fixes, not the last one heard), the autopilot's UTC then (its
+        SYSTEM_TIME) else ours. No fix: lat, lon and alt INT32_MAX (unknown, as CAMERA_FOV_STATUS
+        says it), never 0, 0."""
         index = self.image_count
         self.image_count += 1
-        fix = self.vehicles.fix()
-        lat = lon = alt = rel = 0
+        t = monotonic() if shutter is None else shutter
+        fix = self.vehicles.position_at(t)
+        lat = lon = alt = INT32_MAX
+        rel = 0
         if fix is not None:
-            lat, lon = int(fix.position.lat_deg * 1e7), int(fix.position.lon_deg * 1e7)
-            alt, rel = int(fix.position.alt_m * 1000), int(fix.relative_alt_m * 1000)
+            lat, lon = round(fix.position.lat_deg * 1e7), round(fix.position.lon_deg * 1e7)
+            alt, rel = round(fix.position.alt_m * 1000), round(fix.relative_alt_m * 1000)
+        else:
+            log.warning("image %d: no position from the autopilot (GLOBAL_POSITION_INT) at the shutter: "
+                        "CAMERA_IMAGE_CAPTURED says unknown (INT32_MAX)", index)  # fmt: skip
+        utc = self.utc_at(t) if self.utc_at is not None else None
+        if utc is None:
+            utc = wall_time() - (monotonic() - t)
         msg = mavlink().MAVLink_camera_image_captured_message(
-            self.comp.node.time_boot_ms(), int(time.time() * 1e6), 0, lat, lon, alt, rel,
+            self.comp.node.time_boot_ms(), int(utc * 1e6), 0, lat, lon, alt, rel,
             list(self.view.earth_quaternion()), index, 1 if ok else 0, _text(url, 205))  # fmt: skip
         self.images[index] = msg
         while len(self.images) > MAX_REMEMBERED_IMAGES:

@@ -18,12 +18,12 @@ import asyncio
 import contextlib
 import datetime
 import logging
-import time
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 from ..client.api_feed import FeedSample, apply_sample
 from ..client.feeds import Fix
+from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..protocol import get_model
 from ..video.lens import photo_names
@@ -70,22 +70,33 @@ class AutopilotState:
             utc = datetime.datetime.fromtimestamp(usec / 1e6, datetime.timezone.utc)
         except (OverflowError, OSError, ValueError):
             return  # a time no calendar holds: not a time
-        self._utc, self.utc_new = (utc, time.monotonic()), True
+        self._utc, self.utc_new = (utc, monotonic()), True
 
     @property
     def has_time(self) -> bool:
         return self._utc is not None
 
+    def utc_at(self, t: float) -> float | None:
+        """The autopilot's UTC (seconds since the epoch) at `t` on this clock, from the last
+        SYSTEM_TIME and the time since it was heard; None when none was (GPS time unknown)."""
+        if self._utc is None:
+            return None
+        utc, heard = self._utc
+        return utc.timestamp() + (t - heard)
+
+    def time_age_s(self) -> float | None:
+        return None if self._utc is None else monotonic() - self._utc[1]
+
     def sample(self) -> FeedSample:
         """What the autopilot says now (a fix only when it is fresh and not 0, 0)."""
-        f = self.vehicles.fix()
+        f = self.vehicles.position_at(monotonic())  # carried forward to now at its velocity
         fix = None
         if f is not None and not (f.position.lat_deg == 0 and f.position.lon_deg == 0):
             with contextlib.suppress(ValueError):  # out-of-range numbers from the network: no fix
                 fix = Fix(f.position.lat_deg, f.position.lon_deg, f.position.alt_m, self.vehicles.yaw_deg)
         utc = None
-        if self._utc is not None and self.utc_new and time.monotonic() - self._utc[1] <= TIME_STALE_S:
-            utc = self._utc[0] + datetime.timedelta(seconds=time.monotonic() - self._utc[1])
+        if self._utc is not None and self.utc_new and monotonic() - self._utc[1] <= TIME_STALE_S:
+            utc = self._utc[0] + datetime.timedelta(seconds=monotonic() - self._utc[1])
         return FeedSample(fix=fix, time_utc=utc, attitude_deg=self.vehicles.attitude_deg())
 
 

@@ -10,12 +10,12 @@ MAVn_EXTRA1 is set) or ATTITUDE; the heading, failing both, from GLOBAL_POSITION
 from __future__ import annotations
 
 import math
-from collections import OrderedDict
+from collections import OrderedDict, deque
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..clock import monotonic
-from .geo import Position
+from .geo import EARTH_RADIUS_M, Position
 from .quaternion import is_valid, to_euler_deg, wrap180
 
 if TYPE_CHECKING:
@@ -28,6 +28,10 @@ STALE_S = 3.0
 # told where the heading is now, not where it was 20 ms ago. Beyond this, the rate is not trusted.
 EXTRAPOLATE_S = 0.25
 YAW_RATE_SMOOTHING = 0.3  # weight of a new heading difference in the smoothed yaw rate
+# Our own vehicle's recent fixes, to place a photo where the vehicle was at the shutter (issue 32:
+# the last fix heard lags 4-5.5 m at 10 m/s). 64 fixes: 6 s at 10 Hz.
+HISTORY_FIXES = 64
+POSITION_EXTRAPOLATE_S = 1.0  # past the last fix, carried forward at its velocity this long at most
 
 Attitude = tuple[float, float, float]  # roll_deg, pitch_deg, yaw_deg
 
@@ -38,6 +42,7 @@ class Fix:
     relative_alt_m: float
     heading_deg: float | None
     t: float
+    velocity_ned_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     @property
     def home_alt_m(self) -> float:
@@ -55,13 +60,18 @@ class Vehicles:
         # AUTOPILOT_STATE_FOR_GIMBAL_DEVICE (to difference headings when it gives no rate).
         self.yaw_rate_deg_s: float = 0.0
         self._last_state: tuple[int, float] | None = None  # (time_boot_ms, yaw_deg)
+        self._history: deque[Fix] = deque(maxlen=HISTORY_FIXES)  # our vehicle's, oldest first, none at 0, 0
 
     def on_message(self, m: MAVLinkMessage) -> None:
         kind = m.get_type()
         src = m.get_srcSystem()
         if kind == "GLOBAL_POSITION_INT":
             hdg = None if m.hdg == 65535 else m.hdg / 100.0
-            fix = Fix(Position(m.lat / 1e7, m.lon / 1e7, m.alt / 1000.0), m.relative_alt / 1000.0, hdg, monotonic())
+            velocity = (m.vx / 100.0, m.vy / 100.0, m.vz / 100.0)
+            fix = Fix(Position(m.lat / 1e7, m.lon / 1e7, m.alt / 1000.0), m.relative_alt / 1000.0, hdg, monotonic(),
+                      velocity)  # fmt: skip
+            if src == self.sysid and m.get_srcComponent() not in self.own and not (m.lat == 0 and m.lon == 0):
+                self._history.append(fix)
             self._fixes[src] = fix
             self._fixes.move_to_end(src)
             if len(self._fixes) > MAX_SYSTEMS:
@@ -113,6 +123,27 @@ class Vehicles:
             return None
         return f
 
+    def position_at(self, t: float) -> Fix | None:
+        """Where our vehicle was at `t` (this clock): interpolated between the two fixes around it,
+        or carried forward from the last one at its velocity (POSITION_EXTRAPOLATE_S at most; a
+        fix older than STALE_S is none). Never a 0, 0 fix (what an autopilot sends before a fix)."""
+        h = self._history
+        if not h or t - h[-1].t > STALE_S:
+            return None
+        if t >= h[-1].t:
+            return _moved(h[-1], min(t - h[-1].t, POSITION_EXTRAPOLATE_S), t)
+        if t <= h[0].t:
+            return h[0]
+        for a, b in zip(h, list(h)[1:], strict=False):
+            if a.t <= t <= b.t:
+                w = (t - a.t) / (b.t - a.t) if b.t > a.t else 1.0
+                pa, pb = a.position, b.position
+                pos = Position(pa.lat_deg + w * (pb.lat_deg - pa.lat_deg), pa.lon_deg + w * (pb.lon_deg - pa.lon_deg),
+                               pa.alt_m + w * (pb.alt_m - pa.alt_m))  # fmt: skip
+                rel = a.relative_alt_m + w * (b.relative_alt_m - a.relative_alt_m)
+                return Fix(pos, rel, b.heading_deg, t, b.velocity_ned_m_s)
+        return h[-1]
+
     def attitude_deg(self) -> tuple[float, float, float] | None:
         """Our vehicle's (roll_deg, pitch_deg, yaw_deg), earth frame (yaw from North, clockwise;
         -180..180), from AUTOPILOT_STATE_FOR_GIMBAL_DEVICE (preferred) or ATTITUDE heard within
@@ -136,3 +167,14 @@ class Vehicles:
                 return wrap180(got[0][2] + self.yaw_rate_deg_s * age_s)
         f = self.fix()
         return f.heading_deg if f is not None else None
+
+
+def _moved(f: Fix, dt_s: float, t: float) -> Fix:
+    """`f` carried `dt_s` forward at its velocity (flat earth: metres over a second)."""
+    vn, ve, vd = f.velocity_ned_m_s
+    p = f.position
+    lat = p.lat_deg + math.degrees(vn * dt_s / EARTH_RADIUS_M)
+    lon = p.lon_deg + math.degrees(ve * dt_s / (EARTH_RADIUS_M * max(0.01, math.cos(math.radians(p.lat_deg)))))
+    return Fix(
+        Position(lat, lon, p.alt_m - vd * dt_s), f.relative_alt_m - vd * dt_s, f.heading_deg, t, f.velocity_ned_m_s
+    )
