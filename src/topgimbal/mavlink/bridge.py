@@ -16,6 +16,7 @@ from typing import Any
 
 from ..clock import monotonic
 from ..errors import TopGimbalError
+from .advertise import Advertiser
 from .autopilot_streams import AutopilotStreams
 from .camdef import file_name, render
 from .camdef_http import DefinitionServer
@@ -71,6 +72,7 @@ class BridgeConfig:
     signing_key: bytes | None = None  # MAVLink 2 signing (signing.py): sign all, accept only signed
     client_options: dict[str, Any] = field(default_factory=dict)
     definition_http: str | None = "127.0.0.1:0"  # HOST:PORT serving the camera definitions; None: not served
+    definition_host: str | None = None  # the host written into the definition URI (advertise.py); None: found
     request_streams: bool = True  # ask the autopilot for GLOBAL_POSITION_INT and SYSTEM_TIME (autopilot_streams.py)
 
     def definition_address(self) -> tuple[str, int] | None:
@@ -269,8 +271,14 @@ class Bridge:
         p = self.cam.profile
         self.definitions = DefinitionServer(self.definition_files, *address)
         await self.definitions.start()
+        link_hosts = [parse_endpoint(e).host for e in self.config.endpoints]
+        advertiser = Advertiser(address[0], self.config.definition_host, link_hosts)
+        server = self.definitions
         for c in self.cameras:
-            c.definition_uri = self.definitions.uri(file_name(p.model, c.lens))
+            name = file_name(p.model, c.lens)
+            c.definition_uri = server.uri(name, advertiser.fixed)
+            # bound to all interfaces: the address that reaches whoever asks
+            c.definition_uri_for = lambda where, name=name: server.uri(name, advertiser.host_for(where))
 
     def _on_health(self, answering: bool) -> None:
         for svc in self.services:

@@ -87,6 +87,8 @@ class CameraComponent:
         self.tracker = Tracker(cam)
         p = self.profile
         self.definition_uri = ""  # set by the bridge once its definition server listens
+        # the URI for a request from (link, peer): the address that reaches that peer (advertise.py)
+        self.definition_uri_for: Callable[[Any], str] | None = None
         self.params = ParamsExt(self.comp, cam, settings_for(p.dialect, p.model, lens))
         self.extras = CameraExtras(self.comp, cam, lens)
         self.extras.register(services)
@@ -190,7 +192,7 @@ class CameraComponent:
         # Focal length and sensor size are in no profile; the resolution only where the profile
         # gives the stream's picture size (0 = unknown, as MAVLink says).
         w, h = lens.size if lens is not None and lens.size_documented else (0, 0)
-        uri = self.definition_uri
+        uri = self.definition_uri_for(cmd.peer) if self.definition_uri_for is not None else self.definition_uri
         version = definition_version(self.profile.dialect, m, self.lens) if uri else 0
         return [mavlink().MAVLink_camera_information_message(
             self.comp.node.time_boot_ms(), list(_text(self.profile.vendor, 32).ljust(32, b"\0")),
