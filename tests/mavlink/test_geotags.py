@@ -62,6 +62,8 @@ async def test_the_bridge_asks_the_autopilot_for_what_photos_need(
         status = r.bridge.streams.status()["GLOBAL_POSITION_INT"]
         assert status["source"] == "1/1" and status["age_s"] is not None and status["age_s"] < 1 and not status["stale"]
         assert any("GLOBAL_POSITION_INT from 1/1" in rec.getMessage() for rec in caplog.records)
+        info = r.bridge.info()
+        assert info["autopilot"]["GLOBAL_POSITION_INT"]["source"] == "1/1" and isinstance(info["camera_feeds"], str)
         # it stops: a warning, and the bridge asks again
         await eventually(lambda: len(_interval_requests(autopilot, 33)) > asked, 6, "asked again once stale")
         assert any(

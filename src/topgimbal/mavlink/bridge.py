@@ -257,6 +257,16 @@ class Bridge:
     async def wait_closed(self) -> None:
         await self._closed.wait()
 
+    def info(self) -> dict[str, Any]:
+        """What the camera is fed and from where: each autopilot message the photos need (source,
+        age in seconds, stale, asked for) and what the camera link feeds the camera now."""
+        client = self.cam.client
+        return {
+            "autopilot": self.streams.status(),
+            "camera_feeds": client.feeds.summary() if client is not None else "no camera link",
+            "reboots_noticed": self.reboots.reboots,
+        }
+
     def _peer_rebooted(self, sysid: int, why: str) -> None:
         self.dispatcher.forget_system(sysid)
         self.streams.asked.clear()  # a rebooted autopilot forgot the rates we asked for: ask at once
