@@ -78,7 +78,14 @@ async def test_a_photo_carries_the_position_at_the_shutter_and_the_autopilots_ti
     r = await rig_factory("C12", role="device")
     autopilot = await Peer(sysid=1, compid=1).connect(r.bridge.addresses[0][1])
     shutters: list[float] = []
-    r.sim.device.state.capture_listeners.append(lambda event, index: shutters.append(monotonic()))
+    fed: list[float | None] = []  # the latitude the camera itself was fed at its shutter (its EXIF)
+    state = r.sim.device.state
+
+    def on_capture(event: str, index: int) -> None:
+        shutters.append(monotonic())
+        fed.append(state.position.lat_deg)
+
+    state.capture_listeners.append(on_capture)
     # the autopilot's clock: a day ahead of ours, so a photo dated by our clock would show it
     utc_offset_s = 86400.0
     t0 = monotonic()
@@ -109,10 +116,15 @@ async def test_a_photo_carries_the_position_at_the_shutter_and_the_autopilots_ti
             shutter = shutters[-1]
             error_m = abs((got.lat / 1e7 - LAT0) * METRES_PER_DEG - north_m(shutter))
             time_error_s = abs(got.time_utc / 1e6 - (wall_time() - (monotonic() - shutter) + utc_offset_s))
-            print(f"photo {n}: position error {error_m:.2f} m, time error {time_error_s:.3f} s")
+            own = fed[-1]
+            own_m = abs((own - LAT0) * METRES_PER_DEG - north_m(shutter)) if own is not None else math.nan
+            print(f"photo {n}: position error {error_m:.2f} m, time error {time_error_s:.3f} s; "
+                  f"the camera's own tag {own_m:.2f} m")  # fmt: skip
             assert error_m < 1.0, f"photo {n}: {error_m:.2f} m from where the vehicle was at the shutter"
             assert time_error_s < 1.0, f"photo {n}: dated {time_error_s:.2f} s off the autopilot's UTC"
             assert abs(got.lon / 1e7 - LON0) < 1e-6 and got.relative_alt == 20_000
+            # the camera's own tag (its EXIF): fed a position for the shutter right before the photo
+            assert own_m < 1.0, f"photo {n}: the camera tagged it {own_m:.2f} m off"
     finally:
         task.cancel()
         autopilot.close()

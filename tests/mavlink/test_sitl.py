@@ -533,7 +533,14 @@ async def steps(f: Flight) -> None:
 
     # 6. Photos flying at about 8 m/s, the geotags from the bridge's own requests only.
     shutters: dict[int, float] = {}
-    sim.device.state.capture_listeners.append(lambda event, index: shutters.setdefault(index, time.monotonic()))
+    fed: dict[int, tuple[float | None, float | None]] = {}  # what the camera itself was fed (its EXIF)
+    state = sim.device.state
+
+    def on_capture(event: str, index: int) -> None:
+        shutters.setdefault(index, time.monotonic())
+        fed.setdefault(index, (state.position.lat_deg, state.position.lon_deg))
+
+    state.capture_listeners.append(on_capture)
     accepted("DO_CHANGE_SPEED 8 m/s", await f.g.command(ml.MAV_CMD_DO_CHANGE_SPEED, 1, 8, -1))
     far = _offset(f.g.place, 0.0, 600.0, 0.0)
     f.g.send(ml.MAVLink_set_position_target_global_int_message(
@@ -551,14 +558,20 @@ async def steps(f: Flight) -> None:
         await photo(f"photo {n + 1} in flight")
         msg = camera.images[index_before]
         shutter = shutters[max(shutters)]
+        own_lat, own_lon = fed[max(fed)]
         await asyncio.sleep(0.3)  # the truth after the shutter is heard too
         truth = f.g.position_at(shutter)
         north, east, _ = offset_m(truth, Position(msg.lat / 1e7, msg.lon / 1e7, msg.alt / 1000.0))
         error_m = math.hypot(north, east)
+        assert own_lat is not None and own_lon is not None, "the camera was fed no position"
+        north, east, _ = offset_m(truth, Position(own_lat, own_lon, truth.alt_m))
+        own_m = math.hypot(north, east)
         time_error_s = abs(msg.time_utc / 1e6 - f.g.utc_at(shutter))
-        f.photo_rows.append(f"photo {n + 1} at {ground_speed():.1f} m/s | {error_m:.2f} | {time_error_s:.3f}")
+        f.photo_rows.append(f"photo {n + 1} at {ground_speed():.1f} m/s | {error_m:.2f} | {time_error_s:.3f} | "
+                            f"camera's own tag {own_m:.2f} m")  # fmt: skip
         assert error_m <= POSITION_GOAL_M, f"photo {n + 1}: tagged {error_m:.2f} m from the autopilot's position"
         assert time_error_s <= TIME_GOAL_S, f"photo {n + 1}: dated {time_error_s:.2f} s off the autopilot's UTC"
+        assert own_m <= POSITION_GOAL_M, f"photo {n + 1}: the camera tagged it {own_m:.2f} m off"
         await asyncio.sleep(1.0)
     status = r.bridge.streams.status()
     assert not status["GLOBAL_POSITION_INT"]["stale"] and not status["SYSTEM_TIME"]["stale"], status

@@ -20,7 +20,7 @@ from ..clock import monotonic, wall_time
 from ._mav import mavlink
 from .camdef import definition_version, settings_for
 from .camera_extras import CameraExtras
-from .camera_feed import file_url
+from .camera_feed import SHUTTER_LATENCY_S, file_url
 from .camera_link import CameraLink
 from .camera_tracking import Tracker
 from .camera_view import CameraView
@@ -83,6 +83,7 @@ class CameraComponent:
         # (sender system, component) -> (capture sequence number, when taken, image index)
         self._last_sequence: dict[tuple[int, int], tuple[int, float, int]] = {}
         self.utc_at: Callable[[float], float | None] | None = None  # the autopilot's UTC (camera_feed.py)
+        self.before_photo: Callable[[], None] | None = None  # camera_feed.CameraFeed.before_photo
         self.view = CameraView(self.comp, cam, vehicles, lens=lens, range_hz=self.range_hz)
         self.tracker = Tracker(cam)
         p = self.profile
@@ -264,10 +265,13 @@ class CameraComponent:
 
     async def _take_photo(self) -> MAVLinkMessage:
         values = self.photo_values or {}
+        if self.before_photo is not None:
+            self.before_photo()  # the camera's own tag: a position fresh for the shutter
         sent = monotonic()
         answer = await self.cam.call(lambda c: c.photo(**values))
-        # the shutter: between the request leaving and the camera's answer (half a round trip)
-        shutter = (sent + monotonic()) / 2
+        # the shutter: just before the camera's answer (it answers once the photo is taken). Not
+        # the request's time: that waits behind the position frames and the model's command gap.
+        shutter = max(sent, monotonic() - SHUTTER_LATENCY_S)
         return self._record_image(
             True, file_url(self.media_url, self.cam.model_name, self.lens, answer.fields), shutter
         )

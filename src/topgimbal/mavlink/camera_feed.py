@@ -36,7 +36,8 @@ if TYPE_CHECKING:
 log = logging.getLogger("topgimbal.mavlink")
 
 PERIOD_S = 0.1
-TIME_STALE_S = 5.0  # a SYSTEM_TIME older than this is not used (the offset is kept by the feeds)
+TIME_STALE_S = 5.0
+SHUTTER_LATENCY_S = 0.005  # the camera's answer after a photo request on a LAN, besides the pacing  # a SYSTEM_TIME older than this is not used (the offset is kept by the feeds)
 
 
 def file_url(media_url: str | None, model: str, lens: str, answer: Mapping[str, object] | None) -> str:
@@ -139,6 +140,28 @@ class CameraFeed:
 
     def sample(self) -> FeedSample:
         return self.autopilot.sample()
+
+    def before_photo(self) -> None:
+        """Right before a photo request: the camera is sent the vehicle's position predicted at
+        its shutter, at once, rather than waiting for the next position feed period (the camera
+        tags the photo with the last position it was given). The shutter comes after these frames
+        and the photo request, each paced by the model's least command gap."""
+        client = self.cam.client
+        if client is None or not client.connected:
+            return
+        feeds = client.feeds
+        idents = feeds.active_position_feeds()
+        if not idents:
+            return
+        lead_s = (len(idents) + 1) * client.behaviour.min_gap_s + SHUTTER_LATENCY_S
+        f = self.autopilot.vehicles.position_at(monotonic() + lead_s)
+        if f is None or (f.position.lat_deg == 0 and f.position.lon_deg == 0):
+            return
+        with contextlib.suppress(ValueError):
+            feeds.position(
+                Fix(f.position.lat_deg, f.position.lon_deg, f.position.alt_m, self.autopilot.vehicles.yaw_deg)
+            )
+            feeds.send_now()
 
     def start(self) -> None:
         self._task = asyncio.ensure_future(self._run())
