@@ -13,9 +13,10 @@ generous time-based deadline:
    reboot is taken (ArduPilot numbers its captures from 1 again);
 5. the vehicle takes off and yaws at 6 and 20 deg/s with a yaw lock, then at 6 deg/s with an ROI
    target: the camera's earth yaw error (its own body yaw plus the vehicle's heading, against the
-   bearing asked for) has p95 <= 1 deg at 6 deg/s. The C12's motors turn at 12.7 deg/s at most:
-   at 20 deg/s no bridge can keep up, so that row is measured and printed, not asserted
-   (tests/mavlink/test_turning.py asserts 20 deg/s on the SIP, 99 deg/s);
+   bearing asked for) has p95 <= 1 deg at 6 deg/s, and <= 3 deg at 20 deg/s where the camera's
+   motors are fast enough (`SITL_CAMERA=SIP`, 99 deg/s). The C12's turn at 12.7 deg/s at most: at
+   20 deg/s no bridge can keep it on a bearing, so for the C12 (the default) that row is measured
+   and printed, not asserted;
 6. flying at about 8 m/s, photos through the autopilot: CAMERA_IMAGE_CAPTURED carries the
    autopilot's position at the shutter within 1 m and its UTC within 1 s, with nothing but the
    bridge's own requests feeding it (SET_MESSAGE_INTERVAL on SERIAL2);
@@ -51,6 +52,7 @@ SITL = os.environ.get("ARDUPILOT_SITL")
 AUTOPILOT = (1, 1)
 BOOT_S = 90.0  # SITL's boot plus its 10 s wait before it looks for a MAVLink gimbal, on a loaded machine
 MOVE_S = 30.0  # a target reached by the simulated camera (12.7 deg/s on the C12), under load
+CAMERA = os.environ.get("SITL_CAMERA", "C12")  # the simulated camera model behind the bridge
 TOLERANCE_DEG = 1.0
 # Only what the setup needs (the quad frame is SITL's model, not a setting users make): no stream
 # rates on SERIAL2, as a user who followed the documented setup has.
@@ -60,7 +62,8 @@ FRAME_TYPE 1
 MNT1_TYPE 6
 SERIAL2_PROTOCOL 2
 """
-TURN_DEG = 120.0  # a turn that keeps a locked target inside the C12's +-90 deg yaw range
+TURN_DEG = 120.0  # a turn that keeps a locked target inside a +-90 deg yaw range (C12; the SIP has +-150)
+FAST_GOAL_P95_DEG = 3.0  # at 20 deg/s, for a camera whose motors turn at 40 deg/s or more
 GOAL_P95_DEG = 1.0  # at 6 deg/s
 POSITION_GOAL_M = 1.0
 TIME_GOAL_S = 1.0
@@ -257,7 +260,7 @@ async def _run(rig_factory: Any, work: Path) -> None:
     (work / "gimbal.parm").write_text(PARAMS)
     log_path = work / "sitl.log"
     # The bridge: a tcpin link for the autopilot's SERIAL2 (SITL connects as a TCP client).
-    r = await rig_factory("C12", role="device", endpoints=["udpin:127.0.0.1:0", "tcpin:127.0.0.1:0"])
+    r = await rig_factory(CAMERA, role="device", endpoints=["udpin:127.0.0.1:0", "tcpin:127.0.0.1:0"])
     _, bridge_port = r.bridge.addresses[1]
     heard: list[str] = []  # commands the bridge got from the autopilot, for the failure report
     r.bridge.node.subscribe(
@@ -372,7 +375,7 @@ def _percentile(values: list[float], q: float) -> float:
 async def steps(f: Flight) -> None:
     r = f.r
     sim = r.sim
-    model = get_model("C12")[1]
+    model = get_model(CAMERA)[1]
     started = time.monotonic()
     times, accepted = f.times, f.accepted
 
@@ -404,7 +407,7 @@ async def steps(f: Flight) -> None:
     # 1. The autopilot finds the gimbal and takes its limits from GIMBAL_DEVICE_INFORMATION.
     times["Mount: text after start"] = await booted(0.0)
     found = f.g.texts_since(0.0, "Mount: ")
-    assert "SkyDroid C12" in found[0], found
+    assert CAMERA in found[0], found
     for name, want in (("MNT1_PITCH_MIN", model.pitch_range_deg[0]), ("MNT1_PITCH_MAX", model.pitch_range_deg[1]),
                        ("MNT1_YAW_MIN", model.yaw_range_deg[0]), ("MNT1_YAW_MAX", model.yaw_range_deg[1])):  # fmt: skip
         got = await f.g.param(name)
@@ -421,9 +424,10 @@ async def steps(f: Flight) -> None:
     accepted("RUN_PREARM_CHECKS, camera alive", await f.g.command(ml.MAV_CMD_RUN_PREARM_CHECKS))
     await asyncio.sleep(2.0)
     assert not f.g.texts_since(t_checks, "Mount"), f.g.texts_since(t_checks, "Mount")
-    await move("body DO_MOUNT_CONTROL pitch -80 (limit -45)",
+    low = model.pitch_range_deg[0]
+    await move(f"body DO_MOUNT_CONTROL pitch -80 (limit {low:g})",
                f.g.command(ml.MAV_CMD_DO_MOUNT_CONTROL, -80, 0, 0, 0, 0, 0, ml.MAV_MOUNT_MODE_MAVLINK_TARGETING),
-               at(lambda: 0, model.pitch_range_deg[0]))  # fmt: skip
+               at(lambda: 0, max(-80.0, low)))  # fmt: skip
     earth_yaw = _wrap180(round(f.g.heading_deg) + 40)
     await move(f"earth YAW_LOCK PITCHYAW pitch -20 yaw {earth_yaw:g} (heading + 40)",
                f.g.command(ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, -20, earth_yaw, nan, nan,
@@ -484,12 +488,18 @@ async def steps(f: Flight) -> None:
         (more than 10 deg from its start and its end: not the vehicle's own acceleration)."""
         errors: list[float] = []
         when: list[float] = []
+        offsets: list[float] = []
         g = sim.gimbal
         start_heading = f.g.heading_deg
         end_heading = _wrap180(start_heading + direction * TURN_DEG)
 
         def sample(att: Any) -> None:
-            heading = math.degrees(att.yaw)
+            # the heading when we read the camera: ATTITUDE's, carried forward over its delay to us
+            # (the time since SITL stamped it, less the smallest such delay seen: the clocks' offset)
+            now = time.monotonic()
+            offsets.append(now - att.time_boot_ms / 1000.0)
+            delay_s = min(0.5, offsets[-1] - min(offsets))
+            heading = math.degrees(att.yaw) + math.degrees(att.yawspeed) * delay_s
             if abs(_wrap180(heading - start_heading)) > 10 and abs(_wrap180(heading - end_heading)) > 10:
                 errors.append(abs(_wrap180(heading + g.yaw_deg - target())))
                 when.append(time.monotonic())
@@ -513,7 +523,7 @@ async def steps(f: Flight) -> None:
                            ml.GIMBAL_MANAGER_FLAGS_YAW_LOCK, 0, 0),
                at(lambda: lock - f.g.heading_deg, -20))  # fmt: skip
     slow = await turn("yaw lock, 6 deg/s", 6.0, 1, lambda: lock)
-    await turn("yaw lock, 20 deg/s (C12 motors: 12.7 deg/s)", 20.0, -1, lambda: lock)
+    fast = await turn(f"yaw lock, 20 deg/s ({CAMERA} motors: {model.max_rate_deg_s:g} deg/s)", 20.0, -1, lambda: lock)
     # An ROI 150 m away, 60 deg right of the heading, 30 m below; turning right 120 deg again.
     roi = _offset(f.g.place, f.g.heading_deg + TURN_DEG / 2, 150.0, -30.0)
 
@@ -530,6 +540,9 @@ async def steps(f: Flight) -> None:
     for what, errors in (("yaw lock at 6 deg/s", slow), ("ROI at 6 deg/s", roi_errors)):
         p95 = _percentile(errors, 95)
         assert p95 <= GOAL_P95_DEG, f"{what}: earth yaw error p95 {p95:.2f} deg (goal {GOAL_P95_DEG:g})"
+    if model.max_rate_deg_s >= 40.0:
+        p95 = _percentile(fast, 95)
+        assert p95 <= FAST_GOAL_P95_DEG, f"yaw lock at 20 deg/s: earth yaw error p95 {p95:.2f} deg"
 
     # 6. Photos flying at about 8 m/s, the geotags from the bridge's own requests only.
     shutters: dict[int, float] = {}

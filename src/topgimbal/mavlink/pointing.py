@@ -193,7 +193,10 @@ class Pointer:
             return None
         body = self._angle("yaw", wrap180(sp.yaw_deg - heading), True)
         assert body is not None
-        yaw_rate = -rate + FOLLOW_GAIN_PER_S * wrap180(body - att.yaw_deg)
+        # where the camera is now: its last report carried forward at the rate it was turning
+        age_s = min(max(0.0, monotonic() - att.t), ATTITUDE_FRESH_S)
+        camera_yaw = att.yaw_deg + (att.yaw_rate_deg_s * age_s if math.isfinite(att.yaw_rate_deg_s) else 0.0)
+        yaw_rate = -rate + FOLLOW_GAIN_PER_S * wrap180(body - camera_yaw)
         pitch_rate = 0.0
         pitch = self._angle("pitch", sp.pitch_deg, True)
         if pitch is not None and "pitch" in self.profile.rate_axes:
