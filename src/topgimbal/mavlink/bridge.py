@@ -177,6 +177,7 @@ class Bridge:
         for cam in self.cameras:
             cam.utc_at = self.feed.autopilot.utc_at
             cam.before_photo = self.feed.before_photo
+            cam.after_photo = self.feed.photo_taken
         self.streams = AutopilotStreams(gcomp, c.sysid, own)  # what the photos need, asked on our link
         self.node.subscribe(self.streams.on_message)
         self.node.subscribe(self.dispatcher.on_message)

@@ -84,6 +84,7 @@ class CameraComponent:
         self._last_sequence: dict[tuple[int, int], tuple[int, float, int]] = {}
         self.utc_at: Callable[[float], float | None] | None = None  # the autopilot's UTC (camera_feed.py)
         self.before_photo: Callable[[], None] | None = None  # camera_feed.CameraFeed.before_photo
+        self.after_photo: Callable[[float], None] | None = None  # camera_feed.CameraFeed.photo_taken
         self.view = CameraView(self.comp, cam, vehicles, lens=lens, range_hz=self.range_hz)
         self.tracker = Tracker(cam)
         p = self.profile
@@ -272,6 +273,8 @@ class CameraComponent:
         # the shutter: just before the camera's answer (it answers once the photo is taken). Not
         # the request's time: that waits behind the position frames and the model's command gap.
         shutter = max(sent, monotonic() - SHUTTER_LATENCY_S)
+        if self.after_photo is not None:
+            self.after_photo(shutter)
         return self._record_image(
             True, file_url(self.media_url, self.cam.model_name, self.lens, answer.fields), shutter
         )
