@@ -396,6 +396,8 @@ async def steps(f: Flight) -> None:
     async def booted(since: float) -> float:
         """The autopilot found the gimbal (its "Mount:" text) and our ground station's streams."""
         took = await until(lambda: bool(f.g.texts_since(since, "Mount: ")), BOOT_S, '"Mount:" from the autopilot')
+        # and the camera ("Camera: TOPOTEK SIP fw:..."): until then ArduPilot has nothing to send a photo to
+        await until(lambda: bool(f.g.texts_since(since, "Camera: ")), BOOT_S, '"Camera:" from the autopilot')
         for msgid, hz in ((ml.MAVLINK_MSG_ID_ATTITUDE, 50), (ml.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 20),
                           (ml.MAVLINK_MSG_ID_SYSTEM_TIME, 5)):  # fmt: skip
             # our ground station's own view (SERIAL0), to compute where the camera must point
@@ -442,7 +444,7 @@ async def steps(f: Flight) -> None:
         """One photo asked of the autopilot; the attempts it took (ArduPilot ACKs ACCEPTED once
         it has found the camera, whatever the camera did: the simulator's count is the truth)."""
         before = sim.camera.photos_taken
-        lenses = len(r.bridge.cameras)
+        lenses = sum(1 for c in r.bridge.cameras if c.photo_values is not None)  # the C12's thermal lens takes none
         for attempt in range(1, 11):
             ack = await f.g.command(ml.MAV_CMD_IMAGE_START_CAPTURE, 0, 0, 1, 0, 0, 0, 0)
             with contextlib.suppress(AssertionError):
@@ -465,7 +467,8 @@ async def steps(f: Flight) -> None:
         times[f"reboot {n}: Mount: text"] = await booted(t_reboot)
         await until(lambda b=reboots_before: r.bridge.reboots.reboots > b, 5, "the bridge noticing the reboot")  # type: ignore[misc]
         attempts = await photo(f"first photo after reboot {n}")
-        f.reboot_rows.append(f"reboot {n}: first photo taken (attempt {attempts}; reboot noticed by the bridge)")
+        why = "; ".join(w for _, w in list(r.bridge.reboots.history)[reboots_before:])
+        f.reboot_rows.append(f"reboot {n}: first photo taken (attempt {attempts}); the bridge noticed: {why}")
         # ArduPilot numbered it from 1 again: the bridge took it rather than drop it as a repeat
         assert attempts == 1, f"reboot {n}: the first photo needed {attempts} attempts"
 

@@ -18,7 +18,7 @@ Pure logic with the time passed in; bounded (MAX_PEERS remembered, least recentl
 from __future__ import annotations
 
 import logging
-from collections import OrderedDict
+from collections import OrderedDict, deque
 from collections.abc import Callable, Hashable
 from typing import TYPE_CHECKING
 
@@ -45,6 +45,7 @@ class RebootWatch:
         self._where: OrderedDict[int, Hashable] = OrderedDict()  # system -> (link, peer) last heard on
         self._closed: set[int] = set()  # systems whose connection closed since last heard
         self.reboots = 0
+        self.history: deque[tuple[int, str]] = deque(maxlen=16)  # (system, why), the latest last
 
     def on_peer_gone(self, where: Hashable) -> None:
         """A connection closed (Node.on_peer_gone): the systems last heard on it, heard again,
@@ -78,6 +79,7 @@ class RebootWatch:
 
     def _rebooted(self, sysid: int, why: str) -> None:
         self.reboots += 1
+        self.history.append((sysid, why))
         log.info("system %d rebooted (%s): forgetting its capture sequence", sysid, why)
         self.on_reboot(sysid, why)
 
