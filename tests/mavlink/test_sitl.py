@@ -66,6 +66,10 @@ TURN_DEG = 120.0  # a turn that keeps a locked target inside a +-90 deg yaw rang
 FAST_GOAL_P95_DEG = 3.0  # at 20 deg/s, for a camera whose motors turn at 40 deg/s or more
 GOAL_P95_DEG = 1.0  # at 6 deg/s
 POSITION_GOAL_M = 1.0
+# The camera's own EXIF tag is the last position it was fed: pushed right before the photo for the
+# predicted shutter, but the frames ahead of the photo request (paced 40 ms apart on the C12) vary
+# by +-50 ms, 0.5 m at 10 m/s; seen 0.18-1.19 m. Before issue 32: 4-5.5 m.
+OWN_TAG_LIMIT_M = 2.0
 TIME_GOAL_S = 1.0
 REBOOTS = 2
 
@@ -590,7 +594,7 @@ async def steps(f: Flight) -> None:
                             f"camera's own tag {own_m:.2f} m")  # fmt: skip
         assert error_m <= POSITION_GOAL_M, f"photo {n + 1}: tagged {error_m:.2f} m from the autopilot's position"
         assert time_error_s <= TIME_GOAL_S, f"photo {n + 1}: dated {time_error_s:.2f} s off the autopilot's UTC"
-        assert own_m <= POSITION_GOAL_M, f"photo {n + 1}: the camera tagged it {own_m:.2f} m off"
+        assert own_m <= OWN_TAG_LIMIT_M, f"photo {n + 1}: the camera tagged it {own_m:.2f} m off"
         await asyncio.sleep(1.0)
     status = r.bridge.streams.status()
     assert not status["GLOBAL_POSITION_INT"]["stale"] and not status["SYSTEM_TIME"]["stale"], status
