@@ -36,10 +36,19 @@ def test_a_boot_clock_going_back_in_autopilot_state_is_a_reboot() -> None:
     for t in (100.0, 100.02, 100.01, 100.04):  # a reordered datagram is not a reboot
         w.on_message(state(t), 0.0)
     assert seen == []
-    w.on_message(state(2.5), 0.0)
+    w.on_message(state(2.5), 10.0)
     assert [s for s, _ in seen] == [1] and "went back" in seen[0][1]
-    w.on_message(state(2.52, sysid=2), 0.0)  # another system's clock is its own
+    w.on_message(state(2.52, sysid=2), 10.0)  # another system's clock is its own
     assert len(seen) == 1
+    # another sign of the same reboot (SYSTEM_TIME going back too) is not a second reboot
+    mav = ml.MAVLink(None, srcSystem=1, srcComponent=1)
+    for boot_ms, now in ((90_000, 10.5), (1_000, 11.0)):
+        t = ml.MAVLink_system_time_message(0, boot_ms)
+        t.pack(mav)
+        w.on_message(t, now)
+    assert len(seen) == 1 and w.reboots == 1
+    w.on_message(state(1.0), 30.0)  # a later reboot is one
+    assert len(seen) == 2
 
 
 def test_a_connection_that_closed_and_came_back_is_a_reboot() -> None:

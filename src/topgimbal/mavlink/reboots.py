@@ -30,6 +30,7 @@ if TYPE_CHECKING:
 log = logging.getLogger("topgimbal.mavlink")
 
 HEARTBEAT_GAP_S = 5.0
+SAME_BOOT_S = 3.0  # further signs of a reboot this soon after one are the same reboot (logged once)
 BOOT_CLOCK_SLACK_MS = 1000
 MAX_PEERS = 64
 
@@ -46,6 +47,8 @@ class RebootWatch:
         self._closed: set[int] = set()  # systems whose connection closed since last heard
         self.reboots = 0
         self.history: deque[tuple[int, str]] = deque(maxlen=16)  # (system, why), the latest last
+        self._noticed: OrderedDict[int, float] = OrderedDict()  # system -> when its last reboot was noticed
+        self._now = 0.0
 
     def on_peer_gone(self, where: Hashable) -> None:
         """A connection closed (Node.on_peer_gone): the systems last heard on it, heard again,
@@ -55,6 +58,7 @@ class RebootWatch:
                 self._closed.add(sysid)
 
     def on_message(self, m: MAVLinkMessage, now: float) -> None:
+        self._now = now
         kind = m.get_type()
         sysid = m.get_srcSystem()
         where = link_peer(m)
@@ -78,6 +82,10 @@ class RebootWatch:
                 self._rebooted(sysid, f"its boot clock ({kind}) went back from {last_ms} ms to {boot_ms} ms")
 
     def _rebooted(self, sysid: int, why: str) -> None:
+        last = self._noticed.get(sysid)
+        _remember(self._noticed, sysid, self._now)
+        if last is not None and self._now - last < SAME_BOOT_S:
+            return  # one reboot shows several ways (its connection, each boot clock): noticed once
         self.reboots += 1
         self.history.append((sysid, why))
         log.info("system %d rebooted (%s): forgetting its capture sequence", sysid, why)
