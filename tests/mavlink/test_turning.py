@@ -46,6 +46,7 @@ async def fly_turn(r: Any, rate_deg_s: float, target_deg: float, seconds: float)
     q_target = list(from_euler_deg(0.0, -20.0, target_deg))
     errors: list[float] = []
     try:
+        boot = monotonic()  # the autopilot's boot clock runs on, whatever it does
 
         def heading(t: float) -> float:
             return _wrap180(start_deg - rate_deg_s * t)
@@ -53,7 +54,7 @@ async def fly_turn(r: Any, rate_deg_s: float, target_deg: float, seconds: float)
         def send(t: float) -> None:
             q = list(from_euler_deg(0.0, 0.0, heading(t)))
             autopilot.send(ml.MAVLink_autopilot_state_for_gimbal_device_message(
-                1, GIMBAL, int(t * 1e6), q, 0, NAN, NAN, NAN, 0, NAN,
+                1, GIMBAL, int((monotonic() - boot) * 1e6), q, 0, NAN, NAN, NAN, 0, NAN,
                 ml.ESTIMATOR_ATTITUDE, ml.MAV_LANDED_STATE_IN_AIR, NAN))  # fmt: skip
             autopilot.send(ml.MAVLink_gimbal_device_set_attitude_message(1, GIMBAL, EARTH, q_target, NAN, NAN, NAN))
 

@@ -26,7 +26,7 @@ STALE_S = 3.0
 # A heading is carried forward at the vehicle's yaw rate for at most this long: between two
 # AUTOPILOT_STATE_FOR_GIMBAL_DEVICE (50 Hz) a turning vehicle moves on, and the camera must be
 # told where the heading is now, not where it was 20 ms ago. Beyond this, the rate is not trusted.
-EXTRAPOLATE_S = 0.25
+EXTRAPOLATE_S = 0.5
 YAW_RATE_SMOOTHING = 0.3  # weight of a new heading difference in the smoothed yaw rate
 # Our own vehicle's recent fixes, to place a photo where the vehicle was at the shutter (issue 32:
 # the last fix heard lags 4-5.5 m at 10 m/s). 64 fixes: 6 s at 10 Hz.
@@ -60,6 +60,8 @@ class Vehicles:
         # AUTOPILOT_STATE_FOR_GIMBAL_DEVICE (to difference headings when it gives no rate).
         self.yaw_rate_deg_s: float = 0.0
         self._last_state: tuple[int, float] | None = None  # (time_boot_ms, yaw_deg)
+        self._stamp = SenderClock()  # the autopilot's boot clock mapped onto ours
+        self._attitude_stamped = 0.0  # when (our clock) the last AUTOPILOT_STATE's attitude was measured
         self._history: deque[Fix] = deque(maxlen=HISTORY_FIXES)  # our vehicle's, oldest first, none at 0, 0
 
     def on_message(self, m: MAVLinkMessage) -> None:
@@ -88,7 +90,12 @@ class Vehicles:
             # carries the same attitude, so the target does not matter.
             if is_valid(list(m.q)):
                 e = to_euler_deg(list(m.q))
-                self._attitude[kind] = ((e.roll_deg, e.pitch_deg, e.yaw_deg), monotonic())
+                now = monotonic()
+                # when the autopilot measured it, on our clock: a busy link or event loop delivers
+                # it late, and a turning vehicle has moved on by then
+                stamped = self._stamp.when(int(m.time_boot_us) / 1e6, now)
+                self._attitude[kind] = ((e.roll_deg, e.pitch_deg, e.yaw_deg), now)
+                self._attitude_stamped = stamped
                 self._state_rate(m, e.yaw_deg)
         elif kind == "ATTITUDE":
             values = (m.roll, m.pitch, m.yaw)
@@ -163,10 +170,40 @@ class Vehicles:
         for kind in ("AUTOPILOT_STATE_FOR_GIMBAL_DEVICE", "ATTITUDE"):
             got = self._attitude.get(kind)
             if got is not None and now - got[1] <= STALE_S:
-                age_s = min(max(0.0, now - got[1]), EXTRAPOLATE_S)
+                # from when the autopilot measured it (AUTOPILOT_STATE's own clock), else from arrival
+                measured = (
+                    min(got[1], self._attitude_stamped) if kind == "AUTOPILOT_STATE_FOR_GIMBAL_DEVICE" else got[1]
+                )
+                age_s = min(max(0.0, now - measured), EXTRAPOLATE_S)
                 return wrap180(got[0][2] + self.yaw_rate_deg_s * age_s)
         f = self.fix()
         return f.heading_deg if f is not None else None
+
+
+class SenderClock:
+    """A sender's clock (its boot time, seconds) mapped onto ours: our arrival time minus its
+    timestamp is the clocks' offset plus the delivery delay; the smallest seen lately (two
+    WINDOW_S buckets, so a drifting clock is followed) is the offset, the rest the delay. A
+    timestamp going back (a reboot) starts afresh."""
+
+    WINDOW_S = 5.0
+
+    def __init__(self) -> None:
+        self._last_sent = -math.inf
+        self._mins = [math.inf, math.inf]  # this bucket's smallest offset, the previous bucket's
+        self._bucket_t = -math.inf
+
+    def when(self, sent_s: float, arrived: float) -> float:
+        """When (our clock) the sender stamped `sent_s`; at most `arrived`."""
+        if sent_s < self._last_sent - 1.0:
+            self._mins = [math.inf, math.inf]
+        self._last_sent = sent_s
+        if arrived - self._bucket_t > self.WINDOW_S:
+            self._mins = [math.inf, self._mins[0]]
+            self._bucket_t = arrived
+        offset = arrived - sent_s
+        self._mins[0] = min(self._mins[0], offset)
+        return min(arrived, sent_s + min(self._mins))
 
 
 def _moved(f: Fix, dt_s: float, t: float) -> Fix:
