@@ -82,6 +82,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--definition-http", default="127.0.0.1:0", metavar="HOST:PORT",
         help="serve the camera definitions here (default 127.0.0.1:0, any free port; 'off': not served)",
     )  # fmt: skip
+    p.add_argument("--definition-host", metavar="HOST",
+                   help="the address written into the definition URI (default: the bind address; bound to all "
+                   "interfaces, the address of the interface that reaches the ground station asking)")  # fmt: skip
+    p.add_argument("--no-request-streams", action="store_true",
+                   help="do not ask the autopilot for GLOBAL_POSITION_INT and SYSTEM_TIME on this link "
+                   "(photo positions and dates; see docs/mavlink.md)")  # fmt: skip
     p.add_argument("-v", "--verbose", action="store_true", help="log every link and camera change")
     p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=run)
@@ -128,6 +134,8 @@ def build_config(args: argparse.Namespace) -> object:
         terrain=getattr(args, "terrain", None),
         cot=getattr(args, "cot", None),
         record=getattr(args, "record", None),
+        definition_host=getattr(args, "definition_host", None),
+        request_streams=not getattr(args, "no_request_streams", False),
     )
     try:
         config.check()

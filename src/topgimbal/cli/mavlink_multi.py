@@ -86,7 +86,9 @@ def run_multi(args: argparse.Namespace) -> int:
     common = dict(role=args.role, attitude_hz=args.attitude_hz, stream_hz=args.stream_hz, range_hz=args.range_hz,
                   timeout_s=args.timeout, silence_s=args.silence,
                   signing_key=getattr(args, "signing_key", None),
-                  definition_http=None if args.definition_http == "off" else args.definition_http)  # fmt: skip
+                  definition_http=None if args.definition_http == "off" else args.definition_http,
+                  definition_host=getattr(args, "definition_host", None),
+                  request_streams=not getattr(args, "no_request_streams", False))  # fmt: skip
     try:
         multi = MultiBridge(cameras, endpoints=list(args.mavlink), sysid=args.sysid, cameras_wanted=not args.no_camera,
                             thermal=not args.no_thermal, max_peers=args.max_peers,

@@ -168,6 +168,31 @@ class HostFeeds:
             self._activate(idents)
         return idents
 
+    def active_position_feeds(self) -> list[str]:
+        """The position feeds being sent now (LAT, LON, ALT...), in the profile's order."""
+        return [i for i in self._idents(POSITION_ROLES) if i in self.active]
+
+    def send_now(self, roles: frozenset[str] = POSITION_ROLES) -> int:
+        """Send the active feeds of these roles once, now, outside their period: a fresh position
+        right before a photo, so the camera's own tag is not up to a feed period old (the C12's
+        LAT/LON go at 2 Hz: 5 m at 10 m/s). Paced like every frame. The number of frames queued."""
+        n = 0
+        for ident in self._idents(roles):
+            spec = self._spec(ident)
+            if ident not in self.active or spec is None or not self.core.connected:
+                continue
+            values = self._current(ident, spec)
+            if values is None:
+                continue
+            try:
+                self.core.send_nowait(self.core.build_from(ident, values))
+            except TopGimbalError as exc:
+                log.info("%s: %s feed not sent: %s", self.core.url, ident, exc)
+                continue
+            self.sent[ident] = self.sent.get(ident, 0) + 1
+            n += 1
+        return n
+
     def utc_now(self) -> datetime.datetime:
         if self.utc_offset_s is None:
             return datetime.datetime.fromtimestamp(wall_time(), datetime.timezone.utc)

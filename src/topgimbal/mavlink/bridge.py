@@ -17,6 +17,8 @@ from typing import Any
 from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..video.rtp_push import RtpPush
+from .advertise import Advertiser
+from .autopilot_streams import AutopilotStreams
 from .camdef import file_name, render
 from .camdef_http import DefinitionServer
 from .camera import CameraComponent
@@ -80,6 +82,9 @@ class BridgeConfig:
     terrain: str | None = None  # a GeoTIFF DEM: CAMERA_FOV_STATUS's image centre on it (else flat at home)
     cot: str | None = None  # udp://HOST:PORT: Cursor-on-Target of what the camera looks at, 1 Hz (cot.py)
     record: str | None = None  # DIR: the camera's video as MPEG-TS with MISB ST 0601 KLV (klv_record.py)
+
+    definition_host: str | None = None  # the host written into the definition URI (advertise.py); None: found
+    request_streams: bool = True  # ask the autopilot for GLOBAL_POSITION_INT and SYSTEM_TIME (autopilot_streams.py)
 
     def definition_address(self) -> tuple[str, int] | None:
         if not self.definition_http:
@@ -214,9 +219,17 @@ class Bridge:
             self.recorder = Recorder(self.cameras[0].video_urls[0], c.record, self.cameras[0].view.klv_values)
         self.reboots = RebootWatch(self._peer_rebooted)
         self.node.subscribe(lambda m: self.reboots.on_message(m, monotonic()))
+
+        self.node.on_peer_gone(self.reboots.on_peer_gone)
         self.node.subscribe(self.vehicles.on_message)
         self.feed = CameraFeed(self.cam, self.vehicles, c.sysid, own)  # position, attitude, time to the camera
         self.node.subscribe(self.feed.on_message)
+        for cam in self.cameras:
+            cam.utc_at = self.feed.autopilot.utc_at
+            cam.before_photo = self.feed.before_photo
+            cam.after_photo = self.feed.photo_taken
+        self.streams = AutopilotStreams(gcomp, c.sysid, own)  # what the photos need, asked on our link
+        self.node.subscribe(self.streams.on_message)
         self.node.subscribe(self.dispatcher.on_message)
         self.node.subscribe(self.device.on_message)
         if self.manager is not None:
@@ -253,6 +266,8 @@ class Bridge:
         self.pointer.start()
         self.device.start()
         self.feed.start()
+        if self.config.request_streams:
+            self.streams.start()
         for cam in self.cameras:
             cam.start()
         for svc in self.services:
@@ -285,6 +300,7 @@ class Bridge:
         for svc in self.services:
             await svc.close()
         await self.feed.close()
+        await self.streams.close()
         await self.device.close()
         await self.pointer.close()
         for push in self.video_pushes:
@@ -305,7 +321,19 @@ class Bridge:
     async def wait_closed(self) -> None:
         await self._closed.wait()
 
+    def info(self) -> dict[str, Any]:
+        """What the camera is fed and from where: each autopilot message the photos need (source,
+        age in seconds, stale, asked for) and what the camera link feeds the camera now."""
+        client = self.cam.client
+        return {
+            "autopilot": self.streams.status(),
+            "camera_feeds": client.feeds.summary() if client is not None else "no camera link",
+            "reboots_noticed": self.reboots.reboots,
+        }
+
     def _peer_rebooted(self, sysid: int, why: str) -> None:
+        self.dispatcher.forget_system(sysid)
+        self.streams.asked.clear()  # a rebooted autopilot forgot the rates we asked for: ask at once
         for cam in self.cameras:
             cam.forget_sequences(sysid)
 
@@ -317,8 +345,14 @@ class Bridge:
         p = self.cam.profile
         self.definitions = DefinitionServer(self.definition_files, *address)
         await self.definitions.start()
+        link_hosts = [parse_endpoint(e).host for e in self.config.endpoints]
+        advertiser = Advertiser(address[0], self.config.definition_host, link_hosts)
+        server = self.definitions
         for c in self.cameras:
-            c.definition_uri = self.definitions.uri(file_name(p.model, c.lens))
+            name = file_name(p.model, c.lens)
+            c.definition_uri = server.uri(name, advertiser.fixed)
+            # bound to all interfaces: the address that reaches whoever asks
+            c.definition_uri_for = lambda where, name=name: server.uri(name, advertiser.host_for(where))
 
     def _on_health(self, answering: bool) -> None:
         for svc in self.services:

@@ -12,18 +12,19 @@ import asyncio
 import contextlib
 import logging
 from collections import OrderedDict
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from ..clock import monotonic, wall_time
 from ._mav import mavlink
 from .camdef import definition_version, settings_for
 from .camera_extras import CameraExtras
-from .camera_feed import file_url
+from .camera_feed import SHUTTER_LATENCY_S, file_url
 from .camera_link import CameraLink
 from .camera_tracking import MAX_STATUS_HZ as MAX_TRACKING_HZ
 from .camera_tracking import Tracker
 from .camera_view import CameraView
-from .commands import Command, Outcome, denied, unsupported
+from .commands import RETRANSMIT_WINDOW_S, Command, Outcome, denied, unsupported
 from .gimbal_device import _text, firmware_code, flag_bits
 from .params_ext import ParamsExt
 from .services import Services
@@ -80,7 +81,11 @@ class CameraComponent:
         self.available_mib: float = float("nan")
         self._interval_task: asyncio.Task[None] | None = None
         self._range_task: asyncio.Task[None] | None = None
-        self._last_sequence: dict[tuple[int, int], int] = {}
+        # (sender system, component) -> (capture sequence number, when taken, image index)
+        self._last_sequence: dict[tuple[int, int], tuple[int, float, int]] = {}
+        self.utc_at: Callable[[float], float | None] | None = None  # the autopilot's UTC (camera_feed.py)
+        self.before_photo: Callable[[], None] | None = None  # camera_feed.CameraFeed.before_photo
+        self.after_photo: Callable[[float], None] | None = None  # camera_feed.CameraFeed.photo_taken
         self.view = CameraView(self.comp, cam, vehicles, lens=lens, range_hz=self.range_hz)
         companion = self.video_urls[0] if companion_tracking and lens == "visible" and self.video_urls else None
         self.tracker = Tracker(
@@ -88,6 +93,8 @@ class CameraComponent:
         )
         p = self.profile
         self.definition_uri = ""  # set by the bridge once its definition server listens
+        # the URI for a request from (link, peer): the address that reaches that peer (advertise.py)
+        self.definition_uri_for: Callable[[Any], str] | None = None
         self.params = ParamsExt(self.comp, cam, settings_for(p.dialect, p.model, lens))
         self.extras = CameraExtras(self.comp, cam, lens)
         self.extras.register(services)
@@ -200,7 +207,7 @@ class CameraComponent:
         # Focal length and sensor size are in no profile; the resolution only where the profile
         # gives the stream's picture size (0 = unknown, as MAVLink says).
         w, h = lens.size if lens is not None and lens.size_documented else (0, 0)
-        uri = self.definition_uri
+        uri = self.definition_uri_for(cmd.peer) if self.definition_uri_for is not None else self.definition_uri
         version = definition_version(self.profile.dialect, m, self.lens) if uri else 0
         return [mavlink().MAVLink_camera_information_message(
             self.comp.node.time_boot_ms(), list(_text(self.profile.vendor, 32).ljust(32, b"\0")),
@@ -268,22 +275,45 @@ class CameraComponent:
         """A peer rebooted (mavlink/reboots.py): its capture sequence starts again at 1."""
         for key in [k for k in self._last_sequence if k[0] == sysid]:
             del self._last_sequence[key]
+        log.info("system %d rebooted: its next capture sequence numbers are new photos", sysid)
 
     async def _take_photo(self) -> MAVLinkMessage:
         values = self.photo_values or {}
+        if self.before_photo is not None:
+            self.before_photo()  # the camera's own tag: a position fresh for the shutter
+        sent = monotonic()
         answer = await self.cam.call(lambda c: c.photo(**values))
-        return self._record_image(True, file_url(self.media_url, self.cam.model_name, self.lens, answer.fields))
+        # the shutter: just before the camera's answer (it answers once the photo is taken). Not
+        # the request's time: that waits behind the position frames and the model's command gap.
+        shutter = max(sent, monotonic() - SHUTTER_LATENCY_S)
+        if self.after_photo is not None:
+            self.after_photo(shutter)
+        return self._record_image(
+            True, file_url(self.media_url, self.cam.model_name, self.lens, answer.fields), shutter
+        )
 
-    def _record_image(self, ok: bool, url: str = "") -> MAVLinkMessage:
+    def _record_image(self, ok: bool, url: str = "", shutter: float | None = None) -> MAVLinkMessage:
+        """CAMERA_IMAGE_CAPTURED for a photo taken at `shutter` (this clock): the vehicle's position
+        then (interpolated between fixes, not the last one heard), the autopilot's UTC then (its
+        SYSTEM_TIME) else ours. No fix: lat, lon and alt INT32_MAX (unknown, as CAMERA_FOV_STATUS
+        says it), never 0, 0."""
         index = self.image_count
         self.image_count += 1
-        fix = self.vehicles.fix()
-        lat = lon = alt = rel = 0
+        t = monotonic() if shutter is None else shutter
+        fix = self.vehicles.position_at(t)
+        lat = lon = alt = INT32_MAX
+        rel = 0
         if fix is not None:
-            lat, lon = int(fix.position.lat_deg * 1e7), int(fix.position.lon_deg * 1e7)
-            alt, rel = int(fix.position.alt_m * 1000), int(fix.relative_alt_m * 1000)
+            lat, lon = round(fix.position.lat_deg * 1e7), round(fix.position.lon_deg * 1e7)
+            alt, rel = round(fix.position.alt_m * 1000), round(fix.relative_alt_m * 1000)
+        else:
+            log.warning("image %d: no position from the autopilot (GLOBAL_POSITION_INT) at the shutter: "
+                        "CAMERA_IMAGE_CAPTURED says unknown (INT32_MAX)", index)  # fmt: skip
+        utc = self.utc_at(t) if self.utc_at is not None else None
+        if utc is None:
+            utc = wall_time() - (monotonic() - t)
         msg = mavlink().MAVLink_camera_image_captured_message(
-            self.comp.node.time_boot_ms(), int(wall_time() * 1e6), 0, lat, lon, alt, rel,
+            self.comp.node.time_boot_ms(), int(utc * 1e6), 0, lat, lon, alt, rel,
             list(self.view.earth_quaternion()), index, 1 if ok else 0, _text(url, 205))  # fmt: skip
         self.images[index] = msg
         while len(self.images) > MAX_REMEMBERED_IMAGES:
@@ -300,8 +330,18 @@ class CameraComponent:
         if total == 1:
             seq_key = (cmd.src_system, cmd.src_component)
             seq = cmd.whole(4, "capture sequence number", 0, INT32_MAX, default=0)
-            if seq and self._last_sequence.get(seq_key) == seq:
-                return Outcome()  # the same capture sequence number: already taken, not again
+            last = self._last_sequence.get(seq_key)
+            if seq and last is not None and last[0] == seq:
+                age_s = monotonic() - last[1]
+                if age_s <= RETRANSMIT_WINDOW_S:
+                    # the same capture sequence number within the retransmission window: that
+                    # photo was taken; say so and answer with it rather than take another
+                    log.info("photo request from %d/%d with capture sequence %d again after %.1f s: a "
+                             "retransmission, image %d answers it (no new photo)", *seq_key, seq, age_s, last[2])  # fmt: skip
+                    earlier = self.images.get(last[2])
+                    return Outcome(after=[earlier] if earlier is not None else [])
+                log.info("photo request from %d/%d with capture sequence %d, as %.0f s ago: a new photo (a "
+                         "sender that rebooted counts from 1 again)", *seq_key, seq, age_s)  # fmt: skip
             await self._stop_interval()
             self.image_status = 1
             try:
@@ -309,7 +349,7 @@ class CameraComponent:
             finally:
                 self.image_status = 0
             if seq:
-                self._last_sequence[seq_key] = seq
+                self._last_sequence[seq_key] = (seq, monotonic(), msg.image_index)
                 if len(self._last_sequence) > 64:
                     self._last_sequence.pop(next(iter(self._last_sequence)))
             return Outcome(after=[msg])

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import datetime
 import logging
 from collections.abc import Mapping
@@ -36,7 +37,9 @@ if TYPE_CHECKING:
 log = logging.getLogger("topgimbal.mavlink")
 
 PERIOD_S = 0.1
-TIME_STALE_S = 5.0  # a SYSTEM_TIME older than this is not used (the offset is kept by the feeds)
+TIME_STALE_S = 5.0
+SHUTTER_LATENCY_S = 0.005  # the camera's answer after a photo request on a LAN, besides the pacing
+MAX_SHUTTER_LEAD_S = 1.0  # the pushed position is held for a photo at most this long  # a SYSTEM_TIME older than this is not used (the offset is kept by the feeds)
 
 
 def file_url(media_url: str | None, model: str, lens: str, answer: Mapping[str, object] | None) -> str:
@@ -76,9 +79,20 @@ class AutopilotState:
     def has_time(self) -> bool:
         return self._utc is not None
 
+    def utc_at(self, t: float) -> float | None:
+        """The autopilot's UTC (seconds since the epoch) at `t` on this clock, from the last
+        SYSTEM_TIME and the time since it was heard; None when none was (GPS time unknown)."""
+        if self._utc is None:
+            return None
+        utc, heard = self._utc
+        return utc.timestamp() + (t - heard)
+
+    def time_age_s(self) -> float | None:
+        return None if self._utc is None else monotonic() - self._utc[1]
+
     def sample(self) -> FeedSample:
         """What the autopilot says now (a fix only when it is fresh and not 0, 0)."""
-        f = self.vehicles.fix()
+        f = self.vehicles.position_at(monotonic())  # carried forward to now at its velocity
         fix = None
         if f is not None and not (f.position.lat_deg == 0 and f.position.lon_deg == 0):
             with contextlib.suppress(ValueError):  # out-of-range numbers from the network: no fix
@@ -125,9 +139,41 @@ class CameraFeed:
         self._task: asyncio.Task[None] | None = None
         self.samples = 0
         self.state = "waiting for the autopilot"
+        self._photo_asked: float | None = None  # when a position was pushed for a photo not yet taken
 
     def sample(self) -> FeedSample:
         return self.autopilot.sample()
+
+    def before_photo(self) -> None:
+        """Right before a photo request: the camera is sent the vehicle's position predicted at
+        its shutter, at once, rather than waiting for the next position feed period (the camera
+        tags the photo with the last position it was given). The shutter comes after these frames
+        and the photo request, each paced by the model's least command gap. (Learning the delay
+        from the photos before did worse: it varies by +-35 ms with the other feeds' frames.)"""
+        self._photo_asked = None
+        client = self.cam.client
+        if client is None or not client.connected:
+            return
+        feeds = client.feeds
+        idents = feeds.active_position_feeds()
+        if not idents:
+            return
+        now = monotonic()
+        lead_s = (len(idents) + 1) * client.behaviour.min_gap_s + SHUTTER_LATENCY_S
+        f = self.autopilot.vehicles.position_at(now + lead_s)
+        if f is None or (f.position.lat_deg == 0 and f.position.lon_deg == 0):
+            return
+        try:
+            fix = Fix(f.position.lat_deg, f.position.lon_deg, f.position.alt_m, self.autopilot.vehicles.yaw_deg)
+        except ValueError:
+            return  # out-of-range numbers from the network: no fix
+        feeds.position(fix)
+        feeds.send_now()
+        self._photo_asked = now
+
+    def photo_taken(self, shutter: float) -> None:
+        """The photo `before_photo` prepared was taken: the periodic feed goes on."""
+        self._photo_asked = None
 
     def start(self) -> None:
         self._task = asyncio.ensure_future(self._run())
@@ -148,6 +194,10 @@ class CameraFeed:
                 self._client = client
                 self.autopilot.utc_new = self.autopilot.has_time
             sample = self.sample()
+            if self._photo_asked is not None and monotonic() - self._photo_asked <= MAX_SHUTTER_LEAD_S:
+                # a photo is on its way with the position pushed for its shutter: keep that one until
+                # the shutter (a periodic position frame in between would be what the camera tags)
+                sample = dataclasses.replace(sample, fix=client.feeds.fix)
             try:
                 await apply_sample(client, sample)
             except TopGimbalError as exc:

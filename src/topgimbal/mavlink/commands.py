@@ -30,6 +30,7 @@ from ..logthrottle import ThrottledLog
 from ._mav import mavlink
 from .fairness import MAX_INFLIGHT, MAX_INFLIGHT_PER_PEER, RESERVED_FOR_IDLE_PEERS, InflightLimits
 from .node import Component, link_peer
+from .statustext import send_statustext
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
@@ -348,13 +349,19 @@ class Dispatcher:
         if outcome.text and outcome.result != ACCEPTED:
             log.info("command %d from %d/%d to %s: %s (%s)", cmd.command, cmd.src_system, cmd.src_component,
                      comp.name, name, outcome.text)  # fmt: skip
-            if outcome.result == FAILED:
-                statustext(comp, outcome.text, severity=3)
+            if outcome.result == FAILED:  # the command first: what failed, then why
+                statustext(comp, f"{command_name(cmd.command)} failed: {outcome.text}", severity=3)
         self._done[cmd.key()] = _Done(monotonic(), outcome.result, outcome.param2, cmd.confirmation)
         while len(self._done) > REMEMBER_RESULTS:
             self._done.popitem(last=False)
         for msg in outcome.after:
             comp.send(msg)
+
+    def forget_system(self, sysid: int) -> None:
+        """A system rebooted (reboots.py): its next commands are new orders, not retransmissions
+        of what it sent before, even if identical (its capture sequence starts again at 1)."""
+        for k in [k for k in self._done if k[0] == sysid]:
+            del self._done[k]
 
     def _forget_old(self, now: float) -> None:
         while self._done:
@@ -382,6 +389,13 @@ def _peer_text(peer: Any) -> str:
 
 
 def statustext(comp: Component, text: str, severity: int = 6) -> None:
-    """A STATUSTEXT from `comp` (severity: 3 error, 4 warning, 6 info); long text is cut at 50."""
-    data = text.encode("utf-8", "replace")[:50]
-    comp.send(mavlink().MAVLink_statustext_message(severity, data))
+    """A STATUSTEXT from `comp` (severity: 3 error, 4 warning, 6 info); text longer than 50 bytes
+    goes as MAVLink 2 chunks (statustext.py)."""
+    send_statustext(comp, text, severity)
+
+
+def command_name(command: int) -> str:
+    """MAV_CMD_IMAGE_START_CAPTURE -> "IMAGE_START_CAPTURE"; the number where pymavlink has no name."""
+    entry = mavlink().enums.get("MAV_CMD", {}).get(command)
+    name = getattr(entry, "name", "") or ""
+    return name.removeprefix("MAV_CMD_") or f"command {command}"

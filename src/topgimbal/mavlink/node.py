@@ -118,6 +118,7 @@ class Node:
         self._parsers: dict[tuple[int, Hashable], Any] = {}
         self._subscribers: list[MessageCallback] = []
         self._peer_watchers: list[Callable[[Link, Hashable], None]] = []
+        self._gone_subscribers: list[Callable[[Hashable], None]] = []
         self.messages_in = 0
         self.bad_in = 0
         self.started = monotonic()
@@ -135,6 +136,11 @@ class Node:
         """`callback(link, peer)` when a peer is first heard on a link (the bridge greets it with a
         HEARTBEAT at once rather than at its next 1 Hz beat)."""
         self._peer_watchers.append(callback)
+
+    def on_peer_gone(self, callback: Callable[[Hashable], None]) -> None:
+        """`callback((str(link), peer))` when a peer's connection closes or it is forgotten (the
+        same key `link_peer()` gives its messages)."""
+        self._gone_subscribers.append(callback)
 
     def time_boot_ms(self) -> int:
         return int((monotonic() - self.started) * 1000) & 0xFFFFFFFF
@@ -193,6 +199,11 @@ class Node:
     def _on_gone(self, link: Link, peer: Hashable) -> None:
         self._parsers.pop((id(link), peer), None)
         self._unsigned_logged.discard((id(link), peer))
+        for cb in list(self._gone_subscribers):
+            try:
+                cb((str(link), peer))
+            except Exception:
+                log.exception("handling the end of %s on %s failed", peer, link)
 
     def _refused_signature(self, link: Link, peer: Hashable, data: bytes, kind: str) -> None:
         self.unsigned_in += 1

@@ -208,5 +208,5 @@ class ParamsExt:
 
     def _refuse(self, s: Setting, result: int, why: str) -> None:
         log.info("%s: PARAM_EXT_SET %s refused: %s", self.comp.name, untrusted(s.param), untrusted(why))
-        statustext(self.comp, why[:50], severity=3 if result == FAILED else 4)
+        statustext(self.comp, f"PARAM_EXT_SET {s.param}: {why}", severity=3 if result == FAILED else 4)
         self._ack(s, self._known(s), result)

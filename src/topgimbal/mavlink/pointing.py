@@ -4,7 +4,19 @@ Commands (MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW) await the camera's confirmation fo
 Streamed set-points (GIMBAL_DEVICE_SET_ATTITUDE, GIMBAL_MANAGER_SET_ATTITUDE / SET_PITCHYAW,
 sent at 10-50 Hz by autopilots and ground stations) cannot be acked: the latest one wins, one
 request to the camera at a time, an unchanged set-point is re-sent only as a keep-alive; nothing
-queues up behind a slow camera."""
+queues up behind a slow camera.
+
+"Unchanged" is judged on what goes to the camera, not on what the autopilot sent: an earth-frame
+yaw that stays the same while the vehicle turns is a new body-frame angle at every heading, and is
+sent at the rate the heading arrives (paced by the camera link, one request at a time).
+
+While the vehicle turns (faster than FOLLOW_MIN_DEG_S), an earth-frame yaw is held with the
+camera's rate commands instead: the vehicle's yaw rate fed forward (the camera counter-turns at the
+speed the vehicle turns) plus FOLLOW_GAIN_PER_S times the error the camera reports. Angle commands
+alone lag a turning vehicle by a command period and, on models whose angle commands carry a slow
+slew speed (TOPOTEK: 9.9 deg/s at most), cannot keep up at all. A rate command keeps the camera
+turning between set-points, so it is bounded: when set-points stop for FOLLOW_HOLD_S, the last
+angle is sent (the camera stops where the target is) rather than letting it turn on."""
 
 from __future__ import annotations
 
@@ -28,6 +40,10 @@ ANGLE_DEADBAND_DEG = 0.05
 RATE_DEADBAND_DEG_S = 0.05
 ANGLE_REFRESH_S = 1.0
 RATE_REFRESH_S = 0.5  # some firmware stops a rate command after a silence
+FOLLOW_MIN_DEG_S = 1.0  # the vehicle turns: hold an earth-frame yaw with rate commands
+FOLLOW_GAIN_PER_S = 3.0  # deg/s of correction per degree of error (a 0.33 s time constant)
+FOLLOW_HOLD_S = 0.3  # no set-point for this long while following by rate: stop on the last angle
+ATTITUDE_FRESH_S = 0.3  # the camera's attitude must be this recent to close the loop on it
 
 
 @dataclass(frozen=True)
@@ -60,6 +76,10 @@ class Pointer:
         self._wake = asyncio.Event()
         self._task: asyncio.Task[None] | None = None
         self._last_sent: tuple[Setpoint, float] | None = None
+        self._last_body_yaw: float | None = None  # the body-frame yaw last sent for an earth-frame set-point
+        self._latest_t = 0.0
+        self.following_by_rate = False  # the last thing sent was a rate command holding an earth yaw
+        self.rate_follow_sent = 0
         self.stream_errors = 0
         self._error_log = ThrottledLog(log, 5.0)  # a set-point stream is 50 Hz: one line per 5 s
         self.yaw_dropped = 0  # streamed earth-frame yaws left out for want of a heading
@@ -101,6 +121,7 @@ class Pointer:
         else:
             yaw, frame = self._body_yaw(sp, partial)
             yaw = self._angle("yaw", yaw, clamp)
+            body_yaw = yaw
             pitch = self._angle("pitch", sp.pitch_deg, clamp)
             roll = (
                 sp.roll_deg if self.profile.has_roll and sp.roll_deg is not None and abs(sp.roll_deg) > 0.05 else None
@@ -109,6 +130,7 @@ class Pointer:
             if yaw is None and pitch is None and roll is None:
                 return
             await self.cam.call(lambda c: c.set_angles(yaw, pitch, roll, frame=frame))
+            self._last_body_yaw = body_yaw if frame == "body" else None
         self._last_sent = (sp, monotonic())
 
     def _body_yaw(self, sp: Setpoint, partial: bool = False) -> tuple[float | None, str]:
@@ -155,7 +177,31 @@ class Pointer:
 
     def stream(self, sp: Setpoint) -> None:
         self._latest = sp
+        self._latest_t = monotonic()
         self._wake.set()
+
+    def _follow_rates(self, sp: Setpoint) -> Setpoint | None:
+        """The rate set-point that holds `sp`'s earth-frame yaw on a turning vehicle, or None
+        where angle commands are the way (the vehicle is not turning, the model takes no yaw rate
+        commands, or the camera's attitude is not streaming to close the loop on)."""
+        if not sp.earth_yaw or sp.yaw_deg is None or "yaw" not in self.profile.rate_axes:
+            return None
+        rate = self.vehicles.yaw_rate_deg_s
+        heading = self.vehicles.yaw_deg
+        att = self.cam.attitude
+        if heading is None or abs(rate) < FOLLOW_MIN_DEG_S or att is None or monotonic() - att.t > ATTITUDE_FRESH_S:
+            return None
+        body = self._angle("yaw", wrap180(sp.yaw_deg - heading), True)
+        assert body is not None
+        # where the camera is now: its last report carried forward at the rate it was turning
+        age_s = min(max(0.0, monotonic() - att.t), ATTITUDE_FRESH_S)
+        camera_yaw = att.yaw_deg + (att.yaw_rate_deg_s * age_s if math.isfinite(att.yaw_rate_deg_s) else 0.0)
+        yaw_rate = -rate + FOLLOW_GAIN_PER_S * wrap180(body - camera_yaw)
+        pitch_rate = 0.0
+        pitch = self._angle("pitch", sp.pitch_deg, True)
+        if pitch is not None and "pitch" in self.profile.rate_axes:
+            pitch_rate = FOLLOW_GAIN_PER_S * (pitch - att.pitch_deg)
+        return Setpoint(yaw_rate_deg_s=yaw_rate, pitch_rate_deg_s=pitch_rate, lock=sp.lock)
 
     def cancel_stream(self) -> None:
         self._latest = None
@@ -189,17 +235,40 @@ class Pointer:
                 return False
             if a is not None and b is not None and not (math.isnan(a) and math.isnan(b)) and abs(a - b) > band:
                 return False
+        if sp.earth_yaw and sp.yaw_deg is not None:
+            # the same earth bearing is a new body angle once the vehicle has turned
+            heading = self.vehicles.yaw_deg
+            if heading is not None and self._last_body_yaw is not None:
+                body = self._angle("yaw", wrap180(sp.yaw_deg - heading), True)
+                if body is not None and abs(wrap180(body - self._last_body_yaw)) > band:
+                    return False
+            elif (heading is None) != (self._last_body_yaw is None):
+                return False
         return True
 
     async def _worker(self) -> None:
         while True:
-            await self._wake.wait()
+            if self.following_by_rate:
+                with contextlib.suppress(asyncio.TimeoutError):
+                    await asyncio.wait_for(self._wake.wait(), FOLLOW_HOLD_S)
+            else:
+                await self._wake.wait()
             self._wake.clear()
             sp = self._latest
-            if sp is None or self._is_repeat(sp, monotonic()):
+            if sp is None:
+                continue
+            # the stream stopped: never leave the camera turning on a rate
+            stopped = monotonic() - self._latest_t >= FOLLOW_HOLD_S
+            rates = None if stopped else self._follow_rates(sp)
+            send = sp if rates is None else rates
+            if rates is None and self.following_by_rate:
+                self._last_sent = None  # the angle goes now, whatever was sent before
+            if self._is_repeat(send, monotonic()):
                 continue
             try:
-                await self.apply(sp, clamp=True, partial=True)
+                await self.apply(send, clamp=True, partial=True)
+                self.following_by_rate = rates is not None
+                self.rate_follow_sent += rates is not None
             except (TopGimbalError, OSError) as exc:
                 self.stream_errors += 1
                 if self._error_log.allow("stream") is not None:

@@ -10,19 +10,28 @@ MAVn_EXTRA1 is set) or ATTITUDE; the heading, failing both, from GLOBAL_POSITION
 from __future__ import annotations
 
 import math
-from collections import OrderedDict
+from collections import OrderedDict, deque
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..clock import monotonic
-from .geo import Position
-from .quaternion import is_valid, to_euler_deg
+from .geo import EARTH_RADIUS_M, Position
+from .quaternion import is_valid, to_euler_deg, wrap180
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
 
 MAX_SYSTEMS = 32
 STALE_S = 3.0
+# A heading is carried forward at the vehicle's yaw rate for at most this long: between two
+# AUTOPILOT_STATE_FOR_GIMBAL_DEVICE (50 Hz) a turning vehicle moves on, and the camera must be
+# told where the heading is now, not where it was 20 ms ago. Beyond this, the rate is not trusted.
+EXTRAPOLATE_S = 0.5
+YAW_RATE_SMOOTHING = 0.3  # weight of a new heading difference in the smoothed yaw rate
+# Our own vehicle's recent fixes, to place a photo where the vehicle was at the shutter (issue 32:
+# the last fix heard lags 4-5.5 m at 10 m/s). 64 fixes: 6 s at 10 Hz.
+HISTORY_FIXES = 64
+POSITION_EXTRAPOLATE_S = 1.0  # past the last fix, carried forward at its velocity this long at most
 
 Attitude = tuple[float, float, float]  # roll_deg, pitch_deg, yaw_deg
 
@@ -33,6 +42,7 @@ class Fix:
     relative_alt_m: float
     heading_deg: float | None
     t: float
+    velocity_ned_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     @property
     def home_alt_m(self) -> float:
@@ -46,13 +56,24 @@ class Vehicles:
         self._fixes: OrderedDict[int, Fix] = OrderedDict()
         # Our vehicle's attitude: (roll, pitch, yaw degrees, t) per source message type.
         self._attitude: dict[str, tuple[Attitude, float]] = {}
+        # Our vehicle's yaw rate (deg/s, earth frame) and the autopilot's boot time of the last
+        # AUTOPILOT_STATE_FOR_GIMBAL_DEVICE (to difference headings when it gives no rate).
+        self.yaw_rate_deg_s: float = 0.0
+        self._last_state: tuple[int, float] | None = None  # (time_boot_ms, yaw_deg)
+        self._stamp = SenderClock()  # the autopilot's boot clock mapped onto ours
+        self._attitude_stamped = 0.0  # when (our clock) the last AUTOPILOT_STATE's attitude was measured
+        self._history: deque[Fix] = deque(maxlen=HISTORY_FIXES)  # our vehicle's, oldest first, none at 0, 0
 
     def on_message(self, m: MAVLinkMessage) -> None:
         kind = m.get_type()
         src = m.get_srcSystem()
         if kind == "GLOBAL_POSITION_INT":
             hdg = None if m.hdg == 65535 else m.hdg / 100.0
-            fix = Fix(Position(m.lat / 1e7, m.lon / 1e7, m.alt / 1000.0), m.relative_alt / 1000.0, hdg, monotonic())
+            velocity = (m.vx / 100.0, m.vy / 100.0, m.vz / 100.0)
+            fix = Fix(Position(m.lat / 1e7, m.lon / 1e7, m.alt / 1000.0), m.relative_alt / 1000.0, hdg, monotonic(),
+                      velocity)  # fmt: skip
+            if src == self.sysid and m.get_srcComponent() not in self.own and not (m.lat == 0 and m.lon == 0):
+                self._history.append(fix)
             self._fixes[src] = fix
             self._fixes.move_to_end(src)
             if len(self._fixes) > MAX_SYSTEMS:
@@ -69,18 +90,66 @@ class Vehicles:
             # carries the same attitude, so the target does not matter.
             if is_valid(list(m.q)):
                 e = to_euler_deg(list(m.q))
-                self._attitude[kind] = ((e.roll_deg, e.pitch_deg, e.yaw_deg), monotonic())
+                now = monotonic()
+                # when the autopilot measured it, on our clock: a busy link or event loop delivers
+                # it late, and a turning vehicle has moved on by then
+                stamped = self._stamp.when(int(m.time_boot_us) / 1e6, now)
+                self._attitude[kind] = ((e.roll_deg, e.pitch_deg, e.yaw_deg), now)
+                self._attitude_stamped = stamped
+                self._state_rate(m, e.yaw_deg)
         elif kind == "ATTITUDE":
             values = (m.roll, m.pitch, m.yaw)
             if all(math.isfinite(v) for v in values):
                 roll, pitch, yaw = (math.degrees(v) for v in values)
                 self._attitude[kind] = ((roll, pitch, yaw), monotonic())
+                if "AUTOPILOT_STATE_FOR_GIMBAL_DEVICE" not in self._attitude and math.isfinite(m.yawspeed):
+                    self.yaw_rate_deg_s = math.degrees(m.yawspeed)
+
+    def _state_rate(self, m: MAVLinkMessage, yaw_deg: float) -> None:
+        """The yaw rate from AUTOPILOT_STATE_FOR_GIMBAL_DEVICE: its angular_velocity_z (MAVLink 2
+        extension) or feed_forward_angular_velocity_z where given, else the heading's change over
+        the autopilot's own boot clock (not our arrival times, which jitter)."""
+        boot_ms = int(m.time_boot_us) // 1000
+        last, self._last_state = self._last_state, (boot_ms, yaw_deg)
+        for field in ("angular_velocity_z", "feed_forward_angular_velocity_z"):
+            v = getattr(m, field, float("nan"))
+            if isinstance(v, float) and math.isfinite(v) and v != 0.0:
+                self.yaw_rate_deg_s = math.degrees(v)
+                return
+        dt_ms = boot_ms - last[0] if last is not None else -1
+        if last is None or dt_ms <= 0 or dt_ms > 500:
+            if dt_ms != 0:  # a duplicate changes nothing; a gap or a reboot: no rate known
+                self.yaw_rate_deg_s = 0.0
+            return
+        rate = wrap180(yaw_deg - last[1]) / (dt_ms / 1000.0)
+        self.yaw_rate_deg_s += YAW_RATE_SMOOTHING * (rate - self.yaw_rate_deg_s)
 
     def fix(self, sysid: int | None = None) -> Fix | None:
         f = self._fixes.get(self.sysid if sysid is None else sysid)
         if f is None or monotonic() - f.t > STALE_S:
             return None
         return f
+
+    def position_at(self, t: float) -> Fix | None:
+        """Where our vehicle was at `t` (this clock): interpolated between the two fixes around it,
+        or carried forward from the last one at its velocity (POSITION_EXTRAPOLATE_S at most; a
+        fix older than STALE_S is none). Never a 0, 0 fix (what an autopilot sends before a fix)."""
+        h = self._history
+        if not h or t - h[-1].t > STALE_S:
+            return None
+        if t >= h[-1].t:
+            return _moved(h[-1], min(t - h[-1].t, POSITION_EXTRAPOLATE_S), t)
+        if t <= h[0].t:
+            return h[0]
+        for a, b in zip(h, list(h)[1:], strict=False):
+            if a.t <= t <= b.t:
+                w = (t - a.t) / (b.t - a.t) if b.t > a.t else 1.0
+                pa, pb = a.position, b.position
+                pos = Position(pa.lat_deg + w * (pb.lat_deg - pa.lat_deg), pa.lon_deg + w * (pb.lon_deg - pa.lon_deg),
+                               pa.alt_m + w * (pb.alt_m - pa.alt_m))  # fmt: skip
+                rel = a.relative_alt_m + w * (b.relative_alt_m - a.relative_alt_m)
+                return Fix(pos, rel, b.heading_deg, t, b.velocity_ned_m_s)
+        return h[-1]
 
     def attitude_deg(self) -> tuple[float, float, float] | None:
         """Our vehicle's (roll_deg, pitch_deg, yaw_deg), earth frame (yaw from North, clockwise;
@@ -95,9 +164,54 @@ class Vehicles:
 
     @property
     def yaw_deg(self) -> float | None:
-        """Our vehicle's heading (attitude_deg()'s yaw, else GLOBAL_POSITION_INT hdg), if heard lately."""
-        att = self.attitude_deg()
-        if att is not None:
-            return att[2]
+        """Our vehicle's heading (attitude_deg()'s yaw, else GLOBAL_POSITION_INT hdg), if heard lately.
+        An attitude's yaw is carried forward to now at the vehicle's yaw rate (EXTRAPOLATE_S at most)."""
+        now = monotonic()
+        for kind in ("AUTOPILOT_STATE_FOR_GIMBAL_DEVICE", "ATTITUDE"):
+            got = self._attitude.get(kind)
+            if got is not None and now - got[1] <= STALE_S:
+                # from when the autopilot measured it (AUTOPILOT_STATE's own clock), else from arrival
+                measured = (
+                    min(got[1], self._attitude_stamped) if kind == "AUTOPILOT_STATE_FOR_GIMBAL_DEVICE" else got[1]
+                )
+                age_s = min(max(0.0, now - measured), EXTRAPOLATE_S)
+                return wrap180(got[0][2] + self.yaw_rate_deg_s * age_s)
         f = self.fix()
         return f.heading_deg if f is not None else None
+
+
+class SenderClock:
+    """A sender's clock (its boot time, seconds) mapped onto ours: our arrival time minus its
+    timestamp is the clocks' offset plus the delivery delay; the smallest seen lately (two
+    WINDOW_S buckets, so a drifting clock is followed) is the offset, the rest the delay. A
+    timestamp going back (a reboot) starts afresh."""
+
+    WINDOW_S = 5.0
+
+    def __init__(self) -> None:
+        self._last_sent = -math.inf
+        self._mins = [math.inf, math.inf]  # this bucket's smallest offset, the previous bucket's
+        self._bucket_t = -math.inf
+
+    def when(self, sent_s: float, arrived: float) -> float:
+        """When (our clock) the sender stamped `sent_s`; at most `arrived`."""
+        if sent_s < self._last_sent - 1.0:
+            self._mins = [math.inf, math.inf]
+        self._last_sent = sent_s
+        if arrived - self._bucket_t > self.WINDOW_S:
+            self._mins = [math.inf, self._mins[0]]
+            self._bucket_t = arrived
+        offset = arrived - sent_s
+        self._mins[0] = min(self._mins[0], offset)
+        return min(arrived, sent_s + min(self._mins))
+
+
+def _moved(f: Fix, dt_s: float, t: float) -> Fix:
+    """`f` carried `dt_s` forward at its velocity (flat earth: metres over a second)."""
+    vn, ve, vd = f.velocity_ned_m_s
+    p = f.position
+    lat = p.lat_deg + math.degrees(vn * dt_s / EARTH_RADIUS_M)
+    lon = p.lon_deg + math.degrees(ve * dt_s / (EARTH_RADIUS_M * max(0.01, math.cos(math.radians(p.lat_deg)))))
+    return Fix(
+        Position(lat, lon, p.alt_m - vd * dt_s), f.relative_alt_m - vd * dt_s, f.heading_deg, t, f.velocity_ned_m_s
+    )

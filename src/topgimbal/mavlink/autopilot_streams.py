@@ -1,0 +1,149 @@
+"""Asking the autopilot, on the bridge's own link, for what the photos need, as other MAVLink
+peripherals do (issue 32): with ArduPilot's defaults nothing sends GLOBAL_POSITION_INT or
+SYSTEM_TIME on a gimbal's serial port (MAVn_POSITION / MAVn_EXTRA3 are 0 there), so photos had no
+position and were dated 1970.
+
+Every CHECK_S, for each wanted message not heard from our vehicle's autopilot within its
+staleness, the bridge sends MAV_CMD_SET_MESSAGE_INTERVAL (MAVLink's way; ArduPilot and PX4 apply it
+to the link it came on) and REQUEST_DATA_STREAM for its stream group (what older firmware and
+ArduPilot's SRn/MAVn_ rates answer), at most once per RETRY_S: bounded, and a log line each time.
+It also says what the camera is fed: a line when a message is first heard, when it goes stale
+(a warning) and when it comes back; `status()` gives the source and age of each.
+
+The autopilot is the system's component that sends AUTOPILOT_STATE_FOR_GIMBAL_DEVICE, or a
+HEARTBEAT of a real autopilot (not MAV_AUTOPILOT_INVALID): nothing is asked of a ground station."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from ..clock import MonotonicFn, monotonic
+from ._mav import mavlink
+
+if TYPE_CHECKING:
+    from ._mav import MAVLinkMessage
+    from .node import Component
+
+log = logging.getLogger("topgimbal.mavlink")
+
+CHECK_S = 1.0
+RETRY_S = 5.0  # a request unanswered is sent again no sooner than this
+MAV_AUTOPILOT_INVALID = 8
+CMD_SET_MESSAGE_INTERVAL = 511
+
+
+@dataclass(frozen=True)
+class Wanted:
+    name: str
+    msgid: int
+    hz: float
+    stream_id: int  # MAV_DATA_STREAM group that carries it (REQUEST_DATA_STREAM)
+    what: str  # what it is for, for the log
+
+    @property
+    def stale_s(self) -> float:
+        return max(2.0, 3.0 / self.hz)
+
+
+WANTED = (
+    Wanted("GLOBAL_POSITION_INT", 33, 10.0, 6, "photo positions and the camera's position feed"),  # POSITION
+    Wanted("SYSTEM_TIME", 2, 1.0, 12, "photo dates and the camera's clock"),  # EXTRA3
+)
+
+
+class AutopilotStreams:
+    def __init__(self, comp: Component, sysid: int, own_compids: set[int], *, clock: MonotonicFn = monotonic) -> None:
+        self.comp = comp
+        self.sysid = sysid
+        self.own = own_compids
+        self.clock = clock
+        self.autopilot_compid: int | None = None
+        self.heard: dict[str, float] = {}  # message name -> when last heard from the autopilot
+        self.asked: dict[str, float] = {}  # message name -> when last asked for
+        self.requests_sent = 0
+        self._stale: set[str] = set()
+        self._task: asyncio.Task[None] | None = None
+
+    def on_message(self, m: MAVLinkMessage) -> None:
+        if m.get_srcSystem() != self.sysid or m.get_srcComponent() in self.own:
+            return
+        kind = m.get_type()
+        if self.autopilot_compid is None and (
+            kind == "AUTOPILOT_STATE_FOR_GIMBAL_DEVICE"
+            or (kind == "HEARTBEAT" and m.autopilot != MAV_AUTOPILOT_INVALID)
+        ):
+            self.autopilot_compid = m.get_srcComponent()
+            log.info("autopilot found: %d/%d", self.sysid, self.autopilot_compid)
+        for w in WANTED:
+            if kind == w.name:
+                first = w.name not in self.heard
+                self.heard[w.name] = self.clock()
+                if first:
+                    log.info("camera feed: %s from %d/%d (%s)", w.name, self.sysid, m.get_srcComponent(), w.what)
+                elif w.name in self._stale:
+                    self._stale.discard(w.name)
+                    log.info("camera feed: %s from %d/%d again", w.name, self.sysid, m.get_srcComponent())
+
+    def status(self) -> dict[str, Any]:
+        """{message: {"source", "age_s" (None: never heard), "asked"}} for `info` and the log."""
+        now = self.clock()
+        src = f"{self.sysid}/{self.autopilot_compid}" if self.autopilot_compid is not None else None
+        out: dict[str, Any] = {}
+        for w in WANTED:
+            heard = self.heard.get(w.name)
+            out[w.name] = {
+                "source": src,
+                "age_s": None if heard is None else round(now - heard, 2),
+                "stale": heard is None or now - heard > w.stale_s,
+                "asked": w.name in self.asked,
+            }
+        return out
+
+    def check(self) -> None:
+        """Ask for what is missing; warn once when a message that came goes stale."""
+        if self.autopilot_compid is None:
+            return
+        now = self.clock()
+        for w in WANTED:
+            heard = self.heard.get(w.name)
+            if heard is not None and now - heard <= w.stale_s:
+                continue
+            if heard is not None and w.name not in self._stale:
+                self._stale.add(w.name)
+                log.warning(
+                    "camera feed: no %s from the autopilot for %.1f s: %s go stale", w.name, now - heard, w.what
+                )
+            asked = self.asked.get(w.name)
+            if asked is not None and now - asked < RETRY_S:
+                continue
+            self.asked[w.name] = now
+            self._ask(w)
+
+    def _ask(self, w: Wanted) -> None:
+        ml = mavlink()
+        target = (self.sysid, self.autopilot_compid or 1)
+        interval_us = int(1e6 / w.hz)
+        self.comp.send(ml.MAVLink_command_long_message(
+            *target, CMD_SET_MESSAGE_INTERVAL, 0, w.msgid, interval_us, 0, 0, 0, 0, 0))  # fmt: skip
+        self.comp.send(ml.MAVLink_request_data_stream_message(*target, w.stream_id, int(w.hz), 1))
+        self.requests_sent += 1
+        log.info("asking the autopilot %d/%d for %s at %g Hz on this link (SET_MESSAGE_INTERVAL, "
+                 "REQUEST_DATA_STREAM %d): %s", *target, w.name, w.hz, w.stream_id, w.what)  # fmt: skip
+
+    def start(self) -> None:
+        self._task = asyncio.ensure_future(self._run())
+
+    async def close(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+
+    async def _run(self) -> None:
+        while True:
+            await asyncio.sleep(CHECK_S)
+            self.check()

@@ -1,0 +1,147 @@
+"""Geotags with ArduPilot's defaults (issue 32, item 3): the bridge asks the autopilot on its own
+link for GLOBAL_POSITION_INT and SYSTEM_TIME, says what is fed and warns when it goes stale, never
+publishes 0, 0 as a position, and stamps a photo with the position at the shutter (interpolated
+between fixes, carried forward at the velocity), not the last fix heard."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+from typing import Any
+
+from pymavlink.dialects.v20 import common as ml
+
+from topgimbal.clock import monotonic, wall_time
+from topgimbal.mavlink import autopilot_streams
+
+from .conftest import Peer, eventually
+
+CAMERA = 100
+LAT0, LON0 = 47.397742, 8.545594
+SPEED_M_S = 10.0  # north
+METRES_PER_DEG = math.pi / 180 * 6371008.8
+
+
+async def captured(peer: Peer, index: int) -> Any:
+    def find() -> Any:
+        return next(
+            (m for m in peer.messages if m.get_type() == "CAMERA_IMAGE_CAPTURED" and m.image_index == index), None
+        )
+
+    await eventually(lambda: find() is not None, 5, f"CAMERA_IMAGE_CAPTURED {index}")
+    return find()
+
+
+def _interval_requests(peer: Peer, msgid: int) -> list[Any]:
+    return [m for m in peer.messages if m.get_type() == "COMMAND_LONG" and m.command == 511 and m.param1 == msgid]
+
+
+async def test_the_bridge_asks_the_autopilot_for_what_photos_need(
+    rig_factory: Any, caplog: Any, monkeypatch: Any
+) -> None:
+    monkeypatch.setattr(autopilot_streams, "RETRY_S", 1.0)
+    caplog.set_level(logging.INFO, logger="topgimbal.mavlink")
+    r = await rig_factory("C12", role="device")
+    autopilot = await Peer(sysid=1, compid=1).connect(r.bridge.addresses[0][1])
+    gcs = r.peer  # a ground station (MAV_AUTOPILOT_INVALID): nothing is asked of it
+    try:
+        autopilot.send(ml.MAVLink_heartbeat_message(2, 3, 0, 0, 4, 3))  # a quadrotor, ArduPilot
+        await eventually(lambda: bool(_interval_requests(autopilot, 33)) and bool(_interval_requests(autopilot, 2)),
+                         5, "SET_MESSAGE_INTERVAL for GLOBAL_POSITION_INT and SYSTEM_TIME")  # fmt: skip
+        assert all(m.target_system == 1 and m.target_component == 1 for m in _interval_requests(autopilot, 33))
+        assert _interval_requests(autopilot, 33)[0].param2 == 100_000  # 10 Hz
+        assert any(m.get_type() == "REQUEST_DATA_STREAM" and m.req_stream_id == 6 for m in autopilot.messages)
+        assert r.bridge.streams.status()["GLOBAL_POSITION_INT"]["age_s"] is None
+        # the autopilot answers: the position is fed, nothing more is asked for it
+        for i in range(15):
+            autopilot.send(ml.MAVLink_global_position_int_message(i * 100, int(LAT0 * 1e7), int(LON0 * 1e7),
+                                                                  500_000, 20_000, 0, 0, 0, 9000))  # fmt: skip
+            await asyncio.sleep(0.1)
+        asked = len(_interval_requests(autopilot, 33))
+        status = r.bridge.streams.status()["GLOBAL_POSITION_INT"]
+        assert status["source"] == "1/1" and status["age_s"] is not None and status["age_s"] < 1 and not status["stale"]
+        assert any("GLOBAL_POSITION_INT from 1/1" in rec.getMessage() for rec in caplog.records)
+        info = r.bridge.info()
+        assert info["autopilot"]["GLOBAL_POSITION_INT"]["source"] == "1/1" and isinstance(info["camera_feeds"], str)
+        # it stops: a warning, and the bridge asks again
+        await eventually(lambda: len(_interval_requests(autopilot, 33)) > asked, 6, "asked again once stale")
+        assert any(
+            rec.levelno == logging.WARNING and "no GLOBAL_POSITION_INT" in rec.getMessage() for rec in caplog.records
+        )
+        assert not [m for m in gcs.messages if m.get_type() == "COMMAND_LONG" and m.target_system == 255]
+    finally:
+        autopilot.close()
+
+
+async def test_a_photo_carries_the_position_at_the_shutter_and_the_autopilots_time(rig_factory: Any) -> None:
+    r = await rig_factory("C12", role="device")
+    autopilot = await Peer(sysid=1, compid=1).connect(r.bridge.addresses[0][1])
+    shutters: list[float] = []
+    fed: list[float | None] = []  # the latitude the camera itself was fed at its shutter (its EXIF)
+    state = r.sim.device.state
+
+    def on_capture(event: str, index: int) -> None:
+        shutters.append(monotonic())
+        fed.append(state.position.lat_deg)
+
+    state.capture_listeners.append(on_capture)
+    # the autopilot's clock: a day ahead of ours, so a photo dated by our clock would show it
+    utc_offset_s = 86400.0
+    t0 = monotonic()
+
+    def north_m(t: float) -> float:
+        return SPEED_M_S * (t - t0)
+
+    async def fly() -> None:
+        i = 0
+        while True:  # GLOBAL_POSITION_INT at 5 Hz, flying north at 10 m/s; SYSTEM_TIME at 1 Hz
+            now = monotonic()
+            lat = LAT0 + north_m(now) / METRES_PER_DEG
+            autopilot.send(ml.MAVLink_global_position_int_message(i, round(lat * 1e7), round(LON0 * 1e7), 500_000,
+                                                                  20_000, int(SPEED_M_S * 100), 0, 0, 0))  # fmt: skip
+            if i % 5 == 0:
+                autopilot.send(ml.MAVLink_system_time_message(int((wall_time() + utc_offset_s) * 1e6), i))
+            i += 1
+            await asyncio.sleep(0.2)
+
+    task = asyncio.ensure_future(fly())
+    try:
+        await asyncio.sleep(1.0)
+        for n in range(3):
+            await asyncio.sleep(0.13 * n)  # between fixes, not on them
+            ack = await r.peer.ack(CAMERA, ml.MAV_CMD_IMAGE_START_CAPTURE, 0, 0, 1, n + 1)
+            assert ack.result == ml.MAV_RESULT_ACCEPTED
+            got = await captured(r.peer, n)
+            shutter = shutters[-1]
+            error_m = abs((got.lat / 1e7 - LAT0) * METRES_PER_DEG - north_m(shutter))
+            time_error_s = abs(got.time_utc / 1e6 - (wall_time() - (monotonic() - shutter) + utc_offset_s))
+            own = fed[-1]
+            own_m = abs((own - LAT0) * METRES_PER_DEG - north_m(shutter)) if own is not None else math.nan
+            print(f"photo {n}: position error {error_m:.2f} m, time error {time_error_s:.3f} s; "
+                  f"the camera's own tag {own_m:.2f} m")  # fmt: skip
+            assert error_m < 1.0, f"photo {n}: {error_m:.2f} m from where the vehicle was at the shutter"
+            assert time_error_s < 1.0, f"photo {n}: dated {time_error_s:.2f} s off the autopilot's UTC"
+            assert abs(got.lon / 1e7 - LON0) < 1e-6 and got.relative_alt == 20_000
+            # the camera's own tag (its EXIF): fed a position for the shutter right before the photo
+            # (within 2 m: the frames paced ahead of the photo vary by +-50 ms, 0.5 m at 10 m/s; was 3-5.8 m)
+            assert own_m < 2.0, f"photo {n}: the camera tagged it {own_m:.2f} m off"
+    finally:
+        task.cancel()
+        autopilot.close()
+
+
+async def test_no_fix_is_never_published_as_0_0(rig_factory: Any) -> None:
+    r = await rig_factory("C12", role="device")
+    autopilot = await Peer(sysid=1, compid=1).connect(r.bridge.addresses[0][1])
+    try:
+        for _ in range(3):  # what an autopilot sends before its first fix
+            autopilot.send(ml.MAVLink_global_position_int_message(0, 0, 0, 0, 0, 0, 0, 0, 65535))
+        await asyncio.sleep(0.2)
+        ack = await r.peer.ack(CAMERA, ml.MAV_CMD_IMAGE_START_CAPTURE, 0, 0, 1, 1)
+        assert ack.result == ml.MAV_RESULT_ACCEPTED
+        got = await captured(r.peer, 0)
+        assert (got.lat, got.lon, got.alt) == (2**31 - 1, 2**31 - 1, 2**31 - 1)
+        assert r.bridge.feed.sample().fix is None
+    finally:
+        autopilot.close()
