@@ -9,6 +9,7 @@ import itertools
 import math
 from typing import Any
 
+import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.sim.targets import parse_spec
@@ -119,6 +120,7 @@ async def test_geo_status_where_the_vehicle_position_is_known(rig_factory) -> No
     assert (await p.ack(CAMERA, ml.MAV_CMD_CAMERA_STOP_TRACKING)).result == 0
 
 
+@pytest.mark.serial  # a closed loop in real time: run apart from the parallel pass (make test)
 async def test_companion_tracking_from_mavlink_on_a_model_without_a_tracker() -> None:
     from topgimbal.mavlink import Bridge, BridgeConfig
     from topgimbal.sim import Simulator
