@@ -71,7 +71,6 @@ def refused_with_cameras(args: argparse.Namespace) -> list[str]:
 
 
 def run_multi(args: argparse.Namespace) -> int:
-    from ..mavlink.bridge import BridgeConfigError
     from ..mavlink.multi import MultiBridge
 
     if getattr(args, "url", None) and args.url != os.environ.get("TOPGIMBAL_URL"):
@@ -86,12 +85,15 @@ def run_multi(args: argparse.Namespace) -> int:
     common = dict(role=args.role, attitude_hz=args.attitude_hz, stream_hz=args.stream_hz, range_hz=args.range_hz,
                   timeout_s=args.timeout, silence_s=args.silence,
                   signing_key=getattr(args, "signing_key", None),
-                  definition_http=None if args.definition_http == "off" else args.definition_http)  # fmt: skip
+                  definition_http=None if args.definition_http == "off" else args.definition_http,
+                  terrain=getattr(args, "terrain", None))  # fmt: skip
+    # --cot: every camera its own CoT uid and callsign, from its name (one marker per camera on the map)
+    cot = getattr(args, "cot", None)
+    own = [{**c.options, **({"cot": cot, "cot_name": c.name} if cot else {})} for c in args.camera]
     try:
         multi = MultiBridge(cameras, endpoints=list(args.mavlink), sysid=args.sysid, cameras_wanted=not args.no_camera,
-                            thermal=not args.no_thermal, max_peers=args.max_peers,
-                            per_camera=[c.options for c in args.camera], **common)  # fmt: skip
-    except BridgeConfigError as exc:
+                            thermal=not args.no_thermal, max_peers=args.max_peers, per_camera=own, **common)  # fmt: skip
+    except ValueError as exc:  # BridgeConfigError, CotConfigError, DemError: the options given, nothing sent yet
         print(f"topgimbal mavlink: error: {exc}", file=sys.stderr)
         return 2
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
