@@ -117,3 +117,60 @@ def test_cot_target_must_be_udp_host_port() -> None:
     for bad in ("tcp://127.0.0.1:8087", "udp://127.0.0.1", "127.0.0.1:6969"):
         with pytest.raises(CotConfigError):
             parse_target(bad)
+
+
+def test_several_cameras_each_send_their_own_cot_from_the_cli() -> None:
+    """`topgimbal mavlink --camera left=... --camera right=... --cot URL`: each camera its own uid
+    and callsign (its name), every datagram parsed by takproto; the autopilot here is a pymavlink
+    socket the bridge's udpout link talks to."""
+    import threading
+
+    from pymavlink import mavutil
+
+    from topgimbal.cli.main import main
+    from topgimbal.sim import BackgroundSimulator
+
+    cot_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    cot_sock.bind(("127.0.0.1", 0))
+    cot_sock.settimeout(0.2)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        ap_port = s.getsockname()[1]
+    autopilot = mavutil.mavlink_connection(f"udpin:127.0.0.1:{ap_port}", source_system=1, source_component=1)
+    codes: list[int] = []
+    data: list[bytes] = []
+    with (
+        BackgroundSimulator("C12", seed=41, listen={"udp": [("127.0.0.1", 0)]}) as left,
+        BackgroundSimulator("SIP", seed=42, listen={"udp": [("127.0.0.1", 0)]}) as right,
+    ):
+        for sim in (left, right):  # looking down: the image centre lands
+            sim.call(lambda s: s.gimbal.angle("pitch", -30.0))
+        argv = ["mavlink", "--mavlink", f"udpout:127.0.0.1:{ap_port}", "--cot", f"udp://127.0.0.1:{cot_sock.getsockname()[1]}",
+                "--camera", f"left={left.url},C12", "--camera", f"right={right.url},SIP", "--seconds", "20"]  # fmt: skip
+        runner = threading.Thread(target=lambda: codes.append(main(argv)))
+        runner.start()
+        try:
+            while runner.is_alive():
+                if autopilot.recv_match(blocking=True, timeout=0.3) is not None:  # the bridge's address known
+                    autopilot.mav.attitude_send(0, 0.0, 0.0, math.radians(250.0), 0, 0, 0)
+                    autopilot.mav.global_position_int_send(0, round((LAT0 + 0.002) * 1e7), round(LON0 * 1e7),
+                                                           650_000, 350_000, 0, 0, 0, 65535)  # fmt: skip
+                try:
+                    data.append(cot_sock.recv(65536))
+                except TimeoutError:
+                    pass
+                uids = {ET.fromstring(d).get("uid") for d in data}
+                if {"topgimbal-1-left", "topgimbal-1-right", "topgimbal-1-left.SPI", "topgimbal-1-right.SPI"} <= uids:
+                    break
+        finally:
+            runner.join(60)
+            autopilot.close()
+            cot_sock.close()
+    assert codes == [0]
+    parsed = [takproto.parse_proto(bytearray(d)) for d in data]
+    assert data and all(m is not None for m in parsed)  # every datagram parses
+    vehicles = {m.cotEvent.uid: m for m in parsed if m.cotEvent.type == "a-f-A-M-F-Q"}
+    assert set(vehicles) == {"topgimbal-1-left", "topgimbal-1-right"}
+    assert {m.cotEvent.detail.contact.callsign for m in vehicles.values()} == {"left 1", "right 1"}
+    spis = {m.cotEvent.uid for m in parsed if m.cotEvent.type == "b-m-p-s-p-i"}
+    assert spis == {"topgimbal-1-left.SPI", "topgimbal-1-right.SPI"}

@@ -78,3 +78,32 @@ def test_model_auto_serves_the_camera_as_what_it_says(capsys):
         )
     out = capsys.readouterr().out
     assert code == 0 and f"mavlink bridge: {sip.url} (SIP)" in out, out
+
+
+def test_several_cameras_refuse_one_that_is_another_model(capsys):
+    """Issue 35 item 2: `mavlink --camera` with a SIP declared as a C12 beside a real C12 exits 2,
+    naming the camera and the model it is, before anything is served or sent."""
+    with (
+        BackgroundSimulator("C12", seed=37, listen={"udp": [("127.0.0.1", 0)]}) as c12,
+        BackgroundSimulator("SIP", seed=38, listen={"udp": [("127.0.0.1", 0)]}) as sip,
+    ):
+        code = main(["mavlink", "--mavlink", "udpin:127.0.0.1:0", "--camera", f"left={c12.url},C12",
+                     "--camera", f"right={sip.url},C12", "--seconds", "1"])  # fmt: skip
+        targets = sip.call(lambda s: (s.gimbal.axis("yaw").target, s.gimbal.axis("pitch").target))
+    captured = capsys.readouterr()
+    err = captured.err
+    assert code == 2 and "mavlink bridge" not in captured.out, captured
+    assert len(err.splitlines()) == 1 and f"camera right ({sip.url})" in err and "SIP" in err, err
+    assert "right=URL,auto" in err and "left" not in err.replace(f"camera right ({sip.url})", ""), err
+    assert targets == pytest.approx((0.0, 0.0))
+
+
+def test_several_cameras_with_model_auto_serve_each_as_what_it_says(capsys):
+    with (
+        BackgroundSimulator("C12", seed=39, listen={"udp": [("127.0.0.1", 0)]}) as c12,
+        BackgroundSimulator("SIP", seed=40, listen={"udp": [("127.0.0.1", 0)]}) as sip,
+    ):
+        code = main(["mavlink", "--mavlink", "udpin:127.0.0.1:0", "--camera", f"left={c12.url},C12",
+                     "--camera", f"right={sip.url},auto", "--seconds", "1"])  # fmt: skip
+    out = capsys.readouterr().out
+    assert code == 0 and "left (C12): gimbal 154" in out and "right (SIP): gimbal 171" in out, out

@@ -16,7 +16,7 @@ from typing import Any
 from .runtime import stop_on_signals, wait_stopped
 from .zenoh_cmd import camera_arg
 
-CAMERA_FORM = "NAME=URL,MODEL[,video-url=URL][,video-port=N][,video-out=[LENS=]udp://HOST:PORT]"
+CAMERA_FORM = "NAME=URL,MODEL|auto[,video-url=URL][,video-port=N][,video-out=[LENS=]udp://HOST:PORT]"
 # Per-camera options: key -> (BridgeConfig field, repeatable)
 CAMERA_OPTIONS = {"video-url": ("video_urls", True), "video-port": ("video_port", False),
                   "video-out": ("video_out", True)}  # fmt: skip
@@ -55,8 +55,45 @@ def camera_with_options(text: str) -> CameraWithOptions:
             options[name] = int(value)
         elif repeatable:
             options.setdefault(name, []).insert(0, value)  # read from the end: keep the order given
+    auto = len(parts) > 1 and parts[-1].strip().lower() == "auto"
+    if auto:  # MODEL=auto: asked of the camera at start (_check_models); the rest checked as usual
+        parts[-1] = "C12"
     spec = camera_arg(",".join(parts))
-    return CameraWithOptions(spec.name, spec.url, spec.model, options)  # type: ignore[attr-defined]
+    model = "auto" if auto else spec.model  # type: ignore[attr-defined]
+    return CameraWithOptions(spec.name, spec.url, model, options)  # type: ignore[attr-defined]
+
+
+async def _check_models(cameras: list[CameraWithOptions], timeout_s: float) -> None:
+    """Before serving, as the one-camera bridge does (mavlink_cmd.py), every camera at once: MODEL
+    auto becomes what the camera says it is; a camera that answers as another model than its MODEL
+    is refused (ModelMismatchError naming the camera: exit 2, nothing served). One not there yet is
+    served; its camera link refuses it later if it turns out to be another model."""
+    from ..client import connect
+    from ..errors import ModelMismatchError, TopGimbalError, TransportError
+    from .device_cmds import _refuse_wrong_model
+
+    async def one(cam: CameraWithOptions) -> None:
+        if cam.model == "auto":
+            from .device_cmds import _detect
+
+            try:
+                cam.model = await _detect(argparse.Namespace(url=cam.url, timeout=timeout_s))
+            except TopGimbalError as exc:
+                raise TopGimbalError(f"camera {cam.name} ({cam.url}): {exc}") from None
+            return
+        try:  # as mavlink_cmd._refuse_wrong_model (not imported: it imports this module)
+            async with connect(cam.url, model=cam.model, timeout_s=timeout_s, retries=0, host_feeds=False) as client:
+                await _refuse_wrong_model(client)
+        except (TransportError, OSError):
+            return  # not there (yet): the bridge keeps trying
+        except ModelMismatchError as exc:
+            said = str(exc).replace("--model ", f"{cam.name}=URL,")  # this form's way to name the model
+            raise ModelMismatchError(f"camera {cam.name} ({cam.url}): {said}", fits=exc.fits) from None
+
+    results = await asyncio.gather(*(one(c) for c in cameras), return_exceptions=True)
+    for r in results:  # the first refusal in the order given (the others were checked too)
+        if isinstance(r, BaseException):
+            raise r
 
 
 def add_fleet_arguments(p: argparse.ArgumentParser) -> None:
@@ -71,7 +108,6 @@ def refused_with_cameras(args: argparse.Namespace) -> list[str]:
 
 
 def run_multi(args: argparse.Namespace) -> int:
-    from ..mavlink.bridge import BridgeConfigError
     from ..mavlink.multi import MultiBridge
 
     if getattr(args, "url", None) and args.url != os.environ.get("TOPGIMBAL_URL"):
@@ -82,21 +118,25 @@ def run_multi(args: argparse.Namespace) -> int:
         print(f"topgimbal mavlink: error: with --camera, {'; '.join(refused)} does not apply: "
               f"each camera takes {CAMERA_FORM}", file=sys.stderr)  # fmt: skip
         return 2
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
+    asyncio.run(_check_models(args.camera, args.timeout))  # MODEL auto resolved; a wrong MODEL refused
     cameras = [(c.name, c.url, c.model) for c in args.camera]
     common = dict(role=args.role, attitude_hz=args.attitude_hz, stream_hz=args.stream_hz, range_hz=args.range_hz,
                   timeout_s=args.timeout, silence_s=args.silence,
                   signing_key=getattr(args, "signing_key", None),
                   definition_http=None if args.definition_http == "off" else args.definition_http,
                   definition_host=getattr(args, "definition_host", None),
-                  request_streams=not getattr(args, "no_request_streams", False))  # fmt: skip
+                  request_streams=not getattr(args, "no_request_streams", False),
+                  terrain=getattr(args, "terrain", None))  # fmt: skip
+    # --cot: every camera its own CoT uid and callsign, from its name (one marker per camera on the map)
+    cot = getattr(args, "cot", None)
+    own = [{**c.options, **({"cot": cot, "cot_name": c.name} if cot else {})} for c in args.camera]
     try:
         multi = MultiBridge(cameras, endpoints=list(args.mavlink), sysid=args.sysid, cameras_wanted=not args.no_camera,
-                            thermal=not args.no_thermal, max_peers=args.max_peers,
-                            per_camera=[c.options for c in args.camera], **common)  # fmt: skip
-    except BridgeConfigError as exc:
+                            thermal=not args.no_thermal, max_peers=args.max_peers, per_camera=own, **common)  # fmt: skip
+    except ValueError as exc:  # BridgeConfigError, CotConfigError, DemError: the options given, nothing sent yet
         print(f"topgimbal mavlink: error: {exc}", file=sys.stderr)
         return 2
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
 
     async def main() -> None:
         await multi.start()

@@ -65,9 +65,12 @@ async def _start_mavlink(specs: list[Any], args: argparse.Namespace, session: An
     from ..mavlink.multi import MultiBridge
     from ..mavlink.zenoh_link import zenoh_link_factory
 
+    # --cot: each camera its own CoT uid/callsign (its name); the vehicle is the autopilot heard on mavlink/in
+    own = [{"cot": args.cot, "cot_name": s.name} if args.cot else {} for s in specs]
     bridge = MultiBridge([(s.name, s.url, s.model) for s in specs], endpoints=[], sysid=args.sysid,
                          cameras_wanted=not args.no_camera, thermal=not args.no_thermal,
-                         link_factories=[zenoh_link_factory(session)], timeout_s=args.timeout)  # fmt: skip
+                         link_factories=[zenoh_link_factory(session)], timeout_s=args.timeout,
+                         per_camera=own)  # fmt: skip
     await bridge.start()
     return bridge
 
@@ -100,6 +103,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--no-thermal", action="store_true", help="with --mavlink-keys: no MAVLink component for thermal lenses"
     )
     p.add_argument("--no-camera", action="store_true", help="with --mavlink-keys: gimbal components only")
+    p.add_argument("--cot", metavar="udp://HOST:PORT",
+                   help="Cursor-on-Target (TAK) of each camera's view and target at 1 Hz, each camera its own uid; "
+                   "the vehicle's position and heading come from the autopilot on mavlink/in (needs --mavlink-keys)")  # fmt: skip
     p.add_argument("--allow-remote", action="append", default=[], metavar="METHOD",
                    help="make a restricted method remotely callable: set_network, send_raw or request (repeatable; "
                    "off by default: they change the camera's address, persistent settings or send raw frames)")  # fmt: skip
@@ -142,7 +148,20 @@ def run(args: argparse.Namespace) -> int:
         if problem:
             print(f"topgimbal zenoh: error: --mavlink-keys: {problem}", file=sys.stderr)
             return 2
+    if args.cot:
+        from ..mavlink.cot import CotConfigError, parse_target
+
+        try:
+            parse_target(args.cot)
+        except CotConfigError as exc:
+            print(f"topgimbal zenoh: error: {exc}", file=sys.stderr)
+            return 2
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
+    if args.cot and (not args.mavlink_keys or args.no_camera):
+        # A sighting needs the vehicle's position and heading: only the MAVLink bridge hears them.
+        why = "no vehicle source (--mavlink-keys)" if not args.mavlink_keys else "no camera components (--no-camera)"
+        for s in specs:
+            logging.getLogger("topgimbal.fleet").warning("--cot: %s: %s, sending nothing for this camera", s.name, why)
 
     async def main() -> None:
         server = FleetServer(specs, listen=args.listen, connect=args.connect, mode=args.mode, config_file=args.config,

@@ -81,6 +81,7 @@ class BridgeConfig:
     definition_http: str | None = "127.0.0.1:0"  # HOST:PORT serving the camera definitions; None: not served
     terrain: str | None = None  # a GeoTIFF DEM: CAMERA_FOV_STATUS's image centre on it (else flat at home)
     cot: str | None = None  # udp://HOST:PORT: Cursor-on-Target of what the camera looks at, 1 Hz (cot.py)
+    cot_name: str | None = None  # the camera's name in its CoT uid/callsign (several cameras on one system)
     record: str | None = None  # DIR: the camera's video as MPEG-TS with MISB ST 0601 KLV (klv_record.py)
 
     definition_host: str | None = None  # the host written into the definition URI (advertise.py); None: found
@@ -210,8 +211,10 @@ class Bridge:
         self.cot: CotSender | None = None
         if c.cot is not None and self.cameras:
             view, urls = self.cameras[0].view, self.cameras[0].video_urls
-            self.cot = CotSender(c.cot, lambda: view.sighting(urls[0] if urls else None),
-                                 uid=f"topgimbal-{c.model}-{c.sysid}", callsign=f"{c.model} {c.sysid}")  # fmt: skip
+            # several cameras of one system (multi.py) each need their own uid: the map keeps one marker per uid
+            uid, callsign = ((f"topgimbal-{c.sysid}-{c.cot_name}", f"{c.cot_name} {c.sysid}") if c.cot_name
+                             else (f"topgimbal-{c.model}-{c.sysid}", f"{c.model} {c.sysid}"))  # fmt: skip
+            self.cot = CotSender(c.cot, lambda: view.sighting(urls[0] if urls else None), uid=uid, callsign=callsign)
         self.recorder: Recorder | None = None
         if c.record is not None:
             if not self.cameras or not self.cameras[0].video_urls:

@@ -158,10 +158,17 @@ class CotSender:
         sock.setblocking(False)
         if self.address[0].startswith("239."):
             sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, 1)  # TAK's mesh stays on the LAN
+        waiting = False  # said once: nothing goes out until the autopilot's position and heading are heard
         try:
             while True:
                 try:
                     s = self.sighting()
+                    if s is None and not waiting:
+                        log.info("CoT %s: no vehicle position and heading (or camera attitude) yet: sending nothing",
+                                 self.uid)  # fmt: skip
+                    elif s is not None and waiting:
+                        log.info("CoT %s: sending to %s:%d", self.uid, *self.address)
+                    waiting = s is None
                     if s is not None:
                         for data in events(s, uid=self.uid, callsign=self.callsign):
                             with contextlib.suppress(BlockingIOError):  # a full buffer drops one update
