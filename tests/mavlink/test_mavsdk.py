@@ -7,6 +7,7 @@ from __future__ import annotations
 import asyncio
 from typing import Any
 
+import pytest
 from mavsdk.asyncio import ComponentType, Configuration
 from mavsdk.asyncio.plugins.camera import CameraAsync
 from mavsdk.asyncio.plugins.gimbal import GimbalAsync, GimbalMode, SendMode
@@ -29,6 +30,7 @@ async def _until(agen: Any, pred: Any, timeout: float) -> Any:
         await agen.aclose()
 
 
+@pytest.mark.serial  # MAVSDK: run apart from the parallel pass (conftest.mavsdk_session)
 async def test_mavsdk_ground_station(rig_factory) -> None:
     r = await rig_factory("C12", timeout_s=1.0, retries=2)
     sim = r.sim

@@ -17,7 +17,7 @@ from topgimbal.mavlink.camdef import settings_for
 from .conftest import Rig, eventually, mavsdk_session
 from .test_mavsdk import _until
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.serial]  # MAVSDK: apart from the parallel pass
 THERMAL = 101
 
 
