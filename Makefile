@@ -84,7 +84,7 @@ docs-check: $(STAMP)
 # the figures). --dist loadfile keeps a module on one worker: module-scoped fixtures (a console, a
 # browser) start once. Tests marked `serial` share something process-wide and run alone afterwards.
 PYTEST_WORKERS ?= 6
-XDIST := -n $(PYTEST_WORKERS) --dist loadfile
+XDIST := -n $(PYTEST_WORKERS) --dist loadfile --max-worker-restart 0  # a crashed worker ends the run (a replaced one once hung it)
 
 # The whole suite on the C fast path, then what the pure Python path has to prove again (what runs
 # where no compiler built the extension): the protocol core, the fast path compared with it, and a

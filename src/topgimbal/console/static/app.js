@@ -41,8 +41,9 @@ const S = {
 function toast(text, kind = "info", ms = 7000) {
   const t = el("div", { class: `toast ${kind}`, role: kind === "error" ? "alert" : "status" },
     el("span", { class: "x", text: "×", onclick: () => t.remove() }), text);
-  $("toasts").append(t);
-  while ($("toasts").children.length > 5) $("toasts").firstChild.remove();
+  $("toasts").prepend(t);  // newest first: the strip's one visible line (style.css)
+  $("toasts").scrollTop = 0;
+  while ($("toasts").children.length > 5) $("toasts").lastChild.remove();
   setTimeout(() => t.remove(), ms);
 }
 
