@@ -15,6 +15,7 @@ from topgimbal.mavlink import Bridge, BridgeConfig
 from topgimbal.sim import Simulator
 
 NAN = float("nan")
+CLOSE_S = 20.0  # a rig's bridge and simulator close in well under a second
 
 
 @contextlib.asynccontextmanager
@@ -160,8 +161,13 @@ async def rig_factory() -> AsyncIterator[Callable[..., Any]]:
     yield make
     for r in made:
         r.peer.close()
-        await r.bridge.close()
-        await r.sim.stop()
+        # bounded: a close that never returns fails the test here (and says which) instead of
+        # holding an xdist worker until the run's own limit (seen once in a full parallel run)
+        for what, closing in (("bridge.close()", r.bridge.close()), ("sim.stop()", r.sim.stop())):
+            try:
+                await asyncio.wait_for(closing, CLOSE_S)
+            except asyncio.TimeoutError:
+                raise AssertionError(f"{what} did not return within {CLOSE_S} s") from None
 
 
 @pytest.fixture

@@ -76,6 +76,8 @@ async def fly_turn(r: Any, rate_deg_s: float, target_deg: float, seconds: float)
     return errors
 
 
+# serial: a real-time closed loop scored in degrees; make test runs it apart from the parallel pass
+@pytest.mark.serial
 @pytest.mark.parametrize(("model", "rate_deg_s", "p95_deg"), [("C12", 6.0, 1.0), ("SIP", 20.0, 3.0)])
 async def test_earth_yaw_follows_a_turning_vehicle(
     rig_factory: Any, model: str, rate_deg_s: float, p95_deg: float
