@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import copy
-import json
 import logging
 import math
 import sys
@@ -23,6 +22,7 @@ from collections.abc import Awaitable, Callable, Mapping
 from typing import TYPE_CHECKING
 
 from ..client.identity import Verdict
+from ..client.jsonable import dumps
 from ..client.roles import focus_actions, role_ident
 from ..client.state import SdCard
 from ..clock import monotonic
@@ -222,7 +222,7 @@ async def _attitude(cam: AsyncClient, args: argparse.Namespace) -> dict[str, obj
     async for att in cam.attitude(rate_hz=args.rate):
         d = attitude_dict(att)
         if args.json:
-            print(json.dumps(d), flush=True)
+            print(dumps(d), flush=True)
         else:
             print(f"yaw {d['yaw_deg']:8.2f}  pitch {d['pitch_deg']:8.2f}  roll {d['roll_deg']:8.2f}", flush=True)
         n += 1

@@ -7,25 +7,20 @@ import argparse
 import datetime
 import json
 
+from ..client.jsonable import jsonable
 from ..client.state import Attitude
-from ..protocol import Frame, Message
 
 
 def plain(value: object) -> object:
-    """Client results as JSON-able values."""
-    if hasattr(value, "as_dict"):
-        return value.as_dict()
-    if isinstance(value, Message):
-        return value.to_dict()
-    if isinstance(value, Frame):
-        return value.text()
-    return value
+    """Client results as JSON-able values: the SDK's one encoding (`client/jsonable.py`, which the
+    console and the Zenoh server share; NaN is null)."""
+    return jsonable(value)
 
 
 def show(args: argparse.Namespace, result: object) -> None:
     result = plain(result)
     if args.json:
-        print(json.dumps(result, default=str))
+        print(json.dumps(result, allow_nan=False))
         return
     for line in human(result):
         print(line)

@@ -6,11 +6,11 @@ from __future__ import annotations
 import argparse
 import contextlib
 import copy
-import json
 import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from ..client.jsonable import dumps
 from ..clock import monotonic
 
 if TYPE_CHECKING:
@@ -84,7 +84,7 @@ async def _monitor(cam: AsyncClient, args: argparse.Namespace) -> int:
     if args.json:
         while not args.count or frames < args.count:
             await asyncio.sleep(interval)
-            print(json.dumps({"state": cam.state.as_dict(), "link": cam.stats.as_dict()}, default=str), flush=True)
+            print(dumps({"state": cam.state, "link": cam.stats}), flush=True)
             frames += 1
         return 0
     with Live(_monitor_table(cam), console=console, refresh_per_second=args.fps, transient=False) as live:

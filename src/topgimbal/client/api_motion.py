@@ -13,8 +13,9 @@ from typing import Protocol
 
 from ..clock import monotonic
 from ..errors import FieldValueError, RequestTimeoutError, TopGimbalError, UnsupportedError
+from ..protocol import Frame
 from . import checks, roles
-from .api_core import get_attitude, request, send_values
+from .api_core import get_attitude, request
 from .core import ClientCore
 from .methods import api_method
 from .pointing import AxisLimits, RateLoop, stalled, within
@@ -36,20 +37,23 @@ def _check_axis(core: ClientCore, axis: str, value: float | None) -> None:
         raise FieldValueError(f"{axis}_deg", value, f"{lo:g}..{hi:g} degrees on the {core.model.name}")
 
 
-def _plan(
-    core: ClientCore, role: str, wanted: dict[str, float], speed_deg_s: float | None = None
-) -> list[roles.AxisCommand]:
+def _frames(core: ClientCore, role: str, wanted: dict[str, float], speed_deg_s: float | None = None) -> list[Frame]:
+    """The frames that set `wanted` with commands of `role`, each built (and so range-checked by the
+    builder) once: all of them before the caller sends any, and what it sends are these frames."""
     plan = roles.motion_plan(
         core.dialect, core.model, role, wanted, combined=core.behaviour.combined, speed_deg_s=speed_deg_s
     )
-    for cmd in plan:
-        core.build_from(cmd.spec.ident, cmd.values)  # validate all before sending any
-    return plan
+    return [core.build_from(cmd.spec.ident, cmd.values) for cmd in plan]
 
 
-def _zero_rates(core: ClientCore) -> list[roles.AxisCommand]:
+async def _send_angles(core: ClientCore, frames: list[Frame]) -> None:
+    for frame in frames:
+        await core.send_request(frame)
+
+
+def _zero_rates(core: ClientCore) -> list[Frame]:
     axes = [a for a in ("yaw", "pitch") if roles.can_move(core.dialect, core.model, "rate", [a])]
-    return _plan(core, "rate", {a: 0.0 for a in axes}) if axes else []
+    return _frames(core, "rate", {a: 0.0 for a in axes}) if axes else []
 
 
 async def _sample(core: ClientCore, after: float, wait_s: float) -> Attitude | None:
@@ -113,8 +117,8 @@ async def _closed_loop(
                 continue
             if rates:
                 moving = True
-                for cmd in _plan(core, "rate", rates):
-                    core.send_nowait(core.build_from(cmd.spec.ident, cmd.values))
+                for frame in _frames(core, "rate", rates):
+                    core.send_nowait(frame)
         raise RequestTimeoutError(
             f"did not reach yaw {targets['yaw']:g}, pitch {targets['pitch']:g} by rate control in time{_where(last)}"
         )
@@ -136,9 +140,10 @@ def _ignore_angles(core: ClientCore, waited_s: float) -> None:
 
 async def _halt(core: ClientCore) -> None:
     """Zero rates, `stop_repeats` times (fire and forget: the attitude confirms)."""
+    zero = _zero_rates(core)
     for _ in range(core.stop_repeats):
-        for cmd in _zero_rates(core):
-            core.send_nowait(core.build_from(cmd.spec.ident, cmd.values))
+        for frame in zero:
+            core.send_nowait(frame)
 
 
 class MotionMethods(Protocol):
@@ -162,8 +167,7 @@ class MotionMethods(Protocol):
             _check_axis(core, axis, v)
             if v is not None:
                 wanted[axis] = v
-        for cmd in _plan(core, "earth_angle" if frame == "earth" else "angle", wanted, speed_deg_s):
-            await send_values(core, cmd.spec.ident, cmd.values)
+        await _send_angles(core, _frames(core, "earth_angle" if frame == "earth" else "angle", wanted, speed_deg_s))
 
     @api_method
     async def rates(
@@ -183,8 +187,7 @@ class MotionMethods(Protocol):
             wanted["roll"] = roll_deg_s
         checks.positive_seconds("timeout_s", timeout_s)
         checks.count("retries", retries)
-        for cmd in _plan(core, "rate", wanted):
-            frame = core.build_from(cmd.spec.ident, cmd.values)
+        for frame in _frames(core, "rate", wanted):
             await core.send_request(frame, wait_reply=wait_reply, timeout_s=timeout_s, retries=retries)
 
     @api_method
@@ -192,9 +195,8 @@ class MotionMethods(Protocol):
         """Stop all motion the way the model needs: zero rates and the stop code, each sent the
         profile's `stop_repeats` times (a single stop may be missed and the gimbal coast on: C13), the
         last ones acknowledged where the model acknowledges motion commands."""
-        zero = _zero_rates(core)
         ptz = roles.command(core.dialect, core.model, "gimbal_control")
-        halt = [core.build_from(c.spec.ident, c.values) for c in zero]
+        halt = _zero_rates(core)
         if ptz is not None:
             halt.append(core.build(ptz.ident, action="stop"))
         for _ in range(core.stop_repeats - 1):
@@ -257,8 +259,8 @@ class MotionMethods(Protocol):
             timeout_s = dist / max(speed, 0.5) * 1.5 + 3.0
         deadline = monotonic() + timeout_s
         last: Attitude | None = now_att
-        if not closed:
-            await set_angles(core, yaw_deg, pitch_deg, speed_deg_s=speed_deg_s)
+        if not closed:  # the axes were checked above: build and send, no second check
+            await _send_angles(core, _frames(core, "angle", targets, speed_deg_s))
             stall_s = max(STALL_S, 0.6 / speed_deg_s) if speed_deg_s else STALL_S
             start, started = now_att, monotonic()
             while (remaining := deadline - monotonic()) > 0:

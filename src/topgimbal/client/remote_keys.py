@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import inspect
 import json
-import math
 import re
 import typing
 from collections.abc import Mapping
@@ -31,6 +30,7 @@ from ..protocol import Message, get_model, parse_frame
 from .api_camera import CameraMethods
 from .api_core import CoreMethods
 from .api_motion import MotionMethods
+from .jsonable import jsonable
 from .methods import api_method
 from .state import Attitude, SdCard
 
@@ -129,26 +129,11 @@ def bind_arguments(method: str, payload: bytes | None) -> tuple[api_method[..., 
 
 
 def encode_result(value: object) -> object:
-    """A method's result as JSON-ready data."""
+    """A method's result as JSON-ready data: the SDK's one encoding (`jsonable`; NaN is null), but
+    a `Message` in the shape `decode_result` turns back into one (frame text, fields, dialect)."""
     if isinstance(value, Message):
-        return {"frame": value.frame.text(), "fields": _plain(value.fields), "dialect": value.dialect}
-    as_dict = getattr(value, "as_dict", None)
-    if callable(as_dict):
-        return _plain(as_dict())
-    return _plain(value)
-
-
-def _plain(value: object) -> object:
-    if value is None or isinstance(value, (bool, int, str)):
-        return value
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    to_json = getattr(value, "to_json", None)
-    return _plain(to_json()) if callable(to_json) else str(value)
+        return {"frame": value.frame.text(), "fields": jsonable(value.fields), "dialect": value.dialect}
+    return jsonable(value)
 
 
 def decode_result(method: str, value: object, model: str) -> object:
@@ -185,7 +170,7 @@ def error_reply(exc: BaseException) -> dict[str, object]:
     text = str(exc) or type(exc).__name__
     out: dict[str, object] = {"ok": False, "error": text[:MAX_REPLY_TEXT], "kind": kind}
     if isinstance(exc, FieldValueError):
-        out.update(field=exc.field, value=_plain(exc.value), allowed=exc.allowed[:MAX_REPLY_TEXT])
+        out.update(field=exc.field, value=jsonable(exc.value), allowed=exc.allowed[:MAX_REPLY_TEXT])
     return out
 
 

@@ -15,20 +15,8 @@ from __future__ import annotations
 import unicodedata
 from typing import Any
 
+from ..client.jsonable import jsonable
 from ..protocol import GROUPS, CommandSpec, DeviceModel, Dialect
-
-
-def _jsonable(value: Any) -> Any:
-    if value is None or isinstance(value, (bool, int, float, str)):
-        return value
-    if isinstance(value, bytes):
-        return value.decode("latin-1")
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    return str(value)
-
 
 _UNIT_SUFFIXES = ("deg_s", "m_s", "deg", "mb", "kbps", "hz", "px", "c", "s", "m", "x")
 _WORDS = {
@@ -100,7 +88,7 @@ def _present_field(field: dict[str, Any]) -> dict[str, Any]:
 def command_json(spec: CommandSpec) -> dict[str, Any]:
     """The catalog's own description of the command (codecs give kinds, ranges, steps, tables),
     with English labels and vendor terms for the page."""
-    desc: dict[str, Any] = _jsonable(spec.describe())
+    desc: dict[str, Any] = jsonable(spec.describe())  # type: ignore[assignment]
     for form in desc.get("forms", []):
         form["fields"] = [_present_field(f) for f in form.get("fields", [])]
     return desc

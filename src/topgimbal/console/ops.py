@@ -6,12 +6,11 @@ The console never talks to the camera except through the client (`AsyncClient`).
 from __future__ import annotations
 
 import asyncio
-import dataclasses
 import math
 from collections.abc import Awaitable, Callable, Mapping
-from typing import TypeAlias, Union
 
 from ..client import CameraAPI
+from ..client.jsonable import JsonValue, jsonable
 from ..errors import (
     DeviceError,
     FieldValueError,
@@ -25,8 +24,7 @@ from ..errors import (
 from ..protocol import Message
 from ..protocol.frame import complete_frame
 
-# What the page gets back: JSON.
-JsonValue: TypeAlias = Union[bool, int, float, str, list["JsonValue"], dict[str, "JsonValue"], None]  # noqa: UP007
+# What the page gets back: JSON, by the SDK's one encoding (client/jsonable.py; NaN is null).
 # An op's arguments are the page's JSON object, unchecked until the op reads them; its result any
 # client result, made JSON by `jsonable`.
 OpArgs = Mapping[str, object]
@@ -46,29 +44,6 @@ def short(value: object, limit: int = 40, *, quote: bool = True) -> str:
     """`value` for an error message, cut to `limit` characters (a page may send anything)."""
     text = repr(value) if quote else str(value)
     return text if len(text) <= limit else f"{text[: limit - 1]}…"
-
-
-def jsonable(value: object) -> JsonValue:
-    """Client results (messages, dataclasses, tuples, datetimes) as JSON values."""
-    if value is None or isinstance(value, (bool, int, str)):
-        return value
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    to_dict = getattr(value, "to_dict", None) or getattr(value, "as_dict", None)
-    if callable(to_dict):
-        return jsonable(to_dict())
-    if isinstance(value, Mapping):
-        return {str(k): jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple, set, frozenset)):
-        return [jsonable(v) for v in value]
-    if isinstance(value, bytes):
-        return value.decode("latin-1")
-    if dataclasses.is_dataclass(value):
-        return {f.name: jsonable(getattr(value, f.name)) for f in dataclasses.fields(value)}
-    as_tuple_dict = getattr(value, "_asdict", None)  # a NamedTuple
-    if callable(as_tuple_dict):
-        return jsonable(as_tuple_dict())
-    return str(value)
 
 
 # What an exception raised by an op tells the page: (types, kind, message, text when the exception

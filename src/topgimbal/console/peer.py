@@ -14,7 +14,6 @@ paused on a breakpoint) cannot grow the server's memory:
 from __future__ import annotations
 
 import asyncio
-import json
 import logging
 from collections import deque
 from collections.abc import Mapping
@@ -22,6 +21,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from aiohttp import web
+
+from ..client.jsonable import dumps as _dumps
 
 log = logging.getLogger(__name__)
 
@@ -40,7 +41,8 @@ class PeerLimits:
 
 
 def dumps(obj: Mapping[str, Any]) -> str:
-    return json.dumps(obj, separators=(",", ":"), default=str)
+    """One push as text, by the SDK's one encoding (client/jsonable.py): NaN is null."""
+    return _dumps(obj, separators=(",", ":"))
 
 
 class Peer:

@@ -23,6 +23,7 @@ from pathlib import Path
 
 from aiohttp import web
 
+from ..client.jsonable import dumps
 from ..clock import wall_time
 from .cameras import MAX_CAMERAS, NAME_RULE, Camera, CameraSet
 from .capture import pcap
@@ -39,7 +40,7 @@ Handler = Callable[[web.Request], Awaitable[web.StreamResponse]]
 
 
 def _dumps(obj: object) -> str:
-    return json.dumps(obj, default=str)
+    return dumps(obj)  # the SDK's one encoding: NaN is null, never an invalid literal
 
 
 def camera_handlers(resolve: Resolve, root: Path) -> dict[str, Handler]:

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 from aiohttp import web
 from aiohttp.http_exceptions import HttpProcessingError
 
+from ..client.jsonable import dumps
 from ..client.zenoh_session import check_endpoint
 from ..logtext import untrusted
 from ..video.webconsole import ConsoleVideo
@@ -137,9 +138,7 @@ def check_video_options(model: str | None, urls: dict[str, str], port: int | Non
 
 
 def _dumps(obj: object) -> str:
-    import json
-
-    return json.dumps(obj, default=str)
+    return dumps(obj)  # the SDK's one encoding: NaN is null, never an invalid literal
 
 
 class ConsoleServer:

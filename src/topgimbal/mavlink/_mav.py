@@ -40,4 +40,22 @@ def available() -> bool:
     return _common is not None
 
 
-__all__ = ["MAVLinkCodec", "MAVLinkMessage", "MavlinkUnavailableError", "available", "mavlink"]
+# Ids and enum values by name: the bridge writes no MAVLink number itself, so a command or message
+# id can be read (and grepped) as the name the spec gives it, and is pymavlink's, not a copy.
+# Without pymavlink every one is `NOT_LOADED`: the modules still import (the CLI's help, the
+# docs), and nothing can use the value, since sending or parsing calls `mavlink()`, which raises.
+NOT_LOADED = -1
+
+
+def mav_id(name: str) -> int:
+    """An enum value of pymavlink's common dialect by its full name (`MAV_CMD_REQUEST_MESSAGE`,
+    `MAV_TYPE_GIMBAL`, `MAV_COMP_ID_CAMERA`); a name the dialect lacks is an AttributeError at import."""
+    return NOT_LOADED if _common is None else int(getattr(_common, name))
+
+
+def msg_id(name: str) -> int:
+    """A message's id by its name (`CAMERA_INFORMATION`: pymavlink's `MAVLINK_MSG_ID_CAMERA_INFORMATION`)."""
+    return mav_id(f"MAVLINK_MSG_ID_{name}")
+
+
+__all__ = ["MAVLinkCodec", "MAVLinkMessage", "MavlinkUnavailableError", "available", "mav_id", "mavlink", "msg_id"]

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from ..clock import MonotonicFn, monotonic
-from ._mav import mavlink
+from ._mav import mav_id, mavlink, msg_id
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
@@ -32,8 +32,8 @@ log = logging.getLogger("topgimbal.mavlink")
 
 CHECK_S = 1.0
 RETRY_S = 5.0  # a request unanswered is sent again no sooner than this
-MAV_AUTOPILOT_INVALID = 8
-CMD_SET_MESSAGE_INTERVAL = 511
+MAV_AUTOPILOT_INVALID = mav_id("MAV_AUTOPILOT_INVALID")
+CMD_SET_MESSAGE_INTERVAL = mav_id("MAV_CMD_SET_MESSAGE_INTERVAL")
 
 
 @dataclass(frozen=True)
@@ -50,8 +50,20 @@ class Wanted:
 
 
 WANTED = (
-    Wanted("GLOBAL_POSITION_INT", 33, 10.0, 6, "photo positions and the camera's position feed"),  # POSITION
-    Wanted("SYSTEM_TIME", 2, 1.0, 12, "photo dates and the camera's clock"),  # EXTRA3
+    Wanted(
+        "GLOBAL_POSITION_INT",
+        msg_id("GLOBAL_POSITION_INT"),
+        10.0,
+        mav_id("MAV_DATA_STREAM_POSITION"),
+        "photo positions and the camera's position feed",
+    ),
+    Wanted(
+        "SYSTEM_TIME",
+        msg_id("SYSTEM_TIME"),
+        1.0,
+        mav_id("MAV_DATA_STREAM_EXTRA3"),
+        "photo dates and the camera's clock",
+    ),
 )
 
 

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..clock import monotonic
 from ..errors import RequestTimeoutError, TopGimbalError
-from ._mav import mavlink
+from ._mav import mav_id, mavlink, msg_id
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, unsupported
 from .gimbal_device import _text
@@ -31,8 +31,10 @@ if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
     from .node import Component
 
-MSG_THERMAL_RANGE = 277
-CMD_SET_SOURCE, CMD_STREAM_START, CMD_STREAM_STOP = 534, 2502, 2503
+MSG_THERMAL_RANGE = msg_id("CAMERA_THERMAL_RANGE")
+CMD_SET_SOURCE = mav_id("MAV_CMD_SET_CAMERA_SOURCE")
+CMD_STREAM_START = mav_id("MAV_CMD_VIDEO_START_STREAMING")
+CMD_STREAM_STOP = mav_id("MAV_CMD_VIDEO_STOP_STREAMING")
 SOURCE_RGB, SOURCE_IR = 1, 2  # CAMERA_SOURCE
 REPORT_STALE_S = 3.0
 REPORT_WAIT_S = 2.5

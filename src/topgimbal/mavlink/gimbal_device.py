@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 from ..clock import monotonic
-from ._mav import mavlink
+from ._mav import mavlink, msg_id
 from .camera_link import AttitudeSample, CameraLink
 from .commands import Command
 from .pointing import Pointer, Setpoint
@@ -25,8 +25,8 @@ from .services import Services
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
 
-MSG_ATTITUDE_STATUS = 285
-MSG_DEVICE_INFORMATION = 283
+MSG_ATTITUDE_STATUS = msg_id("GIMBAL_DEVICE_ATTITUDE_STATUS")
+MSG_DEVICE_INFORMATION = msg_id("GIMBAL_DEVICE_INFORMATION")
 LIMIT_MARGIN_DEG = 0.5
 
 # GIMBAL_DEVICE_FLAGS

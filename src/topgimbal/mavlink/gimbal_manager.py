@@ -13,7 +13,7 @@ import logging
 import math
 from typing import TYPE_CHECKING, Any
 
-from ._mav import mavlink
+from ._mav import mav_id, mavlink, msg_id
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, rejected, unsupported
 from .geo import Position, look_at
@@ -27,11 +27,15 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("topgimbal.mavlink")
 
-MSG_MANAGER_INFORMATION = 280
-MSG_MANAGER_STATUS = 281
-CMD_PITCHYAW = 1000
-CMD_CONFIGURE = 1001
-CMD_ROI_LOCATION, CMD_ROI_WPNEXT_OFFSET, CMD_ROI_NONE, CMD_ROI_SYSID, CMD_ROI = 195, 196, 197, 198, 201
+MSG_MANAGER_INFORMATION = msg_id("GIMBAL_MANAGER_INFORMATION")
+MSG_MANAGER_STATUS = msg_id("GIMBAL_MANAGER_STATUS")
+CMD_PITCHYAW = mav_id("MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW")
+CMD_CONFIGURE = mav_id("MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE")
+CMD_ROI_LOCATION = mav_id("MAV_CMD_DO_SET_ROI_LOCATION")
+CMD_ROI_WPNEXT_OFFSET = mav_id("MAV_CMD_DO_SET_ROI_WPNEXT_OFFSET")
+CMD_ROI_NONE = mav_id("MAV_CMD_DO_SET_ROI_NONE")
+CMD_ROI_SYSID = mav_id("MAV_CMD_DO_SET_ROI_SYSID")
+CMD_ROI = mav_id("MAV_CMD_DO_SET_ROI")
 CAN_POINT_LOCATION_GLOBAL = 131072
 ROI_PERIOD_S = 0.2
 

@@ -15,7 +15,7 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from ._mav import mavlink
+from ._mav import mav_id, mavlink, msg_id
 from .commands import Command, Dispatcher, Outcome, denied, unsupported
 from .node import Component
 
@@ -27,23 +27,30 @@ log = logging.getLogger("topgimbal.mavlink")
 Provider = Callable[[Command], Awaitable[list[Any]]]
 Producer = Callable[[], "Any | None"]
 
-MAV_CMD_REQUEST_MESSAGE = 512
-MAV_CMD_SET_MESSAGE_INTERVAL = 511
-MAV_CMD_GET_MESSAGE_INTERVAL = 510
+MAV_CMD_REQUEST_MESSAGE = mav_id("MAV_CMD_REQUEST_MESSAGE")
+MAV_CMD_SET_MESSAGE_INTERVAL = mav_id("MAV_CMD_SET_MESSAGE_INTERVAL")
+MAV_CMD_GET_MESSAGE_INTERVAL = mav_id("MAV_CMD_GET_MESSAGE_INTERVAL")
+MAV_AUTOPILOT_INVALID = mav_id("MAV_AUTOPILOT_INVALID")  # HEARTBEAT's autopilot: a component, not a vehicle
 # Messages every component answers from what the bridge already knows (no camera traffic): a
 # REQUEST_MESSAGE for one is answered whatever the command load (fairness.py).
-LOCAL_MESSAGES = frozenset({259, 280, 281, 283, 285})  # CAMERA_, GIMBAL_MANAGER_ / GIMBAL_DEVICE_ INFORMATION, statuses
+LOCAL_MESSAGES = frozenset(
+    msg_id(n)
+    for n in ("CAMERA_INFORMATION", "GIMBAL_MANAGER_INFORMATION", "GIMBAL_MANAGER_STATUS", "GIMBAL_DEVICE_INFORMATION",
+              "GIMBAL_DEVICE_ATTITUDE_STATUS")
+)  # fmt: skip
 MAX_MESSAGE_ID = 2**24 - 1  # MAVLink 2 message ids are 24 bits
 # Legacy request commands -> (message id, which parameter carries the message's index).
 LEGACY_REQUESTS: dict[int, tuple[int, int | None]] = {
-    521: (259, None),  # REQUEST_CAMERA_INFORMATION
-    522: (260, None),  # REQUEST_CAMERA_SETTINGS
-    525: (261, None),  # REQUEST_STORAGE_INFORMATION
-    527: (262, None),  # REQUEST_CAMERA_CAPTURE_STATUS
-    2002: (263, 1),  # REQUEST_CAMERA_IMAGE_CAPTURE (param1: image index)
-    2504: (269, 1),  # REQUEST_VIDEO_STREAM_INFORMATION (param1: stream id)
-    2505: (270, 1),  # REQUEST_VIDEO_STREAM_STATUS
+    mav_id("MAV_CMD_REQUEST_CAMERA_INFORMATION"): (msg_id("CAMERA_INFORMATION"), None),
+    mav_id("MAV_CMD_REQUEST_CAMERA_SETTINGS"): (msg_id("CAMERA_SETTINGS"), None),
+    mav_id("MAV_CMD_REQUEST_STORAGE_INFORMATION"): (msg_id("STORAGE_INFORMATION"), None),
+    mav_id("MAV_CMD_REQUEST_CAMERA_CAPTURE_STATUS"): (msg_id("CAMERA_CAPTURE_STATUS"), None),
+    mav_id("MAV_CMD_REQUEST_CAMERA_IMAGE_CAPTURE"): (msg_id("CAMERA_IMAGE_CAPTURED"), 1),  # param1: image index
+    mav_id("MAV_CMD_REQUEST_VIDEO_STREAM_INFORMATION"): (msg_id("VIDEO_STREAM_INFORMATION"), 1),  # param1: stream id
+    mav_id("MAV_CMD_REQUEST_VIDEO_STREAM_STATUS"): (msg_id("VIDEO_STREAM_STATUS"), 1),
 }
+# The legacy requests whose param1 0 means "no" (param1 1: send it); the others' param1 is an index.
+LEGACY_YES_NO = frozenset(c for c, (_, index_param) in LEGACY_REQUESTS.items() if index_param is None)
 
 
 @dataclass
@@ -93,7 +100,7 @@ class Services:
         return s
 
     def heartbeat(self) -> MAVLinkMessage:
-        return mavlink().MAVLink_heartbeat_message(self.mav_type, 8, 0, 0, self.system_status, 3)
+        return mavlink().MAVLink_heartbeat_message(self.mav_type, MAV_AUTOPILOT_INVALID, 0, 0, self.system_status, 3)
 
     def start(self) -> None:
         self._started = True
@@ -134,7 +141,7 @@ class Services:
 
     async def _legacy_request(self, cmd: Command) -> Outcome:
         msgid, index_param = LEGACY_REQUESTS[cmd.command]
-        if cmd.command in (521, 522, 525, 527) and cmd.p(1) == 0:
+        if cmd.command in LEGACY_YES_NO and cmd.p(1) == 0:
             return Outcome()  # param1 = 0: "do not send" (the legacy commands' way to stop)
         # Re-express as REQUEST_MESSAGE, whose param2 is the index.
         params = list(cmd.params)
