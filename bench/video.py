@@ -260,7 +260,10 @@ async def main() -> None:
         import runpy
 
         sys.argv = [sys.argv[0], "--seconds", str(args.seconds)] + (["--skip-browser"] if args.skip_browser else [])
-        runpy.run_path(os.path.join(os.path.dirname(os.path.abspath(__file__)), "video_paths.py"), run_name="__main__")
+        path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "video_paths.py")
+        # in a thread with no event loop: video_paths uses Playwright's sync API, which refuses to
+        # run inside a running loop (this main() is a coroutine)
+        await asyncio.get_running_loop().run_in_executor(None, lambda: runpy.run_path(path, run_name="__main__"))
         return
     print(f"load average at the start: {load()}")
     if not args.skip_encoders and not args.latency_only:
