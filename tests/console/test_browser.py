@@ -14,7 +14,9 @@ import pytest
 
 from .conftest import BackgroundConsole, open_console, wait_for
 
-pytestmark = [pytest.mark.browser, pytest.mark.integration]
+# serial: drags and timed page checks in a real browser; make test runs them apart from the
+# parallel pass, where a loaded CPU (six workers on two cores) delays the page, not the console.
+pytestmark = [pytest.mark.browser, pytest.mark.integration, pytest.mark.serial]
 
 TOL = 0.5  # degrees
 
