@@ -99,7 +99,7 @@ async def test_a_setting_of_a_multi_field_command_keeps_the_others(rig_factory: 
 
 
 async def test_a_silent_camera_fails_the_set(rig_factory: Any) -> None:
-    rig: Rig = await rig_factory("SIP")
+    rig: Rig = await rig_factory("SIP", silence=True)
     await rig.sim.stop()
     acks = await param_set(rig.peer, 101, "IMG_PALETTE", 2)
     assert acks[-1].param_result == FAILED

@@ -218,7 +218,7 @@ async def test_roi_location_needs_and_uses_the_vehicle_position(rig) -> None:
 async def test_camera_that_stops_answering_and_comes_back(rig_factory) -> None:
     from topgimbal.sim import Simulator
 
-    r = await rig_factory("C12")
+    r = await rig_factory("C12", silence=True)
     p = r.peer
     port = r.sim.addresses["udp"][0][1]
     await r.sim.stop()
