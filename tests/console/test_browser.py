@@ -12,7 +12,7 @@ from typing import Any
 
 import pytest
 
-from .conftest import BackgroundConsole, open_console, wait_for
+from .conftest import BackgroundConsole, open_console, screenshot, wait_for
 
 # serial: drags and timed page checks in a real browser; make test runs them apart from the
 # parallel pass, where a loaded CPU (six workers on two cores) delays the page, not the console.
@@ -22,9 +22,7 @@ TOL = 0.5  # degrees
 
 
 def shot(page: Any, artifacts: Path, panel: str, suffix: str = "") -> None:
-    path = artifacts / f"console-{panel}{suffix}.png"
-    page.get_by_test_id(f"panel-{panel}").screenshot(path=str(path))
-    assert path.stat().st_size > 1000
+    screenshot(page.get_by_test_id(f"panel-{panel}"), artifacts / f"console-{panel}{suffix}.png")
 
 
 def readout(page: Any, axis: str) -> float:

@@ -19,7 +19,7 @@ from typing import Any
 
 import pytest
 
-from .conftest import BackgroundConsole, open_console, wait_for
+from .conftest import BackgroundConsole, open_console, screenshot, wait_for
 
 pytestmark = [pytest.mark.browser, pytest.mark.integration]
 
@@ -49,9 +49,7 @@ def point(page: Any, yaw: str, pitch: str = "0") -> None:
 
 
 def shot(page: Any, artifacts: Path, testid: str, name: str) -> None:
-    path = artifacts / f"{name}-after.png"
-    page.get_by_test_id(testid).screenshot(path=str(path))
-    assert path.stat().st_size > 1000
+    screenshot(page.get_by_test_id(testid), artifacts / f"{name}-after.png")
 
 
 # -- item 2: the commanded-yaw marker -----------------------------------------------------------
