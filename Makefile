@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: test check demo lint typecheck pytest pytest-virtual docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps
+.PHONY: debian-deps test check demo lint typecheck pytest pytest-virtual docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps
 
 # The C fast path is compiled by `pip install`: rebuild it when its sources change.
 $(STAMP): pyproject.toml setup.py src/topgimbal/_speedups/_ctop.c $(wildcard c/src/*.c c/include/*.h c/generated/*)
@@ -16,53 +16,33 @@ $(STAMP): pyproject.toml setup.py src/topgimbal/_speedups/_ctop.c $(wildcard c/s
 	$(BIN)/pip install --quiet --no-deps MAVProxy==1.8.75
 	touch $(STAMP)
 
+# Every Debian package below in one apt-get run (one index update, one dpkg run): `make test` asks
+# for them all first, so on a fresh machine the per-group targets then find nothing missing.
+debian-deps:
+	@sh scripts/debian-deps
+
 # Debian's chromium for the browser tests (browser downloads do not work here), and a CJK font
 # so the vendors' Chinese terms never render as boxes. Installs only what is missing.
 browser-deps:
-	@missing=""; \
-	[ -x /usr/bin/chromium ] || missing="$$missing chromium"; \
-	dpkg-query -W -f='$${Status}' fonts-noto-cjk 2>/dev/null | grep -q "ok installed" || missing="$$missing fonts-noto-cjk"; \
-	if [ -n "$$missing" ]; then \
-	  echo "installing Debian's$$missing"; \
-	  if [ "$$(id -u)" = 0 ]; then SUDO=; else SUDO=sudo; fi; \
-	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null; \
-	fi
+	@sh scripts/debian-deps browser
 
 # Debian's tshark (+ editcap, text2pcap from wireshark-common) for the Wireshark dissector tests.
 # The preseed answers the "non-root users may capture" question (no: nothing here captures live).
 tshark-deps:
-	@if ! command -v tshark >/dev/null 2>&1 || ! command -v text2pcap >/dev/null 2>&1 || ! command -v editcap >/dev/null 2>&1; then \
-	  echo "installing Debian's tshark"; \
-	  if [ "$$(id -u)" = 0 ]; then SUDO=; else SUDO=sudo; fi; \
-	  echo "wireshark-common wireshark-common/install-setuid boolean false" | $$SUDO debconf-set-selections; \
-	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq tshark >/dev/null; \
-	fi
+	@sh scripts/debian-deps tshark
 
 # Debian's ffmpeg/ffprobe: the video tests read the simulator's RTSP streams with them.
 video-deps:
-	@if ! command -v ffprobe >/dev/null || ! command -v ffmpeg >/dev/null; then \
-	  echo "installing Debian's ffmpeg"; \
-	  if [ "$$(id -u)" = 0 ]; then SUDO=; else SUDO=sudo; fi; \
-	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq ffmpeg >/dev/null; \
-	fi
+	@sh scripts/debian-deps video
 
 # Debian's GStreamer: the RTP push tests play the stream with QGroundControl's pipeline
 # (udpsrc ! rtpjitterbuffer ! rtph264depay ! avdec_h264; the decoder is in gstreamer1.0-libav).
 gstreamer-deps:
-	@if ! command -v gst-launch-1.0 >/dev/null || ! gst-inspect-1.0 avdec_h264 >/dev/null 2>&1 || ! gst-inspect-1.0 rtph265depay >/dev/null 2>&1; then \
-	  echo "installing Debian's GStreamer"; \
-	  if [ "$$(id -u)" = 0 ]; then SUDO=; else SUDO=sudo; fi; \
-	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 install -y -qq \
-	    gstreamer1.0-tools gstreamer1.0-plugins-base gstreamer1.0-plugins-good gstreamer1.0-plugins-bad gstreamer1.0-libav >/dev/null; \
-	fi
+	@sh scripts/debian-deps gstreamer
 
 # Debian's exiftool: the media and geotag tests read the photos' EXIF / XMP with it.
 exiftool-deps:
-	@if ! command -v exiftool >/dev/null; then \
-	  echo "installing Debian's exiftool"; \
-	  if [ "$$(id -u)" = 0 ]; then SUDO=; else SUDO=sudo; fi; \
-	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 install -y -qq libimage-exiftool-perl >/dev/null; \
-	fi
+	@sh scripts/debian-deps exiftool
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests bench
@@ -91,7 +71,7 @@ XDIST := -n $(PYTEST_WORKERS) --dist loadfile --max-worker-restart 0  # a crashe
 # few end-to-end client tests (every model through the engine).
 PURE_TESTS := tests/protocol tests/speedups tests/client/test_engine.py tests/client/test_every_model_e2e.py
 
-pytest: $(STAMP) browser-deps tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps
+pytest: debian-deps $(STAMP) browser-deps tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps
 	$(BIN)/python -m pytest -q $(XDIST) -m "not serial"
 	if grep -rqE "mark\.serial|pytest\.mark\.serial" tests; then $(BIN)/python -m pytest -q -m serial; fi
 	TOPGIMBAL_PURE=1 $(BIN)/python -m pytest -q $(XDIST) -m "not serial" $(PURE_TESTS)
@@ -107,7 +87,7 @@ mavproxy-deps: $(STAMP)
 	@$(BIN)/python -c "import MAVProxy" 2>/dev/null || $(BIN)/pip install --quiet --no-deps MAVProxy==1.8.75
 
 c-deps:
-	$(MAKE) -C c deps
+	@sh scripts/debian-deps c
 
 # Warnings (gcc, clang), libc symbols, vectors under ASan/UBSan, libFuzzer and differential fuzzing
 # for a bounded time (FUZZ_SECONDS, DIFF_SECONDS; 10 s each by default).
@@ -118,7 +98,7 @@ c-test: $(STAMP) c-deps
 # packages, no real waiting).
 check: lint typecheck docs-check pytest-virtual
 
-test: $(STAMP) browser-deps tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps c-deps lint typecheck docs-check pytest c-test
+test: debian-deps $(STAMP) browser-deps tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps c-deps lint typecheck docs-check pytest c-test
 
 demo: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.demo
