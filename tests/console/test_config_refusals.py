@@ -28,7 +28,7 @@ VIDEO = "--video-url and --video-port are for a camera given with --url"
 FLEET = "cannot be combined with --camera, several --sim or --zenoh: give every camera with --camera NAME=URL,MODEL"
 
 # (keywords, what the refusal says): the old constructor's checks, in its order.
-KEYWORD_REFUSALS: list[tuple[dict[str, Any], str]] = [
+KEYWORD_REFUSALS: list[tuple[dict[str, Any], str | None]] = [
     ({}, NO_SOURCE),
     ({"model": "C12"}, NO_SOURCE),
     ({"sim_faults": FAULTS}, NO_SOURCE),

@@ -19,7 +19,8 @@ keyword form, `ConsoleServer(url=..., model=...)`, which builds a config: one co
 CLI (`cli/console_cmd.py`, which builds a config from its flags). Every error is a `ValueError`
 naming what was wrong and what is allowed, in the CLI's option names (the same words for the
 keyword API, as before): `ConsoleConfigError`, or the `FieldValueError` / `HostNameError` /
-`CameraNameError` / `AddressError` of the check it reuses. Pure: no socket, no event loop, no
+`CameraNameError` of the check it reuses (a bad device URL: `ConsoleAddressError`, also an
+`AddressError`). Pure: no socket, no event loop, no
 clock; `modes.py` opens what a source names.
 """
 
@@ -32,7 +33,7 @@ from typing import TYPE_CHECKING, TypedDict
 
 from ..client import checks
 from ..client.zenoh_session import check_endpoint
-from ..errors import FieldValueError, TopGimbalError
+from ..errors import AddressError, FieldValueError, TopGimbalError
 from ..transport import parse_url
 from .cameras import local_plan
 from .guard import check_allow_host
@@ -70,6 +71,11 @@ class ConsoleConfigError(TopGimbalError, ValueError):
     """A console configuration that cannot work: says what was wrong and what is allowed."""
 
 
+class ConsoleAddressError(ConsoleConfigError, AddressError):
+    """A device URL of the config that is not usable: an AddressError (the CLI exits 2, as it did
+    when the URL was refused at start) and a ValueError, like every refusal here."""
+
+
 def _known_model(flag: str, model: object) -> str:
     """A model name the catalog knows (case as given), else ConsoleConfigError with the list."""
     from ..protocol import get_model
@@ -84,10 +90,13 @@ def _known_model(flag: str, model: object) -> str:
 
 
 def _device_url(flag: str, url: object) -> str:
-    """A device URL the transports can open (AddressError, a ValueError-like input error, otherwise)."""
+    """A device URL the transports can parse, else ConsoleAddressError naming the option."""
     if not isinstance(url, str):
-        raise ConsoleConfigError(f"{flag}: give a device URL such as udp://HOST:PORT, not {url!r}")
-    parse_url(url)
+        raise ConsoleAddressError(f"{flag}: give a device URL such as udp://HOST:PORT, not {url!r}")
+    try:
+        parse_url(url)
+    except AddressError as exc:
+        raise ConsoleAddressError(f"{flag}: {exc}") from None
     return url
 
 
@@ -387,6 +396,7 @@ __all__ = [
     "DEFAULT_PORT",
     "LINK_TIMEOUT_S",
     "CameraSource",
+    "ConsoleAddressError",
     "ConsoleConfig",
     "ConsoleConfigError",
     "ConsoleKeywords",
