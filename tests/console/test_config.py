@@ -160,3 +160,11 @@ def test_config_and_keywords_are_one_or_the_other() -> None:
         ConsoleServer(config=SimSource("C12"))  # type: ignore[arg-type]
     with pytest.raises(TypeError, match="unexpected keyword\\(s\\): sim"):
         ConsoleServer(sim="C12")  # type: ignore[call-arg]
+
+
+@pytest.mark.parametrize("port", ["70000", "-1", "http"])
+def test_the_cli_refuses_a_port_out_of_range_before_probing_it(port: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as caught:
+        build_parser().parse_args(["console", "--sim", "C12", "--port", port])
+    assert caught.value.code == 2
+    assert f"argument --port: '{port}': give a port from 0 to 65535 (0: any free port)" in capsys.readouterr().err

@@ -75,7 +75,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     p.add_argument(
         "--port",
-        type=int,
+        type=_port_arg,
         default=None,
         help=f"port to listen on (default {DEFAULT_PORT}, and a free one printed when that is taken, as `make demo` "
         "does; 0 = any free port); a --port given that is taken is an error",
@@ -143,6 +143,16 @@ def _fleet_source(args: argparse.Namespace) -> FleetSource:
         zenoh=tuple(args.zenoh),
         seed=args.seed,
     )
+
+
+def _port_arg(text: str) -> int:
+    """A listening port, 0..65535 (0: any free one): checked here, before the port is probed."""
+    from ..console.config import ServeOptions
+
+    try:
+        return ServeOptions(port=int(text)).port
+    except ValueError:  # not a number, or out of range (ConsoleConfigError)
+        raise argparse.ArgumentTypeError(f"{text!r}: give a port from 0 to 65535 (0: any free port)") from None
 
 
 def _fault_plan(text: str) -> object:
