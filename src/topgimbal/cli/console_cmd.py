@@ -1,14 +1,20 @@
-"""`topgimbal console`: the web console for one camera (or an in-process simulator)."""
+"""`topgimbal console`: the web console for one camera (or an in-process simulator, a watched
+proxy, several cameras). The flags become a `console.config.ConsoleConfig` (`build_config`):
+one source for the mode the flags name, `ServeOptions`, `LinkOptions`."""
 
 from __future__ import annotations
 
 import argparse
 import contextlib
 import sys
-from typing import Any
+from typing import TYPE_CHECKING
 
 from ..errors import TopGimbalError
 from .args import add_camera_subcommand, add_model_argument
+
+if TYPE_CHECKING:
+    from ..console import ConsoleServer
+    from ..console.config import ConsoleConfig, FleetSource, Source
 
 DEFAULT_PORT = 8080
 
@@ -69,7 +75,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     p.add_argument(
         "--port",
-        type=int,
+        type=_port_arg,
         default=None,
         help=f"port to listen on (default {DEFAULT_PORT}, and a free one printed when that is taken, as `make demo` "
         "does; 0 = any free port); a --port given that is taken is an error",
@@ -117,9 +123,9 @@ def _several(args: argparse.Namespace) -> bool:
     return bool(args.camera or args.cameras or args.zenoh or len(sims) > 1)
 
 
-def _multi_server(args: argparse.Namespace, page: dict[str, Any]) -> object:
-    """The ConsoleServer of several cameras (ValueError, a usage error, on bad input)."""
-    from ..console import ConsoleServer
+def _fleet_source(args: argparse.Namespace) -> FleetSource:
+    """The cameras of a console of several cameras (ValueError, a usage error, on bad input)."""
+    from ..console.config import FleetSource
     from ..fleet.specs import read_camera_file
 
     specs = list(args.camera) + (read_camera_file(args.cameras) if args.cameras else [])
@@ -131,13 +137,22 @@ def _multi_server(args: argparse.Namespace, page: dict[str, Any]) -> object:
             f"{', '.join(given)} cannot be combined with --camera, --cameras, several --sim or --zenoh: give every "
             "camera with --camera NAME=URL,MODEL, --sim MODEL or --zenoh ENDPOINT"
         )
-    return ConsoleServer(
-        cameras=[(c.name, c.url, c.model) for c in specs],
-        sims=list(args.sim or []),
-        zenoh=list(args.zenoh),
-        sim_seed=args.seed,
-        **page,
+    return FleetSource(
+        cameras=tuple((c.name, c.url, c.model) for c in specs),
+        sims=tuple(args.sim or ()),
+        zenoh=tuple(args.zenoh),
+        seed=args.seed,
     )
+
+
+def _port_arg(text: str) -> int:
+    """A listening port, 0..65535 (0: any free one): checked here, before the port is probed."""
+    from ..console.config import ServeOptions
+
+    try:
+        return ServeOptions(port=int(text)).port
+    except ValueError:  # not a number, or out of range (ConsoleConfigError)
+        raise argparse.ArgumentTypeError(f"{text!r}: give a port from 0 to 65535 (0: any free port)") from None
 
 
 def _fault_plan(text: str) -> object:
@@ -160,22 +175,28 @@ def choose_port(host: str, port: int) -> tuple[int, int | None]:
     return 0, port
 
 
-def build_server(args: argparse.Namespace) -> object:
-    """The ConsoleServer the arguments describe (raises ValueError on a bad combination)."""
-    from ..console import ConsoleServer
+def build_config(args: argparse.Namespace) -> ConsoleConfig:
+    """The ConsoleConfig the arguments describe (raises ValueError on a bad combination)."""
+    from ..console.config import ConsoleConfig, LinkOptions, ServeOptions
+
+    source = _source(args)  # first: which camera, then how the page is served
+    serve = ServeOptions(
+        host=args.host,
+        port=DEFAULT_PORT if args.port is None else args.port,
+        token=args.token,
+        allow_hosts=tuple(args.allow_host),
+    )
+    return ConsoleConfig(source, serve, LinkOptions(attitude_hz=args.attitude_hz))
+
+
+def _source(args: argparse.Namespace) -> Source:
+    """What the page shows, from the flags: one mode, the mixtures refused in the CLI's words."""
+    from ..console import config as cfg
 
     url = getattr(args, "url", None)
     model = getattr(args, "model", None)
-    # How the page is served, whatever it shows.
-    page: dict[str, Any] = {
-        "host": args.host,
-        "port": DEFAULT_PORT if args.port is None else args.port,
-        "token": args.token,
-        "allow_hosts": args.allow_host,
-        "attitude_hz": args.attitude_hz,
-    }
     if _several(args):
-        return _multi_server(args, page)
+        return _fleet_source(args)
     if isinstance(args.sim, list):  # one --sim: the single-camera console, as before
         args.sim = args.sim[0] if args.sim else None
     if args.proxy or args.listen or args.to:
@@ -183,23 +204,30 @@ def build_server(args: argparse.Namespace) -> object:
             raise ValueError("--listen and --to go with --proxy")
         if args.sim is not None:
             raise ValueError("--proxy watches the camera behind it: give --listen and --to, not --sim")
-        return ConsoleServer(proxy_listen=args.listen or "", proxy_to=args.to or "", model=model, **page)
+        return cfg.ProxySource(listen=args.listen or "", to=args.to or "", model=model or "")
     if args.video_url or args.video_port is not None:
         _video_options(args, model)
     if args.sim is None and url and not model:
         raise ValueError("give --model with --url (it picks the dialect), e.g. --model SIP")
     if args.sim is not None and url:
         raise ValueError("--sim runs its own simulator: give either --url or --sim")
-    return ConsoleServer(
-        url=None if args.sim else url,
-        model=model if not args.sim else args.sim,
-        sim_model=args.sim,
-        sim_seed=args.seed,
-        sim_faults=args.faults,
-        video_urls=video_urls(model, args.video_url),
-        video_port=args.video_port,
-        **page,
+    if args.sim is not None:
+        return cfg.SimSource(model=args.sim, seed=args.seed, faults=args.faults)
+    if not url:
+        raise cfg.ConsoleConfigError(cfg.NO_SOURCE)
+    if args.faults is not None:
+        raise cfg.ConsoleConfigError(cfg.FAULTS_NEED_SIM)
+    assert model  # refused above without it
+    return cfg.CameraSource(
+        url=url, model=model, video_urls=video_urls(model, args.video_url), video_port=args.video_port
     )
+
+
+def build_server(args: argparse.Namespace) -> ConsoleServer:
+    """The ConsoleServer the arguments describe (raises ValueError on a bad combination)."""
+    from ..console import ConsoleServer
+
+    return ConsoleServer.from_config(build_config(args))
 
 
 class VideoOptionError(ValueError):
@@ -207,7 +235,7 @@ class VideoOptionError(ValueError):
 
 
 def _video_options(args: argparse.Namespace, model: str | None) -> None:
-    from ..console.server import check_video_options
+    from ..console.config import check_video_options
 
     if args.sim is not None or args.proxy:
         raise VideoOptionError(
@@ -241,11 +269,9 @@ def video_urls(model: str | None, given: list[str]) -> dict[str, str]:
     return out
 
 
-async def _serve(server: object, seconds: float | None, taken: int | None = None) -> None:
-    from ..console import ConsoleServer
+async def _serve(server: ConsoleServer, seconds: float | None, taken: int | None = None) -> None:
     from .runtime import stop_on_signals, wait_stopped
 
-    assert isinstance(server, ConsoleServer)
     # Before start: SIGTERM (a service manager, `kill`) and Ctrl-C end the console the same orderly
     # way, even when it was started with SIGINT ignored (a background job of a script).
     stop = stop_on_signals()

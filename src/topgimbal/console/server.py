@@ -1,7 +1,9 @@
 """The console's aiohttp application and a server object that owns the camera link.
 
-`ConsoleServer(sim_model="C12")` (or `url="udp://...", model="SIP"`): `await server.start()` starts
-the simulator (if any), the client and the HTTP server; `server.page_url` is the URL to open;
+`ConsoleServer.from_config(ConsoleConfig(SimSource("C12")))` (or the keyword form,
+`ConsoleServer(sim_model="C12")`, `ConsoleServer(url="udp://...", model="SIP")`): `await
+server.start()` opens what the config's source names (`modes.py`: a simulator, a camera's client,
+a watched proxy, several cameras) and the HTTP server; `server.page_url` is the URL to open;
 `await server.stop()` undoes it all.
 """
 
@@ -11,7 +13,7 @@ import asyncio
 import contextlib
 import importlib.resources
 import logging
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -19,29 +21,39 @@ from aiohttp import web
 from aiohttp.http_exceptions import HttpProcessingError
 
 from ..client.jsonable import dumps
-from ..client.zenoh_session import check_endpoint
 from ..logtext import untrusted
 from ..video.webconsole import ConsoleVideo
 from ..video.webconsole import attach as attach_video
 from .auth import needs_token, resolve_token, token_middleware
-from .cameras import CameraSet, local_plan, open_local
+from .cameras import CameraSet
+from .config import (  # the constants and check_video_options: their old home was this module
+    DEFAULT_HOST,
+    DEFAULT_PORT,
+    LINK_TIMEOUT_S,
+    VIDEO_SCHEMES,
+    CameraSource,
+    ConsoleConfig,
+    ConsoleKeywords,
+    FleetSource,
+    ProxySource,
+    SimSource,
+    check_video_options,
+)
 from .guard import HostGuard, default_allowed_hosts
-from .hub import Hub
+from .modes import open_fleet, open_single
 from .pages import PageHub
 from .routes import CameraVideos, add_camera_routes, camera_handlers
 from .zenoh_cameras import ZenohCameras
 
 if TYPE_CHECKING:
+    from typing import Unpack
+
     from ..client import AsyncClient
-    from ..sim import FaultPlan, Simulator
+    from ..sim import Simulator
     from ..wire.proxy import Proxy
 
 log = logging.getLogger(__name__)
 
-DEFAULT_HOST = "127.0.0.1"
-DEFAULT_PORT = 8080
-VIDEO_SCHEMES = ("rtsp", "rtsps", "http", "https")  # what --video-url accepts (the relay opens them with FFmpeg)
-LINK_TIMEOUT_S = 3.0  # the client declares the camera's link lost after this long without a frame
 HUB_KEY = web.AppKey("hub", PageHub)
 ONE_CAMERA = "this console shows one camera (several: --camera, --cameras, --sim twice or --zenoh)"
 SINGLE_ROUTES = (
@@ -114,108 +126,49 @@ async def _no_video(request: web.Request) -> web.Response:
     return web.Response(status=204)
 
 
-def check_video_options(model: str | None, urls: dict[str, str], port: int | None) -> dict[str, str]:
-    """The operator's video URLs, checked: lenses the model has, URLs a player can open (ValueError)."""
-    from urllib.parse import urlsplit
-
-    from ..video.lens import streams_for
-
-    if port is not None and not 0 < port <= 65535:
-        raise ValueError(f"--video-port {port}: give a port from 1 to 65535")
-    if not urls:
-        return urls
-    lenses = [s.lens for s in streams_for(model or "C12")]
-    for lens, url in urls.items():
-        if lens not in lenses:
-            raise ValueError(f"--video-url: the {model} has no lens {lens!r}; its lenses: {', '.join(lenses)}")
-        parts = urlsplit(url)
-        if parts.scheme not in VIDEO_SCHEMES or not parts.hostname:
-            raise ValueError(
-                f"--video-url {lens}={url}: expected a stream URL such as rtsp://HOST:PORT/PATH "
-                f"(schemes: {', '.join(VIDEO_SCHEMES)})"
-            )
-    return urls
-
-
 def _dumps(obj: object) -> str:
     return dumps(obj)  # the SDK's one encoding: NaN is null, never an invalid literal
 
 
 class ConsoleServer:
-    """Simulator (optional) + client + HTTP server, started and stopped together; or, with
-    `proxy_listen` and `proxy_to`, a proxy in this process that the page watches (read-only)."""
+    """Simulator (optional) + client + HTTP server, started and stopped together; or a proxy in
+    this process that the page watches (read-only); or several cameras. What it runs is a
+    `ConsoleConfig` (config.py): `ConsoleServer.from_config(config)` / `ConsoleServer(config=...)`,
+    or the keyword form `ConsoleServer(url=..., model=...)`, which builds one
+    (`ConsoleConfig.from_keywords`: the same checks, the same messages)."""
 
-    def __init__(
-        self,
-        *,
-        url: str | None = None,
-        model: str | None = None,
-        sim_model: str | None = None,
-        sim_seed: int = 0,
-        sim_faults: FaultPlan | None = None,
-        proxy_listen: str | None = None,
-        proxy_to: str | None = None,
-        host: str = DEFAULT_HOST,
-        port: int = DEFAULT_PORT,
-        token: str | None = None,
-        allow_hosts: Sequence[str] = (),
-        attitude_hz: float = 50.0,
-        timeout_s: float = 1.0,
-        retries: int = 2,
-        link_timeout_s: float = LINK_TIMEOUT_S,
-        video_urls: Mapping[str, str] | None = None,
-        video_port: int | None = None,
-        cameras: Sequence[tuple[str, str, str]] = (),
-        sims: Sequence[str] = (),
-        zenoh: Sequence[str] = (),
-    ) -> None:
-        self.multi = bool(cameras or sims or zenoh)
-        if self.multi:  # several cameras (routes.py, cameras.py): checked before anything starts
-            single = {"--url": url, "--sim MODEL (alone)": sim_model, "--proxy": proxy_listen or proxy_to,
-                      "--faults": sim_faults, "--video-url": video_urls, "--video-port": video_port}  # fmt: skip
-            given = [k for k, v in single.items() if v]
-            if given:
-                raise ValueError(f"{', '.join(given)} cannot be combined with --camera, several --sim or --zenoh: "
-                                 "give every camera with --camera NAME=URL,MODEL (or --sim MODEL, --zenoh ENDPOINT)")  # fmt: skip
-            self.plan = local_plan(cameras, sims)
-            self.zenoh_endpoints = tuple(check_endpoint(e) for e in zenoh)
-            url, model = None, None
-            sim_model = None
-        watch = proxy_listen is not None or proxy_to is not None
-        if watch and not (proxy_listen and proxy_to):
-            raise ValueError("--proxy needs both --listen URL (where clients connect) and --to URL (the camera)")
-        if watch and (sim_model is not None or url):
-            raise ValueError("--proxy watches the camera behind it: give --listen and --to, not --url or --sim")
-        if watch and not model:
-            raise ValueError("give --model with --proxy: the page describes the camera's commands from its model")
-        if not watch and sim_model is None and not url and not self.multi:
-            raise ValueError("give the camera's --url (and --model), or --sim MODEL to run a simulator")
-        if sim_model is not None and url:
-            raise ValueError("--sim runs its own simulator: give either --url or --sim, not both")
-        if sim_faults is not None and sim_model is None:
-            raise ValueError("--faults applies to the simulator: use it with --sim")
-        if (video_urls or video_port is not None) and not url:
-            raise ValueError(
-                "--video-url and --video-port are for a camera given with --url (the simulator of --sim serves its "
-                "own video; a watched proxy has no video panel)"
-            )
-        self.video_urls = check_video_options(model, dict(video_urls or {}), video_port)
-        self.video_port = video_port
-        self.url = url
-        self.model = model or sim_model
-        self.sim_model = sim_model
-        self.sim_seed = sim_seed
-        self.sim_faults = sim_faults
-        self.proxy_listen = proxy_listen
-        self.proxy_to = proxy_to
-        self.host = host
-        self.port = port
-        self.token, self.token_generated = resolve_token(host, token)
-        self.allowed_hosts = default_allowed_hosts(host, allow_hosts)  # HostNameError on a bad name
-        self.attitude_hz = attitude_hz
-        self.timeout_s = timeout_s
-        self.retries = retries
-        self.link_timeout_s = link_timeout_s
+    def __init__(self, *, config: ConsoleConfig | None = None, **keywords: Unpack[ConsoleKeywords]) -> None:
+        if config is None:
+            config = ConsoleConfig.from_keywords(**keywords)
+        elif keywords:
+            raise TypeError(f"ConsoleServer: give config= or the keywords ({', '.join(sorted(keywords))}), not both")
+        elif not isinstance(config, ConsoleConfig):
+            raise TypeError(f"ConsoleServer: config= takes a ConsoleConfig, not {type(config).__name__}")
+        self.config = config
+        source, serve, link = config.source, config.serve, config.link
+        # The attributes the rest of the console (video/webconsole.py's VideoHost), the tests and
+        # users read: the config's values, and what start() opens.
+        self.multi = config.several
+        self.url: str | None = source.url if isinstance(source, CameraSource) else None
+        self.model: str | None = None if isinstance(source, FleetSource) else source.model
+        self.sim_model = source.model if isinstance(source, SimSource) else None
+        self.sim_seed = source.seed if isinstance(source, (SimSource, FleetSource)) else 0
+        self.sim_faults = source.faults if isinstance(source, SimSource) else None
+        self.proxy_listen = source.listen if isinstance(source, ProxySource) else None
+        self.proxy_to = source.to if isinstance(source, ProxySource) else None
+        self.video_urls: dict[str, str] = dict(source.video_urls) if isinstance(source, CameraSource) else {}
+        self.video_port = source.video_port if isinstance(source, CameraSource) else None
+        if isinstance(source, FleetSource):
+            self.plan = source.plan
+            self.zenoh_endpoints = source.zenoh
+        self.host = serve.host
+        self.port = serve.port
+        self.token, self.token_generated = resolve_token(serve.host, serve.token)
+        self.allowed_hosts = default_allowed_hosts(serve.host, serve.allow_hosts)
+        self.attitude_hz = link.attitude_hz
+        self.timeout_s = link.timeout_s
+        self.retries = link.retries
+        self.link_timeout_s = link.link_timeout_s
         self.sim: Simulator | None = None
         self.cam: AsyncClient | None = None  # the hub sees it as a CameraAPI
         self.proxy: Proxy | None = None
@@ -227,6 +180,11 @@ class ConsoleServer:
         self.cameras = CameraSet()  # several cameras: every camera (the single-camera forms: empty)
         self.videos = CameraVideos(self.cameras)
         self.zenoh: ZenohCameras | None = None
+
+    @classmethod
+    def from_config(cls, config: ConsoleConfig) -> ConsoleServer:
+        """The server of a checked `ConsoleConfig` (the CLI's way; `ConsoleServer(config=...)` too)."""
+        return cls(config=config)
 
     @property
     def base_url(self) -> str:
@@ -243,10 +201,22 @@ class ConsoleServer:
 
     async def start(self) -> None:
         try:
-            if self.multi:
-                await self._start_multi()
+            source = self.config.source
+            if isinstance(source, FleetSource):
+                self.zenoh = await open_fleet(source, self.config.link, self.cameras)
+                self.app = create_multi_app(
+                    self.cameras, self.videos, token=self.token, allowed_hosts=self.allowed_hosts
+                )
+                await self._serve_app()
                 return
-            self.hub = await (self._watch() if self.proxy_listen else self._connect())
+            opened = await open_single(source, self.config.link)
+            self.hub, self.url, self.cam, self.sim, self.proxy = (
+                opened.hub,
+                opened.url,
+                opened.cam,
+                opened.sim,
+                opened.proxy,
+            )
             await self.hub.start()
             self.app = create_app(self.hub, token=self.token, allowed_hosts=self.allowed_hosts)
             if self.cam is not None:  # video needs a camera to point; a watched proxy has none of ours
@@ -259,20 +229,6 @@ class ConsoleServer:
             await self.stop()
             raise
 
-    async def _start_multi(self) -> None:
-        for name, url, model in self.plan:
-            cam = await open_local(name, url, model, attitude_hz=self.attitude_hz, timeout_s=self.timeout_s,
-                                   retries=self.retries, link_timeout_s=self.link_timeout_s, sim_seed=self.sim_seed)  # fmt: skip
-            self.cameras.add(cam)
-        for cam in self.cameras:
-            await cam.hub.start()
-            cam.start_first_reads()
-        if self.zenoh_endpoints:
-            self.zenoh = ZenohCameras(self.cameras, self.zenoh_endpoints, attitude_hz=self.attitude_hz)
-            await self.zenoh.start()
-        self.app = create_multi_app(self.cameras, self.videos, token=self.token, allowed_hosts=self.allowed_hosts)
-        await self._serve_app()
-
     async def _serve_app(self) -> None:
         assert self.app is not None
         self._runner = web.AppRunner(
@@ -284,37 +240,6 @@ class ConsoleServer:
         server = getattr(site, "_server", None)
         sockets = getattr(server, "sockets", None) or []
         self.bound_port = sockets[0].getsockname()[1] if sockets else self.port
-
-    async def _connect(self) -> Hub:
-        from .. import client as client_mod
-
-        if self.sim_model is not None:
-            from ..sim import Simulator
-
-            self.sim = Simulator(model=self.sim_model, seed=self.sim_seed, faults=self.sim_faults)
-            await self.sim.start(udp=[("127.0.0.1", 0)])
-            self.url = self.sim.url
-        assert self.url is not None
-        self.cam = await client_mod.connect(
-            self.url,
-            model=self.model or "C12",
-            timeout_s=self.timeout_s,
-            retries=self.retries,
-            link_timeout_s=self.link_timeout_s,
-        )
-        return Hub(self.cam, url=self.url, attitude_hz=self.attitude_hz)
-
-    async def _watch(self) -> PageHub:
-        from ..protocol import get_model
-        from ..wire.proxy import Proxy
-        from .watch import WatchHub
-
-        assert self.proxy_listen and self.proxy_to and self.model
-        dialect, model = get_model(self.model)
-        self.proxy = Proxy(self.proxy_listen, self.proxy_to, model=self.model)
-        await self.proxy.start()
-        self.url = f"{self.proxy.url} -> {self.proxy.to.text}"
-        return WatchHub(self.proxy, dialect, model, attitude_hz=self.attitude_hz)
 
     async def stop(self) -> None:
         await self.videos.close()
@@ -386,4 +311,13 @@ class ConsoleServer:
             await asyncio.sleep(seconds)
 
 
-__all__ = ["DEFAULT_HOST", "DEFAULT_PORT", "ConsoleServer", "create_app", "static_dir"]
+__all__ = [
+    "DEFAULT_HOST",
+    "DEFAULT_PORT",
+    "LINK_TIMEOUT_S",
+    "VIDEO_SCHEMES",
+    "ConsoleServer",
+    "check_video_options",
+    "create_app",
+    "static_dir",
+]
