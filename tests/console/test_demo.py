@@ -14,6 +14,10 @@ import pytest
 
 pytestmark = pytest.mark.integration
 
+# How long the demo serves before it exits by itself: long enough that, on a loaded machine, the
+# test still fetches the page within it (3 s was not, once, with six workers on two cores).
+SERVE_S = 12
+
 
 def _run_and_fetch(cmd: list[str], seconds: float) -> tuple[str, dict[str, object], int]:
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -45,7 +49,7 @@ def _run_and_fetch(cmd: list[str], seconds: float) -> tuple[str, dict[str, objec
 
 def test_demo_prints_url_serves_and_exits() -> None:
     out, catalog, code = _run_and_fetch(
-        [sys.executable, "-m", "topgimbal.tools.demo", "--port", "0", "--seconds", "3"], 3
+        [sys.executable, "-m", "topgimbal.tools.demo", "--port", "0", "--seconds", str(SERVE_S)], SERVE_S
     )
     assert code == 0, out
     assert "simulated C12" in out
@@ -53,8 +57,19 @@ def test_demo_prints_url_serves_and_exits() -> None:
 
 
 def test_console_command_with_sim() -> None:
-    cmd = [sys.executable, "-m", "topgimbal.cli.main", "console", "--sim", "SIP", "--port", "0", "--seconds", "3"]
-    out, catalog, code = _run_and_fetch(cmd, 3)
+    cmd = [
+        sys.executable,
+        "-m",
+        "topgimbal.cli.main",
+        "console",
+        "--sim",
+        "SIP",
+        "--port",
+        "0",
+        "--seconds",
+        str(SERVE_S),
+    ]
+    out, catalog, code = _run_and_fetch(cmd, SERVE_S)
     assert code == 0, out
     assert catalog["model"]["name"] == "SIP"  # type: ignore[index]
     assert "open http://127.0.0.1:" in out
@@ -71,7 +86,7 @@ def test_demo_falls_back_to_a_free_port() -> None:
         taken = s.getsockname()[1]
         assert not port_free(taken)
         out, _, code = _run_and_fetch(
-            [sys.executable, "-m", "topgimbal.tools.demo", "--port", str(taken), "--seconds", "2"], 2
+            [sys.executable, "-m", "topgimbal.tools.demo", "--port", str(taken), "--seconds", str(SERVE_S)], SERVE_S
         )
     assert code == 0, out
     assert f"port {taken} is taken" in out
