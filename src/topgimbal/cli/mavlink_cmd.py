@@ -9,6 +9,7 @@ import sys
 from ..video.cli import add_video_port_argument
 from .args import add_camera_subcommand
 from .mavlink_multi import add_fleet_arguments, run_multi
+from .mavlink_status import add_status_arguments, serve_with_status
 
 GIMBAL_COMPIDS = (154, 171, 172, 173, 174, 175)
 CAMERA_COMPIDS = (100, 101, 102, 103, 104)
@@ -88,6 +89,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--no-request-streams", action="store_true",
                    help="do not ask the autopilot for GLOBAL_POSITION_INT and SYSTEM_TIME on this link "
                    "(photo positions and dates; see docs/mavlink.md)")  # fmt: skip
+    add_status_arguments(p)
     p.add_argument("-v", "--verbose", action="store_true", help="log every link and camera change")
     p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=run)
@@ -168,6 +170,7 @@ async def _detect(args: argparse.Namespace) -> str:
 def run(args: argparse.Namespace) -> int:
     import asyncio
 
+    from ..client.jsonable import dumps
     from ..mavlink import Bridge
     from .runtime import stop_on_signals, wait_stopped
 
@@ -182,18 +185,26 @@ def run(args: argparse.Namespace) -> int:
     async def main() -> None:
         bridge = Bridge(config)  # type: ignore[arg-type]
         await bridge.start()
-        addrs = ", ".join(
-            f"{link} ({a[0]}:{a[1]})" if a else str(link)
-            for link, a in zip(bridge.node.links, bridge.addresses, strict=True)
-        )
-        print(f"mavlink bridge: {config.url} ({config.model}) <-> {addrs}, system {config.sysid}, "  # type: ignore[attr-defined]
-              f"role {config.role}" + (", MAVLink 2 signing on" if config.signing_key else ""),  # type: ignore[attr-defined]
-              flush=True)  # type: ignore[attr-defined]  # fmt: skip
-        for cam in bridge.cameras:
-            print(f"camera {cam.comp.compid} definition: {cam.definition_uri}", flush=True)
+        c = bridge.config
+        if args.json:
+            links = [{"link": str(link), "address": f"{a[0]}:{a[1]}" if a else None}
+                     for link, a in zip(bridge.node.links, bridge.addresses, strict=True)]  # fmt: skip
+            print(dumps({"mavlink_bridge": c.url, "model": c.model, "links": links, "sysid": c.sysid, "role": c.role,
+                         "signing": c.signing_key is not None,
+                         "definitions": {str(cam.comp.compid): cam.definition_uri for cam in bridge.cameras}}),
+                  flush=True)  # fmt: skip
+        else:
+            addrs = ", ".join(
+                f"{link} ({a[0]}:{a[1]})" if a else str(link)
+                for link, a in zip(bridge.node.links, bridge.addresses, strict=True)
+            )
+            print(f"mavlink bridge: {c.url} ({c.model}) <-> {addrs}, system {c.sysid}, "
+                  f"role {c.role}" + (", MAVLink 2 signing on" if c.signing_key else ""), flush=True)  # fmt: skip
+            for cam in bridge.cameras:
+                print(f"camera {cam.comp.compid} definition: {cam.definition_uri}", flush=True)
         stop = stop_on_signals()
         try:
-            await wait_stopped(stop, args.seconds)
+            await serve_with_status([(f"{c.url} ({c.model})", bridge)], args, wait_stopped(stop, args.seconds))
         finally:
             await bridge.close()
 

@@ -13,6 +13,7 @@ import sys
 from dataclasses import dataclass, field
 from typing import Any
 
+from .mavlink_status import serve_with_status
 from .runtime import stop_on_signals, wait_stopped
 from .zenoh_cmd import camera_arg
 
@@ -108,6 +109,7 @@ def refused_with_cameras(args: argparse.Namespace) -> list[str]:
 
 
 def run_multi(args: argparse.Namespace) -> int:
+    from ..client.jsonable import dumps
     from ..mavlink.multi import MultiBridge
 
     if getattr(args, "url", None) and args.url != os.environ.get("TOPGIMBAL_URL"):
@@ -144,13 +146,22 @@ def run_multi(args: argparse.Namespace) -> int:
                           for link, a in zip(multi.node.links, multi.addresses, strict=True))  # fmt: skip
         parts = "; ".join(f"{a.name} ({a.model}): gimbal {a.gimbal_compid}, cameras "
                           f"{','.join(map(str, a.camera_compids)) or 'none'}" for a in multi.allocations)  # fmt: skip
-        print(f"mavlink bridge: {len(cameras)} cameras <-> {addrs}, system {args.sysid}: {parts}", flush=True)
-        for b, a in zip(multi.bridges, multi.allocations, strict=True):
-            for push in b.video_pushes:
-                print(f"{a.name} {push.name} video: RTP to {push.target_url}", flush=True)
+        if getattr(args, "json", False):
+            links = [{"link": str(link), "address": f"{a[0]}:{a[1]}" if a else None}
+                     for link, a in zip(multi.node.links, multi.addresses, strict=True)]  # fmt: skip
+            cams = [{"name": a.name, "url": a.url, "model": a.model, "gimbal": a.gimbal_compid,
+                     "cameras": a.camera_compids, "video_out": [p.target_url for p in b.video_pushes]}
+                    for b, a in zip(multi.bridges, multi.allocations, strict=True)]  # fmt: skip
+            print(dumps({"mavlink_bridge": cams, "links": links, "sysid": args.sysid}), flush=True)
+        else:
+            print(f"mavlink bridge: {len(cameras)} cameras <-> {addrs}, system {args.sysid}: {parts}", flush=True)
+            for b, a in zip(multi.bridges, multi.allocations, strict=True):
+                for push in b.video_pushes:
+                    print(f"{a.name} {push.name} video: RTP to {push.target_url}", flush=True)
         stop = stop_on_signals()
+        named = [(f"{a.name} ({a.model})", b) for b, a in zip(multi.bridges, multi.allocations, strict=True)]
         try:
-            await wait_stopped(stop, args.seconds)
+            await serve_with_status(named, args, wait_stopped(stop, args.seconds))
         finally:
             await multi.close()
 
