@@ -145,3 +145,28 @@ async def test_mavlink_keys_usage_errors_exit_2_before_opening_anything(extra: l
     out, err = await asyncio.wait_for(proc.communicate(), 60)
     assert proc.returncode == 2 and b"serving" not in out
     assert f"topgimbal zenoh: error: --mavlink-keys: {says}" in err.decode()
+
+
+def test_mavlink_keys_refuse_a_camera_that_is_another_model_at_start(
+    capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    """As `mavlink --camera`: a SIP declared as a C12 beside a real C12 stops the server at start
+    (exit 2, one line naming the camera, the model found and the form to give), before Zenoh is
+    opened or anything is sent to a camera."""
+    from topgimbal.cli.main import main
+    from topgimbal.sim import BackgroundSimulator
+
+    with (
+        BackgroundSimulator("C12", seed=51, listen={"udp": [("127.0.0.1", 0)]}) as c12,
+        BackgroundSimulator("SIP", seed=52, listen={"udp": [("127.0.0.1", 0)]}) as sip,
+    ):
+        code = main(["zenoh", "--listen", "tcp/127.0.0.1:1", "--mavlink-keys", "--camera", f"left={c12.url},C12",
+                     "--camera", f"right={sip.url},C12", "--seconds", "1"])  # fmt: skip
+        targets = sip.call(lambda s: (s.gimbal.axis("yaw").target, s.gimbal.axis("pitch").target))
+    out, err = capsys.readouterr()
+    assert code == 2 and "serving" not in out, (out, err)
+    assert len(err.splitlines()) == 1 and err.startswith("topgimbal zenoh: error: --mavlink-keys: "), err
+    assert f"camera right ({sip.url})" in err and "looks like a SIP, not a C12" in err, err
+    assert "pass right=URL,SIP" in err and "auto" not in err and "left" not in err, err
+    assert not [r for r in caplog.records if "looks like a SIP" in r.getMessage()]  # the error is the one line
+    assert targets == pytest.approx((0.0, 0.0))

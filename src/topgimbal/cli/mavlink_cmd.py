@@ -10,6 +10,7 @@ from ..video.cli import add_video_port_argument
 from .args import add_camera_subcommand
 from .mavlink_multi import add_fleet_arguments, run_multi
 from .mavlink_status import add_status_arguments, serve_with_status
+from .model_guard import refuse_wrong_model
 
 GIMBAL_COMPIDS = (154, 171, 172, 173, 174, 175)
 CAMERA_COMPIDS = (100, 101, 102, 103, 104)
@@ -146,21 +147,6 @@ def build_config(args: argparse.Namespace) -> object:
     return config
 
 
-async def _refuse_wrong_model(url: str, model: str, timeout_s: float) -> None:
-    """Before serving: a camera that answers and says it is another model than --model is refused
-    (ModelMismatchError, exit 2). One not there yet is served; the bridge's camera link refuses it
-    later if it turns out to be another model (mavlink/camera_link.py)."""
-    from ..client import connect
-    from ..errors import TransportError
-    from .device_cmds import _refuse_wrong_model as refuse
-
-    try:
-        async with connect(url, model=model, timeout_s=timeout_s, retries=0, host_feeds=False) as cam:
-            await refuse(cam)
-    except (TransportError, OSError):
-        return  # not there (yet): the bridge keeps trying
-
-
 async def _detect(args: argparse.Namespace) -> str:
     from .device_cmds import _detect as detect
 
@@ -180,7 +166,8 @@ def run(args: argparse.Namespace) -> int:
         args.model = asyncio.run(_detect(args))  # --model auto: what the camera says it is
     config = build_config(args)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
-    asyncio.run(_refuse_wrong_model(config.url, config.model, args.timeout))  # type: ignore[attr-defined]
+    # a camera that answers as another model than --model: refused (exit 2, nothing served)
+    asyncio.run(refuse_wrong_model(config.url, config.model, args.timeout))  # type: ignore[attr-defined]
 
     async def main() -> None:
         bridge = Bridge(config)  # type: ignore[arg-type]

@@ -156,6 +156,15 @@ def run(args: argparse.Namespace) -> int:
         except CotConfigError as exc:
             print(f"topgimbal zenoh: error: {exc}", file=sys.stderr)
             return 2
+    if args.mavlink_keys:  # as `mavlink --camera`: a camera that answers as another MODEL is not served
+        from ..errors import ModelMismatchError
+        from .model_guard import check_cameras
+
+        try:
+            asyncio.run(check_cameras(specs, args.timeout, auto=False))
+        except ModelMismatchError as exc:
+            print(f"topgimbal zenoh: error: --mavlink-keys: {exc}", file=sys.stderr)
+            return 2
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
     if args.cot and (not args.mavlink_keys or args.no_camera):
         # A sighting needs the vehicle's position and heading: only the MAVLink bridge hears them.
