@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import argparse
 import logging
-import sys
 
 from ..video.cli import add_video_port_argument
 from .args import add_camera_subcommand
 from .mavlink_multi import add_fleet_arguments, run_multi
-from .mavlink_status import add_status_arguments, serve_with_status
+from .mavlink_status import add_status_arguments, bound_links, links_text, serve_with_status
 from .model_guard import refuse_wrong_model
 
 GIMBAL_COMPIDS = (154, 171, 172, 173, 174, 175)
@@ -158,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
 
     from ..client.jsonable import dumps
     from ..mavlink import Bridge
-    from .runtime import stop_on_signals, wait_stopped
+    from .runtime import run_server, stop_on_signals, wait_stopped
 
     if args.camera:  # several cameras: one component set each on shared links (mavlink_multi.py)
         return run_multi(args)
@@ -173,19 +172,14 @@ def run(args: argparse.Namespace) -> int:
         bridge = Bridge(config)  # type: ignore[arg-type]
         await bridge.start()
         c = bridge.config
+        links = bound_links(bridge.node, bridge.addresses)
         if args.json:
-            links = [{"link": str(link), "address": f"{a[0]}:{a[1]}" if a else None}
-                     for link, a in zip(bridge.node.links, bridge.addresses, strict=True)]  # fmt: skip
             print(dumps({"mavlink_bridge": c.url, "model": c.model, "links": links, "sysid": c.sysid, "role": c.role,
                          "signing": c.signing_key is not None,
                          "definitions": {str(cam.comp.compid): cam.definition_uri for cam in bridge.cameras}}),
                   flush=True)  # fmt: skip
         else:
-            addrs = ", ".join(
-                f"{link} ({a[0]}:{a[1]})" if a else str(link)
-                for link, a in zip(bridge.node.links, bridge.addresses, strict=True)
-            )
-            print(f"mavlink bridge: {c.url} ({c.model}) <-> {addrs}, system {c.sysid}, "
+            print(f"mavlink bridge: {c.url} ({c.model}) <-> {links_text(links)}, system {c.sysid}, "
                   f"role {c.role}" + (", MAVLink 2 signing on" if c.signing_key else ""), flush=True)  # fmt: skip
             for cam in bridge.cameras:
                 print(f"camera {cam.comp.compid} definition: {cam.definition_uri}", flush=True)
@@ -195,8 +189,4 @@ def run(args: argparse.Namespace) -> int:
         finally:
             await bridge.close()
 
-    try:
-        asyncio.run(main())
-    except KeyboardInterrupt:
-        print("stopped", file=sys.stderr)
-    return 0
+    return run_server(main())

@@ -13,9 +13,9 @@ import sys
 from dataclasses import dataclass, field
 from typing import Any
 
-from .mavlink_status import serve_with_status
+from .mavlink_status import bound_links, links_text, serve_with_status
 from .model_guard import check_cameras
-from .runtime import stop_on_signals, wait_stopped
+from .runtime import run_server, stop_on_signals, wait_stopped
 from .zenoh_cmd import camera_arg
 
 CAMERA_FORM = "NAME=URL,MODEL|auto[,video-url=URL][,video-port=N][,video-out=[LENS=]udp://HOST:PORT]"
@@ -112,19 +112,17 @@ def run_multi(args: argparse.Namespace) -> int:
 
     async def main() -> None:
         await multi.start()
-        addrs = ", ".join(f"{link} ({a[0]}:{a[1]})" if a else str(link)
-                          for link, a in zip(multi.node.links, multi.addresses, strict=True))  # fmt: skip
-        parts = "; ".join(f"{a.name} ({a.model}): gimbal {a.gimbal_compid}, cameras "
-                          f"{','.join(map(str, a.camera_compids)) or 'none'}" for a in multi.allocations)  # fmt: skip
+        links = bound_links(multi.node, multi.addresses)
         if getattr(args, "json", False):
-            links = [{"link": str(link), "address": f"{a[0]}:{a[1]}" if a else None}
-                     for link, a in zip(multi.node.links, multi.addresses, strict=True)]  # fmt: skip
             cams = [{"name": a.name, "url": a.url, "model": a.model, "gimbal": a.gimbal_compid,
                      "cameras": a.camera_compids, "video_out": [p.target_url for p in b.video_pushes]}
                     for b, a in zip(multi.bridges, multi.allocations, strict=True)]  # fmt: skip
             print(dumps({"mavlink_bridge": cams, "links": links, "sysid": args.sysid}), flush=True)
         else:
-            print(f"mavlink bridge: {len(cameras)} cameras <-> {addrs}, system {args.sysid}: {parts}", flush=True)
+            parts = "; ".join(f"{a.name} ({a.model}): gimbal {a.gimbal_compid}, cameras "
+                              f"{','.join(map(str, a.camera_compids)) or 'none'}" for a in multi.allocations)  # fmt: skip
+            print(f"mavlink bridge: {len(cameras)} cameras <-> {links_text(links)}, system {args.sysid}: {parts}",
+                  flush=True)  # fmt: skip
             for b, a in zip(multi.bridges, multi.allocations, strict=True):
                 for push in b.video_pushes:
                     print(f"{a.name} {push.name} video: RTP to {push.target_url}", flush=True)
@@ -135,8 +133,4 @@ def run_multi(args: argparse.Namespace) -> int:
         finally:
             await multi.close()
 
-    try:
-        asyncio.run(main())
-    except KeyboardInterrupt:
-        print("stopped", file=sys.stderr)
-    return 0
+    return run_server(main())

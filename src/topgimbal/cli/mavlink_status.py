@@ -40,6 +40,16 @@ def add_status_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print the start and the --status lines as JSON, one a line")
 
 
+def bound_links(node: Any, addresses: Sequence[tuple[str, int] | None]) -> list[dict[str, str | None]]:
+    """Each MAVLink link as given and the address it got (port 0 resolved), for the start line."""
+    return [{"link": str(link), "address": f"{a[0]}:{a[1]}" if a else None}
+            for link, a in zip(node.links, addresses, strict=True)]  # fmt: skip
+
+
+def links_text(links: list[dict[str, str | None]]) -> str:
+    return ", ".join(f"{x['link']} ({x['address']})" if x["address"] else str(x["link"]) for x in links)
+
+
 def feed_line(feed: str, v: dict[str, Any]) -> str:
     """`position  GLOBAL_POSITION_INT from 1/1, 10.0 Hz, 0.05 s ago` or `time  none: why`."""
     if v.get("none"):

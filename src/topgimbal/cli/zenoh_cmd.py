@@ -9,7 +9,7 @@ import sys
 from typing import Any
 
 from ..errors import FieldValueError
-from .runtime import stop_on_signals, wait_stopped
+from .runtime import run_server, stop_on_signals, wait_stopped
 
 
 def camera_arg(text: str) -> object:
@@ -203,10 +203,7 @@ def run(args: argparse.Namespace) -> int:
     from ..fleet.server import DuplicateCameraError
 
     try:
-        asyncio.run(main())
-    except KeyboardInterrupt:
-        print("stopped", file=sys.stderr)
+        return run_server(main())
     except DuplicateCameraError as exc:
         print(f"topgimbal zenoh: error: {exc}", file=sys.stderr)
         return 2
-    return 0

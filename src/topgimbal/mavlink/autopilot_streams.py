@@ -16,8 +16,6 @@ HEARTBEAT of a real autopilot (not MAV_AUTOPILOT_INVALID): nothing is asked of a
 
 from __future__ import annotations
 
-import asyncio
-import contextlib
 import logging
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -25,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 from ..clock import MonotonicFn, monotonic
 from ._mav import mav_id, mavlink, msg_id
 from .feed_sources import FeedSources
+from .periodic import Periodic
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
@@ -82,7 +81,7 @@ class AutopilotStreams:
         self.requests_sent = 0
         self.sources = FeedSources()  # what each of the camera's feeds comes from, for the operator
         self._stale: set[str] = set()
-        self._task: asyncio.Task[None] | None = None
+        self._loop = Periodic(CHECK_S, self._check_now, name="asking the autopilot")
 
     def on_message(self, m: MAVLinkMessage) -> None:
         if m.get_srcSystem() != self.sysid or m.get_srcComponent() in self.own:
@@ -123,7 +122,7 @@ class AutopilotStreams:
     def feeds(self) -> dict[str, Any]:
         """Where each of the camera's feeds comes from now, or why it has none (feed_sources.py)."""
         src = f"{self.sysid}/{self.autopilot_compid}" if self.autopilot_compid is not None else None
-        return self.sources.report(self.clock(), autopilot=src, asked=self.times_asked, asking=self._task is not None)
+        return self.sources.report(self.clock(), autopilot=src, asked=self.times_asked, asking=self._loop.started)
 
     def check(self) -> None:
         """Ask for what is missing; warn once when a message that came goes stale."""
@@ -158,15 +157,10 @@ class AutopilotStreams:
                  "REQUEST_DATA_STREAM %d): %s", *target, w.name, w.hz, w.stream_id, w.what)  # fmt: skip
 
     def start(self) -> None:
-        self._task = asyncio.ensure_future(self._run())
+        self._loop.start()
 
     async def close(self) -> None:
-        if self._task is not None:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
+        await self._loop.close()
 
-    async def _run(self) -> None:
-        while True:
-            await asyncio.sleep(CHECK_S)
-            self.check()
+    async def _check_now(self) -> None:
+        self.check()
