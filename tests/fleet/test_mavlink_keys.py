@@ -170,3 +170,29 @@ def test_mavlink_keys_refuse_a_camera_that_is_another_model_at_start(
     assert "pass right=URL,SIP" in err and "auto" not in err and "left" not in err, err
     assert not [r for r in caplog.records if "looks like a SIP" in r.getMessage()]  # the error is the one line
     assert targets == pytest.approx((0.0, 0.0))
+
+
+def test_mavlink_keys_status_says_where_each_cameras_feeds_come_from(capsys: pytest.CaptureFixture[str]) -> None:
+    """`--status` as `mavlink --status`: per camera, each feed's source or why there is none (no
+    autopilot on mavlink/in here), every period and once at the stop."""
+    from topgimbal.cli.main import main
+    from topgimbal.sim import BackgroundSimulator
+
+    from .conftest import free_port
+
+    with BackgroundSimulator("C12", seed=53, listen={"udp": [("127.0.0.1", 0)]}) as c12:
+        code = main(["zenoh", "--listen", f"tcp/127.0.0.1:{free_port()}", "--mavlink-keys", "--camera",
+                     f"left={c12.url},C12", "--seconds", "1", "--status", "0.5"])  # fmt: skip
+    out = capsys.readouterr().out
+    assert code == 0, out
+    blocks = out.split("feeds of left (C12):\n")[1:]
+    assert blocks, out  # at least the one at the stop
+    for feed in ("position", "attitude", "heading", "time"):
+        assert f"  {feed:<9} none: " in blocks[-1] and "no autopilot heard on the MAVLink links" in blocks[-1], out
+
+
+def test_status_without_mavlink_keys_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
+    from topgimbal.cli.main import main
+
+    code = main(["zenoh", "--listen", "tcp/127.0.0.1:1", "--camera", "c1=udp://127.0.0.1:5001,C12", "--status", "1"])
+    assert code == 2 and "--status needs --mavlink-keys" in capsys.readouterr().err

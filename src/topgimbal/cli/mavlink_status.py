@@ -33,11 +33,13 @@ def status_seconds(text: str) -> float:
     return v
 
 
-def add_status_arguments(p: argparse.ArgumentParser) -> None:
+def add_status_arguments(p: argparse.ArgumentParser, *, json: bool = True, needs: str = "") -> None:
+    """--status (and --json unless `json` is False); `needs`: the option it goes with, for the help."""
     p.add_argument("--status", type=status_seconds, default=None, metavar="SECONDS",
-                   help="every SECONDS (and at the end) print where the camera's feeds come from: the position, "
+                   help=f"{needs}every SECONDS (and at the end) print where the camera's feeds come from: the position, "
                    "vehicle attitude, heading and time (autopilot message, system/component, rate, age, or why none)")  # fmt: skip
-    p.add_argument("--json", action="store_true", help="print the start and the --status lines as JSON, one a line")
+    if json:
+        p.add_argument("--json", action="store_true", help="print the start and the --status lines as JSON, one a line")
 
 
 def bound_links(node: Any, addresses: Sequence[tuple[str, int] | None]) -> list[dict[str, str | None]]:
