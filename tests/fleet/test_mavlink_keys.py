@@ -145,3 +145,54 @@ async def test_mavlink_keys_usage_errors_exit_2_before_opening_anything(extra: l
     out, err = await asyncio.wait_for(proc.communicate(), 60)
     assert proc.returncode == 2 and b"serving" not in out
     assert f"topgimbal zenoh: error: --mavlink-keys: {says}" in err.decode()
+
+
+def test_mavlink_keys_refuse_a_camera_that_is_another_model_at_start(
+    capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    """As `mavlink --camera`: a SIP declared as a C12 beside a real C12 stops the server at start
+    (exit 2, one line naming the camera, the model found and the form to give), before Zenoh is
+    opened or anything is sent to a camera."""
+    from topgimbal.cli.main import main
+    from topgimbal.sim import BackgroundSimulator
+
+    with (
+        BackgroundSimulator("C12", seed=51, listen={"udp": [("127.0.0.1", 0)]}) as c12,
+        BackgroundSimulator("SIP", seed=52, listen={"udp": [("127.0.0.1", 0)]}) as sip,
+    ):
+        code = main(["zenoh", "--listen", "tcp/127.0.0.1:1", "--mavlink-keys", "--camera", f"left={c12.url},C12",
+                     "--camera", f"right={sip.url},C12", "--seconds", "1"])  # fmt: skip
+        targets = sip.call(lambda s: (s.gimbal.axis("yaw").target, s.gimbal.axis("pitch").target))
+    out, err = capsys.readouterr()
+    assert code == 2 and "serving" not in out, (out, err)
+    assert len(err.splitlines()) == 1 and err.startswith("topgimbal zenoh: error: --mavlink-keys: "), err
+    assert f"camera right ({sip.url})" in err and "looks like a SIP, not a C12" in err, err
+    assert "pass right=URL,SIP" in err and "auto" not in err and "left" not in err, err
+    assert not [r for r in caplog.records if "looks like a SIP" in r.getMessage()]  # the error is the one line
+    assert targets == pytest.approx((0.0, 0.0))
+
+
+def test_mavlink_keys_status_says_where_each_cameras_feeds_come_from(capsys: pytest.CaptureFixture[str]) -> None:
+    """`--status` as `mavlink --status`: per camera, each feed's source or why there is none (no
+    autopilot on mavlink/in here), every period and once at the stop."""
+    from topgimbal.cli.main import main
+    from topgimbal.sim import BackgroundSimulator
+
+    from .conftest import free_port
+
+    with BackgroundSimulator("C12", seed=53, listen={"udp": [("127.0.0.1", 0)]}) as c12:
+        code = main(["zenoh", "--listen", f"tcp/127.0.0.1:{free_port()}", "--mavlink-keys", "--camera",
+                     f"left={c12.url},C12", "--seconds", "1", "--status", "0.5"])  # fmt: skip
+    out = capsys.readouterr().out
+    assert code == 0, out
+    blocks = out.split("feeds of left (C12):\n")[1:]
+    assert blocks, out  # at least the one at the stop
+    for feed in ("position", "attitude", "heading", "time"):
+        assert f"  {feed:<9} none: " in blocks[-1] and "no autopilot heard on the MAVLink links" in blocks[-1], out
+
+
+def test_status_without_mavlink_keys_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
+    from topgimbal.cli.main import main
+
+    code = main(["zenoh", "--listen", "tcp/127.0.0.1:1", "--camera", "c1=udp://127.0.0.1:5001,C12", "--status", "1"])
+    assert code == 2 and "--status needs --mavlink-keys" in capsys.readouterr().err

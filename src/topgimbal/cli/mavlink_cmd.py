@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import argparse
 import logging
-import sys
 
 from ..video.cli import add_video_port_argument
 from .args import add_camera_subcommand
 from .mavlink_multi import add_fleet_arguments, run_multi
+from .mavlink_status import add_status_arguments, bound_links, links_text, serve_with_status
+from .model_guard import refuse_wrong_model
 
 GIMBAL_COMPIDS = (154, 171, 172, 173, 174, 175)
 CAMERA_COMPIDS = (100, 101, 102, 103, 104)
@@ -88,6 +89,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--no-request-streams", action="store_true",
                    help="do not ask the autopilot for GLOBAL_POSITION_INT and SYSTEM_TIME on this link "
                    "(photo positions and dates; see docs/mavlink.md)")  # fmt: skip
+    add_status_arguments(p)
     p.add_argument("-v", "--verbose", action="store_true", help="log every link and camera change")
     p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=run)
@@ -144,21 +146,6 @@ def build_config(args: argparse.Namespace) -> object:
     return config
 
 
-async def _refuse_wrong_model(url: str, model: str, timeout_s: float) -> None:
-    """Before serving: a camera that answers and says it is another model than --model is refused
-    (ModelMismatchError, exit 2). One not there yet is served; the bridge's camera link refuses it
-    later if it turns out to be another model (mavlink/camera_link.py)."""
-    from ..client import connect
-    from ..errors import TransportError
-    from .device_cmds import _refuse_wrong_model as refuse
-
-    try:
-        async with connect(url, model=model, timeout_s=timeout_s, retries=0, host_feeds=False) as cam:
-            await refuse(cam)
-    except (TransportError, OSError):
-        return  # not there (yet): the bridge keeps trying
-
-
 async def _detect(args: argparse.Namespace) -> str:
     from .device_cmds import _detect as detect
 
@@ -168,8 +155,9 @@ async def _detect(args: argparse.Namespace) -> str:
 def run(args: argparse.Namespace) -> int:
     import asyncio
 
+    from ..client.jsonable import dumps
     from ..mavlink import Bridge
-    from .runtime import stop_on_signals, wait_stopped
+    from .runtime import run_server, stop_on_signals, wait_stopped
 
     if args.camera:  # several cameras: one component set each on shared links (mavlink_multi.py)
         return run_multi(args)
@@ -177,28 +165,28 @@ def run(args: argparse.Namespace) -> int:
         args.model = asyncio.run(_detect(args))  # --model auto: what the camera says it is
     config = build_config(args)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
-    asyncio.run(_refuse_wrong_model(config.url, config.model, args.timeout))  # type: ignore[attr-defined]
+    # a camera that answers as another model than --model: refused (exit 2, nothing served)
+    asyncio.run(refuse_wrong_model(config.url, config.model, args.timeout))  # type: ignore[attr-defined]
 
     async def main() -> None:
         bridge = Bridge(config)  # type: ignore[arg-type]
         await bridge.start()
-        addrs = ", ".join(
-            f"{link} ({a[0]}:{a[1]})" if a else str(link)
-            for link, a in zip(bridge.node.links, bridge.addresses, strict=True)
-        )
-        print(f"mavlink bridge: {config.url} ({config.model}) <-> {addrs}, system {config.sysid}, "  # type: ignore[attr-defined]
-              f"role {config.role}" + (", MAVLink 2 signing on" if config.signing_key else ""),  # type: ignore[attr-defined]
-              flush=True)  # type: ignore[attr-defined]  # fmt: skip
-        for cam in bridge.cameras:
-            print(f"camera {cam.comp.compid} definition: {cam.definition_uri}", flush=True)
+        c = bridge.config
+        links = bound_links(bridge.node, bridge.addresses)
+        if args.json:
+            print(dumps({"mavlink_bridge": c.url, "model": c.model, "links": links, "sysid": c.sysid, "role": c.role,
+                         "signing": c.signing_key is not None,
+                         "definitions": {str(cam.comp.compid): cam.definition_uri for cam in bridge.cameras}}),
+                  flush=True)  # fmt: skip
+        else:
+            print(f"mavlink bridge: {c.url} ({c.model}) <-> {links_text(links)}, system {c.sysid}, "
+                  f"role {c.role}" + (", MAVLink 2 signing on" if c.signing_key else ""), flush=True)  # fmt: skip
+            for cam in bridge.cameras:
+                print(f"camera {cam.comp.compid} definition: {cam.definition_uri}", flush=True)
         stop = stop_on_signals()
         try:
-            await wait_stopped(stop, args.seconds)
+            await serve_with_status([(f"{c.url} ({c.model})", bridge)], args, wait_stopped(stop, args.seconds))
         finally:
             await bridge.close()
 
-    try:
-        asyncio.run(main())
-    except KeyboardInterrupt:
-        print("stopped", file=sys.stderr)
-    return 0
+    return run_server(main())

@@ -13,7 +13,9 @@ import sys
 from dataclasses import dataclass, field
 from typing import Any
 
-from .runtime import stop_on_signals, wait_stopped
+from .mavlink_status import bound_links, links_text, serve_with_status
+from .model_guard import check_cameras
+from .runtime import run_server, stop_on_signals, wait_stopped
 from .zenoh_cmd import camera_arg
 
 CAMERA_FORM = "NAME=URL,MODEL|auto[,video-url=URL][,video-port=N][,video-out=[LENS=]udp://HOST:PORT]"
@@ -56,44 +58,11 @@ def camera_with_options(text: str) -> CameraWithOptions:
         elif repeatable:
             options.setdefault(name, []).insert(0, value)  # read from the end: keep the order given
     auto = len(parts) > 1 and parts[-1].strip().lower() == "auto"
-    if auto:  # MODEL=auto: asked of the camera at start (_check_models); the rest checked as usual
+    if auto:  # MODEL=auto: asked of the camera at start (model_guard.check_cameras); the rest checked as usual
         parts[-1] = "C12"
     spec = camera_arg(",".join(parts))
     model = "auto" if auto else spec.model  # type: ignore[attr-defined]
     return CameraWithOptions(spec.name, spec.url, model, options)  # type: ignore[attr-defined]
-
-
-async def _check_models(cameras: list[CameraWithOptions], timeout_s: float) -> None:
-    """Before serving, as the one-camera bridge does (mavlink_cmd.py), every camera at once: MODEL
-    auto becomes what the camera says it is; a camera that answers as another model than its MODEL
-    is refused (ModelMismatchError naming the camera: exit 2, nothing served). One not there yet is
-    served; its camera link refuses it later if it turns out to be another model."""
-    from ..client import connect
-    from ..errors import ModelMismatchError, TopGimbalError, TransportError
-    from .device_cmds import _refuse_wrong_model
-
-    async def one(cam: CameraWithOptions) -> None:
-        if cam.model == "auto":
-            from .device_cmds import _detect
-
-            try:
-                cam.model = await _detect(argparse.Namespace(url=cam.url, timeout=timeout_s))
-            except TopGimbalError as exc:
-                raise TopGimbalError(f"camera {cam.name} ({cam.url}): {exc}") from None
-            return
-        try:  # as mavlink_cmd._refuse_wrong_model (not imported: it imports this module)
-            async with connect(cam.url, model=cam.model, timeout_s=timeout_s, retries=0, host_feeds=False) as client:
-                await _refuse_wrong_model(client)
-        except (TransportError, OSError):
-            return  # not there (yet): the bridge keeps trying
-        except ModelMismatchError as exc:
-            said = str(exc).replace("--model ", f"{cam.name}=URL,")  # this form's way to name the model
-            raise ModelMismatchError(f"camera {cam.name} ({cam.url}): {said}", fits=exc.fits) from None
-
-    results = await asyncio.gather(*(one(c) for c in cameras), return_exceptions=True)
-    for r in results:  # the first refusal in the order given (the others were checked too)
-        if isinstance(r, BaseException):
-            raise r
 
 
 def add_fleet_arguments(p: argparse.ArgumentParser) -> None:
@@ -108,6 +77,7 @@ def refused_with_cameras(args: argparse.Namespace) -> list[str]:
 
 
 def run_multi(args: argparse.Namespace) -> int:
+    from ..client.jsonable import dumps
     from ..mavlink.multi import MultiBridge
 
     if getattr(args, "url", None) and args.url != os.environ.get("TOPGIMBAL_URL"):
@@ -119,7 +89,9 @@ def run_multi(args: argparse.Namespace) -> int:
               f"each camera takes {CAMERA_FORM}", file=sys.stderr)  # fmt: skip
         return 2
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
-    asyncio.run(_check_models(args.camera, args.timeout))  # MODEL auto resolved; a wrong MODEL refused
+    # MODEL auto resolved; a camera that answers as another MODEL refused (exit 2, nothing served)
+    for c, model in zip(args.camera, asyncio.run(check_cameras(args.camera, args.timeout, auto=True)), strict=True):
+        c.model = model
     cameras = [(c.name, c.url, c.model) for c in args.camera]
     common = dict(role=args.role, attitude_hz=args.attitude_hz, stream_hz=args.stream_hz, range_hz=args.range_hz,
                   timeout_s=args.timeout, silence_s=args.silence,
@@ -140,22 +112,25 @@ def run_multi(args: argparse.Namespace) -> int:
 
     async def main() -> None:
         await multi.start()
-        addrs = ", ".join(f"{link} ({a[0]}:{a[1]})" if a else str(link)
-                          for link, a in zip(multi.node.links, multi.addresses, strict=True))  # fmt: skip
-        parts = "; ".join(f"{a.name} ({a.model}): gimbal {a.gimbal_compid}, cameras "
-                          f"{','.join(map(str, a.camera_compids)) or 'none'}" for a in multi.allocations)  # fmt: skip
-        print(f"mavlink bridge: {len(cameras)} cameras <-> {addrs}, system {args.sysid}: {parts}", flush=True)
-        for b, a in zip(multi.bridges, multi.allocations, strict=True):
-            for push in b.video_pushes:
-                print(f"{a.name} {push.name} video: RTP to {push.target_url}", flush=True)
+        links = bound_links(multi.node, multi.addresses)
+        if getattr(args, "json", False):
+            cams = [{"name": a.name, "url": a.url, "model": a.model, "gimbal": a.gimbal_compid,
+                     "cameras": a.camera_compids, "video_out": [p.target_url for p in b.video_pushes]}
+                    for b, a in zip(multi.bridges, multi.allocations, strict=True)]  # fmt: skip
+            print(dumps({"mavlink_bridge": cams, "links": links, "sysid": args.sysid}), flush=True)
+        else:
+            parts = "; ".join(f"{a.name} ({a.model}): gimbal {a.gimbal_compid}, cameras "
+                              f"{','.join(map(str, a.camera_compids)) or 'none'}" for a in multi.allocations)  # fmt: skip
+            print(f"mavlink bridge: {len(cameras)} cameras <-> {links_text(links)}, system {args.sysid}: {parts}",
+                  flush=True)  # fmt: skip
+            for b, a in zip(multi.bridges, multi.allocations, strict=True):
+                for push in b.video_pushes:
+                    print(f"{a.name} {push.name} video: RTP to {push.target_url}", flush=True)
         stop = stop_on_signals()
+        named = [(f"{a.name} ({a.model})", b) for b, a in zip(multi.bridges, multi.allocations, strict=True)]
         try:
-            await wait_stopped(stop, args.seconds)
+            await serve_with_status(named, args, wait_stopped(stop, args.seconds))
         finally:
             await multi.close()
 
-    try:
-        asyncio.run(main())
-    except KeyboardInterrupt:
-        print("stopped", file=sys.stderr)
-    return 0
+    return run_server(main())

@@ -5,6 +5,9 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import signal
+import sys
+from collections.abc import Coroutine
+from typing import Any
 
 
 def stop_on_signals() -> asyncio.Event:
@@ -25,3 +28,13 @@ async def wait_stopped(stop: asyncio.Event, seconds: float | None = None) -> Non
         return
     with contextlib.suppress(asyncio.TimeoutError):
         await asyncio.wait_for(stop.wait(), seconds)
+
+
+def run_server(main: Coroutine[Any, Any, None]) -> int:
+    """Run a server command's `main` to its end: 0, also after a Ctrl-C that came before its
+    signal handlers were installed (then "stopped" on stderr, not a traceback)."""
+    try:
+        asyncio.run(main)
+    except KeyboardInterrupt:
+        print("stopped", file=sys.stderr)
+    return 0

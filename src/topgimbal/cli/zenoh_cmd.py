@@ -9,7 +9,8 @@ import sys
 from typing import Any
 
 from ..errors import FieldValueError
-from .runtime import stop_on_signals, wait_stopped
+from .mavlink_status import add_status_arguments, serve_with_status
+from .runtime import run_server, stop_on_signals, wait_stopped
 
 
 def camera_arg(text: str) -> object:
@@ -111,6 +112,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
                    "off by default: they change the camera's address, persistent settings or send raw frames)")  # fmt: skip
     p.add_argument("--insecure", action="store_true",
                    help="serve on endpoints beyond loopback without Zenoh access control (the log repeats it)")  # fmt: skip
+    add_status_arguments(p, json=False, needs="with --mavlink-keys: ")
     p.add_argument("-v", "--verbose", action="store_true", help="log link changes and refused calls")
     p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=run)
@@ -143,6 +145,10 @@ def run(args: argparse.Namespace) -> int:
     except (AccessConfigError, FieldValueError) as exc:
         print(f"topgimbal zenoh: error: {exc}", file=sys.stderr)
         return 2
+    if args.status is not None and not args.mavlink_keys:
+        print("topgimbal zenoh: error: --status needs --mavlink-keys (the feeds come from the MAVLink bridge)",
+              file=sys.stderr)  # fmt: skip
+        return 2
     if args.mavlink_keys:
         problem = _check_mavlink(specs, args.sysid, not args.no_camera, not args.no_thermal)
         if problem:
@@ -155,6 +161,15 @@ def run(args: argparse.Namespace) -> int:
             parse_target(args.cot)
         except CotConfigError as exc:
             print(f"topgimbal zenoh: error: {exc}", file=sys.stderr)
+            return 2
+    if args.mavlink_keys:  # as `mavlink --camera`: a camera that answers as another MODEL is not served
+        from ..errors import ModelMismatchError
+        from .model_guard import check_cameras
+
+        try:
+            asyncio.run(check_cameras(specs, args.timeout, auto=False))
+        except ModelMismatchError as exc:
+            print(f"topgimbal zenoh: error: --mavlink-keys: {exc}", file=sys.stderr)
             return 2
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
     if args.cot and (not args.mavlink_keys or args.no_camera):
@@ -185,7 +200,10 @@ def run(args: argparse.Namespace) -> int:
                                 f"{','.join(map(str, a.camera_compids)) or 'none'}" for a in bridge.allocations)  # fmt: skip
                 print(f"zenoh: MAVLink keys mavlink/{args.sysid}/COMP/MSG, commands from mavlink/in: {ids}", flush=True)
             stop = stop_on_signals()
-            await wait_stopped(stop, args.seconds)
+            named = [] if bridge is None else [
+                (f"{a.name} ({a.model})", b) for b, a in zip(bridge.bridges, bridge.allocations, strict=True)
+            ]  # fmt: skip
+            await serve_with_status(named, args, wait_stopped(stop, args.seconds))
         finally:
             if bridge is not None:
                 await bridge.close()
@@ -194,10 +212,7 @@ def run(args: argparse.Namespace) -> int:
     from ..fleet.server import DuplicateCameraError
 
     try:
-        asyncio.run(main())
-    except KeyboardInterrupt:
-        print("stopped", file=sys.stderr)
+        return run_server(main())
     except DuplicateCameraError as exc:
         print(f"topgimbal zenoh: error: {exc}", file=sys.stderr)
         return 2
-    return 0

@@ -8,21 +8,22 @@ staleness, the bridge sends MAV_CMD_SET_MESSAGE_INTERVAL (MAVLink's way; ArduPil
 to the link it came on) and REQUEST_DATA_STREAM for its stream group (what older firmware and
 ArduPilot's SRn/MAVn_ rates answer), at most once per RETRY_S: bounded, and a log line each time.
 It also says what the camera is fed: a line when a message is first heard, when it goes stale
-(a warning) and when it comes back; `status()` gives the source and age of each.
+(a warning) and when it comes back; `status()` gives the source and age of each, `feeds()` where
+each of the camera's feeds (position, attitude, heading, time) comes from (feed_sources.py).
 
 The autopilot is the system's component that sends AUTOPILOT_STATE_FOR_GIMBAL_DEVICE, or a
 HEARTBEAT of a real autopilot (not MAV_AUTOPILOT_INVALID): nothing is asked of a ground station."""
 
 from __future__ import annotations
 
-import asyncio
-import contextlib
 import logging
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from ..clock import MonotonicFn, monotonic
 from ._mav import mav_id, mavlink, msg_id
+from .feed_sources import FeedSources
+from .periodic import Periodic
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
@@ -76,14 +77,17 @@ class AutopilotStreams:
         self.autopilot_compid: int | None = None
         self.heard: dict[str, float] = {}  # message name -> when last heard from the autopilot
         self.asked: dict[str, float] = {}  # message name -> when last asked for
+        self.times_asked: dict[str, int] = {}  # message name -> how many times asked for
         self.requests_sent = 0
+        self.sources = FeedSources()  # what each of the camera's feeds comes from, for the operator
         self._stale: set[str] = set()
-        self._task: asyncio.Task[None] | None = None
+        self._loop = Periodic(CHECK_S, self._check_now, name="asking the autopilot")
 
     def on_message(self, m: MAVLinkMessage) -> None:
         if m.get_srcSystem() != self.sysid or m.get_srcComponent() in self.own:
             return
         kind = m.get_type()
+        self.sources.on_message(m, self.clock())
         if self.autopilot_compid is None and (
             kind == "AUTOPILOT_STATE_FOR_GIMBAL_DEVICE"
             or (kind == "HEARTBEAT" and m.autopilot != MAV_AUTOPILOT_INVALID)
@@ -115,6 +119,11 @@ class AutopilotStreams:
             }
         return out
 
+    def feeds(self) -> dict[str, Any]:
+        """Where each of the camera's feeds comes from now, or why it has none (feed_sources.py)."""
+        src = f"{self.sysid}/{self.autopilot_compid}" if self.autopilot_compid is not None else None
+        return self.sources.report(self.clock(), autopilot=src, asked=self.times_asked, asking=self._loop.started)
+
     def check(self) -> None:
         """Ask for what is missing; warn once when a message that came goes stale."""
         if self.autopilot_compid is None:
@@ -133,6 +142,7 @@ class AutopilotStreams:
             if asked is not None and now - asked < RETRY_S:
                 continue
             self.asked[w.name] = now
+            self.times_asked[w.name] = self.times_asked.get(w.name, 0) + 1
             self._ask(w)
 
     def _ask(self, w: Wanted) -> None:
@@ -147,15 +157,10 @@ class AutopilotStreams:
                  "REQUEST_DATA_STREAM %d): %s", *target, w.name, w.hz, w.stream_id, w.what)  # fmt: skip
 
     def start(self) -> None:
-        self._task = asyncio.ensure_future(self._run())
+        self._loop.start()
 
     async def close(self) -> None:
-        if self._task is not None:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
+        await self._loop.close()
 
-    async def _run(self) -> None:
-        while True:
-            await asyncio.sleep(CHECK_S)
-            self.check()
+    async def _check_now(self) -> None:
+        self.check()

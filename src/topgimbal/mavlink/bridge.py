@@ -326,10 +326,12 @@ class Bridge:
 
     def info(self) -> dict[str, Any]:
         """What the camera is fed and from where: each autopilot message the photos need (source,
-        age in seconds, stale, asked for) and what the camera link feeds the camera now."""
+        age in seconds, stale, asked for), where each feed comes from (position, attitude, heading,
+        time: message, source, rate, age, or why none) and what the camera link feeds the camera now."""
         client = self.cam.client
         return {
             "autopilot": self.streams.status(),
+            "feeds": self.streams.feeds(),
             "camera_feeds": client.feeds.summary() if client is not None else "no camera link",
             "reboots_noticed": self.reboots.reboots,
         }

@@ -14,8 +14,6 @@ without a clock keeps counting from 1970, the others keep theirs)."""
 
 from __future__ import annotations
 
-import asyncio
-import contextlib
 import dataclasses
 import datetime
 import logging
@@ -28,6 +26,7 @@ from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..protocol import get_model
 from ..video.lens import photo_names
+from .periodic import Periodic
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
@@ -90,13 +89,21 @@ class AutopilotState:
     def time_age_s(self) -> float | None:
         return None if self._utc is None else monotonic() - self._utc[1]
 
+    def fix_at(self, t: float) -> Fix | None:
+        """The vehicle's position at `t` (vehicle.Vehicles.position_at) as the camera's feeds take it:
+        None without one, at 0, 0 (an autopilot before its first fix) or out of range (numbers from
+        the network)."""
+        f = self.vehicles.position_at(t)
+        if f is None or (f.position.lat_deg == 0 and f.position.lon_deg == 0):
+            return None
+        try:
+            return Fix(f.position.lat_deg, f.position.lon_deg, f.position.alt_m, self.vehicles.yaw_deg)
+        except ValueError:
+            return None
+
     def sample(self) -> FeedSample:
         """What the autopilot says now (a fix only when it is fresh and not 0, 0)."""
-        f = self.vehicles.position_at(monotonic())  # carried forward to now at its velocity
-        fix = None
-        if f is not None and not (f.position.lat_deg == 0 and f.position.lon_deg == 0):
-            with contextlib.suppress(ValueError):  # out-of-range numbers from the network: no fix
-                fix = Fix(f.position.lat_deg, f.position.lon_deg, f.position.alt_m, self.vehicles.yaw_deg)
+        fix = self.fix_at(monotonic())  # carried forward to now at its velocity
         utc = None
         if self._utc is not None and self.utc_new and monotonic() - self._utc[1] <= TIME_STALE_S:
             utc = self._utc[0] + datetime.timedelta(seconds=monotonic() - self._utc[1])
@@ -136,7 +143,7 @@ class CameraFeed:
         self.autopilot = AutopilotState(vehicles, sysid, own_compids)
         self.on_message = self.autopilot.on_message
         self._client: object = None  # the client last fed (a reconnect makes a new one: time again)
-        self._task: asyncio.Task[None] | None = None
+        self._loop = Periodic(PERIOD_S, self._feed_once, name="camera feed")
         self.samples = 0
         self.state = "waiting for the autopilot"
         self._photo_asked: float | None = None  # when a position was pushed for a photo not yet taken
@@ -160,13 +167,9 @@ class CameraFeed:
             return
         now = monotonic()
         lead_s = (len(idents) + 1) * client.behaviour.min_gap_s + SHUTTER_LATENCY_S
-        f = self.autopilot.vehicles.position_at(now + lead_s)
-        if f is None or (f.position.lat_deg == 0 and f.position.lon_deg == 0):
+        fix = self.autopilot.fix_at(now + lead_s)
+        if fix is None:
             return
-        try:
-            fix = Fix(f.position.lat_deg, f.position.lon_deg, f.position.alt_m, self.autopilot.vehicles.yaw_deg)
-        except ValueError:
-            return  # out-of-range numbers from the network: no fix
         feeds.position(fix)
         feeds.send_now()
         self._photo_asked = now
@@ -176,34 +179,29 @@ class CameraFeed:
         self._photo_asked = None
 
     def start(self) -> None:
-        self._task = asyncio.ensure_future(self._run())
+        self._loop.start()
 
     async def close(self) -> None:
-        if self._task is not None:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
+        await self._loop.close()
 
-    async def _run(self) -> None:
-        while True:
-            await asyncio.sleep(PERIOD_S)
-            client = self.cam.client
-            if client is None or not client.connected:
-                continue
-            if client is not self._client:  # a new connection: its feeds know nothing yet
-                self._client = client
-                self.autopilot.utc_new = self.autopilot.has_time
-            sample = self.sample()
-            if self._photo_asked is not None and monotonic() - self._photo_asked <= MAX_SHUTTER_LEAD_S:
-                # a photo is on its way with the position pushed for its shutter: keep that one until
-                # the shutter (a periodic position frame in between would be what the camera tags)
-                sample = dataclasses.replace(sample, fix=client.feeds.fix)
-            try:
-                await apply_sample(client, sample)
-            except TopGimbalError as exc:
-                log.info("camera feed: %s", exc)
-                continue
-            if sample.time_utc is not None:
-                self.autopilot.utc_new = False
-            self.samples += 1
-            self.state = client.feeds.summary()
+    async def _feed_once(self) -> None:
+        client = self.cam.client
+        if client is None or not client.connected:
+            return
+        if client is not self._client:  # a new connection: its feeds know nothing yet
+            self._client = client
+            self.autopilot.utc_new = self.autopilot.has_time
+        sample = self.sample()
+        if self._photo_asked is not None and monotonic() - self._photo_asked <= MAX_SHUTTER_LEAD_S:
+            # a photo is on its way with the position pushed for its shutter: keep that one until
+            # the shutter (a periodic position frame in between would be what the camera tags)
+            sample = dataclasses.replace(sample, fix=client.feeds.fix)
+        try:
+            await apply_sample(client, sample)
+        except TopGimbalError as exc:
+            log.info("camera feed: %s", exc)
+            return
+        if sample.time_utc is not None:
+            self.autopilot.utc_new = False
+        self.samples += 1
+        self.state = client.feeds.summary()

@@ -7,25 +7,33 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from ..geo import CORNERS, Attitude, Geodetic, Pointing, Terrain, View
 from ..geo import Fix as GeoFix
 from ..geo import locate as geo_locate
 from ..video.lens import hfov_at, vfov_for
 from ._mav import mavlink
-from .camera_link import CameraLink
+from .camera_link import AttitudeSample, CameraLink
 from .commands import Command, rejected
 from .cot import Sighting
 from .node import Component
 from .quaternion import from_euler_deg
-from .vehicle import Vehicles
+from .vehicle import Fix, Vehicles
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
 
 log = logging.getLogger("topgimbal.mavlink")
 INT32_MAX = 2**31 - 1
+
+
+class Pose(NamedTuple):
+    """What placing the picture on the ground needs, all heard lately."""
+
+    fix: Fix  # the vehicle's
+    attitude: AttitudeSample  # the gimbal's: pitch earth-frame (stabilised), yaw relative to the vehicle
+    vehicle_yaw_deg: float
 
 
 class CameraView:
@@ -67,16 +75,22 @@ class CameraView:
             self.comp.node.time_boot_ms(), lat_c, lon_c, alt_c, lat_i, lon_i, alt_i, list(q), hfov, vfov, 0
         )
 
+    def pose(self) -> Pose | None:
+        """The vehicle's fresh fix and heading and the camera's attitude; None without any of them."""
+        fix, att, vyaw = self.vehicles.fix(), self.cam.attitude, self.vehicles.yaw_deg
+        if fix is None or att is None or vyaw is None:
+            return None
+        return Pose(fix, att, vyaw)
+
     def locate(self, x: float = 0.0, y: float = 0.0) -> GeoFix | None:
         """Where the picture point (x, y) (-1..1 from left to right, top to bottom; (0, 0) the
         centre) lands: on the --terrain DEM when there is one, else flat ground at the home
         altitude; None without a fresh vehicle fix and heading, the camera's attitude, or a hit.
         The gimbal's pitch is earth-frame (stabilised), its yaw relative to the vehicle's heading."""
-        fix = self.vehicles.fix()
-        att = self.cam.attitude
-        vyaw = self.vehicles.yaw_deg
-        if fix is None or att is None or vyaw is None:
+        pose = self.pose()
+        if pose is None:
             return None
+        fix, att, vyaw = pose
         hfov, vfov = self.fov_deg()
         if math.isnan(hfov):
             hfov, vfov = 60.0, 34.0  # no stream for this lens: only the centre is meaningful
@@ -92,11 +106,10 @@ class CameraView:
 
     def sighting(self, video_url: str | None = None) -> Sighting | None:
         """What Cursor-on-Target says now (cot.py): None without a fix, heading or attitude."""
-        fix = self.vehicles.fix()
-        att = self.cam.attitude
-        vyaw = self.vehicles.yaw_deg
-        if fix is None or att is None or vyaw is None:
+        pose = self.pose()
+        if pose is None:
             return None
+        fix, att, vyaw = pose
         hfov, vfov = self.fov_deg()
         corners = [self.locate(x, y) for x, y in CORNERS] if not math.isnan(hfov) else []
         p = fix.position
