@@ -52,15 +52,21 @@ class Words:
     evicted: str = "{name}: {count} peers (the limit): forgetting the least recently heard, {peer} ({age_s:.1f} s ago)"
 
 
-@dataclass(frozen=True)
 class Gone(Generic[K, V]):
-    """A peer that left the table, why, and when it was last heard. (A dataclass: a generic
-    NamedTuple needs Python 3.11.)"""
+    """A peer that left the table, why, and when it was last heard. (A plain class with slots: a
+    frozen dataclass costs a microsecond to build, on the path of a flood of new peers, and a
+    generic NamedTuple needs Python 3.11.)"""
 
-    key: K
-    value: V
-    why: str
-    heard_s: float
+    __slots__ = ("heard_s", "key", "value", "why")
+
+    def __init__(self, key: K, value: V, why: str, heard_s: float) -> None:
+        self.key = key
+        self.value = value
+        self.why = why
+        self.heard_s = heard_s
+
+    def __repr__(self) -> str:
+        return f"Gone({self.key!r}, {self.why}, heard at {self.heard_s})"
 
 
 class _Slot(Generic[V]):
@@ -183,10 +189,9 @@ class PeerTable(Mapping[K, V], Generic[K, V]):
             self.refused += 1
             self._log("refused", self.words.refused, newcomer, None, now)
             return False
-        oldest = self.oldest()
-        assert oldest is not None  # full, and cap >= 1
-        self._log("evicted", self.words.evicted, newcomer, oldest, now)
-        self._remove(oldest.key, EVICTED)
+        key, slot = next(iter(self._slots.items()))  # the least recently heard (full, and cap >= 1)
+        self._log("evicted", self.words.evicted, newcomer, (key, slot.heard), now)
+        self._remove(key, EVICTED)
         return True
 
     def admit(self, key: K, value: V, now: float | None = None) -> bool:
@@ -239,7 +244,7 @@ class PeerTable(Mapping[K, V], Generic[K, V]):
             self.on_gone(gone)
         return gone
 
-    def _log(self, kind: str, template: str, newcomer: K, oldest: Gone[K, V] | None, now: float) -> None:
+    def _log(self, kind: str, template: str, newcomer: K, oldest: tuple[K, float] | None, now: float) -> None:
         throttle = self.throttle
         if throttle is None:
             return
@@ -250,7 +255,7 @@ class PeerTable(Mapping[K, V], Generic[K, V]):
             "name": self.name, "count": len(self._slots), "cap": self.cap, "newcomer": self.describe(newcomer),
         }  # fmt: skip
         if oldest is not None:
-            fields |= {"peer": self.describe(oldest.key), "age_s": now - oldest.heard_s}
+            fields |= {"peer": self.describe(oldest[0]), "age_s": now - oldest[1]}
         line = template.format(**fields)
         if left_out:
             line += throttle.suffix.format(left_out)
