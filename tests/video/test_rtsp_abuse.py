@@ -286,17 +286,25 @@ async def test_a_playing_client_that_keeps_talking_is_not_closed(server: RtspSer
     try:
         sid = await c.play_tcp()
         conn = next(iter(server.connections))
-        conn.last_heard -= rtsp.IDLE_CLOSE_S + 1  # long quiet ...
-        assert (await c.ask("GET_PARAMETER", Session=sid))[0] == 200  # ... then a keep-alive
-        assert server.reap() == 0
+        played = server.connections.heard_at(conn)
+        assert played is not None
+        await asyncio.sleep(0.01)  # the clock moves past the PLAY
+        before = time.monotonic()
+        assert before > played
+        assert (await c.ask("GET_PARAMETER", Session=sid))[0] == 200  # a keep-alive ...
+        # ... renews the connection: a reaper that comes IDLE_CLOSE_S after it started leaves it
+        # (heard at PLAY only, it would be closed: `before` is later than that).
+        assert server.reap(before + rtsp.IDLE_CLOSE_S) == 0
+        await asyncio.sleep(0.01)
+        before = time.monotonic()
         c.writer.write(b"$\x01\x00\x04abcd")  # interleaved RTCP counts as well
         await c.writer.drain()
-        conn.last_heard -= rtsp.IDLE_CLOSE_S + 1
-        for _ in range(100):
-            if time.monotonic() - conn.last_heard < rtsp.IDLE_CLOSE_S:
+        for _ in range(1000):
+            heard = server.connections.heard_at(conn)
+            if heard is not None and heard >= before:
                 break
             await asyncio.sleep(0.01)
-        assert server.reap() == 0
+        assert server.reap(before + rtsp.IDLE_CLOSE_S) == 0
         assert (await c.ask("OPTIONS"))[0] == 200
     finally:
         c.close()

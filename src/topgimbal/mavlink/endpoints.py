@@ -21,9 +21,9 @@ from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from typing import Any
 
-from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..logthrottle import ThrottledLog
+from ..peers import EXPIRED, REFUSE, Gone, PeerTable, Words
 
 log = logging.getLogger("topgimbal.mavlink")
 
@@ -33,6 +33,8 @@ MAX_WRITE_BUFFER = 256 * 1024
 # tcpin with a signing key: bytes a connection may send with nothing signed among them before it is
 # closed (a MAVLink 2 signed frame is at most 280 bytes; a few unsigned heartbeats pass under it)
 MAX_UNTRUSTED_BYTES = 4096
+# The peer table's refusal line (peers.py; throttled, one per 10 s, the next one counting the rest).
+WORDS = Words(refused="{name}: already {cap} peers (the limit); ignoring {newcomer}")
 RECONNECT_MIN_S = 0.5
 RECONNECT_MAX_S = 5.0
 DEFAULT_BAUD = 115200
@@ -106,12 +108,34 @@ class Link(abc.ABC):
         self.bytes_in = 0
         self.bytes_out = 0
         self.dropped_out = 0
-        self.refused_peers = 0
+        self.untrusted_closed = 0  # tcpin with a signing key: connections closed for sending nothing signed
         # Set by a node with a signing key: a listening link then serves only senders whose bytes
         # it accepted (udpin: no peer place, tcpin: no telemetry, closed after MAX_UNTRUSTED_BYTES).
         self.needs_trust = False
         self._closed = False
         self._refusal_log = ThrottledLog(log, 10.0)  # a peer flood: one line per 10 s
+        # The shared peer table (peers.py): at most max_peers, a newcomer refused at the cap; on a
+        # listening link one silent for PEER_TIMEOUT_S gives its place back (udpin: forgotten,
+        # tcpin: closed). Values: udpin the address, streams their connection.
+        listening = spec.kind in ("udpin", "tcpin")
+        self.peers: PeerTable[Hashable, Any] = PeerTable(
+            max_peers,
+            at_cap=REFUSE,
+            lease_s=PEER_TIMEOUT_S if listening else 0.0,
+            name=spec.text,
+            throttle=self._refusal_log,
+            words=WORDS,
+            on_gone=self._gone,
+        )
+
+    @property
+    def refused_peers(self) -> int:
+        """Peers turned away: at the cap, or (tcpin with a signing key) for sending nothing signed."""
+        return self.peers.refused + self.untrusted_closed
+
+    def _gone(self, gone: Gone[Hashable, Any]) -> None:
+        """A peer left the table (silent for the lease, closed, or untrusted): the node forgets it."""
+        self._on_gone(self, gone.key)
 
     def __str__(self) -> str:
         return self.spec.text
@@ -147,11 +171,6 @@ class Link(abc.ABC):
             log.exception("%s: handling %d bytes from %s failed", self, len(data), peer)
             return False
 
-    def _refuse(self, peer: object) -> None:
-        self.refused_peers += 1
-        if self._refusal_log.allow("peers") is not None:
-            log.warning("%s: already %d peers (the limit); ignoring %s", self, self.max_peers, peer)
-
 
 # -- UDP ---------------------------------------------------------------------------------------------
 
@@ -174,7 +193,6 @@ class UdpLink(Link):
     def __init__(self, *a: Any, **kw: Any) -> None:
         super().__init__(*a, **kw)
         self._transport: asyncio.DatagramTransport | None = None
-        self._peers: dict[Any, float] = {}  # address -> last heard (monotonic)
 
     @property
     def address(self) -> tuple[str, int] | None:
@@ -185,7 +203,7 @@ class UdpLink(Link):
 
     @property
     def peer_count(self) -> int:
-        return len(self._peers) if self.spec.kind == "udpin" else 1
+        return len(self.peers) if self.spec.kind == "udpin" else 1
 
     async def start(self) -> None:
         loop = asyncio.get_running_loop()
@@ -205,27 +223,23 @@ class UdpLink(Link):
         if self.spec.kind != "udpin":
             self._deliver("out", data)
             return
-        now = monotonic()
-        if addr in self._peers:
+        if addr in self.peers:
             if self._deliver(addr, data):
-                self._peers[addr] = now
+                self.peers.heard(addr)
             return
-        self._expire(now)
-        if len(self._peers) >= self.max_peers:
-            self._refuse(addr)
-            return
+        self.peers.expire()
+        if not self.peers.make_room(addr):
+            return  # refused at the cap (counted and logged by the table)
         # A sender becomes a peer (a place, telemetry sent to it) only once the node accepts
         # something it sent: with a signing key, a signed message.
         if self._deliver(addr, data):
             log.info("%s: new peer %s", self, addr)
-            self._peers[addr] = now
+            self.peers.admit(addr, addr)
 
-    def _expire(self, now: float) -> None:
-        for addr, seen in list(self._peers.items()):
-            if now - seen > PEER_TIMEOUT_S:
-                del self._peers[addr]
-                log.info("%s: peer %s silent for %.0f s, forgotten", self, addr, PEER_TIMEOUT_S)
-                self._on_gone(self, addr)
+    def _gone(self, gone: Gone[Hashable, Any]) -> None:
+        if gone.why == EXPIRED:
+            log.info("%s: peer %s silent for %.0f s, forgotten", self, gone.key, self.peers.lease_s)
+        super()._gone(gone)
 
     def send(self, data: bytes) -> None:
         t = self._transport
@@ -236,8 +250,8 @@ class UdpLink(Link):
             t.sendto(data)
             self.bytes_out += len(data)
             return
-        self._expire(monotonic())
-        for addr in self._peers:
+        self.peers.expire()
+        for addr in self.peers.values():  # udpin: a peer's value is its address
             t.sendto(data, addr)
             self.bytes_out += len(data)
 
@@ -245,7 +259,7 @@ class UdpLink(Link):
         t = self._transport
         if self.spec.kind == "udpout" or t is None:
             self.send(data)
-        elif peer in self._peers and not t.is_closing():
+        elif peer in self.peers and not t.is_closing():
             t.sendto(data, peer)  # type: ignore[arg-type]  # a UDP address: a known peer
             self.bytes_out += len(data)
 
@@ -264,7 +278,6 @@ class _StreamProtocol(asyncio.Protocol):
         self.owner = owner
         self.peer = peer
         self.transport: asyncio.Transport | None = None
-        self.last_heard = monotonic()
         self.trusted = False  # the node accepted something it sent
         self.untrusted_bytes = 0
 
@@ -273,7 +286,7 @@ class _StreamProtocol(asyncio.Protocol):
         self.owner._connected(self)
 
     def data_received(self, data: bytes) -> None:
-        self.last_heard = monotonic()
+        self.owner.peers.heard(self.peer)  # anything renews the place, signed or not
         if self.owner._deliver(self.peer, data):
             self.trusted = True
         else:
@@ -288,7 +301,6 @@ class StreamLink(Link):
 
     def __init__(self, *a: Any, **kw: Any) -> None:
         super().__init__(*a, **kw)
-        self._conns: dict[Hashable, _StreamProtocol] = {}
         self._server: asyncio.base_events.Server | None = None
         self._task: asyncio.Task[None] | None = None
         self._lost = asyncio.Event()
@@ -303,7 +315,7 @@ class StreamLink(Link):
 
     @property
     def peer_count(self) -> int:
-        return len(self._conns)
+        return len(self.peers)
 
     async def start(self) -> None:
         loop = asyncio.get_running_loop()
@@ -357,35 +369,28 @@ class StreamLink(Link):
             if not self._closed:
                 await asyncio.sleep(RECONNECT_MIN_S)
 
-    def _expire(self, now: float) -> None:
-        """tcpin: close connections nothing was heard from for PEER_TIMEOUT_S (as udpin forgets
-        silent peers): a ground station sends a heartbeat every second, and silent connections
-        must not keep new ground stations out for good."""
-        if self.spec.kind != "tcpin":
-            return
-        for peer, proto in list(self._conns.items()):
-            if now - proto.last_heard > PEER_TIMEOUT_S:
-                log.info("%s: %s silent for %.0f s, closed", self, peer, PEER_TIMEOUT_S)
-                del self._conns[peer]
-                if proto.transport is not None:
-                    proto.transport.close()
-                self._on_gone(self, peer)
+    def _gone(self, gone: Gone[Hashable, Any]) -> None:
+        """tcpin: a connection nothing was heard from for PEER_TIMEOUT_S is closed (as udpin forgets
+        silent peers; the table's lease, applied when a new one needs the place and before each
+        send): a ground station sends a heartbeat every second, and silent connections must not
+        keep new ground stations out for good."""
+        if gone.why == EXPIRED:
+            log.info("%s: %s silent for %.0f s, closed", self, gone.key, self.peers.lease_s)
+            if gone.value.transport is not None:
+                gone.value.transport.close()
+        super()._gone(gone)
 
     def _connected(self, proto: _StreamProtocol) -> None:
-        if len(self._conns) >= self.max_peers:
-            self._expire(monotonic())
-        if len(self._conns) >= self.max_peers:
-            self._refuse(proto.peer)
-            if proto.transport is not None:
+        if not self.peers.admit(proto.peer, proto):
+            if proto.transport is not None:  # refused at the cap (counted and logged by the table)
                 proto.transport.close()
             return
-        self._conns[proto.peer] = proto
         log.info("%s: connected (%s)", self, proto.peer)
 
     def _disconnected(self, proto: _StreamProtocol, exc: Exception | None) -> None:
-        if self._conns.pop(proto.peer, None) is not None:
+        if self.peers.get(proto.peer) is proto:
             log.info("%s: %s closed%s", self, proto.peer, f" ({exc})" if exc else "")
-            self._on_gone(self, proto.peer)
+            self.peers.forget(proto.peer)
         if self.spec.kind != "tcpin":
             self._lost.set()
 
@@ -397,12 +402,11 @@ class StreamLink(Link):
         proto.untrusted_bytes += n
         if proto.untrusted_bytes <= MAX_UNTRUSTED_BYTES:
             return
-        self.refused_peers += 1
+        self.untrusted_closed += 1
         if self._refusal_log.allow("untrusted") is not None:
             log.warning("%s: %s sent %d bytes and nothing signed with the key: closed (%d refused so far)", self,
                         proto.peer, proto.untrusted_bytes, self.refused_peers)  # fmt: skip
-        if self._conns.pop(proto.peer, None) is not None:
-            self._on_gone(self, proto.peer)
+        self.peers.forget(proto.peer, proto)
         if proto.transport is not None:
             proto.transport.close()
 
@@ -410,11 +414,11 @@ class StreamLink(Link):
         return proto.trusted or not self.needs_trust or self.spec.kind != "tcpin"
 
     def send(self, data: bytes) -> None:
-        self._expire(monotonic())
-        if not self._conns:
+        self.peers.expire()
+        if not self.peers:
             self.dropped_out += 1
             return
-        for proto in list(self._conns.values()):
+        for proto in list(self.peers.values()):
             t = proto.transport
             if t is None or t.is_closing() or not self._serves(proto):
                 continue
@@ -425,7 +429,7 @@ class StreamLink(Link):
             self.bytes_out += len(data)
 
     def send_to(self, peer: Hashable, data: bytes) -> None:
-        proto = self._conns.get(peer)
+        proto = self.peers.get(peer)
         t = None if proto is None or not self._serves(proto) else proto.transport
         if t is None or t.is_closing() or t.get_write_buffer_size() > MAX_WRITE_BUFFER:
             self.dropped_out += 1
@@ -440,10 +444,9 @@ class StreamLink(Link):
             self._task.cancel()
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await self._task
-        for proto in list(self._conns.values()):
+        for proto in self.peers.clear():
             if proto.transport is not None:
                 proto.transport.close()
-        self._conns.clear()
         if self._server is not None:
             self._server.close()
             with contextlib.suppress(Exception):

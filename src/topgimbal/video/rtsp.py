@@ -5,7 +5,8 @@ the RTSP connection, "interleaved", or over UDP to the client's ports), PLAY, TE
 GET_PARAMETER / SET_PARAMETER (keep-alives). Every receiver of a path gets the same encoded
 pictures (one encoder per stream, whatever the number of receivers), starting at a keyframe.
 
-Bounds (each refusal is logged): MAX_CONNECTIONS RTSP connections per server, MAX_RECEIVERS
+Bounds (each refusal is logged; a flood of refused connections in one throttled line per 10 s):
+MAX_CONNECTIONS RTSP connections per server (the shared peer table, peers.py), MAX_RECEIVERS
 sessions per stream, set up or playing (SETUP beyond it is answered 453), MAX_REQUEST_BYTES per
 request, MAX_PIPELINED requests waiting per connection, and MAX_BUFFERED_BYTES unsent per
 connection: past it a TCP receiver skips pictures up to the next keyframe instead of queueing, and
@@ -24,8 +25,10 @@ import logging
 import random
 from typing import Any
 
-from ..clock import monotonic
+from ..clock import MonotonicFn, monotonic
 from ..logtext import untrusted
+from ..logthrottle import ThrottledLog
+from ..peers import REFUSE, PeerTable, Words
 from .rtp import Packetizer, sdp
 from .rtsp_request import BadUrlError, Request, Transport, cseq_ok, parse_transport, session_id, url_path
 from .rtsp_stream import KEYFRAME_MIN_INTERVAL_S, Session, Stream
@@ -46,6 +49,7 @@ SUPPORTED = ("OPTIONS", "DESCRIBE", "SETUP", "PLAY", "TEARDOWN", "GET_PARAMETER"
 # RTSP methods this server knows but does not offer (405 with Allow); anything else is 501.
 NOT_ALLOWED = ("ANNOUNCE", "PAUSE", "RECORD", "REDIRECT", "PLAY_NOTIFY")
 MAX_CHANNEL = 254  # interleaved RTP channel; RTCP takes the next one, and both must fit in a byte
+WORDS = Words(refused="RTSP: refusing {newcomer}: {count} connections already (limit)")
 
 
 class _Heard(asyncio.DatagramProtocol):
@@ -67,7 +71,6 @@ class _Connection(asyncio.Protocol):
         self.sessions: dict[str, Session] = {}
         self.queue: asyncio.Queue[Request] = asyncio.Queue()
         self.task: asyncio.Task[None] | None = None
-        self.last_heard = monotonic()
         # Set while the transport's unsent bytes are under its high-water mark (MAX_BUFFERED_BYTES):
         # requests wait for it, so a client that sends requests but reads no answers makes its
         # requests pile up (and is closed past MAX_PIPELINED) instead of the answers growing
@@ -83,23 +86,28 @@ class _Connection(asyncio.Protocol):
 
     def heard(self) -> None:
         """The client showed it is alive: a request, interleaved RTCP, or RTCP over UDP."""
-        self.last_heard = monotonic()
+        self.server.connections.heard(self)
+
+    @property
+    def last_heard(self) -> float | None:
+        """When the client was last heard (the server's clock); None once it is not served."""
+        return self.server.connections.heard_at(self)
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         self.transport = transport  # type: ignore[assignment]
         peer = transport.get_extra_info("peername")
         self.peer = f"{peer[0]}:{peer[1]}" if peer else "?"
-        if len(self.server.connections) >= MAX_CONNECTIONS:
-            log.warning("RTSP: refusing %s: %d connections already (limit)", self.peer, MAX_CONNECTIONS)
+        table = self.server.connections
+        table.cap = MAX_CONNECTIONS  # the module's limit, read at each connection (as it always was)
+        if not table.admit(self, self):  # refused at the cap: counted, logged (throttled) by the table
             transport.close()
             return
-        self.server.connections.add(self)
         if self.transport is not None:
             self.transport.set_write_buffer_limits(high=MAX_BUFFERED_BYTES, low=MAX_BUFFERED_BYTES // 2)
         self.task = asyncio.get_running_loop().create_task(self._serve())
 
     def connection_lost(self, exc: Exception | None) -> None:
-        self.server.connections.discard(self)
+        self.server.connections.forget(self)
         for s in self.sessions.values():
             s.close()
         self.sessions.clear()
@@ -346,11 +354,22 @@ class _Connection(asyncio.Protocol):
 class RtspServer:
     """Serves some streams (by path) on one TCP port."""
 
-    def __init__(self, host: str, port: int, streams: list[Stream]) -> None:
+    def __init__(self, host: str, port: int, streams: list[Stream], clock: MonotonicFn = monotonic) -> None:
         self.host = host
         self.port = port
         self.streams = {s.path: s for s in streams}
-        self.connections: set[_Connection] = set()
+        # The connections, in the shared peer table: refused at MAX_CONNECTIONS, each with the
+        # time it was last heard; one unheard for IDLE_CLOSE_S is closed by `reap`.
+        self.connections: PeerTable[_Connection, _Connection] = PeerTable(
+            MAX_CONNECTIONS,
+            at_cap=REFUSE,
+            lease_s=IDLE_CLOSE_S,
+            clock=clock,
+            name="RTSP",
+            throttle=ThrottledLog(log, 10.0),
+            words=WORDS,
+            describe=lambda c: c.peer,
+        )
         self._server: asyncio.base_events.Server | None = None
         self._ids = itertools.count(1)
         self._reaper: asyncio.Task[None] | None = None
@@ -364,13 +383,16 @@ class RtspServer:
 
     def reap(self, now: float | None = None) -> int:
         """Close every connection nothing was heard from for IDLE_CLOSE_S; how many were closed."""
-        now = monotonic() if now is None else now
+        table = self.connections
+        now = table.clock() if now is None else now
+        table.lease_s = IDLE_CLOSE_S  # the module's limit, read when it is applied (as it always was)
         closed = 0
-        for c in list(self.connections):
-            if now - c.last_heard > IDLE_CLOSE_S and c.transport is not None and not c.transport.is_closing():
+        for gone in table.expire(now):
+            c = gone.value
+            if c.transport is not None and not c.transport.is_closing():
                 log.warning(
                     "RTSP %s: nothing heard for %.0f s (no request, no RTCP; the session timeout is %d s): closing",
-                    c.peer, now - c.last_heard, SESSION_TIMEOUT_S,
+                    c.peer, now - gone.heard_s, SESSION_TIMEOUT_S,
                 )  # fmt: skip
                 c.transport.close()
                 closed += 1

@@ -34,12 +34,12 @@ import asyncio
 import ipaddress
 import logging
 import socket
-from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from pathlib import Path
 from typing import Any
 
-from ..clock import monotonic, wall_time
+from ..clock import wall_time
+from ..peers import EVICT, EVICTED, EXPIRED, REFUSE, Gone, PeerTable, Words
 from ..protocol import Dialect, get_dialect, get_model
 from ..transport import Transport, TransportURL, open_transport, parse_url
 from ..transport.tcp import StreamTransport
@@ -67,6 +67,12 @@ IDLE_TIMEOUT_S = 120.0
 STREAM_FLUSH_S = 0.05
 FLUSH_S = 0.2  # the pcap and the log are handed to the files this often (and at stop)
 SERIAL_CLIENT: Endpoint = ("127.0.0.1", 40000)
+SERIAL_KEY = ("serial",)
+# The client table's lines (peers.py: throttled per LOG_EVERY_S, the next one counting the rest).
+WORDS = Words(
+    refused="proxy: at most {cap} clients; refusing {newcomer}",
+    evicted="proxy: at most {cap} client(s); dropping {peer} for {newcomer}",
+)
 
 
 class Proxy:
@@ -106,13 +112,26 @@ class Proxy:
         self.pcap_path = Path(pcap) if pcap else None
         self.log_path = Path(log_path) if log_path else None
         self.stats = ProxyStats()
-        self._sessions: OrderedDict[Any, Session] = OrderedDict()
+        self.throttle = Throttle()
+        # The clients, in the shared peer table (peers.py): a UDP client (or the one host of a
+        # serial device) takes the place of the least recently active one, a TCP connection
+        # beyond the cap is refused; UDP clients idle for idle_timeout_s are forgotten.
+        refuse = self.listen.scheme == "tcp" and self.to.scheme != "serial"
+        self._sessions: PeerTable[Hashable, Session] = PeerTable(
+            self.max_clients,
+            at_cap=REFUSE if refuse else EVICT,
+            lease_s=idle_timeout_s if self.listen.scheme == "udp" else 0.0,
+            name="proxy",
+            throttle=self.throttle,
+            words=WORDS,
+            describe=self._client_label,
+            on_gone=self._client_gone,
+        )
         self._flusher: asyncio.TimerHandle | None = None
         self._udp: UdpSocket | None = None
         self._server: asyncio.AbstractServer | None = None
         self._serial: Transport | None = None
         self._serial_dropped = 0  # chunks dropped since the serial line last kept up
-        self.throttle = Throttle()
         self._closing: dict[asyncio.Task[None], Session] = {}  # sessions ending (some deliver first)
         self._sweeper: asyncio.TimerHandle | None = None
         self._device_ep: Endpoint = ("127.0.0.1", 0)
@@ -184,7 +203,7 @@ class Proxy:
             else:
                 session = Session(self, f"serial {self.listen.path}", SERIAL_CLIENT, self._serial_send)
                 self._serial = await open_transport(self.listen, session.from_client, self._serial_lost)
-                self._add(("serial",), session)
+                self._add(SERIAL_KEY, session)
         except OSError as exc:
             await self.stop()
             raise ProxyError(f"cannot listen on {self.listen}: {exc.strerror or exc}") from None
@@ -197,9 +216,8 @@ class Proxy:
             self._flusher.cancel()
             self._flusher = None
         self.drain()
-        for session in list(self._sessions.values()):
+        for session in self._sessions.clear():
             await session.close()
-        self._sessions.clear()
         for task, session in list(self._closing.items()):  # stopping: no more waiting for device links
             if session.opening is not None:
                 session.opening.cancel()
@@ -258,22 +276,44 @@ class Proxy:
 
     # -- clients ----------------------------------------------------------------------------------
 
-    def _add(self, key: Any, session: Session) -> None:
-        while len(self._sessions) >= self.max_clients:
-            _, old = self._sessions.popitem(last=False)
-            self.stats.clients_dropped += 1
-            self.throttle.warning(
-                "clients", "proxy: at most %d client(s); dropping %s for %s", self.max_clients, old.label, session.label
-            )
-            asyncio.get_running_loop().create_task(old.close())
-        self._sessions[key] = session
+    def _add(self, key: Hashable, session: Session) -> None:
+        admitted = self._sessions.admit(key, session)  # at the cap: EVICT made room, REFUSE was asked first
+        assert admitted, "tcp_connected makes room before a session is made"
+        session.key = key
         self.stats.clients += 1
         session.opening = asyncio.get_running_loop().create_task(session.open())
 
+    def _client_label(self, key: Hashable) -> str:
+        """How the log names a client: its session's label ("udp 127.0.0.1:53012")."""
+        session = self._sessions.get(key)
+        if session is not None:
+            return session.label
+        if key == SERIAL_KEY:
+            return f"serial {self.listen.path}"
+        return f"{self.listen.scheme} {ep_text(key)}" if isinstance(key, tuple) else str(key)
+
+    def _client_gone(self, gone: Gone[Hashable, Session]) -> None:
+        """A client evicted for a newcomer or idle for the lease: its session ends (drop() ends
+        the ones it forgets itself)."""
+        if gone.why == EVICTED:
+            self.stats.clients_dropped += 1
+        elif gone.why == EXPIRED:
+            idle_s = self._sessions.clock() - gone.heard_s
+            log.info("proxy: %s idle for %.0f s; forgotten", gone.value.label, idle_s)
+        else:
+            return
+        asyncio.get_running_loop().create_task(gone.value.close())
+
+    def heard(self, session: Session) -> None:
+        """Traffic of `session` (the device's side; the client's is renewed where it arrives):
+        it is active, so the last to be evicted and not idle."""
+        key = session.key
+        if key is not None and self._sessions.get(key) is session:
+            self._sessions.heard(key)
+
     def drop(self, session: Session, *, deliver: bool = False) -> None:
-        for key, s in list(self._sessions.items()):
-            if s is session:
-                del self._sessions[key]
+        if session.key is not None:
+            self._sessions.forget(session.key, session)
         if not session.closed:
             task = asyncio.get_running_loop().create_task(session.close(deliver))
             self._closing[task] = session
@@ -281,7 +321,7 @@ class Proxy:
 
     def _udp_datagram(self, data: bytes, addr: tuple[Any, ...]) -> None:
         key = addr[:2]
-        session = self._sessions.get(key)
+        session = self._sessions.heard(key)  # renewed: the most recently active now
         if session is None:
             label = f"udp {ep_text(key)}"
             udp = self._udp
@@ -292,15 +332,12 @@ class Proxy:
 
             session = Session(self, label, (str(addr[0]), int(addr[1])), send_down)
             self._add(key, session)
-        else:
-            self._sessions.move_to_end(key)
         session.from_client(data)
 
     def tcp_connected(self, client: TcpClient) -> Session | None:
         assert client.transport is not None
         peer = client.transport.get_extra_info("peername")[:2]
-        if len(self._sessions) >= self.max_clients and self.to.scheme != "serial":
-            self.throttle.warning("refused", "proxy: at most %d clients; refusing %s", self.max_clients, ep_text(peer))
+        if not self._sessions.make_room(peer):  # refused at the cap: counted and logged by the table
             client.transport.close()
             return None
         session = Session(
@@ -330,12 +367,7 @@ class Proxy:
         log.warning("proxy: serial port %s closed%s", self.listen.path, f": {exc}" if exc else "")
 
     def _sweep(self) -> None:
-        now = monotonic()
-        for key, s in list(self._sessions.items()):
-            if now - s.last_active > self.idle_timeout_s:
-                log.info("proxy: %s idle for %.0f s; forgotten", s.label, now - s.last_active)
-                del self._sessions[key]
-                asyncio.get_running_loop().create_task(s.close())
+        self._sessions.expire()  # each idle one is logged and closed by _client_gone
         self._sweeper = asyncio.get_running_loop().call_later(min(self.idle_timeout_s, 5.0), self._sweep)
 
     # -- the data path: forwarded at once, decoded soon (backlog.py) -----------------------------

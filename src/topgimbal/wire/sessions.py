@@ -8,7 +8,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -49,6 +49,8 @@ class SessionOwner(Protocol):
     def throttle(self) -> Throttle: ...
 
     def drop(self, session: Session, *, deliver: bool = False) -> None: ...
+
+    def heard(self, session: Session) -> None: ...
 
     def tcp_connected(self, client: TcpClient) -> Session | None: ...
 
@@ -93,7 +95,7 @@ class Session:
         self.queued: list[bytes] = []
         self.queued_bytes = 0
         self.closed = False
-        self.last_active = monotonic()
+        self.key: Hashable | None = None  # its place in the proxy's client table, once admitted
         down_dgram = proxy.listen.scheme == "udp"
         up_dgram = proxy.to.scheme == "udp"
         self.dirs = {OUT: Direction(down_dgram, up_dgram), IN: Direction(up_dgram, down_dgram)}
@@ -119,7 +121,6 @@ class Session:
             self.pause_down(False)
 
     def from_client(self, data: bytes) -> None:
-        self.last_active = monotonic()
         if self.upstream is None:
             if self.pause_down is not None:
                 # A stream's bytes cannot be dropped (the frames around the hole would be cut):
@@ -169,7 +170,7 @@ class Session:
         self.from_device(data)
 
     def from_device(self, data: bytes) -> None:
-        self.last_active = monotonic()
+        self.proxy.heard(self)  # a client that only listens to a stream is active too
         self.proxy.relay(self, IN, data, self.send_down)
 
     def device_lost(self, exc: Exception | None) -> None:

@@ -5,7 +5,12 @@ from __future__ import annotations
 import asyncio
 import socket
 
+from ...peers import REFUSE, PeerTable, Words
 from .common import TCP_PAUSE_READING_BYTES, TCP_READ_CHUNK, Forget, Limits, Sink, Throttled, fmt_addr, listen_error
+
+WORDS = Words(
+    refused="{name}: {count} clients (the limit, --max-tcp-clients): closing the new connection from {newcomer}"
+)
 
 
 class TcpPeer(asyncio.BufferedProtocol):
@@ -64,11 +69,19 @@ class TcpServer:
         self.forget = forget
         self.limits = limits or Limits()
         self.server: asyncio.AbstractServer | None = None
-        self.peers: set[TcpPeer] = set()
-        self.refused = 0
+        self.throttled = Throttled()
+        # The shared peer table: refused at the cap; a connection is forgotten when it closes.
+        self.peers: PeerTable[TcpPeer, TcpPeer] = PeerTable(
+            self.limits.max_tcp_clients,
+            at_cap=REFUSE,
+            name="tcp",
+            throttle=self.throttled,
+            words=WORDS,
+            describe=lambda p: p.name.removeprefix("tcp client "),
+            on_gone=lambda gone: self.forget(gone.value),
+        )
         self.overflows = 0
         self.max_unsent = 0  # the most bytes held for one client when it was dropped
-        self.throttled = Throttled()
         self._name = "tcp"
 
     async def start(self, host: str, port: int) -> None:
@@ -78,19 +91,18 @@ class TcpServer:
         except OSError as exc:
             raise listen_error("tcp", host, port, exc) from None
         h, p = self.address
-        self._name = f"tcp {h}:{p}"
+        self._name = self.peers.name = f"tcp {h}:{p}"
+
+    @property
+    def refused(self) -> int:
+        """Connections closed at once because the cap was reached."""
+        return self.peers.refused
 
     def opened(self, peer: TcpPeer) -> None:
         t = peer.transport
         assert t is not None
-        if len(self.peers) >= self.limits.max_tcp_clients:
-            self.refused += 1
-            self.throttled.warning(
-                "cap",
-                f"{self._name}: {len(self.peers)} clients (the limit, --max-tcp-clients): closing the new "
-                f"connection from {peer.name.removeprefix('tcp client ')}",
-            )
-            t.abort()
+        if not self.peers.admit(peer, peer):
+            t.abort()  # refused at the cap (counted and logged by the table)
             return
         sock = t.get_extra_info("socket")
         if sock is not None:
@@ -99,7 +111,6 @@ class TcpServer:
             except OSError:
                 pass
         t.set_write_buffer_limits(high=min(TCP_PAUSE_READING_BYTES, self.limits.tcp_buffer_bytes), low=0)
-        self.peers.add(peer)
 
     def overflowed(self, peer: TcpPeer) -> None:
         t = peer.transport
@@ -115,9 +126,7 @@ class TcpServer:
         t.abort()  # connection_lost follows: its streams and parser go with it
 
     def closed(self, peer: TcpPeer) -> None:
-        if peer in self.peers:
-            self.peers.discard(peer)
-            self.forget(peer)
+        self.peers.forget(peer)  # on_gone: the simulator drops its streams
 
     @property
     def address(self) -> tuple[str, int]:

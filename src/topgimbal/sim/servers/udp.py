@@ -12,6 +12,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ...clock import monotonic
+from ...peers import EVICT, Gone, PeerTable, Words
 from .common import MAX_DATAGRAM, READ_BATCH, Forget, Limits, Sink, Throttled, fmt_addr, listen_error
 
 # Linux: with IP_RECVERR an unconnected UDP socket learns about ICMP errors, and the error queue
@@ -21,18 +22,22 @@ IPV6_RECVERR = 25
 SO_EE_ORIGIN_ICMP, SO_EE_ORIGIN_ICMP6 = 2, 3
 UNREACHABLE = frozenset({errno.ECONNREFUSED, errno.EHOSTUNREACH, errno.ENETUNREACH, errno.EHOSTDOWN})
 ERRQUEUE = sys.platform.startswith("linux") and hasattr(socket, "MSG_ERRQUEUE")
+WORDS = Words(
+    evicted="{name}: {count} peers (the limit, --max-udp-peers): forgetting the least recently heard, {peer} "
+    "({age_s:.1f} s ago), and its streams"
+)
 
 
 class UdpPeer:
     """A UDP host: replies go to the address the request came from. One object per address while
-    the server remembers it; a forgotten peer's sends are dropped."""
+    the server remembers it (its `peers` table keeps when it was last heard); a forgotten peer's
+    sends are dropped."""
 
-    __slots__ = ("addr", "endpoint", "gone", "heard")
+    __slots__ = ("addr", "endpoint", "gone")
 
-    def __init__(self, endpoint: UdpServer, addr: tuple[Any, ...], heard: float) -> None:
+    def __init__(self, endpoint: UdpServer, addr: tuple[Any, ...]) -> None:
         self.endpoint = endpoint
         self.addr = addr
-        self.heard = heard
         self.gone = False
 
     def send(self, data: bytes) -> None:
@@ -55,11 +60,21 @@ class UdpServer:
         self.limits = limits or Limits()
         self.clock = clock
         self.sock: socket.socket | None = None
-        self.peers: dict[tuple[Any, ...], UdpPeer] = {}  # in order of last datagram, oldest first
         self.sent = 0
         self.dropped = 0  # sends that would have blocked or failed
-        self.forgotten = {"unreachable": 0, "lease": 0, "cap": 0}
         self.throttled = Throttled()
+        # The shared peer table: LRU-evicted at the cap, leased; ICMP and the lease forget.
+        self.peers: PeerTable[tuple[Any, ...], UdpPeer] = PeerTable(
+            self.limits.max_udp_peers,
+            at_cap=EVICT,
+            lease_s=self.limits.udp_lease_s,
+            clock=clock,
+            name="udp",
+            throttle=self.throttled,
+            words=WORDS,
+            describe=fmt_addr,
+            on_gone=self._gone,
+        )
         self._loop: asyncio.AbstractEventLoop | None = None
         self._sweep: asyncio.TimerHandle | None = None
         self._name = "udp"
@@ -84,7 +99,7 @@ class UdpServer:
                 pass  # then only the lease and the cap apply
         self.sock = sock
         h, p = self.address
-        self._name = f"udp {h}:{p}"
+        self._name = self.peers.name = f"udp {h}:{p}"
         self._loop.add_reader(sock.fileno(), self._readable)
         self._arm_sweep()
 
@@ -107,22 +122,17 @@ class UdpServer:
             self._datagram(data, addr)
 
     def _datagram(self, data: bytes, addr: tuple[Any, ...]) -> None:
-        now = self.clock()
-        peer = self.peers.pop(addr, None)
+        peer = self.peers.heard(addr)  # renewed: the most recently heard now
         if peer is None:
-            if len(self.peers) >= self.limits.max_udp_peers:
-                oldest = next(iter(self.peers.values()))
-                self.throttled.warning(
-                    "cap",
-                    f"{self._name}: {len(self.peers)} peers (the limit, --max-udp-peers): forgetting the "
-                    f"least recently heard, {fmt_addr(oldest.addr)} ({now - oldest.heard:.1f} s ago), and its streams",
-                )
-                self._drop(oldest, "cap")
-            peer = UdpPeer(self, addr, now)
-        else:
-            peer.heard = now
-        self.peers[addr] = peer  # re-inserted: the dict stays in order of last datagram
+            peer = UdpPeer(self, addr)
+            self.peers.admit(addr, peer)  # at the cap the least recently heard goes (EVICT)
         self.sink(peer, data, True)
+
+    @property
+    def forgotten(self) -> dict[str, int]:
+        """Peers forgotten so far, by why (the simulator's `server_counts`)."""
+        t = self.peers
+        return {"unreachable": t.forgotten, "lease": t.expired, "cap": t.evicted}
 
     def sendto(self, data: bytes, peer: UdpPeer) -> None:
         sock = self.sock
@@ -167,16 +177,14 @@ class UdpServer:
             except OSError:
                 return
             code = _extended_errno(ancdata)
-            peer = self.peers.get(addr) if isinstance(addr, tuple) else None
-            if peer is not None and (code is None or code in UNREACHABLE):
-                self._drop(peer, "unreachable")
+            if isinstance(addr, tuple) and (code is None or code in UNREACHABLE):
+                self.peers.forget(addr)
 
-    def _drop(self, peer: UdpPeer, why: str) -> None:
-        if self.peers.get(peer.addr) is peer:
-            del self.peers[peer.addr]
+    def _gone(self, gone: Gone[tuple[Any, ...], UdpPeer]) -> None:
+        """Evicted, expired or unreachable: its sends stop, the simulator drops its streams."""
+        peer = gone.value
         if not peer.gone:
             peer.gone = True
-            self.forgotten[why] += 1
             self.forget(peer)
 
     def _arm_sweep(self) -> None:
@@ -186,13 +194,8 @@ class UdpServer:
         self._sweep = self._loop.call_later(min(1.0, lease / 4), self._expire)
 
     def _expire(self) -> None:
-        """Forget peers unheard for a lease (the dict is oldest first: stop at the first fresh one)."""
-        limit = self.clock() - self.limits.udp_lease_s
-        while self.peers:
-            peer = next(iter(self.peers.values()))
-            if peer.heard > limit:
-                break
-            self._drop(peer, "lease")
+        """Forget peers unheard for a lease."""
+        self.peers.expire()
         self._arm_sweep()
 
     def close(self) -> None:
