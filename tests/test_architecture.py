@@ -11,7 +11,7 @@ PKG = Path(__file__).resolve().parents[1] / "src" / "topgimbal"
 
 # Leaf modules every layer may import: the exceptions, the throttled warning log, the one clock,
 # the escaping of a peer's text for the log, the JSON Lines writer and the servers' peer table.
-SHARED_LEAVES = ("errors", "logthrottle", "_lazy", "clock", "logtext", "jsonl", "peers")
+SHARED_LEAVES = ("errors", "logthrottle", "_lazy", "clock", "logtext", "jsonl", "peers", "timeouts")
 
 # What each layer may import from inside topgimbal (besides itself and SHARED_LEAVES).
 ALLOWED = {
@@ -432,3 +432,31 @@ def test_the_clock_rule_finds_direct_reads(tmp_path: Path) -> None:
         (7, "loop.time"), (7, "loop.time"), (8, "datetime.now"),
     ], found  # fmt: skip
     assert CLOCK_ALLOWED.keys() <= {p.relative_to(PKG).as_posix() for p in PKG.rglob("*.py")}
+
+
+# -- waiting with a time limit: topgimbal.timeouts.within, never asyncio.wait_for -------------------
+
+
+def _wait_for_calls(path: Path) -> list[int]:
+    """Lines that use `asyncio.wait_for` (called or imported): before CPython 3.12 it can swallow
+    a cancellation (topgimbal/timeouts.py says how that hung a bridge's close)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    lines = []
+    for node in ast.walk(tree):
+        name = node.value.id if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) else ""
+        if isinstance(node, ast.Attribute) and node.attr == "wait_for" and name == "asyncio":
+            lines.append(node.lineno)
+        if isinstance(node, ast.ImportFrom) and node.module == "asyncio":
+            lines += [node.lineno for a in node.names if a.name == "wait_for"]
+    return lines
+
+
+def test_no_asyncio_wait_for_in_the_package() -> None:
+    bad = [f"{p.relative_to(PKG).as_posix()}:{line}" for p in sorted(PKG.rglob("*.py")) for line in _wait_for_calls(p)]
+    assert not bad, "use topgimbal.timeouts.within (asyncio.wait_for can lose a cancellation): " + ", ".join(bad)
+
+
+def test_the_wait_for_rule_finds_it(tmp_path: Path) -> None:
+    src = tmp_path / "m.py"
+    src.write_text("import asyncio\nfrom asyncio import wait_for\nx = asyncio.wait_for(f(), 1)\ncond.wait_for(p)\n")
+    assert _wait_for_calls(src) == [2, 3]

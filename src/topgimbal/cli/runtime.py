@@ -9,6 +9,8 @@ import sys
 from collections.abc import Coroutine
 from typing import Any
 
+from ..timeouts import within
+
 
 def stop_on_signals() -> asyncio.Event:
     """An event that SIGINT or SIGTERM sets, from now on. Off the main thread the loop cannot
@@ -27,7 +29,7 @@ async def wait_stopped(stop: asyncio.Event, seconds: float | None = None) -> Non
         await stop.wait()
         return
     with contextlib.suppress(asyncio.TimeoutError):
-        await asyncio.wait_for(stop.wait(), seconds)
+        await within(stop.wait(), seconds)
 
 
 def run_server(main: Coroutine[Any, Any, None]) -> int:

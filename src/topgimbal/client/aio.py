@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Unpack
 
 from ..errors import FieldValueError
 from ..protocol import CommandSpec, DeviceModel, Message
+from ..timeouts import within
 from . import checks, identity, roles
 from .api_camera import CameraMethods
 from .api_core import CoreMethods, _rate
@@ -58,7 +59,7 @@ class AsyncClient(ClientCore, CoreMethods, MotionMethods, CameraMethods, FeedMet
     async def wait_model_check(self, timeout_s: float = 2.0) -> identity.Verdict:
         """The model check's verdict once it has one (or whatever it is after `timeout_s`)."""
         try:
-            await asyncio.wait_for(self.identity.done.wait(), timeout_s)
+            await within(self.identity.done.wait(), timeout_s)
         except asyncio.TimeoutError:
             pass
         return self.identity.verdict

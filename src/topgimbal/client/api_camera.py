@@ -9,6 +9,7 @@ from typing import Protocol
 from ..errors import FieldValueError, RequestTimeoutError, UnsupportedError
 from ..geo import Fix, GridTerrain, Uncertainty
 from ..protocol import Message
+from ..timeouts import within
 from . import checks, roles
 from .api_core import fields_of, request, send_values
 from .core import ClientCore
@@ -186,7 +187,7 @@ class CameraMethods(Protocol):
             await request(core, ident, action="single", timeout_s=timeout_s)
             wait = (timeout_s or core.timeout_s) * 3
             try:
-                return await asyncio.wait_for(result, wait)
+                return await within(result, wait)
             except asyncio.TimeoutError:
                 raise RequestTimeoutError(f"the rangefinder sent no result within {wait:.1f} s") from None
         finally:

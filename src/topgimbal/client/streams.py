@@ -29,6 +29,7 @@ from collections.abc import Callable
 
 from ..clock import monotonic
 from ..errors import RequestTimeoutError, TopGimbalError
+from ..timeouts import within
 from . import roles
 from .ports import StreamPort
 from .state import Attitude
@@ -171,7 +172,7 @@ class StreamControl:
             return
         off = core.build_from(ident, roles.stream_values(core.dialect.command(ident), None))
         with contextlib.suppress(TopGimbalError, asyncio.TimeoutError):
-            await asyncio.wait_for(core.transact(off, timeout_s=timeout_s, retries=0), timeout_s * 2)
+            await within(core.transact(off, timeout_s=timeout_s, retries=0), timeout_s * 2)
             self.device_rate = None
             self._expect()
 
@@ -233,7 +234,7 @@ class StreamControl:
         fut: asyncio.Future[Attitude] = loop.create_future()
         self._listeners.append((newer_than, fut))
         try:
-            return await asyncio.wait_for(fut, timeout_s)
+            return await within(fut, timeout_s)
         except asyncio.TimeoutError:
             raise RequestTimeoutError(f"no attitude sample arrived within {timeout_s:.2f} s") from None
         finally:
@@ -325,7 +326,7 @@ class AttitudeStream:
             self.control.release(self)
             core = self.control.core
             with contextlib.suppress(TopGimbalError, asyncio.TimeoutError):
-                await asyncio.wait_for(self.control.reconcile(), core.timeout_s * (core.retries + 2))
+                await within(self.control.reconcile(), core.timeout_s * (core.retries + 2))
 
     def __del__(self) -> None:
         # Dropped without aclose() (a `break` out of `async for`): release now, not at GC's leisure.

@@ -19,6 +19,7 @@ from aiohttp import WSMsgType, web
 from ..clock import monotonic, wall_time
 from ..logtext import untrusted
 from ..protocol import DeviceModel, Dialect, Frame, Message
+from ..timeouts import within
 from ..wire.packets import Endpoint
 from .capture import Link, Recorder
 from .catalog_api import model_json
@@ -85,7 +86,7 @@ class PageHub:
         for p in list(self.peers):
             p.close()
             with contextlib.suppress(Exception):
-                await asyncio.wait_for(p.ws.close(), 2.0)
+                await within(p.ws.close(), 2.0)
 
     # -- pushing -----------------------------------------------------------------------------
 

@@ -40,6 +40,7 @@ from ..clock import MonotonicFn, monotonic, wall_time
 from ..errors import RequestTimeoutError, TopGimbalError
 from ..logtext import untrusted
 from ..logthrottle import ThrottledLog
+from ..timeouts import within
 from .access import KIND_FORBIDDEN, callable_methods, refusal
 from .specs import CameraSpec
 
@@ -327,7 +328,7 @@ class ServedCamera:
             if isinstance(t, (int, float)) and not isinstance(t, bool) and t > MAX_ARG_TIMEOUT_S:
                 kwargs["timeout_s"] = MAX_ARG_TIMEOUT_S  # the server's wait is bounded, whoever asks
             try:
-                result = await asyncio.wait_for(getattr(self.client, method)(**kwargs), MAX_CALL_S)
+                result = await within(getattr(self.client, method)(**kwargs), MAX_CALL_S)
             except TimeoutError as exc:
                 if isinstance(exc, TopGimbalError):
                     raise  # the SDK's own RequestTimeoutError, as it is

@@ -16,6 +16,7 @@ from typing import Any
 
 from ..clock import monotonic
 from ..errors import TopGimbalError
+from ..timeouts import stop_tasks, within
 from ..video.rtp_push import RtpPush
 from .advertise import Advertiser
 from .autopilot_streams import AutopilotStreams
@@ -288,11 +289,7 @@ class Bridge:
         return self
 
     async def close(self) -> None:
-        for t in self._tasks:
-            t.cancel()
-        for t in self._tasks:
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await t
+        await stop_tasks(self._tasks, "mavlink bridge")  # bounded: a close always returns
         await self.dispatcher.close()
         if self.recorder is not None:  # its thread finishes the file it writes (a few ms)
             await asyncio.to_thread(self.recorder.close)
@@ -383,7 +380,7 @@ class Bridge:
                 self._new_peer.clear()
                 continue
             with contextlib.suppress(asyncio.TimeoutError):
-                await asyncio.wait_for(self._new_peer.wait(), period_s - gap_s)
+                await within(self._new_peer.wait(), period_s - gap_s)
             self._new_peer.clear()
 
     async def _identify(self) -> None:

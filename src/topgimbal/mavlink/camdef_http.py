@@ -13,6 +13,7 @@ import contextlib
 import logging
 
 from ..logthrottle import ThrottledLog
+from ..timeouts import within
 
 log = logging.getLogger("topgimbal.mavlink")
 
@@ -67,7 +68,7 @@ class DefinitionServer:
         self.active += 1
         self._per_client[client] = held + 1
         try:
-            head = await asyncio.wait_for(reader.readuntil(b"\r\n\r\n"), HEAD_TIMEOUT_S)
+            head = await within(reader.readuntil(b"\r\n\r\n"), HEAD_TIMEOUT_S)
             status, body, ctype = self._answer(head)
             head_only = head.startswith(b"HEAD ")
         except (asyncio.TimeoutError, asyncio.IncompleteReadError, asyncio.LimitOverrunError, ValueError,
@@ -79,7 +80,7 @@ class DefinitionServer:
                 "Connection: close\r\n\r\n".encode()
                 + (b"" if head_only else body)
             )
-            await asyncio.wait_for(writer.drain(), HEAD_TIMEOUT_S)
+            await within(writer.drain(), HEAD_TIMEOUT_S)
         except (OSError, asyncio.TimeoutError):
             pass
         finally:

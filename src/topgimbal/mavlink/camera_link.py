@@ -35,6 +35,7 @@ from ..client import AsyncClient
 from ..clock import monotonic
 from ..errors import LinkLostError, ModelMismatchError, RequestTimeoutError, TopGimbalError
 from ..protocol import Message, get_model
+from ..timeouts import within
 from .profile import Profile, profile_of
 
 log = logging.getLogger("topgimbal.mavlink")
@@ -139,7 +140,7 @@ class CameraLink:
         self._task = asyncio.ensure_future(self._run())
         if wait_s > 0:
             with contextlib.suppress(asyncio.TimeoutError):
-                await asyncio.wait_for(self._opened.wait(), wait_s)
+                await within(self._opened.wait(), wait_s)
 
     async def close(self) -> None:
         self._closed = True

@@ -24,6 +24,7 @@ from typing import Any
 from ..errors import TopGimbalError
 from ..logthrottle import ThrottledLog
 from ..peers import EXPIRED, REFUSE, Gone, PeerTable, Words
+from ..timeouts import within
 
 log = logging.getLogger("topgimbal.mavlink")
 
@@ -336,7 +337,7 @@ class StreamLink(Link):
         self._serial_n += 1
         peer = (self.spec.kind, self._serial_n)
         if self.spec.kind == "tcp":
-            await asyncio.wait_for(
+            await within(
                 loop.create_connection(lambda: _StreamProtocol(self, peer), self.spec.host, self.spec.port), 5.0
             )
             return

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..logthrottle import ThrottledLog
+from ..timeouts import within
 from .camera_link import CameraLink
 from .commands import rejected, unsupported
 from .quaternion import wrap180
@@ -250,7 +251,7 @@ class Pointer:
         while True:
             if self.following_by_rate:
                 with contextlib.suppress(asyncio.TimeoutError):
-                    await asyncio.wait_for(self._wake.wait(), FOLLOW_HOLD_S)
+                    await within(self._wake.wait(), FOLLOW_HOLD_S)
             else:
                 await self._wake.wait()
             self._wake.clear()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 
 from ..errors import TransportError
+from ..timeouts import within
 from .base import Transport
 
 
@@ -50,7 +51,7 @@ class TcpTransport(StreamTransport):
         loop = asyncio.get_running_loop()
         timeout = float(self.url.params.get("connect_timeout", "5"))
         try:
-            transport, _ = await asyncio.wait_for(
+            transport, _ = await within(
                 loop.create_connection(lambda: _Protocol(self), self.url.host, self.url.port or 0), timeout
             )
         except (OSError, asyncio.TimeoutError) as exc:

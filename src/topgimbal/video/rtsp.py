@@ -29,6 +29,7 @@ from ..clock import MonotonicFn, monotonic
 from ..logtext import untrusted
 from ..logthrottle import ThrottledLog
 from ..peers import REFUSE, PeerTable, Words
+from ..timeouts import within
 from .rtp import Packetizer, sdp
 from .rtsp_request import BadUrlError, Request, Transport, cseq_ok, parse_transport, session_id, url_path
 from .rtsp_stream import KEYFRAME_MIN_INTERVAL_S, Session, Stream
@@ -263,7 +264,7 @@ class _Connection(asyncio.Protocol):
         if not stream.ready.is_set():
             stream.want_keyframe()
             with contextlib.suppress(asyncio.TimeoutError):
-                await asyncio.wait_for(stream.ready.wait(), DESCRIBE_WAIT_S)
+                await within(stream.ready.wait(), DESCRIBE_WAIT_S)
         if not stream.ready.is_set():
             self.reply(req, 503, "Service Unavailable")
             return
@@ -426,7 +427,7 @@ class RtspServer:
                 c.transport.close()
         if self._server is not None:
             with contextlib.suppress(Exception):
-                await asyncio.wait_for(self._server.wait_closed(), 2.0)
+                await within(self._server.wait_closed(), 2.0)
             self._server = None
 
 

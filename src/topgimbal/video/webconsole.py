@@ -24,6 +24,7 @@ from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, Protocol
 from urllib.parse import urlsplit, urlunsplit
 
+from ..timeouts import within
 from .lens import StreamSpec, VideoError, View, hfov_at, host_of, stream_urls, streams_for, tracking_requests, wrap180
 
 if TYPE_CHECKING:  # named for the type checker only: aiohttp is imported by the routes when they run
@@ -184,7 +185,7 @@ class ConsoleVideo:
                 head = f"--{BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {len(jpeg)}\r\n\r\n"
                 # A viewer that stops reading (a frozen tab, a stalled proxy) would hold its
                 # place among the MAX_VIEWERS forever: past VIEWER_STALL_S it is dropped.
-                await asyncio.wait_for(resp.write(head.encode() + jpeg + b"\r\n"), VIEWER_STALL_S)
+                await within(resp.write(head.encode() + jpeg + b"\r\n"), VIEWER_STALL_S)
                 jpeg = await pictures.__anext__()
         except asyncio.TimeoutError:
             log.warning(
