@@ -178,3 +178,14 @@ async def rig_factory() -> AsyncIterator[Callable[..., Any]]:
 async def rig(rig_factory: Callable[..., Any]) -> Rig:
     r: Rig = await rig_factory("C12")
     return r
+
+
+@pytest.fixture
+async def vrig_maker() -> AsyncIterator[Callable[..., Any]]:
+    """Simulator, bridge and peer on memory links (tests/mavlink/virtual.py), on looptime's virtual
+    clock: the virtual tier's counterpart of the UDP one above. (No loopback words in here:
+    tests/conftest.py reads this source to find the tier of a test that uses it.)"""
+    from . import virtual
+
+    async with virtual.vrigs() as make:
+        yield make

@@ -7,6 +7,7 @@
     tcpin:HOST:PORT    listen; at most max_peers connections at once; one silent for PEER_TIMEOUT_S
                        is closed when a new one needs its place (or when we next send)
     DEVICE[,BAUD]      a serial port (/dev/ttyUSB0,57600; default 115200); reopened when it fails
+    memory:NAME        in-process (tests, embedding): peers connect by NAME (memory_link.py)
 
 Links carry bytes only; the node parses MAVLink per (link, peer) so a stream split anywhere is
 reassembled. Every buffer is bounded: peers per link, bytes queued per connection."""
@@ -49,7 +50,7 @@ class EndpointError(TopGimbalError, ValueError):
 
 @dataclass(frozen=True)
 class EndpointSpec:
-    kind: str  # udpin, udpout, tcp, tcpin, serial
+    kind: str  # udpin, udpout, tcp, tcpin, serial, memory (NAME in device)
     host: str = ""
     port: int = 0
     device: str = ""
@@ -60,7 +61,7 @@ class EndpointSpec:
         return self.text
 
 
-FORMS = "udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, tcpin:HOST:PORT or a serial DEVICE[,BAUD]"
+FORMS = "udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, tcpin:HOST:PORT, a serial DEVICE[,BAUD] or memory:NAME"
 
 
 def parse_endpoint(text: str) -> EndpointSpec:
@@ -80,6 +81,10 @@ def parse_endpoint(text: str) -> EndpointSpec:
         if kind in ("udpout", "tcp") and port == 0:
             raise EndpointError(f"{text!r}: {kind} needs the peer's port, not 0")
         return EndpointSpec(kind, host, port, text=s)
+    if sep and scheme == "memory":
+        from .memory_link import check_name
+
+        return EndpointSpec("memory", device=check_name(text, rest), text=s)
     if scheme in ("udpbcast", "mcast", "wsserver", "ws", "wss"):
         raise EndpointError(f"{text!r}: {scheme}: links are not supported; use {FORMS}")
     device, baud = s, DEFAULT_BAUD
@@ -455,5 +460,9 @@ def make_link(
     spec: EndpointSpec | str, on_data: DataCallback, on_gone: GoneCallback, max_peers: int = MAX_PEERS
 ) -> Link:
     spec = parse_endpoint(spec) if isinstance(spec, str) else spec
+    if spec.kind == "memory":
+        from .memory_link import MemoryLink
+
+        return MemoryLink(spec, on_data, on_gone, max_peers)
     cls: type[Link] = UdpLink if spec.kind in ("udpin", "udpout") else StreamLink
     return cls(spec, on_data, on_gone, max_peers)
