@@ -10,7 +10,7 @@ assert the exact timeouts and retry counts the product has, not scaled-down ones
 
 Fixtures and helpers here are named so that tests/conftest.py's tier detection (its LOOPBACK
 words: no addresses, no `Bridge(`, no `rig` alone) counts a module that uses them as virtual. A
-module that mixes them with the UDP rig marks its virtual tests itself (`VIRTUAL` below)."""
+module that mixes them with the UDP rig marks its virtual tests itself (`in_virtual_time` below)."""
 
 from __future__ import annotations
 
@@ -18,20 +18,32 @@ import asyncio
 import contextlib
 import itertools
 import os
+import random
 from collections.abc import AsyncIterator, Callable
-from typing import Any
+from typing import Any, TypeVar
 
 import pytest
 from pymavlink.dialects.v20 import common as ml
 
+from topgimbal.clock import monotonic
 from topgimbal.mavlink import bridge as bridge_mod
 from topgimbal.mavlink.memory_link import MemoryPeer, connect_memory
-from topgimbal.sim import Simulator
+from topgimbal.sim import FaultPlan, Simulator
+from topgimbal.sim.faults import FaultInjector
 
 from .conftest import CLOSE_S, Peer
 
-# For the virtual tests of a module that also holds loopback ones (its source names the UDP rig).
+# For the virtual tests of a module that also holds loopback ones (its source names the UDP rig):
+# `@in_virtual_time` on a test, or `marks=VIRTUAL` on a parameter.
 VIRTUAL = [pytest.mark.virtual, pytest.mark.looptime]
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def in_virtual_time(test: F) -> F:
+    """Marks a test virtual (tier) and looptime (its timers on the virtual clock)."""
+    marked: F = pytest.mark.looptime(pytest.mark.virtual(test))
+    return marked
+
 
 _names = itertools.count()
 
@@ -137,3 +149,37 @@ async def vrigs() -> AsyncIterator[Callable[..., Any]]:
     finally:
         for v in made:
             await close_all([v.peer, *v.extra, v.bridge, v.sim])
+
+
+class HealthLog:
+    """The bridge's camera health changes, with the (virtual) time of each: (t, answering)."""
+
+    def __init__(self, made: Any) -> None:
+        self.changes: list[tuple[float, bool]] = []
+        made.cam.on_health(lambda up: self.changes.append((monotonic(), up)))
+
+    def when(self, up: bool, after: float = float("-inf")) -> float | None:
+        return next((t for t, u in self.changes if u == up and t >= after), None)
+
+
+def camera_input(sim: Simulator) -> list[tuple[float, bytes]]:
+    """From now on, every chunk the simulator's memory port gets from its client, timed."""
+    port = sim._memory[-1]  # the port listen_memory opened
+    got: list[tuple[float, bytes]] = []
+    inner = port.on_bytes
+    assert inner is not None
+
+    def tap(data: bytes) -> None:
+        got.append((monotonic(), data))
+        inner(data)
+
+    port.on_bytes = tap
+    return got
+
+
+def silence_replies(sim: Simulator, seconds: float) -> None:
+    """From now on, for `seconds`, nothing comes out of the simulated camera; what it is sent it
+    still carries out (the simulator's own fault injector, outbound direction only)."""
+    now = sim.clock.now()
+    sim._fault_out = FaultInjector(FaultPlan(silence=((0.0, seconds),), direction="out"), "out",
+                                   random.Random(0), now)  # fmt: skip
