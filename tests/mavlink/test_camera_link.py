@@ -5,6 +5,7 @@ the client and reported healthy again, and commands fail fast while the link is 
 from __future__ import annotations
 
 import asyncio
+import itertools
 import logging
 import socket
 from typing import Any
@@ -19,7 +20,7 @@ from topgimbal.sim import Simulator
 from topgimbal.transport.memory import MemoryPort
 
 from .conftest import Peer, eventually
-from .virtual import HealthLog, MemPeer, fresh_name, in_virtual_time, start_bridge, start_camera
+from .virtual import HealthLog, MemPeer, camera_input, fresh_name, in_virtual_time, start_bridge, start_camera
 
 GIMBAL = 154
 COMMS_ERROR = ml.GIMBAL_DEVICE_ERROR_FLAGS_COMMS_ERROR
@@ -216,3 +217,29 @@ async def test_virtual_a_camera_that_is_not_up_yet_is_opened_at_the_next_try(cap
         await made.close()
         if sim is not None:
             await sim.stop()
+
+
+@pytest.mark.parametrize("stream", [False, True])
+@in_virtual_time
+async def test_virtual_the_cameras_attitude_stream_is_renewed_on_a_datagram_link(stream: bool) -> None:
+    """The client asks a camera on a datagram link for its stream again every stream_renew_s
+    (20 s: a camera that keeps a UDP peer's stream only for a while keeps it); on a byte stream
+    (TCP, serial: the device knows its peer) it never does. Proven over 65 s of the product's
+    timers, with no real waiting."""
+    sim, url = await start_camera("C12")
+    link = fresh_name("gcs")
+    sent = camera_input(sim)
+    t0 = monotonic()
+    made = await start_bridge(url + ("?stream=1" if stream else ""), "C12", link, stream_hz=5.0, attitude_hz=1.0)
+    try:
+        await asyncio.sleep(65.0)
+        gaa = [t - t0 for t, data in sent if data[6:10] == b"wGAA"]
+        assert gaa and gaa[0] < 0.1  # asked for at once
+        if stream:
+            assert len(gaa) == 1, gaa
+        else:  # and again at 20, 40 and 60 s
+            assert [b - a for a, b in itertools.pairwise(gaa)] == pytest.approx([20.0] * 3, abs=0.01), gaa
+        assert made.cam.answering and made.cam.client is not None
+    finally:
+        await made.close()
+        await sim.stop()
