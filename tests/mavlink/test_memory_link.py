@@ -14,7 +14,7 @@ from topgimbal.mavlink import endpoints, memory_link
 from topgimbal.mavlink.endpoints import FORMS, EndpointError, Link, make_link, parse_endpoint
 from topgimbal.mavlink.memory_link import MAX_QUEUED_BYTES, MemoryLink, connect_memory
 
-from .virtual import fresh_name
+from .virtual import MemPeer, fresh_name
 
 
 class Recorder:
@@ -158,3 +158,16 @@ async def test_a_node_and_a_peer_exchange_mavlink(vrig_maker: Any) -> None:
     info = await vrig.peer.request(154, 283, "GIMBAL_DEVICE_INFORMATION")
     assert info.model_name == "C12"
     assert vrig.bridge.node.links[0].peer_count == 1
+
+
+async def test_with_a_signing_key_an_unsigned_peer_hears_nothing(vrig_maker: Any) -> None:
+    """The node's signing rule on this link: only a peer whose bytes it accepted (signed with the
+    key) gets telemetry; an unsigned one is heard, refused, and told nothing."""
+    key = bytes(range(32))
+    vrig = await vrig_maker("C12", signing_key=key, stream_hz=5.0, attitude_hz=1.0)
+    plain = await MemPeer(sysid=203).join(vrig.link)
+    await asyncio.sleep(5.0)
+    assert plain.messages == [] and vrig.bridge.node.unsigned_in >= 1
+    info = await vrig.peer.request(154, 283, "GIMBAL_DEVICE_INFORMATION")  # the signed peer: served
+    assert info.model_name == "C12" and plain.messages == []
+    plain.close()
