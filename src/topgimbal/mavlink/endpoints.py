@@ -18,6 +18,7 @@ import abc
 import asyncio
 import contextlib
 import logging
+import re
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from typing import Any
@@ -62,6 +63,10 @@ class EndpointSpec:
 
 
 FORMS = "udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, tcpin:HOST:PORT, a serial DEVICE[,BAUD] or memory:NAME"
+MEMORY_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
+# Link kinds whose module builds on this one (memory_link.py registers "memory" when imported, as
+# node.py does): made here all the same, without an import circle.
+LINK_KINDS: dict[str, Callable[[EndpointSpec, DataCallback, GoneCallback, int], Link]] = {}
 
 
 def parse_endpoint(text: str) -> EndpointSpec:
@@ -82,9 +87,10 @@ def parse_endpoint(text: str) -> EndpointSpec:
             raise EndpointError(f"{text!r}: {kind} needs the peer's port, not 0")
         return EndpointSpec(kind, host, port, text=s)
     if sep and scheme == "memory":
-        from .memory_link import check_name
-
-        return EndpointSpec("memory", device=check_name(text, rest), text=s)
+        if not MEMORY_NAME.fullmatch(rest):
+            raise EndpointError(f"{text!r}: expected memory:NAME (1..64 letters, digits, '.', '_', '-'; "
+                                "a letter or digit first)")  # fmt: skip
+        return EndpointSpec("memory", device=rest, text=s)
     if scheme in ("udpbcast", "mcast", "wsserver", "ws", "wss"):
         raise EndpointError(f"{text!r}: {scheme}: links are not supported; use {FORMS}")
     device, baud = s, DEFAULT_BAUD
@@ -460,9 +466,7 @@ def make_link(
     spec: EndpointSpec | str, on_data: DataCallback, on_gone: GoneCallback, max_peers: int = MAX_PEERS
 ) -> Link:
     spec = parse_endpoint(spec) if isinstance(spec, str) else spec
-    if spec.kind == "memory":
-        from .memory_link import MemoryLink
-
-        return MemoryLink(spec, on_data, on_gone, max_peers)
+    if spec.kind in LINK_KINDS:
+        return LINK_KINDS[spec.kind](spec, on_data, on_gone, max_peers)
     cls: type[Link] = UdpLink if spec.kind in ("udpin", "udpout") else StreamLink
     return cls(spec, on_data, on_gone, max_peers)

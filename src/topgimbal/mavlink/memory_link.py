@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import re
 from collections.abc import Callable, Hashable
 from typing import Any
 
@@ -34,20 +33,10 @@ log = logging.getLogger("topgimbal.mavlink")
 
 MAX_LINKS = 256  # memory: names open at once in one process
 MAX_QUEUED_BYTES = 256 * 1024  # per end and direction, handed over but not yet delivered
-NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 
 _LINKS: dict[str, MemoryLink] = {}
 
 BytesCallback = Callable[[bytes], None]
-
-
-def check_name(text: str, name: str) -> str:
-    """The NAME of `memory:NAME` (letters, digits, `.`, `_`, `-`; at most 64), or EndpointError."""
-    if not NAME.fullmatch(name):
-        raise EndpointError(
-            f"{text!r}: expected memory:NAME (1..64 letters, digits, '.', '_' or '-', starting with a letter or digit)"
-        )
-    return name
 
 
 class _Pipe:
@@ -146,7 +135,7 @@ class MemoryLink(Link):
 
     def __init__(self, spec: EndpointSpec, *a: Any, **kw: Any) -> None:
         super().__init__(spec, *a, **kw)
-        self.name = check_name(spec.text, spec.device)
+        self.name = spec.device  # checked by parse_endpoint (endpoints.MEMORY_NAME)
         self.loop: asyncio.AbstractEventLoop | None = None
         self._ends: dict[Hashable, MemoryPeer] = {}
         self._serial_n = 0
@@ -229,3 +218,6 @@ class MemoryLink(Link):
         ends, self._ends = list(self._ends.values()), {}
         for end in ends:
             end._link_closed()
+
+
+endpoints.LINK_KINDS["memory"] = MemoryLink  # make_link("memory:NAME", ...) builds one
