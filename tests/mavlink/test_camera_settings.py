@@ -217,3 +217,20 @@ async def test_virtual_a_silent_camera_fails_the_set_after_its_retries(vrig_make
     assert t_failed - tries[-1] == pytest.approx(timeout_s, abs=0.05)
     assert vrig.bridge.cam.answering  # silence_s (10 s) not reached: the link itself is still up
     assert vrig.sim.settings["IMG"]["palette"] != before  # carried out, only not confirmed
+
+
+@in_virtual_time
+async def test_virtual_recording_time_counts_the_seconds_recorded(vrig_maker: Any) -> None:
+    """The same in virtual time: CAMERA_CAPTURE_STATUS counts the recording's seconds exactly."""
+    vrig = await vrig_maker("C12", stream_hz=5.0, attitude_hz=1.0)
+    assert (await vrig.peer.ack(100, 2500)).result == ACCEPTED
+    first = await vrig.peer.request(100, 262, "CAMERA_CAPTURE_STATUS")
+    t1 = monotonic()
+    await asyncio.sleep(10.0)
+    second = await vrig.peer.request(100, 262, "CAMERA_CAPTURE_STATUS")
+    t2 = monotonic()  # 10 s and a request's round trip later
+    assert first.video_status == second.video_status == 1
+    assert second.recording_time_ms - first.recording_time_ms == pytest.approx((t2 - t1) * 1000, abs=5)
+    assert (await vrig.peer.ack(100, 2501)).result == ACCEPTED
+    stopped = await vrig.peer.request(100, 262, "CAMERA_CAPTURE_STATUS")
+    assert stopped.video_status == 0 and stopped.recording_time_ms == 0 and not vrig.sim.camera.recording
