@@ -3,6 +3,7 @@ COMMAND_INT vs COMMAND_LONG retransmission keys, and a peer that rebooted (issue
 
 from __future__ import annotations
 
+import asyncio
 import random
 from typing import Any
 
@@ -137,3 +138,44 @@ async def test_virtual_photo_outcome_unknown_when_the_link_is_declared_lost_firs
     await eventually(lambda: vrig.bridge.cam.answering, 10, "camera answering again")
     assert (await p.ack(CAMERA, PHOTO, 0, 0, 1, 0)).result == ml.MAV_RESULT_ACCEPTED
     assert s.camera.photos_taken == 2
+
+
+@in_virtual_time
+async def test_virtual_a_command_that_never_ends_is_in_progress_then_failed_at_its_timeout(vrig_maker: Any) -> None:
+    """The dispatcher's own timers at their real values (commands.py: IN_PROGRESS after 0.25 s and
+    every second, the whole command bounded by 30 s): a handler that never returns is reported in
+    progress on that schedule, then FAILED with BRIDGE_ERROR (4) once the 30 s are up, and cancelled."""
+    vrig = await vrig_maker("C12", stream_hz=5.0, attitude_hz=1.0)
+    d = vrig.bridge.dispatcher
+    cancelled: list[bool] = []
+
+    async def stuck(cmd: Any) -> None:
+        try:
+            await asyncio.sleep(3600.0)
+        except asyncio.CancelledError:
+            cancelled.append(True)
+            raise
+
+    d._handlers[(CAMERA, ml.MAV_CMD_SET_CAMERA_ZOOM)] = stuck
+    acks: list[tuple[float, Any]] = []
+    p = vrig.peer
+    inner = p._got
+
+    def got(m: Any) -> None:
+        if m.get_type() == "COMMAND_ACK" and m.command == ml.MAV_CMD_SET_CAMERA_ZOOM:
+            acks.append((monotonic(), m))
+        inner(m)
+
+    p._got = got  # type: ignore[method-assign]
+    t0 = monotonic()
+    p.command(CAMERA, ml.MAV_CMD_SET_CAMERA_ZOOM, 1, 0.5)
+    await eventually(lambda: bool(acks) and acks[-1][1].result != ml.MAV_RESULT_IN_PROGRESS, 60, "a final ack")
+    progress = [t - t0 for t, m in acks if m.result == ml.MAV_RESULT_IN_PROGRESS]
+    want = [d.progress_after_s + k * d.progress_every_s for k in range(100)]
+    want = [t for t in want if t < d.timeout_s]
+    assert progress == pytest.approx(want, abs=0.01)
+    t_final, final = acks[-1]
+    assert (final.result, final.result_param2) == (ml.MAV_RESULT_FAILED, 4)
+    # decided at the first progress tick past the deadline: never before timeout_s, at most a tick after
+    assert d.timeout_s <= t_final - t0 <= d.timeout_s + d.progress_every_s
+    assert cancelled == [True] and d.limits.in_use == 0
