@@ -15,7 +15,10 @@ import pytest
 from MAVProxy.modules.mavproxy_camera import definition  # installed by `make .venv/.installed`
 from pymavlink.dialects.v20 import common as ml
 
+from topgimbal.clock import monotonic
+
 from .conftest import Peer, Rig, eventually
+from .virtual import camera_input, in_virtual_time, silence_replies
 
 pytestmark = pytest.mark.integration
 
@@ -189,3 +192,45 @@ async def param_set_raw(peer: Peer, comp: int, name: str, raw: bytes, ptype: int
     peer.send(ml.MAVLink_param_ext_set_message(1, comp, name.encode(), raw, ptype))
     await final
     return acks
+
+
+@in_virtual_time
+async def test_virtual_a_silent_camera_fails_the_set_after_its_retries(vrig_maker: Any) -> None:
+    """The same in virtual time, the camera silent rather than gone: the set (an absolute
+    set-point: retried) goes out 1 + retries times, timeout_s apart, and the final PARAM_EXT_ACK
+    is FAILED when the last try times out, never ACCEPTED. The camera did get it (only its answers
+    are lost): FAILED says "not confirmed", not "not done"."""
+    timeout_s, retries = 1.0, 2
+    vrig = await vrig_maker("SIP", silence_s=10.0, timeout_s=timeout_s, retries=retries)
+    await eventually(lambda: vrig.bridge.cam.answering, 10, "camera answering")
+    sent = camera_input(vrig.sim)
+    before = vrig.sim.settings["IMG"]["palette"]
+    silence_replies(vrig.sim, 60.0)
+    t_set = monotonic()
+    acks = await param_set(vrig.peer, 101, "IMG_PALETTE", 2)
+    t_failed = monotonic()
+    assert [a.param_result for a in acks] == [IN_PROGRESS, FAILED]
+    tries = [t for t, data in sent if data[6:10] == b"wIMG"]
+    assert len(tries) == 1 + retries, sent
+    assert tries == pytest.approx([tries[0] + k * timeout_s for k in range(1 + retries)], abs=1e-6)
+    assert tries[0] - t_set < 0.05
+    assert t_failed - tries[-1] == pytest.approx(timeout_s, abs=0.05)
+    assert vrig.bridge.cam.answering  # silence_s (10 s) not reached: the link itself is still up
+    assert vrig.sim.settings["IMG"]["palette"] != before  # carried out, only not confirmed
+
+
+@in_virtual_time
+async def test_virtual_recording_time_counts_the_seconds_recorded(vrig_maker: Any) -> None:
+    """The same in virtual time: CAMERA_CAPTURE_STATUS counts the recording's seconds exactly."""
+    vrig = await vrig_maker("C12", stream_hz=5.0, attitude_hz=1.0)
+    assert (await vrig.peer.ack(100, 2500)).result == ACCEPTED
+    first = await vrig.peer.request(100, 262, "CAMERA_CAPTURE_STATUS")
+    t1 = monotonic()
+    await asyncio.sleep(10.0)
+    second = await vrig.peer.request(100, 262, "CAMERA_CAPTURE_STATUS")
+    t2 = monotonic()  # 10 s and a request's round trip later
+    assert first.video_status == second.video_status == 1
+    assert second.recording_time_ms - first.recording_time_ms == pytest.approx((t2 - t1) * 1000, abs=5)
+    assert (await vrig.peer.ack(100, 2501)).result == ACCEPTED
+    stopped = await vrig.peer.request(100, 262, "CAMERA_CAPTURE_STATUS")
+    assert stopped.video_status == 0 and stopped.recording_time_ms == 0 and not vrig.sim.camera.recording

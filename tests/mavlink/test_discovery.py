@@ -14,7 +14,8 @@ Gimbal/GimbalController):
   dropped; then SET_MESSAGE_INTERVAL for GIMBAL_MANAGER_STATUS (at most once a second, 6 times,
   the last two at 0.2 Hz) and for GIMBAL_DEVICE_ATTITUDE_STATUS (to the device's component, or
   the manager's for device ids 1..6; 3 times), until all three messages have come.
-QGC's timers are replayed scaled by TIME_SCALE (same order and ratios, bounded test time).
+QGC's timers are replayed scaled by `time_scale` in real time (same order and ratios, bounded test
+time), and as QGC has them in virtual time (memory links, looptime).
 
 PX4 as gimbal manager (MNT_MODE_OUT = MAVLink gimbal v2, src/modules/gimbal/output_mavlink.cpp),
 where it differs from ArduPilot: GIMBAL_DEVICE_INFORMATION is asked for by a broadcast
@@ -26,17 +27,18 @@ from __future__ import annotations
 
 import asyncio
 import math
-import time
 from typing import Any
 
 import pytest
 from pymavlink.dialects.v20 import common as ml
 
+from topgimbal.clock import monotonic
 from topgimbal.mavlink import Bridge, BridgeConfig
 from topgimbal.mavlink.quaternion import from_euler_deg
 from topgimbal.sim import Simulator
 
 from .conftest import NAN, Peer, eventually
+from .virtual import MemPeer, fresh_name, in_virtual_time, start_bridge, start_camera
 
 TIME_SCALE = 0.15
 ACK_TIMEOUT_S = 1.2
@@ -53,11 +55,13 @@ def backoff_s(retry: int) -> float:
 class Qgc(Peer):
     """The ground station side: its heartbeat, command sender and discovery logic."""
 
-    def __init__(self) -> None:
+    def __init__(self, time_scale: float = TIME_SCALE) -> None:
         super().__init__(sysid=255, compid=190)
+        self.time_scale = time_scale  # QGC's timers x this (1.0 in virtual time: QGC's own)
         self.cameras: dict[int, CameraDiscovery] = {}
         self.gimbal = GimbalDiscovery(self)
         self.sent: list[tuple[int, int, int]] = []  # (target component, command, param1)
+        self.sent_at: list[float] = []  # when each of `sent` went out
         self._hb: asyncio.Task[None] | None = None
 
     async def start(self, port: int) -> Qgc:
@@ -97,11 +101,21 @@ class Qgc(Peer):
         the final ack, or None when none came."""
         for _ in range(COMMAND_TRIES):
             self.sent.append((compid, command, int(params[0]) if params else 0))
+            self.sent_at.append(monotonic())
             try:
-                return await self.ack(compid, command, *params, timeout=ACK_TIMEOUT_S * TIME_SCALE)
+                return await self.ack(compid, command, *params, timeout=ACK_TIMEOUT_S * self.time_scale)
             except asyncio.TimeoutError:
                 continue
         return None
+
+
+class MemQgc(Qgc, MemPeer):
+    """QGC on a `memory:` link (virtual time: its own timers, unscaled)."""
+
+    async def start_on(self, link: str) -> MemQgc:
+        await self.join(link)
+        self._hb = asyncio.ensure_future(self._heartbeats())
+        return self
 
 
 class CameraDiscovery:
@@ -132,13 +146,13 @@ class CameraDiscovery:
                 self.attempts.append(ml.MAV_CMD_REQUEST_CAMERA_INFORMATION)
                 ack = await self.qgc.send_command(self.compid, ml.MAV_CMD_REQUEST_CAMERA_INFORMATION, 1)
             if ack is not None and ack.result == ml.MAV_RESULT_ACCEPTED:
-                end = time.monotonic() + INFO_TIMEOUT_S * TIME_SCALE
-                while self.info is None and time.monotonic() < end:
+                end = monotonic() + INFO_TIMEOUT_S * self.qgc.time_scale
+                while self.info is None and monotonic() < end:
                     await asyncio.sleep(0.01)
             if self.info is not None:
                 return
             retry += 1
-            await asyncio.sleep(backoff_s(retry) * TIME_SCALE)
+            await asyncio.sleep(backoff_s(retry) * self.qgc.time_scale)
         self.gave_up += 1
 
 
@@ -193,7 +207,7 @@ class GimbalDiscovery:
 
     def _check_complete(self, manager: int) -> None:
         info = self.managers[manager]
-        now = time.monotonic()
+        now = monotonic()
         if manager not in self.status and self.status_retries > 0 and now - self._last_status_request > 1.0:
             self._last_status_request = now
             interval = 0 if self.status_retries > 2 else 5_000_000
@@ -263,7 +277,10 @@ async def test_qgc5_rediscovers_a_camera_that_starts_after_it_gave_up() -> None:
     # QGC heard the camera's heartbeat, then the camera went away before answering anything.
     sim, bridge = await _camera()
     port = bridge.addresses[0][1]  # type: ignore[index]
-    qgc = await Qgc().start(port)
+    # The real-time smoke test: the give-up fast (nothing answers then: short timers cannot flake;
+    # its exact schedule at QGC's own timers is the virtual test's), the rediscovery at QGC's own
+    # timers (generous: a loaded machine's late answer is not a missed one).
+    qgc = await Qgc(time_scale=0.03).start(port)
     await qgc.wait("HEARTBEAT", lambda m: m.get_srcComponent() == CAMERA)
     for c in qgc.cameras.values():
         c.stop()
@@ -288,6 +305,7 @@ async def test_qgc5_rediscovers_a_camera_that_starts_after_it_gave_up() -> None:
         assert len(info_requests()) == len(camera_requests), "given up: no more requests"
         # the camera (bridge + camera) starts on the same port; QGC's own heartbeat makes the
         # bridge's udpin link learn it, the bridge's heartbeat restarts QGC's discovery
+        qgc.time_scale = 1.0
         started = await _camera(port)
         await eventually(lambda: d.info is not None, 30, "rediscovered on heartbeat")
         assert d.starts == 2 and d.gave_up == 1
@@ -336,3 +354,61 @@ async def test_px4_gimbal_manager_v2_messages(rig_factory: Any) -> None:
         px4.send(ml.MAVLink_gimbal_device_set_attitude_message(1, GIMBAL, 0, [NAN] * 4, NAN, NAN, 0.0))
     finally:
         px4.close()
+
+
+@in_virtual_time
+async def test_virtual_qgc5_gives_up_on_its_own_schedule_and_rediscovers() -> None:
+    """The same in virtual time with QGC's timers as QGC has them (not scaled): 10 attempts of 3
+    sends 1.2 s apart, the back-offs between them, the give-up 98.5 s after the first request,
+    nothing sent after it, and a fresh discovery from attempt 0 on the next heartbeat."""
+    sim, url = await start_camera("C12")
+    link = fresh_name("gcs")
+    made = await start_bridge(url, "C12", link)
+    qgc = await MemQgc(time_scale=1.0).start_on(link)
+    await qgc.wait("HEARTBEAT", lambda m: m.get_srcComponent() == CAMERA)
+    for c in qgc.cameras.values():
+        c.stop()
+    await made.close()  # the link closes: QGC is left with a camera it heard once
+    await sim.stop()
+    qgc.cameras.clear()
+    qgc.sent.clear()
+    qgc.sent_at.clear()
+    later: list[Any] = []
+    try:
+        d = qgc.cameras[CAMERA] = CameraDiscovery(qgc, CAMERA)
+        t0 = monotonic()
+        d.heartbeat()
+        await eventually(lambda: d.gave_up == 1, 300, "QGC gives up after 10 attempts")
+        gave_up = monotonic() - t0
+        assert len(d.attempts) == CAMERA_ATTEMPTS and d.info is None
+        assert d.attempts == [ml.MAV_CMD_REQUEST_MESSAGE, ml.MAV_CMD_REQUEST_CAMERA_INFORMATION] * (
+            CAMERA_ATTEMPTS // 2
+        )
+        # when each send should go: 3 per attempt 1.2 s apart, then the attempt's back-off
+        want, t = [], 0.0
+        for retry in range(1, CAMERA_ATTEMPTS + 1):
+            for _ in range(COMMAND_TRIES):
+                want.append(t)
+                t += ACK_TIMEOUT_S
+            t += backoff_s(retry)
+        sent_at = [at - t0 for (comp, cmd, p1), at in zip(qgc.sent, qgc.sent_at, strict=True)
+                   if comp == CAMERA and (p1 == 259 or cmd == ml.MAV_CMD_REQUEST_CAMERA_INFORMATION)]  # fmt: skip
+        assert sent_at == pytest.approx(want, abs=0.05)
+        assert gave_up == pytest.approx(t, abs=0.05) and t == pytest.approx(98.5)
+        sent_before = len(qgc.sent)
+        await asyncio.sleep(120.0)
+        assert len(qgc.sent) == sent_before, "given up: no more requests"
+        # the camera comes back on the same link; QGC joins it again (its heartbeat makes it a
+        # peer), the bridge's heartbeat restarts QGC's discovery
+        sim, url = await start_camera("C12")
+        later = [sim, await start_bridge(url, "C12", link)]
+        await qgc.join(link)
+        await eventually(lambda: d.info is not None, 30, "rediscovered on heartbeat")
+        assert d.starts == 2 and d.gave_up == 1
+        assert d.attempts[CAMERA_ATTEMPTS] == ml.MAV_CMD_REQUEST_MESSAGE, "a restart begins again at attempt 0"
+        assert len(d.attempts) == CAMERA_ATTEMPTS + 1, "answered at the first attempt"
+        await eventually(lambda: qgc.gimbal.complete(GIMBAL), 15, "gimbal discovered")
+    finally:
+        qgc.close()
+        for thing in reversed(later):
+            await (thing.close() if isinstance(thing, Bridge) else thing.stop())

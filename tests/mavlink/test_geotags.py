@@ -6,16 +6,19 @@ between fixes, carried forward at the velocity), not the last fix heard."""
 from __future__ import annotations
 
 import asyncio
+import itertools
 import logging
 import math
 from typing import Any
 
+import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.clock import monotonic, wall_time
 from topgimbal.mavlink import autopilot_streams
 
 from .conftest import Peer, eventually
+from .virtual import MemPeer, in_virtual_time
 
 CAMERA = 100
 LAT0, LON0 = 47.397742, 8.545594
@@ -143,5 +146,55 @@ async def test_no_fix_is_never_published_as_0_0(rig_factory: Any) -> None:
         got = await captured(r.peer, 0)
         assert (got.lat, got.lon, got.alt) == (2**31 - 1, 2**31 - 1, 2**31 - 1)
         assert r.bridge.feed.sample().fix is None
+    finally:
+        autopilot.close()
+
+
+@in_virtual_time
+async def test_virtual_the_autopilot_is_asked_again_on_the_products_schedule(vrig_maker: Any, caplog: Any) -> None:
+    """The same in virtual time with the product's own timers (CHECK_S 1 s, RETRY_S 5 s, not
+    shortened): unanswered, the request is repeated exactly every RETRY_S; answered, never; the
+    stream stopped, a warning once it is stale_s old and the request again at the next check."""
+    caplog.set_level(logging.INFO, logger="topgimbal.mavlink")
+    # the camera's attitude slower than by default: a minute of it costs real CPU even in virtual time
+    vrig = await vrig_maker("C12", role="device", stream_hz=5.0, attitude_hz=1.0)
+    autopilot = await MemPeer(sysid=1, compid=1).join(vrig.link)
+    asked_at: list[float] = []
+    inner = autopilot._got
+
+    def got(m: Any) -> None:
+        if m.get_type() == "COMMAND_LONG" and m.command == 511 and m.param1 == 33:
+            asked_at.append(monotonic())
+        inner(m)
+
+    autopilot._got = got  # type: ignore[method-assign]
+    position = next(w for w in autopilot_streams.WANTED if w.name == "GLOBAL_POSITION_INT")
+    try:
+        t0 = monotonic()
+        autopilot.send(ml.MAVLink_heartbeat_message(2, 3, 0, 0, 4, 3))  # a quadrotor, ArduPilot
+        await asyncio.sleep(30.0)
+        assert asked_at and asked_at[0] - t0 <= autopilot_streams.CHECK_S + 0.01
+        gaps = [b - a for a, b in itertools.pairwise(asked_at)]
+        assert gaps == pytest.approx([autopilot_streams.RETRY_S] * len(gaps), abs=0.01), asked_at
+        assert len(asked_at) == 1 + int((30.0 - (asked_at[0] - t0)) // autopilot_streams.RETRY_S)
+        # answered at 10 Hz for 20 s: not asked again
+        n = len(asked_at)
+        for i in range(200):
+            autopilot.send(ml.MAVLink_global_position_int_message(i * 100, int(LAT0 * 1e7), int(LON0 * 1e7),
+                                                                  500_000, 20_000, 0, 0, 0, 9000))  # fmt: skip
+            await asyncio.sleep(0.1)
+        assert len(asked_at) == n
+        status = vrig.bridge.streams.status()["GLOBAL_POSITION_INT"]
+        assert status["source"] == "1/1" and status["age_s"] <= 0.1 and not status["stale"]
+        last_fix = monotonic() - 0.1
+        await asyncio.sleep(10.0)  # it stops
+        # stale once older than stale_s (2 s), asked again at the first check after that
+        assert len(asked_at) > n
+        assert position.stale_s < asked_at[n] - last_fix <= position.stale_s + autopilot_streams.CHECK_S + 0.01
+        warnings = [
+            r for r in caplog.records if r.levelno == logging.WARNING and "no GLOBAL_POSITION_INT" in r.getMessage()
+        ]
+        assert len(warnings) == 1
+        assert not [m for m in vrig.peer.messages if m.get_type() == "COMMAND_LONG" and m.target_system == 255]
     finally:
         autopilot.close()

@@ -3,15 +3,20 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
+import pytest
 from pymavlink.dialects.v20 import common as ml
 
+from topgimbal.clock import monotonic
 from topgimbal.mavlink.quaternion import from_euler_deg, to_euler_deg
 from topgimbal.protocol import get_model
 
 from .conftest import NAN, eventually
+from .virtual import HealthLog, camera_input, in_virtual_time, silence_replies
 
 GIMBAL, CAMERA, THERMAL = 154, 100, 101
+COMMS_ERROR = ml.GIMBAL_DEVICE_ERROR_FLAGS_COMMS_ERROR
 
 
 async def test_heartbeats_and_device_information(rig) -> None:
@@ -244,3 +249,39 @@ async def test_camera_that_stops_answering_and_comes_back(rig_factory) -> None:
     assert ack.result == ml.MAV_RESULT_ACCEPTED
     assert r.bridge.cam.link_changes >= 2  # down, then up: the client's own events
     await eventually(lambda: abs(sim2.gimbal.pitch_deg + 10) < 0.05, 10)
+
+
+@pytest.mark.parametrize("silence_s", [0.6, 3.0])
+@in_virtual_time
+async def test_virtual_camera_that_stops_answering_and_comes_back(vrig_maker: Any, silence_s: float) -> None:
+    """The same in virtual time, the camera silent rather than gone (a datagram link: nothing
+    closes): declared down exactly silence_s after its last frame, nothing sent while down, back
+    as soon as its answers come again (the client's ping), the stream resumed by the client."""
+    vrig = await vrig_maker("C12", silence_s=silence_s, timeout_s=1.0, retries=2)
+    p = vrig.peer
+    health = HealthLog(vrig.bridge)
+    await eventually(lambda: vrig.bridge.cam.answering, 10, "camera answering")
+    sent = camera_input(vrig.sim)
+    quiet_s = 10.0
+    t_quiet = monotonic()
+    silence_replies(vrig.sim, quiet_s)
+    await p.wait("GIMBAL_DEVICE_ATTITUDE_STATUS", lambda m: m.failure_flags & COMMS_ERROR, timeout=silence_s + 5)
+    down = health.when(False, t_quiet)
+    # the last frame came at most one stream period (50 Hz) before the silence began
+    assert down is not None and silence_s - 0.02 <= down - t_quiet <= silence_s + 0.02, down - t_quiet
+    ack = await p.ack(GIMBAL, ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, -10, 5)
+    assert (ack.result, ack.result_param2) == (ml.MAV_RESULT_FAILED, 3)
+    await eventually(lambda: "link down" in "".join(m.text for m in p.messages if m.get_type() == "STATUSTEXT"))
+    await p.wait("GIMBAL_DEVICE_ATTITUDE_STATUS", lambda m: not m.failure_flags & COMMS_ERROR, timeout=quiet_s + 10)
+    up = health.when(True, down)
+    # back with the first answer after the window: the client pings a quiet stream every ping_after_s (1 s)
+    assert up is not None and t_quiet + quiet_s <= up <= t_quiet + quiet_s + 1.0 + 0.05, up - t_quiet
+    assert [u for t, u in health.changes if t >= t_quiet] == [False, True]
+    t_cmd = monotonic()
+    ack = await p.ack(GIMBAL, ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, -10, 5)
+    assert ack.result == ml.MAV_RESULT_ACCEPTED  # at the first try
+    await eventually(lambda: abs(vrig.sim.gimbal.pitch_deg + 10) < 0.05, 10)
+    # the command's frame (SkyDroid GAM) went out now, once, and never while the link was down
+    idents = [(t, data[7:10]) for t, data in sent]
+    assert [i for t, i in idents if t >= t_cmd].count(b"GAM") == 1
+    assert b"GAM" not in {i for t, i in idents if t < t_cmd}

@@ -19,6 +19,7 @@ from topgimbal.mavlink.quaternion import from_euler_deg
 from topgimbal.mavlink.vehicle import MAX_SYSTEMS, Vehicles
 
 from .conftest import NAN, Peer, eventually
+from .virtual import in_virtual_time
 
 GIMBAL, CAMERA = 154, 100
 INF = math.inf
@@ -348,3 +349,44 @@ async def test_the_busy_warning_comes_again_after_its_period_counting_what_it_le
     assert dispatcher.busy_rejected == 10  # the last one left out: within the new period
     release.set()
     await asyncio.sleep(0)
+
+
+@in_virtual_time
+async def test_virtual_a_flood_of_neutral_set_points_stays_one_request(vrig_maker: Any) -> None:
+    """The same in virtual time, watched for 30 s rather than 0.5 s: still one centre request."""
+    vrig = await vrig_maker("C12", range_hz=0.0, stream_hz=5.0, attitude_hz=1.0)
+    s = vrig.sim
+    center = vrig.bridge.cam.profile.ident("gimbal_control")
+    before = len(s.received)
+    enc = ml.MAVLink(None, srcSystem=1, srcComponent=1)
+    neutral = ml.MAVLink_gimbal_device_set_attitude_message(
+        1, GIMBAL, ml.GIMBAL_DEVICE_FLAGS_NEUTRAL, [NAN] * 4, NAN, NAN, NAN
+    )
+    assert vrig.peer.end is not None
+    assert vrig.peer.end.send(b"".join(neutral.pack(enc) for _ in range(300)))  # one chunk, as one datagram
+    await eventually(lambda: vrig.bridge.node.messages_in >= 300)
+    await asyncio.sleep(30.0)
+    assert sum(1 for f in s.received[before:] if f.ident == center) == 1
+
+
+@pytest.mark.parametrize("kind", ["manager_attitude", "device_attitude", "manager_pitchyaw"])
+@in_virtual_time
+async def test_virtual_infinite_rates_are_no_rates(vrig_maker: Any, kind: str) -> None:
+    """The same in virtual time, watched for 10 s: the garbage is never applied, the sane one once."""
+    vrig = await vrig_maker("C12", stream_hz=5.0, attitude_hz=1.0)
+    p = vrig.peer
+    applied = count_applies(vrig)
+    rates = (INF, -INF, INF)
+    if kind == "manager_attitude":
+        garbage = ml.MAVLink_gimbal_manager_set_attitude_message(1, GIMBAL, 0, 0, [0.0] * 4, *rates)
+    elif kind == "device_attitude":
+        garbage = ml.MAVLink_gimbal_device_set_attitude_message(1, GIMBAL, 0, [0.0] * 4, *rates)
+    else:
+        garbage = ml.MAVLink_gimbal_manager_set_pitchyaw_message(1, GIMBAL, 0, 0, NAN, NAN, INF, -INF)
+    yaw_before = vrig.sim.gimbal.yaw_deg
+    p.send(garbage)
+    await asyncio.sleep(10.0)
+    assert applied == [] and vrig.sim.gimbal.yaw_deg == pytest.approx(yaw_before, abs=0.01)
+    p.send(ml.MAVLink_gimbal_manager_set_pitchyaw_message(1, GIMBAL, 0, 0, math.radians(-10), NAN, NAN, NAN))
+    await asyncio.sleep(10.0)
+    assert len(applied) == 1 and applied[0].pitch_deg == pytest.approx(-10) and not applied[0].is_rate

@@ -12,11 +12,13 @@ from typing import Any
 
 from pymavlink.dialects.v20 import common as ml
 
+from topgimbal.clock import monotonic
 from topgimbal.mavlink import camera as camera_module
 from topgimbal.mavlink import commands as commands_module
 from topgimbal.mavlink.reboots import RebootWatch
 
 from .conftest import NAN, Peer, eventually
+from .virtual import in_virtual_time
 
 CAMERA = 100
 
@@ -108,6 +110,32 @@ async def test_a_capture_sequence_is_deduplicated_only_within_the_window(
     # past the window the same number is a new photo (a sender that rebooted unnoticed)
     await asyncio.sleep(0.6)
     ack = await gcs.ack(CAMERA, ml.MAV_CMD_IMAGE_START_CAPTURE, 0, 0, 1, 7, as_int=True, frame=0)
+    assert ack.result == ml.MAV_RESULT_ACCEPTED
+    await eventually(lambda: cam.photos_taken == before + 2, 5, "a new photo past the window")
+    assert any("a new photo" in rec.getMessage() for rec in caplog.records)
+
+
+@in_virtual_time
+async def test_virtual_a_capture_sequence_is_deduplicated_exactly_within_the_window(
+    vrig_maker: Any, caplog: Any
+) -> None:
+    """The same at the product's own window (RETRANSMIT_WINDOW_S, 3 s, not shortened), either
+    side of its edge: 0.1 s inside it the number is the photo already taken, 0.1 s past it a new one."""
+    window_s = commands_module.RETRANSMIT_WINDOW_S
+    caplog.set_level(logging.INFO, logger="topgimbal.mavlink")
+    vrig = await vrig_maker("C12", stream_hz=5.0, attitude_hz=1.0)
+    gcs, cam = vrig.peer, vrig.sim.camera
+    before = cam.photos_taken
+    # acked once the camera confirmed the photo: the window starts at the ack (the photo's record)
+    ack = await gcs.ack(CAMERA, ml.MAV_CMD_IMAGE_START_CAPTURE, 0, 0, 1, 7)
+    t0 = monotonic()
+    assert ack.result == ml.MAV_RESULT_ACCEPTED and cam.photos_taken == before + 1
+    await asyncio.sleep(window_s - 0.1)
+    ack = await gcs.ack(CAMERA, ml.MAV_CMD_IMAGE_START_CAPTURE, 0, 0, 1, 7, as_int=True)
+    assert ack.result == ml.MAV_RESULT_ACCEPTED and cam.photos_taken == before + 1
+    assert any("capture sequence 7 again" in rec.getMessage() for rec in caplog.records)
+    await asyncio.sleep(t0 + window_s + 0.1 - monotonic())
+    ack = await gcs.ack(CAMERA, ml.MAV_CMD_IMAGE_START_CAPTURE, 0, 0, 1, 7)  # COMMAND_LONG, confirmation 0
     assert ack.result == ml.MAV_RESULT_ACCEPTED
     await eventually(lambda: cam.photos_taken == before + 2, 5, "a new photo past the window")
     assert any("a new photo" in rec.getMessage() for rec in caplog.records)

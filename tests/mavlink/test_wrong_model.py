@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+from typing import Any
 
 import pytest
 from pymavlink.dialects.v20 import common as ml
@@ -15,6 +16,7 @@ from topgimbal.mavlink import Bridge, BridgeConfig
 from topgimbal.sim import BackgroundSimulator, Simulator
 
 from .conftest import Peer, eventually
+from .virtual import HealthLog, MemPeer, camera_input, fresh_name, in_virtual_time, start_bridge, start_camera
 
 GIMBAL = 154
 
@@ -107,3 +109,45 @@ def test_several_cameras_with_model_auto_serve_each_as_what_it_says(capsys):
                      "--camera", f"right={sip.url},auto", "--seconds", "1"])  # fmt: skip
     out = capsys.readouterr().out
     assert code == 0 and "left (C12): gimbal 154" in out and "right (SIP): gimbal 171" in out, out
+
+
+@in_virtual_time
+async def test_virtual_a_camera_that_turns_out_to_be_another_model_stays_unserved(caplog: Any) -> None:
+    """The same in virtual time, watched for a minute of the product's own timers (silence 3 s,
+    1 s x 3, pings, reconnects): one error line, never healthy, nothing that moves the gimbal sent."""
+    caplog.set_level(logging.INFO, logger="topgimbal.mavlink")
+    sim, url = await start_camera("SIP")
+    link = fresh_name("gcs")
+    made = await start_bridge(url, "C12", link)
+    health = HealthLog(made)
+    peer = await MemPeer().join(link)
+    try:
+        await eventually(lambda: bool(made.cam.wrong_model), 10)
+        assert "SIP" in made.cam.wrong_model and not made.cam.answering
+        await peer.wait(
+            "HEARTBEAT", lambda m: m.get_srcComponent() == GIMBAL and m.system_status == ml.MAV_STATE_CRITICAL
+        )
+        sent = camera_input(sim)
+        for yaw in (-20, 10, 30):
+            ack = await peer.ack(GIMBAL, ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, -20, yaw)
+            assert ack.result != ml.MAV_RESULT_ACCEPTED
+            await asyncio.sleep(20.0)
+        assert (sim.gimbal.axis("yaw").target, sim.gimbal.axis("pitch").target) == pytest.approx((0.0, 0.0))
+        # nothing written but the client's own attitude stream request (GAA, asked again after each
+        # answered ping; harmless to a SIP, which ignores it): no pointing command reached it
+        assert {data[6:10] for _, data in sent if data[6:7] == b"w"} <= {b"wGAA"}
+        # (its first answer counted for the instant before the model check's verdict; never since)
+        assert [up for _, up in health.changes] in ([False], [True, False]), health.changes
+        states = [
+            m.system_status for m in peer.messages if m.get_type() == "HEARTBEAT" and m.get_srcComponent() == GIMBAL
+        ]
+        # (one ACTIVE may precede the verdict: the camera's first answer comes before the model
+        # check's; from the verdict on, CRITICAL only)
+        assert ml.MAV_STATE_CRITICAL in states
+        assert ml.MAV_STATE_ACTIVE not in states[states.index(ml.MAV_STATE_CRITICAL) :], states
+        errors = [r for r in caplog.records if r.levelno >= logging.ERROR and "not served" in r.getMessage()]
+        assert len(errors) == 1
+    finally:
+        peer.close()
+        await made.close()
+        await sim.stop()

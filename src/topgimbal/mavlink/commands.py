@@ -322,7 +322,9 @@ class Dispatcher:
         self._finish(comp, cmd, outcome)
 
     def _outcome(self, cmd: Command, work: asyncio.Future[Outcome | None]) -> Outcome:
-        if work.cancelled():
+        # not done: cancelled at the deadline just now (a task is cancelled only once it runs again;
+        # asking it for its exception then raised InvalidStateError: no final ack, the place kept)
+        if work.cancelled() or not work.done():
             return Outcome(FAILED, BRIDGE_ERROR, text=f"command {cmd.command} took longer than {self.timeout_s:g} s")
         exc = work.exception()
         if exc is None:

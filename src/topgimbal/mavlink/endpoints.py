@@ -7,6 +7,7 @@
     tcpin:HOST:PORT    listen; at most max_peers connections at once; one silent for PEER_TIMEOUT_S
                        is closed when a new one needs its place (or when we next send)
     DEVICE[,BAUD]      a serial port (/dev/ttyUSB0,57600; default 115200); reopened when it fails
+    memory:NAME        in-process (tests, embedding): peers connect by NAME (memory_link.py)
 
 Links carry bytes only; the node parses MAVLink per (link, peer) so a stream split anywhere is
 reassembled. Every buffer is bounded: peers per link, bytes queued per connection."""
@@ -17,6 +18,7 @@ import abc
 import asyncio
 import contextlib
 import logging
+import re
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from typing import Any
@@ -52,7 +54,7 @@ class EndpointError(TopGimbalError, ValueError):
 
 @dataclass(frozen=True)
 class EndpointSpec:
-    kind: str  # udpin, udpout, tcp, tcpin, serial
+    kind: str  # udpin, udpout, tcp, tcpin, serial, memory (NAME in device)
     host: str = ""
     port: int = 0
     device: str = ""
@@ -63,7 +65,11 @@ class EndpointSpec:
         return self.text
 
 
-FORMS = "udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, tcpin:HOST:PORT or a serial DEVICE[,BAUD]"
+FORMS = "udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, tcpin:HOST:PORT, a serial DEVICE[,BAUD] or memory:NAME"
+MEMORY_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
+# Link kinds whose module builds on this one (memory_link.py registers "memory" when imported, as
+# node.py does): made here all the same, without an import circle.
+LINK_KINDS: dict[str, Callable[[EndpointSpec, DataCallback, GoneCallback, int], Link]] = {}
 
 
 def parse_endpoint(text: str) -> EndpointSpec:
@@ -83,6 +89,11 @@ def parse_endpoint(text: str) -> EndpointSpec:
         if kind in ("udpout", "tcp") and port == 0:
             raise EndpointError(f"{text!r}: {kind} needs the peer's port, not 0")
         return EndpointSpec(kind, host, port, text=s)
+    if sep and scheme == "memory":
+        if not MEMORY_NAME.fullmatch(rest):
+            raise EndpointError(f"{text!r}: expected memory:NAME (1..64 letters, digits, '.', '_', '-'; "
+                                "a letter or digit first)")  # fmt: skip
+        return EndpointSpec("memory", device=rest, text=s)
     if scheme in ("udpbcast", "mcast", "wsserver", "ws", "wss"):
         raise EndpointError(f"{text!r}: {scheme}: links are not supported; use {FORMS}")
     device, baud = s, DEFAULT_BAUD
@@ -459,5 +470,7 @@ def make_link(
     spec: EndpointSpec | str, on_data: DataCallback, on_gone: GoneCallback, max_peers: int = MAX_PEERS
 ) -> Link:
     spec = parse_endpoint(spec) if isinstance(spec, str) else spec
+    if spec.kind in LINK_KINDS:
+        return LINK_KINDS[spec.kind](spec, on_data, on_gone, max_peers)
     cls: type[Link] = UdpLink if spec.kind in ("udpin", "udpout") else StreamLink
     return cls(spec, on_data, on_gone, max_peers)

@@ -19,6 +19,7 @@ from collections.abc import Callable, Hashable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from ..clock import monotonic
+from . import memory_link  # noqa: F401  # registers the memory:NAME kind with make_link
 from ._mav import mavlink
 from .endpoints import MAX_PEERS, DataCallback, GoneCallback, Link, make_link
 from .signing import SignedStreams, sign_outgoing
