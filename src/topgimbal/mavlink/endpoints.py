@@ -129,7 +129,7 @@ class Link(abc.ABC):
         # The shared peer table (peers.py): at most max_peers, a newcomer refused at the cap; on a
         # listening link one silent for PEER_TIMEOUT_S gives its place back (udpin: forgotten,
         # tcpin: closed). Values: udpin the address, streams their connection.
-        listening = spec.kind in ("udpin", "tcpin")
+        listening = spec.kind in ("udpin", "tcpin", "memory")
         self.peers: PeerTable[Hashable, Any] = PeerTable(
             max_peers,
             at_cap=REFUSE,

@@ -25,7 +25,7 @@ import logging
 from collections.abc import Callable, Hashable
 from typing import Any
 
-from ..clock import monotonic
+from ..peers import EXPIRED, Gone
 from . import endpoints
 from .endpoints import EndpointError, EndpointSpec, Link
 
@@ -71,7 +71,6 @@ class MemoryPeer:
         self.on_close: Callable[[], None] | None = None  # the link closed (the bridge stopped)
         self.closed = False
         self.trusted = False  # the node accepted something it sent (matters with a signing key)
-        self.last_heard = monotonic()
         self.bytes_in = 0  # from the node
         self.bytes_out = 0  # to the node
         loop = link.loop
@@ -131,18 +130,19 @@ def connect_memory(name: str, on_bytes: BytesCallback | None = None) -> MemoryPe
 
 
 class MemoryLink(Link):
-    """The node's side of `memory:NAME`: listens for ends, answers each like a udpin peer."""
+    """The node's side of `memory:NAME`: listens for ends, answers each like a udpin peer. Its ends
+    are in the link's peer table (peers.py: at most max_peers, a newcomer refused at the cap, one
+    silent for PEER_TIMEOUT_S gives its place back, as on tcpin)."""
 
     def __init__(self, spec: EndpointSpec, *a: Any, **kw: Any) -> None:
         super().__init__(spec, *a, **kw)
         self.name = spec.device  # checked by parse_endpoint (endpoints.MEMORY_NAME)
         self.loop: asyncio.AbstractEventLoop | None = None
-        self._ends: dict[Hashable, MemoryPeer] = {}
         self._serial_n = 0
 
     @property
     def peer_count(self) -> int:
-        return len(self._ends)
+        return len(self.peers)
 
     async def start(self) -> None:
         if self.name in _LINKS:
@@ -154,35 +154,28 @@ class MemoryLink(Link):
         _LINKS[self.name] = self
 
     def _attach(self, end: MemoryPeer) -> Hashable:
-        if len(self._ends) >= self.max_peers:
-            self._expire(monotonic())
-        if len(self._ends) >= self.max_peers:
-            self._refuse(end)
-            raise EndpointError(f"{self.spec}: already {self.max_peers} peers (the limit)")
         self._serial_n += 1
         peer = ("memory", self._serial_n)
-        self._ends[peer] = end
+        if not self.peers.admit(peer, end):  # refused at the cap (counted and logged by the table)
+            raise EndpointError(f"{self.spec}: already {self.max_peers} peers (the limit)")
         log.info("%s: connected (%s)", self, peer)
         return peer
 
-    def _expire(self, now: float) -> None:
-        """Ends silent for PEER_TIMEOUT_S give their places to new ones (as tcpin connections do)."""
-        for peer, end in list(self._ends.items()):
-            if now - end.last_heard > endpoints.PEER_TIMEOUT_S:
-                log.info("%s: %s silent for %.0f s, closed", self, peer, endpoints.PEER_TIMEOUT_S)
-                del self._ends[peer]
-                end._link_closed()
-                self._on_gone(self, peer)
+    def _gone(self, gone: Gone[Hashable, Any]) -> None:
+        if gone.why == EXPIRED:  # silent for the lease: its place goes to a newcomer
+            log.info("%s: %s silent for %.0f s, closed", self, gone.key, self.peers.lease_s)
+            gone.value._link_closed()
+        super()._gone(gone)
 
     def _detach(self, end: MemoryPeer) -> None:
-        if self._ends.pop(end.peer, None) is not None:
+        if self.peers.get(end.peer) is end:
             log.info("%s: %s closed", self, end.peer)
-            self._on_gone(self, end.peer)
+            self.peers.forget(end.peer, end)
 
     def _from_end(self, end: MemoryPeer, data: bytes) -> None:
-        if self._closed or self._ends.get(end.peer) is not end:
+        if self._closed or self.peers.get(end.peer) is not end:
             return
-        end.last_heard = monotonic()
+        self.peers.heard(end.peer)
         if self._deliver(end.peer, data):
             end.trusted = True
 
@@ -197,7 +190,7 @@ class MemoryLink(Link):
             self.dropped_out += 1
 
     def send(self, data: bytes) -> None:
-        ends = [e for e in self._ends.values() if self._serves(e)]
+        ends = [e for e in self.peers.values() if self._serves(e)]
         if not ends:
             self.dropped_out += 1
             return
@@ -205,7 +198,7 @@ class MemoryLink(Link):
             self._push(end, data)
 
     def send_to(self, peer: Hashable, data: bytes) -> None:
-        end = self._ends.get(peer)
+        end = self.peers.get(peer)
         if end is None or not self._serves(end):
             self.dropped_out += 1
             return
@@ -215,8 +208,7 @@ class MemoryLink(Link):
         self._closed = True
         if _LINKS.get(self.name) is self:
             del _LINKS[self.name]
-        ends, self._ends = list(self._ends.values()), {}
-        for end in ends:
+        for end in self.peers.clear():
             end._link_closed()
 
 
