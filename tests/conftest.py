@@ -6,15 +6,17 @@
 - `virtual`: everything else: memory transport or a fake clock, no socket, no child process; its
   coroutines run on looptime's virtual-time loop.
 
-A test's tier is read from its module's source and the sources of the fixtures it uses (a module
-that names a loopback address, a child process or an external program is not virtual), so no test
-file has to mark itself; `pytest.mark.loopback`/`external` on a test still wins. The rule is
+A test's tier is read from its own source, its module's other code (imports, helpers, constants:
+not the module's other tests) and the sources of the fixtures it uses (code that names a loopback
+address, a child process or an external program is not virtual), so no test file has to mark
+itself, and one loopback test does not take its module's memory:// tests out of the virtual tier; `pytest.mark.loopback`/`external` on a test still wins. The rule is
 checked where it matters: a test counted as virtual that opens an IP socket or starts a process
 fails at once, saying so (`_virtual_guard`), so `make check` can never quietly wait on a network.
 """
 
 from __future__ import annotations
 
+import ast
 import inspect
 import re
 import socket
@@ -38,7 +40,7 @@ LOOPBACK = re.compile(
     r"127\.0\.0\.1|::1|localhost|socket\.|open_connection|create_server|create_datagram_endpoint|"
     r"start_server|\bpty\b|openpty|subprocess|sys\.executable|ClientSession|BackgroundConsole|ConsoleServer|"
     r"sim_factory|rig_factory|\brig\b|\budp=|\btcp=|start_udp|start_tcp|\.bound_port|Bridge\(|"
-    r"serve\(|zenoh|Zenoh",
+    r"serve\(|zenoh|Zenoh|\bLOOP\b|UdpClient|listen=\{",
 )
 
 
@@ -58,13 +60,45 @@ def _function_source(func: Any) -> str:
         return ""
 
 
+@cache
+def _test_spans(path: str) -> tuple[str, tuple[tuple[str, int, int], ...]]:
+    """A module's source and the (name, first line, last line) of each test function in it, its
+    decorators included (top level or in a class)."""
+    text = _source(path)
+    try:
+        tree = ast.parse(text)
+    except SyntaxError:
+        return text, ()
+    spans = []
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.name.startswith("test"):
+            first = min([node.lineno] + [d.lineno for d in node.decorator_list])
+            spans.append((node.name, first, node.end_lineno or node.lineno))
+    return text, tuple(spans)
+
+
+@cache
+def _module_context(path: str, test_name: str) -> str:
+    """What a test's tier is read from in its module: the module without the other tests' bodies
+    (its helpers, constants and imports stay), so that one loopback test does not take a module's
+    memory:// tests out of the virtual tier."""
+    text, spans = _test_spans(path)
+    lines = text.splitlines()
+    drop = set()
+    for name, first, last in spans:
+        if name != test_name:
+            drop.update(range(first - 1, last))
+    return "\n".join(line for i, line in enumerate(lines) if i not in drop)
+
+
 def _tier(item: pytest.Item) -> str:
     own = {m.name for m in item.iter_markers() if m.name in TIERS}
     if own:  # a mark by hand wins; the slowest it names
         return max(own, key=TIERS.index)
     if item.get_closest_marker("browser") is not None or {"browser", "page"} & set(item.fixturenames):
         return "external"
-    texts = [_source(str(item.path))]
+    name = getattr(getattr(item, "function", None), "__name__", item.name.split("[")[0])
+    texts = [_module_context(str(item.path), name)]
     info = getattr(item, "_fixtureinfo", None)
     for defs in info.name2fixturedefs.values() if info is not None else ():
         for fixturedef in defs:

@@ -63,3 +63,14 @@ def test_a_virtual_test_may_use_a_socketpair(suite: pytest.Pytester) -> None:
     # the event loop's own self-pipe is an AF_UNIX socketpair: not the network
     suite.makepyfile(test_loop="import asyncio\n\ndef test_loop():\n    asyncio.run(asyncio.sleep(0))\n")
     suite.runpytest("-q", "-m", "virtual", "-p", "asyncio").assert_outcomes(passed=1)
+
+
+def test_a_test_is_tiered_by_its_own_body_and_the_module_around_it(suite: pytest.Pytester) -> None:
+    # one loopback test does not take its neighbours out of the virtual tier; a module-level
+    # helper or constant still counts for every test in the module
+    suite.makepyfile(
+        test_mixed=("def test_memory():\n    assert 'memory://cam'\n\ndef test_udp():\n    assert '127.0.0.1'\n"),
+        test_shared="ADDR = '127.0.0.1'\n\ndef test_a():\n    assert ADDR\n\ndef test_b():\n    pass\n",
+    )
+    virtual = [line for line in suite.runpytest("-q", "--co", "-m", "virtual").outlines if "::" in line]
+    assert virtual == ["test_mixed.py::test_memory"], virtual
