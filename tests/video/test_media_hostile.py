@@ -184,3 +184,28 @@ def test_a_silent_connection_is_closed_after_the_socket_timeout(tmp_path: Path, 
             assert s.recv(100) == b""  # closed by the server, not by our 30 s
     finally:
         server.stop()
+
+
+def test_a_client_fetching_one_file_after_another_is_not_refused(
+    served: MediaServer, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A connection that has its whole answer no longer counts against its client's limit, even
+    while its thread is still closing (slowed here, as on a loaded machine: the client, which read
+    its Content-Length, opens the next connection first). Before, the third request got 503."""
+    import urllib.error
+    import urllib.request
+
+    release = MediaServer._release
+
+    def slow_release(self: MediaServer, conn: socket.socket) -> None:
+        time.sleep(0.3)
+        release(self, conn)
+
+    monkeypatch.setattr(MediaServer, "_release", slow_release)
+    for _ in range(6):
+        with urllib.request.urlopen(served.url + "IMG_0001.jpg", timeout=30) as r:
+            assert r.read() == b"jpeg"
+        with pytest.raises(urllib.error.HTTPError) as err:
+            urllib.request.urlopen(served.url + "secret.txt", timeout=30)
+        assert err.value.code == 404
+    assert served.refused_connections == 0

@@ -6,7 +6,7 @@ GET /<name>       one file (only names the media store writes: no paths, no othe
 HEAD /<name>      its size
 
 Bounded: at most `MAX_CONNECTIONS` connections (each a thread) and `MAX_PER_CLIENT` per client
-address, checked when a connection is accepted (beyond them it gets a 503 line and is closed, no
+address (one that has its whole answer and closes no longer counts), checked when a connection is accepted (beyond them it gets a 503 line and is closed, no
 thread made); at most `MAX_CLIENTS` requests at once (more get 503); every socket wait (the request
 head, each write to a client that does not read) at most `SOCKET_TIMEOUT_S`, a whole response at
 most `MAX_RESPONSE_S`. Each refusal is counted and logged at most every LOG_EVERY_S. A request line
@@ -62,6 +62,11 @@ class MediaServer:
         self._conn_lock = threading.Lock()
         self._open: dict[socket.socket, str] = {}  # connection -> client address
         self._per_client: dict[str, int] = {}
+        # Connections whose response is complete and that close (HTTP/1.0, `Connection: close`):
+        # not counted against their client's MAX_PER_CLIENT any more. Their thread may still be
+        # closing when the client, which has its whole answer, opens its next connection: counted,
+        # a client fetching files one after another got 503 on a loaded machine.
+        self._answered: set[socket.socket] = set()
         server = self
 
         class Handler(BaseHTTPRequestHandler):
@@ -114,7 +119,7 @@ class MediaServer:
 
     def _admit(self, conn: socket.socket, client: str) -> bool:
         with self._conn_lock:
-            held = self._per_client.get(client, 0)
+            held = self._per_client.get(client, 0) - sum(1 for c in self._answered if self._open.get(c) == client)
             if len(self._open) < MAX_CONNECTIONS and held < MAX_PER_CLIENT:
                 self._open[conn] = client
                 self._per_client[client] = held + 1
@@ -128,6 +133,7 @@ class MediaServer:
 
     def _release(self, conn: socket.socket) -> None:
         with self._conn_lock:
+            self._answered.discard(conn)
             client = self._open.pop(conn, None)
             if client is not None:
                 left = self._per_client.get(client, 1) - 1
@@ -150,6 +156,10 @@ class MediaServer:
             log.debug("media http: %s: %s", req.client_address[0], exc)
         finally:
             self._slots.release()
+            if req.close_connection:  # answered, and the connection ends: its client may open another
+                with self._conn_lock:
+                    if req.connection in self._open:
+                        self._answered.add(req.connection)
 
     def _serve(self, req: BaseHTTPRequestHandler, body: bool) -> None:
         name = unquote(urlsplit(req.path).path).lstrip("/")
