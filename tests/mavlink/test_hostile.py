@@ -180,18 +180,22 @@ async def test_a_flood_of_neutral_set_points_is_one_request(rig_factory: Any) ->
     assert centres() == 1
 
 
+def infinite_rates(kind: str) -> Any:
+    """A gimbal setpoint of `kind` whose angular velocities are infinite."""
+    rates = (INF, -INF, INF)
+    if kind == "manager_attitude":
+        return ml.MAVLink_gimbal_manager_set_attitude_message(1, GIMBAL, 0, 0, [0.0] * 4, *rates)
+    if kind == "device_attitude":
+        return ml.MAVLink_gimbal_device_set_attitude_message(1, GIMBAL, 0, [0.0] * 4, *rates)
+    return ml.MAVLink_gimbal_manager_set_pitchyaw_message(1, GIMBAL, 0, 0, NAN, NAN, INF, -INF)
+
+
 @pytest.mark.parametrize("kind", ["manager_attitude", "device_attitude", "manager_pitchyaw"])
 async def test_infinite_rates_are_no_rates(rig: Any, kind: str) -> None:
     """An infinite angular velocity used to be clamped to the model's top speed: the gimbal spun."""
     p = rig.peer
     applied = count_applies(rig)
-    rates = (INF, -INF, INF)
-    if kind == "manager_attitude":
-        garbage = ml.MAVLink_gimbal_manager_set_attitude_message(1, GIMBAL, 0, 0, [0.0] * 4, *rates)
-    elif kind == "device_attitude":
-        garbage = ml.MAVLink_gimbal_device_set_attitude_message(1, GIMBAL, 0, [0.0] * 4, *rates)
-    else:
-        garbage = ml.MAVLink_gimbal_manager_set_pitchyaw_message(1, GIMBAL, 0, 0, NAN, NAN, INF, -INF)
+    garbage = infinite_rates(kind)
     p.send(garbage)
     await asyncio.sleep(0.3)  # the old bridge had started turning by now
     sane = ml.MAVLink_gimbal_manager_set_pitchyaw_message(1, GIMBAL, 0, 0, math.radians(-10), NAN, NAN, NAN)
@@ -376,13 +380,7 @@ async def test_virtual_infinite_rates_are_no_rates(vrig_maker: Any, kind: str) -
     vrig = await vrig_maker("C12", stream_hz=5.0, attitude_hz=1.0)
     p = vrig.peer
     applied = count_applies(vrig)
-    rates = (INF, -INF, INF)
-    if kind == "manager_attitude":
-        garbage = ml.MAVLink_gimbal_manager_set_attitude_message(1, GIMBAL, 0, 0, [0.0] * 4, *rates)
-    elif kind == "device_attitude":
-        garbage = ml.MAVLink_gimbal_device_set_attitude_message(1, GIMBAL, 0, [0.0] * 4, *rates)
-    else:
-        garbage = ml.MAVLink_gimbal_manager_set_pitchyaw_message(1, GIMBAL, 0, 0, NAN, NAN, INF, -INF)
+    garbage = infinite_rates(kind)
     yaw_before = vrig.sim.gimbal.yaw_deg
     p.send(garbage)
     await asyncio.sleep(10.0)
