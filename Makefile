@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: debian-deps test check demo lint typecheck pytest pytest-virtual docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps
+.PHONY: deps debian-deps test check demo lint typecheck pytest pytest-virtual docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps
 
 # The C fast path is compiled by `pip install`: rebuild it when its sources change.
 $(STAMP): pyproject.toml setup.py src/topgimbal/_speedups/_ctop.c $(wildcard c/src/*.c c/include/*.h c/generated/*)
@@ -98,7 +98,12 @@ c-test: $(STAMP) c-deps
 # packages, no real waiting).
 check: lint typecheck docs-check pytest-virtual
 
-test: debian-deps $(STAMP) browser-deps tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps c-deps lint typecheck docs-check pytest c-test
+# The two installs overlap: apt downloads and unpacks while pip downloads and builds (measured one at
+# a time on fresh systems: the Debian packages 132 s, the virtualenv without pip's cache 130 s).
+deps:
+	$(MAKE) --no-print-directory -j2 debian-deps $(STAMP)
+
+test: deps $(STAMP) browser-deps tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps c-deps lint typecheck docs-check pytest c-test
 
 demo: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.demo
