@@ -73,13 +73,20 @@ async def test_a_healthy_camera_is_logged_as_info_not_a_warning(caplog) -> None:
         await sim.stop()
 
 
-def test_model_auto_serves_the_camera_as_what_it_says(capsys):
-    with BackgroundSimulator("SIP", seed=36, listen={"udp": [("127.0.0.1", 0)]}) as sip:
+@pytest.mark.parametrize("model", ["SIP", "C20"])
+def test_model_auto_serves_the_camera_as_what_it_says(capsys, caplog, model):
+    """Detection is quiet: the device's answers to the other models' identity queries are what
+    `--model auto` asks for, not a wrong model to warn about (a C20 answers the MOD asked while the
+    client still stands in as a C12; that used to print "looks like a C20, not a C12")."""
+    with BackgroundSimulator(model, seed=36, listen={"udp": [("127.0.0.1", 0)]}) as cam:
         code = main(
-            ["mavlink", "--url", sip.url, "--model", "auto", "--mavlink", "udpin:127.0.0.1:0", "--seconds", "1"]
+            ["mavlink", "--url", cam.url, "--model", "auto", "--mavlink", "udpin:127.0.0.1:0", "--seconds", "1"]
         )
-    out = capsys.readouterr().out
-    assert code == 0 and f"mavlink bridge: {sip.url} (SIP)" in out, out
+    out, err = capsys.readouterr()
+    assert code == 0 and f"mavlink bridge: {cam.url} ({model})" in out, out
+    # (what a user's terminal shows of the log: stderr there; under pytest the records)
+    said = err + "".join(r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING)
+    assert "looks like" not in said and "not a C12" not in said and "--model" not in said, said
 
 
 def test_several_cameras_refuse_one_that_is_another_model(capsys):
@@ -100,15 +107,17 @@ def test_several_cameras_refuse_one_that_is_another_model(capsys):
     assert targets == pytest.approx((0.0, 0.0))
 
 
-def test_several_cameras_with_model_auto_serve_each_as_what_it_says(capsys):
+def test_several_cameras_with_model_auto_serve_each_as_what_it_says(capsys, caplog):
     with (
         BackgroundSimulator("C12", seed=39, listen={"udp": [("127.0.0.1", 0)]}) as c12,
         BackgroundSimulator("SIP", seed=40, listen={"udp": [("127.0.0.1", 0)]}) as sip,
     ):
         code = main(["mavlink", "--mavlink", "udpin:127.0.0.1:0", "--camera", f"left={c12.url},C12",
                      "--camera", f"right={sip.url},auto", "--seconds", "1"])  # fmt: skip
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
     assert code == 0 and "left (C12): gimbal 154" in out and "right (SIP): gimbal 171" in out, out
+    said = err + "".join(r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING)
+    assert "looks like" not in said and "not a C12" not in said, said  # detection is quiet
 
 
 def _gimbal_states(peer: MemPeer) -> list[int]:

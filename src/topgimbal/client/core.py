@@ -172,6 +172,8 @@ class ClientCore(Requests):
             return
         self.streams.halt(halt)
         self.feeds.halt(halt)
+        if halt and self._engine is not None:  # feed frames queued before the verdict, not sent yet
+            self._engine.pacer.drop_unsent(frozenset(self.feeds.feeds()))
         if halt:
             log.info("%s: the device is not a %s: the client stops sending the %s's periodic requests (attitude "
                      "stream requests and renewals, pings, host feeds)", self.url, self.model.name, self.model.name,

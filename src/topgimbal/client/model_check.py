@@ -38,6 +38,7 @@ class ModelChecker:
         self.listeners: list[Listener] = []
         self.foreign_frames = 0
         self._warned = False
+        self.detecting = 0  # `detect()` runs: what the device says is its answer, not evidence against the model
 
     # -- results -----------------------------------------------------------------------------
 
@@ -57,6 +58,8 @@ class ModelChecker:
     def add(self, report: Report) -> None:
         """Something the device said outside the check (a late model name, a foreign frame).
         While the check runs it only collects; after, it may change the verdict."""
+        if self.detecting:
+            return  # asked by `detect()` in every dialect: the model given is a placeholder
         self.reports.append(report)
         if not self.done.is_set():
             return
@@ -157,13 +160,23 @@ async def ask(
     return out
 
 
-async def detect(core: ModelCheckPort, timeout_s: float, default: str) -> str | None:
-    """The model the device's identity answers fit best (see `identity.best_guess`)."""
+async def detect(
+    core: ModelCheckPort, timeout_s: float, default: str, checker: ModelChecker | None = None
+) -> str | None:
+    """The model the device's identity answers fit best (see `identity.best_guess`). While it asks,
+    `checker` (the client's) takes no evidence from the answers: a model name or a frame of another
+    dialect is what detection is for, not a wrong model to warn about (`--model auto` is quiet)."""
     reports: list[Report] = []
-    for name in DIALECT_NAMES:
-        d = get_dialect(name)
-        got = await ask(core, d, None, roles_=("version", "model_name"), timeout_s=timeout_s)
-        reports += got
-        if any(identity.matching_models(r.text) for r in got if r.text):
-            break
+    if checker is not None:
+        checker.detecting += 1
+    try:
+        for name in DIALECT_NAMES:
+            d = get_dialect(name)
+            got = await ask(core, d, None, roles_=("version", "model_name"), timeout_s=timeout_s)
+            reports += got
+            if any(identity.matching_models(r.text) for r in got if r.text):
+                break
+    finally:
+        if checker is not None:
+            checker.detecting -= 1
     return identity.best_guess(reports, default)
