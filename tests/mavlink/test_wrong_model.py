@@ -12,11 +12,21 @@ import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.cli.main import main
+from topgimbal.clock import monotonic
 from topgimbal.mavlink import Bridge, BridgeConfig
 from topgimbal.sim import BackgroundSimulator, Simulator
 
 from .conftest import Peer, eventually
-from .virtual import HealthLog, MemPeer, camera_input, fresh_name, in_virtual_time, start_bridge, start_camera
+from .virtual import (
+    HealthLog,
+    MemPeer,
+    camera_input,
+    fresh_name,
+    in_virtual_time,
+    silence_replies,
+    start_bridge,
+    start_camera,
+)
 
 GIMBAL = 154
 
@@ -232,6 +242,41 @@ async def test_virtual_a_camera_of_the_declared_model_is_active_only_after_the_c
         assert set(states[:first_active]) <= {ml.MAV_STATE_BOOT}, states
         assert set(states[first_active:]) == {ml.MAV_STATE_ACTIVE}, states
         assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+    finally:
+        peer.close()
+        await made.close()
+        await sim.stop()
+
+
+@in_virtual_time
+async def test_virtual_a_camera_silent_at_first_that_turns_out_to_be_another_model_is_never_healthy(
+    caplog: Any,
+) -> None:
+    """A SIP silent for its first 10 s (off, booting): the model check on connect hears nothing
+    (unknown), the link is declared down at 3 s; the client keeps pinging, and the SIP's first
+    answer sends the verdict back to pending and the check runs again, so the camera goes from
+    CRITICAL to not served without a moment of ACTIVE, and nothing is sent after that verdict."""
+    caplog.set_level(logging.INFO, logger="topgimbal")
+    sim, url = await start_camera("SIP")
+    t0 = monotonic()
+    silence_replies(sim, 10.0)
+    sent = camera_input(sim)
+    link = fresh_name("gcs")
+    made = await start_bridge(url, "C12", link, camera_wait_s=0.0)
+    seen = _verdicts_at_health_changes(made)
+    peer = await MemPeer().join(link)
+    try:
+        await eventually(lambda: bool(made.cam.wrong_model), 30)
+        found = len(sent)
+        assert "SIP" in made.cam.wrong_model and monotonic() >= t0 + 10.0
+        await asyncio.sleep(30.0)
+        assert [data[6:10] for _, data in sent[found:]] == []  # nothing since the verdict
+        assert seen == [(False, "unknown")], seen  # declared down at 3 s; never healthy
+        states = _gimbal_states(peer)
+        first_critical = states.index(ml.MAV_STATE_CRITICAL)
+        assert set(states[:first_critical]) == {ml.MAV_STATE_BOOT}, states
+        assert set(states[first_critical:]) == {ml.MAV_STATE_CRITICAL}, states
+        assert not [r for r in caplog.records if "answers" in r.getMessage() and r.name == "topgimbal.mavlink"]
     finally:
         peer.close()
         await made.close()

@@ -334,6 +334,8 @@ class ClientCore(Requests):
         if frame.src not in DEVICE_ADDRESSES:
             return False  # our own frames echoed by a loopback or a half-duplex line
         assert self._engine is not None and self.link is not None
+        if self.identity.recheck():  # before the link-up callbacks: the verdict is pending again
+            self.background(self.identity.run())
         self.keeper.event(self.link.on_frame())
         spec = message.spec
         if message.fields is None and not message.is_error:

@@ -38,6 +38,7 @@ class ModelChecker:
         self.listeners: list[Listener] = []
         self.foreign_frames = 0
         self._warned = False
+        self.unheard = False  # the check ended with nothing heard from the device: asked again when it is
         self.detecting = 0  # `detect()` runs: what the device says is its answer, not evidence against the model
 
     # -- results -----------------------------------------------------------------------------
@@ -91,6 +92,17 @@ class ModelChecker:
         self._set(verdict)
         self.done.set()
 
+    def recheck(self) -> bool:
+        """The device's first frame after a check that heard nothing from it (it was off, or not
+        there yet): the verdict goes back to pending, and the caller runs the check again (True).
+        Without this a camera that came up later as another model kept "unknown" and was served."""
+        if not self.unheard:
+            return False
+        self.unheard = False
+        self.done.clear()
+        self._set(Verdict(identity.PENDING, self.core.model.name, message="asked again: nothing was heard before"))
+        return True
+
     # -- the check ---------------------------------------------------------------------------
 
     async def run(self) -> Verdict:
@@ -110,6 +122,7 @@ class ModelChecker:
             raise
         except TopGimbalError as exc:
             verdict = Verdict(identity.UNKNOWN, core.model.name, message=f"the model check stopped: {exc}")
+        self.unheard = verdict.status == identity.UNKNOWN and not core.stats.frames_in
         self.finish(verdict)
         return verdict
 
