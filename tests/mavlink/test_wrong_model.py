@@ -12,11 +12,21 @@ import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.cli.main import main
+from topgimbal.clock import monotonic
 from topgimbal.mavlink import Bridge, BridgeConfig
 from topgimbal.sim import BackgroundSimulator, Simulator
 
 from .conftest import Peer, eventually
-from .virtual import HealthLog, MemPeer, camera_input, fresh_name, in_virtual_time, start_bridge, start_camera
+from .virtual import (
+    HealthLog,
+    MemPeer,
+    camera_input,
+    fresh_name,
+    in_virtual_time,
+    silence_replies,
+    start_bridge,
+    start_camera,
+)
 
 GIMBAL = 154
 
@@ -73,13 +83,20 @@ async def test_a_healthy_camera_is_logged_as_info_not_a_warning(caplog) -> None:
         await sim.stop()
 
 
-def test_model_auto_serves_the_camera_as_what_it_says(capsys):
-    with BackgroundSimulator("SIP", seed=36, listen={"udp": [("127.0.0.1", 0)]}) as sip:
+@pytest.mark.parametrize("model", ["SIP", "C20"])
+def test_model_auto_serves_the_camera_as_what_it_says(capsys, caplog, model):
+    """Detection is quiet: the device's answers to the other models' identity queries are what
+    `--model auto` asks for, not a wrong model to warn about (a C20 answers the MOD asked while the
+    client still stands in as a C12; that used to print "looks like a C20, not a C12")."""
+    with BackgroundSimulator(model, seed=36, listen={"udp": [("127.0.0.1", 0)]}) as cam:
         code = main(
-            ["mavlink", "--url", sip.url, "--model", "auto", "--mavlink", "udpin:127.0.0.1:0", "--seconds", "1"]
+            ["mavlink", "--url", cam.url, "--model", "auto", "--mavlink", "udpin:127.0.0.1:0", "--seconds", "1"]
         )
-    out = capsys.readouterr().out
-    assert code == 0 and f"mavlink bridge: {sip.url} (SIP)" in out, out
+    out, err = capsys.readouterr()
+    assert code == 0 and f"mavlink bridge: {cam.url} ({model})" in out, out
+    # (what a user's terminal shows of the log: stderr there; under pytest the records)
+    said = err + "".join(r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING)
+    assert "looks like" not in said and "not a C12" not in said and "--model" not in said, said
 
 
 def test_several_cameras_refuse_one_that_is_another_model(capsys):
@@ -100,23 +117,40 @@ def test_several_cameras_refuse_one_that_is_another_model(capsys):
     assert targets == pytest.approx((0.0, 0.0))
 
 
-def test_several_cameras_with_model_auto_serve_each_as_what_it_says(capsys):
+def test_several_cameras_with_model_auto_serve_each_as_what_it_says(capsys, caplog):
     with (
         BackgroundSimulator("C12", seed=39, listen={"udp": [("127.0.0.1", 0)]}) as c12,
         BackgroundSimulator("SIP", seed=40, listen={"udp": [("127.0.0.1", 0)]}) as sip,
     ):
         code = main(["mavlink", "--mavlink", "udpin:127.0.0.1:0", "--camera", f"left={c12.url},C12",
                      "--camera", f"right={sip.url},auto", "--seconds", "1"])  # fmt: skip
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
     assert code == 0 and "left (C12): gimbal 154" in out and "right (SIP): gimbal 171" in out, out
+    said = err + "".join(r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING)
+    assert "looks like" not in said and "not a C12" not in said, said  # detection is quiet
+
+
+def _gimbal_states(peer: MemPeer) -> list[int]:
+    return [m.system_status for m in peer.messages if m.get_type() == "HEARTBEAT" and m.get_srcComponent() == GIMBAL]
+
+
+def _verdicts_at_health_changes(made: Any) -> list[tuple[bool, str]]:
+    """(answering, the client's model check status) at each of the bridge's health changes."""
+    seen: list[tuple[bool, str]] = []
+    made.cam.on_health(lambda up: seen.append((up, made.cam.client.model_check.status)))
+    return seen
 
 
 @in_virtual_time
 async def test_virtual_a_camera_that_turns_out_to_be_another_model_stays_unserved(caplog: Any) -> None:
     """The same in virtual time, watched for a minute of the product's own timers (silence 3 s,
-    1 s x 3, pings, reconnects): one error line, never healthy, nothing that moves the gimbal sent."""
-    caplog.set_level(logging.INFO, logger="topgimbal.mavlink")
+    1 s x 3, pings, reconnects): never reported healthy, not even before the model check's verdict
+    (MAV_STATE_BOOT until it, CRITICAL from it on); nothing sent after the verdict (no attitude stream
+    request again, no renewal, no ping) and nothing that moves the gimbal ever; one error line when
+    found, and each refused command a throttled warning without a traceback."""
+    caplog.set_level(logging.INFO, logger="topgimbal")
     sim, url = await start_camera("SIP")
+    sent = camera_input(sim)  # from before the bridge's client opens
     link = fresh_name("gcs")
     made = await start_bridge(url, "C12", link)
     health = HealthLog(made)
@@ -127,26 +161,122 @@ async def test_virtual_a_camera_that_turns_out_to_be_another_model_stays_unserve
         await peer.wait(
             "HEARTBEAT", lambda m: m.get_srcComponent() == GIMBAL and m.system_status == ml.MAV_STATE_CRITICAL
         )
-        sent = camera_input(sim)
         for yaw in (-20, 10, 30):
             ack = await peer.ack(GIMBAL, ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, -20, yaw)
-            assert ack.result != ml.MAV_RESULT_ACCEPTED
+            assert (ack.result, ack.result_param2) == (ml.MAV_RESULT_FAILED, 5)  # 5: the camera is another model
             await asyncio.sleep(20.0)
         assert (sim.gimbal.axis("yaw").target, sim.gimbal.axis("pitch").target) == pytest.approx((0.0, 0.0))
-        # nothing written but the client's own attitude stream request (GAA, asked again after each
-        # answered ping; harmless to a SIP, which ignores it): no pointing command reached it
-        assert {data[6:10] for _, data in sent if data[6:7] == b"w"} <= {b"wGAA"}
-        # (its first answer counted for the instant before the model check's verdict; never since)
-        assert [up for _, up in health.changes] in ([False], [True, False]), health.changes
-        states = [
-            m.system_status for m in peer.messages if m.get_type() == "HEARTBEAT" and m.get_srcComponent() == GIMBAL
-        ]
-        # (one ACTIVE may precede the verdict: the camera's first answer comes before the model
-        # check's; from the verdict on, CRITICAL only)
-        assert ml.MAV_STATE_CRITICAL in states
-        assert ml.MAV_STATE_ACTIVE not in states[states.index(ml.MAV_STATE_CRITICAL) :], states
-        errors = [r for r in caplog.records if r.levelno >= logging.ERROR and "not served" in r.getMessage()]
-        assert len(errors) == 1
+        # all before the verdict: the model check's identity reads and at most the bridge's attitude
+        # stream request (asked at once, beside the check; dropped if the verdict comes before its
+        # turn to go); since, nothing (no stream request again, no renewal, no ping), and nothing
+        # that moves the gimbal ever
+        verdict_t = health.changes[0][0]
+        frames = [(t, data[6:10]) for t, data in sent]
+        assert {f for _, f in frames if f[:1] == b"w"} <= {b"wGAA"}, frames
+        assert {f for _, f in frames if f[:1] == b"r"} <= {b"rVER", b"rMOD", b"rHWV"}, frames
+        assert frames and all(t <= verdict_t for t, _ in frames), (verdict_t, frames)
+        assert [up for _, up in health.changes] == [False], health.changes  # never healthy
+        states = _gimbal_states(peer)
+        first_critical = states.index(ml.MAV_STATE_CRITICAL)
+        assert set(states[:first_critical]) == {ml.MAV_STATE_BOOT}, states
+        assert set(states[first_critical:]) == {ml.MAV_STATE_CRITICAL}, states
+        errors = [r for r in caplog.records if r.levelno >= logging.ERROR]
+        assert [r.getMessage().startswith(f"camera {url}: not served:") for r in errors] == [True], errors
+        assert not [r for r in caplog.records if r.exc_info], "no traceback for an expected refusal"
+        refused = [r for r in caplog.records if "refused" in r.getMessage() and r.name == "topgimbal.mavlink"]
+        assert len(refused) == 3 and all(r.levelno == logging.WARNING for r in refused)  # 20 s apart: each one
+        stops = [r for r in caplog.records if "stops sending" in r.getMessage()]
+        assert len(stops) == 1 and "C12" in stops[0].getMessage()
+    finally:
+        peer.close()
+        await made.close()
+        await sim.stop()
+
+
+@in_virtual_time
+async def test_virtual_refusals_of_a_wrong_model_are_one_throttled_line(caplog: Any) -> None:
+    """Commands to a camera that is another model, one a second: one WARNING line per 10 s, the next
+    saying how many were left out; no traceback, no per-command INFO line."""
+    caplog.set_level(logging.INFO, logger="topgimbal.mavlink")
+    sim, url = await start_camera("SIP")
+    link = fresh_name("gcs")
+    made = await start_bridge(url, "C12", link)
+    peer = await MemPeer().join(link)
+    try:
+        await eventually(lambda: bool(made.cam.wrong_model), 10)
+        caplog.clear()
+        for i in range(12):  # 12 commands over 11 s: a line at the first, the next at 10 s (9 left out)
+            ack = await peer.ack(GIMBAL, ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, -20, i)
+            assert (ack.result, ack.result_param2) == (ml.MAV_RESULT_FAILED, 5)
+            await asyncio.sleep(1.0)
+        lines = [r for r in caplog.records if r.name == "topgimbal.mavlink" and "1000" in r.getMessage()]
+        assert [r.levelno for r in lines] == [logging.WARNING, logging.WARNING], [r.getMessage() for r in lines]
+        assert "SIP" in lines[0].getMessage() and "more like it not logged" not in lines[0].getMessage()
+        assert lines[1].getMessage().endswith("(9 more like it not logged)"), lines[1].getMessage()
+        assert not [r for r in caplog.records if r.exc_info or r.levelno >= logging.ERROR]
+    finally:
+        peer.close()
+        await made.close()
+        await sim.stop()
+
+
+@in_virtual_time
+async def test_virtual_a_camera_of_the_declared_model_is_active_only_after_the_check(caplog: Any) -> None:
+    """A C12 served as a C12: BOOT until the model check says so, then ACTIVE; the one health change
+    (healthy) comes with the verdict ok, never while it is pending."""
+    caplog.set_level(logging.INFO, logger="topgimbal")
+    sim, url = await start_camera("C12")
+    link = fresh_name("gcs")
+    made = await start_bridge(url, "C12", link, camera_wait_s=0.0)
+    seen = _verdicts_at_health_changes(made)
+    peer = await MemPeer().join(link)
+    try:
+        await eventually(lambda: made.cam.answering, 10)
+        await peer.wait(
+            "HEARTBEAT", lambda m: m.get_srcComponent() == GIMBAL and m.system_status == ml.MAV_STATE_ACTIVE
+        )
+        await asyncio.sleep(30.0)
+        assert seen == [(True, "ok")]
+        states = _gimbal_states(peer)
+        first_active = states.index(ml.MAV_STATE_ACTIVE)
+        assert set(states[:first_active]) <= {ml.MAV_STATE_BOOT}, states
+        assert set(states[first_active:]) == {ml.MAV_STATE_ACTIVE}, states
+        assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+    finally:
+        peer.close()
+        await made.close()
+        await sim.stop()
+
+
+@in_virtual_time
+async def test_virtual_a_camera_silent_at_first_that_turns_out_to_be_another_model_is_never_healthy(
+    caplog: Any,
+) -> None:
+    """A SIP silent for its first 10 s (off, booting): the model check on connect hears nothing
+    (unknown), the link is declared down at 3 s; the client keeps pinging, and the SIP's first
+    answer sends the verdict back to pending and the check runs again, so the camera goes from
+    CRITICAL to not served without a moment of ACTIVE, and nothing is sent after that verdict."""
+    caplog.set_level(logging.INFO, logger="topgimbal")
+    sim, url = await start_camera("SIP")
+    t0 = monotonic()
+    silence_replies(sim, 10.0)
+    sent = camera_input(sim)
+    link = fresh_name("gcs")
+    made = await start_bridge(url, "C12", link, camera_wait_s=0.0)
+    seen = _verdicts_at_health_changes(made)
+    peer = await MemPeer().join(link)
+    try:
+        await eventually(lambda: bool(made.cam.wrong_model), 30)
+        found = len(sent)
+        assert "SIP" in made.cam.wrong_model and monotonic() >= t0 + 10.0
+        await asyncio.sleep(30.0)
+        assert [data[6:10] for _, data in sent[found:]] == []  # nothing since the verdict
+        assert seen == [(False, "unknown")], seen  # declared down at 3 s; never healthy
+        states = _gimbal_states(peer)
+        first_critical = states.index(ml.MAV_STATE_CRITICAL)
+        assert set(states[:first_critical]) == {ml.MAV_STATE_BOOT}, states
+        assert set(states[first_critical:]) == {ml.MAV_STATE_CRITICAL}, states
+        assert not [r for r in caplog.records if "answers" in r.getMessage() and r.name == "topgimbal.mavlink"]
     finally:
         peer.close()
         await made.close()

@@ -179,7 +179,7 @@ class CoreMethods(Protocol):
         profile, the dialect that answered gives its usual model), or None if nothing answered."""
         checks.positive_seconds("timeout_s", timeout_s, allow_none=False)
         try:
-            return await model_check.detect(core, float(timeout_s), default="C12")
+            return await model_check.detect(core, float(timeout_s), default="C12", checker=core.identity)
         except LinkLostError:
             return None  # nothing answered any probe for the link timeout
 

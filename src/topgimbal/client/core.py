@@ -94,6 +94,7 @@ class ClientCore(Requests):
         self.identity = ModelChecker(self)
         self.feeds = HostFeeds(self)
         self.keeper = LinkKeeper(self)
+        self.identity.listeners.append(self._on_verdict)
         self.link: LinkMonitor | None = None
         self.closed = False
         self.angles_ignored = False  # point() saw nothing move after an angle command: use rates
@@ -160,6 +161,27 @@ class ClientCore(Requests):
         if self.feeds.enabled:
             self.background(self.feeds.start())
         return self
+
+    def _on_verdict(self, verdict: identity.Verdict) -> None:
+        """The device is another model: what the client sends on its own initiative (the attitude
+        stream's requests again and renewals, pings, host feeds) is this model's dialect and
+        commands, wrong for that device: it stops, with one line. A program's own requests still
+        go (the CLI and the MAVLink bridge refuse them with ModelMismatchError before this)."""
+        halt = verdict.status == identity.MISMATCH
+        if halt == self.streams.halted and halt == self.feeds.halted:
+            return
+        self.streams.halt(halt)
+        self.feeds.halt(halt)
+        if halt and self._engine is not None:  # feed frames queued before the verdict, not sent yet
+            self._engine.pacer.drop_unsent(frozenset(self.feeds.feeds()))
+        if halt:
+            log.info("%s: the device is not a %s: the client stops sending the %s's periodic requests (attitude "
+                     "stream requests and renewals, pings, host feeds)", self.url, self.model.name, self.model.name,
+                     extra={"model_check": verdict})  # fmt: skip
+        else:
+            log.info("%s: the model check now says %s: periodic requests again", self.url, verdict.status)
+        if self._engine is not None:
+            self._drive()  # the link monitor no longer expects (or again expects) the stream
 
     def _opened_not(self) -> None:
         """The transport did not open: undo the rest, so nothing is held and open() may be retried."""
@@ -312,6 +334,8 @@ class ClientCore(Requests):
         if frame.src not in DEVICE_ADDRESSES:
             return False  # our own frames echoed by a loopback or a half-duplex line
         assert self._engine is not None and self.link is not None
+        if self.identity.recheck():  # before the link-up callbacks: the verdict is pending again
+            self.background(self.identity.run())
         self.keeper.event(self.link.on_frame())
         spec = message.spec
         if message.fields is None and not message.is_error:

@@ -20,6 +20,9 @@ Feeds of one rate go out together, in the profile's order (TOPOTEK: LAT, LON, AL
 goes out just before the feed of `<role>` starts, any other setup frame right after connecting.
 Feeds are sent without waiting for an echo (the next one follows anyway); a feed that fails is
 logged and retried at its next period. `connect(..., host_feeds=False)` turns all this off.
+Once the model check says the device is another model (`halt()`), the periodic feeds stop (their
+frames are the wrong model's); what they would carry is still kept, and they start again if the
+verdict is corrected.
 
 This module needs only `FeedTarget` of the client core (no import of core.py).
 """
@@ -105,6 +108,7 @@ class HostFeeds:
         self._setup_done: set[str] = set()
         self._resolution: dict[str, bool] = {}  # clock feed ident -> carries whole seconds only
         self.source_task: asyncio.Task[None] | None = None  # `feed_from`'s poll
+        self.halted = False  # the device is another model: no feed is sent (module docstring)
 
     def _spec(self, ident: str) -> CommandSpec | None:
         core = self.core
@@ -179,7 +183,7 @@ class HostFeeds:
         n = 0
         for ident in self._idents(roles):
             spec = self._spec(ident)
-            if ident not in self.active or spec is None or not self.core.connected:
+            if ident not in self.active or spec is None or not self.core.connected or self.halted:
                 continue
             values = self._current(ident, spec)
             if values is None:
@@ -209,7 +213,9 @@ class HostFeeds:
             spec = self._spec(ident)
             role = spec.role if spec is not None else "?"
             state = "sending"
-            if role in POSITION_ROLES and not self.fix_fresh():
+            if self.halted:
+                state = "stopped: the device is another model"
+            elif role in POSITION_ROLES and not self.fix_fresh():
                 state = "paused: no fresh fix"
             out[ident] = {"hz": feeds[ident], "sent": self.sent.get(ident, 0), "role": role, "state": state}
         fix = self.fix
@@ -229,13 +235,27 @@ class HostFeeds:
             parts.append(f"{ident} {v['hz']:g} Hz ({v['state']})")
         return ", ".join(parts) or "nothing"
 
+    def halt(self, on: bool) -> None:
+        """The device is (`on`) or is no longer another model: stop the periodic feeds, or start
+        the active ones again."""
+        if on == self.halted:
+            return
+        self.halted = on
+        if on:
+            self._cancel_tasks()
+        else:
+            self._activate(sorted(self.active, key=list(self.feeds()).index))
+
     def stop(self) -> None:
-        for task in self.tasks.values():
-            task.cancel()
-        self.tasks.clear()
+        self._cancel_tasks()
         if self.source_task is not None:
             self.source_task.cancel()
             self.source_task = None
+
+    def _cancel_tasks(self) -> None:
+        for task in self.tasks.values():
+            task.cancel()
+        self.tasks.clear()
 
     # -- internals -------------------------------------------------------------------------------
 
@@ -246,8 +266,8 @@ class HostFeeds:
                 await self._setup(ident, setup)
 
     async def _setup(self, ident: str, values: Mapping[str, object]) -> None:
-        if ident in self._setup_done:
-            return
+        if ident in self._setup_done or self.halted:
+            return  # (halted: sent when the feeds start again, if they do)
         await self.core.send_request(self.core.build_from(ident, values))
         self._setup_done.add(ident)
 
@@ -256,6 +276,8 @@ class HostFeeds:
         for ident in idents:
             self.active.add(ident)
             hz = feeds[ident]
+            if self.halted:
+                continue  # kept for when the verdict is corrected; nothing sent meanwhile
             task = self.tasks.get(hz)
             if task is None or task.done():
                 self.tasks[hz] = asyncio.ensure_future(self._run(hz))

@@ -108,4 +108,10 @@ class LinkMonitor:
         if self.up:
             timeout_at = self._quiet_since + self.timeout_s
             return timeout_at if ping is None else min(timeout_at, ping)
+        if ping is None:
+            # Down, and the ping overdue and not taken (the last one still in flight when it was
+            # due: a ping's timeout is as long as ping_after_s): look again one period on. With no
+            # deadline at all, nothing woke the keeper again and a silent device that came back
+            # without sending on its own (a SIP, a camera that rebooted) was never pinged again.
+            ping = self.clock() + self.ping_after_s
         return ping

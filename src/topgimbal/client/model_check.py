@@ -38,6 +38,8 @@ class ModelChecker:
         self.listeners: list[Listener] = []
         self.foreign_frames = 0
         self._warned = False
+        self.unheard = False  # the check ended with nothing heard from the device: asked again when it is
+        self.detecting = 0  # `detect()` runs: what the device says is its answer, not evidence against the model
 
     # -- results -----------------------------------------------------------------------------
 
@@ -57,6 +59,8 @@ class ModelChecker:
     def add(self, report: Report) -> None:
         """Something the device said outside the check (a late model name, a foreign frame).
         While the check runs it only collects; after, it may change the verdict."""
+        if self.detecting:
+            return  # asked by `detect()` in every dialect: the model given is a placeholder
         self.reports.append(report)
         if not self.done.is_set():
             return
@@ -88,6 +92,17 @@ class ModelChecker:
         self._set(verdict)
         self.done.set()
 
+    def recheck(self) -> bool:
+        """The device's first frame after a check that heard nothing from it (it was off, or not
+        there yet): the verdict goes back to pending, and the caller runs the check again (True).
+        Without this a camera that came up later as another model kept "unknown" and was served."""
+        if not self.unheard:
+            return False
+        self.unheard = False
+        self.done.clear()
+        self._set(Verdict(identity.PENDING, self.core.model.name, message="asked again: nothing was heard before"))
+        return True
+
     # -- the check ---------------------------------------------------------------------------
 
     async def run(self) -> Verdict:
@@ -107,6 +122,7 @@ class ModelChecker:
             raise
         except TopGimbalError as exc:
             verdict = Verdict(identity.UNKNOWN, core.model.name, message=f"the model check stopped: {exc}")
+        self.unheard = verdict.status == identity.UNKNOWN and not core.stats.frames_in
         self.finish(verdict)
         return verdict
 
@@ -157,13 +173,23 @@ async def ask(
     return out
 
 
-async def detect(core: ModelCheckPort, timeout_s: float, default: str) -> str | None:
-    """The model the device's identity answers fit best (see `identity.best_guess`)."""
+async def detect(
+    core: ModelCheckPort, timeout_s: float, default: str, checker: ModelChecker | None = None
+) -> str | None:
+    """The model the device's identity answers fit best (see `identity.best_guess`). While it asks,
+    `checker` (the client's) takes no evidence from the answers: a model name or a frame of another
+    dialect is what detection is for, not a wrong model to warn about (`--model auto` is quiet)."""
     reports: list[Report] = []
-    for name in DIALECT_NAMES:
-        d = get_dialect(name)
-        got = await ask(core, d, None, roles_=("version", "model_name"), timeout_s=timeout_s)
-        reports += got
-        if any(identity.matching_models(r.text) for r in got if r.text):
-            break
+    if checker is not None:
+        checker.detecting += 1
+    try:
+        for name in DIALECT_NAMES:
+            d = get_dialect(name)
+            got = await ask(core, d, None, roles_=("version", "model_name"), timeout_s=timeout_s)
+            reports += got
+            if any(identity.matching_models(r.text) for r in got if r.text):
+                break
+    finally:
+        if checker is not None:
+            checker.detecting -= 1
     return identity.best_guess(reports, default)

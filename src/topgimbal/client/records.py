@@ -177,6 +177,16 @@ class Pacer:
                 tx.state = "done"
         self.queue.clear()
 
+    def drop_unsent(self, idents: frozenset[str]) -> int:
+        """Frames sent without waiting for an answer, held for their turn, of these identifiers:
+        never sent (the client stopped what sends them: a device of another model). How many."""
+        dropped = 0
+        for tx in self.queue:
+            if not tx.expect_reply and tx.state == "paced" and tx.frame.ident in idents:
+                tx.state = "done"
+                dropped += 1
+        return dropped
+
 
 def timeout_text(tx: Transaction, now: float) -> str:
     """Why a request failed for want of an answer, with the true elapsed times."""

@@ -15,6 +15,11 @@ Over UDP a device (and every NAT or firewall between) forgets a peer it has not 
 while (the simulator after 60 s), and a stream to a forgotten peer stops. While a stream runs and
 the client would otherwise say nothing, it sends the stream's request again every
 `stream_renew_s` (default 20 s; harmless on devices that do not need it).
+
+Once the model check says the device is another model (`halt()`), nothing is sent for the stream
+on the client's own initiative: no renewal, no request again when the device answers a ping or
+comes back, and no ping (`active` is false: no silence is watched for a stream not kept). What a
+program asks itself (`attitude_stream()`, a new consumer, a stop) still goes out.
 """
 
 from __future__ import annotations
@@ -28,7 +33,7 @@ from collections import deque
 from collections.abc import Callable
 
 from ..clock import monotonic
-from ..errors import RequestTimeoutError, TopGimbalError
+from ..errors import ModelMismatchError, RequestTimeoutError, TopGimbalError
 from ..timeouts import within
 from . import roles
 from .ports import StreamPort
@@ -53,11 +58,28 @@ class StreamControl:
         self._renewer: asyncio.Task[None] | None = None
         self._expected = False  # what the core was last told (expect_stream)
         self.renewals = 0  # stream requests sent again to keep a UDP peer's lease
+        self.halted = False  # the device is another model: the stream is not kept (module docstring)
 
     @property
     def active(self) -> bool:
-        """Something expects attitude frames (the link monitor watches for silence)."""
+        """Something expects attitude frames (the link monitor watches for silence, and pings)."""
+        if self.halted:
+            return False
         return self.device_rate is not None or self.manual_rate is not None or len(self.consumers) > 0
+
+    def halt(self, on: bool) -> None:
+        """The device is (`on`) or is no longer another model than the client's: stop keeping its
+        stream, or keep it again (a verdict corrected by a late model name)."""
+        if on == self.halted:
+            return
+        self.halted = on
+        if on:
+            for task in (self._renewer, self._task):
+                if task is not None and not task.done():
+                    task.cancel()  # a stream request not sent yet (paced) is not sent at all
+            self._renewer = None
+            return
+        self.resume()
 
     def _expect(self) -> None:
         """Tell the core whether stream frames may come (asked for, or on at the device)."""
@@ -111,7 +133,13 @@ class StreamControl:
                 self._task = asyncio.ensure_future(self._reconcile())
                 self._task.add_done_callback(_consume_error)
             task = self._task
-            await asyncio.shield(task)
+            try:
+                await asyncio.shield(task)
+            except asyncio.CancelledError:
+                if not (task.cancelled() and self.halted):
+                    raise  # our caller's own cancellation
+                raise ModelMismatchError(f"{self.core.url}: the device is not a {self.core.model.name}: its attitude "
+                                         "stream was not asked for") from None  # fmt: skip
             if task.exception() is not None:
                 raise task.exception()  # type: ignore[misc]
 
@@ -129,7 +157,7 @@ class StreamControl:
 
     def _keep_renewing(self) -> None:
         renew = self.core.options.stream_renew_s
-        if renew is None or not self.core.datagram or self.device_rate is None:
+        if self.halted or renew is None or not self.core.datagram or self.device_rate is None:
             return
         if self._renewer is None or self._renewer.done():
             self._renewer = asyncio.ensure_future(self._renew(renew))
@@ -143,7 +171,7 @@ class StreamControl:
         while self.device_rate is not None and not core.closed:
             await asyncio.sleep(every_s)
             rate = self.device_rate
-            if rate is None or self.wanted() != rate or core.closed or not core.connected:
+            if self.halted or rate is None or self.wanted() != rate or core.closed or not core.connected:
                 continue
             with contextlib.suppress(TopGimbalError):
                 await core.transact(core.build_from(ident, roles.stream_values(spec, rate)), timeout_s=core.timeout_s,
@@ -151,8 +179,9 @@ class StreamControl:
                 self.renewals += 1
 
     def resume(self) -> None:
-        """The device is there again: it may have forgotten its stream."""
-        if self.wanted() is not None:
+        """The device is there again: it may have forgotten its stream (not asked of a device
+        that is another model: `halt`)."""
+        if self.wanted() is not None and not self.halted:
             self.device_rate = None
             self.kick()
 

@@ -11,9 +11,13 @@ a model without an attitude stream is asked its version whenever it has been qui
 `silence_s`, so that its silence is noticed too.
 
 `answering` (what the MAVLink side reports: COMMS_ERROR, MAV_STATE_CRITICAL, stream flags) is
-the client's link state with one addition: it starts false and turns true with the first frame
-heard, so a camera that was never there is never reported healthy. Commands go through
-whenever the client's link is up (`call`).
+the client's link state with two additions: it starts false and turns true with the first frame
+heard, so a camera that was never there is never reported healthy; and not before the client's
+model check has a verdict that lets the camera be served (`servable`: ok, off, or unknown, the
+check done without evidence against `--model`), so a camera that turns out to be another model
+is never reported healthy either, not even for the moment between its first answer and the
+verdict (until then the components say MAV_STATE_BOOT, as for a camera not heard yet). Commands
+go through whenever the client's link is up (`call`).
 
 A camera whose model check (client/model_check.py) says it is another model than `--model` is not
 served (issue 35.2): it is reported failed with the model it looks like, logged once as an error,
@@ -31,7 +35,7 @@ from dataclasses import dataclass
 from typing import Any, TypeVar
 from urllib.parse import urlsplit
 
-from ..client import AsyncClient
+from ..client import AsyncClient, identity
 from ..clock import monotonic
 from ..errors import LinkLostError, ModelMismatchError, RequestTimeoutError, TopGimbalError
 from ..protocol import Message, get_model
@@ -44,6 +48,9 @@ T = TypeVar("T")
 NAN = float("nan")
 REOPEN_MIN_S = 0.5
 REOPEN_MAX_S = 5.0
+# Model check verdicts (client/identity.py) under which the camera is not reported healthy: not
+# known yet, or another model.
+SUSPENDED_VERDICTS = frozenset({identity.PENDING, identity.MISMATCH})
 
 
 @dataclass(frozen=True)
@@ -179,12 +186,12 @@ class CameraLink:
                 await asyncio.sleep(delay)
                 delay = min(REOPEN_MAX_S, delay * 2)
                 continue
+            self.client = client
+            self.reason = "no frame from the camera yet"
             client.subscribe(self._on_message)
             client.on_link_change(self._on_link_change)
             client.on_model_check(self._on_model_check)
             self._on_model_check(client.model_check)  # a verdict reached before the callback was added
-            self.client = client
-            self.reason = "no frame from the camera yet"
             self._opened.set()
             await self._keep(client)
             return
@@ -193,6 +200,9 @@ class CameraLink:
         """Ask for the attitude stream once (the client resumes it after every outage); for a
         model without one, ask the version whenever the camera has been quiet a while."""
         if self._streaming:
+            # Asked at once, beside the model check (the stream is what makes a silent camera's
+            # silence noticed); once the check says the camera is another model the client stops
+            # keeping it (client/streams.py `halt`): this one request is all it gets.
             # Recorded by the client even when this first request fails: it asks again itself
             # once the camera answers (its ping, or a reconnected byte stream).
             with contextlib.suppress(TopGimbalError, OSError):
@@ -200,25 +210,39 @@ class CameraLink:
             return
         period = max(0.1, self.silence_s / 2)
         while not self._closed:
-            if monotonic() - self.last_frame_t >= period:
+            # not served (another model): its version query is the wrong model's; nothing is asked
+            if not self.wrong_model and monotonic() - self.last_frame_t >= period:
                 with contextlib.suppress(TopGimbalError, OSError):
                     await client.version()
             await asyncio.sleep(period)
 
     # -- what the client reports ---------------------------------------------------------------
 
+    @property
+    def servable(self) -> bool:
+        """Whether the model check lets the camera be served: a verdict other than pending (not
+        known yet) or mismatch (another model). Unknown (firmware the profiles do not know, the
+        identity queries refused or unanswered) is served, as the client's commands go ahead then."""
+        client = self.client
+        return not self.wrong_model and client is not None and client.model_check.status not in SUSPENDED_VERDICTS
+
     def _on_model_check(self, verdict: Any) -> None:
-        if verdict.status != "mismatch" or self.wrong_model:
+        if self.wrong_model:
             return
-        self.wrong_model = verdict.message
-        log.error("camera %s: not served: %s", self.url, verdict.message)
-        self._set_answering(False, f"another model: {verdict.message}", force=True)
+        if verdict.status == identity.MISMATCH:
+            self.wrong_model = verdict.message
+            log.error("camera %s: not served: %s", self.url, verdict.message)
+            self._set_answering(False, f"another model: {verdict.message}", force=True)
+            return
+        client = self.client
+        if self.last_frame_t and self.servable and client is not None and client.connected:
+            self._set_answering(True, f"model check: {verdict.status}")  # heard before the verdict
 
     def _on_link_change(self, up: bool, reason: str) -> None:
         self.link_changes += 1
         if not up:
             self._set_answering(False, reason, force=True)
-        elif self.last_frame_t and reason != "reconnected" and not self.wrong_model:
+        elif self.last_frame_t and reason != "reconnected" and self.servable:
             self._set_answering(True, reason)  # a frame came (a reconnected stream: wait for one)
 
     def _on_message(self, m: Message) -> None:
@@ -226,6 +250,8 @@ class CameraLink:
         client = self.client
         if self.wrong_model:
             return  # not served: no health, no attitude read through the wrong model's signs
+        if not self.servable:
+            return  # the model check has no verdict yet: neither health nor attitude until it has
         if not self.answering and client is not None and client.connected:
             self._set_answering(True, f"frame {m.frame.ident}")
         att = client.state.attitude if client is not None else None

@@ -25,7 +25,15 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from ..clock import monotonic
-from ..errors import DeviceError, FieldValueError, RequestTimeoutError, TopGimbalError, TransportError, UnsupportedError
+from ..errors import (
+    DeviceError,
+    FieldValueError,
+    ModelMismatchError,
+    RequestTimeoutError,
+    TopGimbalError,
+    TransportError,
+    UnsupportedError,
+)
 from ..logthrottle import ThrottledLog
 from ._mav import mavlink
 from .fairness import MAX_INFLIGHT, MAX_INFLIGHT_PER_PEER, RESERVED_FOR_IDLE_PEERS, InflightLimits
@@ -48,11 +56,12 @@ RESULT_NAMES = {
     6: "cancelled",
 }
 # result_param2 on FAILED: why the camera did not confirm (documented in docs/mavlink.md).
-CAMERA_ERROR, CAMERA_TIMEOUT, CAMERA_LINK_DOWN, BRIDGE_ERROR = 1, 2, 3, 4
+CAMERA_ERROR, CAMERA_TIMEOUT, CAMERA_LINK_DOWN, BRIDGE_ERROR, CAMERA_WRONG_MODEL = 1, 2, 3, 4, 5
 
 REMEMBER_RESULTS = 128
 RETRANSMIT_WINDOW_S = 3.0
 BUSY_LOG_EVERY_S = 10.0  # a flood of commands is one warning per this period, not one per command
+WRONG_MODEL_LOG_EVERY_S = 10.0  # commands refused because the camera is another model: one line per period
 
 
 class CommandRefusedError(TopGimbalError):
@@ -164,6 +173,7 @@ class Outcome:
     param2: int = 0
     after: list[Any] = field(default_factory=list)
     text: str = ""
+    logged: bool = False  # the dispatcher's log already said why (its own line is left out)
 
 
 Handler = Callable[[Command], Awaitable["Outcome | None"]]
@@ -206,6 +216,7 @@ class Dispatcher:
         self.counts: dict[str, int] = {}
         self.busy_rejected = 0  # commands refused because max_inflight were running
         self.busy_log = ThrottledLog(log, BUSY_LOG_EVERY_S)
+        self.refusal_log = ThrottledLog(log, WRONG_MODEL_LOG_EVERY_S)
 
     def register(
         self,
@@ -341,6 +352,12 @@ class Dispatcher:
             return Outcome(FAILED, CAMERA_TIMEOUT, text=f"camera did not answer: {exc}")
         if isinstance(exc, TransportError):
             return Outcome(FAILED, CAMERA_LINK_DOWN, text=f"camera link down: {exc}")
+        if isinstance(exc, ModelMismatchError):
+            # Expected, not a fault of the bridge: the camera is another model than declared (it
+            # was logged once as an error when found). One throttled line, no traceback.
+            self.refusal_log.warning("wrong_model", "command %d from %d/%d refused: %s", cmd.command, cmd.src_system,
+                                     cmd.src_component, exc)  # fmt: skip
+            return Outcome(FAILED, CAMERA_WRONG_MODEL, text=str(exc), logged=True)
         log.error("command %d failed in the bridge", cmd.command, exc_info=exc)
         return Outcome(FAILED, BRIDGE_ERROR, text=f"bridge error: {type(exc).__name__}: {exc}")
 
@@ -349,8 +366,9 @@ class Dispatcher:
         name = RESULT_NAMES.get(outcome.result, str(outcome.result))
         self.counts[name] = self.counts.get(name, 0) + 1
         if outcome.text and outcome.result != ACCEPTED:
-            log.info("command %d from %d/%d to %s: %s (%s)", cmd.command, cmd.src_system, cmd.src_component,
-                     comp.name, name, outcome.text)  # fmt: skip
+            if not outcome.logged:
+                log.info("command %d from %d/%d to %s: %s (%s)", cmd.command, cmd.src_system, cmd.src_component,
+                         comp.name, name, outcome.text)  # fmt: skip
             if outcome.result == FAILED:  # the command first: what failed, then why
                 statustext(comp, f"{command_name(cmd.command)} failed: {outcome.text}", severity=3)
         self._done[cmd.key()] = _Done(monotonic(), outcome.result, outcome.param2, cmd.confirmation)
