@@ -43,3 +43,16 @@ def test_model_auto_follows_the_device(sip, capsys):
     assert result["pitch_deg"] == pytest.approx(-20.0, abs=0.6) and result["confirmed"] is True
     pitch = sip.call(lambda s: s.gimbal.pitch_deg)
     assert pitch == pytest.approx(-20.0, abs=0.6)  # down, as asked: the SIP's signs were used
+
+
+def test_the_cli_leaves_the_client_log_as_it_found_it(sip, capsys):
+    """The CLI leaves out the client's model-check records while a command runs, and only then: a
+    process that calls `main()` and goes on (a test, an embedding program) keeps the client's log
+    (a filter left behind for good once hid a later client's lines)."""
+    import logging
+
+    client_log = logging.getLogger("topgimbal.client")
+    before = list(client_log.filters)
+    code, _, _ = run(capsys, "--url", sip.url, "--model", "C12", "point", "10", "-20")
+    assert code == 2
+    assert client_log.filters == before

@@ -18,7 +18,7 @@ import copy
 import logging
 import math
 import sys
-from collections.abc import Awaitable, Callable, Mapping
+from collections.abc import Awaitable, Callable, Iterator, Mapping
 from typing import TYPE_CHECKING
 
 from ..client.identity import Verdict
@@ -94,9 +94,6 @@ def _run(args: argparse.Namespace, runner: Runner) -> int:
 
     from ..client import connect
 
-    client_log = logging.getLogger("topgimbal.client")
-    if not any(isinstance(f, _NoModelCheckRecords) for f in client_log.filters):
-        client_log.addFilter(_NoModelCheckRecords())
     if not args.url:
         raise InputError("no device URL: pass --url URL (before the command) or set TOPGIMBAL_URL")
 
@@ -127,7 +124,8 @@ def _run(args: argparse.Namespace, runner: Runner) -> int:
 
     started = monotonic()
     try:
-        result = asyncio.run(main())
+        with model_check_records_left_out():
+            result = asyncio.run(main())
     except RequestTimeoutError as exc:
         # The message counts one request's attempts; say how long the whole command waited.
         raise RequestTimeoutError(f"{exc} [{monotonic() - started:.1f} s since the command started]") from None
@@ -177,6 +175,20 @@ def _with_hint(exc: TopGimbalError, hint: str, model: str) -> TopGimbalError:
     new = copy.copy(exc)  # keeps `request` (the frame the error is about)
     new.args = (f"{str(exc).replace(model_hint(model), '')}; {hint}",)
     return new
+
+
+@contextlib.contextmanager
+def model_check_records_left_out() -> Iterator[None]:
+    """While the command runs, the client's log records of the model check (and of a link lost
+    before anything was heard) are left out: the command says the same in its own one line. Scoped,
+    not installed for good: `main()` called in a process that goes on (a test, a program embedding
+    the CLI) must keep the client's log as it was (a left-over filter hid a later client's lines)."""
+    client_log, quiet = logging.getLogger("topgimbal.client"), _NoModelCheckRecords()
+    client_log.addFilter(quiet)
+    try:
+        yield
+    finally:
+        client_log.removeFilter(quiet)
 
 
 class _NoModelCheckRecords(logging.Filter):

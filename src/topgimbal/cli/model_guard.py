@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
-import logging
 from collections.abc import Iterator, Sequence
 from typing import Protocol
 
@@ -32,14 +31,10 @@ class DeclaredCamera(Protocol):
 def _one_line() -> Iterator[None]:
     """The refusal is the error's one line: the client's log record of the same verdict (and of a
     camera not there yet, which is served) is left out while the check runs, as device commands do."""
-    from .device_cmds import _NoModelCheckRecords
+    from .device_cmds import model_check_records_left_out
 
-    client_log, quiet = logging.getLogger("topgimbal.client"), _NoModelCheckRecords()
-    client_log.addFilter(quiet)
-    try:
+    with model_check_records_left_out():
         yield
-    finally:
-        client_log.removeFilter(quiet)
 
 
 async def refuse_wrong_model(url: str, model: str, timeout_s: float) -> None:
