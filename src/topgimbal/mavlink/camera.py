@@ -16,6 +16,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from ..clock import monotonic, wall_time
+from ..timeouts import stop_tasks, within
 from ._mav import mav_id, mavlink, msg_id
 from .camdef import definition_version, settings_for
 from .camera_extras import CameraExtras
@@ -34,6 +35,10 @@ if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
 
 log = logging.getLogger("topgimbal.mavlink")
+
+# IMAGE_STOP_CAPTURE during an interval photo: how long the photo asked of the camera is waited for
+# (its own request timeout is shorter) before the capture is cancelled anyway
+STOP_PHOTO_WAIT_S = 10.0
 
 MSG_DISTANCE_SENSOR = msg_id("DISTANCE_SENSOR")
 MSG_INFO = msg_id("CAMERA_INFORMATION")
@@ -97,6 +102,7 @@ class CameraComponent:
         self.zoom_pct: float = float("nan")
         self.available_mib: float = float("nan")
         self._interval_task: asyncio.Task[None] | None = None
+        self._interval_stop = asyncio.Event()  # set: the interval loop ends after its photo in flight
         self._range_task: asyncio.Task[None] | None = None
         # (sender system, component) -> (capture sequence number, when taken, image index)
         self._last_sequence: dict[tuple[int, int], tuple[int, float, int]] = {}
@@ -207,11 +213,7 @@ class CameraComponent:
         await self.tracker.close()
         await self.params.close()
         await self.extras.close()
-        for t in (self._interval_task, self._range_task):
-            if t is not None:
-                t.cancel()
-                with contextlib.suppress(asyncio.CancelledError, Exception):
-                    await t
+        await stop_tasks([t for t in (self._interval_task, self._range_task) if t is not None], "camera")
 
     # -- information ----------------------------------------------------------------------------
 
@@ -378,9 +380,13 @@ class CameraComponent:
         return Outcome(after=[first])
 
     async def _interval_loop(self, interval: float, remaining: int) -> None:
+        stop = self._interval_stop
         try:
             while remaining != 0:  # -1: until MAV_CMD_IMAGE_STOP_CAPTURE
-                await asyncio.sleep(interval)
+                with contextlib.suppress(asyncio.TimeoutError):
+                    await within(stop.wait(), interval)
+                if stop.is_set():
+                    break
                 self.image_status = 3
                 try:
                     msg = await self._take_photo()
@@ -395,11 +401,16 @@ class CameraComponent:
             self.interval_s = 0.0
 
     async def _stop_interval(self) -> None:
+        """End an interval capture. A photo already asked of the camera is waited for (bounded), so
+        it is counted and announced with CAMERA_IMAGE_CAPTURED like the others: cancelled in flight,
+        the camera took it and the bridge never said so (image_count one short, a geotag missing)."""
         task, self._interval_task = self._interval_task, None
         if task is not None:
-            task.cancel()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await task
+            self._interval_stop.set()
+            with contextlib.suppress(asyncio.TimeoutError, Exception):
+                await within(asyncio.shield(task), STOP_PHOTO_WAIT_S)
+            await stop_tasks([task], "interval capture")
+            self._interval_stop = asyncio.Event()
         self.image_status = 0
         self.interval_s = 0.0
 
