@@ -109,9 +109,19 @@ async def test_mavproxy_camera_module_drives_a_sip(rig_factory: Any, tmp_path: P
         await mp.command("camera select 1:100", r"Selected camera .*1:100")
         await mp.command("camera record start", r"VIDEO_START_CAPTURE: ACCEPTED")
         assert rig.sim.camera.recording
-        for _ in range(2):
+
+        def recording_times() -> set[int]:  # CAMERA_CAPTURE_STATUS the bridge sent (to every peer) while recording
+            return {m.recording_time_ms for m in rig.peer.messages
+                    if m.get_type() == "CAMERA_CAPTURE_STATUS" and m.video_status == 1}  # fmt: skip
+
+        # MAVProxy's discover asks for CAMERA_CAPTURE_STATUS: ask until two answers with the time
+        # going on were sent (on a loaded machine the second answer came after the stop, once)
+        for _ in range(10):
             await asyncio.sleep(1.0)
             await mp.command("camera discover", r"discovery requested")
+            if len(recording_times()) >= 2:
+                break
+        await eventually(lambda: len(recording_times()) >= 2, 20, "two recording times sent")
         await mp.command("camera info", r"recording=yes")
         await mp.command("camera record stop", r"VIDEO_STOP_CAPTURE: ACCEPTED")
         assert not rig.sim.camera.recording
