@@ -113,18 +113,25 @@ async def test_with_a_key_only_correctly_signed_commands_are_acted_on(
             p.close()
 
 
+def keep_sent(peer: Peer) -> tuple[list[bytes], Any]:
+    """From now on every datagram `peer` sends is also kept (to replay one); (the kept datagrams,
+    the transport's own sendto, which sends without keeping)."""
+    sent: list[bytes] = []
+    original = peer.transport.sendto  # type: ignore[union-attr]
+
+    def keep(data: bytes, *a: Any) -> None:
+        sent.append(bytes(data))
+        original(data, *a)
+
+    peer.transport.sendto = keep  # type: ignore[union-attr,method-assign]
+    return sent, original
+
+
 async def test_a_replayed_signed_command_is_refused(rig_factory: Any) -> None:
     rig = await rig_factory("C12", signing_key=KEY)
     good = await signed_peer(KEY, sysid=201).connect(rig.bridge.addresses[0][1])
     try:
-        sent: list[bytes] = []
-        original = good.transport.sendto  # type: ignore[union-attr]
-
-        def keep(data: bytes, *a: Any) -> None:
-            sent.append(bytes(data))
-            original(data, *a)
-
-        good.transport.sendto = keep  # type: ignore[union-attr,method-assign]
+        sent, original = keep_sent(good)
         assert (await _answer(good, -15)).result == ml.MAV_RESULT_ACCEPTED
         before = rig.bridge.node.unsigned_in
         original(sent[-1])  # the same signed frame again: its timestamp is not newer

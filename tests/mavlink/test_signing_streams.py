@@ -18,7 +18,7 @@ from pymavlink.dialects.v20 import common as ml
 from topgimbal.mavlink.signing import SIGNING_EPOCH_S, SignedStreams, load_key, sign_outgoing
 
 from .conftest import Peer
-from .test_signing import KEY, _answer, signed_peer
+from .test_signing import KEY, _answer, keep_sent, signed_peer
 
 
 def _frame(key: bytes, sysid: int, ts: int, link_id: int = 0) -> bytes:
@@ -57,14 +57,7 @@ async def test_a_signed_command_replayed_from_another_port_is_refused(rig_factor
     port = rig.bridge.addresses[0][1]
     good = await signed_peer(KEY, sysid=201).connect(port)
     try:
-        sent: list[bytes] = []
-        original = good.transport.sendto  # type: ignore[union-attr]
-
-        def keep(data: bytes, *a: Any) -> None:
-            sent.append(bytes(data))
-            original(data, *a)
-
-        good.transport.sendto = keep  # type: ignore[union-attr,method-assign]
+        sent, _ = keep_sent(good)
         assert (await _answer(good, -15)).result == ml.MAV_RESULT_ACCEPTED
         before = rig.bridge.node.unsigned_in
         acks = sum(m.get_type() == "COMMAND_ACK" for m in good.messages)
