@@ -40,6 +40,7 @@ from .config import (  # the constants and check_video_options: their old home w
     check_video_options,
 )
 from .guard import HostGuard, default_allowed_hosts
+from .hub import Hub
 from .modes import open_fleet, open_single
 from .pages import PageHub
 from .routes import CameraVideos, add_camera_routes, camera_handlers
@@ -61,6 +62,7 @@ SINGLE_ROUTES = (
     ("/api/catalog", "catalog"),
     ("/api/status", "status"),
     ("/api/traffic.pcap", "pcap"),
+    ("/api/where", "where"),
     ("/ws", "ws"),
 )
 # A wildcard listening address, and the address a browser on this machine reaches it by.
@@ -217,6 +219,8 @@ class ConsoleServer:
                 opened.sim,
                 opened.proxy,
             )
+            if isinstance(self.hub, Hub):
+                self.hub.sim = opened.sim
             await self.hub.start()
             self.app = create_app(self.hub, token=self.token, allowed_hosts=self.allowed_hosts)
             if self.cam is not None:  # video needs a camera to point; a watched proxy has none of ours
