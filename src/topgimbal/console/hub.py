@@ -32,6 +32,7 @@ from .where import WhereCache
 
 if TYPE_CHECKING:
     from ..sim import Simulator
+    from .autopilot import AutopilotListener
 
 log = logging.getLogger(__name__)
 
@@ -73,6 +74,7 @@ class Hub(PageHub):
         self.lost_since: float | None = None  # wall clock of the client's "link down"
         self.link_reason = ""
         self.sim: Simulator | None = None  # --sim: the simulated camera (where.py reads its fed position)
+        self.autopilot: AutopilotListener | None = None  # --autopilot: the autopilot's fix (where.py)
         self._where = WhereCache()
 
     def role(self, role: str) -> CommandSpec | None:
@@ -150,7 +152,7 @@ class Hub(PageHub):
         }
 
     async def where(self) -> dict[str, Any]:
-        return await self._where.get(self.cam, self.sim)
+        return await self._where.get(self.cam, self.sim, self.autopilot)
 
     def hello(self) -> dict[str, Any]:
         return {**super().hello(), "attitude_hz": self.attitude_hz}

@@ -4,6 +4,8 @@ page's "Where" rows in the Laser range & target panel.
 The vehicle's fix comes, first found:
 - `feeds`: what this console's client feeds the camera (a fresh `cam.feed(...)` fix: a program or a
   bridge sharing the client);
+- `autopilot`: the autopilot's GLOBAL_POSITION_INT heard on `--autopilot HOST:PORT`
+  (autopilot.py), the target placed on flat ground at its home altitude;
 - `camera`: with `--sim`, what the simulated camera was fed: by a bridge (its autopilot's
   GLOBAL_POSITION_INT and heading), ArduPilot's own camera driver, or the page's vehicle rows.
   The simulator's flat ground is at altitude 0 (the fed ALT is the height above it).
@@ -25,6 +27,7 @@ from ..errors import TopGimbalError
 
 if TYPE_CHECKING:
     from ..sim import Simulator
+    from .autopilot import AutopilotListener
 
 CACHE_S = 0.5
 
@@ -39,13 +42,16 @@ class VehicleFix:
     ground_alt_m: float | None  # the flat ground the target is placed on (None: not known here)
 
 
-def vehicle_fix(cam: Any, sim: Simulator | None) -> VehicleFix | None:
+def vehicle_fix(cam: Any, sim: Simulator | None, autopilot: AutopilotListener | None = None) -> VehicleFix | None:
     """The vehicle's fix from the first source that has one (module docstring), or None."""
     feeds: Any = getattr(cam, "feeds", None)
     fix = getattr(feeds, "fix", None)
     if fix is not None and feeds.fix_fresh():
         heading = None if fix.heading_deg is None else fix.heading_deg % 360.0
         return VehicleFix(fix.lat_deg, fix.lon_deg, fix.alt_m, heading, "feeds", None)
+    heard = autopilot.fix() if autopilot is not None else None
+    if heard is not None:
+        return VehicleFix(heard.lat_deg, heard.lon_deg, heard.alt_m, heard.heading_deg, "autopilot", heard.home_alt_m)
     if sim is None:
         return None
     from ..sim.world import pose_of
@@ -59,11 +65,11 @@ def vehicle_fix(cam: Any, sim: Simulator | None) -> VehicleFix | None:
     return VehicleFix(pos.lat_deg, pos.lon_deg, pos.alt_m, heading, "camera", ground)
 
 
-async def where(cam: Any, sim: Simulator | None) -> dict[str, Any]:
+async def where(cam: Any, sim: Simulator | None, autopilot: AutopilotListener | None = None) -> dict[str, Any]:
     """{"vehicle": fix or null, "target": located point or null, "why": what is missing}."""
-    fix = vehicle_fix(cam, sim)
+    fix = vehicle_fix(cam, sim, autopilot)
     if fix is None:
-        why = "no vehicle position: feed one (a bridge, the SDK's feed()) or set it in the vehicle rows"
+        why = "no vehicle position: feed one (a bridge, the SDK's feed(), --autopilot) or set it in the vehicle rows"
         return {"vehicle": None, "target": None, "why": why}
     vehicle = {k: v for k, v in asdict(fix).items() if k != "ground_alt_m"}
     if fix.heading_deg is None:
@@ -92,8 +98,8 @@ class WhereCache:
         self._at = -math.inf
         self._answer: dict[str, Any] | None = None
 
-    async def get(self, cam: Any, sim: Simulator | None) -> dict[str, Any]:
+    async def get(self, cam: Any, sim: Simulator | None, autopilot: AutopilotListener | None) -> dict[str, Any]:
         now = monotonic()
         if self._answer is None or now - self._at >= CACHE_S:
-            self._answer, self._at = await where(cam, sim), now
+            self._answer, self._at = await where(cam, sim, autopilot), now
         return self._answer

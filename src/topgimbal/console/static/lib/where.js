@@ -13,7 +13,7 @@ function place(node, p, text) {
   node.dataset.lon = p ? String(p.lon_deg) : "";
 }
 
-const SOURCES = { feeds: "fed by this console's client", camera: "fed to the camera" };
+const SOURCES = { feeds: "fed by this console's client", autopilot: "the autopilot's", camera: "fed to the camera" };
 
 export function show(w) {
   const v = w.vehicle, t = w.target;
