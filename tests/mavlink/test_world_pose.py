@@ -1,6 +1,6 @@
 """Issue 41.2 through the bridge: an autopilot at heading 30 feeds a SIP (the heading alone, AZI, as
-ArduPilot does); CAMERA_FOV_STATUS's image centre, the simulated laser's ground point and the
-simulator's truth (which the picture is drawn from: tests/sim/test_world_pose.py) agree within
+ArduPilot does); CAMERA_FOV_STATUS's image centre (and KLV's frame centre and CoT's sensor point),
+the simulated laser's ground point and the simulator's truth (which the picture is drawn from: tests/sim/test_world_pose.py) agree within
 1 m. Before, the truth and the picture looked along the body yaw while the laser and
 CAMERA_FOV_STATUS counted the heading: 194 m apart on the ground at this range."""
 
@@ -72,9 +72,19 @@ async def test_fov_status_laser_and_truth_agree_at_heading_30(vrig_maker: Any) -
         d = measure(sim.device.state)
         assert d == pytest.approx(ALT / math.sin(math.radians(30.0)), abs=0.1)
         laser = scene.target_position(LAT, LON, float(rec["yaw_deg"]), float(rec["pitch_deg"]), d)
+        print(f"heading 30: FOV_STATUS image centre {metres(image, laser):.2f} m from the laser's point")
         assert metres(image, laser) <= 1.0, (image, laser)
         body_only = scene.target_position(LAT, LON, 5.0, -30.0, d)  # what the picture showed before
         assert metres(image, body_only) > 100.0
+        # KLV's frame centre (ST 0601 tags 23, 24) and Cursor-on-Target's sensor point say the same
+        view = vrig.bridge.cameras[0].view
+        klv = view.klv_values()
+        assert klv is not None and metres((klv[23], klv[24]), laser) <= 1.0
+        assert klv[21] == pytest.approx(d, abs=1.0)  # slant range
+        sighting = view.sighting()
+        assert sighting is not None and sighting.target is not None
+        assert metres((sighting.target.lat_deg, sighting.target.lon_deg), laser) <= 1.0
+        assert sighting.azimuth_deg == pytest.approx(float(rec["yaw_deg"]), abs=0.01)
     finally:
         flying.cancel()
         with contextlib.suppress(asyncio.CancelledError):

@@ -71,6 +71,7 @@ def test_sip_heading_30_picture_truth_and_laser_agree() -> None:
     rec = truth_record(h.dev)
     tg = rec["targets"][0]  # type: ignore[index]
     px, py = picture_target_px(h)
+    print(f"SIP heading 30: picture vs truth {px - tg['x'] * W:+.2f}, {py - tg['y'] * H:+.2f} px")
     assert abs(px - tg["x"] * W) <= 1.0 and abs(py - tg["y"] * H) <= 1.0, (px, py, tg)
     # The laser's range and target solution are those of the truth's line of sight.
     out = h.ask("LRF", action="single")
@@ -78,6 +79,7 @@ def test_sip_heading_30_picture_truth_and_laser_agree() -> None:
     d = h.decode(out[1])["distance_m"]
     assert d == pytest.approx(ALT / math.sin(math.radians(30.0)), abs=0.1)
     laser = (h.decode(out[2])["lat_deg"], h.decode(out[3])["lon_deg"])
+    print(f"SIP heading 30: laser vs truth's ground point {metres(laser, ground_from_truth(rec)):.2f} m")
     assert metres(laser, ground_from_truth(rec)) <= 1.0
     # ... and that line is the heading's: 35 degrees from north, not the body's 5 (the old picture)
     north = scene.target_position(LAT, LON, 5.0, -30.0, d)
@@ -115,4 +117,5 @@ def test_c12_on_a_pitched_rolled_vehicle_heading_30_picture_and_truth_agree() ->
     rec = truth_record(h.dev)
     tg = rec["targets"][0]  # type: ignore[index]
     px, py = picture_target_px(h)
+    print(f"C12 heading 30 pitch 5 roll 3: picture vs truth {px - tg['x'] * W:+.2f}, {py - tg['y'] * H:+.2f} px")
     assert abs(px - tg["x"] * W) <= 1.0 and abs(py - tg["y"] * H) <= 1.0, (px, py, tg)
