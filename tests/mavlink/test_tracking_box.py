@@ -91,3 +91,28 @@ async def test_the_box_stays_on_a_moving_target(
     print(f"{model} {start_deg:+g} deg at {speed_deg_s:+g} deg/s: {within:.0%} of {len(errors)} within 0.05, "
           f"median {errors[len(errors) // 2]:.3f}, max {errors[-1]:.3f}")  # fmt: skip
     assert within >= 0.9, f"{within:.0%} within 0.05 (median {errors[len(errors) // 2]:.3f})"
+
+
+async def test_no_box_while_the_companion_loop_searches(vrig_maker: Any) -> None:
+    """With the companion loop (a model without a tracker), the box is where the loop found the
+    target in the newest picture; while it searches, ACTIVE without a box: none where no target is."""
+    from types import SimpleNamespace
+
+    from topgimbal.mavlink.camera_tracking import Tracker
+
+    vrig = await vrig_maker("C10")
+    tracker = Tracker(vrig.bridge.cam, fov=lambda: (60.0, 34.0), companion_url="rtsp://127.0.0.1:8554/unused")
+    assert tracker.companion_url is not None  # the C10 has no tracker of its own
+    tracker.state = (2, (0.4, 0.4, 0.5, 0.5))
+    tracker._picture_size = (640, 360)
+    loop: Any = SimpleNamespace(state="tracking", vision=SimpleNamespace(centre=(400.0, 90.0)))
+    tracker.companion = loop
+    m = tracker.status_message()
+    assert m.tracking_status == ml.CAMERA_TRACKING_STATUS_FLAGS_ACTIVE
+    assert box_centre(m) == pytest.approx((400 / 640, 90 / 360))  # measured, not the box asked for
+    loop.state = "searching"
+    m = tracker.status_message()
+    assert m.tracking_status == ml.CAMERA_TRACKING_STATUS_FLAGS_ACTIVE and m.target_data == 0
+    assert math.isnan(m.rec_top_x) and math.isnan(m.point_x)
+    loop.state = "lost"
+    assert tracker.status_message().tracking_status == ml.CAMERA_TRACKING_STATUS_FLAGS_ERROR
