@@ -55,6 +55,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "tcp/127.0.0.1:7447 (repeatable; scouting stays off)",
     )
     p.add_argument("--seed", type=int, default=0, help="simulator seed (with --sim)")
+    p.add_argument("--autopilot", metavar="HOST:PORT",
+                   help="listen there for the autopilot's MAVLink (GLOBAL_POSITION_INT): the page shows the vehicle's "
+                   "fix and where the camera looks from it (read only: nothing is sent)")  # fmt: skip
     p.add_argument(
         "--faults",
         metavar="PLAN",
@@ -186,7 +189,7 @@ def build_config(args: argparse.Namespace) -> ConsoleConfig:
         token=args.token,
         allow_hosts=tuple(args.allow_host),
     )
-    return ConsoleConfig(source, serve, LinkOptions(attitude_hz=args.attitude_hz))
+    return ConsoleConfig(source, serve, LinkOptions(attitude_hz=args.attitude_hz), autopilot=args.autopilot)
 
 
 def _source(args: argparse.Namespace) -> Source:

@@ -237,6 +237,7 @@ async def open_local(
             await sim.stop()
         raise
     hub = Hub(cam, url=url, attitude_hz=attitude_hz)
+    hub.sim = sim
     return Camera(name, hub, "sim" if sim is not None else "url", url, cam, sim=sim)
 
 

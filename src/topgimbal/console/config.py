@@ -317,6 +317,7 @@ class ConsoleConfig:
     source: Source
     serve: ServeOptions = field(default_factory=ServeOptions)
     link: LinkOptions = field(default_factory=LinkOptions)
+    autopilot: str | None = None  # HOST:PORT: listen there for the autopilot's fix (autopilot.py)
 
     def __post_init__(self) -> None:
         if not isinstance(self.source, SOURCES):
@@ -325,6 +326,12 @@ class ConsoleConfig:
             )
         if not isinstance(self.serve, ServeOptions) or not isinstance(self.link, LinkOptions):
             raise ConsoleConfigError("serve: a ServeOptions and link: a LinkOptions")
+        if self.autopilot is not None:
+            from .autopilot import listen_address
+
+            listen_address(self.autopilot)
+            if self.several:
+                raise ConsoleConfigError("--autopilot: a console of one camera only (its fix is shown on that page)")
 
     @property
     def several(self) -> bool:

@@ -19,7 +19,7 @@ import contextlib
 import logging
 from collections import Counter
 from collections.abc import Coroutine, Iterator
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..client import CameraAPI
 from ..clock import wall_time
@@ -28,6 +28,11 @@ from ..protocol import CommandSpec, Frame, Message
 from .capture import link_for
 from .ops import OPS, OpArgs, SdStatus, describe_error, jsonable, op_sd
 from .pages import MAX_OPS_IN_FLIGHT, PageHub
+from .where import WhereCache
+
+if TYPE_CHECKING:
+    from ..sim import Simulator
+    from .autopilot import AutopilotListener
 
 log = logging.getLogger(__name__)
 
@@ -68,6 +73,9 @@ class Hub(PageHub):
         self.version: str | None = None
         self.lost_since: float | None = None  # wall clock of the client's "link down"
         self.link_reason = ""
+        self.sim: Simulator | None = None  # --sim: the simulated camera (where.py reads its fed position)
+        self.autopilot: AutopilotListener | None = None  # --autopilot: the autopilot's fix (where.py)
+        self._where = WhereCache()
 
     def role(self, role: str) -> CommandSpec | None:
         """The command playing `role` on this model (None when it has none)."""
@@ -142,6 +150,9 @@ class Hub(PageHub):
             "version": self.version,
             "feeds": _feeds_summary(self.cam),
         }
+
+    async def where(self) -> dict[str, Any]:
+        return await self._where.get(self.cam, self.sim, self.autopilot)
 
     def hello(self) -> dict[str, Any]:
         return {**super().hello(), "attitude_hz": self.attitude_hz}

@@ -200,6 +200,11 @@ class PageHub:
                     log.exception("status failed")
                     self.report_error(f"status: {exc}", kind="internal", source="console", once="status")
 
+    async def where(self) -> dict[str, Any]:
+        """Where the vehicle and the target are (`GET api/where`, where.py): a hub without a
+        client of its own (a watched proxy) knows neither."""
+        return {"vehicle": None, "target": None, "why": "this console watches a proxy: it has no client to ask"}
+
     def hello(self) -> dict[str, Any]:
         return {
             "type": "hello",

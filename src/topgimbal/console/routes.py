@@ -56,6 +56,9 @@ def camera_handlers(resolve: Resolve, root: Path) -> dict[str, Handler]:
     async def status(request: web.Request) -> web.Response:
         return web.json_response(resolve(request).status(), dumps=_dumps)
 
+    async def where(request: web.Request) -> web.Response:
+        return web.json_response(await resolve(request).where(), dumps=_dumps)
+
     async def ws(request: web.Request) -> web.StreamResponse:
         return await resolve(request).handle_ws(request)
 
@@ -78,7 +81,7 @@ def camera_handlers(resolve: Resolve, root: Path) -> dict[str, Handler]:
             },
         )
 
-    return {"index": index, "catalog": catalog, "status": status, "ws": ws, "pcap": traffic_pcap}
+    return {"index": index, "catalog": catalog, "status": status, "ws": ws, "pcap": traffic_pcap, "where": where}
 
 
 def _unknown(name: str, cameras: CameraSet) -> web.HTTPNotFound:
@@ -210,11 +213,13 @@ def add_camera_routes(app: web.Application, cameras: CameraSet, videos: CameraVi
     r.add_get("/cam/{name}/api/catalog", named["catalog"])
     r.add_get("/cam/{name}/api/status", named["status"])
     r.add_get("/cam/{name}/api/traffic.pcap", named["pcap"])
+    r.add_get("/cam/{name}/api/where", named["where"])
     r.add_get("/cam/{name}/ws", named["ws"])
     r.add_get("/", legacy["index"])
     r.add_get("/api/catalog", legacy["catalog"])
     r.add_get("/api/status", legacy["status"])
     r.add_get("/api/traffic.pcap", legacy["pcap"])
+    r.add_get("/api/where", legacy["where"])
     r.add_get("/ws", legacy["ws"])
     for prefix, picked in (("/cam/{name}", by_name), ("", first)):
         r.add_get(f"{prefix}/api/video", video("info", picked))

@@ -25,6 +25,7 @@ from ..logtext import untrusted
 from ..video.webconsole import ConsoleVideo
 from ..video.webconsole import attach as attach_video
 from .auth import needs_token, resolve_token, token_middleware
+from .autopilot import AutopilotListener, listen_address
 from .cameras import CameraSet
 from .config import (  # the constants and check_video_options: their old home was this module
     DEFAULT_HOST,
@@ -40,6 +41,7 @@ from .config import (  # the constants and check_video_options: their old home w
     check_video_options,
 )
 from .guard import HostGuard, default_allowed_hosts
+from .hub import Hub
 from .modes import open_fleet, open_single
 from .pages import PageHub
 from .routes import CameraVideos, add_camera_routes, camera_handlers
@@ -61,6 +63,7 @@ SINGLE_ROUTES = (
     ("/api/catalog", "catalog"),
     ("/api/status", "status"),
     ("/api/traffic.pcap", "pcap"),
+    ("/api/where", "where"),
     ("/ws", "ws"),
 )
 # A wildcard listening address, and the address a browser on this machine reaches it by.
@@ -180,6 +183,7 @@ class ConsoleServer:
         self.cameras = CameraSet()  # several cameras: every camera (the single-camera forms: empty)
         self.videos = CameraVideos(self.cameras)
         self.zenoh: ZenohCameras | None = None
+        self.autopilot: AutopilotListener | None = None  # --autopilot (one-camera consoles)
 
     @classmethod
     def from_config(cls, config: ConsoleConfig) -> ConsoleServer:
@@ -217,6 +221,11 @@ class ConsoleServer:
                 opened.sim,
                 opened.proxy,
             )
+            if isinstance(self.hub, Hub):
+                self.hub.sim = opened.sim
+                if self.config.autopilot is not None:
+                    self.autopilot = await AutopilotListener.listen(*listen_address(self.config.autopilot))
+                    self.hub.autopilot = self.autopilot
             await self.hub.start()
             self.app = create_app(self.hub, token=self.token, allowed_hosts=self.allowed_hosts)
             if self.cam is not None:  # video needs a camera to point; a watched proxy has none of ours
@@ -242,6 +251,9 @@ class ConsoleServer:
         self.bound_port = sockets[0].getsockname()[1] if sockets else self.port
 
     async def stop(self) -> None:
+        if self.autopilot is not None:
+            self.autopilot.close()
+            self.autopilot = None
         await self.videos.close()
         if self.zenoh is not None:
             await self.zenoh.stop()

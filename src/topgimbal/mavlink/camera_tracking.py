@@ -4,10 +4,13 @@ camera confirmed, and a status that says what the camera says.
 
 The status is honest (docs/mavlink.md, "Object tracking"):
 - IDLE before tracking starts and after a stop;
-- ACTIVE while the camera tracks, with the target's place in the picture: the camera's own box
-  where the model reports one (none of today's profiles does), else estimated from the gimbal:
-  the camera's tracker turns the gimbal towards the target, so the box the user gave moves
-  towards the centre by the angle the gimbal has turned, and stays centred once it got there;
+- ACTIVE while the camera tracks, with the target's place in the picture: the companion loop's
+  measurement in the video where it runs (no box while it searches), the camera's own box where
+  the model reports one (none of today's profiles does), else estimated: the camera's tracker
+  pulls the target to the centre and keeps it there, so the box the user gave moves towards the
+  centre by the angle the gimbal has turned, never further out than a pull-in that halves within
+  PULL_IN_TAU_S * ln 2 (a target moving away from where it was picked is followed, not left
+  behind: the gimbal's turn counts a moving target's own motion, issue 41.4), and stays centred;
 - ERROR when the camera says it lost the target: on a model with a tracking state query (TOPOTEK
   `TRC`), polled every POLL_S while tracking, a state that fell back from "tracking" to "waiting"
   or "stopped" without a stop from us, "lens cannot track", or no "tracking" within START_GRACE_S.
@@ -47,6 +50,10 @@ POLL_S = 0.2  # how often a camera with a tracking state query is asked while tr
 START_GRACE_S = 1.0  # a camera that does not say "tracking" within this after the request failed
 COMPANION_START_S = 5.0  # the companion loop must find the target in a picture within this to ack
 MAX_STATUS_HZ = 20.0
+# The camera's tracker pulls a target to the centre about this fast (the simulated SIP and C12 in
+# 0.25 to 0.33 s; undocumented for the real ones: docs/errata.md E41). The estimated box is never
+# further from the centre than the picked offset times exp(-t / PULL_IN_TAU_S).
+PULL_IN_TAU_S = 0.3
 NAN = float("nan")
 INT32_MAX = 2**31 - 1
 # MAVLink's CAMERA_TRACKING_STATUS_FLAGS / _MODE / _TARGET_DATA
@@ -252,10 +259,9 @@ class Tracker:
         if comp is not None and size is not None and comp.vision.centre is not None:
             return comp.vision.centre[0] / size[0], comp.vision.centre[1] / size[1]
         cx, cy = (v[0], v[1]) if mode == 1 else ((v[0] + v[2]) / 2, (v[1] + v[3]) / 2)
-        turned = self.offset_frac()
-        if turned is None:
-            return cx, cy
-        return _towards_centre(cx, turned[0]), _towards_centre(cy, turned[1])
+        turned = self.offset_frac() or (0.0, 0.0)
+        pull = math.exp(-max(0.0, self.clock() - self._started_at) / PULL_IN_TAU_S)
+        return _towards_centre(cx, turned[0], pull), _towards_centre(cy, turned[1], pull)
 
     def status_message(self) -> Any:
         mode, v = self.state
@@ -266,6 +272,9 @@ class Tracker:
             self.lost = True
         if self.lost:
             return ml.MAVLink_camera_tracking_image_status_message(ERROR, mode, DATA_NONE, *(NAN,) * 7)
+        if self.companion is not None and self.companion.state != "tracking":
+            # searching: the loop does not see the target now, so no box where none may be
+            return ml.MAVLink_camera_tracking_image_status_message(ACTIVE, mode, DATA_NONE, *(NAN,) * 7)
         c = self.estimated_centre()
         assert c is not None
         if mode == 1:
@@ -334,14 +343,16 @@ def _geo(status: int) -> Any:
     )
 
 
-def _towards_centre(c: float, turned: float) -> float:
-    """A picture coordinate moved towards the centre (0.5) by what the gimbal turned, never past it:
-    once the camera's tracker centred the target, it keeps it there."""
+def _towards_centre(c: float, turned: float, pull: float = 1.0) -> float:
+    """A picture coordinate moved towards the centre (0.5) by what the gimbal turned, never past it
+    (once the camera's tracker centred the target, it keeps it there), and never further out than
+    `pull` (1 at the start, falling to 0) times where it was picked: a gimbal turning away from the
+    picked side follows a target moving that way, it does not leave it behind."""
     off = c - 0.5
     left = off - turned
     if off * left <= 0:
         return 0.5
-    return 0.5 + left
+    return 0.5 + math.copysign(min(abs(left), abs(off) * pull), off)
 
 
 async def _request(client: AsyncClient, *, ident: str, values: Mapping[str, object]) -> Message:

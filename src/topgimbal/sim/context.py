@@ -92,7 +92,7 @@ class SimState:
     uid: int = 0
     serial: str = ""
     vehicle_input: bool = True  # whether vehicle attitude from the host counts (SkyDroid: after FAE)
-    vehicle_heard: bool = False  # a vehicle attitude arrived (else only AZI may say the heading)
+    vehicle_heard: bool = False  # a vehicle attitude arrived (the heading may also come alone: sim/world.py)
     stream_hz: float | None = None  # rate of on / off streams (TOPOTEK GAA, GIA); None: the profile's
     dirty: bool = False  # persistent state changed
     reboots: int = 0

@@ -5,11 +5,12 @@ attitude, the zoom, and the camera tracker's state and box. Benchmarks and tests
 One line (keys are stable; numbers rounded to 1e-4 degree / 1e-5 of the picture):
 
     {"t": 1.24, "wall": 1790000000.123, "yaw_deg": 3.2, "pitch_deg": -4.9, "roll_deg": 0.0,
-     "zoom_x": 1.0, "hfov_deg": 56.0, "tracking": "tracking", "box": [0.51, 0.5, 0.027, 0.048],
+     "vehicle_deg": [30.0, 0.0, 0.0], "zoom_x": 1.0, "hfov_deg": 56.0, "tracking": "tracking", "box": [0.51, 0.5, 0.027, 0.048],
      "targets": [{"name": "t1", "bearing_deg": 3.4, "elevation_deg": -5.0, "visible": true,
                   "x": 0.503, "y": 0.5}]}
 
-`t` is device time since power-on (the targets' clock); `box` is the tracker's (centre x, y,
+`t` is device time since power-on (the targets' clock); `vehicle_deg` the vehicle's yaw, pitch and
+roll as the host fed them (sim/world.py: the camera's earth-frame attitude includes them); `box` is the tracker's (centre x, y,
 width, height, fractions of the picture) or null; a target's `x`, `y` are null when it is behind
 the camera.
 """
@@ -25,6 +26,7 @@ from typing import IO, TYPE_CHECKING, Any
 
 from ..clock import monotonic, wall_time
 from .tracker import project
+from .world import pose_of
 
 if TYPE_CHECKING:
     from .device import Device
@@ -40,7 +42,8 @@ def truth_record(device: Device, wall_s: float | None = None) -> dict[str, Any]:
     device.sync()
     state = device.state
     now = device.now
-    yaw, pitch, roll = state.gimbal.earth()
+    pose = pose_of(state.gimbal, state.position)  # the one the picture and the laser read
+    yaw, pitch, roll = pose.yaw_deg, pose.pitch_deg, pose.roll_deg
     hfov = state.tracking_hfov_deg()
     targets = []
     for tv in state.target_views(now):
@@ -63,6 +66,7 @@ def truth_record(device: Device, wall_s: float | None = None) -> dict[str, Any]:
         "yaw_deg": round(yaw, 4),
         "pitch_deg": round(pitch, 4),
         "roll_deg": round(roll, 4),
+        "vehicle_deg": [round(v, 4) for v in pose.vehicle],
         "zoom_x": state.camera.zoom_x,
         "hfov_deg": round(hfov, 4),
         "tracking": state.camera.tracking,

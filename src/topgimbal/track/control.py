@@ -45,6 +45,20 @@ class AttitudeHistory:
     def latest(self) -> tuple[float, float, float] | None:
         return self._samples[-1] if self._samples else None
 
+    def rate(self, t: float, span_s: float = 0.1) -> tuple[float, float]:
+        """The gimbal's (yaw, pitch) rate in deg/s over `span_s` around t, within the samples
+        there are (0, 0 without a quarter of that): how fast a target the picture holds still is
+        moving."""
+        s = self._samples
+        if len(s) < 2:
+            return 0.0, 0.0
+        t1 = min(t + span_s / 2, s[-1][0])
+        t0 = max(t1 - span_s, s[0][0])
+        a, b = self.at(t0), self.at(t1)
+        if a is None or b is None or t1 - t0 < span_s / 4:
+            return 0.0, 0.0
+        return wrap180(b[0] - a[0]) / (t1 - t0), (b[1] - a[1]) / (t1 - t0)
+
     def at(self, t: float) -> tuple[float, float] | None:
         """(yaw, pitch) at time t: interpolated between samples, extrapolated from the last two
         beyond the newest (at most 0.2 s), the oldest before the first."""
@@ -94,6 +108,12 @@ class AngleController:
 
     def reset(self) -> None:
         self.target, self.velocity, self.integral, self._last_cmd_t = None, (0.0, 0.0), (0.0, 0.0), None
+
+    def assume_velocity(self, bearing_deg_s: float, elevation_deg_s: float) -> None:
+        """Start the target's velocity estimate here rather than at rest: a loop that starts on a
+        gimbal already panning with its target (issue 41.5) would otherwise first command the pan
+        away and lose the target while the estimate catches up."""
+        self.velocity = (bearing_deg_s, elevation_deg_s)
 
     def observe(self, t: float, bearing_deg: float, elevation_deg: float) -> None:
         """The target seen at capture time t in this earth-frame direction."""

@@ -172,6 +172,10 @@ class CompanionTracker:
         self.report.detections += 1
         cx, cy = self.vision.centre or (box[0] + box[2] / 2, box[1] + box[3] / 2)
         az, el = view.angles_at(cx, cy)
+        if self.controller.target is None:
+            # The first sighting: the target is where the picture was, moving as the gimbal was
+            # moving (a gimbal panning with it holds it still in the picture), not at rest.
+            self.controller.assume_velocity(*self.history.rate(pic.t))
         self.controller.observe(pic.t, az, el)
         f = view.focal_px
         self._pixel_rates = pixel_p_rates(
@@ -204,10 +208,22 @@ class CompanionTracker:
             return 0.0, 0.0
         return self.controller.command(now, att[0], att[1])
 
+    def command_now(self) -> tuple[float, float] | None:
+        """The rates to send now, or None: nothing is commanded before the target was first seen,
+        so the gimbal goes on as it was (a rate 0 then would stop a pan that holds the target,
+        issue 41.5)."""
+        if self.state == "starting" or self.controller.target is None:
+            return None
+        return self.rates_now()
+
     async def _control(self) -> None:
         period = 1.0 / self.config.rate_hz
         while True:
-            yaw, pitch = self.rates_now()
+            rates = self.command_now()
+            if rates is None:
+                await asyncio.sleep(period)
+                continue
+            yaw, pitch = rates
             now = self.clock()
             last = self._sent
             if (

@@ -126,14 +126,9 @@ class MediaStore:
             log.warning("media: photo %d not stored: %d photos are still being written", index, self._pending)
             return
         scene = capture(self.sim.device)
-        meta = self.shot_meta()
-        yaw = scene.yaw_deg
-        azimuth = self.sim.device.state.position.azimuth_deg
-        if not self.sim.device.state.vehicle_heard and azimuth is not None:
-            # No vehicle attitude (a SIP fed as ArduPilot feeds it): the heading comes from AZI.
-            yaw = (yaw + azimuth + 180.0) % 360.0 - 180.0
-            meta = replace(meta, flight=Pose((azimuth + 180.0) % 360.0 - 180.0, 0.0, 0.0))
-        meta = replace(meta, gimbal=Pose(yaw, scene.pitch_deg, scene.roll_deg))
+        # The world pose (sim/world.py) holds the heading however it came (AZI or a vehicle
+        # attitude), so the scene's earth yaw and the flight pose already include it.
+        meta = replace(self.shot_meta(), gimbal=Pose(scene.yaw_deg, scene.pitch_deg, scene.roll_deg))
         self._pending += 1
         assert self._loop is not None
         fut = self._loop.run_in_executor(None, self._write_photo, Shot(index, scene, meta))

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..clock import wall_time
+from ..sim.world import pose_of
 
 if TYPE_CHECKING:
     from ..sim.device import Device
@@ -39,7 +40,8 @@ def capture(device: Device, frame: int = 0, wall_s: float | None = None) -> Scen
     device.sync()
     g = device.gimbal
     cam = device.camera
-    yaw, pitch, roll = g.earth()
+    pose = pose_of(g, device.state.position)  # the world pose the truth and the laser read too
+    yaw, pitch, roll = pose.yaw_deg, pose.pitch_deg, pose.roll_deg
     tracker = device.state.tracker
     settings = device.settings
     osd = settings.get("EXT", {}).get("osd", "on") != "off"

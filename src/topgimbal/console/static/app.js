@@ -10,6 +10,7 @@ import { describeFields, el, formatFields } from "./lib/fields.js";
 import { lockControls, showLink } from "./lib/link.js";
 import { buildAttitude, buildBuilder, buildCamera, buildNetwork, buildPointing, buildRange, buildThermal, showReport } from "./lib/panels.js";
 import { provide } from "./lib/bus.js";
+import { startWhere } from "./lib/where.js";
 
 const $ = (id) => document.getElementById(id);
 
@@ -667,6 +668,7 @@ async function main() {
   buildCamera(ui);
   buildThermal(ui);
   buildRange(ui);
+  startWhere();
   buildNetwork(ui);
   buildBuilder(ui, showAnswer);
   // never a level horizon and a heading of 0 as if live: say what is missing until samples come

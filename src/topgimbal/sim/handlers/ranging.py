@@ -11,6 +11,7 @@ from ...protocol import RESPONSE, Frame, Message
 from .. import scene
 from ..context import RefusedError, Request, SimState
 from ..streams import Stream
+from ..world import heading_fed, pose_of
 from .common import fields
 
 CONTINUOUS_HZ = 1.0
@@ -20,7 +21,8 @@ def measure(state: SimState, limit_m: float | None = None) -> float | None:
     """The distance the rangefinder reads now, or None outside the model's range (or `limit_m`).
     On a terrain model (sim --terrain) the ray starts at the fed position (ALT above mean sea
     level) and needs all of LAT, LON and ALT; on flat ground ALT is the height above it."""
-    _, pitch, _ = state.gimbal.earth()
+    pose = pose_of(state.gimbal, state.position)
+    pitch = pose.pitch_deg
     lo, hi = state.model.lrf_range_m or (0.0, 0.0)
     if limit_m is not None:
         hi = min(hi, limit_m)
@@ -28,7 +30,7 @@ def measure(state: SimState, limit_m: float | None = None) -> float | None:
     if state.terrain is not None:
         if pos.lat_deg is None or pos.lon_deg is None or pos.alt_m is None:
             return None
-        d = state.terrain.slant_range(pos.lat_deg, pos.lon_deg, pos.alt_m, ray_bearing(state), pitch, hi)
+        d = state.terrain.slant_range(pos.lat_deg, pos.lon_deg, pos.alt_m, pose.yaw_deg, pitch, hi)
     else:
         d = scene.slant_range(pos.alt_m, pitch)
     if d is None or not lo <= d <= hi:
@@ -37,12 +39,10 @@ def measure(state: SimState, limit_m: float | None = None) -> float | None:
 
 
 def ray_bearing(state: SimState) -> float:
-    """Earth-frame bearing of the optical axis: the heading (AZI, else the vehicle's yaw) plus the
+    """Earth-frame bearing of the optical axis: the world pose's (sim/world.py), which the picture
+    and the truth file read too; the heading (AZI, GPS or the vehicle attitude's yaw) plus the
     gimbal's body yaw, as the target solution (§8.7) counts it."""
-    pos = state.position
-    yaw_body, _, _ = state.gimbal.body()
-    heading = pos.azimuth_deg if pos.azimuth_deg is not None else state.gimbal.vehicle.yaw
-    return heading + yaw_body
+    return pose_of(state.gimbal, state.position).yaw_deg
 
 
 def target_frames(state: SimState, distance: float, host: str) -> list[Frame]:
@@ -56,8 +56,8 @@ def target_frames(state: SimState, distance: float, host: str) -> list[Frame]:
         if spec is None or not any(f.title == "target solution" for f in spec.forms):
             return []
         out.append(spec)
-    _, pitch, _ = state.gimbal.earth()
-    lat, lon = scene.target_position(pos.lat_deg, pos.lon_deg, ray_bearing(state), pitch, distance)
+    pose = pose_of(state.gimbal, pos)
+    lat, lon = scene.target_position(pos.lat_deg, pos.lon_deg, pose.yaw_deg, pose.pitch_deg, distance)
     # notification() passes the echo form (ddmm.mmmm) over and picks the §8.7 report (dd.dddddd).
     return [
         state.dialect.notification(out[0].ident, src="D", dst=host, header="#tp", lat_deg=lat),
@@ -124,11 +124,11 @@ def altitude(state: SimState, msg: Message, req: Request) -> None:
 
 
 def azimuth(state: SimState, msg: Message, req: Request) -> None:
-    state.position.azimuth_deg = float(fields(msg)["azimuth_deg"])
+    heading_fed(state.gimbal, state.position, float(fields(msg)["azimuth_deg"]))
 
 
 def vehicle_position(state: SimState, msg: Message, req: Request) -> None:
     f = fields(msg)
     pos = state.position
     pos.lat_deg, pos.lon_deg, pos.alt_m = float(f["lat_deg"]), float(f["lon_deg"]), float(f["alt_m"])
-    pos.azimuth_deg = float(f["heading_deg"]) % 360.0
+    heading_fed(state.gimbal, pos, float(f["heading_deg"]))
