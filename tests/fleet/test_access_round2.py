@@ -11,10 +11,12 @@ from typing import Any
 
 import pytest
 
+import topgimbal
 from topgimbal.client.zenoh_session import final_endpoints, make_config
+from topgimbal.fleet import CameraSpec, FleetServer
 from topgimbal.fleet.access import AccessConfigError, check_exposure
 
-from .conftest import free_port, raw_session
+from .conftest import eventually, free_port, raw_session
 
 pytestmark = pytest.mark.loopback
 
@@ -87,3 +89,92 @@ async def test_connect_only_listens_nowhere_and_a_wide_config_listener_is_refuse
         assert proc.returncode == 2 and b"tcp/0.0.0.0:" in err and b"access_control" in err, err
     finally:
         await asyncio.to_thread(listener.close)
+
+
+# -- 43.2: the documented ACL: viewers and operators only subscribe and query --------------------
+
+DOCS = Path(__file__).parents[2] / "docs" / "fleet.md"
+
+
+def documented_acl(tmp: Path) -> Path:
+    """docs/fleet.md's server.json5, as written there (only the dictionary's path made absolute)."""
+    text = DOCS.read_text(encoding="utf-8")
+    start = text.index("```json5\n// server.json5")
+    body = text[text.index("\n", start) + 1 : text.index("```", start + 8)]
+    (tmp / "users.txt").write_text("operator:op-pass\nserver:srv-pass\nviewer:v-pass\n")
+    out = tmp / "server.json5"
+    out.write_text(body.replace('dictionary_file: "users.txt"', f'dictionary_file: "{tmp / "users.txt"}"'))
+    return out
+
+
+def user_session(port: int, user: str, password: str) -> Any:
+    """An eclipse-zenoh client session logged in as `user`."""
+    import json
+
+    import zenoh
+
+    conf = zenoh.Config()
+    for k, v in (("mode", "client"), ("connect/endpoints", [f"tcp/127.0.0.1:{port}"]),
+                 ("scouting/multicast/enabled", False), ("scouting/gossip/enabled", False),
+                 ("transport/auth/usrpwd/user", user), ("transport/auth/usrpwd/password", password)):  # fmt: skip
+        conf.insert_json5(k, json.dumps(v))
+    return zenoh.open(conf)
+
+
+def all_replies(session: Any, key: str, payload: str = "{}") -> list[str]:
+    import zenoh
+
+    got = session.get(key, payload=payload, timeout=5, consolidation=zenoh.ConsolidationMode.NONE)
+    return [r.ok.payload.to_string() for r in got if r.ok is not None]
+
+
+async def test_the_documented_acl_lets_no_viewer_or_operator_publish_or_answer(
+    sims: Any, zport: int, tmp_path: Path
+) -> None:
+    (sim,) = await sims(1)
+    conf = documented_acl(tmp_path)
+    async with FleetServer([CameraSpec("a", sim.url, "C12")], listen=[f"tcp/127.0.0.1:{zport}"],
+                           config_file=str(conf)):  # fmt: skip
+        op = await asyncio.to_thread(user_session, zport, "operator", "op-pass")
+        viewer = await asyncio.to_thread(user_session, zport, "viewer", "v-pass")
+        rogue = await asyncio.to_thread(user_session, zport, "operator", "op-pass")
+        try:
+            seen: list[str] = []
+            subs = [op.declare_subscriber(f"topgimbal/a/{k}", lambda s: seen.append(s.payload.to_string()))
+                    for k in ("attitude", "state", "link")]  # fmt: skip
+            watched: list[str] = []
+            vsub = viewer.declare_subscriber("topgimbal/a/attitude", lambda s: watched.append("x"))
+            await eventually(lambda: len(seen) >= 10 and len(watched) >= 10, what="the server's samples")
+            # the viewer forges samples, a camera's token and an answer; a second operator forges an answer
+            for k in ("attitude", "state", "link"):
+                for _ in range(20):
+                    viewer.put(f"topgimbal/a/{k}", '{"forged": true}')
+            token = viewer.liveliness().declare_token("topgimbal/phantom")
+            rogue_tokens = [rogue.liveliness().declare_token("topgimbal/ghost")]
+            forged = '{"ok": true, "result": "forged"}'
+            answerers = [s.declare_queryable("topgimbal/a/call/version", lambda q: q.reply(q.key_expr, forged))
+                         for s in (viewer, rogue)]  # fmt: skip
+            n = len(seen)
+            await eventually(lambda: len(seen) >= n + 50, what="real samples after the forged ones")
+            assert not [x for x in seen if "forged" in x]
+            tokens = await asyncio.to_thread(
+                lambda: [str(r.ok.key_expr) for r in op.liveliness().get("topgimbal/*", timeout=3) if r.ok]
+            )
+            assert tokens == ["topgimbal/a"], tokens
+            replies = await asyncio.to_thread(all_replies, op, "topgimbal/a/call/version")
+            assert len(replies) == 1 and "forged" not in replies[0] and '"ok": true' in replies[0], replies
+            # a viewer reads but does not call
+            assert await asyncio.to_thread(all_replies, viewer, "topgimbal/a/call/point", '{"yaw_deg": 30}') == []
+            assert sim.gimbal.yaw_deg == 0.0
+            # the operator's own client works under these rules
+            (tmp_path / "operator.json5").write_text('{ transport: { auth: { usrpwd: { user: "operator", '
+                                                     'password: "op-pass" } } } }')  # fmt: skip
+            async with topgimbal.connect(
+                f"zenoh/a?connect=tcp/127.0.0.1:{zport}&config={tmp_path}/operator.json5"
+            ) as cam:
+                assert abs((await cam.point(12, -8)).yaw_deg - 12) <= 0.5
+            for d in [*subs, vsub, token, *rogue_tokens, *answerers]:
+                d.undeclare()
+        finally:
+            for s in (op, viewer, rogue):
+                await asyncio.to_thread(s.close)
