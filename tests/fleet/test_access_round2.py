@@ -247,3 +247,44 @@ async def test_a_closed_transports_calls_are_cancelled_by_its_close_event(
         print(f"cancelled {asyncio.get_running_loop().time() - t0:.3f} s after close()")
         assert cam.gone == held
         del handlers
+
+
+# -- 43.4: console --zenoh reaches an access-controlled server ----------------------------------
+
+
+async def test_the_console_reaches_a_server_with_access_control(sims: Any, zport: int, tmp_path: Path) -> None:
+    import aiohttp
+
+    from topgimbal.console import ConsoleServer
+
+    (sim,) = await sims(1)
+    conf = documented_acl(tmp_path)
+    operator = tmp_path / "operator.json5"
+    operator.write_text('{ transport: { auth: { usrpwd: { user: "operator", password: "op-pass" } } } }')
+    ep = f"tcp/127.0.0.1:{zport}"
+    async with FleetServer([CameraSpec("a", sim.url, "C12")], listen=[ep], config_file=str(conf)):
+        console = ConsoleServer(zenoh=[ep], zenoh_config=str(operator), port=0)
+        await console.start()
+        try:
+            async with aiohttp.ClientSession() as http:
+                cams: dict[str, Any] = {}
+
+                async def up() -> bool:
+                    async with http.get(console.base_url + "api/cameras") as r:
+                        cams.update({c["name"]: c for c in (await r.json())["cameras"]})
+                    return "a" in cams and cams["a"]["link"] == "up" and cams["a"]["attitude"] is not None
+
+                loop = asyncio.get_running_loop()
+                end = loop.time() + 60
+                while not await up():
+                    assert loop.time() < end, cams
+                    await asyncio.sleep(0.2)
+        finally:
+            await console.stop()
+    # without --zenoh it has nothing to configure: refused, exit 2
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable, "-m", "topgimbal.cli.main", "console", "--sim", "C12", "--zenoh-config", str(operator),
+        "--port", "0", stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+    )  # fmt: skip
+    _out, err = await asyncio.wait_for(proc.communicate(), 60)
+    assert proc.returncode == 2 and b"--zenoh-config" in err and b"only with --zenoh" in err, err
