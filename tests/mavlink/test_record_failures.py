@@ -138,3 +138,36 @@ def test_a_bad_record_path_is_exit_2_in_one_line(tmp_path: Path, bad: str) -> No
                          capture_output=True, text=True, timeout=60, env={**os.environ, "PYTHONWARNINGS": "ignore"})  # fmt: skip
     assert out.returncode == 2 and out.stderr.count("\n") == 1 and f"--record {path}:" in out.stderr, out.stderr
     assert "Errno" not in out.stderr and "Traceback" not in out.stderr
+
+
+def test_a_recording_joined_mid_gop_opens_at_a_keyframe_with_its_klv_on_the_pictures(
+    source: Path, tmp_path: Path
+) -> None:
+    """A stream joined between keyframes (as a live RTSP stream is): the file starts at the next
+    keyframe, with SPS and PPS, decodes without an error, and each KLV packet is stamped within
+    40 ms of a picture."""
+    import av
+
+    mid = tmp_path / "mid.ts"
+    with av.open(str(source)) as inp, av.open(str(mid), "w", format="mpegts") as out:
+        vout = out.add_stream_from_template(inp.streams.video[0])
+        packets = [p for p in inp.demux(inp.streams.video[0]) if p.dts is not None]
+        for p in packets[3:]:  # the first keyframe and two pictures after it left out
+            p.stream = vout
+            out.mux(p)
+    rec = tmp_path / "rec.ts"
+    videos, klvs = remux(str(mid), rec, lambda: {13: 47.0, 14: 8.0}, threading.Event())
+    assert videos > 0 and klvs > 0
+    rows = subprocess.run(["ffprobe", "-v", "error", "-show_entries", "packet=stream_index,pts_time,flags", "-of",
+                           "csv=p=0", str(rec)], capture_output=True, text=True, timeout=60, check=True).stdout  # fmt: skip
+    packets_ = [r.split(",")[:3] for r in rows.split() if r]
+    video = [(float(t), f) for i, t, f in packets_ if i == "0"]
+    klv = [float(t) for i, t, _f in packets_ if i == "1"]
+    assert video[0][1].startswith("K"), video[:3]
+    with av.open(str(rec)) as c:
+        first = bytes(next(p for p in c.demux(c.streams.video[0]) if p.size))
+    assert b"\x00\x00\x01\x67" in first and b"\x00\x00\x01\x68" in first  # SPS and PPS before the picture
+    errors = subprocess.run(["ffmpeg", "-v", "error", "-i", str(rec), "-map", "0:v", "-f", "null", "-"],
+                            capture_output=True, text=True, timeout=60).stderr  # fmt: skip
+    assert errors == "", errors
+    assert klv and all(min(abs(k - t) for t, _ in video) <= 0.040 for k in klv), (klv, video[:5])

@@ -1,6 +1,8 @@
 """`mavlink --record DIR`: the camera's video as MPEG-TS with a MISB ST 0601 KLV data stream.
 
-The video packets are copied as they come (PyAV remux: no decoding, no re-encoding); next to
+The video packets are copied as they come (PyAV remux: no decoding, no re-encoding), from the
+first keyframe on (FFmpeg's MPEG-TS muxer puts the stream's parameter sets in front of a keyframe
+that lacks them, so a file opens decodable); next to
 them, at most KLV_HZ times a second, one ST 0601 packet (klv.py) of what the bridge knows at that
 moment, stamped with the video packet's presentation time. FFmpeg's MPEG-TS muxer carries a KLV
 stream asynchronously (stream type 0x06, private PES, with the KLVA registration descriptor:
@@ -159,6 +161,8 @@ def _copy(inp: Any, out: Any, sink: _Sink, sample: Sample, stop: threading.Event
             break
         if pkt.dts is None or pkt.pts is None:
             continue  # the demuxer's flush packet
+        if videos == 0 and not pkt.is_keyframe:
+            continue  # a file opens at a keyframe: what comes before it decodes to nothing (or to grey)
         tb = pkt.time_base
         pts = pkt.pts
         pkt.stream = vout
