@@ -288,3 +288,21 @@ async def test_the_console_reaches_a_server_with_access_control(sims: Any, zport
     )  # fmt: skip
     _out, err = await asyncio.wait_for(proc.communicate(), 60)
     assert proc.returncode == 2 and b"--zenoh-config" in err and b"only with --zenoh" in err, err
+
+
+async def test_calls_naming_no_transport_end_when_no_transport_is_left(
+    sims: Any, zport: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (sim,) = await sims(1)
+    monkeypatch.setattr(camera_mod, "GONE_CHECK_S", 3600.0)  # the close event alone
+    async with FleetServer([CameraSpec("a", sim.url, "C12")], listen=[f"tcp/127.0.0.1:{zport}"]) as server:
+        cam = server.cameras["a"]
+        s = await asyncio.to_thread(raw_session, zport)
+        slow = SLOW.replace("5.0", "60")
+        handlers = [s.get("topgimbal/a/call/wait_attitude", payload=slow, timeout=90) for _ in range(8)]  # anonymous
+        await eventually(lambda: cam.inflight >= 1, what="its anonymous calls in progress")
+        held = cam.inflight
+        await asyncio.to_thread(s.close)  # the only session leaves: nobody can read those answers
+        await eventually(lambda: cam.inflight == 0, 30, "the anonymous calls cancelled")
+        assert cam.gone == held
+        del handlers

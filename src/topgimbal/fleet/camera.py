@@ -338,8 +338,10 @@ class ServedCamera:
             log.debug("%s: no transport events (%s): polling every %g s", self.name, exc, GONE_CHECK_S)
 
     def _cancel_gone(self, present: set[str]) -> None:
+        """Cancels the calls of queriers whose transport is not in `present`; with no transport
+        left at all, every call (one naming no transport too: nobody is left to read it)."""
         for task, (querier, direct) in list(self._call_querier.items()):
-            if direct and not task.done() and querier not in present:
+            if not task.done() and ((direct and querier not in present) or not present):
                 self.gone += 1
                 log.info("%s: a call's querier %s has gone: cancelled (%d in all)", self.name, querier, self.gone)
                 task.cancel(msg="querier gone")
@@ -350,7 +352,7 @@ class ServedCamera:
         leaving; they end at the latest after MAX_CALL_S, within the one share they have.)"""
         while True:
             await asyncio.sleep(GONE_CHECK_S)
-            if any(direct and not t.done() for t, (_q, direct) in self._call_querier.items()):
+            if any(not t.done() for t in self._call_querier):
                 self._cancel_gone(self._transports())
 
     async def _call(self, query: Any, reply_key: str, method: str) -> None:
