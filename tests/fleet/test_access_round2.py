@@ -288,6 +288,14 @@ async def test_the_console_reaches_a_server_with_access_control(sims: Any, zport
     )  # fmt: skip
     _out, err = await asyncio.wait_for(proc.communicate(), 60)
     assert proc.returncode == 2 and b"--zenoh-config" in err and b"only with --zenoh" in err, err
+    # a file Zenoh cannot parse: exit 2, its parser's drawing on one line
+    (tmp_path / "bad.json5").write_text("{ nope")
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable, "-m", "topgimbal.cli.main", "console", "--zenoh", ep, "--zenoh-config",
+        str(tmp_path / "bad.json5"), "--port", "0", stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+    )  # fmt: skip
+    _out, err = await asyncio.wait_for(proc.communicate(), 60)
+    assert proc.returncode == 2 and err.count(b"\n") == 1 and b"bad.json5" in err, err
 
 
 async def test_calls_naming_no_transport_end_when_no_transport_is_left(

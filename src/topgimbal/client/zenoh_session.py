@@ -26,7 +26,8 @@ _RUST_AT = re.compile(r"\s+at\s+\S+\.rs:\d+\.?")
 
 
 def zenoh_error_text(exc: BaseException) -> str:
-    return _RUST_AT.sub("", str(exc)).strip() or type(exc).__name__
+    """One line: the Rust source path cut, a parser's multi-line pointer drawing joined."""
+    return " ".join(_RUST_AT.sub("", str(exc)).split()) or type(exc).__name__
 
 
 def _zenoh() -> Any:

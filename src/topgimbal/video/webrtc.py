@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from ..clock import MonotonicFn, monotonic
+from ..logthrottle import ThrottledLog
 from .ice_candidates import remote_candidates
 from .lens import VideoError
 from .webrtc_source import PacketSource
@@ -42,6 +43,7 @@ if TYPE_CHECKING:
 log = logging.getLogger("topgimbal.video.webrtc")
 
 MAX_PEERS = 4  # per lens
+REFUSAL_LOG_EVERY_S = 10.0
 MAX_CONNECTING = 2  # per lens: peers answered that have not connected yet (the oldest replaced beyond)
 MAX_OFFER_BYTES = 64 * 1024
 CONNECT_TIMEOUT_S = 15.0
@@ -125,6 +127,7 @@ class WhepServer:
         self.sessions: dict[str, _Session] = {}
         self.clock = clock
         self._answering: dict[str, int] = {}  # offers being answered per lens: their places are taken
+        self._refusals = ThrottledLog(log, REFUSAL_LOG_EVERY_S)  # a flood of offers: one line per interval
 
     def peers(self, lens: str) -> int:
         """Places taken on a lens: its sessions and the offers being answered."""
@@ -139,17 +142,18 @@ class WhepServer:
         victim = None
         if len(waiting) + self._answering.get(lens, 0) >= MAX_CONNECTING:
             if not waiting:
-                log.warning(
-                    "webrtc %s: refusing a peer: %d offers are being answered (the limit)", lens, MAX_CONNECTING
-                )
+                self._refusals.warning(
+                    "answering", "webrtc %s: refusing a peer: %d offers are being answered (the limit)", lens,
+                    MAX_CONNECTING,
+                )  # fmt: skip
                 raise WebRtcError(503, f"{MAX_CONNECTING} WebRTC offers for the {lens} stream are being answered")
             victim = self.sessions.pop(waiting[0].id)
         limit = MAX_PEERS if page else MAX_PEERS - 1
         if self.peers(lens) >= limit:
             if victim is not None:
                 self.sessions[victim.id] = victim
-            log.warning("webrtc %s: refusing a peer: %d already (the limit%s)", lens, self.peers(lens),
-                        "" if page else "; the last place is kept for the console's page")  # fmt: skip
+            self._refusals.warning("full", "webrtc %s: refusing a peer: %d already (the limit%s)", lens,
+                                   self.peers(lens), "" if page else "; the last place is kept for the console's page")  # fmt: skip
             raise WebRtcError(503, f"{self.peers(lens)} WebRTC peers already play the {lens} stream")
         self._answering[lens] = self._answering.get(lens, 0) + 1
         return victim
