@@ -107,3 +107,11 @@ def test_a_dem_beyond_the_earth_or_special_is_refused_with_exit_2(
     assert issubclass(DemError, InputError)  # the CLI's exit 2
     line = one_line_exit_2(["sim", "--model", "C12", "--udp", "127.0.0.1:0", "--terrain", str(far)], capsys)
     assert "latitude" in line, line
+
+
+def test_sim_fault_plan_files(tmp_path: Path, files: dict[str, Path], capsys: pytest.CaptureFixture[str]) -> None:
+    fifo = tmp_path / "plan.json"
+    os.mkfifo(fifo)
+    for path, expected in ((files["deep"], "nested more than 64"), (fifo, "not a regular file")):
+        line = one_line_exit_2(["sim", "--model", "C12", "--udp", "127.0.0.1:0", "--faults", str(path)], capsys)
+        assert expected in line, line
