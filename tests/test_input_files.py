@@ -115,3 +115,11 @@ def test_sim_fault_plan_files(tmp_path: Path, files: dict[str, Path], capsys: py
     for path, expected in ((files["deep"], "nested more than 64"), (fifo, "not a regular file")):
         line = one_line_exit_2(["sim", "--model", "C12", "--udp", "127.0.0.1:0", "--faults", str(path)], capsys)
         assert expected in line, line
+
+
+def test_pcap_from_a_log_nested_100000_deep(
+    tmp_path: Path, files: dict[str, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    code = main(["pcap", "from-log", str(files["log"]), "-o", str(tmp_path / "out.pcap")])
+    err = capsys.readouterr().err
+    assert code == 1 and "line 2: not JSON" in err and "Traceback" not in err, err  # the line named, the rest kept

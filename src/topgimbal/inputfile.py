@@ -42,6 +42,17 @@ def read_bytes(path: str | Path, max_bytes: int, what: str) -> bytes:
     return data
 
 
+def require_regular(path: str | Path, what: str) -> None:
+    """InputFileError unless `path` is a regular file (for a file read in full however large it is,
+    a log: /dev/zero would be read for ever, a FIFO would block the open)."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as exc:
+        raise InputFileError(f"{what} {path}: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(mode):
+        raise InputFileError(f"{what} {path}: not a regular file (a FIFO, a device or a folder): give a file")
+
+
 def read_text(path: str | Path, max_bytes: int, what: str) -> str:
     try:
         return read_bytes(path, max_bytes, what).decode("utf-8")
