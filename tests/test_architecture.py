@@ -11,7 +11,7 @@ PKG = Path(__file__).resolve().parents[1] / "src" / "topgimbal"
 
 # Leaf modules every layer may import: the exceptions, the throttled warning log, the one clock,
 # the escaping of a peer's text for the log, the JSON Lines writer and the servers' peer table.
-SHARED_LEAVES = ("errors", "logthrottle", "_lazy", "clock", "logtext", "jsonl", "peers", "timeouts")
+SHARED_LEAVES = ("errors", "logthrottle", "_lazy", "clock", "logtext", "jsonl", "peers", "timeouts", "inputfile")
 
 # What each layer may import from inside topgimbal (besides itself and SHARED_LEAVES).
 ALLOWED = {

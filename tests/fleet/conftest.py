@@ -21,13 +21,17 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def raw_session(port: int, mode: str = "client") -> Any:
-    """A Zenoh session made with eclipse-zenoh only: what any other program on the network has."""
+def raw_session(port: int, mode: str = "client", listen: list[str] | None = None) -> Any:
+    """A Zenoh session made with eclipse-zenoh only: what any other program on the network has
+    (with `listen`: listening there instead of connecting to `port`)."""
     conf = zenoh.Config()
     conf.insert_json5("mode", json.dumps(mode))
     conf.insert_json5("scouting/multicast/enabled", "false")
     conf.insert_json5("scouting/gossip/enabled", "false")
-    conf.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
+    if listen is not None:
+        conf.insert_json5("listen/endpoints", json.dumps(listen))
+    else:
+        conf.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
     return zenoh.open(conf)
 
 

@@ -138,5 +138,25 @@ def test_a_loopback_console_keeps_only_loopback_candidates() -> None:
     assert "127.0.0.1 50000" in kept and "::1 50003" in kept
     assert "192.0.2.2" not in kept and ".local" not in kept
     assert "a=mid:0" in kept and "m=video" in kept
-    # A console bound to a LAN address (with its token) keeps what the browser offered.
-    assert remote_candidates(offer, "192.0.2.2") == offer
+
+
+def test_a_lan_console_keeps_only_candidates_on_its_own_network(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 43.5: a token holder's offer must not make the console send STUN anywhere: only
+    candidates on the network of the address the browser reached are kept."""
+    import ifaddr
+
+    from topgimbal.video.webrtc import remote_candidates
+
+    lan = ifaddr.Adapter("eth0", "eth0", [ifaddr.IP("192.0.2.2", 24, "eth0"), ifaddr.IP(("fd00::2", 0, 0), 64, "eth0")])
+    other = ifaddr.Adapter("wg0", "wg0", [ifaddr.IP("10.7.0.1", 16, "wg0")])
+    monkeypatch.setattr(ifaddr, "get_adapters", lambda: [lan, other])
+    cands = ["192.0.2.77", "10.7.0.9", "10.1.2.3", "169.254.169.254", "8.8.8.8", "224.0.0.251", "0.0.0.0",
+             "127.0.0.1", "0f1e2d3c-aaaa.local", "fd00::9", "fe80::1", "ff02::1"]  # fmt: skip
+    offer = "\r\n".join(["v=0", "m=video 9 UDP/TLS/RTP/SAVPF 96"] + [
+        f"a=candidate:{i} 1 udp 2122260223 {a} {50000 + i} typ host" for i, a in enumerate(cands)] + ["a=mid:0"]) + "\r\n"  # fmt: skip
+    kept = [line.split()[4] for line in remote_candidates(offer, "192.0.2.2").splitlines() if "candidate" in line]
+    assert kept == ["192.0.2.77"], kept
+    kept6 = [line.split()[4] for line in remote_candidates(offer, "fd00::2").splitlines() if "candidate" in line]
+    assert kept6 == ["fd00::9"], kept6
+    # an address no interface holds: no network, no candidate
+    assert "candidate" not in remote_candidates(offer, "198.51.100.1")

@@ -54,6 +54,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="show the cameras a `topgimbal zenoh` server serves, found by their liveliness tokens, e.g. "
         "tcp/127.0.0.1:7447 (repeatable; scouting stays off)",
     )
+    p.add_argument(
+        "--zenoh-config",
+        metavar="FILE",
+        help="Zenoh configuration file for the --zenoh session: the credentials of a server with access control "
+        '(e.g. { transport: { auth: { usrpwd: { user: "operator", password: "..." } } } }) or TLS',
+    )
     p.add_argument("--seed", type=int, default=0, help="simulator seed (with --sim)")
     p.add_argument("--autopilot", metavar="HOST:PORT",
                    help="listen there for the autopilot's MAVLink (GLOBAL_POSITION_INT): the page shows the vehicle's "
@@ -145,6 +151,7 @@ def _fleet_source(args: argparse.Namespace) -> FleetSource:
         sims=tuple(args.sim or ()),
         zenoh=tuple(args.zenoh),
         seed=args.seed,
+        zenoh_config=args.zenoh_config,
     )
 
 
@@ -310,6 +317,10 @@ def run(args: argparse.Namespace) -> int:
             print(f"topgimbal console: error: --port {taken} is taken (another program listens there); "
                   "choose another, or --port 0 for any free one", file=sys.stderr)  # fmt: skip
             return 2
+    if args.zenoh_config is not None and not args.zenoh:
+        print(f"topgimbal console: error: --zenoh-config {args.zenoh_config}: only with --zenoh ENDPOINT "
+              "(the session it configures)", file=sys.stderr)  # fmt: skip
+        return 2
     if _several(args):
         try:
             server = build_server(args)

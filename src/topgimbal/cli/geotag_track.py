@@ -22,20 +22,27 @@ from __future__ import annotations
 import bisect
 import json
 import math
+import os
+import stat
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..client.signs import map_message
 from ..client.traffic import read_log
-from ..errors import TopGimbalError
+from ..errors import InputError, TopGimbalError
 from ..protocol import get_dialect, get_model
 
+MAX_HEADER_CHARS = 64 * 1024  # a traffic log's header line (the rest is read record by record)
 POSITION_ROLES = {"latitude": "lat_deg", "longitude": "lon_deg", "altitude": "alt_m"}
 
 
 class TrackError(TopGimbalError, ValueError):
     """A log that holds no track (not a log, or no position in it)."""
+
+
+class LogFileError(InputError, ValueError):
+    """--log names no regular file (a FIFO, a device): refused unread, exit 2."""
 
 
 @dataclass(frozen=True)
@@ -123,8 +130,7 @@ class Track:
 
 
 def load_track(path: Path) -> Track:
-    with path.open("rb") as fh:
-        head = fh.read(64)
+    head = _head(path)
     track = _from_traffic(path) if head.lstrip().startswith(b"{") else _from_tlog(path)
     if not track.samples:
         raise TrackError(f"{path}: no vehicle position in this log (LAT/LON/ALT frames or GLOBAL_POSITION_INT)")
@@ -133,11 +139,23 @@ def load_track(path: Path) -> Track:
     return track
 
 
+def _head(path: Path) -> bytes:
+    """The first bytes of a regular file (a FIFO or /dev/zero named as a log: refused, not read)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
+    except IsADirectoryError:
+        raise TrackError(f"{path}: a folder, not a log") from None
+    with os.fdopen(fd, "rb") as fh:
+        if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+            raise LogFileError(f"{path}: not a regular file (a FIFO, a device or a socket): give a log file")
+        return fh.read(64)
+
+
 def _from_traffic(path: Path) -> Track:
     with path.open(encoding="utf-8", errors="replace") as fh:
         try:
-            header = json.loads(fh.readline())
-        except ValueError:
+            header = json.loads(fh.readline(MAX_HEADER_CHARS))
+        except (ValueError, RecursionError):  # RecursionError: nested past Python's recursion
             header = {}
     if not isinstance(header, dict) or "topgimbal_log" not in header:
         raise TrackError(f"{path}: not a topgimbal traffic log (no header line) nor a MAVLink .tlog")

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import math
 from collections.abc import Awaitable, Callable
 from typing import Any
 
 from ..errors import TopGimbalError
+from .args import number
 
 
 def _position(text: str) -> tuple[float, float, float]:
@@ -15,8 +17,8 @@ def _position(text: str) -> tuple[float, float, float]:
         lat, lon, alt = (float(p) for p in parts)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r}: give LAT,LON,ALT (degrees, degrees, metres MSL)") from None
-    if not (-90 <= lat <= 90 and -180 <= lon <= 180):
-        raise argparse.ArgumentTypeError(f"{text!r}: latitude -90..90, longitude -180..180")
+    if not (-90 <= lat <= 90 and -180 <= lon <= 180 and math.isfinite(alt)):
+        raise argparse.ArgumentTypeError(f"{text!r}: latitude -90..90, longitude -180..180, a finite altitude")
     return lat, lon, alt
 
 
@@ -57,7 +59,9 @@ def register(
     p.add_argument(
         "--position", type=_position, metavar="LAT,LON,ALT", help="the vehicle: degrees, degrees, metres MSL"
     )
-    p.add_argument("--heading", type=float, metavar="DEG", help="the vehicle's heading, degrees from true north")
+    p.add_argument("--heading", type=number(low=-360, high=360, what="a heading"), metavar="DEG",
+                   help="the vehicle's heading, degrees from true north")  # fmt: skip
     p.add_argument("--terrain", metavar="DEM.tif", help="a GeoTIFF DEM in lat/lon (the geo extra: rasterio)")
     p.add_argument("--laser", action="store_true", help="measure the laser range first and use it")
-    p.add_argument("--ground-alt", type=float, metavar="M", help="flat ground at M metres MSL: the last resort")
+    p.add_argument("--ground-alt", type=number(low=-500, high=9000, what="a ground altitude"), metavar="M",
+                   help="flat ground at M metres MSL: the last resort")  # fmt: skip

@@ -7,6 +7,7 @@ Prints the loop's state once a second and a summary at the end (Ctrl-C, or `--du
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 from ..errors import TopGimbalError
@@ -21,9 +22,14 @@ def _box(text: str) -> tuple[float, float, float, float]:
         values = tuple(float(p) for p in parts)
     except ValueError:
         raise argparse.ArgumentTypeError(f"box {text!r}: expected x,y,w,h numbers") from None
-    if len(values) != 4 or any(v < 0 for v in values) or values[2] <= 0 or values[3] <= 0:
-        raise argparse.ArgumentTypeError(f"box {text!r}: expected x,y,w,h with w and h above 0")
-    return values  # type: ignore[return-value]
+    if len(values) != 4 or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"box {text!r}: expected four finite numbers x,y,w,h")
+    x, y, w, h = values
+    if min(values) < 0 or w <= 0 or h <= 0:
+        raise argparse.ArgumentTypeError(f"box {text!r}: expected x,y,w,h with x, y at least 0 and w, h above 0")
+    if max(values) <= 1 and (x + w > 1 or y + h > 1):  # fractions: within the picture (pixels: seen later)
+        raise argparse.ArgumentTypeError(f"box {text!r}: as fractions of the picture, x+w and y+h at most 1")
+    return x, y, w, h
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

@@ -141,7 +141,7 @@ def run(args: argparse.Namespace) -> int:
         from ..client.zenoh_session import make_config
 
         check_exposure([*args.listen, *args.connect], make_config(listen=args.listen, connect=args.connect,
-                       mode=args.mode, config_file=args.config), args.insecure)  # fmt: skip
+                       mode=args.mode, config_file=args.config), args.insecure, args.mode)  # fmt: skip
     except (AccessConfigError, FieldValueError) as exc:
         print(f"topgimbal zenoh: error: {exc}", file=sys.stderr)
         return 2

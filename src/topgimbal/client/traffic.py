@@ -67,8 +67,8 @@ def read_log(path: str | Path) -> Iterator[LogRecord]:
                 if "dir" not in obj:
                     continue
                 frame = parse_frame(obj["raw"].encode("latin-1"))
-            except (ValueError, KeyError):
-                continue
+            except (ValueError, KeyError, TypeError, AttributeError, RecursionError):
+                continue  # not a record (JSON of another shape, or nested past Python's recursion)
             yield LogRecord(
                 float(obj.get("t", 0.0)), float(obj.get("mono", 0.0)), obj["dir"], frame, obj.get("decoded")
             )

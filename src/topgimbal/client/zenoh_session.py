@@ -3,7 +3,12 @@
 Zenoh's defaults scout by UDP multicast (224.0.0.224) and gossip: a fleet is wired by explicit
 endpoints instead (`--listen` / `--connect`), so nothing is sent to addresses nobody named. A
 Zenoh configuration file (TLS, user/password, access control) is read first and then given the
-endpoints, mode and scouting settings; a file that turns scouting back on is overridden."""
+endpoints, mode and scouting settings; a file that turns scouting back on is overridden.
+
+Nothing listens unless asked: Zenoh's peer default (`tcp/[::]:0`, every interface, a random port)
+is replaced by no listener when neither `listen` nor the file names one, and `final_endpoints`
+reads what the final configuration will really listen on and connect to (what the exposure check
+of fleet/access.py judges)."""
 
 from __future__ import annotations
 
@@ -21,7 +26,8 @@ _RUST_AT = re.compile(r"\s+at\s+\S+\.rs:\d+\.?")
 
 
 def zenoh_error_text(exc: BaseException) -> str:
-    return _RUST_AT.sub("", str(exc)).strip() or type(exc).__name__
+    """One line: the Rust source path cut, a parser's multi-line pointer drawing joined."""
+    return " ".join(_RUST_AT.sub("", str(exc)).split()) or type(exc).__name__
 
 
 def _zenoh() -> Any:
@@ -60,9 +66,30 @@ def make_config(
     conf.insert_json5("scouting/gossip/enabled", "false")
     if listen:
         conf.insert_json5("listen/endpoints", json.dumps(list(listen)))
+    elif _endpoints(conf, "listen", mode) == _endpoints(zenoh.Config(), "listen", mode):
+        # Zenoh's own default (a peer listens on every interface): none, unless asked for
+        conf.insert_json5("listen/endpoints", "[]")
     if connect:
         conf.insert_json5("connect/endpoints", json.dumps(list(connect)))
     return conf
+
+
+def _endpoints(conf: Any, which: str, mode: str) -> list[str]:
+    """`listen` or `connect` endpoints of a configuration for `mode` (Zenoh keeps them as a list,
+    or per mode as {"router": [...], "peer": [...], "client": [...]})."""
+    try:
+        value = json.loads(conf.get_json(f"{which}/endpoints"))
+    except Exception:  # a key this eclipse-zenoh version does not know
+        return []
+    if isinstance(value, dict):
+        value = value.get(mode, [])
+    return [str(e) for e in value] if isinstance(value, list) else []
+
+
+def final_endpoints(conf: Any, mode: str) -> tuple[list[str], list[str]]:
+    """(listen, connect): the endpoints the configuration will really listen on and connect to,
+    command line and configuration file together."""
+    return _endpoints(conf, "listen", mode), _endpoints(conf, "connect", mode)
 
 
 def open_session(

@@ -26,6 +26,7 @@ clock; `modes.py` opens what a source names.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -253,6 +254,7 @@ class FleetSource:
     sims: tuple[str, ...] = ()
     zenoh: tuple[str, ...] = ()
     seed: int = 0
+    zenoh_config: str | None = None  # a Zenoh configuration file for the --zenoh session (user/password, TLS)
 
     def __post_init__(self) -> None:
         for name in ("sims", "zenoh"):
@@ -266,6 +268,8 @@ class FleetSource:
         object.__setattr__(self, "zenoh", tuple(check_endpoint(e) for e in self.zenoh))
         if not (self.cameras or self.sims or self.zenoh):
             raise ConsoleConfigError(FLEET_EMPTY)
+        if self.zenoh_config is not None:
+            _zenoh_config(self.zenoh_config, bool(self.zenoh))
         if not isinstance(self.seed, int) or isinstance(self.seed, bool):
             raise ConsoleConfigError(f"--seed {self.seed!r}: give a whole number")
         for name, url, model in self.plan:  # CameraNameError / TooManyCamerasError first
@@ -278,6 +282,15 @@ class FleetSource:
     def plan(self) -> list[tuple[str, str | None, str]]:
         """(name, URL or None for a simulator, model) of every camera given here, in order."""
         return local_plan(self.cameras, self.sims)
+
+
+def _zenoh_config(path: str, with_zenoh: bool) -> None:
+    """--zenoh-config: only with --zenoh, and a regular file (its content is Zenoh's to judge,
+    when the session opens)."""
+    if not with_zenoh:
+        raise ConsoleConfigError(f"--zenoh-config {path}: only with --zenoh ENDPOINT (the session it configures)")
+    if not os.path.isfile(path):
+        raise ConsoleConfigError(f"--zenoh-config {path}: not a file; give a Zenoh configuration file (json5)")
 
 
 Source = CameraSource | SimSource | ProxySource | FleetSource
@@ -307,6 +320,7 @@ class ConsoleKeywords(TypedDict, total=False):
     cameras: Sequence[tuple[str, str, str]]
     sims: Sequence[str]
     zenoh: Sequence[str]
+    zenoh_config: str | None
 
 
 @dataclass(frozen=True)
@@ -372,7 +386,7 @@ def _source_from_keywords(kw: ConsoleKeywords) -> Source:
         given = [k for k, v in single.items() if v]
         if given:
             raise ConsoleConfigError(f"{', '.join(given)} {FLEET_ALONE}")
-        return FleetSource(tuple(cameras), tuple(sims), tuple(zenoh), seed)
+        return FleetSource(tuple(cameras), tuple(sims), tuple(zenoh), seed, kw.get("zenoh_config"))
     watch = listen is not None or to is not None
     if watch and not (listen and to):
         raise ConsoleConfigError(PROXY_BOTH)

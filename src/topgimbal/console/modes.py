@@ -102,7 +102,7 @@ async def open_fleet(source: FleetSource, link: LinkOptions, cameras: CameraSet)
         cam.start_first_reads()
     if not source.zenoh:
         return None
-    zenoh = ZenohCameras(cameras, source.zenoh, attitude_hz=link.attitude_hz)
+    zenoh = ZenohCameras(cameras, source.zenoh, attitude_hz=link.attitude_hz, config_file=source.zenoh_config)
     try:
         await zenoh.start()
     except BaseException:

@@ -1,6 +1,7 @@
 """The cameras a `topgimbal zenoh` server serves, found and followed by the console (`--zenoh ENDPOINT`).
 
-One Zenoh session (client mode on the given endpoints, scouting off: client/zenoh_session.py)
+One Zenoh session (client mode on the given endpoints, scouting off: client/zenoh_session.py; its
+credentials, for a server with access control, from `config_file`, `--zenoh-config`)
 subscribes to the fleet's liveliness tokens `topgimbal/<name>` with their history: a token that
 appears is a camera to show (its `info` is asked, then it gets a `RemoteHub`); one that goes away
 marks that camera LOST ("no longer served") and keeps it in the grid, so a page watching it says
@@ -28,9 +29,12 @@ GONE_REASON = "no longer served on Zenoh (its liveliness token went away: the se
 
 
 class ZenohCameras:
-    def __init__(self, cameras: CameraSet, endpoints: Sequence[str], *, attitude_hz: float = 50.0) -> None:
+    def __init__(
+        self, cameras: CameraSet, endpoints: Sequence[str], *, attitude_hz: float = 50.0, config_file: str | None = None
+    ) -> None:
         self.cameras = cameras
         self.endpoints = tuple(endpoints)
+        self.config_file = config_file  # user/password or TLS for an access-controlled server
         self.attitude_hz = attitude_hz
         self.session: Any = None
         self._sub: Any = None
@@ -44,7 +48,8 @@ class ZenohCameras:
         from ..client.zenoh_session import open_session
 
         self._loop = asyncio.get_running_loop()
-        self.session = await asyncio.to_thread(open_session, connect=self.endpoints, mode="client")
+        self.session = await asyncio.to_thread(open_session, connect=self.endpoints, mode="client",
+                                             config_file=self.config_file)  # fmt: skip
         self._sub = self.session.liveliness().declare_subscriber(f"{ROOT}/*", self._on_token, history=True)
 
     async def stop(self) -> None:

@@ -79,10 +79,14 @@ def protection(conf: Any) -> str | None:
     return None
 
 
-def check_exposure(endpoints: Sequence[str], conf: Any, insecure: bool) -> str:
+def check_exposure(endpoints: Sequence[str], conf: Any, insecure: bool, mode: str = "peer") -> str:
     """The log line saying how the session is protected; AccessConfigError when it is reachable
-    beyond loopback without access control and `insecure` is not given."""
-    wide = exposed(endpoints)
+    beyond loopback without access control and `insecure` is not given. Judged on the endpoints of
+    the final configuration (a `--config` file's `listen.endpoints` included) besides `endpoints`."""
+    from ..client.zenoh_session import final_endpoints
+
+    listen, connect = final_endpoints(conf, mode)
+    wide = list(dict.fromkeys(exposed([*endpoints, *listen, *connect])))
     if not wide:
         return "loopback endpoints only"
     how = protection(conf)

@@ -4,10 +4,13 @@ link), its liveliness token and its queryables (`call/<method>`, `info`).
 Zenoh runs its callbacks on its own threads; every query is handed to this camera's asyncio loop
 (`call_soon_threadsafe`) and answered from there, so the SDK client is only ever used on its loop.
 Calls are bounded per camera (`max_calls` at once; more are refused at once with kind "busy"), and
-per querier (a fair share of those places among the queriers seen in the last ACTIVE_WINDOW_S), as
-are their arguments (client/remote_keys.py) and their time (a `timeout_s` argument at most
-MAX_ARG_TIMEOUT_S, the whole call at most MAX_CALL_S). A call whose querier's session is gone is
-cancelled and its place freed. What is remotely callable is fleet/access.py's. A call is answered
+per querier (a fair share of those places among the queriers seen in the last ACTIVE_WINDOW_S; the
+last place is kept for a querier that holds none), as are their arguments (client/remote_keys.py)
+and their time (a `timeout_s` argument at most MAX_ARG_TIMEOUT_S, the whole call at most
+MAX_CALL_S). A querier is a Zenoh session connected to this one (a transport): the session id its
+call's attachment names counts only while such a transport is open, so a name cannot be invented;
+calls naming none share one share. A call whose querier's transport closes is cancelled at once
+and its place freed. What is remotely callable is fleet/access.py's. A call is answered
 "ok" only with what the SDK method returned: the SDK's truth rules hold unchanged (no success the
 camera did not confirm)."""
 
@@ -54,20 +57,28 @@ MAX_ARG_TIMEOUT_S = 60.0  # a call's `timeout_s` argument is lowered to this
 MAX_CALL_S = 150.0  # a whole call (point's slew included); then it is cancelled and answered "timeout"
 ACTIVE_WINDOW_S = 10.0  # a querier counts for the fair share this long after its last call
 MAX_QUERIERS = 1024  # queriers remembered per camera (the oldest forgotten first)
-GONE_CHECK_S = 1.0  # how often calls in progress are checked for a querier whose session is gone
-ANONYMOUS = "anonymous"  # queriers that do not name their session (attachment) share one share
+GONE_CHECK_S = 0.5  # backstop of the transport events: calls of a closed transport are looked for this often
+# Queriers that name no open transport (no attachment, an invented or stale session id, a querier
+# behind a router) share one share: one more name is one more call in that share, not a new share.
+ANONYMOUS = "unverified"
 _ZID_RE = re.compile(r"[0-9a-f]{1,32}")
 
 
-def querier_of(query: Any) -> str:
-    """The querier's Zenoh session id, as its attachment names it (RemoteClient does); the
-    queriers that name none are one querier. A claim, not a proof: Zenoh's ACL says who may ask."""
+def claimed_querier(query: Any) -> str | None:
+    """The Zenoh session id the call's attachment names (RemoteClient sends its own), or None."""
     try:
         att = query.attachment
         text = "" if att is None else att.to_string()
     except Exception:  # an attachment that is not text
-        return ANONYMOUS
-    return text if _ZID_RE.fullmatch(text) else ANONYMOUS
+        return None
+    return text if _ZID_RE.fullmatch(text) else None
+
+
+def querier_of(query: Any, transports: set[str]) -> str:
+    """Whom a call counts against: the session id it names when a transport of that id is open on
+    this session (the caller cannot invent one), else ANONYMOUS."""
+    claim = claimed_querier(query)
+    return claim if claim is not None and claim in transports else ANONYMOUS
 
 
 def attitude_json(att: Attitude, seq: int) -> str:
@@ -133,6 +144,7 @@ class ServedCamera:
         self._tasks.append(asyncio.ensure_future(self._attitude_loop()))
         self._tasks.append(asyncio.ensure_future(self._state_loop()))
         self._tasks.append(asyncio.ensure_future(self._gone_loop()))
+        self._listen_transports()
         return self
 
     async def close(self) -> None:
@@ -253,10 +265,11 @@ class ServedCamera:
         if why is not None:
             self._reply(query, reply_key, error_reply(RemoteCallError(f"{self.name}: {why}", KIND_FORBIDDEN)))
             return
-        querier = querier_of(query)
+        live = self._transports()
+        querier = querier_of(query, live)
         share = self._share(querier)
         held = self._by_querier.get(querier, 0)
-        if self.inflight >= self.max_calls or held >= share:
+        if self._full(held, share):
             self.refused += 1
             if self._throttle.allow("busy") is not None:
                 log.warning("%s: %d calls in progress (%d of them %s's, its share %d), refusing more "
@@ -270,8 +283,16 @@ class ServedCamera:
         self._by_querier[querier] = held + 1
         task = asyncio.ensure_future(self._call(query, reply_key, where[1]))
         self._calls.add(task)
-        self._call_querier[task] = (querier, querier in self._transports())
+        self._call_querier[task] = (querier, querier in live)
         task.add_done_callback(self._call_done)
+
+    def _full(self, held: int, share: int) -> bool:
+        """No place for a querier holding `held` calls: the camera's places are taken, its share
+        is, or only the last place is free and it already holds one (that one is kept for a
+        querier holding none, so a newcomer is served at once, whatever the others hold)."""
+        if self.inflight >= self.max_calls or held >= share:
+            return True
+        return held > 0 and self.max_calls > 1 and self.inflight >= self.max_calls - 1
 
     def _share(self, querier: str) -> int:
         """Places one querier may hold: the camera's `max_calls` split among the queriers that
@@ -300,21 +321,39 @@ class ServedCamera:
         except Exception:  # a session without that API (a test double) or closing
             return set()
 
+    def _listen_transports(self) -> None:
+        """Zenoh's transport events: a closed transport's calls are cancelled as it closes (the
+        poll of `_gone_loop` is the backstop)."""
+        loop = self.loop
+
+        def on_event(event: Any) -> None:  # a Zenoh thread
+            if loop is not None and not loop.is_closed() and str(event.kind).endswith("DELETE"):
+                present = self._transports() - {str(event.transport.zid)}
+                with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
+                    loop.call_soon_threadsafe(self._cancel_gone, present)
+
+        try:
+            self._decls.append(self.session.info.declare_transport_events_listener(on_event))
+        except Exception as exc:  # an eclipse-zenoh without it, or a test double: the poll does it
+            log.debug("%s: no transport events (%s): polling every %g s", self.name, exc, GONE_CHECK_S)
+
+    def _cancel_gone(self, present: set[str]) -> None:
+        """Cancels the calls of queriers whose transport is not in `present`; with no transport
+        left at all, every call (one naming no transport too: nobody is left to read it)."""
+        for task, (querier, direct) in list(self._call_querier.items()):
+            if not task.done() and ((direct and querier not in present) or not present):
+                self.gone += 1
+                log.info("%s: a call's querier %s has gone: cancelled (%d in all)", self.name, querier, self.gone)
+                task.cancel(msg="querier gone")
+
     async def _gone_loop(self) -> None:
-        """Cancels the calls of a querier connected directly whose session has gone: its place is
-        free at once, not at the end of a wait nobody reads. (A querier behind a router cannot be
-        seen leaving; its call ends at the latest after MAX_CALL_S.)"""
+        """Cancels the calls of a querier whose transport has closed: its place is free at once,
+        not at the end of a wait nobody reads. (Calls that name no open transport cannot be seen
+        leaving; they end at the latest after MAX_CALL_S, within the one share they have.)"""
         while True:
             await asyncio.sleep(GONE_CHECK_S)
-            watched = [(t, q) for t, (q, direct) in self._call_querier.items() if direct and not t.done()]
-            if not watched:
-                continue
-            present = self._transports()
-            for task, querier in watched:
-                if querier not in present:
-                    self.gone += 1
-                    log.info("%s: a call's querier %s has gone: cancelled (%d in all)", self.name, querier, self.gone)
-                    task.cancel(msg="querier gone")
+            if any(not t.done() for t in self._call_querier):
+                self._cancel_gone(self._transports())
 
     async def _call(self, query: Any, reply_key: str, method: str) -> None:
         self.calls += 1

@@ -69,7 +69,7 @@ class FleetServer:
     async def start(self) -> FleetServer:
         conf = make_config(listen=self.listen, connect=self.connect, mode=self.mode, config_file=self.config_file)
         # AccessConfigError (a ValueError) before any socket is opened
-        self.protection = check_exposure([*self.listen, *self.connect], conf, self.insecure)
+        self.protection = check_exposure([*self.listen, *self.connect], conf, self.insecure, self.mode)
         log.info("zenoh: %s", self.protection)
         # Opening may wait for a router (client mode): off the loop.
         self.session = await asyncio.to_thread(

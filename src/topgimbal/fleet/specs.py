@@ -5,13 +5,12 @@ A file holds one `NAME=URL,MODEL` per line (blank lines and `#` comments ignored
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterable
 from dataclasses import dataclass
-from pathlib import Path
 
 from ..client.remote_keys import check_name, is_zenoh_url
 from ..errors import FieldValueError
+from ..inputfile import InputFileError, loads, read_text
 from ..protocol import get_model
 
 MAX_CAMERAS = 256  # per server process (each is a client, a socket and a stream)
@@ -49,18 +48,16 @@ def parse_camera(text: str) -> CameraSpec:
 
 
 def read_camera_file(path: str) -> list[CameraSpec]:
-    p = Path(path)
-    try:
-        if p.stat().st_size > MAX_FILE_BYTES:
-            raise FieldValueError("camera file", path, f"at most {MAX_FILE_BYTES} bytes")
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise FieldValueError("camera file", path, f"a readable UTF-8 file ({exc})") from None
-    if text.lstrip().startswith("["):
-        try:
-            items = json.loads(text)
-        except ValueError as exc:
-            raise FieldValueError("camera file", path, f"a JSON list of {{name, url, model}} ({exc})") from None
+    try:  # a regular file (not a FIFO or /dev/zero), at most MAX_FILE_BYTES, JSON nesting bounded
+        text = read_text(path, MAX_FILE_BYTES, "camera file")
+        items = loads(text, f"camera file {path}") if text.lstrip().startswith("[") else None
+    except InputFileError as exc:
+        raise FieldValueError(
+            "camera file", path, f"a readable UTF-8 file of NAME=URL,MODEL lines or a JSON list ({exc})"
+        ) from None
+    if items is not None:
+        if not isinstance(items, list):
+            raise FieldValueError("camera file", path, "a JSON list of {name, url, model}")
         out = []
         for i, item in enumerate(items):
             if not isinstance(item, dict) or not all(isinstance(item.get(k), str) for k in ("name", "url", "model")):

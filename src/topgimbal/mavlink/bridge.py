@@ -31,7 +31,7 @@ from .endpoints import MAX_PEERS, parse_endpoint
 from .ftp import FtpServer
 from .gimbal_device import GimbalDevice
 from .gimbal_manager import GimbalManager
-from .klv_record import Recorder
+from .klv_record import Recorder, check_directory
 from .node import Node
 from .pointing import Pointer
 from .reboots import RebootWatch
@@ -131,6 +131,8 @@ class BridgeConfig:
             )
         if not 1 <= self.max_peers <= 256:
             raise BridgeConfigError(f"max_peers={self.max_peers}: expected 1..256")
+        if self.record is not None:  # made and written to now (RecordDirError, a ValueError: exit 2)
+            check_directory(self.record)
 
 
 class Bridge:

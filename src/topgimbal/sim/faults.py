@@ -16,6 +16,9 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from ..inputfile import InputFileError, load_json
+
+MAX_PLAN_FILE_BYTES = 1024 * 1024  # a fault plan is a few lines
 PROBABILITIES = ("drop", "duplicate", "corrupt", "truncate", "reorder", "late_reply_p")
 DURATIONS = ("delay_s", "jitter_s", "late_reply_s", "reorder_hold_s")
 DIRECTIONS = ("both", "in", "out")
@@ -134,12 +137,10 @@ class FaultPlan:
 
     @classmethod
     def load(cls, path: str | Path) -> FaultPlan:
-        try:
-            data = json.loads(Path(path).read_text())
-        except OSError as exc:
-            raise FaultPlanError(f"fault plan file {path}: {exc.strerror or exc}") from None
-        except json.JSONDecodeError as exc:
-            raise FaultPlanError(f"fault plan file {path}: not JSON ({exc})") from None
+        try:  # a regular file (not /dev/zero, not a FIFO), bounded, its JSON nesting bounded
+            data = load_json(path, MAX_PLAN_FILE_BYTES, "fault plan file")
+        except InputFileError as exc:
+            raise FaultPlanError(str(exc)) from None
         if not isinstance(data, dict):
             raise FaultPlanError(f"fault plan file {path}: expected a JSON object with keys {', '.join(cls.keys())}")
         return cls.from_dict(data)

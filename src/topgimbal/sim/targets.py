@@ -21,10 +21,10 @@ import json
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
-from ..errors import TopGimbalError
+from ..errors import InputError
+from ..inputfile import InputFileError, load_json
 
 MAX_TARGETS = 16  # a scene is for tracking tests, not crowds; each target costs a draw per frame
 MAX_HIDE_INTERVALS = 64
@@ -41,7 +41,7 @@ TARGET_DEFAULTS: dict[str, float] = {
 }
 
 
-class TargetSpecError(TopGimbalError, ValueError):
+class TargetSpecError(InputError, ValueError):
     """A target description that cannot be used (unknown key, bad number, too many targets)."""
 
 
@@ -103,6 +103,8 @@ def views(targets: Sequence[Target], t_s: float) -> tuple[TargetView, ...]:
 
 
 def _number(key: str, text: object) -> float:
+    if isinstance(text, bool):  # JSON's true is no bearing of 1 degree
+        raise TargetSpecError(f"target {key}: expected a number, got {json.dumps(text)}")
     try:
         v = float(text)  # type: ignore[arg-type]
     except (TypeError, ValueError):
@@ -189,15 +191,10 @@ def load(items: Iterable[str]) -> tuple[Target, ...]:
         if "=" in item and not item.endswith(".json"):
             out.append(parse_spec(item, len(out)))
             continue
-        path = Path(item)
-        try:
-            if path.stat().st_size > MAX_SPEC_FILE_BYTES:
-                raise TargetSpecError(f"target file {item}: larger than {MAX_SPEC_FILE_BYTES} bytes")
-            data = json.loads(path.read_text(encoding="utf-8"))
-        except OSError as exc:
-            raise TargetSpecError(f"target file {item}: {exc.strerror or exc}") from None
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise TargetSpecError(f"target file {item}: not JSON ({exc})") from None
+        try:  # a regular file only (/dev/zero, a FIFO: refused), bounded, nesting bounded
+            data = load_json(item, MAX_SPEC_FILE_BYTES, "target file")
+        except InputFileError as exc:
+            raise TargetSpecError(str(exc)) from None
         for obj in data if isinstance(data, list) else [data]:
             if not isinstance(obj, dict):
                 raise TargetSpecError(f"target file {item}: expected objects, got {type(obj).__name__}")

@@ -221,7 +221,9 @@ class ConsoleVideo:
         lens = request.match_info["lens"]
         sock = request.transport.get_extra_info("sockname") if request.transport is not None else None
         try:
-            sid, answer = await self.whep.answer(lens, offer, sock[0] if sock else None)
+            # An Origin (checked above: the console's own) is the page's fetch; a WHEP player sends none
+            page = "Origin" in request.headers
+            sid, answer = await self.whep.answer(lens, offer, sock[0] if sock else None, page=page)
         except WebRtcError as exc:
             return _error(exc.status, str(exc))
         return web.Response(status=201, text=answer, content_type="application/sdp",

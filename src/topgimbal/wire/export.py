@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import TopGimbalError
+from ..inputfile import InputFileError, require_regular
 from ..transport import network_address
 from .packets import Endpoint
 from .pcapfile import CaptureError
@@ -68,7 +69,10 @@ def log_to_pcap(log_path: str | Path, out_path: str | Path) -> ExportReport:
     """Write the frames of a traffic log to a pcap/pcapng file; returns what was written and the
     lines that could not be used. Raises CaptureError when the log cannot be read at all."""
     try:
+        require_regular(log_path, "log")
         lines = Path(log_path).read_text(encoding="utf-8", errors="replace").splitlines()
+    except InputFileError as exc:
+        raise CaptureError(str(exc)) from None
     except OSError as exc:
         raise CaptureError(f"{log_path}: {exc.strerror or exc}") from None
     report = ExportReport()
@@ -79,7 +83,7 @@ def log_to_pcap(log_path: str | Path, out_path: str | Path) -> ExportReport:
             continue
         try:
             obj = json.loads(line)
-        except ValueError as exc:
+        except (ValueError, RecursionError) as exc:  # RecursionError: nested past Python's recursion
             report.problems.append(f"line {n}: not JSON ({exc})")
             continue
         if not isinstance(obj, dict):
