@@ -19,6 +19,7 @@ from topgimbal.cli.zenoh_workers import refused_with_workers, shares, worker_cou
 from topgimbal.errors import FieldValueError
 
 from .conftest import eventually, raw_call, raw_session
+from .test_access import _acl_files
 
 pytestmark = pytest.mark.loopback
 
@@ -61,13 +62,13 @@ def _alive(pid: int) -> bool:
     return " Z " not in stat  # a zombie has ended
 
 
-async def _start(tmp_path: Path, sims: Any, zport: int, names: list[str]) -> asyncio.subprocess.Process:
+async def _start(tmp_path: Path, sims: Any, zport: int, names: list[str], *extra: str) -> asyncio.subprocess.Process:
     cams = await sims(len(names))
     path = tmp_path / "cameras.txt"
     path.write_text("".join(f"{n}={s.url},C12\n" for n, s in zip(names, cams, strict=True)))
     proc = await asyncio.create_subprocess_exec(
         sys.executable, "-m", "topgimbal.cli.main", "zenoh", "--cameras", str(path), "--workers", "2",
-        "--listen", f"tcp/127.0.0.1:{zport}", stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+        "--listen", f"tcp/127.0.0.1:{zport}", *extra, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
     )  # fmt: skip
     assert proc.stdout is not None
     line = await asyncio.wait_for(proc.stdout.readline(), 120)
@@ -114,3 +115,24 @@ async def test_workers_end_when_their_parent_is_killed(tmp_path: Path, sims: Any
         for w in workers:
             if _alive(w):
                 os.kill(w, signal.SIGKILL)
+
+
+async def test_with_access_control_the_operator_reaches_every_worker_and_a_stranger_none(
+    tmp_path: Path, sims: Any, zport: int
+) -> None:
+    """The router takes the --config file's access control; the workers its credentials."""
+    import topgimbal
+
+    server_conf, operator_conf = _acl_files(tmp_path)
+    names = ["a0", "a1", "a2"]
+    proc = await _start(tmp_path, sims, zport, names, "--config", str(server_conf))
+    try:
+        with pytest.raises(Exception, match="Unable to connect"):  # no credentials: no session
+            await asyncio.to_thread(raw_session, zport)
+        for n in names:  # each worker's cameras, through the router, with the operator's credentials
+            url = f"zenoh/{n}?connect=tcp/127.0.0.1:{zport}&config={operator_conf}"
+            async with topgimbal.connect(url) as cam:
+                assert await cam.version()
+    finally:
+        proc.send_signal(signal.SIGINT)
+        assert await asyncio.wait_for(proc.wait(), 60) == 0

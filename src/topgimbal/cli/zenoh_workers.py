@@ -3,10 +3,10 @@ cameras are split into K shares, each served by a child `topgimbal zenoh` proces
 Python event loop per share, so the shares run on every core).
 
 Without a home-made relay: in peer mode (`--listen`) this process is a Zenoh *router* on the
-given endpoints plus one loopback endpoint, and each worker a Zenoh client of it; with
-`--mode client --connect ROUTER` the workers connect to that router themselves and this process
-only supervises. Every worker reads the same `--config` (its credentials and TLS), so an ACL that
-lets the server's user serve lets every worker serve. Subscribers see one key layout: one camera
+given endpoints plus one loopback endpoint (with the whole `--config`: its ACL guards them), and
+each worker a Zenoh client of it with the file's credentials only (`worker_config`); with
+`--mode client --connect ROUTER` the workers connect to that router themselves, with the file as
+it is, and this process only supervises. Subscribers see one key layout: one camera
 per key prefix, whichever process serves it (docs/fleet.md, "Many cameras on one machine").
 
 A worker that ends ends the whole server (its exit status, its message on stderr); a worker
@@ -80,23 +80,37 @@ def refused_with_workers(args: argparse.Namespace) -> str | None:
 
 
 def _config_listens(path: str) -> bool:
-    from ..client.zenoh_session import make_config
+    import zenoh
 
-    try:
-        conf = make_config(config_file=path)
-        return bool(json.loads(conf.get_json("listen/endpoints") or "[]"))
+    try:  # Zenoh's default endpoints are a per-mode table; a file that sets its own differs
+        return bool(
+            zenoh.Config.from_file(path).get_json("listen/endpoints") != zenoh.Config().get_json("listen/endpoints")
+        )
     except Exception:  # unreadable: the server's own check says so
         return False
 
 
-def worker_argv(args: argparse.Namespace, cameras_file: str, connect: Sequence[str]) -> list[str]:
+def worker_config(path: str, out: Path) -> str:
+    """A worker behind this process's router: the `--config` file's transport section (its
+    user/password or TLS, which the router's access control checks), without its access_control:
+    a worker reaches only the router, on loopback, and the router presents no credentials a
+    worker's ACL could name (user/password authenticates the side that connects only)."""
+    import zenoh
+
+    transport = json.loads(zenoh.Config.from_file(path).get_json("transport"))
+    out.write_text(json.dumps({"transport": transport}))
+    out.chmod(0o600)  # it may hold a password
+    return str(out)
+
+
+def worker_argv(args: argparse.Namespace, cameras_file: str, connect: Sequence[str], config: str | None) -> list[str]:
     argv = [sys.executable, "-m", "topgimbal.cli.main", "zenoh", "--cameras", cameras_file, "--mode", "client",
             "--workers", "1", "--rate-hz", repr(args.rate_hz), "--max-calls", str(args.max_calls),
             "--timeout", repr(args.timeout), "--parent-pid", str(os.getpid())]  # fmt: skip
     for e in connect:
         argv += ["--connect", e]
-    if args.config:
-        argv += ["--config", args.config]
+    if config:
+        argv += ["--config", config]
     for m in args.allow_remote:
         argv += ["--allow-remote", m]
     if args.insecure:
@@ -155,19 +169,25 @@ async def serve_workers(specs: Sequence[Any], k: int, args: argparse.Namespace, 
     procs: list[asyncio.subprocess.Process] = []
     with tempfile.TemporaryDirectory(prefix="topgimbal-zenoh-") as tmp:
         try:
-            if args.mode == "client":
-                connect = list(args.connect)
+            if args.mode == "client":  # straight to the user's router, with the user's config
+                connect, config = list(args.connect), args.config
             else:
                 inner = _loopback_endpoint()
                 router = await asyncio.to_thread(_open_router, args, inner)
                 connect = [inner]
+                config = worker_config(args.config, Path(tmp) / "worker.json5") if args.config else None
             for i, share in enumerate(shares(specs, k)):
                 path = Path(tmp) / f"cameras-{i}.json"
                 path.write_text(json.dumps([{"name": s.name, "url": s.url, "model": s.model} for s in share]))
                 path.chmod(0o600)
-                procs.append(await asyncio.create_subprocess_exec(*worker_argv(args, str(path), connect),
+                procs.append(await asyncio.create_subprocess_exec(*worker_argv(args, str(path), connect, config),
                                                                   stdout=asyncio.subprocess.PIPE))  # fmt: skip
-            lines = await within(asyncio.gather(*(_first_line(p) for p in procs)), WORKER_START_S)
+            try:
+                lines = await within(asyncio.gather(*(_first_line(p) for p in procs)), WORKER_START_S)
+            except asyncio.TimeoutError:  # TimeoutError itself from 3.11
+                print(f"topgimbal zenoh: error: the workers did not all start within {WORKER_START_S:g} s",
+                      file=sys.stderr)  # fmt: skip
+                return 1
             failed = [i for i, line in enumerate(lines) if not line.startswith("zenoh: serving")]
             if failed:
                 await _stop(procs)
