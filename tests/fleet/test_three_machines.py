@@ -1,8 +1,9 @@
 """Cameras, a Zenoh router and an operator on three "machines" (network namespaces joined by veth
-pairs, tests/fleet/netns.py), with Zenoh access control on: the cameras' `topgimbal zenoh` is a
-client of the router (Zenoh's own, the Python package's router mode; no relay of ours), the
-operator reaches the cameras only through it, with credentials, and a session without them is
-refused. The topology of docs/fleet.md, "Several machines"."""
+pairs, tests/fleet/netns.py), with Zenoh access control on: the cameras' `topgimbal zenoh` (two
+worker processes, a camera each) is a client of the router (Zenoh's own, the Python package's
+router mode; no relay of ours), the operator reaches the cameras only through it, with
+credentials, and a session without them is refused. The topology of docs/fleet.md, "Several
+machines"."""
 
 from __future__ import annotations
 
@@ -158,8 +159,8 @@ async def test_operator_reaches_cameras_only_through_the_router_with_access_cont
             cams = tmp_path / "cameras.txt"
             cams.write_text("".join(f"{n}={u},C12\n" for n, u in zip(names, urls, strict=True)))
             server = m.exec(m.cams, *tg, "zenoh", "--mode", "client", "--connect", f"tcp/{ROUTER_CAMS_IP}:{PORT}",
-                            "--config", str(f["server.json5"]), "--cameras", str(cams))  # fmt: skip
-            async with _process(server, b"zenoh: serving 2 cameras"):
+                            "--config", str(f["server.json5"]), "--cameras", str(cams), "--workers", "2")  # fmt: skip
+            async with _process(server, b"in 2 worker processes"):  # a camera each, both clients of the router
                 op = await asyncio.create_subprocess_exec(
                     *m.exec(m.operator, py, str(f["op_side.py"]), f"tcp/{ROUTER_OP_IP}:{PORT}",
                             str(f["operator.json5"]), CAMS_IP, *names),
