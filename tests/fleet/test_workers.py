@@ -136,3 +136,16 @@ async def test_with_access_control_the_operator_reaches_every_worker_and_a_stran
     finally:
         proc.send_signal(signal.SIGINT)
         assert await asyncio.wait_for(proc.wait(), 60) == 0
+
+
+async def test_options_of_one_process_and_too_few_workers_exit_2_before_serving(tmp_path: Path) -> None:
+    path = tmp_path / "cameras.txt"
+    path.write_text("".join(f"c{i}=udp://127.0.0.1:{6000 + i},C12\n" for i in range(300)))
+    for extra, said in ((["--mavlink-keys"], b"--mavlink-keys"), (["--workers", "1"], b"at least 2")):
+        proc = await asyncio.create_subprocess_exec(
+            sys.executable, "-m", "topgimbal.cli.main", "zenoh", "--cameras", str(path),
+            "--listen", "tcp/127.0.0.1:1", *extra, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+        )  # fmt: skip
+        out, err = await asyncio.wait_for(proc.communicate(), 60)
+        assert proc.returncode == 2 and said in err and b"Traceback" not in err, (extra, err)
+        assert b"serving" not in out
