@@ -50,9 +50,31 @@ def cpu_s(pid: int, tid: int | None = None) -> float:
     return (int(fields[11]) + int(fields[12])) / CLK_TCK  # utime + stime
 
 
+def children(pid: int) -> list[int]:
+    out: list[int] = []
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        with contextlib.suppress(OSError):
+            out += [int(c) for c in (task / "children").read_text().split()]
+    return out
+
+
+def tree_cpu_s(pid: int) -> float:
+    """A process and its children (`topgimbal zenoh`'s worker processes): all serving CPU."""
+    total = 0.0
+    for p in [pid, *children(pid)]:
+        with contextlib.suppress(OSError):
+            total += cpu_s(p)
+    return total
+
+
 def main_thread_cpu_s(pid: int) -> float:
-    """The Python thread's CPU (the event loop: every camera's client); the rest is Zenoh's."""
-    return cpu_s(pid, pid)
+    """The Python threads' CPU (the event loops: every camera's client); the rest is Zenoh's. With
+    worker processes, theirs: the parent then is a Zenoh router and its Python thread sleeps."""
+    total = 0.0
+    for p in [pid, *children(pid)]:
+        with contextlib.suppress(OSError):
+            total += cpu_s(p, p)
+    return total
 
 
 def free_port() -> int:
@@ -62,22 +84,6 @@ def free_port() -> int:
 
 
 # -- the simulator fleet (a child process) ---------------------------------------------------------
-
-
-async def sim_fleet(n: int, out: str) -> None:
-    from topgimbal.sim import Simulator
-
-    sims = []
-    for _ in range(n):
-        s = Simulator("C12")
-        await s.start(udp=[("127.0.0.1", 0)])
-        sims.append(s)
-    Path(out).write_text("\n".join(s.url for s in sims))
-    stop = asyncio.Event()
-    asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, stop.set)
-    await stop.wait()
-    for s in sims:
-        await s.stop()
 
 
 # -- the run ---------------------------------------------------------------------------------------
@@ -112,33 +118,31 @@ class Subscriber:
             self.latency.append(now - d["t"])
 
 
-async def run(n: int, rate_hz: float, seconds: float, calls: int) -> dict[str, Any]:
+async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int = 0) -> dict[str, Any]:
     import zenoh
 
     from topgimbal import connect
 
     tmp = Path(tempfile.mkdtemp(prefix="fleet-bench-"))
-    urls_file = tmp / "urls"
     sims = await asyncio.create_subprocess_exec(
-        sys.executable, __file__, "--sim-fleet", str(n), "--out", str(urls_file)
-    )
+        sys.executable, "-m", "topgimbal.cli.main", "sim", "--model", "C12", "--fleet", str(n), "--udp", "127.0.0.1:0",
+        stdout=asyncio.subprocess.PIPE,
+    )  # fmt: skip
     server: asyncio.subprocess.Process | None = None
     session: Any = None
     try:
-        for _ in range(600):
-            if urls_file.exists() and len(urls_file.read_text().split()) == n:
-                break
-            await asyncio.sleep(0.1)
-        urls = urls_file.read_text().split()
+        assert sims.stdout is not None
+        urls = [(await asyncio.wait_for(sims.stdout.readline(), 300)).decode().strip() for _ in range(n)]
         cams = tmp / "cameras"
         cams.write_text("\n".join(f"cam{i}={u},C12" for i, u in enumerate(urls)))
         port = free_port()
         server = await asyncio.create_subprocess_exec(
             sys.executable, "-m", "topgimbal.cli.main", "zenoh", "--cameras", str(cams),
-            "--listen", f"tcp/127.0.0.1:{port}", "--rate-hz", str(rate_hz), stdout=asyncio.subprocess.PIPE,
+            "--listen", f"tcp/127.0.0.1:{port}", "--rate-hz", str(rate_hz), "--workers", str(workers),
+            stdout=asyncio.subprocess.PIPE,
         )  # fmt: skip
         assert server.stdout is not None
-        await asyncio.wait_for(server.stdout.readline(), 120)
+        await asyncio.wait_for(server.stdout.readline(), 600)
         conf = zenoh.Config()
         for k, v in (("mode", "client"), ("scouting/multicast/enabled", False), ("scouting/gossip/enabled", False),
                      ("connect/endpoints", [f"tcp/127.0.0.1:{port}"])):  # fmt: skip
@@ -152,7 +156,7 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int) -> dict[str, A
                 break
             await asyncio.sleep(0.1)
         await asyncio.sleep(2.0)
-        cpu0 = (cpu_s(server.pid), cpu_s(sims.pid), main_thread_cpu_s(server.pid))
+        cpu0 = (tree_cpu_s(server.pid), cpu_s(sims.pid), main_thread_cpu_s(server.pid))
         t0 = time.monotonic()
         with sub.lock:
             sub.counting = True
@@ -161,7 +165,7 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int) -> dict[str, A
             sub.counting = False
             count, lost, repeated, lat = sub.count, sub.lost, sub.repeated, list(sub.latency)
         wall = time.monotonic() - t0
-        cpu1 = (cpu_s(server.pid), cpu_s(sims.pid), main_thread_cpu_s(server.pid))
+        cpu1 = (tree_cpu_s(server.pid), cpu_s(sims.pid), main_thread_cpu_s(server.pid))
         streaming = len(sub.last_seq)
 
         # command round trips: through Zenoh, then direct
@@ -185,7 +189,7 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int) -> dict[str, A
                     drtt.append(time.perf_counter() - t)
         zsub.undeclare()
         return {
-            "cameras": n, "rate_hz": rate_hz, "seconds": round(wall, 2), "streaming": streaming,
+            "cameras": n, "workers": workers or "auto", "rate_hz": rate_hz, "seconds": round(wall, 2), "streaming": streaming,
             "delivered_per_s": round(count / wall, 1), "nominal_per_s": n * rate_hz,
             "of_nominal_pct": round(100 * count / wall / (n * rate_hz), 1),
             "lost_server_to_subscriber_pct": round(100 * lost / max(1, count + lost), 3),
@@ -221,15 +225,11 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=10.0, help="measuring window per run")
     ap.add_argument("--calls", type=int, default=200, help="command round trips per path")
     ap.add_argument("--json", action="store_true")
-    ap.add_argument("--sim-fleet", type=int, help=argparse.SUPPRESS)
-    ap.add_argument("--out", help=argparse.SUPPRESS)
+    ap.add_argument("--workers", type=int, default=0, help="topgimbal zenoh --workers (default 0: automatic)")
     args = ap.parse_args()
-    if args.sim_fleet:
-        asyncio.run(sim_fleet(args.sim_fleet, args.out))
-        return
     print(f"cores {os.cpu_count()}, load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     for n in (int(x) for x in args.cameras.split(",")):
-        r = asyncio.run(run(n, args.rate_hz, args.seconds, args.calls))
+        r = asyncio.run(run(n, args.rate_hz, args.seconds, args.calls, args.workers))
         r["load_after"] = round(os.getloadavg()[0], 2)
         if args.json:
             print(json.dumps(r))

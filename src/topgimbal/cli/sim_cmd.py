@@ -21,6 +21,7 @@ from ..sim import quirks as quirk_table
 from ..sim.servers import Limits
 from ..video import cli as video_cli
 from .args import number, writable_output
+from .sim_fleet import check_fleet_args, fleet_count, serve_fleet
 
 if TYPE_CHECKING:
     from ..sim import Simulator
@@ -87,6 +88,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     p.add_argument("--udp", action="append", type=_hostport, metavar="HOST:PORT", help="listen on UDP (repeatable)")
     p.add_argument("--tcp", action="append", type=_hostport, metavar="HOST:PORT", help="listen on TCP (repeatable)")
+    p.add_argument("--fleet", type=fleet_count, metavar="N",
+                   help="N cameras of the model in this process, on UDP ports PORT..PORT+N-1 of the one --udp "
+                   "HOST:PORT (port 0: free ports); one URL line each (docs/fleet.md)")  # fmt: skip
     p.add_argument(
         "--serial",
         action="append",
@@ -189,22 +193,30 @@ def run(args: argparse.Namespace) -> int:
     targets = load_targets(getattr(args, "target", None) or [])
     if getattr(args, "truth", None):
         writable_output(args.truth, "truth file")
-    sim = Simulator(
-        model,
-        seed=args.seed,
-        faults=args.faults,
-        state_file=args.state,
-        quirks=args.quirks,
-        topotek_stream_hz=args.stream_hz,
-        terrain=getattr(args, "terrain", None),
-        limits=Limits(
-            udp_lease_s=args.udp_lease,
-            max_udp_peers=args.max_udp_peers,
-            max_tcp_clients=args.max_tcp_clients,
-            tcp_buffer_bytes=args.tcp_buffer_kib * 1024,
-        ),
-        targets=targets,
-    )
+    fleet = check_fleet_args(args) if args.fleet else None
+
+    def make(i: int) -> Simulator:
+        return Simulator(
+            model,
+            seed=args.seed + i,
+            faults=args.faults,
+            state_file=None if fleet else args.state,
+            quirks=args.quirks,
+            topotek_stream_hz=args.stream_hz,
+            terrain=getattr(args, "terrain", None),
+            limits=Limits(
+                udp_lease_s=args.udp_lease,
+                max_udp_peers=args.max_udp_peers,
+                max_tcp_clients=args.max_tcp_clients,
+                tcp_buffer_bytes=args.tcp_buffer_kib * 1024,
+            ),
+            targets=targets,
+        )
+
+    if fleet is not None:
+        _log_to_stderr()
+        return asyncio.run(serve_fleet(make, fleet))
+    sim = make(0)
     listen: dict[str, Any] = {}
     if args.udp or args.tcp or args.serial:
         listen = {"udp": args.udp or [], "tcp": args.tcp or [], "serial": args.serial or []}

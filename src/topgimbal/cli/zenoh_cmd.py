@@ -47,6 +47,14 @@ def _calls(text: str) -> int:
     return int(text)
 
 
+def _workers(text: str) -> int:
+    from .zenoh_workers import MAX_WORKERS
+
+    if not text.isdigit() or not 0 <= int(text) <= MAX_WORKERS:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected 0..{MAX_WORKERS} worker processes (0: automatic)")
+    return int(text)
+
+
 def _check_mavlink(specs: list[Any], sysid: int, cameras_wanted: bool, thermal: bool) -> str | None:
     from ..mavlink.bridge import BridgeConfigError
     from ..mavlink.multi import allocate
@@ -113,6 +121,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--insecure", action="store_true",
                    help="serve on endpoints beyond loopback without Zenoh access control (the log repeats it)")  # fmt: skip
     add_status_arguments(p, json=False, needs="with --mavlink-keys: ")
+    p.add_argument("--workers", type=_workers, default=0, metavar="K",
+                   help="serve the cameras from K worker processes (default: one per 256 cameras; docs/fleet.md)")  # fmt: skip
+    p.add_argument("--parent-pid", type=int, default=None, help=argparse.SUPPRESS)  # a worker's parent
     p.add_argument("-v", "--verbose", action="store_true", help="log link changes and refused calls")
     p.add_argument("--seconds", type=float, default=None, help=argparse.SUPPRESS)
     p.set_defaults(func=run)
@@ -133,7 +144,15 @@ def run(args: argparse.Namespace) -> int:
     if not 0.05 <= args.timeout <= 30:
         print(f"topgimbal zenoh: error: --timeout {args.timeout:g}: expected 0.05..30 s", file=sys.stderr)
         return 2
-    specs = collect(specs)
+    from ..fleet.specs import MAX_CAMERAS
+    from .zenoh_workers import unique, worker_count
+
+    try:
+        workers = worker_count(len(specs), args.workers, MAX_CAMERAS)
+        specs = collect(specs) if workers == 1 else unique(specs)
+    except FieldValueError as exc:
+        print(f"topgimbal zenoh: error: {exc}", file=sys.stderr)
+        return 2
     from ..fleet.access import AccessConfigError, check_allowed, check_exposure
 
     try:
@@ -145,6 +164,8 @@ def run(args: argparse.Namespace) -> int:
     except (AccessConfigError, FieldValueError) as exc:
         print(f"topgimbal zenoh: error: {exc}", file=sys.stderr)
         return 2
+    if workers > 1:
+        return _run_workers(specs, workers, args, allowed)
     if args.status is not None and not args.mavlink_keys:
         print("topgimbal zenoh: error: --status needs --mavlink-keys (the feeds come from the MAVLink bridge)",
               file=sys.stderr)  # fmt: skip
@@ -185,6 +206,7 @@ def run(args: argparse.Namespace) -> int:
                              insecure=args.insecure)  # fmt: skip
         await server.start()
         bridge = None
+        watchers: list[asyncio.Task[None]] = []
         try:
             if args.mavlink_keys:
                 bridge = await _start_mavlink(specs, args, server.session)
@@ -200,11 +222,17 @@ def run(args: argparse.Namespace) -> int:
                                 f"{','.join(map(str, a.camera_compids)) or 'none'}" for a in bridge.allocations)  # fmt: skip
                 print(f"zenoh: MAVLink keys mavlink/{args.sysid}/COMP/MSG, commands from mavlink/in: {ids}", flush=True)
             stop = stop_on_signals()
+            if args.parent_pid is not None:  # a worker (zenoh_workers.py): ends with its parent
+                from .zenoh_workers import watch_parent
+
+                watchers.append(asyncio.ensure_future(watch_parent(args.parent_pid, stop)))
             named = [] if bridge is None else [
                 (f"{a.name} ({a.model})", b) for b, a in zip(bridge.bridges, bridge.allocations, strict=True)
             ]  # fmt: skip
             await serve_with_status(named, args, wait_stopped(stop, args.seconds))
         finally:
+            for w in watchers:
+                w.cancel()
             if bridge is not None:
                 await bridge.close()
             await server.close()
@@ -216,3 +244,27 @@ def run(args: argparse.Namespace) -> int:
     except DuplicateCameraError as exc:
         print(f"topgimbal zenoh: error: {exc}", file=sys.stderr)
         return 2
+
+
+def _where(args: argparse.Namespace) -> str:
+    return "; ".join(
+        [f"on {', '.join(args.listen)}"] * bool(args.listen) + [f"connected to {', '.join(args.connect)}"] * bool(args.connect)
+    )  # fmt: skip
+
+
+def _run_workers(specs: list[Any], workers: int, args: argparse.Namespace, allowed: frozenset[str]) -> int:
+    """More cameras than one process serves: zenoh_workers.py (`allowed` is checked; workers re-check)."""
+    from .zenoh_workers import refused_with_workers, serve_workers
+
+    problem = refused_with_workers(args)
+    if problem:
+        print(f"topgimbal zenoh: error: {problem}", file=sys.stderr)
+        return 2
+    if args.mode == "client" and not args.connect:
+        print("topgimbal zenoh: error: --mode client needs --connect", file=sys.stderr)
+        return 2
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
+    try:
+        return asyncio.run(serve_workers(specs, workers, args, _where(args)))
+    except KeyboardInterrupt:
+        return 0
