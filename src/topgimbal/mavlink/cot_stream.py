@@ -27,7 +27,7 @@ log = logging.getLogger("topgimbal.mavlink")
 
 SCHEMES = ("udp", "tcp", "tls")
 QUEUE_EVENTS = 30  # about 10 s of one camera's three events a second
-BACKOFF_MAX_S = 30.0
+BACKOFF_MAX_S = 10.0  # a map wants the vehicle back soon; one attempt per 10 s costs nothing
 CONNECT_TIMEOUT_S = 10.0
 WRITE_TIMEOUT_S = 10.0  # a server that stops reading this long counts as lost
 
