@@ -160,10 +160,13 @@ async def test_without_a_vehicle_source_nothing_is_sent_and_the_log_says_so_once
     assert data == []
 
 
-@pytest.mark.parametrize("bad", ["tcp://127.0.0.1:8087", "udp://127.0.0.1", "127.0.0.1:6969"])
-async def test_a_cot_target_that_is_not_udp_host_port_exits_2(bad: str) -> None:
+@pytest.mark.parametrize("bad", ["http://127.0.0.1:8087", "udp://127.0.0.1", "127.0.0.1:6969",
+                                 "tls://127.0.0.1:8089 --cot-cert client.pem"])  # fmt: skip
+async def test_a_cot_target_that_is_not_udp_tcp_tls_host_port_exits_2(bad: str) -> None:
+    """Refused before anything starts: a target that is not udp/tcp/tls://HOST:PORT, a client
+    certificate without its key."""
     proc = await asyncio.create_subprocess_exec(
-        sys.executable, "-m", "topgimbal.cli.main", "zenoh", "--listen", "tcp/127.0.0.1:1", "--cot", bad,
+        sys.executable, "-m", "topgimbal.cli.main", "zenoh", "--listen", "tcp/127.0.0.1:1", "--cot", *bad.split(),
         "--camera", "c1=udp://127.0.0.1:5001,C12", stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
     )  # fmt: skip
     out, err = await asyncio.wait_for(proc.communicate(), 60)

@@ -243,3 +243,43 @@ def test_tls_options_are_checked_before_anything_starts(pki: dict[str, str], tmp
     for bad in ("http://127.0.0.1:8087", "tcp://127.0.0.1", "tls://:8089", "127.0.0.1:8087", "tcp://127.0.0.1:99999"):
         with pytest.raises(CotConfigError, match="expected udp://HOST:PORT"):
             parse_url(bad)
+
+
+async def test_the_bridge_streams_over_mutual_tls_from_the_command_line(rig_factory, pki: dict[str, str]) -> None:
+    """`mavlink --cot tls://... --cot-cert --cot-key --cot-ca` as parsed by the CLI, the bridge's
+    own sender, an autopilot's position: the vehicle where the autopilot says, over mutual TLS."""
+    import math
+
+    from pymavlink.dialects.v20 import common as ml
+
+    from topgimbal.cli.main import build_parser
+    from topgimbal.cli.mavlink_cmd import build_config
+
+    rx = await TakReader(_server_ctx(pki)).start()
+    argv = ["mavlink", "--url", "udp://127.0.0.1:5000", "--model", "SIP", "--mavlink", "udpin:127.0.0.1:0",
+            "--cot", f"tls://127.0.0.1:{rx.port}", "--cot-cert", pki["client"], "--cot-key", pki["client_key"],
+            "--cot-ca", pki["ca"]]  # fmt: skip
+    parsed = build_config(build_parser().parse_args(argv))
+    tls = parsed.cot_tls  # type: ignore[attr-defined]
+    assert tls == CotTls(pki["client"], pki["client_key"], pki["ca"])
+    rig = await rig_factory("SIP", cot=parsed.cot, cot_tls=tls)  # type: ignore[attr-defined]
+    autopilot = type(rig.peer)(sysid=1, compid=1)
+    await autopilot.connect(rig.bridge.addresses[0][1])
+
+    async def feed() -> None:
+        while True:
+            autopilot.send(ml.MAVLink_attitude_message(0, 0.0, 0.0, math.radians(90.0), 0, 0, 0))
+            autopilot.send(ml.MAVLink_global_position_int_message(
+                0, round(LAT * 1e7), round(LON * 1e7), 650_000, 100_000, 0, 0, 0, 0))  # fmt: skip
+            await asyncio.sleep(0.2)
+
+    feeder = asyncio.ensure_future(feed())
+    try:
+        await eventually(lambda: any(m.cotEvent.type == "a-f-A-M-F-Q" for m in rx.events), timeout=20.0)
+    finally:
+        feeder.cancel()
+        autopilot.close()
+        await rx.stop()
+    vehicle = next(m for m in rx.events if m.cotEvent.type == "a-f-A-M-F-Q").cotEvent
+    assert (vehicle.uid, vehicle.lat, vehicle.lon) == ("topgimbal-SIP-1", LAT, LON)
+    assert dict(x[0] for x in rx.peers[0]["subject"])["commonName"] == "tak-client"

@@ -163,7 +163,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             check_config(args.cot, cot_tls(args), None)
         except CotConfigError as exc:
-            print(f"topgimbal zenoh: error: {exc}", file=sys.stderr)
+            print(f"topgimbal zenoh: error: --cot: {exc}", file=sys.stderr)
             return 2
     if args.mavlink_keys:  # as `mavlink --camera`: a camera that answers as another MODEL is not served
         from ..errors import ModelMismatchError
