@@ -18,6 +18,8 @@ from typing import Any
 import pytest
 import takproto
 
+from topgimbal.geo import geoid
+
 from .conftest import raw_session
 from .test_zenoh_server import _serve, _stop
 
@@ -130,7 +132,9 @@ async def test_each_camera_sends_its_own_cot_from_the_autopilot_on_mavlink_in(si
         assert spi.cotEvent.type == "b-m-p-s-p-i"
         link = _detail(spi).find("link")
         assert link is not None and link.get("uid") == f"topgimbal-1-{name}"
-        assert spi.cotEvent.hae == pytest.approx(ALT_M - 350.0, abs=0.5)  # flat ground at home
+        # flat ground at home (MSL), as hae: above the ellipsoid by the EGM96 undulation there
+        n = geoid.default().undulation_m(spi.cotEvent.lat, spi.cotEvent.lon)  # type: ignore[union-attr]
+        assert spi.cotEvent.hae == pytest.approx(ALT_M - 350.0 + n, abs=0.5)
         points = [lk.get("point") for lk in _detail(uids[f"topgimbal-1-{name}.footprint"][-1]).findall("link")]
         assert len(points) == 5 and points[0] == points[-1]
     assert len(callsigns) == 2
