@@ -38,12 +38,15 @@ class CotConfigError(TopGimbalError, ValueError):
 
 @dataclass(frozen=True)
 class CotTls:
-    """A TAK server's TLS input: the client certificate and key (PEM; TAK servers ask for one)
-    and the CA that signed the server's certificate (PEM; None: the system's CAs)."""
+    """A TAK server's TLS input: the client certificate and key (PEM; TAK servers ask for one),
+    the CA that signed the server's certificate (PEM; None: the system's CAs) and the name that
+    certificate must carry (None: the URL's host; a TAK server reached by address often has a
+    certificate for its host name only, e.g. OpenTAKServer's `opentakserver`)."""
 
     cert: str | None = None
     key: str | None = None
     ca: str | None = None
+    server_name: str | None = None
 
 
 @dataclass(frozen=True)
@@ -76,7 +79,7 @@ def ssl_context(target: CotTarget, tls: CotTls | None) -> ssl.SSLContext | None:
     read now so a wrong path stops the start, not the first send."""
     t = tls or CotTls()
     if target.scheme != "tls":
-        if t.cert or t.key or t.ca:
+        if t.cert or t.key or t.ca or t.server_name:
             raise CotConfigError(f"CoT target {target}: a client certificate or CA is for tls:// only")
         return None
     if bool(t.cert) != bool(t.key):
@@ -127,8 +130,11 @@ class UdpOut:
 class StreamOut:
     """A TAK server's TCP or TLS streaming input (plain XML events one after another), reconnected."""
 
-    def __init__(self, target: CotTarget, ctx: ssl.SSLContext | None, *, queue_events: int = QUEUE_EVENTS) -> None:
-        self.target, self.ctx = target, ctx
+    def __init__(
+        self, target: CotTarget, ctx: ssl.SSLContext | None, *, queue_events: int = QUEUE_EVENTS,
+        server_name: str | None = None,
+    ) -> None:  # fmt: skip
+        self.target, self.ctx, self.server_name = target, ctx, server_name
         self.queue: deque[bytes] = deque(maxlen=queue_events)
         self.sent = self.dropped = self.connects = 0
         self.connected = False
@@ -146,7 +152,13 @@ class StreamOut:
         while True:
             try:
                 reader, writer = await within(
-                    asyncio.open_connection(self.target.host, self.target.port, ssl=self.ctx), CONNECT_TIMEOUT_S
+                    asyncio.open_connection(
+                        self.target.host,
+                        self.target.port,
+                        ssl=self.ctx,
+                        server_hostname=self.server_name if self.ctx else None,
+                    ),
+                    CONNECT_TIMEOUT_S,
                 )
             except (OSError, asyncio.TimeoutError, ssl.SSLError) as exc:
                 if failures == 0:
@@ -218,4 +230,8 @@ def _why(exc: BaseException) -> str:
 def open_out(url: str, tls: CotTls | None = None) -> UdpOut | StreamOut:
     target = parse_url(url)
     ctx = ssl_context(target, tls)
-    return UdpOut(target) if target.scheme == "udp" else StreamOut(target, ctx)
+    return (
+        UdpOut(target)
+        if target.scheme == "udp"
+        else StreamOut(target, ctx, server_name=tls.server_name if tls else None)
+    )
