@@ -230,6 +230,24 @@ async def test_tls_refuses_a_server_its_ca_did_not_sign(pki: dict[str, str], cap
         await rx.stop()
 
 
+async def test_tls_checks_the_name_the_server_certificate_carries(
+    pki: dict[str, str], caplog: pytest.LogCaptureFixture
+) -> None:
+    """The server's certificate names 127.0.0.1: asked to expect another name, the client refuses."""
+    rx = await TakReader(_server_ctx(pki)).start()
+    out = open_out(f"tls://127.0.0.1:{rx.port}", CotTls(pki["client"], pki["client_key"], pki["ca"], "tak.invalid"))
+    task = asyncio.ensure_future(out.run())
+    try:
+        with caplog.at_level(logging.WARNING, "topgimbal.mavlink"):
+            out.offer(_event(0))
+            await eventually(lambda: "cannot connect" in caplog.text, timeout=20.0)
+        assert "certificate verify failed" in caplog.text and "tak.invalid" in caplog.text and rx.raw == []
+    finally:
+        task.cancel()
+        await asyncio.gather(task, return_exceptions=True)
+        await rx.stop()
+
+
 def test_tls_options_are_checked_before_anything_starts(pki: dict[str, str], tmp_path: Path) -> None:
     url = "tls://127.0.0.1:8089"
     with pytest.raises(CotConfigError, match="together"):
