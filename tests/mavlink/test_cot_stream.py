@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import datetime
+import itertools
 import logging
 import ssl
 from pathlib import Path
@@ -135,6 +136,27 @@ async def test_a_lost_server_gets_the_newest_events_when_it_is_back(caplog: pyte
         task.cancel()
         await asyncio.gather(task, return_exceptions=True)
         await rx.stop()
+
+
+async def test_a_server_that_drops_every_connection_at_once_is_tried_ever_more_slowly() -> None:
+    closed: list[float] = []
+
+    async def hang_up(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        closed.append(asyncio.get_running_loop().time())
+        writer.close()
+
+    server = await asyncio.start_server(hang_up, "127.0.0.1", 0)
+    out = open_out(f"tcp://127.0.0.1:{server.sockets[0].getsockname()[1]}")
+    task = asyncio.ensure_future(out.run())
+    try:
+        await asyncio.sleep(7.0)  # 1 s apart: 7 or 8 connections; doubling from 2 s: 3
+    finally:
+        task.cancel()
+        await asyncio.gather(task, return_exceptions=True)
+        server.close()
+    assert 1 <= len(closed) <= 4, closed
+    gaps = [b - a for a, b in itertools.pairwise(closed)]
+    assert all(later > earlier for earlier, later in itertools.pairwise(gaps)), gaps
 
 
 async def test_offer_never_waits_for_a_server_that_is_not_there() -> None:

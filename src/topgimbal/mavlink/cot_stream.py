@@ -176,12 +176,15 @@ class StreamOut:
                             self.dropped - self._dropped_at_loss)  # fmt: skip
             else:
                 log.info("CoT %s: connected", self.target)
-            backoff_s, lost_at, failures = 1.0, None, 0
+            lost_at, failures, connected_at = None, 0, monotonic()
             why = await self._serve(reader, writer)
             self.connected = False
             lost_at, self._dropped_at_loss = monotonic(), self.dropped
             log.warning("CoT %s: connection lost (%s): keeping the newest %d events, reconnecting",
                         self.target, why, self.queue.maxlen)  # fmt: skip
+            # a server that takes the connection and drops it at once (a refused certificate, a full
+            # server) is tried ever more slowly too; one that served a while, at once again
+            backoff_s = 1.0 if lost_at - connected_at >= BACKOFF_MAX_S else min(BACKOFF_MAX_S, backoff_s * 2)
             await asyncio.sleep(backoff_s)
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> str:
