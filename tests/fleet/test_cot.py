@@ -18,6 +18,8 @@ from typing import Any
 import pytest
 import takproto
 
+from topgimbal.geo import geoid
+
 from .conftest import raw_session
 from .test_zenoh_server import _serve, _stop
 
@@ -130,7 +132,9 @@ async def test_each_camera_sends_its_own_cot_from_the_autopilot_on_mavlink_in(si
         assert spi.cotEvent.type == "b-m-p-s-p-i"
         link = _detail(spi).find("link")
         assert link is not None and link.get("uid") == f"topgimbal-1-{name}"
-        assert spi.cotEvent.hae == pytest.approx(ALT_M - 350.0, abs=0.5)  # flat ground at home
+        # flat ground at home (MSL), as hae: above the ellipsoid by the EGM96 undulation there
+        n = geoid.default().undulation_m(spi.cotEvent.lat, spi.cotEvent.lon)  # type: ignore[union-attr]
+        assert spi.cotEvent.hae == pytest.approx(ALT_M - 350.0 + n, abs=0.5)
         points = [lk.get("point") for lk in _detail(uids[f"topgimbal-1-{name}.footprint"][-1]).findall("link")]
         assert len(points) == 5 and points[0] == points[-1]
     assert len(callsigns) == 2
@@ -160,10 +164,13 @@ async def test_without_a_vehicle_source_nothing_is_sent_and_the_log_says_so_once
     assert data == []
 
 
-@pytest.mark.parametrize("bad", ["tcp://127.0.0.1:8087", "udp://127.0.0.1", "127.0.0.1:6969"])
-async def test_a_cot_target_that_is_not_udp_host_port_exits_2(bad: str) -> None:
+@pytest.mark.parametrize("bad", ["http://127.0.0.1:8087", "udp://127.0.0.1", "127.0.0.1:6969",
+                                 "tls://127.0.0.1:8089 --cot-cert client.pem"])  # fmt: skip
+async def test_a_cot_target_that_is_not_udp_tcp_tls_host_port_exits_2(bad: str) -> None:
+    """Refused before anything starts: a target that is not udp/tcp/tls://HOST:PORT, a client
+    certificate without its key."""
     proc = await asyncio.create_subprocess_exec(
-        sys.executable, "-m", "topgimbal.cli.main", "zenoh", "--listen", "tcp/127.0.0.1:1", "--cot", bad,
+        sys.executable, "-m", "topgimbal.cli.main", "zenoh", "--listen", "tcp/127.0.0.1:1", "--cot", *bad.split(),
         "--camera", "c1=udp://127.0.0.1:5001,C12", stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
     )  # fmt: skip
     out, err = await asyncio.wait_for(proc.communicate(), 60)

@@ -15,6 +15,7 @@ import pytest
 import takproto
 from pymavlink.dialects.v20 import common as ml
 
+from topgimbal.geo import geoid
 from topgimbal.geo.synthetic import write_dem
 from topgimbal.mavlink.cot import CotConfigError, parse_target
 
@@ -101,7 +102,9 @@ async def test_cot_events_parse_in_takproto_with_the_right_point(rig_factory, de
         spi = by_type["b-m-p-s-p-i"][-1]
         assert spi.cotEvent.lat == pytest.approx(fov.lat_image / 1e7, abs=2e-7)
         assert spi.cotEvent.lon == pytest.approx(fov.lon_image / 1e7, abs=2e-7)
-        assert spi.cotEvent.hae == pytest.approx(fov.alt_image / 1000, abs=0.01)
+        # hae: above the ellipsoid, the image centre's MSL height plus the EGM96 undulation there
+        n = geoid.default().undulation_m(spi.cotEvent.lat, spi.cotEvent.lon)  # type: ignore[union-attr]
+        assert 40 < n < 60 and spi.cotEvent.hae == pytest.approx(fov.alt_image / 1000 + n, abs=0.01)
         link = _detail(spi).find("link")
         assert link is not None and link.get("uid") == vehicle.cotEvent.uid
         shape = by_type["u-d-f"][-1]
@@ -112,11 +115,48 @@ async def test_cot_events_parse_in_takproto_with_the_right_point(rig_factory, de
         sock.close()
 
 
-def test_cot_target_must_be_udp_host_port() -> None:
+def test_cot_target_is_udp_tcp_or_tls_host_port() -> None:
     assert parse_target("udp://239.2.3.1:6969") == ("239.2.3.1", 6969)
-    for bad in ("tcp://127.0.0.1:8087", "udp://127.0.0.1", "127.0.0.1:6969"):
+    assert parse_target("tcp://127.0.0.1:8087") == ("127.0.0.1", 8087)
+    assert parse_target("tls://[::1]:8089") == ("::1", 8089)
+    for bad in ("http://127.0.0.1:8087", "udp://127.0.0.1", "127.0.0.1:6969"):
         with pytest.raises(CotConfigError):
             parse_target(bad)
+
+
+async def test_no_cot_for_a_vehicle_at_0_0_before_its_first_fix(rig_factory) -> None:
+    """An autopilot sends GLOBAL_POSITION_INT at 0, 0 until its GPS has a fix: no CoT then (not
+    the vehicle off the coast of Africa); the first real fix brings the events."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", 0))
+    sock.setblocking(False)
+    rig = await rig_factory("SIP", cot=f"udp://127.0.0.1:{sock.getsockname()[1]}")
+    autopilot = type(rig.peer)(sysid=1, compid=1)
+    await autopilot.connect(rig.bridge.addresses[0][1])
+    where = [0.0, 0.0]
+
+    async def feed() -> None:
+        while True:
+            autopilot.send(ml.MAVLink_attitude_message(0, 0.0, 0.0, 0.0, 0, 0, 0))
+            autopilot.send(ml.MAVLink_global_position_int_message(
+                0, round(where[0] * 1e7), round(where[1] * 1e7), 650_000, 100_000, 0, 0, 0, 0))  # fmt: skip
+            await asyncio.sleep(0.2)
+
+    feeder = asyncio.ensure_future(feed())
+    try:
+        await eventually(lambda: rig.bridge.vehicles.fix() is not None and rig.bridge.cam.attitude is not None)
+        assert rig.bridge.cot is not None
+        await asyncio.sleep(2.5)  # two sends or more at 1 Hz with the 0, 0 fix
+        before = await _receive(sock, until=1, timeout_s=0.5)
+        assert before == [] and rig.bridge.cot.sent == 0
+        where[:] = [LAT0, LON0]
+        data = await _receive(sock, until=1)
+    finally:
+        feeder.cancel()
+        autopilot.close()
+        sock.close()
+    vehicle = [m for m in (takproto.parse_proto(bytearray(d)) for d in data) if m.cotEvent.type == "a-f-A-M-F-Q"]
+    assert vehicle and (vehicle[0].cotEvent.lat, vehicle[0].cotEvent.lon) == (LAT0, LON0)
 
 
 def test_several_cameras_each_send_their_own_cot_from_the_cli() -> None:

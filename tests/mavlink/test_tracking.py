@@ -94,6 +94,19 @@ async def test_capability_flags_only_for_models_that_track(rig_factory) -> None:
     assert ack.result == ml.MAV_RESULT_UNSUPPORTED
 
 
+async def test_track_point_radius_outside_0_to_1_is_denied(rig_factory) -> None:
+    """CAMERA_TRACK_POINT's radius is 0..1 of the image width: NaN, infinity, 1e30 or a negative
+    radius is DENIED before the camera is asked; one inside the range starts tracking."""
+    r = await rig_factory("SIP")
+    for radius in (float("nan"), float("inf"), 1e30, 1.01, -0.1):
+        ack = await r.peer.ack(CAMERA, ml.MAV_CMD_CAMERA_TRACK_POINT, 0.5, 0.5, radius)
+        assert ack.result == ml.MAV_RESULT_DENIED, radius
+        assert r.bridge.cameras[0].tracker.state == (0, ())  # nothing started
+    for radius in (0.0, 0.25, 1.0):  # exact in float32
+        assert (await r.peer.ack(CAMERA, ml.MAV_CMD_CAMERA_TRACK_POINT, 0.5, 0.5, radius)).result == 0
+        assert r.bridge.cameras[0].tracker.state == (1, (0.5, 0.5, radius))
+
+
 async def test_geo_status_where_the_vehicle_position_is_known(rig_factory) -> None:
     r = await rig_factory("SIP")
     p, s = r.peer, r.sim

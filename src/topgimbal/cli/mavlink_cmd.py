@@ -7,6 +7,7 @@ import logging
 
 from ..video.cli import add_video_port_argument
 from .args import add_camera_subcommand
+from .cot_args import add_cot_tls_arguments, cot_tls
 from .mavlink_multi import add_fleet_arguments, run_multi
 from .mavlink_status import add_status_arguments, bound_links, links_text, serve_with_status
 from .model_guard import refuse_wrong_model
@@ -63,8 +64,11 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds")
     p.add_argument("--record", metavar="DIR",
                    help="record the camera's video into DIR as MPEG-TS with MISB ST 0601 KLV metadata (no re-encoding)")  # fmt: skip
-    p.add_argument("--cot", metavar="udp://HOST:PORT",
-                   help="send Cursor-on-Target (TAK) of the camera's view and target at 1 Hz, e.g. udp://239.2.3.1:6969")  # fmt: skip
+    p.add_argument("--cot", metavar="URL",
+                   help="send Cursor-on-Target (TAK) of the camera's view and target at 1 Hz: udp://HOST:PORT (TAK's "
+                   "mesh, e.g. udp://239.2.3.1:6969), tcp://HOST:PORT or tls://HOST:PORT (a TAK server's streaming "
+                   "input, e.g. 8087 / 8089; reconnected when lost)")  # fmt: skip
+    add_cot_tls_arguments(p)
     p.add_argument("--terrain", metavar="DEM.tif",
                    help="GeoTIFF DEM (lat/lon): CAMERA_FOV_STATUS's image centre on the terrain (default: flat at home)")  # fmt: skip
     p.add_argument(
@@ -135,6 +139,7 @@ def build_config(args: argparse.Namespace) -> object:
         definition_http=None if args.definition_http == "off" else args.definition_http,
         terrain=getattr(args, "terrain", None),
         cot=getattr(args, "cot", None),
+        cot_tls=cot_tls(args),
         record=getattr(args, "record", None),
         definition_host=getattr(args, "definition_host", None),
         request_streams=not getattr(args, "no_request_streams", False),

@@ -13,6 +13,7 @@ import sys
 from dataclasses import dataclass, field
 from typing import Any
 
+from .cot_args import cot_tls
 from .mavlink_status import bound_links, links_text, serve_with_status
 from .model_guard import check_cameras
 from .runtime import run_server, stop_on_signals, wait_stopped
@@ -102,7 +103,8 @@ def run_multi(args: argparse.Namespace) -> int:
                   terrain=getattr(args, "terrain", None))  # fmt: skip
     # --cot: every camera its own CoT uid and callsign, from its name (one marker per camera on the map)
     cot = getattr(args, "cot", None)
-    own = [{**c.options, **({"cot": cot, "cot_name": c.name} if cot else {})} for c in args.camera]
+    tls = cot_tls(args)
+    own = [{**c.options, **({"cot": cot, "cot_name": c.name, "cot_tls": tls} if cot else {})} for c in args.camera]
     try:
         multi = MultiBridge(cameras, endpoints=list(args.mavlink), sysid=args.sysid, cameras_wanted=not args.no_camera,
                             thermal=not args.no_thermal, max_peers=args.max_peers, per_camera=own, **common)  # fmt: skip

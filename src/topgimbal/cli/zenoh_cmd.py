@@ -9,6 +9,7 @@ import sys
 from typing import Any
 
 from ..errors import FieldValueError
+from .cot_args import add_cot_tls_arguments, cot_tls
 from .mavlink_status import add_status_arguments, serve_with_status
 from .runtime import run_server, stop_on_signals, wait_stopped
 
@@ -75,7 +76,7 @@ async def _start_mavlink(specs: list[Any], args: argparse.Namespace, session: An
     from ..mavlink.zenoh_link import zenoh_link_factory
 
     # --cot: each camera its own CoT uid/callsign (its name); the vehicle is the autopilot heard on mavlink/in
-    own = [{"cot": args.cot, "cot_name": s.name} if args.cot else {} for s in specs]
+    own = [{"cot": args.cot, "cot_name": s.name, "cot_tls": cot_tls(args)} if args.cot else {} for s in specs]
     bridge = MultiBridge([(s.name, s.url, s.model) for s in specs], endpoints=[], sysid=args.sysid,
                          cameras_wanted=not args.no_camera, thermal=not args.no_thermal,
                          link_factories=[zenoh_link_factory(session)], timeout_s=args.timeout,
@@ -112,9 +113,11 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--no-thermal", action="store_true", help="with --mavlink-keys: no MAVLink component for thermal lenses"
     )
     p.add_argument("--no-camera", action="store_true", help="with --mavlink-keys: gimbal components only")
-    p.add_argument("--cot", metavar="udp://HOST:PORT",
-                   help="Cursor-on-Target (TAK) of each camera's view and target at 1 Hz, each camera its own uid; "
+    p.add_argument("--cot", metavar="URL",
+                   help="Cursor-on-Target (TAK) of each camera's view and target at 1 Hz, each camera its own uid, "
+                   "to udp://HOST:PORT, tcp://HOST:PORT or tls://HOST:PORT (a TAK server); "
                    "the vehicle's position and heading come from the autopilot on mavlink/in (needs --mavlink-keys)")  # fmt: skip
+    add_cot_tls_arguments(p)
     p.add_argument("--allow-remote", action="append", default=[], metavar="METHOD",
                    help="make a restricted method remotely callable: set_network, send_raw or request (repeatable; "
                    "off by default: they change the camera's address, persistent settings or send raw frames)")  # fmt: skip
@@ -176,12 +179,12 @@ def run(args: argparse.Namespace) -> int:
             print(f"topgimbal zenoh: error: --mavlink-keys: {problem}", file=sys.stderr)
             return 2
     if args.cot:
-        from ..mavlink.cot import CotConfigError, parse_target
+        from ..mavlink.cot import CotConfigError, check_config
 
         try:
-            parse_target(args.cot)
+            check_config(args.cot, cot_tls(args), None)
         except CotConfigError as exc:
-            print(f"topgimbal zenoh: error: {exc}", file=sys.stderr)
+            print(f"topgimbal zenoh: error: --cot: {exc}", file=sys.stderr)
             return 2
     if args.mavlink_keys:  # as `mavlink --camera`: a camera that answers as another MODEL is not served
         from ..errors import ModelMismatchError

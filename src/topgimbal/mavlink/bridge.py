@@ -26,7 +26,8 @@ from .camera import CameraComponent
 from .camera_feed import CameraFeed
 from .camera_link import CameraLink
 from .commands import Dispatcher
-from .cot import CotSender
+from .cot import CotSender, check_config, cot_names
+from .cot_stream import CotTls
 from .endpoints import MAX_PEERS, parse_endpoint
 from .ftp import FtpServer
 from .gimbal_device import GimbalDevice
@@ -81,7 +82,8 @@ class BridgeConfig:
     client_options: dict[str, Any] = field(default_factory=dict)
     definition_http: str | None = "127.0.0.1:0"  # HOST:PORT serving the camera definitions; None: not served
     terrain: str | None = None  # a GeoTIFF DEM: CAMERA_FOV_STATUS's image centre on it (else flat at home)
-    cot: str | None = None  # udp://HOST:PORT: Cursor-on-Target of what the camera looks at, 1 Hz (cot.py)
+    cot: str | None = None  # udp:// tcp:// tls://HOST:PORT: Cursor-on-Target of what the camera looks at (cot.py)
+    cot_tls: CotTls | None = None  # tls://: the client certificate, key and CA (cot_stream.py)
     cot_name: str | None = None  # the camera's name in its CoT uid/callsign (several cameras on one system)
     record: str | None = None  # DIR: the camera's video as MPEG-TS with MISB ST 0601 KLV (klv_record.py)
 
@@ -133,6 +135,7 @@ class BridgeConfig:
             raise BridgeConfigError(f"max_peers={self.max_peers}: expected 1..256")
         if self.record is not None:  # made and written to now (RecordDirError, a ValueError: exit 2)
             check_directory(self.record)
+        check_config(self.cot, self.cot_tls, self.video_urls)  # CotConfigError: the target, its files, the URLs
 
 
 class Bridge:
@@ -214,10 +217,9 @@ class Bridge:
         self.cot: CotSender | None = None
         if c.cot is not None and self.cameras:
             view, urls = self.cameras[0].view, self.cameras[0].video_urls
-            # several cameras of one system (multi.py) each need their own uid: the map keeps one marker per uid
-            uid, callsign = ((f"topgimbal-{c.sysid}-{c.cot_name}", f"{c.cot_name} {c.sysid}") if c.cot_name
-                             else (f"topgimbal-{c.model}-{c.sysid}", f"{c.model} {c.sysid}"))  # fmt: skip
-            self.cot = CotSender(c.cot, lambda: view.sighting(urls[0] if urls else None), uid=uid, callsign=callsign)
+            uid, callsign = cot_names(c.sysid, c.model, c.cot_name)
+            self.cot = CotSender(c.cot, lambda: view.sighting(urls[0] if urls else None), uid=uid, callsign=callsign,
+                                 tls=c.cot_tls)  # fmt: skip
         self.recorder: Recorder | None = None
         if c.record is not None:
             if not self.cameras or not self.cameras[0].video_urls:

@@ -104,9 +104,12 @@ class Tracker:
 
     async def point(self, cmd: Command) -> Outcome:
         x, y = cmd.p(1), cmd.p(2)
-        radius = cmd.p(3) if cmd.has(3) else 0.05
+        radius = cmd.p(3)
         if not (0 <= x <= 1 and 0 <= y <= 1):
             raise denied(f"point ({x:g}, {y:g}): expected 0..1 each")
+        # the spec's radius is 0..1 of the image width (0: one pixel); NaN, inf, 1e30 are no radius
+        if not 0 <= radius <= 1:
+            raise denied(f"point radius {radius:g}: expected 0..1 of the image width")
         if self.companion_url is not None:
             r = max(0.02, min(0.25, radius))
             await self._start_companion(max(0.0, x - r), max(0.0, y - r), min(1.0, x + r), min(1.0, y + r))

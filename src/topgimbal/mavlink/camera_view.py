@@ -105,9 +105,10 @@ class CameraView:
         return geo_locate(view, terrain=self.terrain, ground_alt_m=fix.home_alt_m, x=x, y=y)
 
     def sighting(self, video_url: str | None = None) -> Sighting | None:
-        """What Cursor-on-Target says now (cot.py): None without a fix, heading or attitude."""
+        """What Cursor-on-Target says now (cot.py): None without a fix, heading or attitude, and
+        for a fix at 0, 0 (what an autopilot sends before its first GPS fix: unknown, not a place)."""
         pose = self.pose()
-        if pose is None:
+        if pose is None or (pose.fix.position.lat_deg == 0 and pose.fix.position.lon_deg == 0):
             return None
         fix, att, vyaw = pose
         hfov, vfov = self.fov_deg()
