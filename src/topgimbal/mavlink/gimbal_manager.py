@@ -17,7 +17,8 @@ from ._mav import mav_id, mavlink, msg_id
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, rejected, unsupported
 from .geo import Position, look_at
-from .gimbal_device import F_NEUTRAL, F_RETRACT, F_YAW_IN_EARTH_FRAME, F_YAW_LOCK, device_cap_flags, setpoint_from
+from .gimbal_device import device_cap_flags, setpoint_from
+from .gimbal_flags import F_NEUTRAL, F_RETRACT, F_YAW_LOCK, yaw_frame, yaw_lock
 from .pointing import Pointer, Setpoint
 from .services import Services
 from .vehicle import Vehicles
@@ -129,8 +130,8 @@ class GimbalManager:
         if flags & F_NEUTRAL:
             await self.pointer.apply(Setpoint(neutral=True))
             return Outcome()
-        lock = bool(flags & F_YAW_LOCK)
-        earth = bool(flags & F_YAW_IN_EARTH_FRAME)
+        lock = yaw_lock(flags)
+        earth = yaw_frame(flags) == "earth"
         if cmd.has(1) or cmd.has(2):
             sp = Setpoint(
                 yaw_deg=cmd.p(2) if cmd.has(2) else None,
@@ -280,8 +281,8 @@ def _pitchyaw_setpoint(msg: MAVLinkMessage) -> Setpoint | None:
         v if math.isfinite(v) else math.nan for v in (msg.pitch, msg.yaw, msg.pitch_rate, msg.yaw_rate)
     )
     deg = math.degrees
-    lock = bool(msg.flags & F_YAW_LOCK)
-    earth = bool(msg.flags & F_YAW_IN_EARTH_FRAME)
+    lock = yaw_lock(msg.flags)
+    earth = yaw_frame(msg.flags) == "earth"
     if not (math.isnan(pitch) and math.isnan(yaw)):
         return Setpoint(
             yaw_deg=None if math.isnan(yaw) else deg(yaw),
