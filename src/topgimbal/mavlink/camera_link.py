@@ -139,8 +139,10 @@ class CameraLink:
         try:
             return await fn(client)
         except LinkLostError as exc:
+            # The key words first: a failure text is cut at 200 bytes (STATUSTEXT), the link's
+            # address and reason can fill that on their own.
             raise SentUnansweredError(
-                f"{exc}; the request was sent while the link was up: it may or may not have been carried out"
+                f"sent, then the link went down: it may or may not have been carried out ({exc})"
             ) from None
 
     async def start(self, wait_s: float = 0.0) -> None:

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 from ..geo import CORNERS, Attitude, Geodetic, Pointing, Terrain, View
 from ..geo import Fix as GeoFix
 from ..geo import locate as geo_locate
+from ..geo.st0601 import sensor_relative_deg
 from ..video.lens import hfov_at, vfov_for
 from ._mav import mavlink
 from .camera_link import AttitudeSample, CameraLink
@@ -119,7 +120,10 @@ class CameraView:
         )  # fmt: skip
 
     def klv_values(self) -> dict[int, float | None] | None:
-        """MISB ST 0601 values now (klv.py's tags): None without a vehicle fix."""
+        """MISB ST 0601 values now (klv.py's tags): None without a vehicle fix. Unknown values are
+        None (left out, as ST 0601 says), never 0: an autopilot without a GPS fix sends
+        GLOBAL_POSITION_INT at 0, 0, which is no position. The sensor angles (18-20) are relative
+        to the platform's axes after its heading, pitch and roll (geo/st0601.py)."""
         fix = self.vehicles.fix()
         if fix is None:
             return None
@@ -127,22 +131,35 @@ class CameraView:
         vatt = self.vehicles.attitude_deg()
         heading = self.vehicles.yaw_deg
         hfov, vfov = self.fov_deg()
-        target = self.locate()
         p = fix.position
+        placed = not (p.lat_deg == 0.0 and p.lon_deg == 0.0)
+        target = self.locate() if placed else None
+        relative: tuple[float | None, float | None, float | None] = (None, None, None)
+        if att is not None:
+            # The gimbal's yaw is relative to the heading, its pitch and roll to the horizon. With no
+            # heading heard, azimuth is still the body yaw; with no attitude, the platform is level.
+            vroll, vpitch = (vatt[0], vatt[1]) if vatt is not None else (0.0, 0.0)
+            h = heading if heading is not None else 0.0
+            relative = sensor_relative_deg(
+                Attitude(vroll, vpitch, h), Attitude(att.roll_deg, att.pitch_deg, att.yaw_deg + h)
+            )
         return {
             5: heading % 360.0 if heading is not None else None,
             6: vatt[1] if vatt is not None else None,
             7: vatt[0] if vatt is not None else None,
-            13: p.lat_deg, 14: p.lon_deg, 15: p.alt_m, 16: hfov, 17: vfov,
-            18: att.yaw_deg % 360.0 if att is not None else None,
-            # the gimbal's pitch is earth-frame; ST 0601's elevation is relative to the platform
-            19: att.pitch_deg - (vatt[1] if vatt is not None else 0.0) if att is not None else None,
-            20: att.roll_deg % 360.0 if att is not None else None,
+            13: p.lat_deg if placed else None,
+            14: p.lon_deg if placed else None,
+            15: p.alt_m if placed else None,
+            16: hfov,
+            17: vfov,
+            18: relative[0],
+            19: relative[1],
+            20: relative[2],
             21: target.range_m if target is not None else None,
             23: target.lat_deg if target is not None else None,
             24: target.lon_deg if target is not None else None,
             25: target.alt_m if target is not None else None,
-        }  # fmt: skip
+        }
 
     def zoom_x(self) -> float:
         """This lens's magnification as the camera last reported it (1 until it has)."""
