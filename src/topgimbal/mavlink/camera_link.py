@@ -38,6 +38,7 @@ from urllib.parse import urlsplit
 from ..client import AsyncClient, identity
 from ..clock import monotonic
 from ..errors import LinkLostError, ModelMismatchError, RequestTimeoutError, TopGimbalError
+from ..geo.earth import wrap180
 from ..protocol import Message, get_model
 from ..timeouts import within
 from .profile import Profile, profile_of
@@ -296,8 +297,7 @@ class CameraLink:
                 log.exception("health listener failed")
 
 
-def _wrap(deg: float) -> float:
-    return (deg + 180.0) % 360.0 - 180.0
+_wrap = wrap180
 
 
 def finite(x: float) -> bool:

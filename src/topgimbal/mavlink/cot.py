@@ -27,6 +27,7 @@ from urllib.parse import urlsplit
 from ..clock import wall_time
 from ..errors import TopGimbalError
 from ..geo import Fix as GeoFix
+from ..geo.earth import wrap360
 
 log = logging.getLogger("topgimbal.mavlink")
 
@@ -93,7 +94,7 @@ def events(s: Sighting, *, uid: str, callsign: str, now: float | None = None) ->
     assert detail is not None
     ET.SubElement(detail, "contact", callsign=callsign)
     sensor = ET.SubElement(detail, "sensor")
-    sensor.set("azimuth", f"{s.azimuth_deg % 360.0:.2f}")
+    sensor.set("azimuth", f"{wrap360(s.azimuth_deg):.2f}")
     sensor.set("elevation", f"{s.elevation_deg:.2f}")
     sensor.set("roll", f"{s.roll_deg:.2f}")
     sensor.set("fov", f"{s.hfov_deg:.3f}")

@@ -1,12 +1,15 @@
 """Where the camera looks, and how to look at a place: pure geometry on a locally flat earth
-(plenty for the few kilometres a gimbal camera sees)."""
+(plenty for the few kilometres a gimbal camera sees), scaled by the WGS84 ellipsoid's radii of
+curvature (topgimbal.geo.earth, the one earth model)."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
-EARTH_RADIUS_M = 6371008.8
+from ..geo.earth import MEAN_RADIUS_M, metres_per_degree, wrap180
+
+EARTH_RADIUS_M = MEAN_RADIUS_M  # the name other modules imported; rough figures only
 
 
 @dataclass(frozen=True)
@@ -18,10 +21,8 @@ class Position:
 
 def offset_m(a: Position, b: Position) -> tuple[float, float, float]:
     """North, east, up metres from `a` to `b`."""
-    north = math.radians(b.lat_deg - a.lat_deg) * EARTH_RADIUS_M
-    dlon = (b.lon_deg - a.lon_deg + 180.0) % 360.0 - 180.0
-    east = math.radians(dlon) * EARTH_RADIUS_M * math.cos(math.radians((a.lat_deg + b.lat_deg) / 2.0))
-    return north, east, b.alt_m - a.alt_m
+    m_lat, m_lon = metres_per_degree((a.lat_deg + b.lat_deg) / 2.0)
+    return (b.lat_deg - a.lat_deg) * m_lat, wrap180(b.lon_deg - a.lon_deg) * m_lon, b.alt_m - a.alt_m
 
 
 def look_at(camera: Position, vehicle_yaw_deg: float, target: Position) -> tuple[float, float]:
@@ -31,7 +32,7 @@ def look_at(camera: Position, vehicle_yaw_deg: float, target: Position) -> tuple
     bearing = math.degrees(math.atan2(east, north))
     ground = math.hypot(north, east)
     pitch = math.degrees(math.atan2(up, ground)) if ground > 0 or up != 0 else 0.0
-    yaw = (bearing - vehicle_yaw_deg + 180.0) % 360.0 - 180.0
+    yaw = wrap180(bearing - vehicle_yaw_deg)
     return yaw, pitch
 
 
@@ -44,6 +45,5 @@ def ground_point(camera: Position, bearing_deg: float, pitch_deg: float, ground_
     ground = height / math.tan(math.radians(-pitch_deg))
     north = ground * math.cos(math.radians(bearing_deg))
     east = ground * math.sin(math.radians(bearing_deg))
-    lat = camera.lat_deg + math.degrees(north / EARTH_RADIUS_M)
-    lon = camera.lon_deg + math.degrees(east / (EARTH_RADIUS_M * max(1e-9, math.cos(math.radians(camera.lat_deg)))))
-    return Position(lat, (lon + 180.0) % 360.0 - 180.0, ground_alt_m)
+    m_lat, m_lon = metres_per_degree(camera.lat_deg)
+    return Position(camera.lat_deg + north / m_lat, wrap180(camera.lon_deg + east / m_lon), ground_alt_m)

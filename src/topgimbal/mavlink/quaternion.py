@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+from ..geo.earth import wrap180  # noqa: F401 (the one angle wrap; importable from here as before)
+
 Quaternion = tuple[float, float, float, float]
 
 
@@ -48,7 +50,3 @@ def to_euler_deg(q: Quaternion | list[float]) -> Euler:
     pitch = math.asin(sinp)
     yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
     return Euler(math.degrees(roll), math.degrees(pitch), math.degrees(yaw))
-
-
-def wrap180(deg: float) -> float:
-    return (deg + 180.0) % 360.0 - 180.0

@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..clock import monotonic
+from ..geo.earth import wrap180
 from ..sim.state import NO_CLOCK_EPOCH
 from .exif import PhotoMeta, Pose, focal_lengths, tag_jpeg
 from .lens import MEDIA_NAME, StreamSpec, photo_names, recording_name, streams_for
@@ -131,8 +132,8 @@ class MediaStore:
         azimuth = self.sim.device.state.position.azimuth_deg
         if not self.sim.device.state.vehicle_heard and azimuth is not None:
             # No vehicle attitude (a SIP fed as ArduPilot feeds it): the heading comes from AZI.
-            yaw = (yaw + azimuth + 180.0) % 360.0 - 180.0
-            meta = replace(meta, flight=Pose((azimuth + 180.0) % 360.0 - 180.0, 0.0, 0.0))
+            yaw = wrap180(yaw + azimuth)
+            meta = replace(meta, flight=Pose(wrap180(azimuth), 0.0, 0.0))
         meta = replace(meta, gimbal=Pose(yaw, scene.pitch_deg, scene.roll_deg))
         self._pending += 1
         assert self._loop is not None

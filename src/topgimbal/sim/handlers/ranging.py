@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from ...geo.earth import wrap360
 from ...protocol import RESPONSE, Frame, Message
 from .. import scene
 from ..context import RefusedError, Request, SimState
@@ -131,4 +132,4 @@ def vehicle_position(state: SimState, msg: Message, req: Request) -> None:
     f = fields(msg)
     pos = state.position
     pos.lat_deg, pos.lon_deg, pos.alt_m = float(f["lat_deg"]), float(f["lon_deg"]), float(f["alt_m"])
-    pos.azimuth_deg = float(f["heading_deg"]) % 360.0
+    pos.azimuth_deg = wrap360(float(f["heading_deg"]))
