@@ -7,9 +7,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..geo.earth import MEAN_RADIUS_M, metres_per_degree, wrap180
-
-EARTH_RADIUS_M = MEAN_RADIUS_M  # the name other modules imported; rough figures only
+from ..geo.earth import metres_per_degree, wrap180
+from ..geo.frames import Geodetic, LocalFrame
+from ..geo.terrain import ellipsoid_intersect
 
 
 @dataclass(frozen=True)
@@ -37,13 +37,16 @@ def look_at(camera: Position, vehicle_yaw_deg: float, target: Position) -> tuple
 
 
 def ground_point(camera: Position, bearing_deg: float, pitch_deg: float, ground_alt_m: float) -> Position | None:
-    """Where a ray from `camera` (earth-frame bearing, pitch up-positive) meets flat ground at
-    `ground_alt_m`; None when it looks at or above the horizon or the camera is not above ground."""
-    height = camera.alt_m - ground_alt_m
-    if height <= 0 or pitch_deg >= -0.1:
+    """Where a ray from `camera` (earth-frame bearing, pitch up-positive) meets ground at
+    `ground_alt_m` (a height above the WGS84 ellipsoid, as topgimbal.geo's flat ground); None when it
+    looks at or above the horizon or the camera is not above ground."""
+    if camera.alt_m - ground_alt_m <= 0 or pitch_deg >= -0.1:
         return None
-    ground = height / math.tan(math.radians(-pitch_deg))
-    north = ground * math.cos(math.radians(bearing_deg))
-    east = ground * math.sin(math.radians(bearing_deg))
-    m_lat, m_lon = metres_per_degree(camera.lat_deg)
-    return Position(camera.lat_deg + north / m_lat, wrap180(camera.lon_deg + east / m_lon), ground_alt_m)
+    b, p = math.radians(bearing_deg), math.radians(pitch_deg)
+    d = (math.cos(p) * math.cos(b), math.cos(p) * math.sin(b), math.sin(p))
+    frame = LocalFrame(Geodetic(camera.lat_deg, camera.lon_deg, camera.alt_m))
+    t = ellipsoid_intersect(frame, d, ground_alt_m, math.inf)
+    if t is None:
+        return None
+    hit = frame.to_geodetic(d[0] * t, d[1] * t, d[2] * t)
+    return Position(hit.lat_deg, hit.lon_deg, ground_alt_m)
