@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: deps debian-deps test check demo lint typecheck pytest pytest-virtual docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps
+.PHONY: deps debian-deps test check demo lint typecheck pytest pytest-virtual docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps misb-deps
 
 # The C fast path is compiled by `pip install`: rebuild it when its sources change.
 $(STAMP): pyproject.toml setup.py src/topgimbal/_speedups/_ctop.c $(wildcard c/src/*.c c/include/*.h c/generated/*)
@@ -71,7 +71,7 @@ XDIST := -n $(PYTEST_WORKERS) --dist loadfile --max-worker-restart 0  # a crashe
 # few end-to-end client tests (every model through the engine).
 PURE_TESTS := tests/protocol tests/speedups tests/client/test_engine.py tests/client/test_every_model_e2e.py
 
-pytest: debian-deps $(STAMP) browser-deps tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps
+pytest: debian-deps $(STAMP) browser-deps tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps misb-deps
 	$(BIN)/python -m pytest -q $(XDIST) -m "not serial"
 	if grep -rqE "mark\.serial|pytest\.mark\.serial" tests; then $(BIN)/python -m pytest -q -m serial; fi
 	TOPGIMBAL_PURE=1 $(BIN)/python -m pytest -q $(XDIST) -m "not serial" $(PURE_TESTS)
@@ -85,6 +85,20 @@ pytest-virtual: $(STAMP)
 # declared dependencies pull in opencv, vtk and matplotlib, which routing never imports.
 mavproxy-deps: $(STAMP)
 	@$(BIN)/python -c "import MAVProxy" 2>/dev/null || $(BIN)/pip install --quiet --no-deps MAVProxy==1.8.75
+
+# pymisb, an independent MISB ST 0601 reader (tests/mavlink/test_klv_pymisb.py), needs Python >= 3.12:
+# its own venv, from the first such interpreter found (python3.13, python3.12, pyenv's versions).
+MISB_VENV := .venv-misb
+MISB_STAMP := $(MISB_VENV)/.installed
+misb-deps: $(MISB_STAMP)
+
+$(MISB_STAMP):
+	@py=""; for c in python3.13 python3.12 $$(ls -d $$HOME/.pyenv/versions/3.1[2-9]*/bin/python 2>/dev/null); do \
+	  if command -v $$c >/dev/null 2>&1 && $$c -c 'import sys; sys.exit(sys.version_info < (3, 12))' 2>/dev/null; then py=$$c; break; fi; \
+	done; \
+	test -n "$$py" || { echo "misb-deps: no Python >= 3.12 found (python3.12 or pyenv install 3.12)" >&2; exit 1; }; \
+	$$py -m venv $(MISB_VENV) && $(MISB_VENV)/bin/pip install --quiet 'pymisb==2.0.2' 'pymap3d>=3.1' 'numpy>=1.24'
+	touch $(MISB_STAMP)
 
 c-deps:
 	@sh scripts/debian-deps c
@@ -103,7 +117,7 @@ check: lint typecheck docs-check pytest-virtual
 deps:
 	$(MAKE) --no-print-directory -j2 debian-deps $(STAMP)
 
-test: deps $(STAMP) browser-deps tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps c-deps lint typecheck docs-check pytest c-test
+test: deps $(STAMP) browser-deps tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps misb-deps c-deps lint typecheck docs-check pytest c-test
 
 demo: $(STAMP)
 	$(BIN)/python -m topgimbal.tools.demo

@@ -29,9 +29,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import pymap3d
+
 from topgimbal.geo import Attitude, Fix, Geodetic, GridTerrain, LocalFrame, Pointing, Uncertainty, View, locate, ray
 from topgimbal.geo.dem import load_dem
-from topgimbal.geo.frames import EARTH_RADIUS_M
+from topgimbal.geo.frames import M_PER_DEG
 from topgimbal.geo.synthetic import height_at, write_dem
 
 LAT0, LON0 = 47.0, 8.0
@@ -54,13 +56,20 @@ PROFILES = (
 )
 
 
-def true_range(n0: float, e0: float, z0: float, d: tuple[float, float, float], max_m: float = 1500.0) -> float | None:
-    """The analytic ground's first crossing along the ray: 0.25 m march, then bisection."""
+def ground_at(lat: float, lon: float) -> float:
+    """The analytic truth at a place: the synthetic landscape is laid on latitude and longitude by
+    its own map (synthetic.py: metres per degree about its origin), heights above the ellipsoid."""
+    return height_at((lat - LAT0) * M_PER_DEG, (lon - LON0) * M_PER_DEG * math.cos(math.radians(LAT0)))
+
+
+def true_range(cam: Geodetic, d: tuple[float, float, float], max_m: float = 1500.0) -> float | None:
+    """The analytic ground's first crossing along the ray (north, east, up in the camera's tangent
+    frame): the ray's points placed on the WGS84 ellipsoid by pymap3d (not topgimbal's earth model),
+    a 0.25 m march, then bisection."""
 
     def above(t: float) -> float:
-        n, e = n0 + d[0] * t, e0 + d[1] * t
-        drop = ((d[0] * t) ** 2 + (d[1] * t) ** 2) / (2 * EARTH_RADIUS_M)
-        return z0 + d[2] * t - (height_at(n, e) - drop)
+        lat, lon, h = pymap3d.enu2geodetic(d[1] * t, d[0] * t, d[2] * t, cam.lat_deg, cam.lon_deg, cam.alt_m)
+        return float(h) - ground_at(float(lat), float(lon))
 
     prev, t = 0.0, 0.25
     while t < max_m:
@@ -115,22 +124,27 @@ def main() -> None:
     # 0.5 m: the bilinear 10 m grid's height error against the analytic truth (at most ~0.5 m here)
     dem = write_dem(tmp / "hills.tif", LAT0, LON0, half_size_m=1500.0, cell_m=10.0)
     terrain = load_dem(dem, vertical_error_m=0.5)
-    land = LocalFrame(Geodetic(LAT0, LON0, 0.0))
     rng = random.Random(args.seed)
 
     cases = []
     while len(cases) < args.cases:
-        tn, te = rng.uniform(-900, 900), rng.uniform(-900, 900)
-        bearing, pitch = rng.uniform(0, 360), rng.uniform(pitch_lo, pitch_hi)
-        b, p = math.radians(bearing), math.radians(pitch)
-        d = (math.cos(p) * math.cos(b), math.cos(p) * math.sin(b), math.sin(p))
-        cn, ce = tn - d[0] * SLANT_M, te - d[1] * SLANT_M
-        cz = height_at(tn, te) - ((d[0] * SLANT_M) ** 2 + (d[1] * SLANT_M) ** 2) / (2 * EARTH_RADIUS_M) - d[2] * SLANT_M
-        t = true_range(cn, ce, cz, d)
+        lat_t = LAT0 + rng.uniform(-900, 900) / M_PER_DEG
+        lon_t = LON0 + rng.uniform(-900, 900) / (M_PER_DEG * math.cos(math.radians(LAT0)))
+        target = Geodetic(lat_t, lon_t, ground_at(lat_t, lon_t))
+        b, p = math.radians(rng.uniform(0, 360)), math.radians(rng.uniform(pitch_lo, pitch_hi))
+        # the camera SLANT_M back from the target (pymap3d), then the ray seen from the camera
+        lat_c, lon_c, h_c = pymap3d.enu2geodetic(-SLANT_M * math.cos(p) * math.sin(b), -SLANT_M * math.cos(p) * math.cos(b),
+                                                 -SLANT_M * math.sin(p), lat_t, lon_t, target.alt_m)  # fmt: skip
+        cam = Geodetic(float(lat_c), float(lon_c), float(h_c))
+        e, n, u = (
+            float(v) for v in pymap3d.geodetic2enu(lat_t, lon_t, target.alt_m, cam.lat_deg, cam.lon_deg, cam.alt_m)
+        )
+        r = math.sqrt(n * n + e * e + u * u)
+        d = (n / r, e / r, u / r)
+        t = true_range(cam, d)
         if t is None or abs(t - SLANT_M) > 0.01:
             continue  # the ground hides the target: not a 300 m case
-        cam = land.to_geodetic(cn, ce, cz)
-        target = land.to_geodetic(tn, te, 0.0)
+        bearing, pitch = math.degrees(math.atan2(e, n)), math.degrees(math.asin(u / r))
         cases.append((cam, bearing, pitch, target))
 
     print(

@@ -27,7 +27,7 @@ ALLOWED = {
     "geo": set(),  # pure geolocation (terrain, laser, flat ground); dem.py imports rasterio on use
     "sim": {"protocol", "geo", "transport"},  # geo: the laser's truth (--terrain); transport.memory: listen_memory
     "console": {"protocol", "client", "sim", "video", "wire", "transport"},  # sim: `--sim`; wire: pcap, --proxy
-    "video": {"protocol", "sim"},  # renders the simulator's state; relays any camera's RTSP
+    "video": {"protocol", "sim", "geo"},  # renders the simulator's state; relays any camera's RTSP; geo: angle wraps
     "tools": {"protocol", "client", "sim", "console", "_speedups", "video"},
     "mavlink": {
         "protocol",
@@ -38,7 +38,7 @@ ALLOWED = {
     },  # video.lens, video.rtp_push (--video-out); track: --companion-tracking; geo: CAMERA_FOV_STATUS
     "wire": {"protocol", "transport", "client"},  # client only for the JSONL traffic log format
     "fleet": {"protocol", "client"},  # the Zenoh fleet server: SDK clients on one session
-    "track": {"protocol", "client", "video"},  # the companion tracking loop: video in, rates out
+    "track": {"protocol", "client", "video", "geo"},  # the companion tracking loop: video in, rates out; geo: wraps
     "cli": {
         "protocol",
         "client",
@@ -460,3 +460,65 @@ def test_the_wait_for_rule_finds_it(tmp_path: Path) -> None:
     src = tmp_path / "m.py"
     src.write_text("import asyncio\nfrom asyncio import wait_for\nx = asyncio.wait_for(f(), 1)\ncond.wait_for(p)\n")
     assert _wait_for_calls(src) == [2, 3]
+
+
+# -- one earth model and one angle wrap: topgimbal.geo ---------------------------------------------
+
+# Earth constants (WGS84's semi-axes and flattening, the mean and the authalic radii) and `% 360`
+# angle arithmetic belong to topgimbal/geo (earth.py: wrap180 / wrap360, the ellipsoid); elsewhere a
+# copy drifts (six wraps, thirteen inline ones and three radii once did).
+EARTH_CONSTANTS = (6378137.0, 6356752.314245, 6371000.0, 6371008.8, 6371008.7714, 6371007.2, 298.257223563, 298.257)
+
+
+def _geo_rule_breaks(path: Path) -> list[tuple[int, str]]:
+    """(line, what) for `x % 360` (also `math.fmod(x, 360)` and `%=`) and earth constants."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    out = []
+
+    def is_360(node: ast.AST) -> bool:
+        return isinstance(node, ast.Constant) and type(node.value) in (int, float) and node.value in (360, 360.0)
+
+    for node in ast.walk(tree):
+        if (
+            isinstance(node, (ast.BinOp, ast.AugAssign))
+            and isinstance(node.op, ast.Mod)
+            and is_360(node.right if isinstance(node, ast.BinOp) else node.value)
+        ):
+            out.append((node.lineno, "% 360"))
+        elif (
+            isinstance(node, ast.Call)
+            and isinstance(node.func, ast.Attribute)
+            and node.func.attr == "fmod"
+            and len(node.args) == 2
+            and is_360(node.args[1])
+        ):
+            out.append((node.lineno, "fmod 360"))
+        elif (
+            isinstance(node, ast.Constant)
+            and type(node.value) in (int, float)
+            and any(abs(node.value - c) < 1e-3 for c in EARTH_CONSTANTS)
+        ):
+            out.append((node.lineno, f"earth constant {node.value}"))
+    return out
+
+
+def test_angle_wraps_and_earth_constants_live_in_geo() -> None:
+    bad = [
+        f"{p.relative_to(PKG).as_posix()}:{line}: {what} (use topgimbal.geo.earth)"
+        for p in sorted(PKG.rglob("*.py"))
+        if p.relative_to(PKG).parts[0] != "geo"
+        for line, what in _geo_rule_breaks(p)
+    ]
+    assert not bad, "\n".join(bad)
+
+
+def test_the_geo_rule_finds_wraps_and_constants(tmp_path: Path) -> None:
+    src = tmp_path / "m.py"
+    src.write_text(
+        "import math\na = (b + 180.0) % 360.0 - 180.0\nc = d % 360\ne = 6371008.8\nf = 6378137\n"
+        "g = math.fmod(h, 360)\ni = j % 36\nk = '%d' % 360\nx %= 360\ny = 1 / 298.257223563\n"
+    )
+    assert sorted(_geo_rule_breaks(src)) == [
+        (2, "% 360"), (3, "% 360"), (4, "earth constant 6371008.8"), (5, "earth constant 6378137"),
+        (6, "fmod 360"), (8, "% 360"), (9, "% 360"), (10, "earth constant 298.257223563"),
+    ], sorted(_geo_rule_breaks(src))  # fmt: skip

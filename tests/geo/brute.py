@@ -1,15 +1,14 @@
 """An independent ray cast for the tests: samples the raster read straight from the file with its
-own bilinear interpolation, marches in fine fixed steps, then bisects the crossing."""
+own bilinear interpolation, places the ray's points on the WGS84 ellipsoid with pymap3d (not the
+product's earth model), marches in fine fixed steps, then bisects the crossing."""
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
+import pymap3d
 import rasterio
-
-R = 6371008.8
 
 
 class BruteCaster:
@@ -36,10 +35,8 @@ class BruteCaster:
 
     def _above(self, lat0: float, lon0: float, alt0: float, d: tuple[float, float, float], t: np.ndarray) -> np.ndarray:
         n, e, up = d[0] * t, d[1] * t, d[2] * t
-        lat = lat0 + np.degrees(n / R)
-        lon = lon0 + np.degrees(e / (R * math.cos(math.radians(lat0))))
-        drop = (n * n + e * e) / (2 * R)  # the ground falls away from the tangent plane
-        return alt0 + up - (self.height(lat, lon) - drop)
+        lat, lon, h = pymap3d.enu2geodetic(e, n, up, lat0, lon0, alt0)  # heights above the ellipsoid
+        return np.asarray(h) - self.height(np.asarray(lat), np.asarray(lon))
 
     def cast(
         self, lat0: float, lon0: float, alt0: float, d: tuple[float, float, float], max_m: float, step_m: float = 0.25

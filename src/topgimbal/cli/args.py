@@ -229,3 +229,73 @@ def dialect_from_args(args: argparse.Namespace) -> Dialect | None:
     if getattr(args, "model", None):
         return get_model(args.model)[0]
     return None
+
+
+# -- coordinates --------------------------------------------------------------------------------
+
+# A comma list of numbers that starts with a minus: a southern latitude (`-35.36,149.16,600`).
+# argparse takes any word that starts with "-" and is not a plain number for an option, so
+# `--position -35.36,149.16,600` failed with "expected one argument" (issue 41 item 10).
+_NEGATIVE_LIST = r"-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?:,\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)+"
+
+
+def join_negative_values(argv: list[str]) -> list[str]:
+    """`--opt -35.36,149.16` becomes `--opt=-35.36,149.16`, which argparse reads as written. Only a
+    comma list of numbers after a long option is joined: no option looks like that, and the
+    `=` form is argparse's own (documented) way to give a value that starts with "-"."""
+    import re
+
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        word = argv[i]
+        nxt = argv[i + 1] if i + 1 < len(argv) else None
+        if word == "--":
+            out.extend(argv[i:])  # after `--` everything is positional, as argparse has it
+            break
+        if (
+            nxt is not None
+            and word.startswith("--")
+            and "=" not in word
+            and len(word) > 2
+            and re.fullmatch(_NEGATIVE_LIST, nxt)
+        ):
+            out.append(f"{word}={nxt}")
+            i += 2
+            continue
+        out.append(word)
+        i += 1
+    return out
+
+
+def _numbers(text: str, names: tuple[str, ...]) -> tuple[float, ...]:
+    form = ",".join(n.upper() for n in names)
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) != len(names):
+        raise argparse.ArgumentTypeError(f"{text!r}: give {form}")
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give {form} (numbers)") from None
+    if not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"{text!r}: give {form} (finite numbers)")
+    lat, lon = values[0], values[1]
+    if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+        raise argparse.ArgumentTypeError(f"{text!r}: latitude -90..90, longitude -180..180 degrees")
+    return values
+
+
+def lat_lon(text: str) -> tuple[float, float]:
+    """argparse type for LAT,LON in degrees (south and west negative)."""
+    lat, lon = _numbers(text, ("lat", "lon"))
+    return lat, lon
+
+
+def lat_lon_alt(text: str) -> tuple[float, float, float]:
+    """argparse type for LAT,LON,ALT: degrees, degrees, metres (south and west negative)."""
+    lat, lon, alt = _numbers(text, ("lat", "lon", "alt"))
+    return lat, lon, alt
+
+
+# The types a test walks the parser for: every option taking coordinates uses one of these.
+COORDINATE_TYPES: tuple[Callable[[str], Any], ...] = (lat_lon, lat_lon_alt)

@@ -3,23 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import math
 from collections.abc import Awaitable, Callable
 from typing import Any
 
 from ..errors import TopGimbalError
-from .args import number
-
-
-def _position(text: str) -> tuple[float, float, float]:
-    parts = text.split(",")
-    try:
-        lat, lon, alt = (float(p) for p in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: give LAT,LON,ALT (degrees, degrees, metres MSL)") from None
-    if not (-90 <= lat <= 90 and -180 <= lon <= 180 and math.isfinite(alt)):
-        raise argparse.ArgumentTypeError(f"{text!r}: latitude -90..90, longitude -180..180, a finite altitude")
-    return lat, lon, alt
+from .args import lat_lon_alt, number
 
 
 async def _locate(cam: Any, args: argparse.Namespace) -> dict[str, object]:
@@ -57,7 +45,7 @@ def register(
 ) -> None:
     p = command(sub, "locate", _locate, "where the camera looks: position, source (laser/terrain/flat) and error")
     p.add_argument(
-        "--position", type=_position, metavar="LAT,LON,ALT", help="the vehicle: degrees, degrees, metres MSL"
+        "--position", type=lat_lon_alt, metavar="LAT,LON,ALT", help="the vehicle: degrees, degrees, metres MSL"
     )
     p.add_argument("--heading", type=number(low=-360, high=360, what="a heading"), metavar="DEG",
                    help="the vehicle's heading, degrees from true north")  # fmt: skip

@@ -107,7 +107,7 @@ def _command_word(argv: list[str]) -> str | None:
 def parse(argv: Sequence[str] | None) -> tuple[argparse.ArgumentParser, argparse.Namespace]:
     """Find the command (`_command_word`, else a parse with placeholders), then parse again with the
     chosen command's module registered."""
-    argv = list(sys.argv[1:] if argv is None else argv)
+    argv = common.join_negative_values(list(sys.argv[1:] if argv is None else argv))
     word = _command_word(argv)
     module: str | None
     if word is not None:

@@ -34,9 +34,10 @@ class CameraMethods(Protocol):
         try:
             return await send_values(core, ident, values)
         except RequestTimeoutError as exc:
+            # The key words first: a failure text may be cut (MAVLink's STATUSTEXT: 200 bytes).
             raise RequestTimeoutError(
-                f"{exc}. The photo may or may not have been taken: the camera's acknowledgement did not come, "
-                f"and {ident} is never sent twice because every copy takes a photo. To check, compare the SD card's "
+                f"the photo may or may not have been taken: no acknowledgement ({exc}). "
+                f"{ident} is never sent twice because every copy takes a photo. To check, compare the SD card's "
                 f"free space (sd_card(), `topgimbal sd`) with before, or watch for the camera's CAP feedback "
                 f"(subscribe(callback, {ident!r}))."
             ) from None

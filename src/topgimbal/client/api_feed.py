@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 from ..errors import FieldValueError
+from ..geo.earth import wrap180
 from .core import ClientCore
 from .feeds import Fix
 from .methods import api_method
@@ -43,7 +44,7 @@ async def apply_sample(core: ClientCore, sample: FeedSample) -> None:
     if sample.attitude_deg is not None and spec is not None and spec.ident in core.feeds.feeds():
         roll, pitch, yaw = sample.attitude_deg
         names = {f.name for f in spec.forms_for("w", "request")[0].fields}
-        yaw = (yaw + 180.0) % 360.0 - 180.0
+        yaw = wrap180(yaw)
         given = {"yaw_deg": yaw, "pitch_deg": pitch, "roll_deg": roll}
         await core.feeds.vehicle_attitude({k: v for k, v in given.items() if k in names})
 

@@ -39,6 +39,7 @@ from typing import Protocol
 
 from ..clock import monotonic, wall_time
 from ..errors import TopGimbalError, UnsupportedError
+from ..geo.earth import wrap360
 from ..protocol import CommandSpec, DeviceModel, Dialect, Frame
 
 log = logging.getLogger("topgimbal.client")
@@ -326,7 +327,7 @@ class HostFeeds:
     def _position_values(self, role: str) -> dict[str, object] | None:
         fix = self.fix
         assert fix is not None
-        heading = None if fix.heading_deg is None else fix.heading_deg % 360.0
+        heading = None if fix.heading_deg is None else wrap360(fix.heading_deg)
         if role == "latitude":
             return {"lat_deg": fix.lat_deg}
         if role == "longitude":

@@ -15,6 +15,7 @@ from typing import Any
 
 from ..errors import FieldValueError, TopGimbalError
 from ..geo import Attitude, Fix, Geodetic, Pointing, Terrain, Uncertainty, View, locate
+from ..geo.earth import wrap360
 from ..video.lens import hfov_at, stream_for, vfov_for
 from . import roles
 from .api_core import request
@@ -59,7 +60,7 @@ async def _send_position(core: ClientCore, fix: Geodetic, heading_deg: float | N
         "altitude": {"alt_m": fix.alt_m},
     }
     if heading_deg is not None:
-        values["azimuth"] = {"azimuth_deg": heading_deg % 360.0}
+        values["azimuth"] = {"azimuth_deg": wrap360(heading_deg)}
     for role, v in values.items():
         ident = roles.role_ident(core.dialect, core.model, role)
         if ident is not None:
@@ -109,7 +110,7 @@ async def locate_now(
     view = View(
         pos,
         Attitude(yaw_deg=heading),
-        Pointing((heading + body.yaw_deg) % 360.0, pitch, roll, earth_frame=True),
+        Pointing(wrap360(heading + body.yaw_deg), pitch, roll, earth_frame=True),
         hfov,
         vfov_for(hfov, *stream.size),
     )

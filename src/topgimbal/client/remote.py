@@ -296,7 +296,7 @@ class RemoteClient(CoreMethods, MotionMethods, CameraMethods):
         self.stats.timeouts += 1
         if errors:
             what = f"{method}() may or may not have been carried out" if method else "no answer"
-            raise RequestTimeoutError(f"{self.url}: {k}: {'; '.join(errors)}; {what}")
+            raise RequestTimeoutError(f"{what}: {self.url}: {k}: {'; '.join(errors)}")  # the key words first
         raise LinkLostError(f"{self.url}: nothing answers {k} (is `topgimbal zenoh` serving {self.name!r}?)")
 
 

@@ -18,6 +18,7 @@ from typing import Any, cast
 
 from ..clock import monotonic
 from ..errors import TopGimbalError
+from ..geo.earth import wrap360
 
 log = logging.getLogger(__name__)
 
@@ -87,7 +88,7 @@ class AutopilotListener(asyncio.DatagramProtocol):
             if kind in ("BAD_DATA", "UNKNOWN"):
                 self.dropped += 1
             elif kind == "ATTITUDE":
-                self._yaw = (monotonic(), m.get_srcSystem(), math.degrees(m.yaw) % 360.0)
+                self._yaw = (monotonic(), m.get_srcSystem(), wrap360(math.degrees(m.yaw)))
             elif kind == "GLOBAL_POSITION_INT" and (m.lat or m.lon):  # 0, 0: no fix yet
                 self._position(m)
 

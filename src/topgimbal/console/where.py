@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..clock import monotonic
 from ..errors import TopGimbalError
+from ..geo.earth import wrap360
 
 if TYPE_CHECKING:
     from ..sim import Simulator
@@ -47,7 +48,7 @@ def vehicle_fix(cam: Any, sim: Simulator | None, autopilot: AutopilotListener | 
     feeds: Any = getattr(cam, "feeds", None)
     fix = getattr(feeds, "fix", None)
     if fix is not None and feeds.fix_fresh():
-        heading = None if fix.heading_deg is None else fix.heading_deg % 360.0
+        heading = None if fix.heading_deg is None else wrap360(fix.heading_deg)
         return VehicleFix(fix.lat_deg, fix.lon_deg, fix.alt_m, heading, "feeds", None)
     heard = autopilot.fix() if autopilot is not None else None
     if heard is not None:
@@ -60,7 +61,7 @@ def vehicle_fix(cam: Any, sim: Simulator | None, autopilot: AutopilotListener | 
     pos = state.position
     if pos.lat_deg is None or pos.lon_deg is None or pos.alt_m is None:
         return None
-    heading = pose_of(state.gimbal, pos).vehicle_yaw_deg % 360.0
+    heading = wrap360(pose_of(state.gimbal, pos).vehicle_yaw_deg)
     ground = 0.0 if state.terrain is None else None
     return VehicleFix(pos.lat_deg, pos.lon_deg, pos.alt_m, heading, "camera", ground)
 

@@ -372,8 +372,8 @@ class ServedCamera:
                 if isinstance(exc, TopGimbalError):
                     raise  # the SDK's own RequestTimeoutError, as it is
                 raise RequestTimeoutError(
-                    f"{self.name}: {method} took more than the server's {MAX_CALL_S:g} s; it may or may not "
-                    "have been carried out"
+                    f"{method} may or may not have been carried out: {self.name} took more than the server's "
+                    f"{MAX_CALL_S:g} s"
                 ) from None
             out: dict[str, Any] = {"ok": True, "result": encode_result(result)}
         except asyncio.CancelledError:

@@ -1,13 +1,17 @@
-"""Positions and directions: a local tangent plane about the camera (north, east, up metres; an
-equirectangular map, exact enough for the few kilometres a gimbal camera sees) and the rotation
-from the vehicle's attitude and the gimbal's angles to an earth-frame ray."""
+"""Positions and directions: a local east/north/up tangent frame about the camera on the WGS84
+ellipsoid (earth.py: exact, geodetic <-> ECEF <-> tangent plane) and the rotation from the
+vehicle's attitude and the gimbal's angles to an earth-frame ray."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
-EARTH_RADIUS_M = 6371008.8
+from .earth import MEAN_RADIUS_M, geodetic_to_ned_up, metres_per_degree, ned_up_to_geodetic, wrap360
+
+# Kept for what maps the synthetic landscape and the simulator's scenery onto latitude and longitude
+# (their own definitions, not the earth's shape): the mean radius, from the one earth model.
+EARTH_RADIUS_M = MEAN_RADIUS_M
 M_PER_DEG = math.radians(1.0) * EARTH_RADIUS_M
 
 Vec = tuple[float, float, float]
@@ -18,31 +22,39 @@ Mat = tuple[Vec, Vec, Vec]
 class Geodetic:
     lat_deg: float
     lon_deg: float
-    alt_m: float  # above mean sea level
+    alt_m: float  # above mean sea level (taken as above the ellipsoid locally: earth.py)
 
 
 @dataclass(frozen=True)
 class LocalFrame:
-    """North, east, up metres about `origin`."""
+    """North, east, up metres about `origin`: the WGS84 tangent plane there (up along the
+    ellipsoid's normal; a distant point on the same height is below the plane by the curvature)."""
 
     origin: Geodetic
 
     @property
+    def _o(self) -> Vec:
+        return (self.origin.lat_deg, self.origin.lon_deg, self.origin.alt_m)
+
+    @property
+    def m_per_deg_lat(self) -> float:
+        return metres_per_degree(self.origin.lat_deg)[0]
+
+    @property
     def m_per_deg_lon(self) -> float:
-        return M_PER_DEG * max(1e-9, math.cos(math.radians(self.origin.lat_deg)))
+        return metres_per_degree(self.origin.lat_deg)[1]
 
     def to_local(self, lat_deg: float, lon_deg: float, alt_m: float) -> Vec:
-        dlon = (lon_deg - self.origin.lon_deg + 180.0) % 360.0 - 180.0
-        return (
-            (lat_deg - self.origin.lat_deg) * M_PER_DEG,
-            dlon * self.m_per_deg_lon,
-            alt_m - self.origin.alt_m,
-        )
+        return geodetic_to_ned_up(self._o, lat_deg, lon_deg, alt_m)
 
     def to_geodetic(self, north_m: float, east_m: float, up_m: float) -> Geodetic:
-        lat = self.origin.lat_deg + north_m / M_PER_DEG
-        lon = self.origin.lon_deg + east_m / self.m_per_deg_lon
-        return Geodetic(max(-90.0, min(90.0, lat)), (lon + 180.0) % 360.0 - 180.0, self.origin.alt_m + up_m)
+        lat, lon, h = ned_up_to_geodetic(self._o, north_m, east_m, up_m)
+        return Geodetic(lat, lon, h)
+
+    def height_along(self, direction: Vec, t: float) -> float:
+        """Height above the ellipsoid of the point `t` metres along the unit `direction` from the
+        origin."""
+        return self.to_geodetic(direction[0] * t, direction[1] * t, direction[2] * t).alt_m
 
 
 # -- rotations: NED, ZYX Euler (yaw right-positive, pitch up-positive, roll right side down) ------
@@ -124,4 +136,4 @@ def ned_to_neu(v: Vec) -> Vec:
 def bearing_elevation(d_neu: Vec) -> tuple[float, float]:
     """Earth-frame bearing (0..360) and elevation (up-positive) in degrees of a direction."""
     n = math.sqrt(sum(c * c for c in d_neu))
-    return math.degrees(math.atan2(d_neu[1], d_neu[0])) % 360.0, math.degrees(math.asin(d_neu[2] / n))
+    return wrap360(math.degrees(math.atan2(d_neu[1], d_neu[0]))), math.degrees(math.asin(d_neu[2] / n))

@@ -19,7 +19,7 @@ from .frames import (
     column,
     ned_to_neu,
 )
-from .terrain import Terrain, flat_intersect
+from .terrain import Terrain, ellipsoid_intersect
 
 Source = Literal["laser+terrain", "laser", "terrain", "flat"]
 DEFAULT_MAX_RANGE_M = 10_000.0
@@ -159,7 +159,7 @@ def locate(
         s_v = math.hypot(terrain.vertical_error_m, u.altitude_m)  # type: ignore[union-attr]
         return fix(t_dem, "terrain", 0.0, s_v)
     if ground_alt_m is not None:
-        t_flat = flat_intersect(0.0, ground_alt_m - view.position.alt_m, d, max_range_m)
+        t_flat = ellipsoid_intersect(frame, d, ground_alt_m, max_range_m)
         if t_flat is not None:
             return fix(t_flat, "flat", 0.0, math.hypot(u.flat_ground_m, u.altitude_m))
     return None

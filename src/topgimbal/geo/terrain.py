@@ -11,11 +11,12 @@ file into this)."""
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
-from .frames import EARTH_RADIUS_M, LocalFrame, Vec
+from .earth import radii_m
+from .frames import LocalFrame, Vec
 
 
 class Terrain(Protocol):
@@ -87,22 +88,32 @@ class GridTerrain:
         """Distance along the unit `direction` (north, east, up) from `origin` (metres in `frame`)
         to the first point where the ray meets the ground, or None (misses within `max_range_m`,
         leaves the grid, or crosses no data first)."""
+        t = self._walk(frame, origin, direction, max_range_m)
+        if t is None or origin != (0.0, 0.0, 0.0):
+            return t
+        return refine_on_ellipsoid(frame, direction, self.height_m, t)
+
+    def _walk(self, frame: LocalFrame, origin: Vec, direction: Vec, max_range_m: float) -> float | None:
+        """The cell walk: latitude and longitude taken as linear in the distance (the ellipsoid's
+        radii of curvature at the origin) and the ground as falling by distance^2 / 2R, which is
+        within centimetres of the ellipsoid over a few kilometres; intersect() then makes it exact."""
         n0, e0, z0 = origin
         dn, de, dz = direction
+        m_lat, m_lon = frame.m_per_deg_lat, frame.m_per_deg_lon
         # grid coordinates (u columns, v rows) are linear in the distance t along the ray
-        lat_o = frame.origin.lat_deg + n0 / (math.radians(1.0) * EARTH_RADIUS_M)
-        lon_o = frame.origin.lon_deg + e0 / frame.m_per_deg_lon
+        lat_o = frame.origin.lat_deg + n0 / m_lat
+        lon_o = frame.origin.lon_deg + e0 / m_lon
         u0 = (lon_o - self.lon0_deg) / self.dlon_deg
         v0 = (lat_o - self.lat0_deg) / self.dlat_deg
-        du = de / frame.m_per_deg_lon / self.dlon_deg
-        dv = dn / (math.radians(1.0) * EARTH_RADIUS_M) / self.dlat_deg
+        du = de / m_lon / self.dlon_deg
+        dv = dn / m_lat / self.dlat_deg
         nr, nc = self.shape
         t0, t1 = _clip(u0, du, 0.0, nc - 1.0, 0.0, max_range_m)
         t0, t1 = _clip(v0, dv, 0.0, nr - 1.0, t0, t1)
         if t0 > t1:
             return None
         base_alt = frame.origin.alt_m
-        k = 1.0 / (2.0 * EARTH_RADIUS_M) if self.curvature else 0.0
+        k = 1.0 / (2.0 * math.sqrt(math.prod(radii_m(frame.origin.lat_deg)))) if self.curvature else 0.0
         eps = 1e-9
         t = t0
         u, v = u0 + du * t, v0 + dv * t
@@ -208,6 +219,56 @@ def _cell_hit(
             roots += [q / A] + ([C / q] if q != 0 else [])
     inside = [t for t in roots if ta <= t <= tb]
     return min(inside) if inside else None
+
+
+def refine_on_ellipsoid(
+    frame: LocalFrame, direction: Vec, ground_m: Callable[[float, float], float | None], t: float
+) -> float:
+    """`t` (a crossing found on a local approximation of the earth) made exact: the distance
+    along the ray where its height above the WGS84 ellipsoid equals the ground's there, by
+    bisection in a bracket about `t`; `t` itself when no clean bracket is found (a crossing that
+    grazes a ridge, or a hole in the model close by)."""
+
+    def g(s: float) -> float | None:
+        p = frame.to_geodetic(direction[0] * s, direction[1] * s, direction[2] * s)
+        h = ground_m(p.lat_deg, p.lon_deg)
+        return None if h is None else p.alt_m - h
+
+    w = max(1.0, 0.01 * t)
+    a, b = max(0.0, t - w), t + w
+    ga, gb = g(a), g(b)
+    if ga is None or gb is None or ga <= 0.0 or gb > 0.0:
+        return t
+    for _ in range(60):
+        m = 0.5 * (a + b)
+        gm = g(m)
+        if gm is None:
+            return t
+        a, b = (m, b) if gm > 0.0 else (a, m)
+        if b - a < 1e-6:
+            break
+    return b
+
+
+def ellipsoid_intersect(frame: LocalFrame, direction: Vec, ground_alt_m: float, max_range_m: float) -> float | None:
+    """Distance along the unit `direction` from the frame's origin to where the ray comes down to
+    `ground_alt_m` above the WGS84 ellipsoid (flat ground that follows the earth's curve), or None
+    (looking at or above the horizon, the origin not above that height, or beyond `max_range_m`)."""
+    t = flat_intersect(frame.origin.alt_m, ground_alt_m, direction, max_range_m * 2.0)
+    if t is None:
+        return None
+    for _ in range(20):  # Newton on the exact height: two or three steps from the plane's answer
+        g = frame.height_along(direction, t) - ground_alt_m
+        slope = (frame.height_along(direction, t + 0.5) - frame.height_along(direction, t - 0.5)) / 1.0
+        if slope >= 0.0:
+            return None  # the ray no longer comes down towards the surface: it grazes the horizon
+        step = g / slope
+        t -= step
+        if t <= 0.0:
+            return None
+        if abs(step) < 1e-6:
+            break
+    return t if t <= max_range_m else None
 
 
 def flat_intersect(origin_up_m: float, ground_up_m: float, direction: Vec, max_range_m: float) -> float | None:

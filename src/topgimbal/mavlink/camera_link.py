@@ -38,6 +38,7 @@ from urllib.parse import urlsplit
 from ..client import AsyncClient, identity
 from ..clock import monotonic
 from ..errors import LinkLostError, ModelMismatchError, RequestTimeoutError, TopGimbalError
+from ..geo.earth import wrap180
 from ..protocol import Message, get_model
 from ..timeouts import within
 from .profile import Profile, profile_of
@@ -139,8 +140,10 @@ class CameraLink:
         try:
             return await fn(client)
         except LinkLostError as exc:
+            # The key words first: a failure text is cut at 200 bytes (STATUSTEXT), the link's
+            # address and reason can fill that on their own.
             raise SentUnansweredError(
-                f"{exc}; the request was sent while the link was up: it may or may not have been carried out"
+                f"sent, then the link went down: it may or may not have been carried out ({exc})"
             ) from None
 
     async def start(self, wait_s: float = 0.0) -> None:
@@ -294,8 +297,7 @@ class CameraLink:
                 log.exception("health listener failed")
 
 
-def _wrap(deg: float) -> float:
-    return (deg + 180.0) % 360.0 - 180.0
+_wrap = wrap180
 
 
 def finite(x: float) -> bool:

@@ -31,6 +31,7 @@ from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from ..clock import MonotonicFn, monotonic
+from ..geo.earth import wrap180
 from ..video.lens import VideoError, tracking_requests
 from ._mav import mavlink
 from .camera_link import CameraLink
@@ -247,7 +248,7 @@ class Tracker:
         hfov, vfov = self.fov()
         if not (math.isfinite(hfov) and math.isfinite(vfov)) or hfov <= 0 or vfov <= 0:
             return None
-        dyaw = (att.yaw_deg - start[0] + 180.0) % 360.0 - 180.0
+        dyaw = wrap180(att.yaw_deg - start[0])
         dpitch = att.pitch_deg - start[1]
         tx, ty = math.tan(math.radians(hfov) / 2), math.tan(math.radians(vfov) / 2)
         return math.tan(math.radians(dyaw)) / (2 * tx), -math.tan(math.radians(dpitch)) / (2 * ty)

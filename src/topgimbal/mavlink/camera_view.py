@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 from ..geo import CORNERS, Attitude, Geodetic, Pointing, Terrain, View
 from ..geo import Fix as GeoFix
 from ..geo import locate as geo_locate
+from ..geo.earth import wrap360
+from ..geo.st0601 import sensor_relative_deg
 from ..video.lens import hfov_at, vfov_for
 from ._mav import mavlink
 from .camera_link import AttitudeSample, CameraLink
@@ -94,14 +96,7 @@ class CameraView:
         hfov, vfov = self.fov_deg()
         if math.isnan(hfov):
             hfov, vfov = 60.0, 34.0  # no stream for this lens: only the centre is meaningful
-        p = fix.position
-        view = View(
-            Geodetic(p.lat_deg, p.lon_deg, p.alt_m),
-            Attitude(yaw_deg=vyaw),
-            Pointing(att.yaw_deg + vyaw, att.pitch_deg, att.roll_deg, earth_frame=True),
-            hfov,
-            vfov,
-        )
+        view = earth_view(fix, att, vyaw, hfov, vfov)
         return geo_locate(view, terrain=self.terrain, ground_alt_m=fix.home_alt_m, x=x, y=y)
 
     def sighting(self, video_url: str | None = None) -> Sighting | None:
@@ -120,30 +115,15 @@ class CameraView:
         )  # fmt: skip
 
     def klv_values(self) -> dict[int, float | None] | None:
-        """MISB ST 0601 values now (klv.py's tags): None without a vehicle fix."""
+        """MISB ST 0601 values now (klv.py's tags): None without a vehicle fix (st0601_values)."""
         fix = self.vehicles.fix()
         if fix is None:
             return None
-        att = self.cam.attitude
-        vatt = self.vehicles.attitude_deg()
-        heading = self.vehicles.yaw_deg
         hfov, vfov = self.fov_deg()
-        target = self.locate()
-        p = fix.position
-        return {
-            5: heading % 360.0 if heading is not None else None,
-            6: vatt[1] if vatt is not None else None,
-            7: vatt[0] if vatt is not None else None,
-            13: p.lat_deg, 14: p.lon_deg, 15: p.alt_m, 16: hfov, 17: vfov,
-            18: att.yaw_deg % 360.0 if att is not None else None,
-            # the gimbal's pitch is earth-frame; ST 0601's elevation is relative to the platform
-            19: att.pitch_deg - (vatt[1] if vatt is not None else 0.0) if att is not None else None,
-            20: att.roll_deg % 360.0 if att is not None else None,
-            21: target.range_m if target is not None else None,
-            23: target.lat_deg if target is not None else None,
-            24: target.lon_deg if target is not None else None,
-            25: target.alt_m if target is not None else None,
-        }  # fmt: skip
+        placed = not (fix.position.lat_deg == 0.0 and fix.position.lon_deg == 0.0)
+        target = self.locate() if placed else None
+        return st0601_values(fix, self.cam.attitude, self.vehicles.attitude_deg(), self.vehicles.yaw_deg, hfov, vfov,
+                             target)  # fmt: skip
 
     def zoom_x(self) -> float:
         """This lens's magnification as the camera last reported it (1 until it has)."""
@@ -194,3 +174,62 @@ class CameraView:
                 continue
             if d is not None and not math.isnan(d):
                 self.comp.send(self.distance_message(d))
+
+
+def earth_view(fix: Fix, att: AttitudeSample, vehicle_yaw_deg: float, hfov_deg: float, vfov_deg: float) -> View:
+    """The camera's view for topgimbal.geo: its yaw is relative to the vehicle's heading, its
+    pitch and roll to the horizon (a stabilised gimbal), so the earth-frame pointing is exact
+    whatever the vehicle's roll and pitch."""
+    p = fix.position
+    return View(
+        Geodetic(p.lat_deg, p.lon_deg, p.alt_m),
+        Attitude(yaw_deg=vehicle_yaw_deg),
+        Pointing(att.yaw_deg + vehicle_yaw_deg, att.pitch_deg, att.roll_deg, earth_frame=True),
+        hfov_deg,
+        vfov_deg,
+    )
+
+
+def st0601_values(
+    fix: Fix,
+    att: AttitudeSample | None,
+    vehicle_attitude_deg: tuple[float, float, float] | None,
+    heading_deg: float | None,
+    hfov_deg: float,
+    vfov_deg: float,
+    target: GeoFix | None,
+) -> dict[int, float | None]:
+    """MISB ST 0601 values (klv.py's tags). Unknown values are None (left out, as ST 0601 says),
+    never 0: an autopilot without a GPS fix sends GLOBAL_POSITION_INT at 0, 0, which is no
+    position. The sensor angles (18-20) are relative to the platform's axes after its heading,
+    pitch and roll (geo/st0601.py); `target` is where the optical axis meets the ground."""
+    p = fix.position
+    placed = not (p.lat_deg == 0.0 and p.lon_deg == 0.0)
+    target = target if placed else None
+    vatt = vehicle_attitude_deg
+    relative: tuple[float | None, float | None, float | None] = (None, None, None)
+    if att is not None:
+        # The gimbal's yaw is relative to the heading, its pitch and roll to the horizon. With no
+        # heading heard, azimuth is still the body yaw; with no attitude, the platform is level.
+        vroll, vpitch = (vatt[0], vatt[1]) if vatt is not None else (0.0, 0.0)
+        h = heading_deg if heading_deg is not None else 0.0
+        relative = sensor_relative_deg(
+            Attitude(vroll, vpitch, h), Attitude(att.roll_deg, att.pitch_deg, att.yaw_deg + h)
+        )
+    return {
+        5: wrap360(heading_deg) if heading_deg is not None else None,
+        6: vatt[1] if vatt is not None else None,
+        7: vatt[0] if vatt is not None else None,
+        13: p.lat_deg if placed else None,
+        14: p.lon_deg if placed else None,
+        15: p.alt_m if placed else None,
+        16: hfov_deg,
+        17: vfov_deg,
+        18: relative[0],
+        19: relative[1],
+        20: relative[2],
+        21: target.range_m if target is not None else None,
+        23: target.lat_deg if target is not None else None,
+        24: target.lon_deg if target is not None else None,
+        25: target.alt_m if target is not None else None,
+    }

@@ -31,6 +31,7 @@ from urllib.parse import urlsplit
 
 from ..clock import wall_time
 from ..geo import Fix as GeoFix
+from ..geo.earth import wrap360
 from ..geo.geoid import ellipsoid_height
 from ..logthrottle import ThrottledLog
 from .cot_stream import CotConfigError, CotTls, StreamOut, UdpOut, open_out, parse_url, ssl_context
@@ -155,7 +156,7 @@ def events(s: Sighting, *, uid: str, callsign: str, now: float | None = None) ->
     assert detail is not None
     ET.SubElement(detail, "contact", callsign=callsign)
     sensor = ET.SubElement(detail, "sensor")
-    sensor.set("azimuth", f"{s.azimuth_deg % 360.0:.2f}")
+    sensor.set("azimuth", f"{wrap360(s.azimuth_deg):.2f}")
     sensor.set("elevation", f"{s.elevation_deg:.2f}")
     sensor.set("roll", f"{s.roll_deg:.2f}")
     sensor.set("fov", f"{s.hfov_deg:.3f}")

@@ -1,12 +1,15 @@
 """Where the camera looks, and how to look at a place: pure geometry on a locally flat earth
-(plenty for the few kilometres a gimbal camera sees)."""
+(plenty for the few kilometres a gimbal camera sees), scaled by the WGS84 ellipsoid's radii of
+curvature (topgimbal.geo.earth, the one earth model)."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
-EARTH_RADIUS_M = 6371008.8
+from ..geo.earth import metres_per_degree, wrap180
+from ..geo.frames import Geodetic, LocalFrame
+from ..geo.terrain import ellipsoid_intersect
 
 
 @dataclass(frozen=True)
@@ -18,10 +21,8 @@ class Position:
 
 def offset_m(a: Position, b: Position) -> tuple[float, float, float]:
     """North, east, up metres from `a` to `b`."""
-    north = math.radians(b.lat_deg - a.lat_deg) * EARTH_RADIUS_M
-    dlon = (b.lon_deg - a.lon_deg + 180.0) % 360.0 - 180.0
-    east = math.radians(dlon) * EARTH_RADIUS_M * math.cos(math.radians((a.lat_deg + b.lat_deg) / 2.0))
-    return north, east, b.alt_m - a.alt_m
+    m_lat, m_lon = metres_per_degree((a.lat_deg + b.lat_deg) / 2.0)
+    return (b.lat_deg - a.lat_deg) * m_lat, wrap180(b.lon_deg - a.lon_deg) * m_lon, b.alt_m - a.alt_m
 
 
 def look_at(camera: Position, vehicle_yaw_deg: float, target: Position) -> tuple[float, float]:
@@ -31,19 +32,21 @@ def look_at(camera: Position, vehicle_yaw_deg: float, target: Position) -> tuple
     bearing = math.degrees(math.atan2(east, north))
     ground = math.hypot(north, east)
     pitch = math.degrees(math.atan2(up, ground)) if ground > 0 or up != 0 else 0.0
-    yaw = (bearing - vehicle_yaw_deg + 180.0) % 360.0 - 180.0
+    yaw = wrap180(bearing - vehicle_yaw_deg)
     return yaw, pitch
 
 
 def ground_point(camera: Position, bearing_deg: float, pitch_deg: float, ground_alt_m: float) -> Position | None:
-    """Where a ray from `camera` (earth-frame bearing, pitch up-positive) meets flat ground at
-    `ground_alt_m`; None when it looks at or above the horizon or the camera is not above ground."""
-    height = camera.alt_m - ground_alt_m
-    if height <= 0 or pitch_deg >= -0.1:
+    """Where a ray from `camera` (earth-frame bearing, pitch up-positive) meets ground at
+    `ground_alt_m` (a height above the WGS84 ellipsoid, as topgimbal.geo's flat ground); None when it
+    looks at or above the horizon or the camera is not above ground."""
+    if camera.alt_m - ground_alt_m <= 0 or pitch_deg >= -0.1:
         return None
-    ground = height / math.tan(math.radians(-pitch_deg))
-    north = ground * math.cos(math.radians(bearing_deg))
-    east = ground * math.sin(math.radians(bearing_deg))
-    lat = camera.lat_deg + math.degrees(north / EARTH_RADIUS_M)
-    lon = camera.lon_deg + math.degrees(east / (EARTH_RADIUS_M * max(1e-9, math.cos(math.radians(camera.lat_deg)))))
-    return Position(lat, (lon + 180.0) % 360.0 - 180.0, ground_alt_m)
+    b, p = math.radians(bearing_deg), math.radians(pitch_deg)
+    d = (math.cos(p) * math.cos(b), math.cos(p) * math.sin(b), math.sin(p))
+    frame = LocalFrame(Geodetic(camera.lat_deg, camera.lon_deg, camera.alt_m))
+    t = ellipsoid_intersect(frame, d, ground_alt_m, math.inf)
+    if t is None:
+        return None
+    hit = frame.to_geodetic(d[0] * t, d[1] * t, d[2] * t)
+    return Position(hit.lat_deg, hit.lon_deg, ground_alt_m)

@@ -18,6 +18,16 @@ from ..clock import monotonic
 from ._mav import mavlink, msg_id
 from .camera_link import AttitudeSample, CameraLink
 from .commands import Command
+from .gimbal_flags import (
+    F_NEUTRAL,
+    F_PITCH_LOCK,
+    F_RETRACT,
+    F_ROLL_LOCK,
+    F_YAW_IN_VEHICLE_FRAME,
+    F_YAW_LOCK,
+    yaw_frame,
+    yaw_lock,
+)
 from .pointing import Pointer, Setpoint
 from .quaternion import from_euler_deg, is_valid, to_euler_deg
 from .services import Services
@@ -29,9 +39,6 @@ MSG_ATTITUDE_STATUS = msg_id("GIMBAL_DEVICE_ATTITUDE_STATUS")
 MSG_DEVICE_INFORMATION = msg_id("GIMBAL_DEVICE_INFORMATION")
 LIMIT_MARGIN_DEG = 0.5
 
-# GIMBAL_DEVICE_FLAGS
-F_RETRACT, F_NEUTRAL, F_ROLL_LOCK, F_PITCH_LOCK, F_YAW_LOCK = 1, 2, 4, 8, 16
-F_YAW_IN_VEHICLE_FRAME, F_YAW_IN_EARTH_FRAME = 32, 64
 # GIMBAL_DEVICE_ERROR_FLAGS
 E_AT_ROLL_LIMIT, E_AT_PITCH_LIMIT, E_AT_YAW_LIMIT, E_COMMS_ERROR, E_NO_MANAGER = 1, 2, 4, 128, 512
 
@@ -211,8 +218,8 @@ def setpoint_from(flags: int, q: Sequence[float], rates_rad_s: tuple[float, floa
         return None
     if flags & F_NEUTRAL:
         return Setpoint(neutral=True)
-    lock: bool | None = bool(flags & F_YAW_LOCK)
-    earth = bool(flags & F_YAW_IN_EARTH_FRAME) or (bool(flags & F_YAW_LOCK) and not flags & F_YAW_IN_VEHICLE_FRAME)
+    lock: bool | None = yaw_lock(flags)
+    earth = yaw_frame(flags) == "earth"
     if is_valid(list(q)):
         e = to_euler_deg(list(q))
         return Setpoint(e.yaw_deg, e.pitch_deg, e.roll_deg, earth_yaw=earth, lock=lock)

@@ -17,7 +17,8 @@ from ._mav import mav_id, mavlink, msg_id
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, rejected, unsupported
 from .geo import Position, look_at
-from .gimbal_device import F_NEUTRAL, F_RETRACT, F_YAW_IN_EARTH_FRAME, F_YAW_LOCK, device_cap_flags, setpoint_from
+from .gimbal_device import device_cap_flags, setpoint_from
+from .gimbal_flags import F_NEUTRAL, F_RETRACT, F_YAW_LOCK, yaw_frame, yaw_lock
 from .pointing import Pointer, Setpoint
 from .services import Services
 from .vehicle import Vehicles
@@ -37,7 +38,9 @@ CMD_ROI_NONE = mav_id("MAV_CMD_DO_SET_ROI_NONE")
 CMD_ROI_SYSID = mav_id("MAV_CMD_DO_SET_ROI_SYSID")
 CMD_ROI = mav_id("MAV_CMD_DO_SET_ROI")
 CAN_POINT_LOCATION_GLOBAL = 131072
-ROI_PERIOD_S = 0.2
+# How often a held target (an ROI, or a commanded earth bearing) is streamed to the pointer: well
+# inside pointing.FOLLOW_HOLD_S, so a turning vehicle is followed by rate, not stopped on an angle.
+ROI_PERIOD_S = 0.1
 
 
 class GimbalManager:
@@ -53,6 +56,9 @@ class GimbalManager:
         self.primary: tuple[int, int] = (0, 0)
         self.secondary: tuple[int, int] = (0, 0)
         self.roi: Position | int | None = None  # a place, or a system id to follow
+        # An earth-frame yaw commanded once (DO_GIMBAL_MANAGER_PITCHYAW with YAW_LOCK: what QGC's and
+        # MAVSDK's yaw lock send), held while the vehicle turns until another set-point replaces it.
+        self.held: Setpoint | None = None
         self._roi_task: asyncio.Task[None] | None = None
         self._stopping: asyncio.Future[None] | None = None
         services.provide(MSG_MANAGER_INFORMATION, self._information)
@@ -129,8 +135,8 @@ class GimbalManager:
         if flags & F_NEUTRAL:
             await self.pointer.apply(Setpoint(neutral=True))
             return Outcome()
-        lock = bool(flags & F_YAW_LOCK)
-        earth = bool(flags & F_YAW_IN_EARTH_FRAME)
+        lock = yaw_lock(flags)
+        earth = yaw_frame(flags) == "earth"
         if cmd.has(1) or cmd.has(2):
             sp = Setpoint(
                 yaw_deg=cmd.p(2) if cmd.has(2) else None,
@@ -147,6 +153,9 @@ class GimbalManager:
         else:
             raise denied("neither angles (param1, param2) nor rates (param3, param4) given")
         await self.pointer.apply(sp)
+        if sp.earth_yaw and sp.yaw_deg is not None:
+            self.held = sp
+            self._roi_task = asyncio.ensure_future(self._follow_roi())
         return Outcome()
 
     def on_message(self, msg: MAVLinkMessage) -> None:
@@ -210,15 +219,18 @@ class GimbalManager:
                     raise rejected("the vehicle's position is not known yet (no GLOBAL_POSITION_INT)")
                 alt += fix.home_alt_m
             target = Position(lat, lon, alt)
-        yaw, pitch = self._aim(target)
+        bearing, pitch = self._aim(target)
         await self._stop_roi()
         self.pointer.cancel_stream()
-        await self.pointer.apply(Setpoint(yaw_deg=yaw, pitch_deg=pitch), clamp=True)
+        await self.pointer.apply(Setpoint(yaw_deg=bearing, pitch_deg=pitch, earth_yaw=True), clamp=True)
         self.roi = target
         self._roi_task = asyncio.ensure_future(self._follow_roi())
         return Outcome()
 
     def _aim(self, target: Position | int) -> tuple[float, float]:
+        """Earth-frame (bearing, pitch) in degrees from our vehicle to `target`. The pointer turns
+        the bearing into a body angle with the heading when it sends it, and follows the bearing's
+        own motion (an ROI passed or orbited) by rate while the vehicle turns."""
         fix = self.vehicles.fix()
         yaw = self.vehicles.yaw_deg
         if fix is None or yaw is None:
@@ -230,19 +242,25 @@ class GimbalManager:
             place = other.position
         else:
             place = target
-        return look_at(fix.position, yaw, place)
+        return look_at(fix.position, 0.0, place)
 
     async def _follow_roi(self) -> None:
-        while self.roi is not None:
+        """Stream the held target (the ROI's bearing now, or the commanded earth bearing) to the
+        pointer, which re-aims as the vehicle turns, until a new set-point replaces it."""
+        while self.roi is not None or self.held is not None:
             await asyncio.sleep(ROI_PERIOD_S)
-            try:
-                yaw, pitch = self._aim(self.roi)
-            except Exception:
-                continue  # position not heard for a moment: hold the last direction
-            self.pointer.stream(Setpoint(yaw_deg=yaw, pitch_deg=pitch))
+            if self.roi is not None:
+                try:
+                    bearing, pitch = self._aim(self.roi)
+                except Exception:
+                    continue  # position not heard for a moment: hold the last direction
+                self.pointer.stream(Setpoint(yaw_deg=bearing, pitch_deg=pitch, earth_yaw=True))
+            elif self.held is not None:
+                self.pointer.stream(self.held)
 
     async def _stop_roi(self) -> None:
         self.roi = None
+        self.held = None
         task, self._roi_task = self._roi_task, None
         if task is not None:
             task.cancel()
@@ -251,7 +269,7 @@ class GimbalManager:
 
     def _cancel_roi_soon(self) -> None:
         # One stop at a time: a burst of set-points in one datagram is one task, not one each.
-        if self.roi is not None and (self._stopping is None or self._stopping.done()):
+        if (self.roi is not None or self.held is not None) and (self._stopping is None or self._stopping.done()):
             self._stopping = asyncio.ensure_future(self._stop_roi())
 
 
@@ -280,8 +298,8 @@ def _pitchyaw_setpoint(msg: MAVLinkMessage) -> Setpoint | None:
         v if math.isfinite(v) else math.nan for v in (msg.pitch, msg.yaw, msg.pitch_rate, msg.yaw_rate)
     )
     deg = math.degrees
-    lock = bool(msg.flags & F_YAW_LOCK)
-    earth = bool(msg.flags & F_YAW_IN_EARTH_FRAME)
+    lock = yaw_lock(msg.flags)
+    earth = yaw_frame(msg.flags) == "earth"
     if not (math.isnan(pitch) and math.isnan(yaw)):
         return Setpoint(
             yaw_deg=None if math.isnan(yaw) else deg(yaw),

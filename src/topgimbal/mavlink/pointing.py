@@ -14,7 +14,10 @@ While the vehicle turns (faster than FOLLOW_MIN_DEG_S), an earth-frame yaw is he
 camera's rate commands instead: the vehicle's yaw rate fed forward (the camera counter-turns at the
 speed the vehicle turns) plus FOLLOW_GAIN_PER_S times the error the camera reports. Angle commands
 alone lag a turning vehicle by a command period and, on models whose angle commands carry a slow
-slew speed (TOPOTEK: 9.9 deg/s at most), cannot keep up at all. A rate command keeps the camera
+slew speed (TOPOTEK: 9.9 deg/s at most), cannot keep up at all. A bearing that moves on its own
+(an ROI passed or orbited: successive set-points turn) is fed forward too, at the rate estimated
+from the set-points of the last BEARING_WINDOW_S; without it the loop trailed such a bearing by its
+rate / FOLLOW_GAIN_PER_S (2 deg at 6 deg/s). A rate command keeps the camera
 turning between set-points, so it is bounded: when set-points stop for FOLLOW_HOLD_S, the last
 angle is sent (the camera stops where the target is) rather than letting it turn on."""
 
@@ -24,6 +27,7 @@ import asyncio
 import contextlib
 import logging
 import math
+from collections import deque
 from dataclasses import dataclass
 
 from ..clock import monotonic
@@ -45,6 +49,8 @@ FOLLOW_MIN_DEG_S = 1.0  # the vehicle turns: hold an earth-frame yaw with rate c
 FOLLOW_GAIN_PER_S = 3.0  # deg/s of correction per degree of error (a 0.33 s time constant)
 FOLLOW_HOLD_S = 0.3  # no set-point for this long while following by rate: stop on the last angle
 ATTITUDE_FRESH_S = 0.3  # the camera's attitude must be this recent to close the loop on it
+BEARING_WINDOW_S = 0.5  # the set-points' own turning rate is measured over this long
+BEARING_SPAN_MIN_S = 0.15  # ... and only once they span this long (one jittery pair is no rate)
 
 
 @dataclass(frozen=True)
@@ -84,6 +90,7 @@ class Pointer:
         self.stream_errors = 0
         self._error_log = ThrottledLog(log, 5.0)  # a set-point stream is 50 Hz: one line per 5 s
         self.yaw_dropped = 0  # streamed earth-frame yaws left out for want of a heading
+        self._bearings: deque[tuple[float, float]] = deque()  # (arrival, unwrapped earth yaw) of set-points
         self._no_heading_logged = False
 
     def start(self) -> None:
@@ -179,7 +186,29 @@ class Pointer:
     def stream(self, sp: Setpoint) -> None:
         self._latest = sp
         self._latest_t = monotonic()
+        self._note_bearing(sp, self._latest_t)
         self._wake.set()
+
+    def _note_bearing(self, sp: Setpoint, t: float) -> None:
+        b = self._bearings
+        if not sp.earth_yaw or sp.yaw_deg is None or math.isnan(sp.yaw_deg) or (b and t - b[-1][0] > BEARING_WINDOW_S):
+            b.clear()  # a body-frame set-point, or a pause: the bearing's motion starts afresh
+            if not sp.earth_yaw or sp.yaw_deg is None or math.isnan(sp.yaw_deg):
+                return
+        yaw = sp.yaw_deg if not b else b[-1][1] + wrap180(sp.yaw_deg - b[-1][1])  # unwrapped across North
+        b.append((t, yaw))
+        while b and t - b[0][0] > BEARING_WINDOW_S:
+            b.popleft()
+
+    def bearing_rate_deg_s(self) -> float:
+        """How fast the streamed earth-frame yaw turns on its own (deg/s, right-positive): the
+        slope across the last BEARING_WINDOW_S of set-points; 0 when they span too short a time or
+        the last one is older than the window."""
+        b = self._bearings
+        if len(b) < 2 or monotonic() - b[-1][0] > BEARING_WINDOW_S:
+            return 0.0
+        span_s = b[-1][0] - b[0][0]
+        return (b[-1][1] - b[0][1]) / span_s if span_s >= BEARING_SPAN_MIN_S else 0.0
 
     def _follow_rates(self, sp: Setpoint) -> Setpoint | None:
         """The rate set-point that holds `sp`'s earth-frame yaw on a turning vehicle, or None
@@ -190,14 +219,19 @@ class Pointer:
         rate = self.vehicles.yaw_rate_deg_s
         heading = self.vehicles.yaw_deg
         att = self.cam.attitude
-        if heading is None or abs(rate) < FOLLOW_MIN_DEG_S or att is None or monotonic() - att.t > ATTITUDE_FRESH_S:
+        bearing_rate = self.bearing_rate_deg_s()
+        if heading is None or att is None or monotonic() - att.t > ATTITUDE_FRESH_S:
             return None
-        body = self._angle("yaw", wrap180(sp.yaw_deg - heading), True)
+        if abs(rate) < FOLLOW_MIN_DEG_S and abs(bearing_rate) < FOLLOW_MIN_DEG_S:
+            return None
+        # the bearing now: the last set-point carried forward at the rate the set-points turn
+        since_s = min(max(0.0, monotonic() - self._latest_t), FOLLOW_HOLD_S)
+        body = self._angle("yaw", wrap180(sp.yaw_deg + bearing_rate * since_s - heading), True)
         assert body is not None
         # where the camera is now: its last report carried forward at the rate it was turning
         age_s = min(max(0.0, monotonic() - att.t), ATTITUDE_FRESH_S)
         camera_yaw = att.yaw_deg + (att.yaw_rate_deg_s * age_s if math.isfinite(att.yaw_rate_deg_s) else 0.0)
-        yaw_rate = -rate + FOLLOW_GAIN_PER_S * wrap180(body - camera_yaw)
+        yaw_rate = bearing_rate - rate + FOLLOW_GAIN_PER_S * wrap180(body - camera_yaw)
         pitch_rate = 0.0
         pitch = self._angle("pitch", sp.pitch_deg, True)
         if pitch is not None and "pitch" in self.profile.rate_axes:
@@ -206,6 +240,7 @@ class Pointer:
 
     def cancel_stream(self) -> None:
         self._latest = None
+        self._bearings.clear()
 
     def _is_repeat(self, sp: Setpoint, now: float) -> bool:
         if self._last_sent is None:

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..clock import monotonic
-from .geo import EARTH_RADIUS_M, Position
+from ..geo.earth import metres_per_degree
+from .geo import Position
 from .quaternion import is_valid, to_euler_deg, wrap180
 
 if TYPE_CHECKING:
@@ -210,8 +211,9 @@ def _moved(f: Fix, dt_s: float, t: float) -> Fix:
     """`f` carried `dt_s` forward at its velocity (flat earth: metres over a second)."""
     vn, ve, vd = f.velocity_ned_m_s
     p = f.position
-    lat = p.lat_deg + math.degrees(vn * dt_s / EARTH_RADIUS_M)
-    lon = p.lon_deg + math.degrees(ve * dt_s / (EARTH_RADIUS_M * max(0.01, math.cos(math.radians(p.lat_deg)))))
+    m_lat, m_lon = metres_per_degree(p.lat_deg)
+    lat = p.lat_deg + vn * dt_s / m_lat
+    lon = wrap180(p.lon_deg + ve * dt_s / max(0.01 * m_lat, m_lon))
     return Fix(
         Position(lat, lon, p.alt_m - vd * dt_s), f.relative_alt_m - vd * dt_s, f.heading_deg, t, f.velocity_ned_m_s
     )

@@ -16,15 +16,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from ..geo.earth import wrap180  # the one angle wrap; importable from here as before
+
 AXES = ("yaw", "pitch", "roll")
 # Physics integrates in steps no longer than this, so results do not depend on how a test or the
 # event loop slices time (a 1 s `advance` equals a hundred 10 ms ones to within float error).
 MAX_STEP_S = 0.002
-
-
-def wrap180(a: float) -> float:
-    """An angle in [-180, 180)."""
-    return (a + 180.0) % 360.0 - 180.0
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-EARTH_RADIUS_M = 6371008.8
+from ..geo.earth import MEAN_RADIUS_M as EARTH_RADIUS_M
+from ..geo.earth import wrap180
+
 # One warm object on the ground; everything else is sky or ground at ambient temperature.
 HOT_SPOT_YAW_DEG = 30.0
 HOT_SPOT_PITCH_DEG = -20.0
@@ -22,7 +24,7 @@ THERMAL_SIZE = (320, 256)  # §12.1 coordinates
 def temperature_at(yaw_deg: float, pitch_deg: float) -> float:
     """Scene temperature (°C) in an earth-frame direction."""
     base = GROUND_C if pitch_deg < 0 else SKY_C + (GROUND_C - SKY_C) * math.exp(-pitch_deg / 3.0)
-    dy = (yaw_deg - HOT_SPOT_YAW_DEG + 180.0) % 360.0 - 180.0
+    dy = wrap180(yaw_deg - HOT_SPOT_YAW_DEG)
     dp = pitch_deg - HOT_SPOT_PITCH_DEG
     return base + (HOT_SPOT_C - GROUND_C) * math.exp(-(dy * dy + dp * dp) / (2 * HOT_SPOT_WIDTH_DEG**2))
 
@@ -83,5 +85,5 @@ def target_position(
     east = ground * math.sin(math.radians(bearing_deg))
     lat = lat_deg + math.degrees(north / EARTH_RADIUS_M)
     lon = lon_deg + math.degrees(east / (EARTH_RADIUS_M * max(1e-9, math.cos(math.radians(lat_deg)))))
-    lon = (lon + 180.0) % 360.0 - 180.0
+    lon = wrap180(lon)
     return round(max(-90.0, min(90.0, lat)), 6), round(lon, 6)

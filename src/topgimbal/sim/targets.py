@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..errors import InputError
+from ..geo.earth import wrap180
 from ..inputfile import InputFileError, load_json
 
 MAX_TARGETS = 16  # a scene is for tracking tests, not crowds; each target costs a draw per frame
@@ -75,7 +76,7 @@ class Target:
         el = max(-89.0, min(89.0, self.elevation_deg + d * math.sin(h)))
         # Along a parallel, a degree of arc is 1/cos(el) degrees of bearing: speed is true angular speed.
         az = self.bearing_deg + d * math.cos(h) / max(0.05, math.cos(math.radians(el)))
-        return (az + 180.0) % 360.0 - 180.0, el
+        return wrap180(az), el
 
     def visible(self, t_s: float) -> bool:
         return not any(a <= t_s < b for a, b in self.hidden)

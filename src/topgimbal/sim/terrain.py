@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..geo.frames import EARTH_RADIUS_M, M_PER_DEG
+from ..geo.earth import ned_up_to_geodetic
 from ..geo.terrain import GridTerrain
 
 STEP_M = 0.5  # a bilinear 10 m grid has no feature a 0.5 m step could step over but a razor crest
@@ -37,14 +37,13 @@ class TerrainGround:
         within `max_m`, leaves the model, or the camera is under the model's ground)."""
         b, p = math.radians(bearing_deg), math.radians(pitch_deg)
         dn, de, dz = math.cos(p) * math.cos(b), math.cos(p) * math.sin(b), math.sin(p)
-        m_lon = M_PER_DEG * max(1e-9, math.cos(math.radians(lat_deg)))
+        origin = (lat_deg, lon_deg, alt_m)
 
         def above(t: float) -> float | None:
-            n, e = dn * t, de * t
-            h = self.grid.height_m(lat_deg + n / M_PER_DEG, lon_deg + e / m_lon)
-            if h is None:
-                return None
-            return alt_m + dz * t - (h - (n * n + e * e) / (2 * EARTH_RADIUS_M))
+            # the ray's point on the WGS84 ellipsoid (heights above it), against the model's ground
+            lat, lon, h_ray = ned_up_to_geodetic(origin, dn * t, de * t, dz * t)
+            h = self.grid.height_m(lat, lon)
+            return None if h is None else h_ray - h
 
         first = above(0.0)
         if first is None or first <= 0:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..geo.earth import wrap360
 from .physics import GimbalPhysics, wrap180
 from .state import Position
 
@@ -50,5 +51,5 @@ def pose_of(gimbal: GimbalPhysics, position: Position) -> WorldPose:
 def heading_fed(gimbal: GimbalPhysics, position: Position, heading_deg: float) -> None:
     """The host's heading alone (AZI, GPS): the vehicle's yaw in the world, and what the laser's
     target solution counts from (`position.azimuth_deg`, 0..360 as the frames carry it)."""
-    position.azimuth_deg = heading_deg % 360.0
+    position.azimuth_deg = wrap360(heading_deg)
     gimbal.vehicle.yaw = wrap180(heading_deg)

@@ -20,9 +20,7 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
-
-def wrap180(a: float) -> float:
-    return (a + 180.0) % 360.0 - 180.0
+from ..geo.earth import wrap180  # the one angle wrap; importable from here as before
 
 
 class AttitudeHistory:

@@ -24,6 +24,8 @@ from typing import Any
 from PIL import Image
 from PIL.TiffImagePlugin import IFDRational
 
+from ..geo.earth import wrap360
+
 EXIF_HEADER = b"Exif\x00\x00"
 XMP_HEADER = b"http://ns.adobe.com/xap/1.0/\x00"
 MAX_SEGMENT_BYTES = 65533  # an APP segment's payload (length field 16 bits, itself included)
@@ -147,7 +149,7 @@ def xmp_packet(meta: PhotoMeta) -> bytes | None:
         add("drone-dji:GimbalYawDegree", g.yaw_deg)
         add("drone-dji:GimbalPitchDegree", g.pitch_deg)
         add("drone-dji:GimbalRollDegree", g.roll_deg)
-        add("Camera:Yaw", g.yaw_deg % 360.0)
+        add("Camera:Yaw", wrap360(g.yaw_deg))
         add("Camera:Pitch", g.pitch_deg + 90.0)  # Pix4D: 0 = nadir
         add("Camera:Roll", g.roll_deg)
     if meta.flight is not None:

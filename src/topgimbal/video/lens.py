@@ -24,6 +24,7 @@ from typing import Any
 from urllib.parse import urlsplit, urlunsplit
 
 from ..errors import TopGimbalError
+from ..geo.earth import wrap180  # the one angle wrap; importable from here as before
 from ..protocol import CommandSpec, DeviceModel, Dialect, get_model
 
 LENSES = ("visible", "thermal")
@@ -253,15 +254,11 @@ class View:
         n = math.sqrt(sum(c * c for c in ray))
         az = math.degrees(math.atan2(ray[1], ray[0]))
         el = math.degrees(math.asin(max(-1.0, min(1.0, ray[2] / n))))
-        return (az + 180.0) % 360.0 - 180.0, el
+        return wrap180(az), el
 
 
 def _dot(a: Vec, b: Vec) -> float:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-def wrap180(a: float) -> float:
-    return (a + 180.0) % 360.0 - 180.0
 
 
 # -- tracking: picture fractions -> the model's tracking request ---------------------------------

@@ -26,6 +26,7 @@ from typing import Union, overload
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from ..geo.earth import wrap360
 from . import world
 from .lens import basis, focal_px, hfov_at
 from .snapshot import SceneState
@@ -311,7 +312,7 @@ class Renderer:
             long = int(az) % 30 == 0
             draw.line((x, y - (2 * h if long else h), x, y), fill=colour, width=1)
             if long:
-                label = {0: "N", 90: "E", -180: "S", -90: "W"}.get(int(az), f"{int(az) % 360:03d}")
+                label = {0: "N", 90: "E", -180: "S", -90: "W"}.get(int(az), f"{int(wrap360(int(az))):03d}")
                 draw.text((x + 3, y - 2 * h - self._font_px), label, fill=colour, font=self._font)
 
     def _draw_marks(

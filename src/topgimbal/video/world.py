@@ -10,6 +10,7 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass
 
+from ..geo.earth import wrap180
 from ..sim import scene as sim_scene
 
 # The camera stands this high above flat ground; the grid is a square of roads around it.
@@ -35,8 +36,7 @@ def _landmarks() -> tuple[Landmark, ...]:
     return tuple(marks)
 
 
-def wrap(a: float) -> float:
-    return (a + 180.0) % 360.0 - 180.0
+wrap = wrap180  # the one angle wrap (topgimbal.geo.earth), by its old name here
 
 
 LANDMARKS = _landmarks()
