@@ -26,7 +26,15 @@ ALLOWED = {
     },  # geo: cam.locate(); video.lens only (the stream table; tests/video checks)
     "geo": set(),  # pure geolocation (terrain, laser, flat ground); dem.py imports rasterio on use
     "sim": {"protocol", "geo", "transport"},  # geo: the laser's truth (--terrain); transport.memory: listen_memory
-    "console": {"protocol", "client", "sim", "video", "wire", "transport"},  # sim: `--sim`; wire: pcap, --proxy
+    "console": {
+        "protocol",
+        "client",
+        "sim",
+        "video",
+        "wire",
+        "transport",
+        "geo",
+    },  # sim: `--sim`; wire: pcap, --proxy; geo: wraps
     "video": {"protocol", "sim", "geo"},  # renders the simulator's state; relays any camera's RTSP; geo: angle wraps
     "tools": {"protocol", "client", "sim", "console", "_speedups", "video"},
     "mavlink": {
