@@ -83,7 +83,7 @@ def _options(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     return p
 
 
-def _command(sub: argparse._SubParsersAction, name: str, runner: Runner, help: str) -> argparse.ArgumentParser:  # type: ignore[type-arg]
+def _command(sub: argparse._SubParsersAction, name: str, runner: Runner, help: str) -> argparse.ArgumentParser:
     p = _options(sub.add_parser(name, help=help, description=help))
     p.set_defaults(func=lambda args: _run(args, runner))
     return p
@@ -374,7 +374,7 @@ async def _command_generic(cam: AsyncClient, args: argparse.Namespace) -> dict[s
 # -- registration --------------------------------------------------------------------------------
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(sub: argparse._SubParsersAction) -> None:
     _command(sub, "info", _info, "identify the device: dialect, model, version, link statistics")
 
     p = _command(sub, "attitude", _attitude, "print the gimbal attitude (degrees; yaw right-, pitch up-positive)")

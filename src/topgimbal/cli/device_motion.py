@@ -173,7 +173,7 @@ def _point_ranges() -> tuple[str, str, str]:
     return join(yaw), join(pitch), speed
 
 
-def register(sub: argparse._SubParsersAction, command: Register, seconds: Callable[[str], float]) -> None:  # type: ignore[type-arg]
+def register(sub: argparse._SubParsersAction, command: Register, seconds: Callable[[str], float]) -> None:
     yaw_help, pitch_help, speed_help = _point_ranges()
     p = command(
         sub,

@@ -205,7 +205,7 @@ def _records(path: str) -> list[LogRecord]:
     return records
 
 
-def register(sub: argparse._SubParsersAction, command: Register) -> None:  # type: ignore[type-arg]
+def register(sub: argparse._SubParsersAction, command: Register) -> None:
     p = command(sub, "monitor", _monitor, "live view of attitude, camera state and link statistics")
     p.add_argument("--rate", type=HZ, default=20.0, help="attitude stream rate in Hz (default 20)")
     p.add_argument(

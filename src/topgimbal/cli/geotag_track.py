@@ -173,17 +173,17 @@ def _from_traffic(path: Path) -> Track:
             continue
         role = m.spec.role
         if rec.direction == "out" and role in POSITION_ROLES and rec.frame.rw == "w":
-            current[POSITION_ROLES[role]] = float(m.fields[POSITION_ROLES[role]])  # type: ignore[arg-type]
+            current[POSITION_ROLES[role]] = float(m.fields[POSITION_ROLES[role]])
             if role == "altitude" and {"lat_deg", "lon_deg"} <= current.keys():
                 track.add_sample(Sample(rec.t, current["lat_deg"], current["lon_deg"], current["alt_m"]))
         elif rec.direction == "out" and role == "vehicle_position":
             f = m.fields
-            track.add_sample(Sample(rec.t, float(f["lat_deg"]), float(f["lon_deg"]), float(f["alt_m"])))  # type: ignore[arg-type]
+            track.add_sample(Sample(rec.t, float(f["lat_deg"]), float(f["lon_deg"]), float(f["alt_m"])))
         elif rec.direction == "in" and role == "attitude" and {"yaw_deg", "pitch_deg"} <= m.fields.keys():
             f = (map_message(m, model.wire_signs) if model is not None else m).fields or {}
-            track.poses.append((rec.t, float(f["yaw_deg"]), float(f["pitch_deg"]), float(f.get("roll_deg", 0.0))))  # type: ignore[arg-type]
+            track.poses.append((rec.t, float(f["yaw_deg"]), float(f["pitch_deg"]), float(f.get("roll_deg", 0.0))))
         elif rec.direction == "in" and role == "photo" and "file_index" in m.fields:
-            index = int(m.fields["file_index"])  # type: ignore[call-overload]
+            index = int(m.fields["file_index"])
             track.capture_list.append(Capture(rec.t, index, vendor=vendor, model=model_name))
     return track
 

@@ -37,11 +37,11 @@ async def _locate(cam: Any, args: argparse.Namespace) -> dict[str, object]:
 
 
 def register(
-    sub: argparse._SubParsersAction,  # type: ignore[type-arg]
+    sub: argparse._SubParsersAction,
     command: Callable[
         [argparse._SubParsersAction, str, Callable[[Any, argparse.Namespace], Awaitable[object]], str],
         argparse.ArgumentParser,
-    ],  # type: ignore[type-arg]
+    ],
 ) -> None:
     p = command(sub, "locate", _locate, "where the camera looks: position, source (laser/terrain/flat) and error")
     p.add_argument(

@@ -71,7 +71,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
-def _placeholder(sub: argparse._SubParsersAction, command: str, module: str, help_text: str | None) -> None:  # type: ignore[type-arg]
+def _placeholder(sub: argparse._SubParsersAction, command: str, module: str, help_text: str | None) -> None:
     """A subcommand known from the index: takes anything, says which module to load for it."""
     p = sub.add_parser(command, help=help_text, add_help=False, prefix_chars="\0")
     p.add_argument("rest", nargs=argparse.REMAINDER)

@@ -21,7 +21,7 @@ from .args import add_dialect_argument, add_json_argument, add_pcap_arguments, d
 __all__ = ["RECORD_KEYS", "decode_line", "decode_with", "dissection_record", "register"]
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("decode", help="decode frames given as arguments or one per line on stdin")
     p.add_argument(
         "frames",

@@ -36,7 +36,7 @@ if TYPE_CHECKING:
 MAX_CLIENTS = 8
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("dissector", help="write the Wireshark Lua dissector generated from the catalog")
     p.add_argument("-o", "--output", metavar="FILE", help="where to write it (default: stdout)")
     p.add_argument("--check", metavar="FILE", help="exit 1 if FILE is not what would be generated now")
@@ -331,7 +331,7 @@ def watch_main() -> None:
         dialect = get_dialect(config["dialect"]) if config["dialect"] else None
     watcher = Watcher(
         dialect=dialect,
-        device=tuple(config["device"]),  # type: ignore[arg-type]
+        device=tuple(config["device"]),
         transport=config["transport"],
         pcap=config["pcap"],
         log_path=config["log_path"],

@@ -79,7 +79,7 @@ class api_method(Generic[P, R]):  # noqa: N801 - used as a decorator, like prope
                 return await fn(obj, *args, **kwargs)
 
         functools.update_wrapper(bound, fn)
-        bound.__signature__ = _public_signature(fn)  # type: ignore[attr-defined,union-attr]
+        bound.__signature__ = _public_signature(fn)  # type: ignore[attr-defined]
         # Cached on the instance (a non-data descriptor): later look-ups cost nothing.
         obj.__dict__[self.__name__] = bound
         return bound

@@ -325,7 +325,7 @@ def _remote_method(name: str) -> Callable[..., Coroutine[object, object, object]
         values = dict(bound.arguments)
         for p in public.parameters.values():
             if p.kind is p.VAR_KEYWORD and p.name in values:
-                values.update(values.pop(p.name))  # type: ignore[arg-type]
+                values.update(values.pop(p.name))
         return await self.call(name, values)
 
     method.__signature__ = public  # type: ignore[attr-defined]

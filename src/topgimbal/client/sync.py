@@ -122,7 +122,7 @@ class ThreadLoop:
             raise
         finally:
             with self._lock:
-                self._waiting.discard(fut)  # type: ignore[arg-type]
+                self._waiting.discard(fut)
 
     def stop(self) -> None:
         with self._lock:

@@ -106,7 +106,7 @@ def create_multi_app(
     return app
 
 
-class HttpLog(logging.LoggerAdapter):  # type: ignore[type-arg]
+class HttpLog(logging.LoggerAdapter):
     """aiohttp's server log, minus the tracebacks of requests that are malformed: a client's bad
     HTTP (a broken Content-Length, a non-HTTP byte stream) is one info line, not an error."""
 

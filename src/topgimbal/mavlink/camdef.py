@@ -156,13 +156,13 @@ def _spec_settings(spec: CommandSpec, lens: str, taken: set[str]) -> list[Settin
             first = factory.get(f["name"])
             default = float(next((o.value for o in options if o.name == first), options[0].value))
             typ = "uint8" if max(o.value for o in options) < 256 else "int32"
-            out.append(Setting(type=typ, default=default, options=options, **common))  # type: ignore[arg-type]
+            out.append(Setting(type=typ, default=default, options=options, **common))
             continue
         lo, hi, step = float(f["min"]), float(f["max"]), float(f.get("step") or 0)
         whole = step == int(step) and step >= 1 and lo == int(lo) and INT32[0] <= lo and hi <= INT32[1]
         default = float(factory.get(f["name"], lo)) if isinstance(factory.get(f["name"]), (int, float)) else lo
         out.append(Setting(type="int32" if whole else "float", default=min(max(default, lo), hi), min=lo, max=hi,
-                           step=step or None, **common))  # type: ignore[arg-type]  # fmt: skip
+                           step=step or None, **common))  # fmt: skip
     return out
 
 

@@ -52,7 +52,7 @@ class CameraView:
     def earth_quaternion(self) -> tuple[float, float, float, float]:
         att = self.cam.attitude
         if att is None:
-            return (float("nan"),) * 4  # type: ignore[return-value]
+            return (float("nan"),) * 4
         yaw = att.yaw_deg + (self.vehicles.yaw_deg or 0.0)
         return from_euler_deg(att.roll_deg, att.pitch_deg, yaw)
 

@@ -92,7 +92,7 @@ class RebootWatch:
         self.on_reboot(sysid, why)
 
 
-def _remember(table: OrderedDict, key: object, value: object) -> None:  # type: ignore[type-arg]
+def _remember(table: OrderedDict, key: object, value: object) -> None:
     table[key] = value
     table.move_to_end(key)
     while len(table) > MAX_PEERS:

@@ -272,7 +272,7 @@ class Dialect:
         if dec is None:
             dec = _speedups.make_decoder(self, Message, self._decode_py) or self._decode_py
             self.__dict__["decode"] = dec
-        return dec  # type: ignore[no-any-return]
+        return dec
 
     def _decode_py(self, frame: Frame) -> Message:
         """Dialect.decode in pure Python (the reference the fast path is tested against). A frame no

@@ -139,7 +139,7 @@ class Form:
                 _COMPILED.clear()
             code = _COMPILED[source] = compile(source, "<form decoder>", "exec")
         exec(code, namespace)
-        return namespace["decode"]  # type: ignore[no-any-return]
+        return namespace["decode"]
 
     @property
     def decoder(self) -> Callable[[bytes], dict[str, Any]]:

@@ -63,7 +63,7 @@ class Message(_MessageTuple):
 
     __slots__ = ()
 
-    @property  # type: ignore[override]
+    @property
     def error(self) -> str | None:
         e = _error_slot(self)
         return e if e is None or e.__class__ is str else str(e)

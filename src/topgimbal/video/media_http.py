@@ -48,7 +48,7 @@ def media_index(directory: Path) -> list[dict[str, object]]:
         if p.is_file() and MEDIA_NAME.match(p.name):
             st = p.stat()
             out.append({"name": p.name, "size": st.st_size, "mtime": round(st.st_mtime, 3)})
-    out.sort(key=lambda e: (e["mtime"], e["name"]))  # type: ignore[return-value]
+    out.sort(key=lambda e: (e["mtime"], e["name"]))
     return out
 
 

@@ -315,9 +315,9 @@ class _Connection(asyncio.Protocol):
             local = self.transport.get_extra_info("sockname")[0]
             try:
                 udp, _ = await loop.create_datagram_endpoint(lambda: _Heard(self), local_addr=(local, 0))
-                session.udp = udp  # type: ignore[assignment]
+                session.udp = udp
                 rtcp, _ = await loop.create_datagram_endpoint(lambda: _Heard(self), local_addr=(local, 0))
-                session.udp_rtcp = rtcp  # type: ignore[assignment]
+                session.udp_rtcp = rtcp
             except OSError as exc:  # out of sockets or ports: this SETUP fails, the server goes on
                 session.close()
                 log.warning("RTSP %s: cannot open UDP sockets for %s (%s): 503", stream.path, self.peer, exc)

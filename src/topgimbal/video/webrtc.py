@@ -82,7 +82,7 @@ class WebRtcError(VideoError):
 def _track_class() -> type:
     from aiortc import MediaStreamTrack
 
-    class PassthroughTrack(MediaStreamTrack):  # type: ignore[misc]
+    class PassthroughTrack(MediaStreamTrack):
         """A video track whose `recv()` gives pre-encoded H.264 (aiortc's sender packs it)."""
 
         kind = "video"
@@ -223,7 +223,7 @@ class WhepServer:
         session = _Session(sid, lens, pc, track, self.clock())
         self.sessions[sid] = session
 
-        @pc.on("connectionstatechange")  # type: ignore[misc]
+        @pc.on("connectionstatechange")
         async def on_state() -> None:
             if pc.connectionState in ("failed", "closed"):
                 await self.end(sid, why=f"connection {pc.connectionState}")
