@@ -27,6 +27,7 @@ import shutil
 import socket
 import tempfile
 import time
+from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
@@ -107,30 +108,28 @@ async def test_px4_drives_the_gimbal_and_camera(rig_factory: Any, caplog: Any) -
         shutil.rmtree(work, ignore_errors=True)
 
 
-async def _run(rig_factory: Any, caplog: Any, work: Path) -> None:
-    instance = _free_instance()
-    r = await rig_factory("C12", role="device", endpoints=[
-        "udpin:127.0.0.1:0", f"udpin:127.0.0.1:{13280 + instance}", f"udpin:127.0.0.1:{14030 + instance}"])  # fmt: skip
+@contextlib.asynccontextmanager
+async def px4_sitl(work: Path, instance: int, params: dict[str, str]) -> AsyncIterator[Gcs]:
+    """PX4 SITL (the SIH quad) with `params` (PX4_PARAM_<name>), and a ground station on its
+    ground-station port; PX4's output in `work`/px4.log, its tail printed when the body fails."""
     etc = Path(SITL or "").resolve().parent.parent / "etc"
     env = {**os.environ, "PX4_SIM_MODEL": "sihsim_quadx", "PX4_SIMULATOR": "sihsim",
-           **{f"PX4_PARAM_{k}": v for k, v in PARAMS.items()}}  # fmt: skip
+           **{f"PX4_PARAM_{k}": v for k, v in params.items()}}  # fmt: skip
     log_path = work / "px4.log"
     with open(log_path, "wb") as out:
         proc = await asyncio.create_subprocess_exec(
             str(SITL), "-i", str(instance), "-d", str(etc), cwd=work, env=env,
             stdin=asyncio.subprocess.DEVNULL, stdout=out, stderr=asyncio.subprocess.STDOUT)  # fmt: skip
     gcs: Gcs | None = None
-    rows: list[str] = []
     try:
         link = await Datagrams(18570 + instance).open()
         gcs = Gcs(link, link)  # type: ignore[arg-type]
-        await _steps(r, gcs, caplog, rows)
+        yield gcs
     except BaseException:
         with contextlib.suppress(OSError):
             print("--- PX4 output, last 4000 bytes ---\n" + log_path.read_bytes()[-4000:].decode("utf-8", "replace"))
         raise
     finally:
-        print("\n".join(rows))
         if gcs is not None:
             await gcs.close()
         if proc.returncode is None:
@@ -140,6 +139,22 @@ async def _run(rig_factory: Any, caplog: Any, work: Path) -> None:
         if proc.returncode is None:
             proc.kill()
             await proc.wait()
+
+
+def payload_links(instance: int) -> list[str]:
+    """The bridge's links: one for our own peer, PX4's gimbal-mode and onboard payload links."""
+    return ["udpin:127.0.0.1:0", f"udpin:127.0.0.1:{13280 + instance}", f"udpin:127.0.0.1:{14030 + instance}"]
+
+
+async def _run(rig_factory: Any, caplog: Any, work: Path) -> None:
+    instance = _free_instance()
+    r = await rig_factory("C12", role="device", endpoints=payload_links(instance))
+    rows: list[str] = []
+    try:
+        async with px4_sitl(work, instance, PARAMS) as gcs:
+            await _steps(r, gcs, caplog, rows)
+    finally:
+        print("\n".join(rows))
 
 
 async def _steps(r: Any, g: Gcs, caplog: Any, rows: list[str]) -> None:
