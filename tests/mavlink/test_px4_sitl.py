@@ -9,7 +9,9 @@ UDP 14030 + instance). A ground station talks only to PX4 (UDP 18570 + instance)
 2. DO_GIMBAL_MANAGER_PITCHYAW through PX4: the camera within 0.5 deg;
 3. 1 s camera triggers (DO_SET_CAM_TRIGG_INTERV): exactly one photo per PX4 trigger, each with
    PX4's position at the shutter within 1 m and its UTC within 0.1 s;
-4. over 60 s the bridge never calls its feeds stale (PX4 sends SYSTEM_TIME every 3.2-3.9 s on the
+4. an ROI 80 m away through PX4 while the vehicle, 20 m up, yaws 120 deg at 6 deg/s: the camera's
+   earth yaw error (its body yaw plus the vehicle's heading, against the bearing) p95 <= 0.5 deg;
+5. over 60 s the bridge never calls its feeds stale (PX4 sends SYSTEM_TIME every 3.2-3.9 s on the
    payload link) and never says the autopilot answers nothing.
 
 Runs only where PX4_SITL points at PX4's `px4` SITL binary (build/px4_sitl_default/bin/px4; its
@@ -49,7 +51,11 @@ TIME_GOAL_S = 0.1
 TRIGGERS_S = 6.0
 WATCH_S = 60.0
 # What the setup needs (PX4_PARAM_<name> in the environment, read by PX4's rcS at boot).
-PARAMS = {"MNT_MODE_IN": "4", "MNT_MODE_OUT": "2", "TRIG_MODE": "1", "TRIG_INTERFACE": "3", "TRIG_INTERVAL": "1000"}
+# MPC_YAWRAUTO_MAX 6: the vehicle yaws at 6 deg/s in step 5; COM_RC_IN_MODE 4: arms with no stick.
+PARAMS = {"MNT_MODE_IN": "4", "MNT_MODE_OUT": "2", "TRIG_MODE": "1", "TRIG_INTERFACE": "3", "TRIG_INTERVAL": "1000",
+          "MPC_YAWRAUTO_MAX": "6", "COM_RC_IN_MODE": "4"}  # fmt: skip
+ROI_GOAL_P95_DEG = 0.5
+TURN_DEG = 120.0
 
 
 class Datagrams:
@@ -223,7 +229,10 @@ async def _steps(r: Any, g: Gcs, caplog: Any, rows: list[str]) -> None:
     rows.append(f"photo position error (m) max {max(errors_m):.2f}; UTC error (s) max {max(errors_s):.3f}")
     assert max(errors_m) < POSITION_GOAL_M and max(errors_s) < TIME_GOAL_S
 
-    # 4. No stale flapping over 60 s; the autopilot answers on the payload link.
+    # 4. ROI while the vehicle yaws at 6 deg/s.
+    await _roi_turn(g, gim, rows)
+
+    # 5. No stale flapping over 60 s; the autopilot answers on the payload link.
     await asyncio.sleep(max(0.0, WATCH_S - (time.monotonic() - watch_from)))
     stale = [rec.getMessage() for rec in caplog.records if "go stale" in rec.getMessage()]
     status = bridge.streams.status()
@@ -232,3 +241,68 @@ async def _steps(r: Any, g: Gcs, caplog: Any, rows: list[str]) -> None:
                 f"{status['GLOBAL_POSITION_INT']['period_s']} s")  # fmt: skip
     assert stale == []
     assert not any("answered none" in rec.getMessage() for rec in caplog.records)
+
+
+def _wrap180(deg: float) -> float:
+    return (deg + 180.0) % 360.0 - 180.0
+
+
+def _percentile(values: list[float], q: float) -> float:
+    v = sorted(values)
+    return v[min(len(v) - 1, round(q / 100.0 * (len(v) - 1)))]
+
+
+async def _roi_turn(g: Gcs, gim: Any, rows: list[str]) -> None:
+    """Take off to 20 m, point at a place 80 m away (DO_SET_ROI_LOCATION to PX4), yaw TURN_DEG at
+    MPC_YAWRAUTO_MAX (DO_REPOSITION with a yaw, radians in PX4); sample the camera's earth yaw
+    error at each ATTITUDE more than 10 deg from the turn's start and end."""
+    t_arm = time.monotonic()
+    while (await g.command(ml.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result != ml.MAV_RESULT_ACCEPTED:
+        assert time.monotonic() - t_arm < 120, "PX4 would not arm: " + "; ".join(t for _, t in g.texts[-5:])
+        await asyncio.sleep(3.0)
+    home = g.place
+    ack = await g.command(ml.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, home.alt_m + 20)
+    assert ack.result == ml.MAV_RESULT_ACCEPTED, ack
+    await until(lambda: g.position is not None and g.position.relative_alt > 18_000, 90, "20 m up")
+    await asyncio.sleep(5.0)  # settled in the hold
+    # the place 80 m away, 60 deg right of the nose; the turn right by TURN_DEG takes it from the
+    # camera's +60 to -60 deg (the C12 yaws +-90 deg)
+    start = g.heading_deg
+    r_earth = 6_371_008.8
+    b = math.radians(start + TURN_DEG / 2)
+    roi = Position(home.lat_deg + math.degrees(80.0 * math.cos(b) / r_earth),
+                   home.lon_deg + math.degrees(80.0 * math.sin(b) / (r_earth * math.cos(math.radians(home.lat_deg)))),
+                   home.alt_m)  # fmt: skip
+    ack = await g.command(ml.MAV_CMD_DO_SET_ROI_LOCATION, 0, 0, 0, 0, roi.lat_deg, roi.lon_deg, roi.alt_m)
+    assert ack.result == ml.MAV_RESULT_ACCEPTED, ack
+
+    def bearing() -> float:
+        n, e, _ = offset_m(g.place, roi)
+        return math.degrees(math.atan2(e, n))
+
+    await until(lambda: abs(_wrap180(g.heading_deg + gim.yaw_deg - bearing())) < 1.0, MOVE_S, "the camera on the ROI")
+    end = _wrap180(start + TURN_DEG)
+    errors: list[float] = []
+    when: list[float] = []
+
+    def sample(att: Any) -> None:
+        heading = math.degrees(att.yaw)
+        if abs(_wrap180(heading - start)) > 10 and abs(_wrap180(heading - end)) > 10:
+            errors.append(abs(_wrap180(heading + gim.yaw_deg - bearing())))
+            when.append(time.monotonic())
+
+    g.on_attitude = sample
+    try:
+        here = g.place
+        ack = await g.command(ml.MAV_CMD_DO_REPOSITION, -1, 1, 0, math.radians(end), here.lat_deg, here.lon_deg,
+                              here.alt_m)  # fmt: skip
+        assert ack.result == ml.MAV_RESULT_ACCEPTED, ack
+        await until(lambda: abs(_wrap180(g.heading_deg - end)) < 2, TURN_DEG / 6 + 60, "the turn")
+    finally:
+        g.on_attitude = None
+    assert len(errors) > 20, f"{len(errors)} samples during the turn"
+    rate = (TURN_DEG - 20) / (when[-1] - when[0])
+    p95 = _percentile(errors, 95)
+    rows.append(f"ROI while yawing at {rate:.1f} deg/s: earth yaw error p50 {_percentile(errors, 50):.2f} p95 "
+                f"{p95:.2f} max {max(errors):.2f} deg ({len(errors)} samples)")  # fmt: skip
+    assert p95 <= ROI_GOAL_P95_DEG
