@@ -147,6 +147,15 @@ async def px4_sitl(work: Path, instance: int, params: dict[str, str]) -> AsyncIt
             await proc.wait()
 
 
+async def gcs_streams(g: Gcs) -> None:
+    """What PX4's ground-station link does not stream by default (its normal mode): SYSTEM_TIME
+    (5 Hz, for the truth of a photo's date) and CAMERA_TRIGGER (each trigger)."""
+    for msgid, interval_us in ((ml.MAVLINK_MSG_ID_SYSTEM_TIME, 200_000), (ml.MAVLINK_MSG_ID_CAMERA_TRIGGER, 10_000)):
+        ack = await g.command(ml.MAV_CMD_SET_MESSAGE_INTERVAL, msgid, interval_us)
+        assert ack.result == ml.MAV_RESULT_ACCEPTED, (msgid, ack)
+    await until(lambda: g.system_time is not None, 30, "SYSTEM_TIME from PX4")
+
+
 def payload_links(instance: int) -> list[str]:
     """The bridge's links: one for our own peer, PX4's gimbal-mode and onboard payload links."""
     return ["udpin:127.0.0.1:0", f"udpin:127.0.0.1:{13280 + instance}", f"udpin:127.0.0.1:{14030 + instance}"]
@@ -167,7 +176,7 @@ async def _steps(r: Any, g: Gcs, caplog: Any, rows: list[str]) -> None:
     sim, bridge = r.sim, r.bridge
     t_boot = time.monotonic()
     await until(lambda: g.position is not None and g.position.lat != 0, BOOT_S, "a GPS fix from PX4")
-    await until(lambda: g.system_time is not None, 30, "SYSTEM_TIME from PX4")
+    await gcs_streams(g)
     rows.append(f"PX4 up with a fix after {time.monotonic() - t_boot:.1f} s")
 
     # 1. PX4 names the bridge's gimbal as its device.

@@ -23,7 +23,7 @@ from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.mavlink.geo import Position, offset_m
 
-from .test_px4_sitl import SITL, _free_instance, payload_links, px4_sitl
+from .test_px4_sitl import SITL, _free_instance, gcs_streams, payload_links, px4_sitl
 from .test_sitl import AUTOPILOT, Gcs, until
 
 pytestmark = pytest.mark.external
@@ -109,7 +109,7 @@ async def _fly(r: Any, g: Gcs, rows: list[str]) -> None:
     kinds = {"MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK", "CAMERA_TRIGGER", "MISSION_ITEM_REACHED"}
     g.mav.set_callback(lambda m: seen.append(m) if m.get_type() in kinds and m.get_srcSystem() == 1 else None)
     await until(lambda: g.position is not None and g.position.lat != 0, 120, "a GPS fix from PX4")
-    await until(lambda: g.system_time is not None, 30, "SYSTEM_TIME from PX4")
+    await gcs_streams(g)
     home = g.place
     items = mission(home)
     await upload(g, items, seen)
