@@ -227,8 +227,7 @@ async def _steps(r: Any, g: Gcs, caplog: Any, rows: list[str]) -> None:
     await asyncio.sleep(5.0)
     taken = sim.camera.photos_taken - taken0
     px4_captures = [m for m in got_kind("CAMERA_IMAGE_CAPTURED") if m.get_srcComponent() == AUTOPILOT[1]]
-    ours = {m.image_index: m for m in r.peer.messages
-            if m.get_type() == "CAMERA_IMAGE_CAPTURED" and m.get_srcComponent() == 100}  # fmt: skip
+    ours = dict(r.bridge.cameras[0].images)  # the bridge's CAMERA_IMAGE_CAPTURED records
     rows.append(f"PX4 triggers: CAMERA_TRIGGER {len(got_kind('CAMERA_TRIGGER'))}, its CAMERA_IMAGE_CAPTURED "
                 f"{len(px4_captures)}, photos taken {taken}, "
                 f"bridge records {len(ours)}")  # fmt: skip

@@ -10,6 +10,7 @@ PX4_SITL points at PX4's `px4` SITL binary; skipped (not passed) elsewhere."""
 from __future__ import annotations
 
 import asyncio
+import bisect
 import itertools
 import math
 import shutil
@@ -35,7 +36,7 @@ SPACING_M = 40.0
 ALT_M = 30.0
 SPEED_M_S = 9.0
 PARAMS = {"MNT_MODE_IN": "4", "MNT_MODE_OUT": "2", "TRIG_MODE": "4", "TRIG_INTERFACE": "3",
-          "MPC_XY_CRUISE": str(SPEED_M_S), "COM_RC_IN_MODE": "4"}  # fmt: skip
+          "MPC_XY_CRUISE": str(SPEED_M_S), "COM_RC_IN_MODE": "4", "MAV_SYS_ID": "1"}  # fmt: skip
 FLY_S = 240.0
 ON_LINE_M = 3.0  # a photo this far off its transect's line, or beyond its ends, is in a turn
 
@@ -45,6 +46,21 @@ def _place(home: Position, north_m: float, east_m: float) -> Position:
     lat = home.lat_deg + math.degrees(north_m / r)
     lon = home.lon_deg + math.degrees(east_m / (r * math.cos(math.radians(home.lat_deg))))
     return Position(lat, lon, home.alt_m)
+
+
+def _position_at(track: list[tuple[float, Any]], t: float) -> Position:
+    """PX4's position at `t` (our clock), interpolated between the fixes heard around it."""
+    i = bisect.bisect_left([w for w, _ in track], t)
+    assert 0 < i < len(track), "no GLOBAL_POSITION_INT around that time"
+    (ta, a), (tb, b) = track[i - 1], track[i]
+    w = (t - ta) / (tb - ta) if tb > ta else 1.0
+    return Position((a.lat + w * (b.lat - a.lat)) / 1e7, (a.lon + w * (b.lon - a.lon)) / 1e7, a.alt / 1000.0)
+
+
+def _speed_at(track: list[tuple[float, Any]], t: float) -> float:
+    i = min(max(1, bisect.bisect_left([w for w, _ in track], t)), len(track) - 1)
+    m = track[i][1]
+    return math.hypot(m.vx, m.vy) / 100.0
 
 
 def transects(home: Position) -> list[tuple[Position, Position]]:
@@ -107,7 +123,17 @@ async def _fly(r: Any, g: Gcs, rows: list[str]) -> None:
     sim = r.sim
     seen: list[Any] = []
     kinds = {"MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK", "CAMERA_TRIGGER", "MISSION_ITEM_REACHED"}
-    g.mav.set_callback(lambda m: seen.append(m) if m.get_type() in kinds and m.get_srcSystem() == 1 else None)
+    track: list[tuple[float, Any]] = []  # PX4's GLOBAL_POSITION_INT, all of the flight (Gcs keeps 12 s)
+
+    def heard(m: Any) -> None:
+        if m.get_srcSystem() != 1:
+            return
+        if m.get_type() in kinds:
+            seen.append(m)
+        elif m.get_type() == "GLOBAL_POSITION_INT" and m.get_srcComponent() == 1:
+            track.append((time.monotonic(), m))
+
+    g.mav.set_callback(heard)
     await until(lambda: g.position is not None and g.position.lat != 0, 120, "a GPS fix from PX4")
     await gcs_streams(g)
     home = g.place
@@ -130,15 +156,14 @@ async def _fly(r: Any, g: Gcs, rows: list[str]) -> None:
     await asyncio.sleep(3.0)
     triggers = [m for m in seen if m.get_type() == "CAMERA_TRIGGER"]
     taken = sim.camera.photos_taken - taken0
-    records = {m.image_index: m for m in r.peer.messages
-               if m.get_type() == "CAMERA_IMAGE_CAPTURED" and m.get_srcComponent() == 100}  # fmt: skip
+    records = dict(r.bridge.cameras[0].images)  # the bridge's CAMERA_IMAGE_CAPTURED records
     rows.append(f"survey: PX4 triggers {len(triggers)}, photos taken {taken}, bridge records {len(records)}")
     photos = [records[i] for i in sorted(records)]
     where = [Position(m.lat / 1e7, m.lon / 1e7, home.alt_m) for m in photos]
     # geotags against PX4's position at each shutter
     errors_m = []
     for p, shutter in zip(where, shutters[-len(where) :], strict=True):
-        n, e, _ = offset_m(g.position_at(shutter), p)
+        n, e, _ = offset_m(_position_at(track, shutter), p)
         errors_m.append(math.hypot(n, e))
     # each photo on a transect (none in the turns), and the spacing along each
     per_line: dict[int, list[float]] = {}
@@ -156,7 +181,16 @@ async def _fly(r: Any, g: Gcs, rows: list[str]) -> None:
             off_line.append(i)
         else:
             per_line.setdefault(fits[0][0], []).append(fits[0][1])
+    for i, (p, m, err) in enumerate(zip(where, photos, errors_m, strict=True)):
+        fix = _position_at(track, shutters[-len(where) + i])
+        rows.append(f"photo {m.image_index}: geotag error {err:.2f} m at {_speed_at(track, shutters[-len(where) + i]):.1f} "
+                    f"m/s (PX4 {fix.lat_deg:.7f} {fix.lon_deg:.7f}, bridge {p.lat_deg:.7f} {p.lon_deg:.7f})")  # fmt: skip
     gaps = [b - a for line in per_line.values() for a, b in itertools.pairwise(sorted(line))]
+    # the same from PX4's own position at each shutter: PX4's trigger spacing, without the geotags' errors
+    truth = [_position_at(track, t) for t in shutters[-len(where) :]]
+    true_gaps = [math.hypot(*offset_m(a, b)[:2]) for a, b in itertools.pairwise(truth)]
+    true_gaps = [d for d in true_gaps if d < 1.5 * DISTANCE_M]  # not across a turn
+    rows.append(f"spacing at PX4's own positions (m) min {min(true_gaps):.2f} max {max(true_gaps):.2f}")
     rows.append(f"photos per transect {[len(per_line.get(j, [])) for j in range(TRANSECTS)]}; off the lines "
                 f"(in turns) {len(off_line)}; spacing (m) min {min(gaps):.2f} max {max(gaps):.2f}; "
                 f"geotag error (m) max {max(errors_m):.2f}")  # fmt: skip
