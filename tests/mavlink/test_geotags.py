@@ -165,6 +165,8 @@ async def test_virtual_the_autopilot_is_asked_again_on_the_products_schedule(vri
     def got(m: Any) -> None:
         if m.get_type() == "COMMAND_LONG" and m.command == 511 and m.param1 == 33:
             asked_at.append(monotonic())
+            # acked as autopilots do (one that acks nothing is asked ever more rarely: test_px4_links)
+            autopilot.send(ml.MAVLink_command_ack_message(511, 0, 0, 0, m.get_srcSystem(), m.get_srcComponent()))
         inner(m)
 
     autopilot._got = got  # type: ignore[method-assign]

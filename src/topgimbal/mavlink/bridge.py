@@ -38,6 +38,7 @@ from .pointing import Pointer
 from .reboots import RebootWatch
 from .rtp_out import VideoOutError, advertised, parse_targets
 from .services import Services
+from .survey import survey_for
 from .vehicle import Vehicles
 
 log = logging.getLogger("topgimbal.mavlink")
@@ -208,6 +209,7 @@ class Bridge:
             raise BridgeConfigError(
                 f"video_out: no {', '.join(pushed)} camera on this bridge ({self.cam.profile.model})"
             )
+        self.survey = survey_for(self.dispatcher, self.cameras, self.pointer, self.vehicles)  # OBLIQUE_SURVEY
         if c.terrain is not None:  # read once, shared by the cameras (DemError for a file it cannot use)
             from ..geo.dem import load_dem
 
@@ -297,8 +299,8 @@ class Bridge:
         await self.dispatcher.close()
         if self.recorder is not None:  # its thread finishes the file it writes (a few ms)
             await asyncio.to_thread(self.recorder.close)
-        if self.manager is not None:
-            await self.manager.close()
+        for part in [p for p in (self.manager, self.survey) if p is not None]:
+            await part.close()
         for cam in self.cameras:
             await cam.close()
         for svc in self.services:

@@ -311,6 +311,12 @@ class CameraComponent:
             True, file_url(self.media_url, self.cam.model_name, self.lens, answer.fields), shutter
         )
 
+    async def take_photo(self) -> MAVLinkMessage:
+        """One photo now, its CAMERA_IMAGE_CAPTURED sent (the oblique survey, survey.py)."""
+        msg = await self._take_photo()
+        self.comp.send(msg)
+        return msg
+
     def _record_image(self, ok: bool, url: str = "", shutter: float | None = None) -> MAVLinkMessage:
         """CAMERA_IMAGE_CAPTURED for a photo taken at `shutter` (this clock): the vehicle's position
         then (interpolated between fixes, not the last one heard), the autopilot's UTC then (its
