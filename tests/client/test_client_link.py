@@ -12,6 +12,8 @@ import pytest
 import topgimbal
 from topgimbal.errors import LinkLostError, TransportError
 
+pytestmark = pytest.mark.virtual
+
 
 async def until(predicate, limit_s: float = 10.0) -> None:
     async def poll() -> None:
@@ -55,6 +57,7 @@ async def test_pending_requests_fail_at_once_when_the_link_goes_down(fake):
         assert await cam.version()
 
 
+@pytest.mark.loopback
 async def test_a_closed_tcp_connection_is_lost_at_once_and_reconnects(fake):
     url = await fake.start_tcp()
     fake.handler = lambda f: None  # never answers

@@ -11,6 +11,8 @@ from topgimbal.errors import DeviceError, FieldValueError, RequestTimeoutError, 
 from topgimbal.protocol import make_frame
 from topgimbal.transport import BACKENDS, parse_url
 
+pytestmark = pytest.mark.loopback
+
 
 def test_parse_urls():
     u = parse_url("udp://127.0.0.1:5000")

@@ -16,6 +16,8 @@ import topgimbal
 from topgimbal.errors import UnsupportedError
 from topgimbal.protocol import all_models, get_model
 
+pytestmark = pytest.mark.loopback
+
 MODELS = sorted(all_models())
 
 

@@ -12,7 +12,7 @@ import urllib.request
 
 import pytest
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 # How long the demo serves before it exits by itself: long enough that, on a loaded machine, the
 # test still fetches the page within it (3 s was not, once, with six workers on two cores).

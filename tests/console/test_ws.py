@@ -12,6 +12,8 @@ import pytest
 
 from topgimbal.console import ConsoleServer
 
+pytestmark = pytest.mark.loopback
+
 
 @pytest.fixture
 async def console() -> AsyncIterator[ConsoleServer]:

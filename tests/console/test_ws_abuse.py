@@ -27,7 +27,7 @@ from topgimbal.console.peer import PeerLimits
 
 from .conftest import BackgroundConsole, wait_for
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 
 class LogTrap(logging.Handler):

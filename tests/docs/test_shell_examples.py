@@ -43,6 +43,8 @@ from topgimbal.protocol import encode
 from topgimbal.sim import BackgroundSimulator
 from topgimbal.wire.synth import CaptureWriter
 
+pytestmark = pytest.mark.external
+
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 SHELL_LANGS = ("sh", "bash", "shell", "console")

@@ -28,7 +28,7 @@ from topgimbal.mavlink.zenoh_link import ZenohLink
 
 from .conftest import eventually, free_port, raw_call, raw_session
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 ACL = """{
   transport: { auth: { usrpwd: { user: "server", password: "srv-pass", dictionary_file: "DICT" } } },

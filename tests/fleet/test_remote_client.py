@@ -20,7 +20,7 @@ from topgimbal.fleet.specs import parse_camera, read_camera_file
 
 from .conftest import eventually, raw_call, raw_session
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 
 async def test_remote_camera_is_used_like_a_local_one(sims: Any, zport: int) -> None:

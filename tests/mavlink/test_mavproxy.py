@@ -18,7 +18,7 @@ from pymavlink import mavutil
 
 from .conftest import Rig, eventually
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.external, pytest.mark.integration]
 MAVPROXY = Path(sys.executable).with_name("mavproxy.py")  # installed by `make .venv/.installed`
 
 

@@ -14,6 +14,8 @@ from mavsdk.asyncio.plugins.gimbal import GimbalAsync, GimbalMode, SendMode
 
 from .conftest import eventually, mavsdk_session
 
+pytestmark = pytest.mark.external
+
 CAMERA = 100
 
 
@@ -30,7 +32,7 @@ async def _until(agen: Any, pred: Any, timeout: float) -> Any:
         await agen.aclose()
 
 
-@pytest.mark.serial  # MAVSDK: run apart from the parallel pass (conftest.mavsdk_session)
+@pytest.mark.cage(240)  # MAVSDK can hang its caller (conftest.mavsdk_session)
 async def test_mavsdk_ground_station(rig_factory) -> None:
     r = await rig_factory("C12", timeout_s=1.0, retries=2)
     sim = r.sim

@@ -17,7 +17,8 @@ from topgimbal.mavlink.camdef import settings_for
 from .conftest import Rig, eventually, mavsdk_session
 from .test_mavsdk import _until
 
-pytestmark = [pytest.mark.integration, pytest.mark.serial]  # MAVSDK: apart from the parallel pass
+# MAVSDK can hang its caller: each test in a child of its own (conftest.mavsdk_session)
+pytestmark = [pytest.mark.external, pytest.mark.integration, pytest.mark.cage(240)]
 THERMAL = 101
 
 

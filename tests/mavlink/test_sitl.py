@@ -48,6 +48,8 @@ from pymavlink.dialects.v20 import common as ml
 from topgimbal.mavlink.geo import Position, look_at, offset_m
 from topgimbal.protocol import get_model
 
+pytestmark = pytest.mark.external
+
 SITL = os.environ.get("ARDUPILOT_SITL")
 AUTOPILOT = (1, 1)
 BOOT_S = 90.0  # SITL's boot plus its 10 s wait before it looks for a MAVLink gimbal, on a loaded machine

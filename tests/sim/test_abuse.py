@@ -16,7 +16,7 @@ from topgimbal.sim.servers import Limits
 
 from .conftest import LOOP, UdpClient, req
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 GAA_100 = req("C12", "GAA", rate_hz=100)
 

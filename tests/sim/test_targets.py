@@ -22,6 +22,8 @@ from topgimbal.video.snapshot import capture
 
 from .conftest import LOOP
 
+pytestmark = pytest.mark.loopback
+
 
 def test_a_spec_moves_at_its_true_angular_speed_and_hides_in_its_intervals() -> None:
     t = parse_spec("name=car,bearing=10,elevation=-5,speed=10,heading=0,hide=3-3.5+8-9")

@@ -14,7 +14,7 @@ from topgimbal.sim.servers import configure_tty
 
 from .conftest import LOOP, UdpClient, raw, req
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 
 async def test_c12_over_udp_conversation_and_replies_to_each_sender() -> None:
@@ -125,6 +125,7 @@ def test_background_simulator_for_sync_code() -> None:
         assert bg.call(lambda sim: sim.camera.record_index) == 1
 
 
+@pytest.mark.external
 async def test_ardupilot_topotek_driver_conversation_over_tcp() -> None:
     """What ArduPilot's TOPOTEK driver sends over a byte stream, and reads back (seeds README)."""
     d = get_dialect("topotek")

@@ -26,7 +26,10 @@ from topgimbal.sim import Simulator
 from topgimbal.video.media import MediaStore
 from topgimbal.video.media_http import MediaServer
 
-pytestmark = pytest.mark.skipif(shutil.which("exiftool") is None, reason="make exiftool-deps installs exiftool")
+pytestmark = [
+    pytest.mark.external,
+    pytest.mark.skipif(shutil.which("exiftool") is None, reason="make exiftool-deps installs exiftool"),
+]
 
 UTC = datetime.timezone.utc
 

@@ -25,7 +25,7 @@ from topgimbal.video.rtp_push import ParamSetInserter, RtpPush, advertised_uri, 
 
 from .conftest import FFMPEG, LiveSim
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.external, pytest.mark.integration]
 GST = shutil.which("gst-launch-1.0") or "/usr/bin/gst-launch-1.0"
 SRC = str(Path(__file__).resolve().parents[2] / "src")
 

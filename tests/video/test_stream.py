@@ -21,7 +21,7 @@ from topgimbal.video.render import decode_stamp
 from .blobs import nearest, red_blobs
 from .conftest import FFPROBE, LiveSim, grab
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.external, pytest.mark.integration]
 
 # Where a landmark's bullseye is found against where the lens model puts it. The centroid of a
 # ~30 px ring in an H.264 picture lands within a pixel of its centre; the picture is taken at

@@ -22,6 +22,8 @@ from topgimbal.video import webconsole
 from topgimbal.video.relay import Relay
 from topgimbal.video.webconsole import ConsoleVideo
 
+pytestmark = pytest.mark.loopback
+
 PICTURE = b"\xff\xd8" + bytes(200_000) + b"\xff\xd9"  # big enough to fill socket buffers fast
 
 
