@@ -10,17 +10,14 @@ import asyncio
 import pytest
 
 import topgimbal
+import waiting
 from topgimbal.errors import LinkLostError, TransportError
 
 pytestmark = pytest.mark.virtual
 
 
 async def until(predicate, limit_s: float = 10.0) -> None:
-    async def poll() -> None:
-        while not predicate():
-            await asyncio.sleep(0.01)
-
-    await asyncio.wait_for(poll(), limit_s)
+    await waiting.until("the link's state", predicate, bound_s=limit_s, every_s=0.01)  # tests/waiting.py
 
 
 async def test_a_quiet_device_ends_streams_fails_requests_and_comes_back(fake):

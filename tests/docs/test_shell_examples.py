@@ -61,6 +61,7 @@ NOT_RUN: dict[str, str] = {
     "pip install -e '.[serial]'": "installs into the environment running the tests (make does it)",
     "pip install -e '.[all]'": "installs into the environment running the tests (make does it)",
     "make bench": "benchmarks: minutes of CPU, figures only",
+    "make flake RUNS=3 HOG=2": "the loopback and external tiers three times beside busy loops: most of an hour",
     "make docs": "rewrites docs/protocol.md in the work tree (tests/protocol checks it is current)",
     "python -m topgimbal.tools.cgen": "rewrites c/generated/ in the work tree; the --check beside it runs",
     "python -m topgimbal.tools.regen": "rewrites generated files in the work tree; the --check beside it runs",

@@ -13,6 +13,7 @@ from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.mavlink import Bridge, BridgeConfig
 from topgimbal.sim import Simulator
+from waiting import until
 
 NAN = float("nan")
 CLOSE_S = 20.0  # a rig's bridge and simulator close in well under a second
@@ -137,12 +138,7 @@ class Rig:
 
 
 async def eventually(check: Callable[[], bool], timeout: float = 8.0, what: str = "condition") -> None:
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout
-    while not check():
-        if loop.time() > end:
-            raise AssertionError(f"{what} did not hold within {timeout} s")
-        await asyncio.sleep(0.02)
+    await until(what, check, bound_s=timeout)  # tests/waiting.py: its failure shows the last values
 
 
 def nan_free(values: Any) -> bool:

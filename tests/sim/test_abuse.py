@@ -11,6 +11,7 @@ from collections.abc import Callable
 
 import pytest
 
+import waiting
 from topgimbal.sim import FakeClock, Simulator
 from topgimbal.sim.servers import Limits
 
@@ -22,13 +23,8 @@ GAA_100 = req("C12", "GAA", rate_hz=100)
 
 
 async def until(pred: Callable[[], bool], timeout_s: float = 5.0) -> bool:
-    """Poll `pred` until it holds (the outcome is asserted, not how long it took)."""
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout_s
-    while not pred():
-        if loop.time() > end:
-            return False
-        await asyncio.sleep(0.02)
+    """Poll `pred` until it holds (the outcome is asserted, not how long it took; tests/waiting.py)."""
+    await waiting.until("the simulator's counts", pred, bound_s=timeout_s)
     return True
 
 
