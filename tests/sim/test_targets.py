@@ -126,7 +126,9 @@ def test_sim_cli_takes_targets_and_writes_truth_at_50_hz(tmp_path: Path) -> None
     assert [t["name"] for t in lines[-1]["targets"]] == ["a", "b"]
     span = lines[-1]["t"] - lines[0]["t"]
     gaps = sorted(b["t"] - a["t"] for a, b in itertools.pairwise(lines))
-    assert len(lines) >= 10 and 0.015 <= gaps[len(gaps) // 2] <= 0.025  # paced at 50 Hz (median gap)
+    # paced at 50 Hz: never faster (a loaded machine can only make a real-time timer later, so the
+    # upper side is no wiring check; the pacing itself is proved on looptime in the virtual tier)
+    assert len(lines) >= 10 and gaps[len(gaps) // 2] >= 0.015
     a0, a1 = lines[0]["targets"][0]["bearing_deg"], lines[-1]["targets"][0]["bearing_deg"]
     assert a1 - a0 == pytest.approx(10 * span, abs=0.01)
 
