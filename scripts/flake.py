@@ -143,6 +143,8 @@ def main(argv: list[str] | None = None) -> int:
         for number in range(1, args.runs + 1):
             runs.append(one_run(number, args.workers, args.extra, logdir))
             print(f"run {number}: {runs[-1].wall_s:.0f} s, failed: {runs[-1].failed or 'none'}", flush=True)
+            # the table so far, kept beside the logs: a harness stopped early still leaves one
+            (logdir / "table.txt").write_text(report(runs, args.hog, logdir) + "\n", encoding="utf-8")
     finally:
         stop_hogs(hogs)
     print(report(runs, args.hog, logdir))
