@@ -19,7 +19,13 @@ NAN = float("nan")
 CLOSE_S = 20.0  # a rig's bridge and simulator close in well under a second
 
 
-_KEPT: list[Any] = []  # MAVSDK instances never destroyed: see mavsdk_session
+_KEPT: list[Any] = []  # MAVSDK objects never destroyed nor unsubscribed: see mavsdk_session
+
+
+def keep(*objects: Any) -> None:
+    """Hold MAVSDK objects (plugins, subscriptions) until the caged child ends: freed or closed while
+    MAVSDK's threads still called into them, they crashed the process (see mavsdk_session)."""
+    _KEPT.extend(objects)
 
 
 @contextlib.asynccontextmanager
@@ -30,7 +36,10 @@ async def mavsdk_session(cfg: Any) -> AsyncIterator[Any]:
     serial passes of a quiet machine, and before on loaded ones), and destroyed from another thread
     it crashed the process. So it is not called: the instance is kept alive (its plugins destroy
     themselves in `__del__`, the same call) until the caged child leaves with `os._exit` and the
-    kernel reclaims it. Outside the cage this refuses to run, so no test can bring the hang back."""
+    kernel reclaims it. Outside the cage this refuses to run, so no test can bring the hang back.
+    Nor is anything unsubscribed or freed (`keep`): MAVSDK's threads crashed the process (a segfault
+    while the test went on, and once in its teardown) after a subscription was closed or a plugin's
+    wrapper was collected, seen at load 40."""
     from mavsdk.asyncio import Mavsdk
 
     from cage import in_child

@@ -12,7 +12,7 @@ from mavsdk.asyncio import ComponentType, Configuration
 from mavsdk.asyncio.plugins.camera import CameraAsync
 from mavsdk.asyncio.plugins.gimbal import GimbalAsync, GimbalMode, SendMode
 
-from .conftest import eventually, mavsdk_session
+from .conftest import eventually, keep, mavsdk_session
 
 pytestmark = pytest.mark.external
 
@@ -29,7 +29,7 @@ async def _until(agen: Any, pred: Any, timeout: float) -> Any:
     try:
         return await asyncio.wait_for(first(), timeout)
     finally:
-        await agen.aclose()
+        keep(agen)  # never closed: an unsubscribe racing MAVSDK's callbacks crashed it (conftest.keep)
 
 
 @pytest.mark.cage(240)  # MAVSDK can hang its caller (conftest.mavsdk_session)
@@ -44,6 +44,7 @@ async def test_mavsdk_ground_station(rig_factory) -> None:
         system = (await mavsdk.get_systems())[0]
         gimbal = GimbalAsync(system)
         camera = CameraAsync(system)
+        keep(gimbal, camera)
         if True:
             glist = await _until(gimbal.subscribe_gimbal_list(), lambda g: len(g.gimbals) > 0, 20)
             assert glist is not None and len(glist.gimbals) == 1, "gimbal not discovered"

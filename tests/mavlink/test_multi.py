@@ -16,7 +16,7 @@ from topgimbal.mavlink.bridge import BridgeConfigError
 from topgimbal.mavlink.multi import MultiBridge, allocate
 from topgimbal.sim import Simulator
 
-from .conftest import eventually, mavsdk_session
+from .conftest import eventually, keep, mavsdk_session
 from .test_mavsdk import _until
 
 pytestmark = [pytest.mark.external, pytest.mark.integration]
@@ -53,6 +53,7 @@ async def test_two_cameras_through_one_bridge_are_two_in_mavsdk() -> None:
             await eventually(lambda: mavsdk._mavsdk.system_count() > 0, 20, "MAVSDK sees the system")
             system = (await mavsdk.get_systems())[0]
             gimbal, camera = GimbalAsync(system), CameraAsync(system)
+            keep(gimbal, camera)
             glist = await _until(gimbal.subscribe_gimbal_list(), lambda g: len(g.gimbals) >= 2, 30)
             assert glist is not None, "two gimbals not discovered"
             assert sorted(g.gimbal_manager_component_id for g in glist.gimbals) == [154, 171]
