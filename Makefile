@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: deps debian-deps test check demo lint typecheck pytest pytest-virtual docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps misb-deps
+.PHONY: deps debian-deps test check flake demo lint typecheck pytest pytest-virtual docs docs-check bench clean browser-deps c-deps c-test tshark-deps video-deps gstreamer-deps exiftool-deps mavproxy-deps misb-deps
 
 # The C fast path is compiled by `pip install`: rebuild it when its sources change.
 $(STAMP): pyproject.toml setup.py src/topgimbal/_speedups/_ctop.c $(wildcard c/src/*.c c/include/*.h c/generated/*)
@@ -79,6 +79,14 @@ pytest: debian-deps $(STAMP) browser-deps tshark-deps video-deps gstreamer-deps 
 # The virtual tier (tests/conftest.py): memory transport and fake clocks, no socket, no process.
 pytest-virtual: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m virtual
+
+# The flake harness: the loopback and external tiers RUNS times as `make test` runs them, beside HOG
+# busy loops (a noisy neighbour), then a table of failures per test and each run's wall time and load
+# (scripts/flake.py; README, Development).
+RUNS ?= 3
+HOG ?= 0
+flake: $(STAMP)
+	$(BIN)/python scripts/flake.py --runs $(RUNS) --hog $(HOG) --workers $(PYTEST_WORKERS)
 
 # libtopgimbal (c/): clang with libFuzzer and sanitizer runtimes, installed only when missing.
 # MAVProxy as a MAVLink router in the tests (tests/mavlink/test_multi_router.py). --no-deps: its

@@ -1,4 +1,4 @@
-"""The suite's tiers, marked at collection (pyproject.toml registers them; README, Development):
+"""The suite's tiers, declared by each test module (pyproject.toml registers them; README, Development):
 
 - `external`: drives a program outside Python (Chromium, ffmpeg, MAVProxy, MAVSDK, SITL, tshark,
   exiftool, a C compiler);
@@ -6,123 +6,77 @@
 - `virtual`: everything else: memory transport or a fake clock, no socket, no child process; its
   coroutines run on looptime's virtual-time loop.
 
-A test's tier is read from its own source, its module's other code (imports, helpers, constants:
-not the module's other tests) and the sources of the fixtures it uses (code that names a loopback
-address, a child process or an external program is not virtual), so no test file has to mark
-itself, and one loopback test does not take its module's memory:// tests out of the virtual tier; `pytest.mark.loopback`/`external` on a test still wins. The rule is
-checked where it matters: a test counted as virtual that opens an IP socket or starts a process
-fails at once, saying so (`_virtual_guard`), so `make check` can never quietly wait on a network.
+Every test module says `pytestmark = pytest.mark.<tier>` (alone or in its list); a test (or a
+parameter) may override it with its own mark, the nearest one wins. A module that declares none is a
+collection error naming it: a tier read from a test's words (as this file once did, by regex over
+the sources) moved tests between tiers when a comment changed. The rule is checked where it
+matters: a test declared virtual that opens an IP socket or starts a process fails at once, saying
+so (`_virtual_guard`), so `make check` can never quietly wait on a network.
 """
 
 from __future__ import annotations
 
-import ast
 import inspect
-import re
 import socket
 import subprocess
 from collections.abc import Iterator
-from functools import cache
-from pathlib import Path
 from typing import Any
 
 import pytest
 
+from cage import pytest_runtest_logreport, pytest_runtest_protocol  # noqa: F401  (its hooks)
+
 TIERS = ("virtual", "loopback", "external")
 
-# Words in a test module (or a fixture it uses) that make it external: the programs it drives.
-EXTERNAL = re.compile(
-    r"chromium|playwright|ffmpeg|ffprobe|ffplay|tshark|text2pcap|editcap|exiftool|mavsdk|MAVProxy"
-    r"|mavproxy|\bsitl\b|SITL|ardupilot|ArduPilot|\bclang\b|\bgcc\b|shutil\.which",
-)
-# ... and the ones that make it loopback: an address, a socket, a pty, a child process, a server.
-LOOPBACK = re.compile(
-    r"127\.0\.0\.1|::1|localhost|socket\.|open_connection|create_server|create_datagram_endpoint|"
-    r"start_server|\bpty\b|openpty|subprocess|sys\.executable|ClientSession|BackgroundConsole|ConsoleServer|"
-    r"sim_factory|rig_factory|\brig\b|\budp=|\btcp=|start_udp|start_tcp|\.bound_port|Bridge\(|"
-    r"serve\(|zenoh|Zenoh|\bLOOP\b|UdpClient|listen=\{",
-)
+
+class TierUndeclaredError(pytest.UsageError):
+    """A test module without `pytestmark = pytest.mark.virtual|loopback|external`."""
 
 
-@cache
-def _source(path: str) -> str:
-    try:
-        return Path(path).read_text(encoding="utf-8")
-    except OSError:
-        return ""
+def _declared(node: pytest.Item | pytest.Collector) -> str | None:
+    names = [m.name for m in node.own_markers if m.name in TIERS]
+    return max(names, key=TIERS.index) if names else None  # two at one level: the slowest
 
 
-@cache
-def _function_source(func: Any) -> str:
-    try:
-        return inspect.getsource(func)
-    except (OSError, TypeError):
-        return ""
+def _tier(item: pytest.Item) -> str | None:
+    """The nearest declaration: the test's own (or its parameter's), its class's, its module's."""
+    for node in reversed(item.listchain()):
+        tier = _declared(node)
+        if tier is not None:
+            return tier
+        if isinstance(node, pytest.Module):
+            return None  # a conftest's or a package's mark would hide which module forgot
+    return None
 
 
-@cache
-def _test_spans(path: str) -> tuple[str, tuple[tuple[str, int, int], ...]]:
-    """A module's source and the (name, first line, last line) of each test function in it, its
-    decorators included (top level or in a class)."""
-    text = _source(path)
-    try:
-        tree = ast.parse(text)
-    except SyntaxError:
-        return text, ()
-    spans = []
-    for node in ast.walk(tree):
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.name.startswith("test"):
-            first = min([node.lineno] + [d.lineno for d in node.decorator_list])
-            spans.append((node.name, first, node.end_lineno or node.lineno))
-    return text, tuple(spans)
-
-
-@cache
-def _module_context(path: str, test_name: str) -> str:
-    """What a test's tier is read from in its module: the module without the other tests' bodies
-    (its helpers, constants and imports stay), so that one loopback test does not take a module's
-    memory:// tests out of the virtual tier."""
-    text, spans = _test_spans(path)
-    lines = text.splitlines()
-    drop = set()
-    for name, first, last in spans:
-        if name != test_name:
-            drop.update(range(first - 1, last))
-    return "\n".join(line for i, line in enumerate(lines) if i not in drop)
-
-
-def _tier(item: pytest.Item) -> str:
-    own = {m.name for m in item.iter_markers() if m.name in TIERS}
-    if own:  # a mark by hand wins; the slowest it names
-        return max(own, key=TIERS.index)
-    if item.get_closest_marker("browser") is not None or {"browser", "page"} & set(item.fixturenames):
-        return "external"
-    name = getattr(getattr(item, "function", None), "__name__", item.name.split("[")[0])
-    texts = [_module_context(str(item.path), name)]
-    info = getattr(item, "_fixtureinfo", None)
-    for defs in info.name2fixturedefs.values() if info is not None else ():
-        for fixturedef in defs:
-            code = str(getattr(fixturedef.func, "__code__", ""))
-            if "site-packages" not in code and fixturedef.argname != "_virtual_guard":
-                texts.append(_function_source(fixturedef.func))
-    if any(EXTERNAL.search(t) for t in texts):
-        return "external"
-    if item.get_closest_marker("integration") is not None or any(LOOPBACK.search(t) for t in texts):
-        return "loopback"
-    return "virtual"
-
-
+@pytest.hookimpl(tryfirst=True)  # before `-m` deselects by these marks
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    undeclared: set[str] = set()
+    tiers = {}
     for item in items:
-        tier = _tier(item)
-        if item.get_closest_marker(tier) is None:
-            item.add_marker(getattr(pytest.mark, tier))
+        module = item.getparent(pytest.Module)
+        if module is not None and _declared(module) is None:
+            undeclared.add(str(module.path.relative_to(config.rootpath)))
+        tiers[item] = _tier(item)
+    # Each test carries exactly its own tier: `-m loopback` reads the marks of every level, so a
+    # module's mark left above a test that overrides it would put the test in two tiers.
+    for item, tier in tiers.items():
+        for node in item.listchain():
+            node.own_markers[:] = [m for m in node.own_markers if m.name not in TIERS]
+        if tier is None:
+            continue
+        item.add_marker(getattr(pytest.mark, tier))
         # The virtual tier's coroutines run on looptime's virtual-time loop: their sleeps, timeouts
         # and timers take no real time (memory:// delivers through the loop; no socket waits). A
         # test opts out with `pytest.mark.looptime(False)`.
         coroutine = inspect.iscoroutinefunction(getattr(item, "function", None))
         if tier == "virtual" and coroutine and item.get_closest_marker("looptime") is None:
             item.add_marker(pytest.mark.looptime)
+    if undeclared:
+        raise TierUndeclaredError(
+            "these test modules declare no tier: add `pytestmark = pytest.mark.virtual` (or loopback, "
+            "external; tests/conftest.py says which is which) to " + ", ".join(sorted(undeclared))
+        )
 
 
 class VirtualTierError(AssertionError):

@@ -7,6 +7,10 @@ import ast
 import sys
 from pathlib import Path
 
+import pytest
+
+pytestmark = pytest.mark.loopback
+
 PKG = Path(__file__).resolve().parents[1] / "src" / "topgimbal"
 
 # Leaf modules every layer may import: the exceptions, the throttled warning log, the one clock,

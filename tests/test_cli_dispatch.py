@@ -11,6 +11,8 @@ import pytest
 from topgimbal.cli import main
 from topgimbal.cli.command_index import COMMANDS
 
+pytestmark = pytest.mark.loopback
+
 LINES = [
     ["decode", "#TPUG6wGAYEC78324D"],
     ["--url", "udp://127.0.0.1:9", "decode", "--json", "X"],

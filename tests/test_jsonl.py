@@ -10,6 +10,8 @@ import pytest
 from topgimbal import jsonl
 from topgimbal.cli.main import main
 
+pytestmark = pytest.mark.virtual
+
 BREAKERS = "\u0085\u2028\u2029"
 
 

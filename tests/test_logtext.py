@@ -5,7 +5,11 @@ from __future__ import annotations
 import io
 import logging
 
+import pytest
+
 from topgimbal.logtext import MAX_LOGGED_CHARS, untrusted
+
+pytestmark = pytest.mark.virtual
 
 
 def test_lone_surrogates_become_backslash_escapes() -> None:

@@ -9,6 +9,8 @@ import pytest
 
 from topgimbal.logthrottle import MAX_KINDS, ThrottledLog
 
+pytestmark = pytest.mark.virtual
+
 
 def test_allow_says_when_to_log_and_how_many_were_left_out() -> None:
     now = [0.0]

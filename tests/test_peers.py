@@ -15,6 +15,8 @@ from topgimbal.clock import FakeClock
 from topgimbal.logthrottle import ThrottledLog
 from topgimbal.peers import EVICT, EVICTED, EXPIRED, FORGOTTEN, REFUSE, Gone, PeerTable, Words
 
+pytestmark = pytest.mark.virtual
+
 
 def table(cap: int = 2, at_cap: Any = EVICT, lease_s: float = 0.0, **kw: Any) -> tuple[PeerTable[str, int], list]:
     gone: list[Gone[str, int]] = []

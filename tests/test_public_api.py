@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import pytest
+
 import topgimbal
+
+pytestmark = pytest.mark.virtual
 
 PUBLIC = {
     "AsyncClient", "CatalogError", "ChecksumError", "DeviceError", "DeviceModel", "Diagnostic", "Dialect",

@@ -7,7 +7,11 @@ import asyncio
 import re
 from pathlib import Path
 
+import pytest
+
 from topgimbal.sim import Simulator
+
+pytestmark = pytest.mark.loopback
 
 README = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
 BLOCKS = re.findall(r"```python\n(.*?)```", README, flags=re.S)
@@ -35,6 +39,7 @@ def test_client_example_runs_against_the_simulator() -> None:
     assert abs(sim.gimbal.yaw_deg - 30) < 0.6 and abs(sim.gimbal.pitch_deg + 45) < 0.6
 
 
+@pytest.mark.virtual
 def test_offline_example_gives_what_its_comments_say() -> None:
     block = next(b for b in BLOCKS if "from topgimbal import encode, decode" in b)
     ns: dict[str, object] = {}

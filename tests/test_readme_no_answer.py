@@ -12,6 +12,8 @@ import pytest
 
 import topgimbal
 
+pytestmark = pytest.mark.loopback
+
 README = Path(__file__).resolve().parents[1] / "README.md"
 
 

@@ -4,7 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from topgimbal.tools import regen
+
+pytestmark = pytest.mark.virtual
 
 ROOT = Path(__file__).resolve().parents[1]
 

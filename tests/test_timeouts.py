@@ -10,6 +10,8 @@ import pytest
 
 from topgimbal.timeouts import STOP_ROUND_S, stop_tasks, within
 
+pytestmark = pytest.mark.virtual
+
 
 async def _cancelled_as_the_result_arrives(wait) -> str:  # type: ignore[no-untyped-def]
     """A task waits for a future; in one loop iteration the future gets its result and the task

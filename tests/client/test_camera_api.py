@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import inspect
 
+import pytest
+
 from topgimbal.client import AsyncClient, CameraAPI, Gimbal
 from topgimbal.client.methods import api_method
+
+pytestmark = pytest.mark.virtual
 
 
 def _typed_methods(cls: type) -> dict[str, api_method]:

@@ -16,6 +16,8 @@ import topgimbal
 from topgimbal.cli.main import main
 from topgimbal.errors import AddressError, InputError, TransportError
 
+pytestmark = pytest.mark.loopback
+
 
 @pytest.mark.parametrize(
     ("url", "said"),

@@ -7,6 +7,8 @@ import pytest
 
 from topgimbal.cli.main import build_parser
 
+pytestmark = pytest.mark.loopback
+
 
 @pytest.mark.parametrize(
     "argv, url, model",
@@ -33,6 +35,7 @@ def test_proxy_takes_the_model_after_the_command() -> None:
     assert args.model == "C12" and args.command == "proxy"
 
 
+@pytest.mark.virtual
 def test_a_wrong_model_after_the_command_lists_the_models(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as exc:
         build_parser().parse_args(["info", "--model", "C99"])
@@ -41,6 +44,7 @@ def test_a_wrong_model_after_the_command_lists_the_models(capsys: pytest.Capture
     assert "C99" in err and "C12" in err and "SIP" in err
 
 
+@pytest.mark.virtual
 def test_commands_with_their_own_model_option_keep_it() -> None:
     args = build_parser().parse_args(["sim", "--model", "SIP"])
     assert args.sim_model == "SIP"

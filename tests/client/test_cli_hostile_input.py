@@ -18,7 +18,7 @@ import pytest
 from topgimbal.cli.main import main
 from topgimbal.sim import BackgroundSimulator, FaultPlan
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 NOWHERE = ["--url", "udp://127.0.0.1:9", "--model", "C12"]  # parsing fails before anything is sent
 

@@ -17,7 +17,7 @@ from topgimbal.cli.main import main
 from topgimbal.protocol import get_model
 from topgimbal.sim import BackgroundSimulator
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 
 @pytest.fixture(scope="module")

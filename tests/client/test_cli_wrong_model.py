@@ -12,7 +12,7 @@ import pytest
 from topgimbal.cli.main import main
 from topgimbal.sim import BackgroundSimulator
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 
 @pytest.fixture(scope="module")

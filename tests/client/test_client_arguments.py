@@ -15,6 +15,8 @@ from topgimbal.client import AsyncClient, Gimbal
 from topgimbal.client.methods import api_method
 from topgimbal.errors import TopGimbalError
 
+pytestmark = pytest.mark.virtual
+
 # What each method needs to be callable at all (the argument under test replaces one of these).
 REQUIRED: dict[str, tuple] = {
     "request": ("TAS",),
@@ -114,6 +116,7 @@ async def test_unknown_commands_and_values_are_value_errors(fake):
         assert fake.received == []
 
 
+@pytest.mark.loopback
 @pytest.mark.parametrize(
     "option", [{"timeout_s": 0}, {"timeout_s": "1"}, {"retries": -1}, {"retries": 1.5}, {"link_timeout_s": -3}]
 )

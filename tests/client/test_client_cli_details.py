@@ -16,7 +16,7 @@ from topgimbal.cli.main import build_parser, main
 from topgimbal.protocol import dissect
 from topgimbal.sim import BackgroundSimulator
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 
 @pytest.fixture(scope="module")

@@ -8,6 +8,8 @@ import pytest
 import topgimbal
 from topgimbal.errors import DeviceError, RequestTimeoutError
 
+pytestmark = pytest.mark.virtual
+
 
 async def test_a_lost_photo_says_it_may_have_been_taken_and_how_to_check(fake):
     url = fake.start_memory()

@@ -14,7 +14,7 @@ from topgimbal.clock import monotonic
 from topgimbal.errors import TopGimbalError
 from topgimbal.sim import FaultPlan, Simulator
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 PLANS = {
     # the first finding: answers later than the timeout were taken by the next read

@@ -12,7 +12,7 @@ import topgimbal
 from topgimbal.errors import RequestTimeoutError
 from topgimbal.sim import FaultPlan
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 # late_window_s must exceed the longest delay the link can add (reorder hold 0.2 s on the way in,
 # late 0.35 s and reorder hold 0.2 s on the way out):

@@ -24,7 +24,7 @@ from topgimbal.sim import BackgroundSimulator
 
 from .conftest import FakeDevice
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 JOIN_S = 30.0  # a thread still alive after this is hung (the old code waited forever)
 

@@ -10,15 +10,14 @@ import asyncio
 import pytest
 
 import topgimbal
+import waiting
 from topgimbal.errors import LinkLostError, TransportError
+
+pytestmark = pytest.mark.virtual
 
 
 async def until(predicate, limit_s: float = 10.0) -> None:
-    async def poll() -> None:
-        while not predicate():
-            await asyncio.sleep(0.01)
-
-    await asyncio.wait_for(poll(), limit_s)
+    await waiting.until("the link's state", predicate, bound_s=limit_s, every_s=0.01)  # tests/waiting.py
 
 
 async def test_a_quiet_device_ends_streams_fails_requests_and_comes_back(fake):
@@ -55,6 +54,7 @@ async def test_pending_requests_fail_at_once_when_the_link_goes_down(fake):
         assert await cam.version()
 
 
+@pytest.mark.loopback
 async def test_a_closed_tcp_connection_is_lost_at_once_and_reconnects(fake):
     url = await fake.start_tcp()
     fake.handler = lambda f: None  # never answers

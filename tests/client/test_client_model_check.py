@@ -16,7 +16,7 @@ from topgimbal.errors import DecodeError
 from topgimbal.protocol import get_model
 from topgimbal.sim import BackgroundSimulator
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 
 @pytest.fixture(scope="module")

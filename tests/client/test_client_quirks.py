@@ -16,6 +16,8 @@ import topgimbal
 from topgimbal.errors import FieldValueError, UnsupportedError
 from topgimbal.protocol import get_model
 
+pytestmark = pytest.mark.virtual
+
 
 def overshoot(history, start: float, target: float, index: int) -> float:
     """How far past `target` an axis went, coming from `start` (degrees, 0 if never)."""
@@ -195,6 +197,7 @@ async def test_a_running_stream_renews_its_request(fake):
         assert len(gaa) >= 4 and gaa[-1].data == b"00"  # on, renewed twice (or more), off
 
 
+@pytest.mark.loopback
 @pytest.mark.parametrize("renew_s, forgotten", [(0.3, False), (None, True)], ids=["renewed", "not-renewed"])
 async def test_a_long_udp_stream_outlives_the_simulators_peer_lease(renew_s, forgotten):
     """The simulator forgets a UDP peer it has not heard from for a lease (1.5 s here, 60 s by

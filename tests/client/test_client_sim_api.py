@@ -10,6 +10,8 @@ import pytest
 import topgimbal
 from topgimbal.errors import FieldValueError, UnsupportedError
 
+pytestmark = pytest.mark.loopback
+
 KINDS = ["udp", "tcp", "serial"]
 
 

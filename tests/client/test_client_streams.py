@@ -11,6 +11,8 @@ import topgimbal
 
 from .test_client_link import until
 
+pytestmark = pytest.mark.loopback
+
 
 def gaa_rates(frames) -> list[int]:
     return [int(f.data, 16) for f in frames if f.ident == "GAA" and f.rw == "w"]

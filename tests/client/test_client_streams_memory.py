@@ -16,6 +16,8 @@ from topgimbal.errors import RequestTimeoutError
 
 from .test_client_link import until
 
+pytestmark = pytest.mark.virtual
+
 
 def gaa_rates(frames) -> list[int]:
     return [int(f.data, 16) for f in frames if f.ident == "GAA" and f.rw == "w"]

@@ -9,7 +9,7 @@ import pytest
 import topgimbal
 from topgimbal.client import read_log
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 
 async def test_log_and_replay(sim_factory, tmp_path):

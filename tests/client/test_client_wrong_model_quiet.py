@@ -13,11 +13,15 @@ import logging
 import os
 from typing import Any
 
+import pytest
+
 import topgimbal
 from topgimbal.client.identity import Report
 from topgimbal.clock import monotonic
 from topgimbal.errors import TopGimbalError
 from topgimbal.sim import Simulator
+
+pytestmark = pytest.mark.virtual
 
 _names = itertools.count()
 NO_SOCKETS: dict[str, Any] = {"udp": []}  # the simulator serves only memory://

@@ -9,6 +9,8 @@ from topgimbal.client.engine import Engine
 from topgimbal.errors import DeviceError, RequestTimeoutError
 from topgimbal.protocol import Frame, get_model, make_frame
 
+pytestmark = pytest.mark.virtual
+
 
 class FakeClock:
     def __init__(self) -> None:

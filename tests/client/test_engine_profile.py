@@ -10,6 +10,8 @@ from topgimbal.client.engine import Engine
 from topgimbal.errors import RequestTimeoutError
 from topgimbal.protocol import get_model
 
+pytestmark = pytest.mark.virtual
+
 
 class FakeClock:
     def __init__(self) -> None:

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from .engine_model import ADDRESSES, REFUSED, Faults, Op, World, check_contract
 
-pytestmark = pytest.mark.fuzz
+pytestmark = [pytest.mark.virtual, pytest.mark.fuzz]
 
 LATE_WINDOW_S = 0.5
 

@@ -14,6 +14,8 @@ from topgimbal.client.engine import Engine, with_request
 from topgimbal.errors import DeviceError, LinkLostError, RequestTimeoutError, TopGimbalError, TransportError
 from topgimbal.protocol import Frame, get_model
 
+pytestmark = pytest.mark.virtual
+
 
 async def test_a_timeout_carries_the_request(fake):
     url = fake.start_memory()

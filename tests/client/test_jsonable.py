@@ -21,6 +21,8 @@ from topgimbal.console.ops import jsonable as console_jsonable
 from topgimbal.console.peer import dumps as peer_dumps
 from topgimbal.protocol import get_model, parse_frame
 
+pytestmark = pytest.mark.loopback
+
 
 def strict_loads(text: str) -> object:
     """`json.loads` as a browser's JSON.parse reads: NaN, Infinity and -Infinity are errors."""

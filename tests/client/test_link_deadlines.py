@@ -4,8 +4,12 @@ never ended on a virtual-time loop."""
 
 from __future__ import annotations
 
+import pytest
+
 from topgimbal.client.link import LinkMonitor
 from topgimbal.clock import FakeClock
+
+pytestmark = pytest.mark.virtual
 
 
 def test_an_overdue_ping_that_was_not_sent_is_not_a_deadline() -> None:

@@ -5,8 +5,12 @@ rebooted, a SIP that ignores a C12's stream request) was never pinged again."""
 
 from __future__ import annotations
 
+import pytest
+
 from topgimbal.client.link import LinkMonitor
 from topgimbal.clock import FakeClock
+
+pytestmark = pytest.mark.virtual
 
 
 def test_a_down_link_with_an_overdue_ping_looks_again_one_period_on() -> None:

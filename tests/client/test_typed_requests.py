@@ -9,7 +9,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from topgimbal.tools import typestubs
+
+pytestmark = pytest.mark.loopback
 
 ROOT = Path(__file__).resolve().parents[2]
 

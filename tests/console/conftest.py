@@ -16,6 +16,7 @@ from typing import Any, TypeVar
 import pytest
 
 from topgimbal.console import ConsoleServer
+from waiting import until, until_blocking
 
 T = TypeVar("T")
 
@@ -91,15 +92,8 @@ class BackgroundConsole:
 
 
 def wait_for(predicate: Callable[[], Any], timeout: float = 10.0, interval: float = 0.05, what: str = "") -> Any:
-    """Poll `predicate` until it returns something truthy; fail with `what` after `timeout`."""
-    deadline = time.monotonic() + timeout
-    last: Any = None
-    while time.monotonic() < deadline:
-        last = predicate()
-        if last:
-            return last
-        time.sleep(interval)
-    raise AssertionError(f"timed out after {timeout:g} s waiting for {what or predicate} (last: {last!r})")
+    """Poll `predicate` until it returns something truthy (tests/waiting.py); return it."""
+    return until_blocking(what or str(predicate), predicate, bound_s=timeout, every_s=interval)
 
 
 def screenshot(locator: Any, path: Path, attempts: int = 5) -> None:
@@ -184,9 +178,4 @@ def page(browser: Any, c12: BackgroundConsole, page_errors: list[str]) -> Iterat
 
 async def eventually(check: Callable[[], Any], timeout: float = 30.0, what: str = "condition") -> None:
     """`wait_for` for a test that runs in the event loop: poll without blocking it."""
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout
-    while not check():
-        if loop.time() > end:
-            raise AssertionError(f"{what} did not hold within {timeout} s")
-        await asyncio.sleep(0.05)
+    await until(what, check, bound_s=timeout)

@@ -10,6 +10,8 @@ from topgimbal.cli.main import build_parser
 from topgimbal.console import ConsoleServer, is_loopback, needs_token, resolve_token
 from topgimbal.console.auth import TOKEN_COOKIE, TOKEN_HEADER
 
+pytestmark = pytest.mark.loopback
+
 
 @pytest.mark.parametrize("host", ["127.0.0.1", "127.0.0.2", "localhost", "::1", "[::1]"])
 def test_loopback_hosts_need_no_token(host: str) -> None:

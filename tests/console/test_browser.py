@@ -16,7 +16,7 @@ from .conftest import BackgroundConsole, open_console, screenshot, wait_for
 
 # serial: drags and timed page checks in a real browser; make test runs them apart from the
 # parallel pass, where a loaded CPU (six workers on two cores) delays the page, not the console.
-pytestmark = [pytest.mark.browser, pytest.mark.integration, pytest.mark.serial]
+pytestmark = [pytest.mark.external, pytest.mark.browser, pytest.mark.integration, pytest.mark.serial]
 
 TOL = 0.5  # degrees
 

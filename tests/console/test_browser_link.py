@@ -15,7 +15,7 @@ import pytest
 
 from .conftest import BackgroundConsole, open_console, wait_for
 
-pytestmark = [pytest.mark.browser, pytest.mark.integration]
+pytestmark = [pytest.mark.external, pytest.mark.browser, pytest.mark.integration]
 
 LOST = "document.querySelector('[data-testid=link]').dataset.state === 'lost'"
 UP = "document.querySelector('[data-testid=link]').dataset.state === 'up'"

@@ -24,7 +24,7 @@ from topgimbal.sim import Simulator
 from .conftest import BackgroundConsole, wait_for
 from .test_multi_zenoh import free_port
 
-pytestmark = [pytest.mark.browser, pytest.mark.integration]
+pytestmark = [pytest.mark.external, pytest.mark.browser, pytest.mark.integration]
 
 
 class Several(BackgroundConsole):

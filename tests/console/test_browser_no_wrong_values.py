@@ -14,7 +14,7 @@ import pytest
 
 from .conftest import BackgroundConsole, open_console, wait_for
 
-pytestmark = [pytest.mark.browser, pytest.mark.integration]
+pytestmark = [pytest.mark.external, pytest.mark.browser, pytest.mark.integration]
 
 
 def test_an_error_message_covers_no_control(browser: Any, c12: BackgroundConsole, artifacts: Path) -> None:

@@ -21,7 +21,7 @@ import pytest
 
 from .conftest import BackgroundConsole, open_console, screenshot, wait_for
 
-pytestmark = [pytest.mark.browser, pytest.mark.integration]
+pytestmark = [pytest.mark.external, pytest.mark.browser, pytest.mark.integration]
 
 MOTION_IDENTS = {"GAY", "GAP", "GAM"}
 PANELS = ("connection", "attitude", "pointing", "camera", "thermal", "range", "network")

@@ -9,6 +9,8 @@ import pytest
 
 from .conftest import BackgroundConsole, open_console, wait_for
 
+pytestmark = pytest.mark.external
+
 TOL = 0.5
 
 

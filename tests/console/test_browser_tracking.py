@@ -5,10 +5,14 @@ from __future__ import annotations
 
 from typing import Any
 
+import pytest
+
 from topgimbal.sim.targets import parse_spec
 from topgimbal.sim.tracker import unproject
 
 from .conftest import BackgroundConsole, open_console, wait_for
+
+pytestmark = pytest.mark.external
 
 
 def test_a_lost_target_shows_as_lost_on_a_sip(browser: Any, sip: BackgroundConsole) -> None:

@@ -18,7 +18,7 @@ from topgimbal.protocol import Frame, get_model
 from topgimbal.wire import WireFrame, frames_in_capture
 from wire.tshark import run_tshark
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.external, pytest.mark.integration]
 
 
 # The committed dissector (`topgimbal dissector`, kept current by tests/wire): these tests read

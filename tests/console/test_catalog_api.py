@@ -14,6 +14,8 @@ from topgimbal.errors import FrameError
 from topgimbal.protocol import all_models, get_model
 from topgimbal.protocol.frame import complete_frame, dissect
 
+pytestmark = pytest.mark.virtual
+
 ROOT = Path(__file__).resolve().parents[2]
 CJK = re.compile(r"[\u3000-\u303f\u3400-\u4dbf\u4e00-\u9fff\uff00-\uffef]")
 

@@ -20,6 +20,8 @@ from topgimbal.protocol import all_models, get_dialect, get_model
 
 from .conftest import BackgroundConsole, open_console
 
+pytestmark = pytest.mark.external
+
 CONSOLE = Path(__file__).resolve().parents[2] / "src" / "topgimbal" / "console"
 VIDEO_FILES = {"video.js", "video.css"}  # the video package's, mounted in the console
 
@@ -34,6 +36,7 @@ def _identifiers() -> set[str]:
     return {ident for name in ("skydroid", "topotek") for ident in get_dialect(name).commands}
 
 
+@pytest.mark.loopback
 def test_no_identifier_lists_and_no_dialect_branches_in_the_console() -> None:
     idents = _identifiers()
     quoted = re.compile(r"""(?<![\w#])["'`]([A-Z0-9]{3})["'`]""")
@@ -48,6 +51,7 @@ def test_no_identifier_lists_and_no_dialect_branches_in_the_console() -> None:
     assert found == [], "\n".join(found)
 
 
+@pytest.mark.loopback
 def test_the_check_would_catch_a_hand_kept_list(tmp_path: Path) -> None:
     """The scan above bites: the lists round one had are found."""
     idents = _identifiers()

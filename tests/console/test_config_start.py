@@ -11,6 +11,8 @@ from topgimbal.console import ConsoleServer
 from topgimbal.console.config import ConsoleConfig, LinkOptions, ServeOptions, SimSource
 from topgimbal.sim import Simulator
 
+pytestmark = pytest.mark.loopback
+
 
 async def test_a_console_from_a_config_serves_its_simulator() -> None:
     config = ConsoleConfig(SimSource("SIP", seed=3), ServeOptions(port=0, token="s3cret"), LinkOptions(attitude_hz=5))

@@ -5,7 +5,11 @@ from __future__ import annotations
 
 import socket
 
+import pytest
+
 from topgimbal.cli.main import main
+
+pytestmark = pytest.mark.loopback
 
 
 def test_an_explicit_port_that_is_taken_is_refused(capsys) -> None:

@@ -10,6 +10,8 @@ import pytest
 from topgimbal.console.ops import OpError, ReadOnlyError, describe_error
 from topgimbal.errors import DeviceError, FieldValueError, RequestTimeoutError, TopGimbalError, TransportError
 
+pytestmark = pytest.mark.virtual
+
 
 @pytest.mark.parametrize(
     ("exc", "kind", "text"),

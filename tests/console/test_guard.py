@@ -23,6 +23,8 @@ from topgimbal.console.guard import (
     split_host_port,
 )
 
+pytestmark = pytest.mark.loopback
+
 ROUTES = ("", "static/app.js", "static/lib/conn.js", "api/status", "api/catalog", "ws")
 
 

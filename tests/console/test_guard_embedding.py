@@ -10,6 +10,8 @@ import pytest
 
 from topgimbal.console import ConsoleServer
 
+pytestmark = pytest.mark.loopback
+
 
 @pytest.mark.parametrize(
     ("headers", "status"),

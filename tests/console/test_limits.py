@@ -22,7 +22,7 @@ from topgimbal.console.limits import (
 )
 from topgimbal.console.peer import Peer, PeerLimits
 
-pytestmark = pytest.mark.fuzz
+pytestmark = [pytest.mark.virtual, pytest.mark.fuzz]
 
 SETTINGS = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

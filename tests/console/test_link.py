@@ -15,7 +15,7 @@ import pytest
 from topgimbal.console import ConsoleServer
 from topgimbal.sim import FaultPlan, Simulator
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 
 async def next_status(

@@ -26,6 +26,8 @@ from topgimbal.console.cameras import (
 
 from .conftest import eventually
 
+pytestmark = pytest.mark.loopback
+
 
 @pytest.fixture
 async def two() -> AsyncIterator[ConsoleServer]:

@@ -23,7 +23,7 @@ from topgimbal.wire import WireFrame, frames_in_capture
 
 from .conftest import BackgroundConsole, open_console, wait_for
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 PROXY = [sys.executable, "-m", "topgimbal.cli.main", "console", "--proxy"]
 
@@ -183,6 +183,7 @@ def watched() -> Iterator[WatchConsole]:
         yield bg
 
 
+@pytest.mark.external
 @pytest.mark.browser
 def test_the_page_watching_a_proxy(
     browser: Any, watched: WatchConsole, artifacts: Path, page_errors: list[str]

@@ -24,10 +24,11 @@ from topgimbal.console import ConsoleServer
 from topgimbal.console.limits import MAX_FRAME_BYTES, MAX_MESSAGE_BYTES, MessageError, parse_message
 from topgimbal.console.ops import OPS
 from topgimbal.console.peer import PeerLimits
+from waiting import until
 
 from .conftest import BackgroundConsole, wait_for
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 
 class LogTrap(logging.Handler):
@@ -173,11 +174,7 @@ async def test_concurrent_handshakes_respect_the_page_cap(console: ConsoleServer
 
 
 async def wait_for_async(pred: Any, timeout: float = 10.0) -> None:
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + timeout
-    while not pred():
-        assert loop.time() < deadline, "timed out"
-        await asyncio.sleep(0.02)
+    await until("the hub's state", pred, bound_s=timeout)  # tests/waiting.py
 
 
 async def test_ops_in_flight_are_capped(

@@ -6,7 +6,11 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pytest
+
 from topgimbal.client import LinkStats
+
+pytestmark = pytest.mark.virtual
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "client.md"
 ROW = re.compile(r"^\| `(\w+)` \| (.+) \|$")

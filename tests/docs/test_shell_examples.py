@@ -43,6 +43,8 @@ from topgimbal.protocol import encode
 from topgimbal.sim import BackgroundSimulator
 from topgimbal.wire.synth import CaptureWriter
 
+pytestmark = pytest.mark.external
+
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 SHELL_LANGS = ("sh", "bash", "shell", "console")
@@ -59,6 +61,7 @@ NOT_RUN: dict[str, str] = {
     "pip install -e '.[serial]'": "installs into the environment running the tests (make does it)",
     "pip install -e '.[all]'": "installs into the environment running the tests (make does it)",
     "make bench": "benchmarks: minutes of CPU, figures only",
+    "make flake RUNS=3 HOG=2": "the loopback and external tiers three times beside busy loops: most of an hour",
     "make docs": "rewrites docs/protocol.md in the work tree (tests/protocol checks it is current)",
     "python -m topgimbal.tools.cgen": "rewrites c/generated/ in the work tree; the --check beside it runs",
     "python -m topgimbal.tools.regen": "rewrites generated files in the work tree; the --check beside it runs",

@@ -3,7 +3,6 @@ our code) for the fleet tests. Scouting is always off; every endpoint is tcp/127
 
 from __future__ import annotations
 
-import asyncio
 import json
 import socket
 from collections.abc import AsyncIterator, Callable, Iterator
@@ -13,6 +12,7 @@ import pytest
 import zenoh
 
 from topgimbal.sim import Simulator
+from waiting import until
 
 
 def free_port() -> int:
@@ -41,12 +41,7 @@ def raw_call(session: Any, key: str, payload: str | bytes | None, timeout: float
 
 
 async def eventually(check: Callable[[], bool], timeout: float = 20.0, what: str = "condition") -> None:
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout
-    while not check():
-        if loop.time() > end:
-            raise AssertionError(f"{what} did not hold within {timeout} s")
-        await asyncio.sleep(0.05)
+    await until(what, check, bound_s=timeout)  # tests/waiting.py: its failure shows the last values
 
 
 @pytest.fixture

@@ -25,10 +25,11 @@ from topgimbal.fleet.access import AccessConfigError, check_allowed, check_expos
 from topgimbal.fleet.server import DuplicateCameraError
 from topgimbal.mavlink import json_shape
 from topgimbal.mavlink.zenoh_link import ZenohLink
+from waiting import SETTLED_DEG, near, until
 
 from .conftest import eventually, free_port, raw_call, raw_session
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 ACL = """{
   transport: { auth: { usrpwd: { user: "server", password: "srv-pass", dictionary_file: "DICT" } } },
@@ -141,7 +142,10 @@ async def test_a_peer_without_credentials_is_refused_while_the_operator_works(
             await asyncio.to_thread(raw_session, zport)  # no user/password: the session never opens
         async with topgimbal.connect(f"zenoh/a?connect={ep}&config={operator_conf}") as cam:
             att = await cam.point(12, -8)
-            assert abs(att.yaw_deg - 12) <= 0.5 and abs(sim.gimbal.yaw_deg - 12) <= 0.5
+            assert abs(att.yaw_deg - 12) <= 0.5  # point()'s own tolerance, on the attitude it reported
+            # the simulator's live axis went on to the target: point()'s tolerance is no bound on it
+            # (it failed at 0.5013 once: the report rounds, the physics lags it)
+            await near("the simulator's yaw", lambda: sim.gimbal.yaw_deg, 12, margin=SETTLED_DEG, bound_s=10)
 
 
 async def test_insecure_is_repeated_in_the_log(
@@ -221,6 +225,7 @@ async def test_each_querier_gets_a_fair_share(sims: Any, zport: int) -> None:
                 with contextlib.suppress(RemoteCallError):
                     await op.version()
                 await asyncio.sleep(1.5)
+                refused_before = server.cameras["a"].refused
                 kinds = []
                 for _ in range(20):
                     try:
@@ -229,7 +234,14 @@ async def test_each_querier_gets_a_fair_share(sims: Any, zport: int) -> None:
                     except RemoteCallError as exc:
                         kinds.append(exc.kind)
                 assert kinds == ["ok"] * 20, kinds
-                assert server.cameras["a"].refused > 100  # the flood went on all the while
+                # the flood went on all the while: it is still refused after the operator's calls
+                # (a count of refusals in real time would measure the machine's speed, not the share)
+                await until(
+                    "a flooder refused after the operator's calls",
+                    lambda: server.cameras["a"].refused,
+                    lambda n: n > refused_before,
+                    bound_s=20,
+                )
         finally:
             stop.set()
             await asyncio.gather(*floods)

@@ -17,6 +17,8 @@ from topgimbal.fleet.camera import attitude_json
 
 from .conftest import eventually
 
+pytestmark = pytest.mark.virtual
+
 
 @pytest.mark.parametrize(
     ("yaw", "pitch", "roll"), [(0.0, 0.0, 0.0), (-179.99, 89.5, 1e-7), (12.345678901234, -0.1, 3e21)]
@@ -32,6 +34,7 @@ def test_a_value_that_is_not_finite_is_null_not_invalid_json() -> None:
     assert d["yaw_deg"] is None and d["pitch_deg"] is None and d["roll_deg"] == 1.0
 
 
+@pytest.mark.loopback
 async def test_a_tap_sees_every_sample_and_a_failing_tap_hurts_nothing(sims, caplog) -> None:
     (sim,) = await sims(1)
     async with topgimbal.connect(sim.url, model="C12") as cam:

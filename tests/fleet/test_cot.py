@@ -23,7 +23,7 @@ from topgimbal.geo import geoid
 from .conftest import raw_session
 from .test_zenoh_server import _serve, _stop
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 LAT, LON, ALT_M, HEADING_DEG = 47.002, 7.998, 650.0, 250.0
 # within the C12's pitch range (-45..), low enough that all four corners of the picture land

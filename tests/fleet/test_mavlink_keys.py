@@ -16,7 +16,7 @@ import pytest
 from .conftest import eventually, raw_session
 from .test_zenoh_server import _serve, _stop
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 HEADER_KEYS = ["system_id", "component_id", "sequence", "message_id"]
 

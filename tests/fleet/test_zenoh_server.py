@@ -16,7 +16,7 @@ import pytest
 
 from .conftest import eventually, raw_call, raw_session
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 
 async def _serve(args: list[str]) -> asyncio.subprocess.Process:

@@ -16,6 +16,8 @@ from topgimbal.geo.dem import DemError, load_dem
 from .brute import BruteCaster
 from .conftest import LAT0, LON0
 
+pytestmark = pytest.mark.virtual
+
 
 @pytest.fixture(scope="module")
 def terrain(dem_path: Path) -> GridTerrain:

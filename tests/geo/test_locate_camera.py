@@ -20,7 +20,7 @@ from topgimbal.sim import BackgroundSimulator
 from .brute import BruteCaster
 from .conftest import LAT0, LON0
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 POS = (LAT0 - 0.003, LON0 + 0.002, 560.0)
 HEADING = 30.0

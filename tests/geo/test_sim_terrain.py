@@ -17,6 +17,8 @@ from topgimbal.sim.terrain import TerrainGround
 from .brute import BruteCaster
 from .conftest import LAT0, LON0
 
+pytestmark = pytest.mark.virtual
+
 
 def only(frames: list[Frame]) -> Frame:
     assert len(frames) == 1, frames

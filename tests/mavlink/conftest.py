@@ -13,26 +13,42 @@ from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.mavlink import Bridge, BridgeConfig
 from topgimbal.sim import Simulator
+from waiting import until
 
 NAN = float("nan")
 CLOSE_S = 20.0  # a rig's bridge and simulator close in well under a second
 
 
+_KEPT: list[Any] = []  # MAVSDK objects never destroyed nor unsubscribed: see mavsdk_session
+
+
+def keep(*objects: Any) -> None:
+    """Hold MAVSDK objects (plugins, subscriptions) until the caged child ends: freed or closed while
+    MAVSDK's threads still called into them, they crashed the process (see mavsdk_session)."""
+    _KEPT.extend(objects)
+
+
 @contextlib.asynccontextmanager
 async def mavsdk_session(cfg: Any) -> AsyncIterator[Any]:
-    """`Mavsdk(cfg)`, destroyed on the loop's thread when the test is done. Destroyed from another
-    thread while the loop ran on, MAVSDK 4's camera plugin crashed a test worker (a segfault in
-    `mavsdk_camera_destroy`, racing the loop's own unsubscribes); on the loop's thread under a
-    loaded machine its destroy was once seen to block. So the MAVSDK tests are `serial` (make test
-    runs them alone, after the parallel pass), and pytest-timeout bounds a destroy that blocks
-    anyway: the test fails with every thread's stack instead of hanging the run."""
+    """`Mavsdk(cfg)` for a test in the cage (tests/cage.py: `pytest.mark.cage`), never destroyed.
+
+    MAVSDK 4.1's `destroy` blocked for good inside `mavsdk_camera_destroy` (a C call; seen on 2 of 2
+    serial passes of a quiet machine, and before on loaded ones), and destroyed from another thread
+    it crashed the process. So it is not called: the instance is kept alive (its plugins destroy
+    themselves in `__del__`, the same call) until the caged child leaves with `os._exit` and the
+    kernel reclaims it. Outside the cage this refuses to run, so no test can bring the hang back.
+    Nor is anything unsubscribed or freed (`keep`): MAVSDK's threads crashed the process (a segfault
+    while the test went on, and once in its teardown) after a subscription was closed or a plugin's
+    wrapper was collected, seen at load 40."""
     from mavsdk.asyncio import Mavsdk
 
+    from cage import in_child
+
+    if not in_child():
+        raise AssertionError("a MAVSDK test runs in the cage: mark it `pytest.mark.cage(BOUND_S)` (tests/cage.py)")
     mavsdk = Mavsdk(cfg)
-    try:
-        yield mavsdk
-    finally:
-        mavsdk.destroy()
+    _KEPT.append(mavsdk)
+    yield mavsdk
 
 
 class Peer:
@@ -131,12 +147,7 @@ class Rig:
 
 
 async def eventually(check: Callable[[], bool], timeout: float = 8.0, what: str = "condition") -> None:
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout
-    while not check():
-        if loop.time() > end:
-            raise AssertionError(f"{what} did not hold within {timeout} s")
-        await asyncio.sleep(0.02)
+    await until(what, check, bound_s=timeout)  # tests/waiting.py: its failure shows the last values
 
 
 def nan_free(values: Any) -> bool:

@@ -17,6 +17,8 @@ from topgimbal.sim.faults import FaultInjector, FaultPlan
 from .conftest import eventually
 from .virtual import HealthLog, camera_input, in_virtual_time
 
+pytestmark = pytest.mark.loopback
+
 CAMERA = 100
 PHOTO = ml.MAV_CMD_IMAGE_START_CAPTURE
 
@@ -91,6 +93,7 @@ def _system_time(sysid: int, boot_ms: int) -> Any:
     return _from(sysid, 1, ml.MAVLink_system_time_message(0, boot_ms))
 
 
+@pytest.mark.virtual
 def test_reboot_watch_heartbeat_gap_and_boot_clock() -> None:
     seen: list[int] = []
     w = RebootWatch(lambda sysid, why: seen.append(sysid), gap_s=5.0)
@@ -107,6 +110,7 @@ def test_reboot_watch_heartbeat_gap_and_boot_clock() -> None:
     assert seen == [1, 2]
 
 
+@pytest.mark.virtual
 @in_virtual_time
 async def test_virtual_photo_outcome_unknown_when_the_link_is_declared_lost_first(vrig_maker: Any) -> None:
     """The same in virtual time, with the timers that decide it checked: the photo goes out once
@@ -140,6 +144,7 @@ async def test_virtual_photo_outcome_unknown_when_the_link_is_declared_lost_firs
     assert s.camera.photos_taken == 2
 
 
+@pytest.mark.virtual
 @in_virtual_time
 async def test_virtual_a_command_that_never_ends_is_in_progress_then_failed_at_its_timeout(vrig_maker: Any) -> None:
     """The dispatcher's own timers at their real values (commands.py: IN_PROGRESS after 0.25 s and

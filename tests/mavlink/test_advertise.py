@@ -8,7 +8,11 @@ import asyncio
 import urllib.request
 from typing import Any
 
+import pytest
+
 from topgimbal.mavlink.advertise import Advertiser, peer_host, reaching_address
+
+pytestmark = pytest.mark.loopback
 
 CAMERA = 100
 

@@ -16,6 +16,8 @@ from topgimbal.mavlink.camdef_files import stale
 from topgimbal.mavlink.camdef_http import MAX_CONNECTIONS, MAX_HEAD_BYTES, DefinitionServer
 from topgimbal.protocol import get_model
 
+pytestmark = pytest.mark.external
+
 ROOT = Path(__file__).resolve().parents[2]
 
 

@@ -5,7 +5,11 @@ from __future__ import annotations
 
 import asyncio
 
+import pytest
+
 from topgimbal.mavlink.camdef_http import MAX_PER_CLIENT, DefinitionServer
+
+pytestmark = pytest.mark.loopback
 
 
 async def _get(port: int, source: str) -> bytes:

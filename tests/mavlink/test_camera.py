@@ -10,6 +10,8 @@ from pymavlink.dialects.v20 import common as ml
 
 from .conftest import eventually
 
+pytestmark = pytest.mark.loopback
+
 CAMERA, THERMAL, GIMBAL = 100, 101, 154
 
 
@@ -154,6 +156,7 @@ async def test_legacy_requests_message_interval_and_unknown_commands(rig) -> Non
     assert (await p.ack(GIMBAL, ml.MAV_CMD_REQUEST_PROTOCOL_VERSION, 1)).result == ml.MAV_RESULT_UNSUPPORTED
 
 
+@pytest.mark.external
 async def test_sip_streams_thermal_camera_and_rangefinder(rig_factory) -> None:
     r = await rig_factory("SIP", range_hz=0.0)
     s, p = r.sim, r.peer

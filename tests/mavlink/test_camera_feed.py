@@ -23,7 +23,10 @@ from topgimbal.video.media_http import MediaServer
 
 from .conftest import Peer, eventually
 
-pytestmark = pytest.mark.skipif(shutil.which("exiftool") is None, reason="make exiftool-deps installs exiftool")
+pytestmark = [
+    pytest.mark.external,
+    pytest.mark.skipif(shutil.which("exiftool") is None, reason="make exiftool-deps installs exiftool"),
+]
 
 LAT, LON, ALT_M, HDG = -35.3632621, 149.1652374, 584.07, 253.5
 AP_TIME = datetime.datetime(2024, 3, 9, 4, 5, 6, tzinfo=datetime.timezone.utc)  # the autopilot's, not ours

@@ -22,6 +22,8 @@ from topgimbal.transport.memory import MemoryPort
 from .conftest import Peer, eventually
 from .virtual import HealthLog, MemPeer, camera_input, fresh_name, in_virtual_time, start_bridge, start_camera
 
+pytestmark = pytest.mark.virtual
+
 GIMBAL = 154
 COMMS_ERROR = ml.GIMBAL_DEVICE_ERROR_FLAGS_COMMS_ERROR
 
@@ -36,6 +38,7 @@ async def _bridge(url: str, model: str = "C12", silence_s: float = 5.0, timeout_
     return bridge, peer
 
 
+@pytest.mark.loopback
 async def test_a_camera_never_heard_is_never_reported_healthy() -> None:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as quiet:  # bound, never answers
         quiet.bind(("127.0.0.1", 0))
@@ -60,6 +63,7 @@ async def test_a_camera_never_heard_is_never_reported_healthy() -> None:
             await bridge.close()
 
 
+@pytest.mark.loopback
 async def test_a_tcp_camera_that_goes_and_comes_back() -> None:
     sim = Simulator("C20")  # the C20 speaks TCP
     await sim.start(tcp=[("127.0.0.1", 0)])
@@ -89,6 +93,7 @@ async def test_a_tcp_camera_that_goes_and_comes_back() -> None:
         await sim.stop()
 
 
+@pytest.mark.loopback
 async def test_a_tcp_camera_that_is_not_up_yet_is_opened_when_it_is() -> None:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

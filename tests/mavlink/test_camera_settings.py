@@ -20,7 +20,7 @@ from topgimbal.clock import monotonic
 from .conftest import Peer, Rig, eventually
 from .virtual import camera_input, in_virtual_time, silence_replies
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.external, pytest.mark.integration]
 
 ACCEPTED, VALUE_UNSUPPORTED, FAILED, IN_PROGRESS = 0, 1, 2, 3
 
@@ -194,6 +194,7 @@ async def param_set_raw(peer: Peer, comp: int, name: str, raw: bytes, ptype: int
     return acks
 
 
+@pytest.mark.virtual
 @in_virtual_time
 async def test_virtual_a_silent_camera_fails_the_set_after_its_retries(vrig_maker: Any) -> None:
     """The same in virtual time, the camera silent rather than gone: the set (an absolute
@@ -219,6 +220,7 @@ async def test_virtual_a_silent_camera_fails_the_set_after_its_retries(vrig_make
     assert vrig.sim.settings["IMG"]["palette"] != before  # carried out, only not confirmed
 
 
+@pytest.mark.virtual
 @in_virtual_time
 async def test_virtual_recording_time_counts_the_seconds_recorded(vrig_maker: Any) -> None:
     """The same in virtual time: CAMERA_CAPTURE_STATUS counts the recording's seconds exactly."""

@@ -21,6 +21,8 @@ from topgimbal.mavlink.cot import CotConfigError, parse_target
 
 from .conftest import eventually
 
+pytestmark = pytest.mark.loopback
+
 CAMERA = 100
 LAT0, LON0 = 47.0, 8.0
 

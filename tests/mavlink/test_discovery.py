@@ -40,6 +40,8 @@ from topgimbal.sim import Simulator
 from .conftest import NAN, Peer, eventually
 from .virtual import MemPeer, fresh_name, in_virtual_time, start_bridge, start_camera
 
+pytestmark = pytest.mark.external
+
 TIME_SCALE = 0.15
 ACK_TIMEOUT_S = 1.2
 COMMAND_TRIES = 3
@@ -356,6 +358,7 @@ async def test_px4_gimbal_manager_v2_messages(rig_factory: Any) -> None:
         px4.close()
 
 
+@pytest.mark.virtual
 @in_virtual_time
 async def test_virtual_qgc5_gives_up_on_its_own_schedule_and_rediscovers() -> None:
     """The same in virtual time with QGC's timers as QGC has them (not scaled): 10 attempts of 3

@@ -7,11 +7,14 @@ import logging
 import math
 from typing import Any
 
+import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.mavlink.quaternion import from_euler_deg
 
 from .conftest import NAN, Peer, eventually
+
+pytestmark = pytest.mark.external
 
 GIMBAL = 154
 # What ArduPilot's AP_Mount_MAVLink streams for a yaw-locked (earth-frame) target.

@@ -21,6 +21,8 @@ from topgimbal.mavlink.services import Services
 
 from .conftest import Peer, eventually
 
+pytestmark = pytest.mark.loopback
+
 GIMBAL, CAMERA = 154, 100
 SLOW = 31000  # a command whose handler waits (the camera is busy)
 
@@ -40,6 +42,7 @@ class _Wire:
         self.acks += [m for m in self.parser.parse_buffer(data) or [] if m.get_type() == "COMMAND_ACK"]
 
 
+@pytest.mark.virtual
 def test_the_limits_are_per_peer_and_keep_places_for_idle_peers() -> None:
     lim = InflightLimits(total=32, per_peer=8, reserved_for_idle=4)
     for _ in range(8):

@@ -6,12 +6,15 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.clock import FakeClock
 from topgimbal.mavlink import feed_sources
 from topgimbal.mavlink.autopilot_streams import AutopilotStreams
 from topgimbal.mavlink.quaternion import from_euler_deg
+
+pytestmark = pytest.mark.virtual
 
 GIMBAL = 154
 LAT, LON = 47.397742, 8.545594

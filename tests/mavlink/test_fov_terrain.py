@@ -18,6 +18,8 @@ from topgimbal.geo.synthetic import write_dem
 
 from .conftest import eventually
 
+pytestmark = pytest.mark.loopback
+
 CAMERA = 100
 LAT0, LON0 = 47.0, 8.0
 R = 6371008.8

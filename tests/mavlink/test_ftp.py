@@ -18,7 +18,7 @@ from topgimbal.mavlink.ftp import BURST_PACKETS, HEADER, MAX_SESSIONS, OP_ACK, O
 from .conftest import Rig
 from .test_mavproxy import start_mavproxy
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.external, pytest.mark.integration]
 
 
 def req(

@@ -6,12 +6,15 @@ from __future__ import annotations
 import asyncio
 from typing import Any
 
+import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.mavlink.ftp import MAX_ALL_SESSIONS, MAX_SESSIONS, OP_ACK, OP_NAK, FtpFiles
 
 from .conftest import Peer, Rig
 from .test_ftp import parse, req
+
+pytestmark = pytest.mark.loopback
 
 A, B = ("udp", ("127.0.0.1", 1), 255, 190), ("udp", ("127.0.0.1", 2), 255, 190)
 

@@ -20,6 +20,8 @@ from topgimbal.mavlink import autopilot_streams
 from .conftest import Peer, eventually
 from .virtual import MemPeer, in_virtual_time
 
+pytestmark = pytest.mark.external
+
 CAMERA = 100
 LAT0, LON0 = 47.397742, 8.545594
 SPEED_M_S = 10.0  # north
@@ -150,6 +152,7 @@ async def test_no_fix_is_never_published_as_0_0(rig_factory: Any) -> None:
         autopilot.close()
 
 
+@pytest.mark.virtual
 @in_virtual_time
 async def test_virtual_the_autopilot_is_asked_again_on_the_products_schedule(vrig_maker: Any, caplog: Any) -> None:
     """The same in virtual time with the product's own timers (CHECK_S 1 s, RETRY_S 5 s, not

@@ -15,6 +15,8 @@ from topgimbal.protocol import get_model
 from .conftest import NAN, eventually
 from .virtual import HealthLog, camera_input, in_virtual_time, silence_replies
 
+pytestmark = pytest.mark.loopback
+
 GIMBAL, CAMERA, THERMAL = 154, 100, 101
 COMMS_ERROR = ml.GIMBAL_DEVICE_ERROR_FLAGS_COMMS_ERROR
 
@@ -251,6 +253,7 @@ async def test_camera_that_stops_answering_and_comes_back(rig_factory) -> None:
     await eventually(lambda: abs(sim2.gimbal.pitch_deg + 10) < 0.05, 10)
 
 
+@pytest.mark.virtual
 @pytest.mark.parametrize("silence_s", [0.6, 3.0])
 @in_virtual_time
 async def test_virtual_camera_that_stops_answering_and_comes_back(vrig_maker: Any, silence_s: float) -> None:

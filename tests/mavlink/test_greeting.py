@@ -4,7 +4,11 @@ from __future__ import annotations
 
 from typing import Any
 
+import pytest
+
 from .conftest import Peer
+
+pytestmark = pytest.mark.loopback
 
 
 async def test_a_new_peer_gets_a_heartbeat_before_the_next_period(rig_factory: Any) -> None:

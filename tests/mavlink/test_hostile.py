@@ -21,6 +21,8 @@ from topgimbal.mavlink.vehicle import MAX_SYSTEMS, Vehicles
 from .conftest import NAN, Peer, eventually
 from .virtual import in_virtual_time
 
+pytestmark = pytest.mark.loopback
+
 GIMBAL, CAMERA = 154, 100
 INF = math.inf
 
@@ -355,6 +357,7 @@ async def test_the_busy_warning_comes_again_after_its_period_counting_what_it_le
     await asyncio.sleep(0)
 
 
+@pytest.mark.virtual
 @in_virtual_time
 async def test_virtual_a_flood_of_neutral_set_points_stays_one_request(vrig_maker: Any) -> None:
     """The same in virtual time, watched for 30 s rather than 0.5 s: still one centre request."""
@@ -373,6 +376,7 @@ async def test_virtual_a_flood_of_neutral_set_points_stays_one_request(vrig_make
     assert sum(1 for f in s.received[before:] if f.ident == center) == 1
 
 
+@pytest.mark.virtual
 @pytest.mark.parametrize("kind", ["manager_attitude", "device_attitude", "manager_pitchyaw"])
 @in_virtual_time
 async def test_virtual_infinite_rates_are_no_rates(vrig_maker: Any, kind: str) -> None:

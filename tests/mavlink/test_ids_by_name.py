@@ -8,9 +8,12 @@ import ast
 import importlib
 from pathlib import Path
 
+import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.mavlink import _mav
+
+pytestmark = pytest.mark.virtual
 
 MAVLINK_SRC = Path(__file__).resolve().parents[2] / "src" / "topgimbal" / "mavlink"
 ID_PREFIXES = ("MSG_", "CMD_", "MAV_CMD_")

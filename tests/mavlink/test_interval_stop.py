@@ -8,12 +8,15 @@ import asyncio
 import random
 from typing import Any
 
+import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.sim import FaultPlan
 from topgimbal.sim.faults import FaultInjector
 
 from .conftest import eventually
+
+pytestmark = pytest.mark.virtual
 
 CAMERA = 100
 

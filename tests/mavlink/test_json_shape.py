@@ -12,6 +12,8 @@ import pytest
 from topgimbal.mavlink import json_shape as js
 from topgimbal.mavlink._mav import mavlink
 
+pytestmark = pytest.mark.loopback
+
 mav = mavlink()
 
 

@@ -8,6 +8,8 @@ import pytest
 
 from topgimbal.mavlink.klv import UAS_LS_KEY, checksum, packet
 
+pytestmark = pytest.mark.virtual
+
 VALUES = {
     5: 123.45, 6: -3.5, 7: 12.25, 13: 47.0012345, 14: 8.0054321, 15: 640.5, 16: 62.0, 17: 36.4,
     18: 20.0, 19: -28.0, 21: 412.3, 23: 46.9987654, 24: 8.0076543, 25: 331.2,

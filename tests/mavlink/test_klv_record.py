@@ -18,6 +18,8 @@ from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.mavlink.klv_record import remux
 
+pytestmark = pytest.mark.external
+
 VALUES = {5: 250.0, 6: 1.0, 7: -2.0, 13: 47.002, 14: 7.998, 15: 650.0, 16: 40.0, 17: 23.0, 18: 20.0, 19: -35.0,
           21: 410.0, 23: 46.999, 24: 8.001, 25: 330.0}  # fmt: skip
 

@@ -17,6 +17,8 @@ from topgimbal.mavlink.quaternion import from_euler_deg, to_euler_deg
 
 from .conftest import Peer, eventually
 
+pytestmark = pytest.mark.loopback
+
 
 def test_endpoint_strings() -> None:
     assert parse_endpoint("udpin:0.0.0.0:14550").kind == "udpin"
@@ -40,6 +42,7 @@ def test_config_checks() -> None:
             BridgeConfig(**{**ok, **bad}).check()
 
 
+@pytest.mark.virtual
 def test_quaternion_round_trip() -> None:
     for r, p, y in ((0, 0, 0), (5, -30, 120), (-10, 45, -170), (0, -89, 30)):
         e = to_euler_deg(from_euler_deg(r, p, y))
@@ -49,6 +52,7 @@ def test_quaternion_round_trip() -> None:
     assert math.isclose(w, math.sqrt(0.5)) and math.isclose(z, math.sqrt(0.5))
 
 
+@pytest.mark.virtual
 def test_geometry() -> None:
     cam = Position(47.0, 8.0, 600.0)
     yaw, pitch = look_at(cam, 90.0, Position(47.0, 8.01, 500.0))  # due east, vehicle heading east
@@ -58,6 +62,7 @@ def test_geometry() -> None:
     assert ground_point(cam, 0.0, 10.0, 500.0) is None
 
 
+@pytest.mark.virtual
 def test_firmware_codes() -> None:
     assert firmware_code("1.2.3") == 1 | 2 << 8 | 3 << 16
     assert firmware_code("123") == 1 | 2 << 8 | 3 << 16

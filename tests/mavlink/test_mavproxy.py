@@ -16,9 +16,11 @@ from typing import Any
 import pytest
 from pymavlink import mavutil
 
+from waiting import until
+
 from .conftest import Rig, eventually
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.external, pytest.mark.integration]
 MAVPROXY = Path(sys.executable).with_name("mavproxy.py")  # installed by `make .venv/.installed`
 
 
@@ -67,6 +69,29 @@ class MAVProxy:
         self.task.cancel()
 
 
+def _read_tlog(path: Path) -> tuple[list[float], list[int]]:
+    """From a MAVProxy telemetry log (complete or still being written): the CAMERA_THERMAL_RANGE
+    maxima and the recording times of CAMERA_CAPTURE_STATUS while recording, in order."""
+    thermal: list[float] = []
+    rec_ms: list[int] = []
+    if not path.exists():
+        return thermal, rec_ms
+    log = mavutil.mavlink_connection(str(path))
+    try:
+        while (m := log.recv_match(type=["CAMERA_THERMAL_RANGE", "CAMERA_CAPTURE_STATUS"])) is not None:
+            if m.get_type() == "CAMERA_THERMAL_RANGE":
+                thermal.append(m.max)
+            elif m.video_status == 1:
+                rec_ms.append(m.recording_time_ms)
+    finally:
+        log.close()
+    return thermal, rec_ms
+
+
+def _time_goes_on(rec_ms: list[int]) -> bool:
+    return len(rec_ms) >= 2 and rec_ms[-1] > rec_ms[0]
+
+
 async def start_mavproxy(port: int, workdir: Path, modules: str = "camera") -> MAVProxy:
     proc = await asyncio.create_subprocess_exec(
         str(MAVPROXY), f"--master=udpout:127.0.0.1:{port}", "--mav20", f"--default-modules={modules}",
@@ -77,6 +102,10 @@ async def start_mavproxy(port: int, workdir: Path, modules: str = "camera") -> M
         stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.STDOUT,
         cwd=workdir, env={**os.environ, "PYTHONUNBUFFERED": "1", "DISPLAY": ""},
     )  # fmt: skip
+    # MAVProxy writes its telemetry log through a buffer it flushes only with `flushlogs` set: the
+    # test reads the log while MAVProxy runs, and a SIGTERM lost what was still buffered
+    assert proc.stdin is not None
+    proc.stdin.write(b"set flushlogs 1\n")
     return MAVProxy(proc)
 
 
@@ -110,31 +139,24 @@ async def test_mavproxy_camera_module_drives_a_sip(rig_factory: Any, tmp_path: P
         await mp.command("camera record start", r"VIDEO_START_CAPTURE: ACCEPTED")
         assert rig.sim.camera.recording
 
-        def recording_times() -> set[int]:  # CAMERA_CAPTURE_STATUS the bridge sent (to every peer) while recording
-            return {m.recording_time_ms for m in rig.peer.messages
-                    if m.get_type() == "CAMERA_CAPTURE_STATUS" and m.video_status == 1}  # fmt: skip
-
-        # MAVProxy's discover asks for CAMERA_CAPTURE_STATUS: ask until two answers with the time
-        # going on were sent (on a loaded machine the second answer came after the stop, once)
+        # MAVProxy's discover asks for CAMERA_CAPTURE_STATUS: ask until MAVProxy's own telemetry log
+        # holds two recording times, the time going on. Counting what the bridge sent was not enough:
+        # MAVProxy's tlog lost what its buffer still held when it was stopped (one recording time in
+        # the tlog, two sent: the flake this replaces, twice; start_mavproxy now sets flushlogs)
+        tlog = tmp_path / "mav.tlog"
         for _ in range(10):
-            await asyncio.sleep(1.0)
             await mp.command("camera discover", r"discovery requested")
-            if len(recording_times()) >= 2:
+            await asyncio.sleep(1.0)
+            if len(set(_read_tlog(tlog)[1])) >= 2:
                 break
-        await eventually(lambda: len(recording_times()) >= 2, 20, "two recording times sent")
+        await until("two recording times in MAVProxy's tlog", lambda: _read_tlog(tlog)[1], _time_goes_on, bound_s=20)
         await mp.command("camera info", r"recording=yes")
         await mp.command("camera record stop", r"VIDEO_STOP_CAPTURE: ACCEPTED")
         assert not rig.sim.camera.recording
     finally:
         await mp.close()
     # What MAVProxy received (its telemetry log): the thermal range it asked for, the recording time.
-    log = mavutil.mavlink_connection(str(tmp_path / "mav.tlog"))
-    thermal, rec_ms = [], []
-    while (m := log.recv_match(type=["CAMERA_THERMAL_RANGE", "CAMERA_CAPTURE_STATUS"])) is not None:
-        if m.get_type() == "CAMERA_THERMAL_RANGE":
-            thermal.append(m.max)
-        elif m.video_status == 1:
-            rec_ms.append(m.recording_time_ms)
+    thermal, rec_ms = _read_tlog(tmp_path / "mav.tlog")
     summary = (f"tlog: {len(thermal)} CAMERA_THERMAL_RANGE (max {thermal[-1] if thermal else None} degC), "
                f"recording_time_ms while recording: {rec_ms}")  # fmt: skip
     mp.lines.append(summary)
@@ -142,4 +164,4 @@ async def test_mavproxy_camera_module_drives_a_sip(rig_factory: Any, tmp_path: P
     if transcript:  # a session to show (the closing note)
         Path(transcript).write_text("\n".join(mp.lines) + "\n", encoding="utf-8")
     assert thermal and all(math.isfinite(t) for t in thermal), summary
-    assert len(rec_ms) >= 2 and rec_ms[-1] > rec_ms[0], summary
+    assert _time_goes_on(rec_ms), summary

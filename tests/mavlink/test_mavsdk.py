@@ -17,7 +17,9 @@ from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.clock import monotonic
 
-from .conftest import Peer, eventually, mavsdk_session
+from .conftest import Peer, eventually, keep, mavsdk_session
+
+pytestmark = pytest.mark.external
 
 CAMERA = 100
 BEARING_DEG = 41.0  # the issue's example: yaw 41 from North, the vehicle heading 30
@@ -35,10 +37,10 @@ async def _until(agen: Any, pred: Any, timeout: float) -> Any:
     try:
         return await asyncio.wait_for(first(), timeout)
     finally:
-        await agen.aclose()
+        keep(agen)  # never closed: an unsubscribe racing MAVSDK's callbacks crashed it (conftest.keep)
 
 
-@pytest.mark.serial  # MAVSDK: run apart from the parallel pass (conftest.mavsdk_session)
+@pytest.mark.cage(240)  # MAVSDK can hang its caller (conftest.mavsdk_session)
 async def test_mavsdk_ground_station(rig_factory) -> None:
     r = await rig_factory("C12", timeout_s=1.0, retries=2)
     sim = r.sim
@@ -50,6 +52,7 @@ async def test_mavsdk_ground_station(rig_factory) -> None:
         system = (await mavsdk.get_systems())[0]
         gimbal = GimbalAsync(system)
         camera = CameraAsync(system)
+        keep(gimbal, camera)
         if True:
             glist = await _until(gimbal.subscribe_gimbal_list(), lambda g: len(g.gimbals) > 0, 20)
             assert glist is not None and len(glist.gimbals) == 1, "gimbal not discovered"
@@ -93,7 +96,8 @@ async def test_mavsdk_ground_station(rig_factory) -> None:
             assert sim.camera.digital_zoom_x == 1.0
 
 
-@pytest.mark.serial  # MAVSDK and a real-time closed loop: run apart from the parallel pass
+@pytest.mark.serial  # a real-time closed loop: run apart from the parallel pass
+@pytest.mark.cage(240)  # MAVSDK can hang its caller (conftest.mavsdk_session)
 async def test_mavsdk_yaw_lock_holds_the_earth_bearing_while_the_vehicle_turns(rig_factory: Any) -> None:
     """MAVSDK's gimbal plugin, yaw lock (GIMBAL_MANAGER_FLAGS 28: ROLL_LOCK, PITCH_LOCK, YAW_LOCK),
     sent once: the yaw is a bearing from North (issue 41 item 1), held while the vehicle's heading
@@ -127,6 +131,7 @@ async def test_mavsdk_yaw_lock_holds_the_earth_bearing_while_the_vehicle_turns(r
             await mavsdk.add_any_connection(f"udpout://127.0.0.1:{port}")
             await eventually(lambda: mavsdk._mavsdk.system_count() > 0, 15, "MAVSDK sees the system")
             gimbal = GimbalAsync((await mavsdk.get_systems())[0])
+            keep(gimbal)  # never freed in-process (conftest.keep)
             glist = await _until(gimbal.subscribe_gimbal_list(), lambda g: len(g.gimbals) > 0, 20)
             assert glist is not None, "gimbal not discovered"
             gid = glist.gimbals[0].gimbal_id

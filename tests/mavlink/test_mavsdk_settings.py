@@ -14,10 +14,11 @@ from mavsdk.plugins.camera.camera import Option, Setting
 
 from topgimbal.mavlink.camdef import settings_for
 
-from .conftest import Rig, eventually, mavsdk_session
+from .conftest import Rig, eventually, keep, mavsdk_session
 from .test_mavsdk import _until
 
-pytestmark = [pytest.mark.integration, pytest.mark.serial]  # MAVSDK: apart from the parallel pass
+# MAVSDK can hang its caller: each test in a child of its own (conftest.mavsdk_session)
+pytestmark = [pytest.mark.external, pytest.mark.integration, pytest.mark.cage(240)]
 THERMAL = 101
 
 
@@ -41,6 +42,7 @@ async def test_mavsdk_camera_settings(rig_factory: Any, model: str) -> None:
         await mavsdk.add_any_connection(f"udpout://127.0.0.1:{rig.bridge.addresses[0][1]}")  # type: ignore[index]
         await eventually(lambda: mavsdk._mavsdk.system_count() > 0, 15, "MAVSDK sees the system")
         camera = CameraAsync((await mavsdk.get_systems())[0])
+        keep(camera)
         found = await _until(camera.subscribe_camera_list(), lambda c: len(c.cameras) >= 2, 30)
         assert found is not None, "the two cameras were not discovered"
         options = {o.setting_id: [x.option_id for x in o.options] for o in await _options(camera)}

@@ -16,6 +16,8 @@ from topgimbal.mavlink.memory_link import MAX_QUEUED_BYTES, MemoryLink, connect_
 
 from .virtual import MemPeer, fresh_name
 
+pytestmark = pytest.mark.virtual
+
 
 class Recorder:
     """on_data / on_gone for a link; `accept` is what on_data answers (False: nothing signed)."""

@@ -16,10 +16,10 @@ from topgimbal.mavlink.bridge import BridgeConfigError
 from topgimbal.mavlink.multi import MultiBridge, allocate
 from topgimbal.sim import Simulator
 
-from .conftest import eventually, mavsdk_session
+from .conftest import eventually, keep, mavsdk_session
 from .test_mavsdk import _until
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.external, pytest.mark.integration]
 
 
 def test_component_ids_are_allocated_in_order() -> None:
@@ -37,7 +37,7 @@ def test_component_ids_are_allocated_in_order() -> None:
     assert allocate([("a", "udp://x:1", "C12")], cameras_wanted=False)[0].camera_compids == []
 
 
-@pytest.mark.serial  # MAVSDK: run apart from the parallel pass (conftest.mavsdk_session)
+@pytest.mark.cage(240)  # MAVSDK can hang its caller (conftest.mavsdk_session)
 async def test_two_cameras_through_one_bridge_are_two_in_mavsdk() -> None:
     sims = [Simulator("C12"), Simulator("C12")]
     for s in sims:
@@ -53,6 +53,7 @@ async def test_two_cameras_through_one_bridge_are_two_in_mavsdk() -> None:
             await eventually(lambda: mavsdk._mavsdk.system_count() > 0, 20, "MAVSDK sees the system")
             system = (await mavsdk.get_systems())[0]
             gimbal, camera = GimbalAsync(system), CameraAsync(system)
+            keep(gimbal, camera)
             glist = await _until(gimbal.subscribe_gimbal_list(), lambda g: len(g.gimbals) >= 2, 30)
             assert glist is not None, "two gimbals not discovered"
             assert sorted(g.gimbal_manager_component_id for g in glist.gimbals) == [154, 171]

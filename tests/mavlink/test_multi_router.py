@@ -20,7 +20,7 @@ from topgimbal.sim import Simulator
 
 from .conftest import Peer, eventually
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.external, pytest.mark.integration]
 NAN = math.nan
 
 

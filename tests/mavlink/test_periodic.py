@@ -11,6 +11,8 @@ import pytest
 from topgimbal.clock import monotonic
 from topgimbal.mavlink.periodic import Periodic
 
+pytestmark = pytest.mark.virtual
+
 
 async def test_a_step_every_period_until_close() -> None:
     times: list[float] = []

@@ -10,6 +10,7 @@ import asyncio
 import logging
 from typing import Any
 
+import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.clock import monotonic
@@ -19,6 +20,8 @@ from topgimbal.mavlink.reboots import RebootWatch
 
 from .conftest import NAN, Peer, eventually
 from .virtual import in_virtual_time
+
+pytestmark = pytest.mark.external
 
 CAMERA = 100
 
@@ -115,6 +118,7 @@ async def test_a_capture_sequence_is_deduplicated_only_within_the_window(
     assert any("a new photo" in rec.getMessage() for rec in caplog.records)
 
 
+@pytest.mark.virtual
 @in_virtual_time
 async def test_virtual_a_capture_sequence_is_deduplicated_exactly_within_the_window(
     vrig_maker: Any, caplog: Any

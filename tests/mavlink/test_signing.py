@@ -18,6 +18,8 @@ from topgimbal.mavlink.signing import SigningKeyError, key_from_bytes, load_key,
 
 from .conftest import Peer
 
+pytestmark = pytest.mark.loopback
+
 GIMBAL = 154
 KEY = hashlib.sha256(b"topgimbal test passphrase").digest()
 
@@ -28,6 +30,7 @@ def signed_peer(key: bytes, sysid: int = 255, compid: int = 190) -> Peer:
     return p
 
 
+@pytest.mark.external
 def test_the_key_file_forms(tmp_path: Path) -> None:
     assert key_from_bytes(KEY.hex().encode() + b"\n") == KEY
     assert key_from_bytes(KEY.hex().upper().encode()) == KEY

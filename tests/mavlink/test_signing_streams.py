@@ -20,6 +20,8 @@ from topgimbal.mavlink.signing import SIGNING_EPOCH_S, SignedStreams, load_key, 
 from .conftest import Peer
 from .test_signing import KEY, _answer, keep_sent, signed_peer
 
+pytestmark = pytest.mark.loopback
+
 
 def _frame(key: bytes, sysid: int, ts: int, link_id: int = 0) -> bytes:
     mav = ml.MAVLink(None, srcSystem=sysid, srcComponent=190)
@@ -32,6 +34,7 @@ def _now_ts(now_s: float) -> int:
     return int((now_s - SIGNING_EPOCH_S) * 100_000)
 
 
+@pytest.mark.virtual
 def test_streams_are_the_nodes_and_nothing_unsigned_changes_them() -> None:
     now = 1.8e9
     guard = SignedStreams(KEY, clock=lambda: now)
@@ -87,6 +90,7 @@ async def test_an_unsigned_sender_hears_nothing_and_takes_no_place(rig_factory: 
         unsigned.close()
 
 
+@pytest.mark.virtual
 def test_a_weak_key_file_is_warned_about(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     zero = tmp_path / "zero.key"
     zero.write_text("00" * 32)

@@ -45,8 +45,11 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as ml
 
+import waiting
 from topgimbal.mavlink.geo import Position, look_at, offset_m
 from topgimbal.protocol import get_model
+
+pytestmark = pytest.mark.external
 
 SITL = os.environ.get("ARDUPILOT_SITL")
 AUTOPILOT = (1, 1)
@@ -240,10 +243,7 @@ async def _connect(proc: asyncio.subprocess.Process, base: int) -> Gcs:
 async def until(check: Callable[[], bool], deadline_s: float, what: str) -> float:
     """Wait (by the clock, not by a number of reads) until `check()` holds; the seconds it took."""
     start = time.monotonic()
-    while not check():
-        if time.monotonic() - start > deadline_s:
-            raise AssertionError(f"{what}: not within {deadline_s:g} s")
-        await asyncio.sleep(0.05)
+    await waiting.until(what, check, bound_s=deadline_s, every_s=0.05)  # tests/waiting.py
     return time.monotonic() - start
 
 

@@ -20,6 +20,8 @@ from topgimbal.cli.main import main
 from topgimbal.cli.mavlink_status import status_lines
 from topgimbal.sim import BackgroundSimulator
 
+pytestmark = pytest.mark.loopback
+
 SRC = str(Path(__file__).resolve().parents[2] / "src")
 
 

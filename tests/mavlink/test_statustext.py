@@ -5,11 +5,14 @@ from __future__ import annotations
 
 from typing import Any
 
+import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.mavlink.statustext import CHUNK_BYTES, MAX_CHUNKS, chunks
 
 from .conftest import eventually
+
+pytestmark = pytest.mark.external
 
 CAMERA = 100
 

@@ -17,6 +17,8 @@ from topgimbal.sim.truth import truth_record
 
 from .conftest import eventually
 
+pytestmark = pytest.mark.loopback
+
 CAMERA = 100
 STATUS = 275
 

@@ -21,6 +21,8 @@ from topgimbal.mavlink.quaternion import from_euler_deg
 
 from .conftest import NAN, Peer, eventually
 
+pytestmark = pytest.mark.external
+
 GIMBAL = 154
 EARTH = ml.GIMBAL_DEVICE_FLAGS_ROLL_LOCK | ml.GIMBAL_DEVICE_FLAGS_PITCH_LOCK | ml.GIMBAL_DEVICE_FLAGS_YAW_LOCK
 STREAM_HZ = 50.0

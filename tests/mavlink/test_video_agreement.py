@@ -15,6 +15,8 @@ from pymavlink.dialects.v20 import common as ml
 
 import topgimbal
 
+pytestmark = pytest.mark.external
+
 CAMERA, THERMAL = 100, 101
 FFPROBE = shutil.which("ffprobe") or "/usr/bin/ffprobe"
 

@@ -17,6 +17,8 @@ from topgimbal.mavlink import Bridge, BridgeConfig
 from topgimbal.mavlink.bridge import BridgeConfigError
 from topgimbal.video.render import decode_stamp
 
+pytestmark = pytest.mark.external
+
 CAMERA, THERMAL = 100, 101
 GST = shutil.which("gst-launch-1.0") or "/usr/bin/gst-launch-1.0"
 

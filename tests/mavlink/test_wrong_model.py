@@ -28,6 +28,8 @@ from .virtual import (
     start_camera,
 )
 
+pytestmark = pytest.mark.loopback
+
 GIMBAL = 154
 
 
@@ -141,6 +143,7 @@ def _verdicts_at_health_changes(made: Any) -> list[tuple[bool, str]]:
     return seen
 
 
+@pytest.mark.virtual
 @in_virtual_time
 async def test_virtual_a_camera_that_turns_out_to_be_another_model_stays_unserved(caplog: Any) -> None:
     """The same in virtual time, watched for a minute of the product's own timers (silence 3 s,
@@ -193,6 +196,7 @@ async def test_virtual_a_camera_that_turns_out_to_be_another_model_stays_unserve
         await sim.stop()
 
 
+@pytest.mark.virtual
 @in_virtual_time
 async def test_virtual_refusals_of_a_wrong_model_are_one_throttled_line(caplog: Any) -> None:
     """Commands to a camera that is another model, one a second: one WARNING line per 10 s, the next
@@ -220,6 +224,7 @@ async def test_virtual_refusals_of_a_wrong_model_are_one_throttled_line(caplog: 
         await sim.stop()
 
 
+@pytest.mark.virtual
 @in_virtual_time
 async def test_virtual_a_camera_of_the_declared_model_is_active_only_after_the_check(caplog: Any) -> None:
     """A C12 served as a C12: BOOT until the model check says so, then ACTIVE; the one health change
@@ -248,6 +253,7 @@ async def test_virtual_a_camera_of_the_declared_model_is_active_only_after_the_c
         await sim.stop()
 
 
+@pytest.mark.virtual
 @in_virtual_time
 async def test_virtual_a_camera_silent_at_first_that_turns_out_to_be_another_model_is_never_healthy(
     caplog: Any,

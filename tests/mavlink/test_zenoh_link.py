@@ -8,9 +8,13 @@ import json
 from collections.abc import Hashable
 from typing import Any
 
+import pytest
+
 from topgimbal.mavlink import zenoh_link
 from topgimbal.mavlink._mav import mavlink
 from topgimbal.mavlink.endpoints import Link
+
+pytestmark = pytest.mark.loopback
 
 mav = mavlink()
 

@@ -11,6 +11,8 @@ from topgimbal.errors import FieldValueError, UnknownCommandError, UnsupportedEr
 from topgimbal.protocol import RESPONSE, get_dialect, get_model, make_frame
 from topgimbal.protocol.dialects import DIALECT_NAMES, PROFILES, all_models
 
+pytestmark = pytest.mark.virtual
+
 DIALECTS = [get_dialect(n) for n in DIALECT_NAMES]
 # The round trip of every form of every command: test_roundtrip_properties.py (hypothesis, values
 # generated from each codec's metadata, edges and half steps included).

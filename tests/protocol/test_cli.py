@@ -11,6 +11,8 @@ import pytest
 
 from topgimbal.cli.main import main
 
+pytestmark = pytest.mark.loopback
+
 
 def run(
     argv: list[str],

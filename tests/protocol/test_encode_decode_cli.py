@@ -14,6 +14,8 @@ from topgimbal.cli.main import main
 from topgimbal.protocol import get_dialect
 from topgimbal.protocol.frame import bytes_from_text, parse_frame
 
+pytestmark = pytest.mark.virtual
+
 TOP = get_dialect("topotek")
 BINARY = ["GPS", "UAV", "LOC"]
 

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import pytest
+
 from topgimbal.protocol import DIALECT_NAMES, get_dialect
 from topgimbal.protocol.examples import example_fields, example_values, values_equal
+
+pytestmark = pytest.mark.virtual
 
 
 def test_every_codec_has_examples_that_round_trip() -> None:

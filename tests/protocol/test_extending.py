@@ -5,6 +5,8 @@ and the generated reference page."""
 
 from __future__ import annotations
 
+import pytest
+
 from topgimbal.protocol import (
     QUERY,
     REQUEST,
@@ -22,6 +24,8 @@ from topgimbal.protocol.dialects.skydroid import commands as skydroid_commands
 from topgimbal.protocol.fields import HexInt, enum
 from topgimbal.protocol.signs import flip, resolve_signs
 from topgimbal.tools.gendocs import render
+
+pytestmark = pytest.mark.virtual
 
 # Step 1 of "How to add a command": a row (here built without the tables' `command()` shorthand).
 SPEED = Field("speed_pct", HexInt(2, max=100, unit="%"), "fan speed", factory=50, state_key="fan.speed_pct")

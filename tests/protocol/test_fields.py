@@ -22,6 +22,8 @@ from topgimbal.protocol.fields import (
     enum,
 )
 
+pytestmark = pytest.mark.virtual
+
 
 def test_hexint_signed_scaled() -> None:
     c = HexInt(4, signed=True, scale=0.01, unit="deg", min=-90, max=90)

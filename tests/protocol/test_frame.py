@@ -8,6 +8,8 @@ import pytest
 from topgimbal.errors import ChecksumError, FrameError, LengthError
 from topgimbal.protocol import Diagnostic, Frame, FrameParser, checksum, dissect, make_frame, parse_frame
 
+pytestmark = pytest.mark.virtual
+
 
 def test_checksum_is_sum_mod_256_upper_hex() -> None:
     assert checksum(b"#TPUD2wAWB01") == 0x44

@@ -34,6 +34,8 @@ from topgimbal.protocol import (
     parse_frame,
 )
 
+pytestmark = pytest.mark.virtual
+
 VALID = "valid"  # checks out and decodes as it stands
 # A reply example whose source and destination are NOT swapped (the document's mistake): the frame
 # itself checks out; its meaning is asserted on the swapped frame, as a device would send it.

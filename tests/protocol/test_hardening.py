@@ -18,6 +18,8 @@ from topgimbal.errors import (
 )
 from topgimbal.protocol import Frame, FrameParser, Message, decode, decode_any, get_dialect, make_frame
 
+pytestmark = pytest.mark.virtual
+
 SKY, TOP = get_dialect("skydroid"), get_dialect("topotek")
 
 

@@ -16,6 +16,8 @@ from topgimbal.protocol.frame import make_frame
 
 from .real_world import frames
 
+pytestmark = pytest.mark.loopback
+
 # A fresh process (the memo of built dialects and decoders is per process): which dialects a
 # decode builds, and whether it loads the C tables' builder.
 PROBE = """

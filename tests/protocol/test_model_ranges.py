@@ -13,6 +13,8 @@ import pytest
 from topgimbal.cli.main import main
 from topgimbal.protocol import all_models, get_model
 
+pytestmark = pytest.mark.virtual
+
 ROOT = Path(__file__).resolve().parents[2]
 
 

@@ -11,10 +11,13 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from typing import Any
 
+import pytest
 from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
 from topgimbal.protocol import Diagnostic, Frame, FrameParser, dissect, get_dialect, make_frame
+
+pytestmark = pytest.mark.virtual
 
 IDENTS = sorted(set(get_dialect("skydroid").commands) | set(get_dialect("topotek").commands))
 ADDRESSES = "UMDEPG"

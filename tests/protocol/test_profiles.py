@@ -15,6 +15,8 @@ from topgimbal.protocol.catalog import stored_form
 from topgimbal.protocol.dialects import DIALECT_NAMES, all_models
 from topgimbal.protocol.signs import flip, resolve_signs
 
+pytestmark = pytest.mark.virtual
+
 DIALECTS = [get_dialect(n) for n in DIALECT_NAMES]
 SKY, TOP = get_dialect("skydroid"), get_dialect("topotek")
 
@@ -131,6 +133,7 @@ def test_c11_profile_from_public_reports() -> None:
     assert c11.quirks["needs_video_output"] and c11.quirks["no_clock"]
 
 
+@pytest.mark.loopback
 def test_c12_c13_and_sip_profile_facts() -> None:
     _, c12 = get_model("C12")
     assert [(e.kind, e.port) for e in c12.alternate_endpoints] == [("udp", 12580)]

@@ -20,6 +20,8 @@ from topgimbal.protocol.fields import Codec, HexInt
 from topgimbal.protocol.forms import Form
 from topgimbal.protocol.parser import PureFrameParser
 
+pytestmark = pytest.mark.virtual
+
 DIALECTS = [get_dialect("skydroid"), get_dialect("topotek")]
 
 

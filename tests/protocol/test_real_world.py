@@ -11,6 +11,8 @@ from topgimbal.protocol.message import LazyText, Message
 
 from .real_world import DEVICES, GROUND_STATION, frames, has_meaning, meaning_share, with_crc, without_meaning
 
+pytestmark = pytest.mark.virtual
+
 SKY, TOP = get_dialect("skydroid"), get_dialect("topotek")
 
 

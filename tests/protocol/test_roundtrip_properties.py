@@ -20,7 +20,7 @@ from topgimbal.protocol.frame import make_frame
 
 from .strategies import HOSTILE, close, values
 
-pytestmark = pytest.mark.fuzz
+pytestmark = [pytest.mark.virtual, pytest.mark.fuzz]
 
 DIALECTS = [get_dialect(n) for n in DIALECT_NAMES]
 FORMS = [

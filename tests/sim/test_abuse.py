@@ -11,24 +11,20 @@ from collections.abc import Callable
 
 import pytest
 
+import waiting
 from topgimbal.sim import FakeClock, Simulator
 from topgimbal.sim.servers import Limits
 
 from .conftest import LOOP, UdpClient, req
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 GAA_100 = req("C12", "GAA", rate_hz=100)
 
 
 async def until(pred: Callable[[], bool], timeout_s: float = 5.0) -> bool:
-    """Poll `pred` until it holds (the outcome is asserted, not how long it took)."""
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout_s
-    while not pred():
-        if loop.time() > end:
-            return False
-        await asyncio.sleep(0.02)
+    """Poll `pred` until it holds (the outcome is asserted, not how long it took; tests/waiting.py)."""
+    await waiting.until("the simulator's counts", pred, bound_s=timeout_s)
     return True
 
 
@@ -57,7 +53,7 @@ async def test_closed_udp_subscribers_are_forgotten_by_icmp_and_a_live_one_keeps
             assert sim.peers["udp"] == 1 and len(sim.device._parsers) == 1
             # The ICMP errors failed some sends meant for the live peer: they were sent again.
             await good.collect(wait=0.05)
-            got = await good.collect(wait=0.3)
+            got = await good.collect(wait=10, count=10)  # ten frames however slow the machine (a bound)
             assert len(got) >= 10 and {f.ident for f in got} == {"GAC"}
         finally:
             good.close()

@@ -10,6 +10,8 @@ import pytest
 from topgimbal.protocol import QUIRKS, all_models
 from topgimbal.sim import behaviour
 
+pytestmark = pytest.mark.virtual
+
 DOC = Path(__file__).resolve().parents[2] / "docs" / "simulator.md"
 
 

@@ -23,6 +23,8 @@ from topgimbal.sim.handlers.common import setting
 from .conftest import frames
 from .samples import same, samples
 
+pytestmark = pytest.mark.virtual
+
 MODELS = sorted(all_models())
 # Handlers of stored settings (a write stores, a query answers what is stored).
 STORED = (setting, camera.video_output, camera.bitrate, thermal.temperature_range, system.address)

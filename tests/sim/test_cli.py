@@ -15,7 +15,7 @@ from topgimbal.cli.main import build_parser
 
 from .conftest import LOOP, req
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 
 def test_cli_serves_prints_endpoints_and_flushes_state_on_sigterm(tmp_path: Path) -> None:

@@ -6,7 +6,11 @@ import asyncio
 import os
 import signal
 
+import pytest
+
 from topgimbal.cli.runtime import stop_on_signals, wait_stopped
+
+pytestmark = pytest.mark.virtual
 
 
 async def test_a_time_limit_ends_the_wait() -> None:

@@ -11,6 +11,8 @@ from topgimbal.sim.state import NetworkState
 
 from .conftest import DeviceHarness, raw, req
 
+pytestmark = pytest.mark.virtual
+
 ERROR = "ERE"
 
 

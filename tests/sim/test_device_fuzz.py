@@ -16,6 +16,8 @@ from topgimbal.sim import FakeClock
 from topgimbal.sim.context import Request, SimState
 from topgimbal.sim.device import Device, Outgoing
 
+pytestmark = pytest.mark.virtual
+
 MODELS = sorted(all_models())
 ADDRESSES = "UMDEPGX"
 HEADERS = ("#TP", "#tp", "#tP", "#Tp")

@@ -23,7 +23,7 @@ from topgimbal.sim import persist
 
 from .conftest import LOOP, frames, req
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 ROUNDS = int(os.environ.get("TOPGIMBAL_KILL_ROUNDS", "50"))
 WINDOW = 4  # writes in flight at once: the group commit gets batches to share

@@ -13,6 +13,8 @@ from topgimbal.sim import FakeClock, FaultInjector, FaultPlan, FaultPlanError, S
 
 from .conftest import LOOP, UdpClient, req
 
+pytestmark = pytest.mark.loopback
+
 PKT = b"#TPGU2wPTZ0067"
 
 

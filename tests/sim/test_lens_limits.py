@@ -7,6 +7,8 @@ import pytest
 from topgimbal.protocol import all_models, get_model
 from topgimbal.sim.device import Device
 
+pytestmark = pytest.mark.virtual
+
 
 @pytest.mark.parametrize("name", all_models())
 def test_magnification_stops_at_the_profiles_optical_zoom(name: str) -> None:

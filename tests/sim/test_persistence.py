@@ -17,6 +17,8 @@ from topgimbal.sim.state import NetworkState
 
 from .conftest import LOOP, UdpClient, req
 
+pytestmark = pytest.mark.loopback
+
 
 async def test_settings_survive_a_restart(tmp_path: Path) -> None:
     state = tmp_path / "cam.json"

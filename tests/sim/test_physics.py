@@ -9,6 +9,8 @@ import pytest
 from topgimbal.protocol import get_model
 from topgimbal.sim.physics import Gimbal, GimbalPhysics
 
+pytestmark = pytest.mark.virtual
+
 
 def gimbal_for(model: str) -> Gimbal:
     _, m = get_model(model)

@@ -15,6 +15,8 @@ from topgimbal.sim.device import Device
 
 from .conftest import DeviceHarness, raw, req
 
+pytestmark = pytest.mark.virtual
+
 
 def harness(model: str, **quirks: bool | float | None) -> DeviceHarness:
     return DeviceHarness(model, quirk_overrides=quirks)

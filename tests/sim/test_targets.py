@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 import json
 import signal
 import subprocess
@@ -21,6 +20,8 @@ from topgimbal.video.render import Renderer
 from topgimbal.video.snapshot import capture
 
 from .conftest import LOOP
+
+pytestmark = pytest.mark.loopback
 
 
 def test_a_spec_moves_at_its_true_angular_speed_and_hides_in_its_intervals() -> None:
@@ -123,8 +124,10 @@ def test_sim_cli_takes_targets_and_writes_truth_at_50_hz(tmp_path: Path) -> None
     lines = [json.loads(line) for line in truth.read_text().splitlines()]
     assert [t["name"] for t in lines[-1]["targets"]] == ["a", "b"]
     span = lines[-1]["t"] - lines[0]["t"]
-    gaps = sorted(b["t"] - a["t"] for a, b in itertools.pairwise(lines))
-    assert len(lines) >= 10 and 0.015 <= gaps[len(gaps) // 2] <= 0.025  # paced at 50 Hz (median gap)
+    # paced at 50 Hz: never more records than periods went by (a writer made late by a loaded machine
+    # catches up in a burst, so no gap is a wiring check; the pacing itself is proved on looptime in
+    # tests/sim/test_truth_pacing.py)
+    assert len(lines) >= 10 and len(lines) <= span * 50 + 2, (len(lines), span)
     a0, a1 = lines[0]["targets"][0]["bearing_deg"], lines[-1]["targets"][0]["bearing_deg"]
     assert a1 - a0 == pytest.approx(10 * span, abs=0.01)
 

@@ -12,6 +12,8 @@ from topgimbal.video.lens import tracking_requests
 
 from .conftest import DeviceHarness
 
+pytestmark = pytest.mark.virtual
+
 
 def _start(h: DeviceHarness, bearing: float, elevation: float, box: float = 0.05) -> None:
     """Ask for tracking of a box around a direction, as the bridge and console do (video.lens)."""

@@ -14,6 +14,8 @@ import pytest
 
 from topgimbal.tools import cgen
 
+pytestmark = pytest.mark.external
+
 ROOT = Path(__file__).resolve().parents[2]
 C = ROOT / "c"
 STD = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-Wshadow", "-Wcast-qual", "-Wstrict-prototypes"]

@@ -12,6 +12,8 @@ from topgimbal._speedups.spec import CodecSpecError, codec_spec
 from topgimbal.protocol.fields import Codec, HexInt
 from topgimbal.tools import cgen
 
+pytestmark = pytest.mark.virtual
+
 
 def test_generated_tables_are_current() -> None:
     assert cgen.main(["--check"]) == 0

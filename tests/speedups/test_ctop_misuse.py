@@ -19,6 +19,8 @@ from topgimbal.protocol import Frame, Message, get_dialect, make_frame
 
 from .conftest import PureFrameParser, ext, fast_decoder, fast_parser_cls, pure_decode
 
+pytestmark = pytest.mark.loopback
+
 ROOT = Path(__file__).resolve().parents[2]
 GOOD = make_frame("GAC", b"00", src="U", dst="G").to_bytes()
 

@@ -42,6 +42,8 @@ from .conftest import (
     pure_decode,
 )
 
+pytestmark = pytest.mark.loopback
+
 SETTINGS = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 TOKENS = [
     b"#", b"#TP", b"#tp", b"#tP", b"#Tp", b"UG", b"GU", b"DU", b"2w", b"3r", b"Fw", b"\r\n", b"\n", b"\x00",

@@ -18,6 +18,8 @@ from topgimbal.track.vision import TrackerError, VisualTracker
 from topgimbal.video.render import Renderer
 from topgimbal.video.snapshot import capture
 
+pytestmark = pytest.mark.loopback
+
 
 def test_history_interpolates_wraps_and_extrapolates_a_little() -> None:
     h = AttitudeHistory()

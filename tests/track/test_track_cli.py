@@ -18,7 +18,7 @@ from topgimbal.video.simvideo import SimVideo, VideoOptions
 
 # serial: a closed loop in real time (video, tracker, gimbal) scored against the truth; make test runs
 # it apart from the parallel pass, where a loaded CPU stalls the loop rather than the code under test.
-pytestmark = [pytest.mark.integration, pytest.mark.serial]
+pytestmark = [pytest.mark.loopback, pytest.mark.integration, pytest.mark.serial]
 
 
 def _off_axis_deg(r: dict[str, object]) -> float:

@@ -15,6 +15,8 @@ from topgimbal.video.frames import frames
 from topgimbal.video.lens import VideoError, plan_ports, streams_for
 from topgimbal.video.simvideo import VideoOptions
 
+pytestmark = pytest.mark.loopback
+
 DEAD_URL = "rtsp://127.0.0.1:9/nothing"  # never opened: the arguments are refused first
 
 

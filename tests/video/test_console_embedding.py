@@ -16,7 +16,7 @@ import pytest
 
 from console.conftest import BackgroundConsole, open_console, wait_for
 
-pytestmark = [pytest.mark.browser, pytest.mark.integration]
+pytestmark = [pytest.mark.external, pytest.mark.browser, pytest.mark.integration]
 
 
 @pytest.fixture(scope="module")

@@ -18,7 +18,7 @@ from topgimbal.video.simvideo import SimVideo, VideoOptions
 
 from .blobs import nearest, red_blobs
 
-pytestmark = [pytest.mark.browser, pytest.mark.integration]
+pytestmark = [pytest.mark.external, pytest.mark.browser, pytest.mark.integration]
 
 
 @pytest.fixture(scope="module")

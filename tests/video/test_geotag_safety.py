@@ -20,6 +20,8 @@ import topgimbal
 from topgimbal.cli.main import main
 from topgimbal.video.exif import IFD_EXIF, IFD_GPS, TAG_ORIGINAL, PhotoMeta, tag_jpeg
 
+pytestmark = pytest.mark.loopback
+
 UTC = datetime.timezone.utc
 T0 = datetime.datetime(2025, 5, 4, 10, 0, 0, tzinfo=UTC)
 LAT0 = 47.0

@@ -25,19 +25,18 @@ from topgimbal.cli.main import main
 from topgimbal.sim import Simulator
 from topgimbal.video.media import MediaStore
 from topgimbal.video.media_http import MediaServer
+from waiting import until
 
-pytestmark = pytest.mark.skipif(shutil.which("exiftool") is None, reason="make exiftool-deps installs exiftool")
+pytestmark = [
+    pytest.mark.external,
+    pytest.mark.skipif(shutil.which("exiftool") is None, reason="make exiftool-deps installs exiftool"),
+]
 
 UTC = datetime.timezone.utc
 
 
 async def eventually(check: Any, timeout: float = 20.0, what: str = "condition") -> None:
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout
-    while not check():
-        if loop.time() > end:
-            raise AssertionError(f"{what} did not hold within {timeout} s")
-        await asyncio.sleep(0.05)
+    await until(what, check, bound_s=timeout)  # tests/waiting.py
 
 
 def exiftool(*paths: Path) -> list[dict[str, Any]]:

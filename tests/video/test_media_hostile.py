@@ -19,6 +19,8 @@ from topgimbal.cli.main import main
 from topgimbal.video import media_http
 from topgimbal.video.media_http import MediaServer
 
+pytestmark = pytest.mark.loopback
+
 Answer = Callable[[BaseHTTPRequestHandler], None]
 
 

@@ -9,23 +9,23 @@ import shutil
 import socket
 import subprocess
 import sys
-import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from topgimbal.clock import monotonic, wall_time
+from topgimbal.clock import wall_time
 from topgimbal.video.encode import Encoder
 from topgimbal.video.lens import VideoError
 from topgimbal.video.render import decode_stamp
 from topgimbal.video.rtp import nal_type, split_nals
 from topgimbal.video.rtp_push import ParamSetInserter, RtpPush, advertised_uri, parse_udp_target
+from waiting import until_blocking
 
 from .conftest import FFMPEG, LiveSim
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.external, pytest.mark.integration]
 GST = shutil.which("gst-launch-1.0") or "/usr/bin/gst-launch-1.0"
 SRC = str(Path(__file__).resolve().parents[2] / "src")
 
@@ -63,11 +63,8 @@ def sim() -> Iterator[LiveSim]:
         yield live
 
 
-def wait_for(cond: object, timeout_s: float = 30.0) -> None:
-    end = monotonic() + timeout_s  # a bound on a hang, not a speed assertion
-    while not cond():  # type: ignore[operator]
-        assert monotonic() < end, "gave up waiting"
-        time.sleep(0.05)
+def wait_for(cond: Callable[[], bool], timeout_s: float = 30.0) -> None:
+    until_blocking("the push's keyframes", cond, bound_s=timeout_s)  # a bound on a hang (tests/waiting.py)
 
 
 # -- pure parts -------------------------------------------------------------------------------------

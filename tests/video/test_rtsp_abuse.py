@@ -20,6 +20,8 @@ from topgimbal.video import rtsp
 from topgimbal.video.encode import AccessUnit
 from topgimbal.video.rtsp import RtspServer, Stream, Transport, parse_transport
 
+pytestmark = pytest.mark.loopback
+
 SPS = b"\x67\x42\xc0\x1f\xda\x01\x40\x16\xe8"
 PPS = b"\x68\xce\x3c\x80"
 

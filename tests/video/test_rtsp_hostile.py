@@ -15,6 +15,8 @@ from topgimbal.video import rtsp
 from topgimbal.video.rtsp import RtspServer, Stream
 from video.test_rtsp_abuse import Client, _picture
 
+pytestmark = pytest.mark.loopback
+
 
 class FakeClock:
     def __init__(self) -> None:

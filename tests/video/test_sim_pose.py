@@ -14,6 +14,8 @@ import topgimbal
 from topgimbal.sim import Simulator
 from topgimbal.video.media import MediaStore
 
+pytestmark = pytest.mark.loopback
+
 
 def xmp(path: Path) -> dict[str, float]:
     text = path.read_bytes().decode("latin-1")

@@ -17,6 +17,8 @@ from topgimbal.sim import Simulator
 from topgimbal.video.exif import IFD_EXIF, TAG_ORIGINAL, TAG_SUBSEC_ORIGINAL
 from topgimbal.video.media import MediaStore
 
+pytestmark = pytest.mark.loopback
+
 UTC = datetime.timezone.utc
 
 

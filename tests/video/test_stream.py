@@ -17,11 +17,12 @@ import topgimbal
 from topgimbal.video import world
 from topgimbal.video.lens import View, hfov_at, stream_for
 from topgimbal.video.render import decode_stamp
+from waiting import until_blocking
 
 from .blobs import nearest, red_blobs
 from .conftest import FFPROBE, LiveSim, grab
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.external, pytest.mark.integration]
 
 # Where a landmark's bullseye is found against where the lens model puts it. The centroid of a
 # ~30 px ring in an H.264 picture lands within a pixel of its centre; the picture is taken at
@@ -309,17 +310,14 @@ def test_ent_switches_the_codec_of_a_running_stream() -> None:
         assert probe(thermal)["codec_name"] == "h264"  # the sub stream keeps its codec
         with topgimbal.Gimbal(live.url, model="SIP") as cam:
             cam.request("ENT", stream="stream1", codec="h265")  # the last write names stream1 only ...
-        assert _eventually(lambda: probe(thermal)["codec_name"] == "hevc")
+        until_blocking(
+            "the thermal stream's codec",
+            lambda: probe(thermal)["codec_name"],
+            lambda c: c == "hevc",
+            bound_s=10,
+            every_s=0.2,
+        )
         assert probe(visible)["codec_name"] == "hevc"  # ... and stream0 keeps what it was set to
-
-
-def _eventually(check: Any, timeout_s: float = 10.0) -> bool:
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        if check():
-            return True
-        time.sleep(0.2)
-    return False
 
 
 def test_a_receiver_playing_starts_the_c11s_video_output_and_its_photos_count() -> None:

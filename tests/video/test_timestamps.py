@@ -15,7 +15,7 @@ import pytest
 
 from .conftest import FFPROBE, LiveSim
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.external, pytest.mark.integration]
 
 
 @pytest.fixture(scope="module")

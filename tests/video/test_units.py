@@ -16,6 +16,8 @@ from topgimbal.video.rtp import Packetizer, parameter_sets, sdp, split_nals
 from topgimbal.video.simvideo import VideoOptions, plan_ports
 from topgimbal.video.snapshot import SceneState
 
+pytestmark = pytest.mark.virtual
+
 
 def _two_port_c12() -> Any:
     """A C12 whose thermal stream is on a port of its own (as public C13 probes report)."""
@@ -51,6 +53,7 @@ def test_video_url_per_model_and_lens() -> None:
     assert video_url(_two_port_c12(), "10.0.0.2", "thermal") == "rtsp://10.0.0.2:555/stream=2"
 
 
+@pytest.mark.loopback
 def test_streams_carry_the_profiles_lens_data() -> None:
     from topgimbal.protocol import get_model
     from topgimbal.video.lens import stream_urls, vfov_for
@@ -74,6 +77,7 @@ def test_streams_carry_the_profiles_lens_data() -> None:
         streams_for("X9")
 
 
+@pytest.mark.loopback
 def test_video_url_refuses_what_the_model_has_not() -> None:
     with pytest.raises(VideoError, match="no 'thermal' stream"):
         video_url("C10", "10.0.0.1", "thermal")
@@ -180,6 +184,7 @@ def test_thermal_picture_follows_the_palette_and_osd_and_recording_show() -> Non
     assert red(on) > 20 and red(off) == 0  # the REC light blinks
 
 
+@pytest.mark.loopback
 def test_client_builds_video_urls_and_imports_only_the_stream_table() -> None:
     import ast
     from pathlib import Path
@@ -261,6 +266,7 @@ def test_rendering_straight_into_ycbcr_gives_the_rgb_picture(lens: str, size: tu
         yuv420_frame(ycc_img.crop((0, 0, size[0] - 1, size[1])))
 
 
+@pytest.mark.external
 def test_tracking_requests_per_model() -> None:
     from topgimbal.protocol import get_model
     from topgimbal.video.lens import tracking_requests

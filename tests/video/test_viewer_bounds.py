@@ -21,6 +21,9 @@ from topgimbal.video import relay as relay_mod
 from topgimbal.video import webconsole
 from topgimbal.video.relay import Relay
 from topgimbal.video.webconsole import ConsoleVideo
+from waiting import until
+
+pytestmark = pytest.mark.loopback
 
 PICTURE = b"\xff\xd8" + bytes(200_000) + b"\xff\xd9"  # big enough to fill socket buffers fast
 
@@ -183,8 +186,4 @@ async def test_other_clients_leave_the_operators_places_free(console: tuple[Cons
 
 
 async def eventually_viewers(relay: Any, n: int) -> None:
-    for _ in range(500):
-        if relay.viewers == n:
-            return
-        await asyncio.sleep(0.02)
-    raise AssertionError(f"{relay.viewers} viewers, expected {n}")
+    await until(f"{n} viewers", lambda: relay.viewers, lambda v: v == n, bound_s=10)  # tests/waiting.py

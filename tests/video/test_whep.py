@@ -16,7 +16,7 @@ from console.conftest import BackgroundConsole
 from topgimbal.video import webrtc
 from topgimbal.video.render import decode_stamp
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.loopback, pytest.mark.integration]
 
 
 @pytest.fixture(scope="module")

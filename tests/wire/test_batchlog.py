@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from topgimbal.client.traffic import TrafficLog, read_log
 from topgimbal.protocol import decode_any, make_frame
 from topgimbal.wire.batchlog import MAX_LINES, BatchedTrafficLog
+
+pytestmark = pytest.mark.loopback
 
 
 def test_lines_wait_for_flush_and_read_back_as_the_client_writes_them(tmp_path):
@@ -35,6 +39,7 @@ def test_lines_wait_for_flush_and_read_back_as_the_client_writes_them(tmp_path):
     assert len(list(read_log(batched))) == 4
 
 
+@pytest.mark.virtual
 def test_a_full_batch_is_written_without_waiting_for_the_timer(tmp_path):
     path = tmp_path / "busy.jsonl"
     log = BatchedTrafficLog(path)

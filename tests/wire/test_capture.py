@@ -13,6 +13,8 @@ from topgimbal.wire.capture import PacketNote, WireFrame, frames_in_capture
 from topgimbal.wire.packets import TCP_ACK, TCP_PSH, TCP_SYN, build_packet
 from topgimbal.wire.tcpstream import TcpStream
 
+pytestmark = pytest.mark.loopback
+
 HOST, DEV = ("127.0.0.1", 40000), ("127.0.0.1", 5000)
 PTZ = b"#TPUG2wPTZ006A"
 GAC = b"#tpGUCrGACFF36ED5A0048E3"

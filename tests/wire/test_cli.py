@@ -19,6 +19,8 @@ from topgimbal.wire import CaptureRecord, CaptureWriter, generate_dissector, rea
 
 from .tshark import top_layers, values
 
+pytestmark = pytest.mark.external
+
 HOST, SKY, SIP = ("127.0.0.1", 40000), ("127.0.0.1", 5000), ("127.0.0.1", 9003)
 PTZ = b"#TPUG2wPTZ006A"
 GAC = b"#tpGUCrGACFF36ED5A0048E3"

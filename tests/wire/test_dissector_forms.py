@@ -15,6 +15,8 @@ from topgimbal.wire.dissector import catalog_tables
 from .forms import ANY_PORT, FormFrame, device_port, expected, form_frames, mismatches
 from .tshark import top_layers
 
+pytestmark = pytest.mark.external
+
 
 @pytest.fixture(scope="module")
 def every_form() -> list[FormFrame]:

@@ -15,6 +15,8 @@ from topgimbal.wire import CaptureWriter
 
 from .tshark import experts, run_tshark, top_layers, values
 
+pytestmark = pytest.mark.external
+
 HOST, SKYDROID, TOPOTEK, OTHER = ("127.0.0.1", 40000), ("127.0.0.1", 5000), ("127.0.0.1", 9003), ("127.0.0.1", 7777)
 GAC = get_dialect("skydroid").response(
     encode("skydroid", "GAC", read=True), yaw_deg=-2.02, pitch_deg=-47.74, roll_deg=0.72

@@ -10,6 +10,8 @@ import pytest
 from topgimbal.protocol.fields import Codec, HexInt
 from topgimbal.wire.dissector import DissectorError, catalog_tables, codec_entry, short_name, to_lua
 
+pytestmark = pytest.mark.virtual
+
 
 @dataclass(frozen=True)
 class Morse(Codec):

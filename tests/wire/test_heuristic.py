@@ -22,6 +22,8 @@ from topgimbal.wire.heuristic import MAX_LEADING_LINE_ENDS, looks_like_top
 from .test_dissector_wire import _mutate, _pool
 from .tshark import top_layers
 
+pytestmark = pytest.mark.external
+
 OTHER_PORT = 7777  # documented for no dialect: only the heuristic takes it
 
 

@@ -34,6 +34,8 @@ from topgimbal.wire.dissector import (
 from .forms import ANY_PORT, FormFrame, expected, form_frames, mismatches
 from .test_dissector_wire import _lua_items, _mutate, _pool, _python_items
 
+pytestmark = pytest.mark.external
+
 VERSIONS = ["lua52", "lua53", "lua54"]
 SHIM = (Path(__file__).with_name("wireshark_shim.lua")).read_bytes()
 # data characters a mutation may use: every codec's edges (see test_dissector_forms.MUTATIONS)

@@ -35,6 +35,8 @@ from topgimbal.wire.pcapfile import (
 
 from .tshark import run_tshark, top_layers, values
 
+pytestmark = pytest.mark.external
+
 PTZ = b"#TPUG2wPTZ006A"
 GAC = b"#tpGUCrGACFF36ED5A0048E3"
 

@@ -9,7 +9,10 @@ from topgimbal.transport import network_address
 from topgimbal.wire.export import HOST_PORT, _endpoints
 from topgimbal.wire.ports import CLIENT_PORTS, client_port
 
+pytestmark = pytest.mark.loopback
 
+
+@pytest.mark.virtual
 def test_client_port_comes_from_the_conventions_table() -> None:
     assert CLIENT_PORTS == {("udp", 9004): "topotek"}
     assert client_port("udp", "topotek", HOST_PORT) == 9004

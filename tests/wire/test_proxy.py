@@ -29,7 +29,7 @@ from topgimbal.wire.proxy import Proxy, ProxyError, ProxyEvent
 
 from .tshark import top_layers, values
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.external, pytest.mark.integration]
 
 PTZ = b"#TPUG2wPTZ006A"
 
