@@ -236,3 +236,29 @@ async def test_virtual_recording_time_counts_the_seconds_recorded(vrig_maker: An
     assert (await vrig.peer.ack(100, 2501)).result == ACCEPTED
     stopped = await vrig.peer.request(100, 262, "CAMERA_CAPTURE_STATUS")
     assert stopped.video_status == 0 and stopped.recording_time_ms == 0 and not vrig.sim.camera.recording
+
+
+@in_virtual_time
+async def test_virtual_a_read_asked_again_while_the_camera_answers_is_not_queued_again(vrig_maker: Any) -> None:
+    """A client resends PARAM_EXT_REQUEST_READ while a slow camera answers (MAVSDK every ~0.4 s): the
+    read already on its way answers them all, one camera round trip and one PARAM_EXT_VALUE, rather
+    than one queued camera read per resend (their answers came ever later, and MAVSDK took them for
+    answers to the wrong requests)."""
+    timeout_s, retries = 1.0, 1
+    vrig = await vrig_maker("SIP", silence_s=30.0, timeout_s=timeout_s, retries=retries)
+    await eventually(lambda: vrig.bridge.cam.answering, 10, "camera answering")
+    params = vrig.bridge.cameras[1].params
+    sent = camera_input(vrig.sim)
+    silence_replies(vrig.sim, 60.0)  # the camera hears, its answers are lost: each read takes its retries
+    start = len(vrig.peer.messages)
+    for _ in range(6):  # 1.5 s of resends, within the one read's 2 s (1 + retries tries, timeout_s apart)
+        vrig.peer.send(ml.MAVLink_param_ext_request_read_message(1, 101, b"IMG_PALETTE", -1))
+        await asyncio.sleep(0.3)
+    await asyncio.sleep(10.0)  # whatever was queued has long been answered
+    values = [
+        m for m in vrig.peer.messages[start:] if m.get_type() == "PARAM_EXT_VALUE" and m.param_id == "IMG_PALETTE"
+    ]
+    reads = [t for t, data in sent if data[6:10] == b"rIMG"]
+    assert len(values) == 1 and params.coalesced == 5, (len(values), params.coalesced)
+    assert len(reads) == 1 + retries, reads
+    assert not params.reading  # nothing left marked: the next read asks the camera again

@@ -10,11 +10,16 @@ the value), VALUE_UNSUPPORTED for a value that is not an option or out of range,
 FAILED when the camera refused, did not answer or the link is down (a STATUSTEXT says why). A
 setting of a command with several settings is written with the others' current values, read
 first. At most MAX_INFLIGHT requests run at once; more are answered FAILED (a rate-limited log
-line says so)."""
+line says so). A read of a setting whose read is already queued or running is not queued again:
+the answer on its way (broadcast, like every PARAM_EXT_VALUE) serves it. A client's retransmissions
+while a slow camera answers (MAVSDK resends every ~0.4 s) each cost a camera round trip otherwise,
+and the queue they made sent answers ever later (MAVSDK then took the answers to its older
+requests as wrong ones, failed its reads and, once, aborted)."""
 
 from __future__ import annotations
 
 import asyncio
+import functools
 import logging
 import math
 import struct
@@ -68,6 +73,8 @@ class ParamsExt:
         self.known: dict[str, float] = {}  # what the camera said or confirmed last
         self.tasks: set[asyncio.Task[None]] = set()
         self.refused = 0
+        self.reading: set[str] = set()  # settings whose read is queued or running
+        self.coalesced = 0  # reads answered by the one already on its way
         self._busy_log = ThrottledLog(log, BUSY_LOG_EVERY_S)
         # One request at a time: answers leave in the order the requests came (MAVSDK's parameter
         # client takes an answer for another parameter than the one it asked as a failure).
@@ -85,16 +92,27 @@ class ParamsExt:
             self._spawn(self._list(), None)
         elif kind == "PARAM_EXT_REQUEST_READ":
             param = self._param(m.param_id, m.param_index)
-            if param is not None:
-                self._spawn(self._read(param), None)
+            if param is None:
+                return
+            if param in self.reading:
+                self.coalesced += 1
+                return
+            task = self._spawn(self._read(param), None)
+            if task is not None:
+                self.reading.add(param)
+                task.add_done_callback(functools.partial(self._read_done, param))
         else:
             param = self._param(m.param_id, -1)
             if param is None:
                 return
+            self.reading.discard(param)  # a read after this set is answered after it, not before
             raw = getattr(m, "_param_value_raw", None)
             if not isinstance(raw, (bytes, bytearray)):
                 raw = str(m.param_value).encode("latin-1", "replace")
             self._spawn(self._set(param, int(m.param_type), bytes(raw)), param)
+
+    def _read_done(self, param: str, _task: asyncio.Task[None]) -> None:
+        self.reading.discard(param)
 
     def _param(self, param_id: Any, index: int) -> str | None:
         if 0 <= index < len(self.order):
@@ -103,7 +121,7 @@ class ParamsExt:
         name = name.split("\0", 1)[0]
         return name if name in self.settings else None
 
-    def _spawn(self, work: Any, setting: str | None) -> None:
+    def _spawn(self, work: Any, setting: str | None) -> asyncio.Task[None] | None:
         if len(self.tasks) >= MAX_INFLIGHT:
             work.close()
             self.refused += 1
@@ -113,10 +131,11 @@ class ParamsExt:
             if setting is not None:
                 s = self.settings[setting]
                 self._ack(s, self._known(s), FAILED)
-            return
+            return None
         task = asyncio.ensure_future(self._in_turn(work))
         self.tasks.add(task)
         task.add_done_callback(self.tasks.discard)
+        return task
 
     async def _in_turn(self, work: Any) -> None:
         async with self._turn:
