@@ -79,9 +79,11 @@ async def test_the_bridge_asks_the_autopilot_for_what_photos_need(
         autopilot.close()
 
 
-async def test_a_photo_carries_the_position_at_the_shutter_and_the_autopilots_time(rig_factory: Any) -> None:
-    r = await rig_factory("C12", role="device")
-    autopilot = await Peer(sysid=1, compid=1).connect(r.bridge.addresses[0][1])
+@in_virtual_time  # a closed loop on the clock (a vehicle at 10 m/s): on a loaded machine real time
+# put the camera's own tag 2.8 m off; in virtual time the product's timing is what is measured
+async def test_a_photo_carries_the_position_at_the_shutter_and_the_autopilots_time(vrig_maker: Any) -> None:
+    r = await vrig_maker("C12", role="device")
+    autopilot = await MemPeer(sysid=1, compid=1).join(r.link)
     shutters: list[float] = []
     fed: list[float | None] = []  # the latitude the camera itself was fed at its shutter (its EXIF)
     state = r.sim.device.state
@@ -91,9 +93,13 @@ async def test_a_photo_carries_the_position_at_the_shutter_and_the_autopilots_ti
         fed.append(state.position.lat_deg)
 
     state.capture_listeners.append(on_capture)
-    # the autopilot's clock: a day ahead of ours, so a photo dated by our clock would show it
-    utc_offset_s = 86400.0
+    # the autopilot's clock: a day ahead of ours, so a photo dated by our clock would show it; it
+    # runs on the (virtual) clock the product measures intervals with
     t0 = monotonic()
+    utc0 = wall_time() + 86400.0
+
+    def autopilot_utc(t: float) -> float:
+        return utc0 + (t - t0)
 
     def north_m(t: float) -> float:
         return SPEED_M_S * (t - t0)
@@ -106,7 +112,7 @@ async def test_a_photo_carries_the_position_at_the_shutter_and_the_autopilots_ti
             autopilot.send(ml.MAVLink_global_position_int_message(i, round(lat * 1e7), round(LON0 * 1e7), 500_000,
                                                                   20_000, int(SPEED_M_S * 100), 0, 0, 0))  # fmt: skip
             if i % 5 == 0:
-                autopilot.send(ml.MAVLink_system_time_message(int((wall_time() + utc_offset_s) * 1e6), i))
+                autopilot.send(ml.MAVLink_system_time_message(int(autopilot_utc(now) * 1e6), i))
             i += 1
             await asyncio.sleep(0.2)
 
@@ -120,7 +126,7 @@ async def test_a_photo_carries_the_position_at_the_shutter_and_the_autopilots_ti
             got = await captured(r.peer, n)
             shutter = shutters[-1]
             error_m = abs((got.lat / 1e7 - LAT0) * METRES_PER_DEG - north_m(shutter))
-            time_error_s = abs(got.time_utc / 1e6 - (wall_time() - (monotonic() - shutter) + utc_offset_s))
+            time_error_s = abs(got.time_utc / 1e6 - autopilot_utc(shutter))
             own = fed[-1]
             own_m = abs((own - LAT0) * METRES_PER_DEG - north_m(shutter)) if own is not None else math.nan
             print(f"photo {n}: position error {error_m:.2f} m, time error {time_error_s:.3f} s; "
