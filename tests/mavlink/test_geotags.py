@@ -79,6 +79,7 @@ async def test_the_bridge_asks_the_autopilot_for_what_photos_need(
         autopilot.close()
 
 
+@pytest.mark.virtual
 @in_virtual_time  # a closed loop on the clock (a vehicle at 10 m/s): on a loaded machine real time
 # put the camera's own tag 2.8 m off; in virtual time the product's timing is what is measured
 async def test_a_photo_carries_the_position_at_the_shutter_and_the_autopilots_time(vrig_maker: Any) -> None:
