@@ -67,8 +67,10 @@ def read_log(path: str | Path) -> Iterator[LogRecord]:
                 if "dir" not in obj:
                     continue
                 frame = parse_frame(obj["raw"].encode("latin-1"))
-            except (ValueError, KeyError, TypeError, AttributeError, RecursionError):
-                continue  # not a record (JSON of another shape, or nested past Python's recursion)
+            except (ValueError, KeyError, RecursionError):
+                continue  # not JSON, no frame, or nested past Python's recursion
+            # JSON of another shape (a number, a list, a non-text "raw") raises TypeError or
+            # AttributeError to the caller: `replay` names the file as not a traffic log
             yield LogRecord(
                 float(obj.get("t", 0.0)), float(obj.get("mono", 0.0)), obj["dir"], frame, obj.get("decoded")
             )
