@@ -13,6 +13,10 @@ from topgimbal.transport import BACKENDS, parse_url
 
 pytestmark = pytest.mark.loopback
 
+# Nothing heard for this long declares the link lost: for these wiring tests a bound on a hang (the
+# product's 3 s was reached at load 50, with a healthy device that answered late).
+LINK_S = 30.0
+
 
 def test_parse_urls():
     u = parse_url("udp://127.0.0.1:5000")
@@ -56,10 +60,11 @@ def test_backends_are_imported_lazily():
 async def test_request_reply_over_loopback(fake, kind):
     url = await (fake.start_udp() if kind == "udp" else fake.start_tcp())
     fake.answers["REC"] = {"state": "recording"}
-    async with topgimbal.connect(url, model="C12", timeout_s=3) as cam:
+    async with topgimbal.connect(url, model="C12", timeout_s=3, link_timeout_s=LINK_S) as cam:
         assert await cam.recording() is True
         assert cam.state.recording is not None and cam.state.recording.value is True
-        assert cam.stats.frames_out == 1 and cam.stats.frames_in == 1 and cam.stats.connected
+        # wiring, not timing: on a loaded machine a ping may have gone out too
+        assert cam.stats.frames_out >= 1 and cam.stats.frames_in >= 1 and cam.stats.connected
     assert fake.received[0].to_bytes() == b"#TPUD2rREC003E"
 
 
@@ -73,7 +78,7 @@ async def test_several_frames_per_datagram_crlf_and_lowercase(fake):
         return [att.to_bytes() + b"\r\n" + ans.to_bytes() + b"\r\n"]
 
     fake.handler = handler
-    async with topgimbal.connect(url, model="C12", timeout_s=3) as cam:
+    async with topgimbal.connect(url, model="C12", timeout_s=3, link_timeout_s=LINK_S) as cam:
         assert await cam.recording() is False
         assert cam.state.attitude is not None and cam.state.attitude.pitch_deg == 2.0
 
@@ -160,7 +165,7 @@ async def test_subscribers_are_isolated_and_unsubscribe(fake):
     async def good_async(m):
         seen.append("async:" + m.ident)
 
-    async with topgimbal.connect(url, model="C12", timeout_s=3) as cam:
+    async with topgimbal.connect(url, model="C12", timeout_s=3, link_timeout_s=LINK_S) as cam:
         cam.subscribe(bad)
         un = cam.subscribe(lambda m: seen.append(m.ident), "CAP")
         cam.subscribe(good_async)

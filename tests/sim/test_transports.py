@@ -135,7 +135,7 @@ async def test_ardupilot_topotek_driver_conversation_over_tcp() -> None:
         parser = FrameParser()
         inbox: list[Frame] = []
 
-        async def until(pred: object, timeout: float = 2.0) -> Frame:
+        async def until(pred: object, timeout: float = 30.0) -> Frame:  # a bound on a hang
             async def loop() -> Frame:
                 while True:
                     for i, f in enumerate(inbox):
@@ -169,14 +169,15 @@ async def test_ardupilot_topotek_driver_conversation_over_tcp() -> None:
             assert (await until(lambda f: f.ident == "PA2")).data == b"SIP"
             assert (await until(lambda f: f.ident == "SDC")).data.isalnum()
             assert (await until(lambda f: f.ident == "TRC")).data[1:2] == b"0"
-            await asyncio.sleep(0.5)
+            # the rate command took the camera down (waited for on the wire, not for 0.5 s of clock)
+            await until(lambda f: f.ident == "GIA" and len(f.data) >= 12 and d.decode(f).fields["pitch_deg"] > 5)  # type: ignore[index]
             assert sim.gimbal.pitch_deg < -5  # camera went down
             send("GIP", pitch_deg=45.0, speed_deg_s=9.9)
             send("GAY", yaw_deg=0.0, speed_deg_s=9.9)
             await writer.drain()
-            await asyncio.sleep(0.3)
-            inbox.clear()
-            last = await until(lambda f: f.ident == "GIA" and len(f.data) >= 12)
+            # the camera down: a GIA says so down-positive (at 50 Hz on a loaded machine the frames
+            # back up in the socket: the next one read may be from before the move, so wait for it)
+            last = await until(lambda f: f.ident == "GIA" and len(f.data) >= 12 and d.decode(f).fields["pitch_deg"] > 0)  # type: ignore[index]
             wire_pitch = d.decode(last).fields["pitch_deg"]  # type: ignore[index]
             assert wire_pitch > 0 and sim.gimbal.pitch_deg < 0  # down-positive on the wire
             assert sim.device.position.lat_deg == pytest.approx(-33.5)

@@ -48,10 +48,10 @@ def probe(url: str, transport: str = "tcp") -> dict:
         ],
         capture_output=True,
         text=True,
-        timeout=30,
-        check=True,
-    ).stdout
-    return json.loads(out)["streams"][0]
+        timeout=60,  # a bound on a hang
+    )
+    assert out.returncode == 0 and out.stdout, f"ffprobe {url} ({transport}): exit {out.returncode}: {out.stderr}"
+    return json.loads(out.stdout)["streams"][0]
 
 
 def test_ffprobe_reads_the_c12s_visible_and_thermal_streams(c12: LiveSim) -> None:

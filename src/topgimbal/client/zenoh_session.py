@@ -57,9 +57,9 @@ def make_config(
         raise FieldValueError("connect", None, "a client needs at least one --connect endpoint")
     try:
         conf = zenoh.Config.from_file(config_file) if config_file else zenoh.Config()
-    except Exception as exc:  # zenoh's own error type: say which file
+    except Exception as exc:  # zenoh's own error type: say which file, whole (the value shown is cut at 80)
         raise FieldValueError(
-            "config", config_file, f"a readable Zenoh configuration file ({zenoh_error_text(exc)})"
+            "config", config_file, f"a Zenoh configuration file: {config_file} is not one ({zenoh_error_text(exc)})"
         ) from None
     conf.insert_json5("mode", json.dumps(mode))
     conf.insert_json5("scouting/multicast/enabled", "false")
