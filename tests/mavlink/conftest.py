@@ -5,7 +5,9 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
+import subprocess
 from collections.abc import AsyncIterator, Callable
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -209,3 +211,15 @@ async def vrig_maker() -> AsyncIterator[Callable[..., Any]]:
 
     async with virtual.vrigs() as make:
         yield make
+
+
+@pytest.fixture(scope="module")
+def source(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 3 s H.264 clip ffmpeg makes (keyframes every second): what the KLV recorder tests record."""
+    path = tmp_path_factory.mktemp("video") / "in.mp4"
+    subprocess.run(
+        ["ffmpeg", "-loglevel", "error", "-y", "-f", "lavfi", "-i", "testsrc=size=320x240:rate=10", "-t", "3",
+         "-c:v", "libx264", "-pix_fmt", "yuv420p", "-g", "10", str(path)],
+        check=True, timeout=60,
+    )  # fmt: skip
+    return path

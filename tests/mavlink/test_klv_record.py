@@ -24,17 +24,6 @@ VALUES = {5: 250.0, 6: 1.0, 7: -2.0, 13: 47.002, 14: 7.998, 15: 650.0, 16: 40.0,
           21: 410.0, 23: 46.999, 24: 8.001, 25: 330.0}  # fmt: skip
 
 
-@pytest.fixture(scope="module")
-def source(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("video") / "in.mp4"
-    subprocess.run(
-        ["ffmpeg", "-loglevel", "error", "-y", "-f", "lavfi", "-i", "testsrc=size=320x240:rate=10", "-t", "3",
-         "-c:v", "libx264", "-pix_fmt", "yuv420p", "-g", "10", str(path)],
-        check=True, timeout=60,
-    )  # fmt: skip
-    return path
-
-
 def _frame_hashes(path: Path) -> list[str]:
     text = subprocess.run(
         ["ffmpeg", "-loglevel", "error", "-i", str(path), "-map", "0:v", "-f", "framemd5", "-"],

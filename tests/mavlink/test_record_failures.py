@@ -6,37 +6,18 @@ from __future__ import annotations
 
 import logging
 import os
-import shutil
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 
 import pytest
 
 from topgimbal.mavlink import klv_record
 from topgimbal.mavlink.klv_record import Recorder, RecordWriteError, remux
+from waiting import until_blocking
 
 pytestmark = pytest.mark.external  # ffmpeg makes the source
-
-
-@pytest.fixture(scope="module")
-def source(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("video") / "in.mp4"
-    subprocess.run(
-        ["ffmpeg", "-loglevel", "error", "-y", "-f", "lavfi", "-i", "testsrc=size=320x240:rate=10", "-t", "3",
-         "-c:v", "libx264", "-pix_fmt", "yuv420p", "-g", "10", str(path)],
-        check=True, timeout=60,
-    )  # fmt: skip
-    return path
-
-
-def wait_for(check: object, timeout_s: float = 30.0, what: str = "condition") -> None:
-    end = time.monotonic() + timeout_s
-    while not check():  # type: ignore[operator]
-        assert time.monotonic() < end, f"{what} did not hold within {timeout_s} s"
-        time.sleep(0.05)
 
 
 def test_a_write_error_is_raised_not_swallowed(source: Path) -> None:
@@ -62,7 +43,7 @@ def test_a_full_disk_is_a_warning_each_time_and_leaves_no_empty_file(
     with caplog.at_level(logging.INFO, logger="topgimbal.mavlink"):
         rec.start()
         try:
-            wait_for(lambda: rec.write_failures >= 4, what="four write failures")
+            until_blocking("four write failures", lambda: rec.write_failures >= 4, bound_s=30)
         finally:
             rec.close()
     warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
@@ -104,7 +85,7 @@ def test_two_recorders_in_one_folder_in_one_second_write_two_files(
     a.start()
     b.start()
     try:
-        wait_for(lambda: a.files and b.files, what="a file each")
+        until_blocking("a file each", lambda: a.files and b.files, bound_s=30)
     finally:
         a.close()
         b.close()
@@ -120,9 +101,12 @@ def test_a_vanished_folder_is_said_and_made_again(
     with caplog.at_level(logging.WARNING, logger="topgimbal.mavlink"):
         rec.start()
         try:
-            wait_for(lambda: len(rec.files) >= 1, what="a first file")
-            shutil.rmtree(folder)
-            wait_for(lambda: folder.is_dir() and any(folder.glob("*.ts")), what="a file in the folder made again")
+            until_blocking("a first file", lambda: len(rec.files) >= 1, bound_s=30)
+            # moved away in one step: rmtree raced the recorder making its next file (ENOTEMPTY)
+            folder.rename(tmp_path / "moved-away")
+            until_blocking(
+                "a file in the folder made again", lambda: folder.is_dir() and any(folder.glob("*.ts")), bound_s=30
+            )
         finally:
             rec.close()
     assert f"the folder {folder} is gone: making it again" in caplog.text
