@@ -17,6 +17,8 @@ is checked after substitution (`_assert_loopback_only`).
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import os
 import pty
 import re
@@ -666,6 +668,11 @@ def _ctrl_c_as_in_a_terminal() -> None:
     job (a CI script started with `&`, nohup) with SIGINT ignored, and children inherit that; the
     docs' commands are typed in a terminal, where Ctrl-C stops them."""
     signal.signal(signal.SIGINT, signal.SIG_DFL)
+    # And it dies with the test process: a worker killed on its timeout never runs close(), and a
+    # daemon in its own session outlived it (a console found running an hour later, on a loaded
+    # machine a noisy neighbour of every run after). Linux's PR_SET_PDEATHSIG (1): SIGKILL then.
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL, 0, 0, 0)
 
 
 def _env() -> dict[str, str]:
