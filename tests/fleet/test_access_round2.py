@@ -19,6 +19,7 @@ from topgimbal.client.zenoh_session import final_endpoints, make_config
 from topgimbal.fleet import CameraSpec, FleetServer
 from topgimbal.fleet import camera as camera_mod
 from topgimbal.fleet.access import AccessConfigError, check_exposure
+from waiting import until
 
 from .conftest import eventually, free_port, raw_session
 
@@ -220,12 +221,15 @@ async def test_invented_names_take_no_place_from_the_operator(sims: Any, zport: 
                     except RemoteCallError as exc:
                         kinds.append(exc.kind)
             refused = cam.refused
+            # the flood went on all the while: it is still refused after the operator's calls (a
+            # count of refusals in real time measures the machine's speed: 27 at load, not > 100)
+            await until("a flooder refused after the operator's calls", lambda: cam.refused,
+                        lambda n: n > refused, bound_s=30)  # fmt: skip
         finally:
             stop.set()
             await asyncio.gather(*floods)
     print(f"operator: {kinds.count('ok')} ok of {len(kinds)} under the flood ({refused} flood calls refused)")
     assert kinds.count("ok") >= 27, kinds  # issue 43's bar: 90 % of the baseline (all ok alone)
-    assert refused > 100  # the flood went on all the while
 
 
 async def test_a_closed_transports_calls_are_cancelled_by_its_close_event(
