@@ -71,8 +71,14 @@ def test_the_bridges_fix_and_the_target_are_shown(browser: Any, sip: BackgroundC
             return scene.target_position(LAT, LON, pose.yaw_deg, pose.pitch_deg, d)
 
         truth = sip.call(laser)
-        shown = (float(target.get_attribute("data-lat") or "nan"), float(target.get_attribute("data-lon") or "nan"))
-        assert metres(shown, truth) <= 1.0, (shown, truth)
+
+        def shown_now() -> tuple[float, float]:
+            return (float(target.get_attribute("data-lat") or "nan"), float(target.get_attribute("data-lon") or "nan"))
+
+        # the page refreshes once a second: its first target may be from a pose a moment before the
+        # gimbal settled (1.8 m off once, at load): wait for the page to catch up, then hold it to 1 m
+        wait_for(lambda: metres(shown_now(), truth) <= 1.0, 30, what="the page's target on the laser's point")
+        shown = shown_now()
         assert metres(shown, (LAT, LON)) == pytest.approx(ALT / math.tan(math.radians(30.0)), abs=1.0)
         status, body = get_where(sip)
         assert status == 200 and body["vehicle"]["source"] == "camera"
