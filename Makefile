@@ -85,7 +85,7 @@ pytest-virtual: $(STAMP)
 # (scripts/flake.py; README, Development).
 RUNS ?= 3
 HOG ?= 0
-flake: $(STAMP)
+flake: $(STAMP) misb-deps
 	$(BIN)/python scripts/flake.py --runs $(RUNS) --hog $(HOG) --workers $(PYTEST_WORKERS)
 
 # libtopgimbal (c/): clang with libFuzzer and sanitizer runtimes, installed only when missing.

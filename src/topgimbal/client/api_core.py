@@ -5,12 +5,15 @@ method of `AsyncClient` and a blocking method of `Gimbal` (see methods.py)."""
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 from collections.abc import Mapping
 from typing import Protocol
 
 from ..errors import DecodeError, DeviceError, LinkLostError, RequestTimeoutError, TopGimbalError, UnsupportedError
 from ..protocol import Frame, Message, decode_any, parse_frame
 from ..protocol.frame import complete_frame
+from ..timeouts import within
 from . import checks, identity, model_check, roles
 from .core import ClientCore
 from .methods import api_method
@@ -166,6 +169,12 @@ class CoreMethods(Protocol):
                 errors.append(exc)
         if errors and all(out[r] is None for r in ("version", "model_name", "hardware_version")):
             raise errors[0]
+        if core.identity.verdict.status == identity.PENDING:
+            # The device has answered: its model check concludes in moments. Without this wait a
+            # loaded machine printed `model_check: pending` for a healthy camera (its check ran on
+            # behind the command's own queries).
+            with contextlib.suppress(asyncio.TimeoutError):
+                await within(core.identity.done.wait(), timeout_s)
         verdict = core.identity.verdict
         out["model_check"] = verdict.status if verdict.status != "mismatch" else verdict.message
         if core.feeds.active:  # what the host feeds the camera (position, time, attitude)
