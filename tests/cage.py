@@ -106,7 +106,9 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
     for when, run in (
         ("setup", lambda: None),
         ("call", lambda: run_caged(item, bound_s)),
-        ("teardown", lambda: None),
+        # the runner's own teardown step: the item before this one may have left collectors set up
+        # (its module, its package) that the next item does not share; pytest refuses to go on then
+        ("teardown", lambda: item.session._setupstate.teardown_exact(nextitem)),
     ):
         call = CallInfo.from_call(run, when=when)  # type: ignore[arg-type]
         report = hook.pytest_runtest_makereport(item=item, call=call)
