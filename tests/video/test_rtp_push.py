@@ -9,6 +9,7 @@ import shutil
 import socket
 import subprocess
 import sys
+import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -46,14 +47,25 @@ def qgc_pipeline(port: int, codec: str = "H264") -> list[str]:
             "!", "videoconvert", "!", "video/x-raw,format=GRAY8", "!", "fdsink", "fd=1"]  # fmt: skip
 
 
+PICTURES_WITHIN_S = 120.0  # GStreamer's pictures: a bound on a hang (the pipeline is killed then)
+
+
 def read_pictures(proc: subprocess.Popen[bytes], size: tuple[int, int], count: int) -> list[np.ndarray]:
     w, h = size
     assert proc.stdout is not None
     out = []
-    for _ in range(count):
-        buf = proc.stdout.read(w * h)
-        assert buf is not None and len(buf) == w * h, "the pipeline stopped before giving every picture"
-        out.append(np.frombuffer(buf, np.uint8).reshape(h, w))
+    watchdog = threading.Timer(PICTURES_WITHIN_S, proc.kill)  # a read that blocks for good ends here
+    watchdog.start()
+    try:
+        for _ in range(count):
+            buf = proc.stdout.read(w * h)
+            killed = "" if watchdog.is_alive() else f", killed after {PICTURES_WITHIN_S:g} s"
+            assert buf is not None and len(buf) == w * h, (
+                f"the pipeline stopped before giving every picture ({len(out)} of {count}{killed})"
+            )
+            out.append(np.frombuffer(buf, np.uint8).reshape(h, w))
+    finally:
+        watchdog.cancel()
     return out
 
 
