@@ -6,8 +6,8 @@ GET /<name>       one file (only names the media store writes: no paths, no othe
 HEAD /<name>      its size
 
 Bounded: at most `MAX_CONNECTIONS` connections (each a thread) and `MAX_PER_CLIENT` per client
-address (one that has its whole answer and closes no longer counts), checked when a connection is accepted (beyond them it gets a 503 line and is closed, no
-thread made); at most `MAX_CLIENTS` requests at once (more get 503); every socket wait (the request
+address (one whose answer's last bytes are on their way and that closes no longer counts), checked
+when a connection is accepted (beyond them it gets a 503 line and is closed, no thread made); at most `MAX_CLIENTS` requests at once (more get 503); every socket wait (the request
 head, each write to a client that does not read) at most `SOCKET_TIMEOUT_S`, a whole response at
 most `MAX_RESPONSE_S`. Each refusal is counted and logged at most every LOG_EVERY_S. A request line
 or header block that does not parse gets 400 from http.server itself."""
@@ -62,10 +62,12 @@ class MediaServer:
         self._conn_lock = threading.Lock()
         self._open: dict[socket.socket, str] = {}  # connection -> client address
         self._per_client: dict[str, int] = {}
-        # Connections whose response is complete and that close (HTTP/1.0, `Connection: close`):
-        # not counted against their client's MAX_PER_CLIENT any more. Their thread may still be
-        # closing when the client, which has its whole answer, opens its next connection: counted,
-        # a client fetching files one after another got 503 on a loaded machine.
+        # Connections whose response's last bytes are on their way and that close (HTTP/1.0,
+        # `Connection: close`): not counted against their client's MAX_PER_CLIENT any more. Marked
+        # before that last write, not after: the client, which then has its whole answer, may open
+        # its next connection before this thread runs again (counted, a client fetching files one
+        # after another got 503 on a loaded machine, twice: once when the mark came only as the
+        # thread closed the connection, once when it came right after the last write).
         self._answered: set[socket.socket] = set()
         server = self
 
@@ -156,37 +158,53 @@ class MediaServer:
             log.debug("media http: %s: %s", req.client_address[0], exc)
         finally:
             self._slots.release()
-            if req.close_connection:  # answered, and the connection ends: its client may open another
-                with self._conn_lock:
-                    if req.connection in self._open:
-                        self._answered.add(req.connection)
+            self._last_write(req)  # an answer that ended otherwise (an error)
+
+    def _last_write(self, req: BaseHTTPRequestHandler) -> None:
+        """The answer's last bytes go next and the connection then ends: its client may open another."""
+        if req.close_connection:
+            with self._conn_lock:
+                if req.connection in self._open:
+                    self._answered.add(req.connection)
 
     def _serve(self, req: BaseHTTPRequestHandler, body: bool) -> None:
         name = unquote(urlsplit(req.path).path).lstrip("/")
         if name in ("", "index.json"):
             data = json.dumps(media_index(self.dir)).encode()
+            if not body:
+                self._last_write(req)
             self._head(req, HTTPStatus.OK, "application/json", len(data))
             if body:
+                self._last_write(req)
                 req.wfile.write(data)
             return
         path = self.dir / name
         if not MEDIA_NAME.match(name) or not path.is_file():
+            self._last_write(req)
             req.send_error(HTTPStatus.NOT_FOUND, "no such media file (GET / lists them)")
             return
         try:
             f = path.open("rb")
         except OSError:  # dropped by the size cap meanwhile
+            self._last_write(req)
             req.send_error(HTTPStatus.NOT_FOUND, "no such media file (GET / lists them)")
             return
         with f:
             size = path.stat().st_size
+            if not body or size == 0:
+                self._last_write(req)
             self._head(req, HTTPStatus.OK, TYPES.get(path.suffix, "application/octet-stream"), size)
             if body:
                 deadline = monotonic() + MAX_RESPONSE_S
-                while data := f.read(CHUNK):
+                data = f.read(CHUNK)
+                while data:
+                    after = f.read(CHUNK)
                     if monotonic() > deadline:
                         raise TimeoutError(f"response longer than {MAX_RESPONSE_S:g} s")
+                    if not after:
+                        self._last_write(req)
                     req.wfile.write(data)
+                    data = after
 
     @staticmethod
     def _head(req: BaseHTTPRequestHandler, status: HTTPStatus, ctype: str, length: int) -> None:
