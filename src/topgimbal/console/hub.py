@@ -39,6 +39,7 @@ log = logging.getLogger(__name__)
 MOTION_OPS = frozenset({"point", "rates", "stop", "center", "mode", "ptz"})
 KEEPALIVE_IDLE_S = 2.0  # ask something when nothing has come for this long
 KEEPALIVE_TIMEOUT_S = 1.0  # per attempt of the link check ...
+LATE_POLL_S = 10.0  # a poll's answer that comes this long after the poll gave up is still the poll's
 KEEPALIVE_RETRIES = 3  # ... so one check outlasts the client's link timeout (3 s) and a lost datagram
 # Queries the link check may use, best first (each must be a plain read).
 PING_ROLES = ("version", "model_name", "attitude", "sd_capacity", "ip_address")
@@ -62,6 +63,11 @@ class Hub(PageHub):
         self.attitude_hz = min(max(attitude_hz, 1.0), 50.0)
         self.sd_interval_s = sd_interval_s
         self._polls: Counter[str] = Counter()  # identifiers of the console's own periodic queries
+        # frames a poll sent minus the answers it saw (its retries and timeouts leave some owed)
+        self._poll_owed: Counter[str] = Counter()
+        # answers a finished poll is still owed, and until when: the camera (or a loaded machine)
+        # may answer after the poll gave up; that answer is the poll's, not the operator's
+        self._late_polls: dict[str, tuple[int, float]] = {}
         # Motion ops from every page, one at a time and in arrival order: a drag's rates, the pad
         # release's stop and another page's stop share the client's GSM/PTZ requests.
         self._motion = asyncio.Lock()
@@ -106,7 +112,25 @@ class Hub(PageHub):
         d = "in" if str(direction).lower().startswith(("in", "rx", "<")) else "out"
         ident = getattr(frame, "ident", None)
         # the page hides the console's own periodic queries (and the telemetry streams) by default
-        self.record(d, frame, message, poll=ident in self._polls)
+        self.record(d, frame, message, poll=self._is_poll(d, ident))
+
+    def _is_poll(self, direction: str, ident: str | None) -> bool:
+        """Whether a frame belongs to the console's own polls: sent or answered while a poll runs,
+        or an answer a finished poll was still owed (protocol frames carry no request id: an answer
+        is the poll's as long as the poll has unanswered frames out, within LATE_POLL_S)."""
+        if ident is None:
+            return False
+        if ident in self._polls:
+            self._poll_owed[ident] += 1 if direction == "out" else -1
+            return True
+        owed, until = self._late_polls.get(ident, (0, 0.0))
+        if direction == "in" and owed > 0 and wall_time() < until:
+            if owed > 1:
+                self._late_polls[ident] = (owed - 1, until)
+            else:
+                del self._late_polls[ident]
+            return True
+        return False
 
     def _on_link_change(self, up: bool, reason: str) -> None:
         if up:
@@ -215,6 +239,9 @@ class Hub(PageHub):
             self._polls[ident] -= 1
             if self._polls[ident] <= 0:
                 del self._polls[ident]
+                owed = self._poll_owed.pop(ident, 0)
+                if owed > 0:  # a timeout, or a retry whose first frame's answer is still coming
+                    self._late_polls[ident] = (owed, wall_time() + LATE_POLL_S)
 
     async def refresh_sd(self, *, poll: bool = False) -> SdStatus | None:
         spec = self.role("sd_capacity")
