@@ -91,7 +91,7 @@ class BackgroundConsole:
         return self.server.base_url
 
 
-def wait_for(predicate: Callable[[], Any], timeout: float = 10.0, interval: float = 0.05, what: str = "") -> Any:
+def wait_for(predicate: Callable[[], Any], timeout: float = 30.0, interval: float = 0.05, what: str = "") -> Any:
     """Poll `predicate` until it returns something truthy (tests/waiting.py); return it."""
     return until_blocking(what or str(predicate), predicate, bound_s=timeout, every_s=interval)
 
@@ -156,8 +156,8 @@ def open_console(browser: Any, bg: BackgroundConsole, errors: list[str], link: s
     page.on("pageerror", lambda exc: errors.append(str(exc)))
     page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
     page.goto(bg.url)
-    page.wait_for_selector("body[data-ready='1']", timeout=10_000)
-    page.wait_for_function(f"document.querySelector('[data-testid=link]').dataset.state === '{link}'", timeout=10_000)
+    page.wait_for_selector("body[data-ready='1']", timeout=30_000)
+    page.wait_for_function(f"document.querySelector('[data-testid=link]').dataset.state === '{link}'", timeout=30_000)
     return page
 
 

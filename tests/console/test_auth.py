@@ -110,7 +110,7 @@ async def test_token_enforced_on_every_route() -> None:
                     pass
             assert exc.value.status == 401
             async with http.ws_connect(base + "ws?token=s3cret") as ws:
-                hello = await ws.receive_json(timeout=5)
+                hello = await ws.receive_json(timeout=30)
                 assert hello["type"] == "hello"
                 assert hello["model"]["name"] == "C12"
 
@@ -127,4 +127,4 @@ async def test_loopback_without_token_is_open_but_refuses_cross_site_sockets() -
             assert exc.value.status == 403
             host = srv.base_url.split("//")[1].rstrip("/")
             async with http.ws_connect(srv.base_url + "ws", headers={"Origin": f"http://{host}"}) as ws:
-                assert (await ws.receive_json(timeout=5))["type"] == "hello"
+                assert (await ws.receive_json(timeout=30))["type"] == "hello"

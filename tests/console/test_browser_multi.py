@@ -71,7 +71,7 @@ def test_grid_and_switcher(browser: Any, artifacts: Path, page_errors: list[str]
         page.on("console", lambda m: page_errors.append(m.text) if m.type == "error" else None)
         try:
             page.goto(bg.url)
-            page.wait_for_selector("body[data-ready='1']", timeout=20_000)
+            page.wait_for_selector("body[data-ready='1']", timeout=30_000)
             grid = page.get_by_test_id("camera-grid")
             for name in ("sim1", "sim2", "far"):
                 page.wait_for_selector(f"[data-testid=cam-tile-{name}][data-link=up]", timeout=30_000)
@@ -84,10 +84,10 @@ def test_grid_and_switcher(browser: Any, artifacts: Path, page_errors: list[str]
 
             # the switcher: a click on sim2's tile opens its page, with the SIP's controls
             page.get_by_test_id("cam-tile-sim2").click()
-            page.wait_for_url("**/cam/sim2/", timeout=20_000)
-            page.wait_for_selector("body[data-ready='1']", timeout=20_000)
+            page.wait_for_url("**/cam/sim2/", timeout=30_000)
+            page.wait_for_selector("body[data-ready='1']", timeout=30_000)
             assert "SIP" in page.get_by_test_id("model").inner_text()
-            wait_for(lambda: page.get_by_test_id("camera-select").input_value() == "sim2", 10, what="sim2 selected")
+            wait_for(lambda: page.get_by_test_id("camera-select").input_value() == "sim2", 30, what="sim2 selected")
             page.get_by_test_id("angle-yaw").fill("30")
             page.get_by_test_id("angle-pitch").fill("-20")
             page.get_by_test_id("btn-point").click()
@@ -105,8 +105,8 @@ def test_grid_and_switcher(browser: Any, artifacts: Path, page_errors: list[str]
 
             # the Zenoh camera's page: traffic unavailable with the reason, not an error
             page.get_by_test_id("camera-select").select_option("far")
-            page.wait_for_url("**/cam/far/", timeout=20_000)
-            page.wait_for_selector("body[data-ready='1']", timeout=20_000)
+            page.wait_for_url("**/cam/far/", timeout=30_000)
+            page.wait_for_selector("body[data-ready='1']", timeout=30_000)
             reason = page.get_by_test_id("traffic-reason")
             assert reason.is_visible() and NOT_CARRIED in reason.inner_text()
             assert page.get_by_test_id("traffic-pcap").get_attribute("href") is None

@@ -63,7 +63,7 @@ def test_out_of_range_yaw_is_not_sent_and_leaves_no_marker(page: Any, c12: Backg
     sent = angle_frames(c12)
     point(page, "200")
     toast = page.get_by_test_id("toasts").locator(".toast.error").last
-    toast.wait_for(timeout=5000)
+    toast.wait_for(timeout=30_000)
     assert "yaw 200° is outside the C12's range -90..90°: not sent" in toast.inner_text()
     assert target(page) == ""  # an error clears the marker; it never jumps to the refused 200
     assert page.get_by_test_id("angle-yaw").get_attribute("aria-invalid") == "true"
@@ -142,11 +142,11 @@ def test_marker_ignores_a_command_the_camera_refuses(
     page.route_web_socket(re.compile(r".*/ws(\?.*)?$"), route)
     try:
         page.goto(c12.url)
-        page.wait_for_selector("body[data-ready='1']", timeout=10_000)
+        page.wait_for_selector("body[data-ready='1']", timeout=30_000)
         point(page, "30")
         wait_for(lambda: target(page) == "30", what="the marker at 30")
         point(page, "45")
-        page.get_by_test_id("toasts").locator(".toast.error").last.wait_for(timeout=5000)
+        page.get_by_test_id("toasts").locator(".toast.error").last.wait_for(timeout=30_000)
         assert refused and "refused" in page.get_by_test_id("error-log").inner_text()
         assert target(page) == ""  # cleared by the error, never at 45
         page.get_by_test_id("btn-center").click()

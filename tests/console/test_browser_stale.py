@@ -78,9 +78,9 @@ def c13() -> Iterator[BackgroundConsole]:
 
 
 def video_ready(page: Any, lens: str = "visible") -> None:
-    page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=15_000)
+    page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=30_000)
     page.wait_for_function(f"document.querySelector('[data-testid=video-{lens}]').naturalWidth > 0", timeout=30_000)
-    page.get_by_test_id(f"video-{lens}").wait_for(state="visible", timeout=10_000)
+    page.get_by_test_id(f"video-{lens}").wait_for(state="visible", timeout=30_000)
 
 
 def palette_label(page: Any, name: str) -> str:
@@ -129,7 +129,7 @@ def test_a_refused_set_shows_the_cameras_value_and_the_error(
     page.route_web_socket(re.compile(r".*/ws(\?.*)?$"), route)
     try:
         page.goto(c12.url)
-        page.wait_for_selector("body[data-ready='1']", timeout=10_000)
+        page.wait_for_selector("body[data-ready='1']", timeout=30_000)
         have = c12.call(lambda: c12.sim.thermal["IMG"]["palette"])
         page.get_by_test_id("field-IMG-palette").select_option("rainbow")
         page.get_by_test_id("set-IMG").click()
@@ -155,7 +155,7 @@ def test_the_digital_zoom_row_shows_the_cameras_level(browser: Any, c12: Backgro
         box = page.get_by_test_id("video-visible").bounding_box()
         page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
         page.mouse.wheel(0, 100)  # the video's wheel: one step out, by the console's own route
-        wait_for(lambda: c12.call(lambda: c12.sim.camera.digital_zoom_x) == 3.0, 10, what="3x in the camera")
+        wait_for(lambda: c12.call(lambda: c12.sim.camera.digital_zoom_x) == 3.0, 30, what="3x in the camera")
         wait_for(lambda: select.input_value() == "3x" and result.inner_text() == "3x", 10, what="the row at 3x")
     finally:
         c12.run(c12.server.cam.digital_zoom(1))  # type: ignore[union-attr]
@@ -307,7 +307,7 @@ def test_a_camera_without_video_there_gives_one_message_per_lens_and_the_option(
         bg.serve()  # the simulator's video is on a free port, not the documented 554
         page = open_console(browser, bg, errors)
         try:
-            page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=15_000)
+            page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=30_000)
             states = {lens: page.get_by_test_id(f"video-state-{lens}") for lens in ("visible", "thermal")}
             for lens, state in states.items():
                 wait_for(lambda s=state: "no video from" in s.inner_text(), 20, what=f"the {lens} message")

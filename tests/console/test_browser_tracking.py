@@ -19,9 +19,9 @@ def test_a_lost_target_shows_as_lost_on_a_sip(browser: Any, sip: BackgroundConso
     errors: list[str] = []
     page = open_console(browser, sip, errors)
     try:
-        page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=15_000)
+        page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=30_000)
         page.wait_for_function("document.querySelector('[data-testid=video-visible]').naturalWidth > 0", timeout=30_000)
-        page.get_by_test_id("video-visible").wait_for(state="visible", timeout=10_000)
+        page.get_by_test_id("video-visible").wait_for(state="visible", timeout=30_000)
         state = page.get_by_test_id("video-tracking")
         img = page.get_by_test_id("video-visible").bounding_box()
         assert img is not None

@@ -69,7 +69,7 @@ def test_addresses_in_the_pcap() -> None:
 async def _op(ws: aiohttp.ClientWebSocketResponse, ref: int, op: str, **args: Any) -> dict[str, Any]:
     await ws.send_json({"op": op, "ref": ref, **args})
     while True:
-        msg = await ws.receive_json(timeout=10)
+        msg = await ws.receive_json(timeout=30)
         if msg.get("ref") == ref:
             assert msg["type"] == "ack", msg
             return msg  # type: ignore[no-any-return]

@@ -170,7 +170,7 @@ def test_a_new_command_appears_in_its_group(browser: Any, c12: BackgroundConsole
     page.route("**/api/catalog", route)
     try:
         page.goto(c12.url)
-        page.wait_for_selector("body[data-ready='1']", timeout=10_000)
+        page.wait_for_selector("body[data-ready='1']", timeout=30_000)
         row = page.get_by_test_id("cmd-TZZ")
         assert row.is_visible() and "Thermal glow" in row.inner_text()
         # a setting shows "not read" until the camera says its value (issue 35.6), then its values

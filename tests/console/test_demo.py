@@ -36,9 +36,9 @@ def _run_and_fetch(cmd: list[str], seconds: float) -> tuple[str, dict[str, objec
             if m:
                 url = m.group(1)
         assert url, f"no URL printed: {out!r}"
-        with urllib.request.urlopen(url.split("?")[0] + "api/catalog", timeout=5) as r:
+        with urllib.request.urlopen(url.split("?")[0] + "api/catalog", timeout=30) as r:
             catalog = json.load(r)
-        with urllib.request.urlopen(url, timeout=5) as r:
+        with urllib.request.urlopen(url, timeout=30) as r:
             assert b'data-testid="btn-photo"' in r.read()
         rest, _ = proc.communicate(timeout=seconds + 20)
         return out + rest, catalog, proc.returncode

@@ -156,7 +156,7 @@ async def test_own_origins_open_the_websocket(console: ConsoleServer, name: str)
         aiohttp.ClientSession() as http,
         http.ws_connect(console.base_url + "ws", headers={"Origin": origin}) as ws,
     ):
-        assert (await ws.receive_json(timeout=5))["type"] == "hello"
+        assert (await ws.receive_json(timeout=30))["type"] == "hello"
 
 
 async def test_state_changing_http_requests_need_an_own_origin(console: ConsoleServer) -> None:

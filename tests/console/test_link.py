@@ -69,7 +69,7 @@ async def test_a_silent_udp_camera_is_lost_and_comes_back_by_itself() -> None:
         assert srv.cam.link_state["up"] is True
         # and the camera answers ops again
         await ws.send_json({"op": "photo", "ref": 1})
-        while (reply := await ws.receive_json(timeout=10)).get("ref") != 1:
+        while (reply := await ws.receive_json(timeout=30)).get("ref") != 1:
             pass
         assert reply["type"] == "ack", reply
 

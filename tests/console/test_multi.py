@@ -52,7 +52,7 @@ async def test_pointing_one_camera_moves_only_that_one(two: ConsoleServer) -> No
     sim1, sim2 = (two.cameras.get(n).sim for n in ("sim1", "sim2"))  # type: ignore[union-attr]
     assert sim1 is not None and sim2 is not None
     async with aiohttp.ClientSession() as http, http.ws_connect(two.base_url + "cam/sim2/ws") as ws:
-        hello = await ws.receive_json(timeout=10)
+        hello = await ws.receive_json(timeout=30)
         assert hello["type"] == "hello" and hello["model"]["name"] == "SIP"
         reply = await _op(ws, "point", yaw=30, pitch=-20)
         assert reply["type"] == "ack", reply
@@ -61,7 +61,7 @@ async def test_pointing_one_camera_moves_only_that_one(two: ConsoleServer) -> No
         assert sim1.gimbal.yaw_deg == 0.0 and sim1.gimbal.pitch_deg == 0.0
         # the first camera's page (/ws, the single-camera route) drives sim1 only
     async with aiohttp.ClientSession() as http, http.ws_connect(two.base_url + "ws") as ws:
-        hello = await ws.receive_json(timeout=10)
+        hello = await ws.receive_json(timeout=30)
         assert hello["model"]["name"] == "C12"
         assert (await _op(ws, "photo"))["type"] == "ack"
     assert sim1.camera.photos_taken == 1 and sim2.camera.photos_taken == 0
@@ -94,7 +94,7 @@ async def test_overview_lists_every_camera_with_its_state(two: ConsoleServer) ->
         assert body["max_cameras"] == MAX_CAMERAS and body["interval_s"] == 0.25
         # recording follows the camera: start it on sim2 through its page, the overview says so
         async with http.ws_connect(two.base_url + "cam/sim2/ws") as ws:
-            await ws.receive_json(timeout=10)
+            await ws.receive_json(timeout=30)
             assert (await _op(ws, "record", action="start"))["type"] == "ack"
         _, body = await _json(http, two.base_url + "api/cameras")
         cams = {c["name"]: c for c in body["cameras"]}
@@ -151,7 +151,7 @@ async def test_guard_and_token_on_per_camera_routes() -> None:
             async with http.ws_connect(
                 base + "cam/sim2/ws?token=s3cret", headers={"Origin": f"http://127.0.0.1:{port}"}
             ) as ws:
-                assert (await ws.receive_json(timeout=10))["type"] == "hello"
+                assert (await ws.receive_json(timeout=30))["type"] == "hello"
             # a cross-site page's POST to a camera's video route is refused before anything runs
             async with http.post(base + "cam/sim2/api/video/zoom?token=s3cret", json={"direction": "in"},
                                  headers={"Origin": "http://evil.example"}) as r:  # fmt: skip

@@ -105,7 +105,7 @@ async def test_console_follows_the_cameras_of_a_zenoh_server() -> None:
                 assert c["unavailable"]["traffic"] == NOT_CARRIED
 
             async with http.ws_connect(console.base_url + "cam/east/ws") as ws:
-                hello = await ws.receive_json(timeout=10)
+                hello = await ws.receive_json(timeout=30)
                 assert hello["type"] == "hello" and hello["unavailable"]["traffic"] == NOT_CARRIED
                 assert hello["url"].startswith("zenoh/east?")
                 reply = await _op(ws, "point", yaw=25, pitch=-30)

@@ -56,7 +56,7 @@ async def test_the_console_watches_a_proxy_read_only(camera: Simulator, tmp_path
     ):
         assert srv.proxy is not None and srv.cam is None and srv.video is None
         ws = await http.ws_connect(srv.base_url + "ws")
-        hello = await ws.receive_json(timeout=5)
+        hello = await ws.receive_json(timeout=30)
         assert hello["type"] == "hello" and hello["mode"] == "watch"
         assert "sends nothing to the camera" in hello["readonly"]
         assert hello["status"]["link"] == "watching"
@@ -93,7 +93,7 @@ async def test_the_console_watches_a_proxy_read_only(camera: Simulator, tmp_path
         # read-only: an op is refused and nothing reaches the camera
         caps = sum(1 for f in camera.received if f.ident == "CAP")
         await ws.send_json({"op": "photo", "ref": 7})
-        while (reply := await ws.receive_json(timeout=10)).get("ref") != 7:
+        while (reply := await ws.receive_json(timeout=30)).get("ref") != 7:
             pass
         assert reply["type"] == "error" and reply["kind"] == "readonly"
         assert "sends nothing to the camera" in reply["message"]

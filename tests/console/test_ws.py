@@ -55,7 +55,7 @@ class Page:
 async def _page(http: aiohttp.ClientSession, srv: ConsoleServer) -> Page:
     ws = await http.ws_connect(srv.base_url + "ws")
     p = Page(ws)
-    hello = await ws.receive_json(timeout=5)
+    hello = await ws.receive_json(timeout=30)
     assert hello["type"] == "hello"
     assert hello["model"]["name"] == "C12"
     assert hello["dialect"] == "skydroid"
@@ -147,9 +147,9 @@ async def test_errors_are_readable(console: ConsoleServer) -> None:
         assert err["type"] == "error" and "confirm" in err["message"]
 
         await page.ws.send_str("not json")
-        msg = await page.ws.receive_json(timeout=5)
+        msg = await page.ws.receive_json(timeout=30)
         while msg["type"] != "error":
-            msg = await page.ws.receive_json(timeout=5)
+            msg = await page.ws.receive_json(timeout=30)
         assert "JSON" in msg["message"]
         await page.ws.close()
 

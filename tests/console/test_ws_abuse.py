@@ -126,7 +126,7 @@ async def test_a_message_beyond_the_frame_limit_closes_with_1009(console: Consol
         async with http.ws_connect(console.base_url + "ws") as ws:
             await ws.send_str("x" * (MAX_FRAME_BYTES + 1))
             while True:
-                msg = await ws.receive(timeout=10)
+                msg = await ws.receive(timeout=30)
                 if msg.type in (aiohttp.WSMsgType.CLOSE, aiohttp.WSMsgType.CLOSED, aiohttp.WSMsgType.CLOSING):
                     break
             assert ws.close_code == 1009  # "message too big", refused before it was buffered

@@ -97,7 +97,7 @@ fetch("{base}video/thermal.mjpg", {{mode: "no-cors"}}).then(() => window.noCors 
             page = open_console(browser, console_c12, errors)
             try:
                 page.wait_for_function(
-                    "document.querySelector('[data-testid=video-visible]').naturalWidth === 1280", timeout=20_000
+                    "document.querySelector('[data-testid=video-visible]').naturalWidth === 1280", timeout=30_000
                 )
                 assert _viewers(console_c12) + _webrtc_peers(console_c12) >= 1  # the path the page plays
             finally:

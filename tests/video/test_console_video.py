@@ -49,11 +49,11 @@ def test_video_plays_and_a_click_on_a_landmark_points_there(
 
 
 def _play_and_point(page: Any, console_c12: BackgroundConsole, artifacts: Any, errors: list[str]) -> None:
-    page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=10_000)
+    page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=30_000)
     page.wait_for_function(
-        "document.querySelector('[data-testid=video-visible]').naturalWidth === 1280", timeout=15_000
+        "document.querySelector('[data-testid=video-visible]').naturalWidth === 1280", timeout=30_000
     )
-    page.wait_for_function("document.querySelector('[data-testid=video-thermal]').naturalWidth === 640", timeout=15_000)
+    page.wait_for_function("document.querySelector('[data-testid=video-thermal]').naturalWidth === 640", timeout=30_000)
     # The picture moves: two screenshots a moment apart differ (the burned-in clock runs).
     a, _ = _picture(page)
     page.wait_for_timeout(300)
@@ -101,7 +101,7 @@ def test_a_dropped_stream_shows_its_state_and_reconnects(browser: Any) -> None:
     with BackgroundConsole("C10") as bg:
         errors: list[str] = []
         page = open_console(browser, bg, errors)
-        page.wait_for_function("document.querySelector('[data-testid=video-visible]').naturalWidth > 0", timeout=15_000)
+        page.wait_for_function("document.querySelector('[data-testid=video-visible]').naturalWidth > 0", timeout=30_000)
         video = bg.server.video  # type: ignore[union-attr]
         port = int(video.sim_video.urls["visible"].rsplit(":", 1)[1].split("/")[0])
         bg.run(video.sim_video.stop())

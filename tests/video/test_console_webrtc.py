@@ -25,7 +25,7 @@ def test_each_lens_plays_over_webrtc_and_moves(browser: Any, console_c12: Backgr
     errors: list[str] = []
     page = open_console(browser, console_c12, errors)
     try:
-        page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=10_000)
+        page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=30_000)
         for lens, width in (("visible", 1280), ("thermal", 640)):
             page.wait_for_function(
                 f"(() => {{ const v = document.querySelector('[data-testid=video-{lens}]');"
@@ -64,7 +64,7 @@ def test_video_mjpeg_in_the_url_keeps_the_relay(browser: Any, console_c12: Backg
     try:
         url = console_c12.url
         page.goto(url + ("&" if "?" in url else "?") + "video=mjpeg")
-        page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=10_000)
+        page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=30_000)
         page.wait_for_function(
             "document.querySelector('[data-testid=video-visible]').tagName === 'IMG' &&"
             " document.querySelector('[data-testid=video-visible]').naturalWidth === 1280",
