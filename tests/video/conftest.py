@@ -20,6 +20,7 @@ from topgimbal.video.simvideo import SimVideo, VideoOptions
 T = TypeVar("T")
 FFMPEG = shutil.which("ffmpeg") or "/usr/bin/ffmpeg"
 FFPROBE = shutil.which("ffprobe") or "/usr/bin/ffprobe"
+STREAMS_READY_S = 60.0  # a bound on a hang: the first keyframe of every stream
 
 
 class LiveSim:
@@ -44,7 +45,21 @@ class LiveSim:
         self.thread.start()
         self.run(self.sim.start(udp=[("127.0.0.1", 0)]))
         self.run(self.video.start())
+        self.run(self._first_pictures(), timeout=STREAMS_READY_S + 5)
         return self
+
+    async def _first_pictures(self) -> None:
+        """Every stream's first keyframe encoded (its parameter sets known), as a camera that has
+        been on for a while: a DESCRIBE otherwise waits for the encoder's start, which on a loaded
+        machine outlasted the server's DESCRIBE_WAIT_S (a 503, seen beside two busy loops). The
+        server's own wait is tested in test_rtsp_*.py."""
+        for stream in self.video.streams.values():
+            stream.want_keyframe()
+        for lens, stream in self.video.streams.items():
+            try:
+                await asyncio.wait_for(stream.ready.wait(), STREAMS_READY_S)
+            except asyncio.TimeoutError:
+                raise AssertionError(f"the {lens} stream had no keyframe within {STREAMS_READY_S:g} s") from None
 
     def __exit__(self, *exc: object) -> None:
         self.run(self.video.stop())
