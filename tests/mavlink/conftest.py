@@ -151,8 +151,15 @@ class Rig:
         self.sim, self.bridge, self.peer = sim, bridge, peer
 
 
+EVENTUALLY_FLOOR_S = 30.0  # every wait here is a bound on a hang, never a speed check
+
+
 async def eventually(check: Callable[[], bool], timeout: float = 8.0, what: str = "condition") -> None:
-    await until(what, check, bound_s=timeout)  # tests/waiting.py: its failure shows the last values
+    """Wait for `check()`; `timeout` is how long it may take on a quiet machine, and the bound is
+    never under EVENTUALLY_FLOOR_S: beside a busy CI, 5-10 s bounds ran out on real-time rigs
+    (a gimbal's 60 degree turn is 4.7 s on a C12's motors alone). tests/waiting.py: its failure
+    shows the last values."""
+    await until(what, check, bound_s=max(timeout, EVENTUALLY_FLOOR_S))
 
 
 def nan_free(values: Any) -> bool:
