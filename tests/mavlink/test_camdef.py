@@ -16,6 +16,8 @@ from topgimbal.mavlink.camdef_files import stale
 from topgimbal.mavlink.camdef_http import MAX_CONNECTIONS, MAX_HEAD_BYTES, DefinitionServer
 from topgimbal.protocol import get_model
 
+from .conftest import eventually
+
 pytestmark = pytest.mark.external
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -111,11 +113,10 @@ async def test_http_server_serves_only_its_files_and_survives_hostile_requests()
         assert (await _http(server.port, huge)).startswith(b"HTTP/1.1 400")
         # more idle connections than allowed: the extra ones are closed, the server still answers after
         idle = [await asyncio.open_connection("127.0.0.1", server.port) for _ in range(MAX_CONNECTIONS + 3)]
-        await asyncio.sleep(0.2)
-        assert server.refused >= 3
+        await eventually(lambda: server.refused >= 3, 5, "the extra idle connections refused")
         for _, w in idle:
             w.close()
-        await asyncio.sleep(0.2)
+        await eventually(lambda: server.active == 0, 5, "the idle connections' closes noticed")
         assert (await _http(server.port, b"GET /sip-thermal.xml HTTP/1.0\r\n\r\n")).startswith(b"HTTP/1.1 200")
         assert server.uri("sip-thermal.xml") == f"http://127.0.0.1:{server.port}/sip-thermal.xml"
     finally:

@@ -9,6 +9,8 @@ import pytest
 
 from topgimbal.mavlink.camdef_http import MAX_PER_CLIENT, DefinitionServer
 
+from .conftest import eventually
+
 pytestmark = pytest.mark.loopback
 
 
@@ -27,7 +29,9 @@ async def test_one_client_with_slow_connections_denies_nobody_else() -> None:
     try:
         # the attacker: 16 connections that never send their head (each held for HEAD_TIMEOUT_S)
         slow = [await asyncio.open_connection("127.0.0.1", server.port, local_addr=("127.0.0.1", 0)) for _ in range(16)]
-        await asyncio.sleep(0.2)
+        await eventually(
+            lambda: server.refused == 16 - MAX_PER_CLIENT, 5, "the connections beyond the client's share refused"
+        )
         assert server.active == MAX_PER_CLIENT and server.refused == 16 - MAX_PER_CLIENT
         replies = [await _get(server.port, f"127.0.0.{2 + i % 10}") for i in range(40)]  # 40 normal GETs
         assert all(r.startswith(b"HTTP/1.1 200") and r.endswith(b"<x/>") for r in replies), [r[:40] for r in replies]

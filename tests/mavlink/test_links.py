@@ -84,8 +84,7 @@ async def test_peer_limit_is_enforced(rig_factory) -> None:
     r = await rig_factory("C12", max_peers=1)
     other = Peer(sysid=200)
     await other.connect(r.bridge.addresses[0][1])
-    await asyncio.sleep(0.5)
-    assert r.bridge.node.links[0].refused_peers >= 1
+    await eventually(lambda: r.bridge.node.links[0].refused_peers >= 1, 5, "the second peer refused")
     assert not any(m.get_type() == "HEARTBEAT" for m in other.messages)
     other.close()
 

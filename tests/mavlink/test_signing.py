@@ -16,7 +16,7 @@ from pymavlink.dialects.v20 import common as ml
 from topgimbal.cli.main import main
 from topgimbal.mavlink.signing import SigningKeyError, key_from_bytes, load_key, sign_outgoing
 
-from .conftest import Peer
+from .conftest import Peer, eventually
 
 pytestmark = pytest.mark.loopback
 
@@ -138,7 +138,7 @@ async def test_a_replayed_signed_command_is_refused(rig_factory: Any) -> None:
         assert (await _answer(good, -15)).result == ml.MAV_RESULT_ACCEPTED
         before = rig.bridge.node.unsigned_in
         original(sent[-1])  # the same signed frame again: its timestamp is not newer
-        await asyncio.sleep(0.5)
+        await eventually(lambda: rig.bridge.node.unsigned_in > before, 5, "the replay refused")
         assert rig.bridge.node.unsigned_in == before + 1
     finally:
         good.close()

@@ -17,7 +17,7 @@ from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.mavlink.signing import SIGNING_EPOCH_S, SignedStreams, load_key, sign_outgoing
 
-from .conftest import Peer
+from .conftest import Peer, eventually
 from .test_signing import KEY, _answer, keep_sent, signed_peer
 
 pytestmark = pytest.mark.loopback
@@ -66,7 +66,8 @@ async def test_a_signed_command_replayed_from_another_port_is_refused(rig_factor
         acks = sum(m.get_type() == "COMMAND_ACK" for m in good.messages)
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:  # a new source port
             s.sendto(sent[-1], ("127.0.0.1", port))
-            await asyncio.sleep(0.5)
+            await eventually(lambda: rig.bridge.node.unsigned_in > before, 5, "the replay refused")
+            await asyncio.sleep(0.5)  # and no second answer comes (checked below)
         assert rig.bridge.node.unsigned_in == before + 1
         assert rig.bridge.node.signed is not None and rig.bridge.node.signed.refused.get("a replay") == 1
         # not carried out again: no second answer (the bridge sends on every link to every peer)
