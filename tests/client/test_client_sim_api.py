@@ -9,6 +9,7 @@ import pytest
 
 import topgimbal
 from topgimbal.errors import FieldValueError, UnsupportedError
+from waiting import until
 
 pytestmark = pytest.mark.loopback
 
@@ -101,7 +102,7 @@ async def test_rest_of_api(sim_factory, model, kind):
         assert raw is not None and raw.fields == {"state": "stopped"}
         async with cam.rate_control(interval_s=0.05) as joy:
             joy.set(yaw_deg_s=-3)
-            await asyncio.sleep(0.2)
+            await until("two rate frames sent", lambda: joy.sent, lambda n: n >= 2, bound_s=30)
         assert joy.sent >= 2
         if model == "SIP":
             r = await cam.range()
@@ -126,8 +127,7 @@ async def test_unsolicited_frames_reach_subscribers(sim_factory):
         await cam.zoom("in")
         await asyncio.sleep(0.3)
         await cam.zoom("stop")
-        await asyncio.sleep(0.1)
-        assert "ZMP" in seen  # the zoom report the device sends on its own
+        await until("the zoom report the device sends on its own", lambda: "ZMP" in seen, bound_s=30)
         assert cam.state.zoom is not None
 
 

@@ -10,6 +10,7 @@ import topgimbal
 from topgimbal.errors import DeviceError, FieldValueError, RequestTimeoutError, TransportError, UnsupportedError
 from topgimbal.protocol import make_frame
 from topgimbal.transport import BACKENDS, parse_url
+from waiting import until
 
 pytestmark = pytest.mark.loopback
 
@@ -148,10 +149,7 @@ async def test_fire_and_forget_motion_mode(fake):
     async with topgimbal.connect(url, model="C12", timeout_s=0.2, echo_motion=False) as cam:
         await cam.set_angles(yaw_deg=10, pitch_deg=-5)
         await cam.rates(yaw_deg_s=2)
-        for _ in range(200):
-            if len(fake.received) >= 2:
-                break
-            await asyncio.sleep(0.005)
+        await until("both rate frames at the device", lambda: len(fake.received), lambda n: n >= 2, bound_s=30)
     assert [f.ident for f in fake.received] == ["GAM", "GSM"]
 
 

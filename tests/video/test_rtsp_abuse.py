@@ -19,6 +19,7 @@ import pytest
 from topgimbal.video import rtsp
 from topgimbal.video.encode import AccessUnit
 from topgimbal.video.rtsp import RtspServer, Stream, Transport, parse_transport
+from waiting import until
 
 pytestmark = pytest.mark.loopback
 
@@ -250,10 +251,8 @@ async def test_sessions_count_from_setup_so_one_client_cannot_hold_more(
         await other.play_tcp()  # a place came free
         c.close()
         assert await c.closed()
-        for _ in range(100):  # the server sees the close on its next turn
-            if len(stream.sessions) == 1:
-                break
-            await asyncio.sleep(0.01)
+        # the server sees the close on its next turn
+        await until("the closed session gone", lambda: len(stream.sessions), lambda n: n == 1, bound_s=30)
         assert len(stream.sessions) == 1 and all(s.conn is not None for s in stream.sessions)
     finally:
         c.close()

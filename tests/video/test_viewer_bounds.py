@@ -79,10 +79,7 @@ async def test_a_viewer_that_stops_reading_gives_its_place_back(
     stalled = _viewer(port, reads=False)
     extra: socket.socket | None = None
     try:
-        for _ in range(200):  # both requests have arrived
-            if relay.viewers == 2:
-                break
-            await asyncio.sleep(0.02)
+        await until("both viewers' requests arrived", lambda: relay.viewers, lambda n: n == 2, bound_s=30)
         assert relay.viewers == 2
         extra = _viewer(port, reads=True)
         answer = await _read_some(extra)

@@ -27,6 +27,7 @@ from topgimbal.wire import watcher as watcher_module
 from topgimbal.wire.capture import WireFrame, frames_in_capture
 from topgimbal.wire.offload import WatcherProcess
 from topgimbal.wire.proxy import Proxy, ProxyError, ProxyEvent
+from waiting import until
 
 from .tshark import top_layers, values
 
@@ -360,10 +361,7 @@ async def test_a_tcp_client_that_stops_reading_is_closed(caplog):
         client.setblocking(False)
         await asyncio.get_running_loop().sock_connect(client, proxy.listen_address)  # type: ignore[arg-type]
         await asyncio.get_running_loop().sock_sendall(client, b"#TPUG2rGAC0032")
-        for _ in range(400):
-            if "unread bytes" in caplog.text:
-                break
-            await asyncio.sleep(0.05)
+        await until("the unread bytes logged", lambda: "unread bytes" in caplog.text, bound_s=30)
         assert "unread bytes" in caplog.text
         assert proxy.stats.clients == 1
     finally:
@@ -488,10 +486,7 @@ async def test_a_flood_of_new_clients_is_logged_once_not_once_per_client(caplog)
                 socks.pop(0).close()
             if i % 20 == 0:
                 await asyncio.sleep(0.01)
-        for _ in range(200):
-            if proxy.stats.clients >= 300:
-                break
-            await asyncio.sleep(0.02)
+        await until("300 clients counted", lambda: proxy.stats.clients, lambda n: n >= 300, bound_s=30)
         assert proxy.stats.clients == 300 and proxy.stats.clients_dropped == 298
         assert caplog.text.count("at most 2 client(s); dropping") == 1
         loop = asyncio.get_running_loop()
