@@ -120,7 +120,7 @@ async def test_fov_status_image_centre_on_the_terrain_and_zoom_flow(rig_factory,
         assert (await p.ack(CAMERA, ml.MAV_CMD_SET_MESSAGE_INTERVAL, 271, 200_000)).result == 0
         seen = []
         while len(seen) < 3:
-            seen.append(await p.wait("CAMERA_FOV_STATUS", timeout=2.0))
+            seen.append(await p.wait("CAMERA_FOV_STATUS", timeout=30.0))  # a bound on a hang
         assert all(m.lat_image == zoomed.lat_image for m in seen)
         assert (await p.ack(CAMERA, ml.MAV_CMD_SET_MESSAGE_INTERVAL, 271, -1)).result == 0
     finally:
