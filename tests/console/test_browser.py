@@ -12,6 +12,8 @@ from typing import Any
 
 import pytest
 
+from waiting import until_blocking
+
 from .conftest import BackgroundConsole, open_console, screenshot, wait_for
 
 # serial: drags and timed page checks in a real browser; make test runs them apart from the
@@ -114,27 +116,47 @@ def _settled(bg: BackgroundConsole) -> bool:
     return abs(a[0] - b[0]) < 0.05 and abs(a[1] - b[1]) < 0.05
 
 
+def _motion_seen(bg: BackgroundConsole, page: Any) -> tuple[float, str, str, str, list[str]]:
+    """(the simulator's yaw, the page's rate readout, the pad's classes, the page's last errors, the
+    last frames the camera received)."""
+    received = bg.call(lambda: [f.ident for f in bg.sim.received[-6:]])
+    errors = page.get_by_test_id("error-log").inner_text()[-160:]
+    pad_class = page.get_by_test_id("pad").get_attribute("class") or ""
+    return gimbal(bg)[0], page.get_by_test_id("rate-readout").inner_text(), pad_class, errors, received
+
+
 def test_drag_pad_arrow_keys_and_stop(page: Any, c12: BackgroundConsole) -> None:
     center(c12, page)
-    page.get_by_test_id("pad").scroll_into_view_if_needed()
-    box = page.get_by_test_id("pad").bounding_box()
+    pad = page.get_by_test_id("pad")
+    # hover() scrolls the pad into view and waits until it stands still and takes the pointer: a
+    # box read while the page still scrolled put the press at the pad's edge (a pitch rate with the
+    # yaw rate) or beside it (no rate at all), beside three busy loops 2 runs of 2
+    pad.hover()
+    box = pad.bounding_box()
     cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
     page.mouse.move(cx, cy)
     page.mouse.down()
+    wait_for(lambda: "active" in (pad.get_attribute("class") or "").split(), what="the pad pressed")
     page.mouse.move(box["x"] + box["width"] - 4, cy, steps=5)  # full right: yaw rate only
-    wait_for(lambda: gimbal(c12)[0] > 2.0, 10, what="the gimbal turning right while the pad is held")
+    # what a timeout shows: the yaw, what the page asked, what it was told (a run beside a busy CI
+    # once saw no turn within 10 s, and nothing more)
+    until_blocking("the gimbal turning right while the pad is held", lambda: _motion_seen(c12, page),
+                   lambda seen: seen[0] > 2.0, bound_s=30)  # fmt: skip
     readout_text = page.get_by_test_id("rate-readout").inner_text()
     assert re.fullmatch(r"rate [1-9][\d.]* / 0 °/s", readout_text), readout_text  # a level drag: no pitch rate
     page.mouse.up()
-    wait_for(lambda: _settled(c12), 5, what="the gimbal stopping when the pad is released")
+    wait_for(lambda: _settled(c12), 30, what="the gimbal stopping when the pad is released")
     assert abs(gimbal(c12)[1]) < 1.0  # the pitch did not move
+    assert gimbal(c12)[0] < 60.0  # stopped by the release, not by the end of its travel
 
     yaw0 = gimbal(c12)[0]
     page.get_by_test_id("pad").focus()
     page.keyboard.down("ArrowLeft")
-    wait_for(lambda: gimbal(c12)[0] < yaw0 - 1.5, 10, what="the gimbal turning left on the arrow key")
+    until_blocking("the gimbal turning left on the arrow key", lambda: _motion_seen(c12, page),
+                   lambda seen: seen[0] < yaw0 - 1.5, bound_s=30)  # fmt: skip
     page.get_by_test_id("btn-stop").click()  # stop while the key is still down
-    wait_for(lambda: _settled(c12), 5, what="the gimbal stopped by the Stop button")
+    wait_for(lambda: _settled(c12), 30, what="the gimbal stopped by the Stop button")
+    assert gimbal(c12)[0] > yaw0 - 60.0  # stopped by the button, not by the end of its travel
     page.keyboard.up("ArrowLeft")
     page.get_by_test_id("traffic-filter").fill("PTZ stop")
     wait_for(lambda: page.get_by_test_id("traffic").locator(".tr.out[data-id=PTZ]").count() >= 1, what="PTZ stop sent")

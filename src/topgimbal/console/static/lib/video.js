@@ -30,8 +30,11 @@ function el(tag, attrs = {}, ...kids) {
 
 // One picture with its own state line and its own yaw/pitch/zoom overlay (in side by side each
 // picture carries its overlay; in picture-in-picture the inset's is hidden).
-function view(lens) {
+// The picture's box has the stream's shape from the start (`size`, from /api/video): the panel keeps
+// its height when the first picture comes, so nothing below it moves under the operator's pointer.
+function view(lens, size) {
   const img = el("img", { alt: `${lens} video`, "data-testid": `video-${lens}`, draggable: "false" });
+  if (Array.isArray(size) && size[0] > 0 && size[1] > 0) img.style.aspectRatio = `${size[0]} / ${size[1]}`;
   const state = el("div", { class: "vstate", "data-testid": `video-state-${lens}` }, "connecting…");
   const box = el("div", { class: "vbox", hidden: "" });
   const overlay = el("div", { class: "voverlay", "data-testid": `video-overlay-${lens}` }, "");
@@ -91,7 +94,7 @@ async function start() {
   let info;
   try { info = await fetchJSON("api/video"); } catch { return; }   // no video extra: no panel
   panel.hidden = false;
-  const views = Object.fromEntries(info.lenses.map((l) => [l.lens, view(l.lens)]));
+  const views = Object.fromEntries(info.lenses.map((l) => [l.lens, view(l.lens, l.size)]));
   const stage = el("div", { class: "vstage pip", "data-testid": "video-stage" });
   const latency = el("span", { class: "vlatency", "data-testid": "video-latency" }, "");
   const lensNames = Object.keys(views);
@@ -155,7 +158,9 @@ async function start() {
         const moving = l.pictures !== v.pictures; v.pictures = l.pictures;
         v.still = moving ? 0 : v.still + 1;
         let text = "", state = l.state;
-        const never = !l.pictures && !v.img.naturalWidth && (l.state === "reconnecting" || l.state === "connecting");
+        // a lens that failed before any picture gets its message row; one still connecting keeps its
+        // picture's box (with "connecting…" over it): the normal start moves nothing on the page
+        const never = !l.pictures && !v.img.naturalWidth && l.state === "reconnecting";
         if (never && l.state === "reconnecting") { text = noVideoText(l); state = "novideo"; }
         else if (l.state === "reconnecting") {
           const why = shortError(l.error, l.url);
