@@ -17,24 +17,44 @@ function el(tag, attrs = {}, text = "") {
   return e;
 }
 
+// The tiles are made once per camera and updated in place: the grid is polled every 0.25 s, and a
+// tile made anew each time ate clicks (the press on one button, the release on its successor: no
+// click at all; seen on a loaded machine, and a person's click lasts about 0.1 s).
+const tiles = new Map();  // camera name -> { button, signature }
+
+function tileFor(name) {
+  let entry = tiles.get(name);
+  if (!entry) {
+    const t = el("button", { class: "camtile", type: "button", "data-testid": `cam-tile-${name}`, "data-camera": name });
+    t.addEventListener("click", () => { if (t.getAttribute("aria-current") !== "true") location.href = pageOf(name); });
+    entry = { button: t, signature: "" };
+    tiles.set(name, entry);
+  }
+  return entry;
+}
+
 function tile(c, selected) {
-  const t = el("button", { class: "camtile", type: "button", "data-testid": `cam-tile-${c.name}`, "data-camera": c.name,
-    "data-link": c.link, "aria-current": selected ? "true" : "false" });
-  t.append(el("span", { class: "cname" }, c.name));
-  t.append(el("span", { class: "cmodel muted" }, `${c.model} · ${c.source}`));
+  const entry = tileFor(c.name);
+  const t = entry.button;
+  t.setAttribute("data-link", c.link);
+  t.setAttribute("aria-current", selected ? "true" : "false");
+  const signature = JSON.stringify(c);
+  if (signature === entry.signature) return t;
+  entry.signature = signature;
+  const parts = [el("span", { class: "cname" }, c.name), el("span", { class: "cmodel muted" }, `${c.model} · ${c.source}`)];
   const link = el("span", { class: "clink", "data-state": c.link, "data-testid": `cam-link-${c.name}` },
     c.link === "lost" ? `LOST: ${c.link_reason || "no reason given"}` : c.link);
   if (c.link_reason) link.title = c.link_reason;
-  t.append(link);
+  parts.push(link);
   const a = c.attitude;
-  t.append(el("span", { class: "catt", "data-testid": `cam-att-${c.name}`, "data-yaw": a ? String(a.yaw) : "" },
+  parts.push(el("span", { class: "catt", "data-testid": `cam-att-${c.name}`, "data-yaw": a ? String(a.yaw) : "" },
     a ? `yaw ${deg(a.yaw)} pitch ${deg(a.pitch)} roll ${deg(a.roll)}` : (c.has_attitude ? "waiting for attitude" : "no attitude")));
   const rec = c.recording === true ? "● recording" : c.recording === false ? "not recording" : "recording: –";
-  t.append(el("span", { class: "crec", "data-rec": c.recording ? "1" : "0", "data-testid": `cam-rec-${c.name}` }, rec));
+  parts.push(el("span", { class: "crec", "data-rec": c.recording ? "1" : "0", "data-testid": `cam-rec-${c.name}` }, rec));
   for (const [what, why] of Object.entries(c.unavailable || {})) {
-    t.append(el("span", { class: "cnote", title: why, "data-testid": `cam-unavailable-${c.name}-${what}` }, `${what}: unavailable`));
+    parts.push(el("span", { class: "cnote", title: why, "data-testid": `cam-unavailable-${c.name}-${what}` }, `${what}: unavailable`));
   }
-  t.addEventListener("click", () => { if (!selected) location.href = pageOf(c.name); });
+  t.replaceChildren(...parts);
   return t;
 }
 
@@ -44,8 +64,13 @@ function render(body) {
   $("panel-cameras").hidden = false;
   $("camera-switch").hidden = false;
   $("cameras-count").textContent = `${cams.length} of at most ${body.max_cameras}`;
-  $("camera-grid").replaceChildren(...(cams.length ? cams.map((c) => tile(c, c.name === selected))
-    : [el("p", { class: "muted" }, "no camera yet: waiting for cameras served on Zenoh")]));
+  for (const name of [...tiles.keys()]) if (!cams.some((c) => c.name === name)) tiles.delete(name);
+  const grid = $("camera-grid");
+  const wanted = cams.length ? cams.map((c) => tile(c, c.name === selected))
+    : [el("p", { class: "muted" }, "no camera yet: waiting for cameras served on Zenoh")];
+  // the same buttons in the same order: left where they are (moving one would drop a press on it)
+  const same = wanted.length === grid.children.length && wanted.every((t, i) => grid.children[i] === t);
+  if (!same) grid.replaceChildren(...wanted);
   const sel = $("camera-select");
   const names = cams.map((c) => c.name).join("\n");
   if (sel.dataset.names !== names) {
