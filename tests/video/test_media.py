@@ -9,6 +9,7 @@ import contextlib
 import datetime
 import io
 import json
+import os
 import shutil
 import struct
 import subprocess
@@ -89,6 +90,25 @@ async def test_a_recording_is_an_mp4_and_the_card_keeps_under_its_cap(tmp_path):
     names = files(tmp_path)
     assert "stream_0_1.mp4" not in names and "snap_0_1.jpeg" not in names  # the oldest went first
     assert sum((tmp_path / n).stat().st_size for n in names) <= 150_000
+
+
+async def test_the_card_drops_by_capture_order_when_photos_land_out_of_order(tmp_path):
+    """Photos are written on worker threads: a later shot's file can land first (a newer mtime on
+    the older shot). Pruning goes by when each was taken; files already on the card go before."""
+    (tmp_path / "snap_0_7.jpeg").write_bytes(b"x" * 1000)  # from an earlier session
+    async with simulator("SIP") as sim:
+        store = MediaStore(sim, tmp_path, max_bytes=10_000_000).start()
+        store._on_capture("photo", 1)
+        store._on_capture("photo", 2)
+        await store.stop()
+        first, second = tmp_path / "snap_0_1.jpeg", tmp_path / "snap_0_2.jpeg"
+        (tmp_path / "snap_0_7.jpeg").touch()  # the oldest, with the newest mtime
+        stamp = second.stat().st_mtime
+        os.utime(first, (stamp + 5, stamp + 5))  # the first shot "landed" last
+        sizes = {n: (tmp_path / n).stat().st_size for n in files(tmp_path)}
+        store.max_bytes = sum(sizes.values()) - 1000 - sizes["snap_0_1.jpeg"] - sizes["snap_1_1.jpeg"]
+        store.prune()
+    assert sorted(files(tmp_path)) == ["snap_0_2.jpeg", "snap_1_2.jpeg"]
 
 
 async def test_mp4_plays(tmp_path):

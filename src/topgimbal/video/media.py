@@ -22,6 +22,7 @@ import io
 import logging
 import os
 import threading
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -72,6 +73,10 @@ class MediaStore:
         self._lock = threading.Lock()
         self._recorder: _Recorder | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
+        # Capture order by file name: photos are written on worker threads and can land out of
+        # order, so the age that pruning goes by is when the shot was taken, not the file's mtime.
+        self._taken: dict[str, int] = {}
+        self._shots = 0
 
     def start(self) -> MediaStore:
         self._loop = asyncio.get_running_loop()
@@ -129,10 +134,17 @@ class MediaStore:
         # The world pose (sim/world.py) holds the heading however it came (AZI or a vehicle
         # attitude), so the scene's earth yaw and the flight pose already include it.
         meta = replace(self.shot_meta(), gimbal=Pose(scene.yaw_deg, scene.pitch_deg, scene.roll_deg))
+        self._note_taken(photo_names(self.sim.device.dialect.name, index, [s.lens for s in self.streams]).values())
         self._pending += 1
         assert self._loop is not None
         fut = self._loop.run_in_executor(None, self._write_photo, Shot(index, scene, meta))
         fut.add_done_callback(self._photo_done)
+
+    def _note_taken(self, names: Iterable[str]) -> None:
+        with self._lock:
+            self._shots += 1
+            for name in names:
+                self._taken[name] = self._shots
 
     def _photo_done(self, fut: asyncio.Future[None]) -> None:
         self._pending -= 1
@@ -144,6 +156,7 @@ class MediaStore:
             return
         spec = self.streams[0]
         name = recording_name(self.sim.device.dialect.name, index)
+        self._note_taken([name])
         assert self._loop is not None
         self._recorder = _Recorder(self, self.dir / name, spec, self._loop)
         self._recorder.start()
@@ -175,13 +188,20 @@ class MediaStore:
         """Drop the oldest files until DIR is under its cap."""
         with self._lock:
             files = [p for p in self.dir.iterdir() if p.is_file() and MEDIA_NAME.match(p.name)]
-            files.sort(key=lambda p: p.stat().st_mtime)
+            # Files already on the card before this store are older than any it took (by mtime
+            # among themselves); its own go by capture order.
+            files.sort(key=lambda p: (1, self._taken[p.name], 0.0) if p.name in self._taken
+                       else (0, 0, p.stat().st_mtime))  # fmt: skip
+            if len(self._taken) > 2 * len(files) + 1000:  # names deleted by hand: keep the map bounded
+                on_card = {p.name for p in files}
+                self._taken = {n: i for n, i in self._taken.items() if n in on_card}
             total = sum(p.stat().st_size for p in files)
             gone: list[str] = []
             while total > self.max_bytes and len(files) > 1:
                 oldest = files.pop(0)
                 total -= oldest.stat().st_size
                 oldest.unlink(missing_ok=True)
+                self._taken.pop(oldest.name, None)
                 gone.append(oldest.name)
             if gone:
                 log.warning("media: %s over its %d bytes: dropped %s", self.dir, self.max_bytes, ", ".join(gone))
