@@ -47,7 +47,10 @@ ALLOWED = {
         "video",
         "track",
         "geo",
-    },  # video.lens, video.rtp_push (--video-out); track: --companion-tracking; geo: CAMERA_FOV_STATUS
+        "outputs",
+    },  # video.lens; track: --companion-tracking; geo: CAMERA_FOV_STATUS; outputs: what it feeds
+    # CoT, KLV, the recorder, RTP out: fed a Sighting; never MAVLink (issue 44). video: rtp_push
+    "outputs": {"geo", "video"},
     "wire": {"protocol", "transport", "client"},  # client only for the JSONL traffic log format
     "fleet": {"protocol", "client"},  # the Zenoh fleet server: SDK clients on one session
     "track": {"protocol", "client", "video", "geo"},  # the companion tracking loop: video in, rates out; geo: wraps
@@ -64,6 +67,7 @@ ALLOWED = {
         "fleet",
         "track",
         "geo",
+        "outputs",
     },
 }
 

@@ -17,7 +17,7 @@ from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.geo import geoid
 from topgimbal.geo.synthetic import write_dem
-from topgimbal.mavlink.cot import CotConfigError, parse_target
+from topgimbal.outputs.cot import CotConfigError, parse_target
 
 from .conftest import eventually
 

@@ -23,8 +23,8 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import NameOID
 
 from topgimbal.geo import Fix as GeoFix
-from topgimbal.mavlink.cot import CotConfigError, CotSender, CotTls, Sighting
-from topgimbal.mavlink.cot_stream import StreamOut, open_out, parse_url
+from topgimbal.outputs.cot import CotConfigError, CotSender, CotTls, Sighting
+from topgimbal.outputs.cot_stream import StreamOut, open_out, parse_url
 
 from .conftest import eventually
 

@@ -29,7 +29,7 @@ import pytest
 
 from topgimbal.geo import Fix as GeoFix
 from topgimbal.geo import geoid
-from topgimbal.mavlink.cot import CotSender, CotTls, Sighting
+from topgimbal.outputs.cot import CotSender, CotTls, Sighting
 
 from .conftest import eventually
 

@@ -17,7 +17,7 @@ from lxml import etree
 from topgimbal.geo import Fix as GeoFix
 from topgimbal.geo import geoid
 from topgimbal.mavlink import BridgeConfig
-from topgimbal.mavlink.cot import MAX_EVENT_BYTES, UNKNOWN, CotConfigError, Sighting, check_text, events
+from topgimbal.outputs.cot import MAX_EVENT_BYTES, UNKNOWN, CotConfigError, Sighting, check_text, events
 
 pytestmark = pytest.mark.virtual
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import klvdata
 import pytest
 
-from topgimbal.mavlink.klv import UAS_LS_KEY, checksum, packet
+from topgimbal.outputs.klv import UAS_LS_KEY, checksum, packet
 
 pytestmark = pytest.mark.virtual
 

@@ -20,8 +20,8 @@ from topgimbal.geo import locate
 from topgimbal.mavlink.camera_link import AttitudeSample
 from topgimbal.mavlink.camera_view import earth_view, st0601_values
 from topgimbal.mavlink.geo import Position
-from topgimbal.mavlink.klv import packet
 from topgimbal.mavlink.vehicle import Fix
+from topgimbal.outputs.klv import packet
 
 pytestmark = pytest.mark.external
 

@@ -16,7 +16,7 @@ import klvdata
 import pytest
 from pymavlink.dialects.v20 import common as ml
 
-from topgimbal.mavlink.klv_record import remux
+from topgimbal.outputs.klv_record import remux
 
 pytestmark = pytest.mark.external
 

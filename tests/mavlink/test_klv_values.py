@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v20 import common as ml
 
-from topgimbal.mavlink.klv import packet
+from topgimbal.outputs.klv import packet
 
 from .conftest import eventually
 from .virtual import MemPeer

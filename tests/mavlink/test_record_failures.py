@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from topgimbal.mavlink import klv_record
-from topgimbal.mavlink.klv_record import Recorder, RecordWriteError, remux
+from topgimbal.outputs.klv_record import Recorder, RecordWriteError, remux
 from waiting import until_blocking
 
 pytestmark = pytest.mark.external  # ffmpeg makes the source

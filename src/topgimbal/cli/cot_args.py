@@ -23,6 +23,6 @@ def cot_tls(args: argparse.Namespace) -> Any:
     cert, key, ca, name = (getattr(args, f"cot_{n}", None) for n in ("cert", "key", "ca", "server_name"))
     if not (cert or key or ca or name):
         return None
-    from ..mavlink.cot_stream import CotTls
+    from ..outputs.cot_stream import CotTls
 
     return CotTls(cert, key, ca, name)

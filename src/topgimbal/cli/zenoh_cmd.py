@@ -179,7 +179,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"topgimbal zenoh: error: --mavlink-keys: {problem}", file=sys.stderr)
             return 2
     if args.cot:
-        from ..mavlink.cot import CotConfigError, check_config
+        from ..outputs.cot import CotConfigError, check_config
 
         try:
             check_config(args.cot, cot_tls(args), None)

@@ -16,6 +16,10 @@ from typing import Any
 
 from ..clock import monotonic
 from ..errors import TopGimbalError
+from ..outputs.cot import CotSender, check_config, cot_names
+from ..outputs.cot_stream import CotTls
+from ..outputs.klv_record import Recorder, check_directory
+from ..outputs.rtp_out import VideoOutError, advertised, parse_targets
 from ..timeouts import stop_tasks, within
 from ..video.rtp_push import RtpPush
 from .advertise import Advertiser
@@ -26,17 +30,13 @@ from .camera import CameraComponent
 from .camera_feed import CameraFeed
 from .camera_link import CameraLink
 from .commands import Dispatcher
-from .cot import CotSender, check_config, cot_names
-from .cot_stream import CotTls
 from .endpoints import MAX_PEERS, parse_endpoint
 from .ftp import FtpServer
 from .gimbal_device import GimbalDevice
 from .gimbal_manager import GimbalManager
-from .klv_record import Recorder, check_directory
 from .node import Node
 from .pointing import Pointer
 from .reboots import RebootWatch
-from .rtp_out import VideoOutError, advertised, parse_targets
 from .services import Services
 from .survey import survey_for
 from .vehicle import Vehicles

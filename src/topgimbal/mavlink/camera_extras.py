@@ -21,11 +21,11 @@ from typing import TYPE_CHECKING, Any
 
 from ..clock import monotonic
 from ..errors import RequestTimeoutError, TopGimbalError
+from ..outputs.rtp_out import stream_type
 from ._mav import mav_id, mavlink, msg_id
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, unsupported
 from .gimbal_device import _text
-from .rtp_out import stream_type
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage

@@ -14,11 +14,11 @@ from ..geo import Fix as GeoFix
 from ..geo import locate as geo_locate
 from ..geo.earth import wrap360
 from ..geo.st0601 import sensor_relative_deg
+from ..outputs.sighting import Sighting
 from ..video.lens import hfov_at, vfov_for
 from ._mav import mavlink
 from .camera_link import AttitudeSample, CameraLink
 from .commands import Command, rejected
-from .cot import Sighting
 from .node import Component
 from .quaternion import from_euler_deg
 from .vehicle import Fix, Vehicles
