@@ -21,6 +21,8 @@ from typing import Any
 
 import pytest
 
+from waiting import until_blocking
+
 from .conftest import BackgroundConsole, open_console, wait_for
 
 # serial: drags and timed page checks in a real browser; make test runs them apart from the
@@ -287,6 +289,17 @@ def _inside(inner: dict[str, float], outer: dict[str, float]) -> bool:
     )
 
 
+BOXES_JS = """(lens) => {
+  const rect = (id) => {
+    const e = document.querySelector(`[data-testid=${id}]`);
+    const b = e && e.getBoundingClientRect();
+    return b && b.width > 0 && b.height > 0 ? { x: b.x, y: b.y, width: b.width, height: b.height } : null;
+  };
+  const state = document.querySelector(`[data-testid=video-state-${lens}]`);
+  return { picture: rect(`video-${lens}`), overlay: rect(`video-overlay-${lens}`), state: state && state.textContent };
+}"""
+
+
 def test_side_by_side_each_picture_has_its_own_overlay(page: Any) -> None:
     video_ready(page, "thermal")
     wait_for(lambda: "zoom" in page.get_by_test_id("video-overlay-visible").inner_text(), 10, what="the overlay")
@@ -294,10 +307,13 @@ def test_side_by_side_each_picture_has_its_own_overlay(page: Any) -> None:
     page.get_by_test_id("video-layout").click()
     for lens in ("visible", "thermal"):
         overlay = page.get_by_test_id(f"video-overlay-{lens}")
-        wait_for(lambda o=overlay: o.is_visible(), 5, what=f"the {lens} overlay")
+        wait_for(lambda o=overlay: o.is_visible(), 30, what=f"the {lens} overlay")
         assert "yaw" in overlay.inner_text() and "zoom" in overlay.inner_text()
-        picture = page.get_by_test_id(f"video-{lens}").bounding_box()
-        assert _inside(overlay.bounding_box(), picture), f"the {lens} overlay leaves its picture"
+        # both boxes read at one instant (the picture and its overlay shown together); a bound on a
+        # hang, and the lens's state line in the failure (its stream may be reconnecting)
+        seen = until_blocking(f"the {lens} picture and overlay, both shown", lambda lens=lens: page.evaluate(BOXES_JS, lens),
+                              lambda got: bool(got["picture"] and got["overlay"]), bound_s=30)  # fmt: skip
+        assert _inside(seen["overlay"], seen["picture"]), f"the {lens} overlay leaves its picture: {seen}"
     page.get_by_test_id("video-layout").click()
 
 

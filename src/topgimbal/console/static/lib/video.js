@@ -39,7 +39,7 @@ function view(lens, size) {
   const box = el("div", { class: "vbox", hidden: "" });
   const overlay = el("div", { class: "voverlay", "data-testid": `video-overlay-${lens}` }, "");
   const wrap = el("div", { class: `vview ${lens}`, "data-lens": lens }, img, overlay, state, box);
-  return { lens, img, state, box, overlay, wrap, pictures: -1, still: 0 };
+  return { lens, img, state, box, overlay, wrap, pictures: -1, still: 0, shown: false };
 }
 
 const cap = (t) => t.charAt(0).toUpperCase() + t.slice(1);
@@ -159,8 +159,11 @@ async function start() {
         v.still = moving ? 0 : v.still + 1;
         let text = "", state = l.state;
         // a lens that failed before any picture gets its message row; one still connecting keeps its
-        // picture's box (with "connecting…" over it): the normal start moves nothing on the page
-        const never = !l.pictures && !v.img.naturalWidth && l.state === "reconnecting";
+        // picture's box (with "connecting…" over it): the normal start moves nothing on the page.
+        // A lens that has shown a picture keeps its box when its stream is lost (the relay's count
+        // starts again and a reloaded <img> has no size yet, but the panel must not jump).
+        v.shown ||= l.pictures > 0 || v.img.naturalWidth > 0;
+        const never = !v.shown && l.state === "reconnecting";
         if (never && l.state === "reconnecting") { text = noVideoText(l); state = "novideo"; }
         else if (l.state === "reconnecting") {
           const why = shortError(l.error, l.url);
