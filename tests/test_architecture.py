@@ -383,6 +383,7 @@ CLOCK_CALLS = {
 
 # Where a direct clock read is allowed, and which: the clock module itself, and wall-time dates
 # where the clock module cannot be used (the protocol core imports only the standard library).
+CLOCKLESS_ARGS = {"strftime": 1, "localtime": 0, "gmtime": 0, "ctime": 0, "asctime": 0}  # args without a time
 CLOCK_ALLOWED: dict[str, set[str]] = {
     "clock.py": {"*"},
     "protocol/fields/time.py": {"datetime.now"},  # `--time now`: the operator's local date, sent once
@@ -396,6 +397,16 @@ def _clock_reads(path: Path) -> list[tuple[int, str]]:
     tree = ast.parse(path.read_text(encoding="utf-8"))
     out = []
     for node in ast.walk(tree):
+        # time's formatters read the clock themselves when given no time: time.strftime(FMT),
+        # time.localtime(), time.gmtime(), time.ctime(), time.asctime()
+        if (
+            isinstance(node, ast.Call)
+            and isinstance(node.func, ast.Attribute)
+            and isinstance(node.func.value, ast.Name)
+            and node.func.value.id == "time"
+            and len(node.args) == CLOCKLESS_ARGS.get(node.func.attr, -1)
+        ):
+            out.append((node.lineno, f"time.{node.func.attr}"))
         if isinstance(node, ast.ImportFrom) and node.module in CLOCK_CALLS and not node.level:
             out += [(node.lineno, f"{node.module}.{a.name}") for a in node.names if a.name in CLOCK_CALLS[node.module]]
         if not isinstance(node, ast.Attribute):
@@ -441,11 +452,12 @@ def test_the_clock_rule_finds_direct_reads(tmp_path: Path) -> None:
         "a = time.monotonic()\nb = time.time\nc = asyncio.get_running_loop().time()\n"
         "def f(loop):\n    return loop.time() + self._loop.time()\n"
         "d = datetime.datetime.now()\ne = time.sleep(0)\n"
+        "f = time.strftime('%Y') + time.strftime('%Y', time.gmtime(0))\ng = time.localtime()\n"
     )
     found = sorted(_clock_reads(src))
     assert found == [
         (2, "time.perf_counter"), (3, "time.monotonic"), (4, "time.time"), (5, "loop.time"),
-        (7, "loop.time"), (7, "loop.time"), (8, "datetime.now"),
+        (7, "loop.time"), (7, "loop.time"), (8, "datetime.now"), (10, "time.strftime"), (11, "time.localtime"),
     ], found  # fmt: skip
     assert CLOCK_ALLOWED.keys() <= {p.relative_to(PKG).as_posix() for p in PKG.rglob("*.py")}
 

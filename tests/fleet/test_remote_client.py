@@ -195,3 +195,33 @@ def test_config_file_is_read_and_scouting_stays_off(tmp_path: Any) -> None:
         make_config(listen=["127.0.0.1:7447"])
     with pytest.raises(FieldValueError):
         make_config(mode="client")  # a client needs somewhere to connect
+
+
+async def test_locate_over_zenoh_returns_the_local_fix_type_and_names_no_server_file(sims: Any, zport: int) -> None:
+    """locate() remote returns the `geo.Fix` the local call returns, field for field; a terrain
+    path (a file of the server's machine) is refused at both ends, before any file is opened."""
+    from topgimbal.client.remote_keys import call_key
+    from topgimbal.geo import Fix
+
+    (a,) = await sims(1)
+    where = {"position": (-35.36, 149.16, 650.0), "heading_deg": 30.0, "ground_alt_m": 600.0}
+    async with (
+        FleetServer([CameraSpec("a", a.url, "C12")], listen=[f"tcp/127.0.0.1:{zport}"]),
+        topgimbal.connect(f"zenoh/a?connect=tcp/127.0.0.1:{zport}") as cam,
+        topgimbal.connect(a.url, model="C12") as local,
+    ):
+        await local.point(10, -40)
+        fix = await cam.locate(**where)
+        mine = await local.locate(**where)
+        assert isinstance(fix, Fix) and isinstance(mine, Fix)
+        assert fix.source == mine.source == "flat"
+        assert abs(fix.lat_deg - mine.lat_deg) < 1e-6 and abs(fix.lon_deg - mine.lon_deg) < 1e-6
+        assert abs(fix.range_m - mine.range_m) < 0.1
+        with pytest.raises(FieldValueError, match=r"terrain='/etc/hostname'.*server's machine"):
+            await cam.locate(terrain="/etc/hostname", **where)
+        # a peer that skips the client's check: refused by the server, no file opened
+        with raw_session(zport) as peer:
+            body = json.dumps({"terrain": "/etc/hostname", "ground_alt_m": 600.0})
+            replies = await asyncio.to_thread(raw_call, peer, call_key("a", "locate"), body, 10)
+        assert len(replies) == 1 and replies[0]["ok"] is False, replies
+        assert "terrain is not taken from a remote caller" in json.dumps(replies[0])

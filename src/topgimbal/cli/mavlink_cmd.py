@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 import logging
 
+from ..mavlink.features import FEATURES
 from ..video.cli import add_video_port_argument
 from .args import add_camera_subcommand
-from .cot_args import add_cot_tls_arguments, cot_tls
+from .config_args import config_kwargs, with_flags
 from .mavlink_multi import add_fleet_arguments, run_multi
 from .mavlink_status import add_status_arguments, bound_links, links_text, serve_with_status
 from .model_guard import refuse_wrong_model
@@ -62,15 +63,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--media-url", metavar="URL", help="the camera's files over HTTP (sim --media-port prints it): "
                    "CAMERA_IMAGE_CAPTURED.file_url points there")  # fmt: skip
     p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds")
-    p.add_argument("--record", metavar="DIR",
-                   help="record the camera's video into DIR as MPEG-TS with MISB ST 0601 KLV metadata (no re-encoding)")  # fmt: skip
-    p.add_argument("--cot", metavar="URL",
-                   help="send Cursor-on-Target (TAK) of the camera's view and target at 1 Hz: udp://HOST:PORT (TAK's "
-                   "mesh, e.g. udp://239.2.3.1:6969), tcp://HOST:PORT or tls://HOST:PORT (a TAK server's streaming "
-                   "input, e.g. 8087 / 8089; reconnected when lost)")  # fmt: skip
-    add_cot_tls_arguments(p)
-    p.add_argument("--terrain", metavar="DEM.tif",
-                   help="GeoTIFF DEM (lat/lon): CAMERA_FOV_STATUS's image centre on the terrain (default: flat at home)")  # fmt: skip
+    for feature in FEATURES:  # each attached feature's own flags (mavlink/features/)
+        feature.add_arguments(p)
     p.add_argument(
         "--silence", type=float, default=3.0, help="seconds without a frame before the camera counts as down"
     )
@@ -115,39 +109,11 @@ def build_config(args: argparse.Namespace) -> object:
     url, model = getattr(args, "url", None), getattr(args, "model", None)
     if not url or not model:
         raise InputError("give the camera's --url and --model, e.g. --url udp://127.0.0.1:5000 --model C12")
-    config = BridgeConfig(
-        url=url,
-        model=model,
-        endpoints=list(args.mavlink),
-        sysid=args.sysid,
-        compid=154 if args.compid is None else args.compid,
-        camera_compid=None if args.no_camera else 100 if args.camera_compid is None else args.camera_compid,
-        thermal=not args.no_thermal,
-        role=args.role,
-        attitude_hz=args.attitude_hz,
-        stream_hz=args.stream_hz,
-        range_hz=args.range_hz,
-        video_urls=args.video_url,
-        video_port=args.video_port,
-        video_out=args.video_out,
-        media_url=args.media_url,
-        companion_tracking=args.companion_tracking,
-        timeout_s=args.timeout,
-        silence_s=args.silence,
-        max_peers=args.max_peers,
-        signing_key=getattr(args, "signing_key", None),
-        definition_http=None if args.definition_http == "off" else args.definition_http,
-        terrain=getattr(args, "terrain", None),
-        cot=getattr(args, "cot", None),
-        cot_tls=cot_tls(args),
-        record=getattr(args, "record", None),
-        definition_host=getattr(args, "definition_host", None),
-        request_streams=not getattr(args, "no_request_streams", False),
-    )
+    config = BridgeConfig(url=url, model=model, **config_kwargs(BridgeConfig, args))  # each field's flag
     try:
         config.check()
     except ValueError as exc:  # BridgeConfigError, EndpointError: the options given, nothing sent yet
-        raise InputError(str(exc)) from None
+        raise InputError(with_flags(str(exc), BridgeConfig)) from None
     return config
 
 

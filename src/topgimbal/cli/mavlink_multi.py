@@ -13,7 +13,7 @@ import sys
 from dataclasses import dataclass, field
 from typing import Any
 
-from .cot_args import cot_tls
+from .config_args import config_kwargs, with_flags
 from .mavlink_status import bound_links, links_text, serve_with_status
 from .model_guard import check_cameras
 from .runtime import run_server, stop_on_signals, wait_stopped
@@ -66,6 +66,11 @@ def camera_with_options(text: str) -> CameraWithOptions:
     return CameraWithOptions(spec.name, spec.url, model, options)  # type: ignore[attr-defined]
 
 
+# The options every camera of a --camera bridge shares, as BridgeConfig fields (from their flags)
+SHARED = ("role", "attitude_hz", "stream_hz", "range_hz", "timeout_s", "silence_s", "signing_key", "definition_http",
+          "definition_host", "request_streams", "terrain")  # fmt: skip
+
+
 def add_fleet_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--camera", action="append", type=camera_with_options, default=[], metavar=CAMERA_FORM,
                    help="several cameras on one bridge (repeatable, instead of --url/--model): gimbals 154, 171.., "
@@ -94,22 +99,19 @@ def run_multi(args: argparse.Namespace) -> int:
     for c, model in zip(args.camera, asyncio.run(check_cameras(args.camera, args.timeout, auto=True)), strict=True):
         c.model = model
     cameras = [(c.name, c.url, c.model) for c in args.camera]
-    common = dict(role=args.role, attitude_hz=args.attitude_hz, stream_hz=args.stream_hz, range_hz=args.range_hz,
-                  timeout_s=args.timeout, silence_s=args.silence,
-                  signing_key=getattr(args, "signing_key", None),
-                  definition_http=None if args.definition_http == "off" else args.definition_http,
-                  definition_host=getattr(args, "definition_host", None),
-                  request_streams=not getattr(args, "no_request_streams", False),
-                  terrain=getattr(args, "terrain", None))  # fmt: skip
+    from ..mavlink import BridgeConfig
+
+    given = config_kwargs(BridgeConfig, args)  # each field's flag
+    common = {k: v for k, v in given.items() if k in SHARED}
     # --cot: every camera its own CoT uid and callsign, from its name (one marker per camera on the map)
     cot = getattr(args, "cot", None)
-    tls = cot_tls(args)
+    tls = given["cot_tls"]
     own = [{**c.options, **({"cot": cot, "cot_name": c.name, "cot_tls": tls} if cot else {})} for c in args.camera]
     try:
         multi = MultiBridge(cameras, endpoints=list(args.mavlink), sysid=args.sysid, cameras_wanted=not args.no_camera,
                             thermal=not args.no_thermal, max_peers=args.max_peers, per_camera=own, **common)  # fmt: skip
     except ValueError as exc:  # BridgeConfigError, CotConfigError, DemError: the options given, nothing sent yet
-        print(f"topgimbal mavlink: error: {exc}", file=sys.stderr)
+        print(f"topgimbal mavlink: error: {with_flags(str(exc), BridgeConfig)}", file=sys.stderr)
         return 2
 
     async def main() -> None:

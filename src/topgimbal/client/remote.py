@@ -24,7 +24,7 @@ from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine
 from typing import Any, Unpack
 
 from ..clock import monotonic
-from ..errors import LinkLostError, RequestTimeoutError, TopGimbalError, UnsupportedError
+from ..errors import FieldValueError, LinkLostError, RequestTimeoutError, TopGimbalError, UnsupportedError
 from ..protocol import DeviceModel, Dialect, Frame, Message, get_model
 from .api_camera import CameraMethods
 from .api_core import CoreMethods
@@ -321,6 +321,9 @@ def _remote_method(name: str) -> Callable[..., Coroutine[object, object, object]
     @functools.wraps(spec.fn)
     async def method(self: RemoteClient, *args: object, **kwargs: object) -> object:
         spec.check(args, kwargs)  # the local client's own checks, before anything is sent
+        if name == "locate" and kwargs.get("terrain") is not None:  # the server refuses it too (fleet/access.py)
+            raise FieldValueError("terrain", kwargs["terrain"], "none over Zenoh (a path names a file on the server's "
+                                  "machine): locate without it, or locally with connect(URL) to use a DEM")  # fmt: skip
         bound = public.bind(*args, **kwargs)
         values = dict(bound.arguments)
         for p in public.parameters.values():

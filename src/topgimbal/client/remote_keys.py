@@ -19,6 +19,7 @@ from __future__ import annotations
 import inspect
 import json
 import re
+import types
 import typing
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -26,6 +27,7 @@ from urllib.parse import parse_qs, urlsplit
 
 from .. import errors
 from ..errors import FieldValueError, TopGimbalError
+from ..geo import Fix
 from ..protocol import Message, get_model, parse_frame
 from .api_camera import CameraMethods
 from .api_core import CoreMethods
@@ -121,8 +123,21 @@ def bind_arguments(method: str, payload: bytes | None) -> tuple[api_method[..., 
     except TypeError as exc:
         allowed = ", ".join(p.name for p in params if p.kind is not p.VAR_KEYWORD) or "none"
         raise RemoteCallError(f"{method}: {exc} (arguments: {allowed})") from None
+    _tuples_from_json(spec, kwargs)
     spec.check((), kwargs)  # FieldValueError, as the local client raises
     return spec, kwargs
+
+
+def _tuples_from_json(spec: api_method[..., object], kwargs: dict[str, object]) -> None:
+    """JSON has no tuple: a list given where the SDK takes a tuple (locate's `position`) is one."""
+    hints = typing.get_type_hints(spec.fn)
+    for name, value in kwargs.items():
+        if not isinstance(value, list):
+            continue
+        tp = hints.get(name)
+        parts = typing.get_args(tp) if typing.get_origin(tp) in (typing.Union, types.UnionType) else (tp,)
+        if any(typing.get_origin(t) is tuple or t is tuple for t in parts):
+            kwargs[name] = tuple(value)
 
 
 # -- results --------------------------------------------------------------------------------------
@@ -148,6 +163,8 @@ def decode_result(method: str, value: object, model: str) -> object:
         return SdCard(**{k: v for k, v in value.items() if k in SdCard.__dataclass_fields__})
     if Message in kinds and isinstance(value, dict):
         return _message(value, model)
+    if Fix in kinds and isinstance(value, dict):  # locate(): the geo.Fix the local call returns
+        return Fix(**{k: v for k, v in value.items() if k in Fix.__dataclass_fields__})
     return value
 
 

@@ -70,7 +70,7 @@ def camera_handlers(resolve: Resolve, root: Path) -> dict[str, Handler]:
             raise web.HTTPConflict(text=f"no pcap for this camera: {UNAVAILABLE['pcap']}")
         frames = hub.recorder.frames()  # taken here, written in a thread (a temporary file)
         data = await asyncio.to_thread(pcap, frames, hub.link)
-        stamp = time.strftime("%Y%m%d-%H%M%S")
+        stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(wall_time()))  # the operator's local date
         return web.Response(
             body=data,
             content_type="application/vnd.tcpdump.pcap",

@@ -131,4 +131,7 @@ def refusal(method: str, allowed: frozenset[str], kwargs: dict[str, object] | No
         return None
     if method in RESTRICTED and method not in allowed:
         return f"{method}: not callable remotely unless the server is started with --allow-remote {method}"
+    if method == "locate" and kwargs is not None and kwargs.get("terrain") is not None:
+        # a path names a file of the server's machine: a peer would learn which files exist there
+        return "locate: terrain is not taken from a remote caller (a path on the server's machine); call it without"
     return None

@@ -9,9 +9,27 @@ roles) and camera (protocol v2) components. Needs the `mavlink` extra (pymavlink
 
 from __future__ import annotations
 
-from ._mav import MavlinkUnavailableError
-from .bridge import ROLES, Bridge, BridgeConfig, BridgeConfigError
-from .endpoints import EndpointError, parse_endpoint
+from typing import TYPE_CHECKING
+
+from .._lazy import lazy_getattr
+
+if TYPE_CHECKING:
+    from ._mav import MavlinkUnavailableError
+    from .bridge import ROLES, Bridge, BridgeConfig, BridgeConfigError
+    from .endpoints import EndpointError, parse_endpoint
+
+# Lazy (PEP 562): `topgimbal mavlink`'s flags come from features/ without loading the bridge
+_LAZY = {
+    "MavlinkUnavailableError": "_mav",
+    "ROLES": "bridge",
+    "Bridge": "bridge",
+    "BridgeConfig": "bridge",
+    "BridgeConfigError": "bridge",
+    "EndpointError": "endpoints",
+    "parse_endpoint": "endpoints",
+}
+
+__getattr__ = lazy_getattr(__name__, _LAZY, globals())
 
 __all__ = [
     "ROLES",

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..clock import MonotonicFn, monotonic
 from ._mav import mav_id, mavlink, msg_id
-from .feed_sources import FeedSources
+from .feed_sources import WATCHED, FeedSources
 from .periodic import Periodic
 from .stream_rates import Answers, Gaps
 
@@ -75,6 +75,11 @@ WANTED = (
 
 
 class AutopilotStreams:
+    # what on_message and its FeedSources read (node.on)
+    MESSAGES: tuple[str, ...] = tuple(
+        sorted({"HEARTBEAT", "AUTOPILOT_STATE_FOR_GIMBAL_DEVICE", "COMMAND_ACK", *(w.name for w in WANTED), *WATCHED})
+    )
+
     def __init__(self, comp: Component, sysid: int, own_compids: set[int], *, clock: MonotonicFn = monotonic) -> None:
         self.comp = comp
         self.sysid = sysid

@@ -11,26 +11,34 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-from dataclasses import dataclass, field
 from typing import Any
 
 from ..clock import monotonic
 from ..errors import TopGimbalError
-from ..outputs.cot import CotSender, check_config, cot_names
-from ..outputs.cot_stream import CotTls
-from ..outputs.klv_record import Recorder, check_directory
-from ..outputs.rtp_out import VideoOutError, advertised, parse_targets
+from ..outputs.cot import CotSender
+from ..outputs.klv_record import Recorder
+from ..outputs.rtp_out import advertised, parse_targets
 from ..timeouts import stop_tasks, within
 from ..video.rtp_push import RtpPush
 from .advertise import Advertiser
 from .autopilot_streams import AutopilotStreams
+from .bridge_config import (  # noqa: F401  # re-exported: the public names of topgimbal.mavlink.bridge
+    CAMERA_COMPIDS,
+    GIMBAL_COMPIDS,
+    ROLES,
+    BridgeConfig,
+    BridgeConfigError,
+)
 from .camdef import file_name, render
 from .camdef_http import DefinitionServer
 from .camera import CameraComponent
 from .camera_feed import CameraFeed
 from .camera_link import CameraLink
 from .commands import Dispatcher
-from .endpoints import MAX_PEERS, parse_endpoint
+from .endpoints import parse_endpoint
+from .features import FEATURES, BridgeContext, Feature
+from .features.cot import CotFeature
+from .features.record import RecordFeature
 from .ftp import FtpServer
 from .gimbal_device import GimbalDevice
 from .gimbal_manager import GimbalManager
@@ -43,100 +51,10 @@ from .vehicle import Vehicles
 
 log = logging.getLogger("topgimbal.mavlink")
 
-ROLES = ("device", "manager", "both")
-GIMBAL_COMPIDS = (154, 171, 172, 173, 174, 175)  # MAV_COMP_ID_GIMBAL, GIMBAL2..6
-CAMERA_COMPIDS = (100, 101, 102, 103, 104, 105)  # MAV_COMP_ID_CAMERA..CAMERA6
 MAV_TYPE_GIMBAL, MAV_TYPE_CAMERA = 26, 30
 NON_MAVLINK_GIMBAL_ID = 1
 GREETING_GAP_S = 0.1  # HEARTBEATs sent early for new peers come at most this often
 MAV_STATE_BOOT, MAV_STATE_ACTIVE, MAV_STATE_CRITICAL = 1, 4, 5
-
-
-class BridgeConfigError(TopGimbalError, ValueError):
-    pass
-
-
-@dataclass
-class BridgeConfig:
-    url: str
-    model: str
-    endpoints: list[str]
-    sysid: int = 1
-    compid: int = 154
-    camera_compid: int | None = 100  # None: no camera components
-    thermal: bool = True  # a second camera component for the thermal lens, where the model has one
-    role: str = "both"
-    attitude_hz: float = 20.0
-    stream_hz: float = 50.0
-    heartbeat_hz: float = 1.0
-    range_hz: float = 1.0
-    video_urls: list[str] | None = None  # None: the model's streams at the camera's address
-    video_port: int | None = None  # the first stream's RTSP port when not the profile's (others keep the spacing)
-    video_out: list[str] | None = None  # "[LENS=]udp://HOST:PORT": the lens's stream pushed as RTP (rtp_out.py)
-    media_url: str | None = None  # the camera's files over HTTP (sim --media-port): CAMERA_IMAGE_CAPTURED.file_url
-    companion_tracking: bool = False  # track commands run topgimbal.track on a model without a tracker
-    timeout_s: float = 1.0
-    retries: int = 2
-    silence_s: float = 3.0
-    max_peers: int = MAX_PEERS
-    signing_key: bytes | None = None  # MAVLink 2 signing (signing.py): sign all, accept only signed
-    client_options: dict[str, Any] = field(default_factory=dict)
-    definition_http: str | None = "127.0.0.1:0"  # HOST:PORT serving the camera definitions; None: not served
-    terrain: str | None = None  # a GeoTIFF DEM: CAMERA_FOV_STATUS's image centre on it (else flat at home)
-    cot: str | None = None  # udp:// tcp:// tls://HOST:PORT: Cursor-on-Target of what the camera looks at (cot.py)
-    cot_tls: CotTls | None = None  # tls://: the client certificate, key and CA (cot_stream.py)
-    cot_name: str | None = None  # the camera's name in its CoT uid/callsign (several cameras on one system)
-    record: str | None = None  # DIR: the camera's video as MPEG-TS with MISB ST 0601 KLV (klv_record.py)
-
-    definition_host: str | None = None  # the host written into the definition URI (advertise.py); None: found
-    request_streams: bool = True  # ask the autopilot for GLOBAL_POSITION_INT and SYSTEM_TIME (autopilot_streams.py)
-
-    def definition_address(self) -> tuple[str, int] | None:
-        if not self.definition_http:
-            return None
-        host, sep, port = self.definition_http.rpartition(":")
-        if not sep or not port.isdigit() or not 0 <= int(port) <= 65535:
-            raise BridgeConfigError(f"definition_http={self.definition_http!r}: expected HOST:PORT (port 0..65535)")
-        return host.strip("[]") or "127.0.0.1", int(port)
-
-    def check(self, need_endpoints: bool = True) -> None:
-        """`need_endpoints` False: the links come from elsewhere (a shared node's, zenoh_link.py)."""
-        if need_endpoints and not self.endpoints:
-            raise BridgeConfigError("at least one MAVLink endpoint is needed (--mavlink udpout:HOST:PORT)")
-        for e in self.endpoints:
-            parse_endpoint(e)
-        if self.role not in ROLES:
-            raise BridgeConfigError(f"role {self.role!r}: expected one of {', '.join(ROLES)}")
-        if not 1 <= self.sysid <= 255:
-            raise BridgeConfigError(f"system id {self.sysid}: expected 1..255")
-        if self.compid not in GIMBAL_COMPIDS:
-            raise BridgeConfigError(f"gimbal component id {self.compid}: expected one of {GIMBAL_COMPIDS}")
-        allowed = CAMERA_COMPIDS[:-1] if self.thermal else CAMERA_COMPIDS  # the thermal lens takes the next id
-        if self.camera_compid is not None and self.camera_compid not in allowed:
-            raise BridgeConfigError(f"camera component id {self.camera_compid}: expected one of {allowed}")
-        for name, lo, hi in (("attitude_hz", 0.0, 100.0), ("stream_hz", 1.0, 100.0), ("heartbeat_hz", 0.1, 10.0),
-                             ("range_hz", 0.0, 10.0), ("silence_s", 0.2, 60.0), ("timeout_s", 0.05, 30.0)):  # fmt: skip
-            v = getattr(self, name)
-            if not lo <= v <= hi:
-                raise BridgeConfigError(f"{name}={v:g}: expected {lo:g}..{hi:g}")
-        if self.video_port is not None and not 1 <= self.video_port <= 65535:
-            raise BridgeConfigError(f"video_port={self.video_port}: expected 1..65535")
-        try:
-            parse_targets(self.video_out)
-        except VideoOutError as exc:
-            raise BridgeConfigError(str(exc)) from None
-        if self.signing_key is not None and len(self.signing_key) != 32:
-            raise BridgeConfigError(f"signing_key: {len(self.signing_key)} bytes, expected 32")
-        self.definition_address()
-        if self.media_url is not None and not self.media_url.startswith(("http://", "https://")):
-            raise BridgeConfigError(
-                f"media_url {self.media_url!r}: expected http://HOST:PORT/ (sim --media-port prints it)"
-            )
-        if not 1 <= self.max_peers <= 256:
-            raise BridgeConfigError(f"max_peers={self.max_peers}: expected 1..256")
-        if self.record is not None:  # made and written to now (RecordDirError, a ValueError: exit 2)
-            check_directory(self.record)
-        check_config(self.cot, self.cot_tls, self.video_urls)  # CotConfigError: the target, its files, the URLs
 
 
 class Bridge:
@@ -210,46 +128,35 @@ class Bridge:
                 f"video_out: no {', '.join(pushed)} camera on this bridge ({self.cam.profile.model})"
             )
         self.survey = survey_for(self.dispatcher, self.cameras, self.pointer, self.vehicles)  # OBLIQUE_SURVEY
-        if c.terrain is not None:  # read once, shared by the cameras (DemError for a file it cannot use)
-            from ..geo.dem import load_dem
-
-            terrain = load_dem(c.terrain)
-            for camera in self.cameras:
-                camera.view.terrain = terrain
-        self.cot: CotSender | None = None
-        if c.cot is not None and self.cameras:
-            view, urls = self.cameras[0].view, self.cameras[0].video_urls
-            uid, callsign = cot_names(c.sysid, c.model, c.cot_name)
-            self.cot = CotSender(c.cot, lambda: view.sighting(urls[0] if urls else None), uid=uid, callsign=callsign,
-                                 tls=c.cot_tls)  # fmt: skip
-        self.recorder: Recorder | None = None
-        if c.record is not None:
-            if not self.cameras or not self.cameras[0].video_urls:
-                raise BridgeConfigError("--record needs the camera's video stream (a model with one, or --video-url)")
-            self.recorder = Recorder(self.cameras[0].video_urls[0], c.record, self.cameras[0].view.klv_values)
+        # The attached features (features/: terrain, CoT, the KLV recorder), each asked for by its config
+        self.features: list[Feature] = [f for f in (spec.make(c) for spec in FEATURES) if f is not None]
+        ctx = BridgeContext(c.sysid, c.model, self.node, self.dispatcher, self.vehicles, self.cameras)
+        for feature in self.features:
+            feature.attach(ctx)
         self.reboots = RebootWatch(self._peer_rebooted)
-        self.node.subscribe(lambda m: self.reboots.on_message(m, monotonic()))
+        self.node.on(RebootWatch.MESSAGES, lambda m: self.reboots.on_message(m, monotonic()))
 
         self.node.on_peer_gone(self.reboots.on_peer_gone)
-        self.node.subscribe(self.vehicles.on_message)
+        self.node.on(self.vehicles.MESSAGES, self.vehicles.on_message)
         self.feed = CameraFeed(self.cam, self.vehicles, c.sysid, own)  # position, attitude, time to the camera
-        self.node.subscribe(self.feed.on_message)
+        self.node.on(self.feed.MESSAGES, self.feed.on_message)
         for cam in self.cameras:
             cam.utc_at = self.feed.autopilot.utc_at
             cam.before_photo = self.feed.before_photo
             cam.after_photo = self.feed.photo_taken
         self.streams = AutopilotStreams(gcomp, c.sysid, own)  # what the photos need, asked on our link
-        self.node.subscribe(self.streams.on_message)
-        self.node.subscribe(self.dispatcher.on_message)
-        self.node.subscribe(self.device.on_message)
+        self.node.on(self.streams.MESSAGES, self.streams.on_message)
+        self.node.on(self.dispatcher.MESSAGES, self.dispatcher.on_message)
+        self.node.on(self.device.MESSAGES, self.device.on_message)
         if self.manager is not None:
-            self.node.subscribe(self.manager.on_message)
+            self.node.on(self.manager.MESSAGES, self.manager.on_message)
         self.definitions: DefinitionServer | None = None
         p = self.cam.profile
         self.definition_files = {file_name(p.model, c.lens): render(p.dialect, p.model, c.lens) for c in self.cameras}
         for cam in self.cameras:
-            self.node.subscribe(cam.params.on_message)
-            self.node.subscribe(FtpServer(cam.comp, self.definition_files).on_message)
+            self.node.on(cam.params.MESSAGES, cam.params.on_message)
+            ftp = FtpServer(cam.comp, self.definition_files)
+            self.node.on(ftp.MESSAGES, ftp.on_message)
             # over MAVLink FTP (QGC's form) unless served over HTTP (_serve_definitions)
             cam.definition_uri = f"mftp://[;comp={cam.comp.compid}]/{file_name(p.model, cam.lens)}"
         self.cam.on_health(self._on_health)
@@ -260,6 +167,16 @@ class Bridge:
         self._new_peer = asyncio.Event()
         self.node.on_new_peer(self._greet)
         self.started = False
+
+    @property
+    def cot(self) -> CotSender | None:
+        """The CoT sender (`cot`), None when not asked for or with no camera to send of."""
+        return next((f.sender for f in self.features if isinstance(f, CotFeature)), None)
+
+    @property
+    def recorder(self) -> Recorder | None:
+        """The KLV recorder (`record`), None when not asked for."""
+        return next((f.recorder for f in self.features if isinstance(f, RecordFeature)), None)
 
     @property
     def addresses(self) -> list[tuple[str, int] | None]:
@@ -284,10 +201,8 @@ class Bridge:
             svc.start()
         self._tasks.append(asyncio.ensure_future(self._heartbeats()))
         self._tasks.append(asyncio.ensure_future(self._identify()))
-        if self.cot is not None:
-            self._tasks.append(asyncio.ensure_future(self.cot.run()))
-        if self.recorder is not None:
-            self.recorder.start()
+        for feature in self.features:
+            await feature.start()
         self.started = True
         links = ", ".join(str(link) for link in self.node.links)
         log.info("MAVLink bridge for %s (%s) on %s as system %d, role %s", self.config.url, self.config.model, links,
@@ -297,8 +212,8 @@ class Bridge:
     async def close(self) -> None:
         await stop_tasks(self._tasks, "mavlink bridge")  # bounded: a close always returns
         await self.dispatcher.close()
-        if self.recorder is not None:  # its thread finishes the file it writes (a few ms)
-            await asyncio.to_thread(self.recorder.close)
+        for feature in reversed(self.features):
+            await feature.stop()
         for part in [p for p in (self.manager, self.survey) if p is not None]:
             await part.close()
         for cam in self.cameras:

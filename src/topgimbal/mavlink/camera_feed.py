@@ -55,6 +55,8 @@ class AutopilotState:
     """What the autopilot says, as a FeedSample: the fix and attitude from `Vehicles`, the time
     from SYSTEM_TIME (handled here)."""
 
+    MESSAGES: tuple[str, ...] = ("SYSTEM_TIME",)  # what on_message reads (node.on)
+
     def __init__(self, vehicles: Vehicles, sysid: int, own_compids: set[int]) -> None:
         self.vehicles = vehicles
         self.sysid = sysid
@@ -142,6 +144,7 @@ class CameraFeed:
         self.cam = cam
         self.autopilot = AutopilotState(vehicles, sysid, own_compids)
         self.on_message = self.autopilot.on_message
+        self.MESSAGES = self.autopilot.MESSAGES
         self._client: object = None  # the client last fed (a reconnect makes a new one: time again)
         self._loop = Periodic(PERIOD_S, self._feed_once, name="camera feed")
         self.samples = 0

@@ -189,6 +189,8 @@ class _Done:
 
 
 class Dispatcher:
+    MESSAGES: tuple[str, ...] = ("COMMAND_LONG", "COMMAND_INT")  # what on_message reads (node.on)
+
     def __init__(
         self,
         *,

@@ -135,6 +135,8 @@ class FtpFiles:
 class FtpServer:
     """FtpFiles on a component: answers FILE_TRANSFER_PROTOCOL addressed to it."""
 
+    MESSAGES: tuple[str, ...] = ("FILE_TRANSFER_PROTOCOL",)  # what on_message reads (node.on)
+
     def __init__(self, comp: Component, files: dict[str, str]) -> None:
         self.comp = comp
         self.proto = FtpFiles({k: v.encode("utf-8") for k, v in files.items()})

@@ -78,6 +78,8 @@ def firmware_code(version: str | None) -> int:
 
 
 class GimbalDevice:
+    MESSAGES: tuple[str, ...] = ("GIMBAL_DEVICE_SET_ATTITUDE",)  # what on_message reads (node.on)
+
     def __init__(
         self,
         services: Services,

@@ -44,6 +44,11 @@ ROI_PERIOD_S = 0.1
 
 
 class GimbalManager:
+    MESSAGES: tuple[str, ...] = (
+        "GIMBAL_MANAGER_SET_ATTITUDE",
+        "GIMBAL_MANAGER_SET_PITCHYAW",
+    )  # what on_message reads (node.on)
+
     def __init__(
         self, services: Services, cam: CameraLink, pointer: Pointer, vehicles: Vehicles, *, gimbal_device_id: int
     ) -> None:

@@ -15,7 +15,7 @@ nothing signed becomes no peer (it takes no place and is sent no telemetry)."""
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Hashable, Sequence
+from collections.abc import Callable, Hashable, Iterable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from ..clock import monotonic
@@ -118,6 +118,7 @@ class Node:
         self.components: dict[int, Component] = {}
         self._parsers: dict[tuple[int, Hashable], Any] = {}
         self._subscribers: list[MessageCallback] = []
+        self._handlers: dict[str, list[MessageCallback]] = {}  # by message name: on()
         self._peer_watchers: list[Callable[[Link, Hashable], None]] = []
         self._gone_subscribers: list[Callable[[Hashable], None]] = []
         self.messages_in = 0
@@ -131,7 +132,18 @@ class Node:
         return c
 
     def subscribe(self, callback: MessageCallback) -> None:
+        """`callback(msg)` for every message heard (a tap: logs, statistics). A part that handles
+        some messages registers for them with `on()` instead."""
         self._subscribers.append(callback)
+
+    def on(self, names: str | Iterable[str], handler: MessageCallback) -> None:
+        """`handler(msg)` for each message of these names (pymavlink's, e.g. "COMMAND_LONG"): the
+        node looks the handlers up by the message's name, so a message reaches only the parts that
+        handle it (docs/architecture.md, "Handle a new MAVLink message")."""
+        for name in [names] if isinstance(names, str) else names:
+            if name not in _message_names():
+                raise ValueError(f"{name!r} is not a MAVLink message of the common dialect")
+            self._handlers.setdefault(name, []).append(handler)
 
     def on_new_peer(self, callback: Callable[[Link, Hashable], None]) -> None:
         """`callback(link, peer)` when a peer is first heard on a link (the bridge greets it with a
@@ -251,7 +263,7 @@ class Node:
                 continue  # our own message, echoed by a router
             self.messages_in += 1
             setattr(m, _PEER_ATTR, (str(link), peer))
-            for cb in list(self._subscribers):
+            for cb in [*self._subscribers, *self._handlers.get(m.get_type(), ())]:
                 try:
                     cb(m)
                 except Exception:
@@ -261,6 +273,16 @@ class Node:
         if not accepted and not known:
             self._parsers.pop((id(link), peer), None)  # a sender that is no peer keeps no parser
         return accepted
+
+
+_NAMES: frozenset[str] = frozenset()
+
+
+def _message_names() -> frozenset[str]:
+    global _NAMES
+    if not _NAMES:
+        _NAMES = frozenset(cls.msgname for cls in mavlink().mavlink_map.values())
+    return _NAMES
 
 
 def _compact(parser: MAVLinkCodec) -> None:

@@ -65,6 +65,12 @@ def decode_value(param_type: int, raw: bytes) -> float:
 
 
 class ParamsExt:
+    MESSAGES: tuple[str, ...] = (
+        "PARAM_EXT_REQUEST_LIST",
+        "PARAM_EXT_REQUEST_READ",
+        "PARAM_EXT_SET",
+    )  # what on_message reads (node.on)
+
     def __init__(self, comp: Component, cam: CameraLink, settings: list[Setting]) -> None:
         self.comp = comp
         self.cam = cam

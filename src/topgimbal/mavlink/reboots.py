@@ -38,6 +38,12 @@ RebootCallback = Callable[[int, str], None]  # (system id, why)
 
 
 class RebootWatch:
+    MESSAGES: tuple[str, ...] = (
+        "HEARTBEAT",
+        "SYSTEM_TIME",
+        "AUTOPILOT_STATE_FOR_GIMBAL_DEVICE",
+    )  # what on_message reads (node.on)
+
     def __init__(self, on_reboot: RebootCallback, *, gap_s: float = HEARTBEAT_GAP_S) -> None:
         self.on_reboot = on_reboot
         self.gap_s = gap_s

@@ -51,6 +51,12 @@ class Fix:
 
 
 class Vehicles:
+    MESSAGES: tuple[str, ...] = (
+        "GLOBAL_POSITION_INT",
+        "AUTOPILOT_STATE_FOR_GIMBAL_DEVICE",
+        "ATTITUDE",
+    )  # what on_message reads (node.on)
+
     def __init__(self, sysid: int, own_compids: set[int]) -> None:
         self.sysid = sysid
         self.own = own_compids

@@ -49,7 +49,8 @@ class RecordWriteError(OSError):
 
 
 class RecordDirError(ValueError):
-    """--record DIR is not a directory that can be made and written."""
+    """The record directory is not a directory that can be made and written (the message starts with
+    the field, `record DIR: ...`; the CLI writes it as `--record`)."""
 
 
 def check_directory(directory: str | Path) -> Path:
@@ -57,7 +58,7 @@ def check_directory(directory: str | Path) -> Path:
     RecordDirError saying why not."""
     d = Path(directory)
     if d.exists() and not d.is_dir():
-        raise RecordDirError(f"--record {d}: not a directory; give a directory (each recording is a file "
+        raise RecordDirError(f"record {d}: not a directory; give a directory (each recording is a file "
                              "topgimbal-<UTC time>-<n>.ts in it)")  # fmt: skip
     try:
         d.mkdir(parents=True, exist_ok=True)
@@ -66,7 +67,7 @@ def check_directory(directory: str | Path) -> Path:
         probe.unlink()
     except OSError as exc:
         raise RecordDirError(
-            f"--record {d}: cannot write there ({exc.strerror or exc}); give a writable directory"
+            f"record {d}: cannot write there ({exc.strerror or exc}); give a writable directory"
         ) from None
     return d
 

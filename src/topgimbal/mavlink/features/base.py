@@ -1,0 +1,84 @@
+"""What a bridge feature is given and what it must do.
+
+The core (bridge.py) builds the node, the dispatcher, the gimbal and camera components; then each
+feature asked for in the BridgeConfig is made by its spec's `make`, given a `BridgeContext` by
+`attach` (while the bridge is constructed: a feature that cannot work raises a ValueError there,
+before anything is sent), started after the components and stopped before them."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Protocol
+
+from ...errors import TopGimbalError
+
+if TYPE_CHECKING:
+    from ...outputs.cot_stream import CotTls
+    from ...outputs.sighting import Sighting
+    from ..camera import CameraComponent
+    from ..commands import Dispatcher
+    from ..node import Node
+    from ..vehicle import Vehicles
+
+
+class FeatureConfigError(TopGimbalError, ValueError):
+    """A feature cannot work with the bridge it is attached to (raised while the bridge is made)."""
+
+
+class BridgeOptions(Protocol):
+    """What features read of the bridge's configuration (BridgeConfig has these fields and more;
+    features never import it, so the config can list and check them: bridge_config.py)."""
+
+    sysid: int
+    model: str
+    video_urls: list[str] | None
+    terrain: str | None
+    cot: str | None
+    cot_tls: CotTls | None
+    cot_name: str | None
+    record: str | None
+
+
+@dataclass(frozen=True)
+class BridgeContext:
+    """The core's parts a feature may use. `node.on(NAMES, handler)` for messages it reads,
+    `dispatcher` for commands, `cameras` (the visible lens first), `vehicles` for where the
+    vehicle is, and `sighting` (below) as the port outputs are fed through."""
+
+    sysid: int
+    model: str
+    node: Node
+    dispatcher: Dispatcher
+    vehicles: Vehicles
+    cameras: list[CameraComponent]
+
+    def sighting(self) -> Callable[[], Sighting | None] | None:
+        """Where the first camera looks, as a `Sighting` when called (None: no camera)."""
+        if not self.cameras:
+            return None
+        view, urls = self.cameras[0].view, self.cameras[0].video_urls
+        return lambda: view.sighting(urls[0] if urls else None)
+
+
+class Feature(Protocol):
+    name: str
+
+    def attach(self, ctx: BridgeContext) -> None: ...
+
+    async def start(self) -> None: ...
+
+    async def stop(self) -> None: ...
+
+
+@dataclass(frozen=True)
+class FeatureSpec:
+    """`make(config)`: the feature, None when the config does not ask for it; `check(config)`:
+    raises a ValueError for options it cannot use (BridgeConfig.check calls it, nothing started);
+    `add_arguments(parser)`: its flags on `topgimbal mavlink`."""
+
+    name: str
+    make: Callable[[BridgeOptions], Feature | None]
+    check: Callable[[BridgeOptions], None]
+    add_arguments: Callable[[argparse.ArgumentParser], None]
