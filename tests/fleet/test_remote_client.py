@@ -211,12 +211,17 @@ async def test_locate_over_zenoh_returns_the_local_fix_type_and_names_no_server_
         topgimbal.connect(a.url, model="C12") as local,
     ):
         await local.point(10, -40)
+        await near("camera a's pitch", lambda: a.gimbal.pitch_deg, -40, margin=SETTLED_DEG, bound_s=30)
+        await near("camera a's yaw", lambda: a.gimbal.yaw_deg, 10, margin=SETTLED_DEG, bound_s=30)
+        # standing still: two local fixes agree, and the remote one is the same fix (rounded as sent)
+        before = await local.locate(**where)
         fix = await cam.locate(**where)
         mine = await local.locate(**where)
-        assert isinstance(fix, Fix) and isinstance(mine, Fix)
+        assert isinstance(fix, Fix) and isinstance(mine, Fix) and isinstance(before, Fix)
         assert fix.source == mine.source == "flat"
-        assert abs(fix.lat_deg - mine.lat_deg) < 1e-6 and abs(fix.lon_deg - mine.lon_deg) < 1e-6
-        assert abs(fix.range_m - mine.range_m) < 0.1
+        for f in (before, mine):
+            assert abs(fix.lat_deg - f.lat_deg) < 1e-6 and abs(fix.lon_deg - f.lon_deg) < 1e-6, (fix, f)
+            assert abs(fix.range_m - f.range_m) < 0.1 and abs(fix.elevation_deg - f.elevation_deg) < 0.01
         with pytest.raises(FieldValueError, match=r"terrain='/etc/hostname'.*server's machine"):
             await cam.locate(terrain="/etc/hostname", **where)
         # a peer that skips the client's check: refused by the server, no file opened

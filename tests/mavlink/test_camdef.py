@@ -135,4 +135,4 @@ def test_cli_names_the_definitions_and_checks_the_option(capsys: pytest.CaptureF
         assert main([*base, "--url", sim.url, "--definition-http", "off"]) == 0
         assert "camera 100 definition: mftp://[;comp=100]/sip-visible.xml" in capsys.readouterr().out
     assert main([*base, "--url", "udp://127.0.0.1:9", "--definition-http", "nowhere"]) != 0
-    assert "definition_http='nowhere': expected HOST:PORT" in capsys.readouterr().err
+    assert "error: --definition-http='nowhere': expected HOST:PORT" in capsys.readouterr().err  # told with the flag
