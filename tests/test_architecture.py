@@ -22,12 +22,7 @@ ALLOWED = {
     "_speedups": set(),  # the optional C fast path: a leaf the protocol core may use
     "protocol": {"_speedups"},  # the fast path, used only where it is built (stdlib-only without it)
     "transport": {"protocol"},
-    "client": {
-        "protocol",
-        "transport",
-        "video",
-        "geo",
-    },  # geo: cam.locate(); video.lens only (the stream table; tests/video checks)
+    "client": {"protocol", "transport", "geo"},  # geo: cam.locate() and the optics; the stream table: protocol
     "geo": set(),  # pure geolocation (terrain, laser, flat ground); dem.py imports rasterio on use
     "sim": {"protocol", "geo", "transport"},  # geo: the laser's truth (--terrain); transport.memory: listen_memory
     "console": {
@@ -44,16 +39,17 @@ ALLOWED = {
     "mavlink": {
         "protocol",
         "client",
-        "video",
         "track",
         "geo",
         "outputs",
-    },  # video.lens; track: --companion-tracking; geo: CAMERA_FOV_STATUS; outputs: what it feeds
+    },  # track: --companion-tracking; geo: CAMERA_FOV_STATUS, the optics; outputs: what it feeds (RTP out too)
     # CoT, KLV, the recorder, RTP out: fed a Sighting; never MAVLink (issue 44). video: rtp_push
-    "outputs": {"geo", "video"},
+    "outputs": {"geo", "video", "protocol"},  # protocol: the stream table's VideoError
     "wire": {"protocol", "transport", "client"},  # client only for the JSONL traffic log format
     "fleet": {"protocol", "client"},  # the Zenoh fleet server: SDK clients on one session
-    "track": {"protocol", "client", "video", "geo"},  # the companion tracking loop: video in, rates out; geo: wraps
+    # the companion tracking loop: rates out; geo: wraps, the optics; video: rtsp_frames() only (the
+    # RTSP decoder, imported when called)
+    "track": {"protocol", "client", "video", "geo"},
     "cli": {
         "protocol",
         "client",

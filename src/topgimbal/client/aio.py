@@ -75,7 +75,7 @@ class AsyncClient(ClientCore, CoreMethods, MotionMethods, CameraMethods, FeedMet
     def video_url(self, lens: str = "visible", *, host: str | None = None, port: int | None = None) -> str:
         """RTSP URL of a lens's stream (the model's documented port and path) at the camera's
         address: the control URL's host unless `host` says otherwise. See docs/video.md."""
-        from ..video.lens import host_of, video_url  # the per-model stream table (pure)
+        from ..protocol.streams import host_of, video_url  # the per-model stream table (pure)
 
         return video_url(self.model.name, host or host_of(self.url), lens, port=port)
 

@@ -68,10 +68,12 @@ class ClientCore(Requests):
         if not isinstance(model, (str, DeviceModel)):
             raise FieldValueError("model", model, "a model name such as 'C12' or 'SIP'")
         self.options = opts = ClientOptions(
-            timeout_s, retries, signs, log_path, echo_motion, combined_motion, late_window_s, dup_window_s,
-            stop_repeats, host_address, link_timeout_s, reconnect_s, min_command_gap_s, check_model, host_feeds,
-            stream_renew_s,
-        )  # fmt: skip
+            timeout_s=timeout_s, retries=retries, signs=signs, log_path=log_path, echo_motion=echo_motion,
+            combined_motion=combined_motion, late_window_s=late_window_s, dup_window_s=dup_window_s,
+            stop_repeats=stop_repeats, host_address=host_address, link_timeout_s=link_timeout_s,
+            reconnect_s=reconnect_s, min_command_gap_s=min_command_gap_s, check_model=check_model,
+            host_feeds=host_feeds, stream_renew_s=stream_renew_s,
+        )  # fmt: skip  # by name: a reordered field can never shift the values
         self.url = url
         self.transport_url: TransportURL = parse_url(url)
         self.dialect: Dialect

@@ -16,7 +16,8 @@ from typing import Any
 from ..errors import FieldValueError, TopGimbalError
 from ..geo import Attitude, Fix, Geodetic, Pointing, Terrain, Uncertainty, View, locate
 from ..geo.earth import wrap360
-from ..video.lens import hfov_at, stream_for, vfov_for
+from ..geo.optics import hfov_at, vfov_for
+from ..protocol.streams import stream_for
 from . import roles
 from .api_core import request
 from .core import ClientCore

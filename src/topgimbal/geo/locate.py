@@ -19,6 +19,7 @@ from .frames import (
     column,
     ned_to_neu,
 )
+from .optics import hfov_at
 from .terrain import Terrain, ellipsoid_intersect
 
 Source = Literal["laser+terrain", "laser", "terrain", "flat"]
@@ -194,7 +195,4 @@ def footprint(
 
 def with_zoom(view: View, zoom_x: float) -> View:
     """The same view through a lens zoomed `zoom_x` times (a pinhole: tangents scale)."""
-    z = max(1.0, zoom_x)
-    h = math.degrees(2 * math.atan(math.tan(math.radians(view.hfov_deg) / 2) / z))
-    v = math.degrees(2 * math.atan(math.tan(math.radians(view.vfov_deg) / 2) / z))
-    return replace(view, hfov_deg=h, vfov_deg=v)
+    return replace(view, hfov_deg=hfov_at(view.hfov_deg, zoom_x), vfov_deg=hfov_at(view.vfov_deg, zoom_x))

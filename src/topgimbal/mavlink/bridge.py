@@ -17,9 +17,8 @@ from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..outputs.cot import CotSender
 from ..outputs.klv_record import Recorder
-from ..outputs.rtp_out import advertised, parse_targets
+from ..outputs.rtp_out import RtpPush, advertised, parse_targets
 from ..timeouts import stop_tasks, within
-from ..video.rtp_push import RtpPush
 from .advertise import Advertiser
 from .autopilot_streams import AutopilotStreams
 from .bridge_config import (  # noqa: F401  # re-exported: the public names of topgimbal.mavlink.bridge

@@ -25,7 +25,7 @@ from ..client.feeds import Fix
 from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..protocol import get_model
-from ..video.lens import photo_names
+from ..protocol.streams import photo_names
 from .periodic import Periodic
 
 if TYPE_CHECKING:

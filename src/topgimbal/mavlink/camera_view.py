@@ -13,9 +13,9 @@ from ..geo import CORNERS, Attitude, Geodetic, Pointing, Terrain, View
 from ..geo import Fix as GeoFix
 from ..geo import locate as geo_locate
 from ..geo.earth import wrap360
+from ..geo.optics import hfov_at, vfov_for
 from ..geo.st0601 import sensor_relative_deg
 from ..outputs.sighting import Sighting
-from ..video.lens import hfov_at, vfov_for
 from ._mav import mavlink
 from .camera_link import AttitudeSample, CameraLink
 from .commands import Command, rejected

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..protocol import DeviceModel, Dialect
-from ..video.lens import StreamSpec, VideoError, stream_urls, streams_for
+from ..protocol.streams import StreamSpec, VideoError, stream_urls, streams_for
 
 
 def enum_names(dialect: Dialect, ident: str, field_name: str, rw: str = "w") -> frozenset[str]:

@@ -6,8 +6,10 @@ form: the station listens on the port) next to the RTSP stream."""
 from __future__ import annotations
 
 from ..errors import TopGimbalError
-from ..video.lens import VideoError
-from ..video.rtp_push import advertised_uri, parse_udp_target
+from ..protocol.streams import VideoError
+from ..video.rtp_push import RtpPush, advertised_uri, parse_udp_target
+
+__all__ = ["RtpPush", "VideoOutError", "advertised", "parse_targets"]  # RtpPush: the pusher the bridge starts
 
 LENSES = ("visible", "thermal")
 VIDEO_STREAM_TYPE_RTSP, VIDEO_STREAM_TYPE_RTPUDP = 0, 1

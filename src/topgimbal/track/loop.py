@@ -27,7 +27,8 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 from ..clock import MonotonicFn, monotonic, wall_time
-from ..video.lens import View, hfov_at, stream_for
+from ..geo.optics import View, hfov_at
+from ..protocol.streams import stream_for
 from .control import AngleController, AttitudeHistory, Gains, PixelPGains, pixel_p_rates
 from .vision import TrackerError, VisualTracker
 

@@ -1,328 +1,59 @@
-"""The model profile's video streams as the video code needs them, and the lens model: stream
-URLs, fields of view, pixel <-> angle.
-
-Pure (standard library and `protocol` only), so the client can build `video_url()` without
-importing the renderer or any media library. Every per-model fact comes from the model profile
-(`DeviceModel.video`: URL per lens, horizontal field of view at 1x, zoom range); nothing here is a
-second model table. What the profiles do not carry yet is derived or a documented default of this
-module, the same for every model:
-- picture size: the simulator renders visible streams at 1280x720 (the catalog's GOT frame and
-  SkyDroid's smallest VID resolution) and thermal ones at 640x512 (a common 640 thermal core);
-  a profile that gains `VideoStream.size_px` is read instead;
-- vertical field of view: from the horizontal one and the picture's aspect ratio (a pinhole);
-- codec: H.264 unless the profile's stream says `codec`; the setting that switches it (TOPOTEK
-  `ENT`, role `encoding`) numbers the streams in the profile's order (ENT 0 = stream=0, the main
-  stream; 1 = the sub stream), read from the catalog's own enum.
-"""
+"""Moved (issue 44: one owner each): the model profile's streams and the card's file names to
+`topgimbal.protocol.streams`, tracking requests to `topgimbal.protocol.picture_tracking`, the lens
+model (fields of view, pixels <-> bearings) to `topgimbal.geo.optics`. The names stay importable
+from here for code that imported them here."""
 
 from __future__ import annotations
 
-import math
-import re
-from dataclasses import dataclass
-from typing import Any
-from urllib.parse import urlsplit, urlunsplit
+from ..geo.earth import wrap180
+from ..geo.optics import PixelView, Vec, View, basis, direction, focal_px, hfov_at, vfov_for
+from ..protocol.picture_tracking import LOC_HALF_SPAN, POINT_BOX, tracking_requests
+from ..protocol.streams import (
+    ASSUMED_HFOV_DEG,
+    DEFAULT_SIZE_PX,
+    LENSES,
+    MEDIA_NAME,
+    RTSP_DEFAULT_PORT,
+    StreamSpec,
+    VideoError,
+    host_of,
+    photo_names,
+    plan_ports,
+    recording_name,
+    spec_of,
+    stream_for,
+    stream_urls,
+    streams_for,
+    video_url,
+)
 
-from ..errors import TopGimbalError
-from ..geo.earth import wrap180  # the one angle wrap; importable from here as before
-from ..protocol import CommandSpec, DeviceModel, Dialect, get_model
-
-LENSES = ("visible", "thermal")
-RTSP_DEFAULT_PORT = 554
-# Used only where a profile gives no field of view (every profile today gives one).
-ASSUMED_HFOV_DEG = 60.0
-DEFAULT_SIZE_PX = {"visible": (1280, 720), "thermal": (640, 512)}
-
-
-class VideoError(TopGimbalError):
-    """A video request that cannot be met (no such lens, bad URL, no stream)."""
-
-
-@dataclass(frozen=True)
-class StreamSpec:
-    """One RTSP stream a camera serves, read from its model profile."""
-
-    lens: str  # "visible" or "thermal" (the profile's VideoStream.lens)
-    port: int
-    path: str  # with the leading slash and any query, e.g. "/stream=0"
-    hfov_deg: float  # horizontal field of view at 1x
-    size: tuple[int, int]  # picture size (width, height): the profile's, else DEFAULT_SIZE_PX
-    codec: str = "h264"  # what the camera sends by default ("h264" or "h265")
-    codec_setting: str | None = None  # the encoding command's `stream` value that switches this stream
-    url_template: str = ""  # the profile's URL, "{host}" for the camera's address
-    name: str = ""  # the profile's stream name ("main", "sub", "thermal")
-    zoom_range_x: tuple[float, float] = (1.0, 1.0)
-    size_documented: bool = False  # `size` is the profile's (else this module's default)
-    codec_documented: bool = False  # `codec` is the profile's (else H.264 by default)
-
-    @property
-    def vfov_deg(self) -> float:
-        """Vertical field of view at 1x, from the horizontal one and the aspect ratio."""
-        return vfov_for(self.hfov_deg, *self.size)
-
-    def url(self, host: str, *, port: int | None = None) -> str:
-        """This stream's URL at `host` (IPv6 literals get brackets), optionally on another port."""
-        h = f"[{host}]" if ":" in host and not host.startswith("[") else host
-        parts = urlsplit(self.url_template.replace("{host}", h))
-        if port is None:
-            return urlunsplit(parts)
-        return urlunsplit(parts._replace(netloc=f"{h}:{port}"))
-
-
-def _model(model: str | DeviceModel) -> tuple[Any, DeviceModel]:
-    try:
-        return get_model(model)
-    except Exception as exc:  # an unknown name: say which are known
-        raise VideoError(f"no model {model!r}: {exc}") from None
-
-
-def _codec_settings(dialect: Dialect, model: DeviceModel) -> list[str]:
-    """The encoding command's `stream` values in wire order ("stream0", "stream1", ...): the
-    n-th switches the profile's n-th stream."""
-    spec = dialect.by_role("encoding", model)
-    if spec is None:
-        return []
-    for form in spec.describe()["forms"]:
-        if form["rw"] == "w" and form["direction"] == "request":
-            for f in form["fields"]:
-                if f["name"] == "stream":
-                    return [v["name"] for v in sorted(f.get("values", ()), key=lambda v: v["raw"])]
-    return []
-
-
-def spec_of(model: DeviceModel, index: int, settings: list[str] | None = None) -> StreamSpec:
-    v = model.video[index]
-    parts = urlsplit(v.url.replace("{host}", "host"))
-    path = parts.path + (f"?{parts.query}" if parts.query else "")
-    size_px = getattr(v, "size_px", None)
-    codec = getattr(v, "codec", None)
-    size = size_px or DEFAULT_SIZE_PX.get(v.lens, DEFAULT_SIZE_PX["visible"])
-    settings = settings or []
-    return StreamSpec(
-        lens=v.lens,
-        port=parts.port or RTSP_DEFAULT_PORT,
-        path=path or "/",
-        hfov_deg=float(v.hfov_deg) if v.hfov_deg else ASSUMED_HFOV_DEG,
-        size=(int(size[0]), int(size[1])),
-        codec=str(codec or "h264"),
-        codec_setting=settings[index] if index < len(settings) else None,
-        url_template=v.url,
-        name=v.name,
-        zoom_range_x=tuple(v.zoom_range_x),  # type: ignore[arg-type]
-        size_documented=bool(size_px),
-        codec_documented=bool(codec),
-    )
-
-
-def streams_for(model: str | DeviceModel) -> tuple[StreamSpec, ...]:
-    """The RTSP streams of a model, from its profile (one per lens, in the profile's order)."""
-    dialect, m = _model(model)
-    if not m.video:
-        raise VideoError(f"the {m.name} profile lists no video stream")
-    settings = _codec_settings(dialect, m)
-    out: list[StreamSpec] = []
-    for i, v in enumerate(m.video):
-        if all(s.lens != v.lens for s in out):  # the first stream of each lens
-            out.append(spec_of(m, i, settings))
-    return tuple(out)
-
-
-def stream_for(model: str | DeviceModel, lens: str = "visible") -> StreamSpec:
-    streams = streams_for(model)
-    for s in streams:
-        if s.lens == lens:
-            return s
-    have = ", ".join(s.lens for s in streams)
-    name = model if isinstance(model, str) else model.name
-    raise VideoError(f"the {name} has no {lens!r} stream; it has: {have}")
-
-
-def video_url(model: str | DeviceModel, host: str, lens: str = "visible", *, port: int | None = None) -> str:
-    """The RTSP URL of a lens's stream on a camera at `host` (IPv6 literals get brackets)."""
-    if lens not in LENSES:
-        raise VideoError(f"lens must be one of {', '.join(LENSES)} (got {lens!r})")
-    return stream_for(model, lens).url(host, port=port)
-
-
-def plan_ports(specs: tuple[StreamSpec, ...], port: int | None) -> dict[int, int]:
-    """Documented port -> port to use. An override keeps the documented spacing (554/555 ->
-    N/N+1); 0 gives each documented port its own free port. The simulator binds these; the
-    MAVLink bridge announces them (`--video-port`)."""
-    documented = sorted({s.port for s in specs})
-    if port is None:
-        return {p: p for p in documented}
-    if port == 0:
-        return {p: 0 for p in documented}
-    if not 0 < port <= 65535 or port + (documented[-1] - documented[0]) > 65535:
-        raise VideoError(
-            f"port {port} leaves no room for every stream (they keep the documented spacing "
-            f"{', '.join(map(str, documented))}): give 1..{65535 - (documented[-1] - documented[0])}, or 0 for free ports"
-        )
-    return {p: port + (p - documented[0]) for p in documented}
-
-
-def stream_urls(model: str | DeviceModel, host: str, *, port: int | None = None) -> dict[str, str]:
-    """{lens: URL} of every stream at `host`; `port` moves the first stream's port there and
-    the others keep the documented spacing (a camera behind a port forward, a simulator on a
-    free port)."""
-    specs = streams_for(model)
-    ports = plan_ports(specs, port) if port else {s.port: s.port for s in specs}
-    return {s.lens: s.url(host, port=ports[s.port] if port else None) for s in specs}
-
-
-def host_of(url: str) -> str:
-    """The host part of a control URL (udp://H:P, tcp://H:P); serial URLs have none."""
-    parts = urlsplit(url)
-    if parts.scheme not in ("udp", "tcp") or not parts.hostname:
-        raise VideoError(
-            f"cannot tell the camera's IP address from {url!r}: give host=... (the camera's network address)"
-        )
-    return parts.hostname
-
-
-# -- the lens model ------------------------------------------------------------------------------
-
-
-def hfov_at(hfov_1x_deg: float, zoom_x: float) -> float:
-    """Horizontal field of view at a magnification (a pinhole: the focal length scales)."""
-    z = max(1.0, float(zoom_x))
-    return math.degrees(2.0 * math.atan(math.tan(math.radians(hfov_1x_deg) / 2.0) / z))
-
-
-def vfov_for(hfov_deg: float, width_px: int, height_px: int) -> float:
-    """Vertical field of view of a pinhole camera with this horizontal one and picture size."""
-    return math.degrees(2.0 * math.atan(math.tan(math.radians(hfov_deg) / 2.0) * height_px / width_px))
-
-
-def focal_px(width_px: int, hfov_deg: float) -> float:
-    return (width_px / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
-
-
-def basis(yaw_deg: float, pitch_deg: float, roll_deg: float) -> tuple[Vec, Vec, Vec]:
-    """Forward, right and up unit vectors of a camera, in a world frame x north, y east, z up.
-    Yaw is right-positive (a bearing), pitch up-positive, roll right-positive (right side down)."""
-    y, p, r = (math.radians(a) for a in (yaw_deg, pitch_deg, roll_deg))
-    fwd = (math.cos(p) * math.cos(y), math.cos(p) * math.sin(y), math.sin(p))
-    right0 = (-math.sin(y), math.cos(y), 0.0)
-    up0 = (-math.sin(p) * math.cos(y), -math.sin(p) * math.sin(y), math.cos(p))
-    cr, sr = math.cos(r), math.sin(r)
-    right = tuple(a * cr - b * sr for a, b in zip(right0, up0, strict=False))
-    up = tuple(b * cr + a * sr for a, b in zip(right0, up0, strict=False))
-    return fwd, right, up  # type: ignore[return-value]
-
-
-Vec = tuple[float, float, float]
-
-
-def direction(az_deg: float, el_deg: float) -> Vec:
-    a, e = math.radians(az_deg), math.radians(el_deg)
-    return (math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e))
-
-
-@dataclass(frozen=True)
-class View:
-    """Where a camera looks and how wide: enough to map pixels to bearings and back."""
-
-    yaw_deg: float
-    pitch_deg: float
-    roll_deg: float
-    hfov_deg: float
-    width_px: int
-    height_px: int
-
-    @property
-    def focal_px(self) -> float:
-        return focal_px(self.width_px, self.hfov_deg)
-
-    def project(self, az_deg: float, el_deg: float) -> tuple[float, float] | None:
-        """Pixel (x, y) of an earth-frame direction, or None behind the camera."""
-        fwd, right, up = basis(self.yaw_deg, self.pitch_deg, self.roll_deg)
-        d = direction(az_deg, el_deg)
-        zc = _dot(d, fwd)
-        if zc <= 1e-6:
-            return None
-        f = self.focal_px
-        return self.width_px / 2.0 + f * _dot(d, right) / zc, self.height_px / 2.0 - f * _dot(d, up) / zc
-
-    def angles_at(self, x_px: float, y_px: float) -> tuple[float, float]:
-        """Earth-frame (bearing, elevation) in degrees of what is at pixel (x, y)."""
-        fwd, right, up = basis(self.yaw_deg, self.pitch_deg, self.roll_deg)
-        f = self.focal_px
-        a = (x_px - self.width_px / 2.0) / f
-        b = (self.height_px / 2.0 - y_px) / f
-        ray = tuple(fw + a * r + b * u for fw, r, u in zip(fwd, right, up, strict=False))
-        n = math.sqrt(sum(c * c for c in ray))
-        az = math.degrees(math.atan2(ray[1], ray[0]))
-        el = math.degrees(math.asin(max(-1.0, min(1.0, ray[2] / n))))
-        return wrap180(az), el
-
-
-def _dot(a: Vec, b: Vec) -> float:
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-# -- tracking: picture fractions -> the model's tracking request ---------------------------------
-
-# TOPOTEK's LOC box, as ArduPilot's TOPOTEK driver (written with the vendor, fixed on hardware)
-# sends it: centre and size in a frame whose centre is 0 and whose edges are -1000 and +1000 on
-# each axis (its 1920x1080 picture: x = (px - 960) / 0.96), and LOC alone starts tracking. A point
-# is tracked as a box of TRACK_RANGE 60 px of that picture; the two bytes after the box are 0, 1.
-# (The catalog names the fields x_px... and "reserved" and gives no range: for protocol/ to settle.)
-LOC_HALF_SPAN = 1000
-POINT_BOX = (60 / 1920, 60 / 1080)  # fractions of the picture
-
-
-def _field_max(spec: CommandSpec, name: str) -> float | None:
-    for form in spec.describe()["forms"]:
-        for f in form["fields"]:
-            if f["name"] == name and f.get("max") is not None:
-                return float(f["max"])
-    return None
-
-
-def tracking_requests(
-    dialect: Dialect, model: DeviceModel, x0: float, y0: float, x1: float | None = None, y1: float | None = None
-) -> list[tuple[str, dict[str, Any]]]:
-    """The requests that start tracking what is at a point (x0, y0) or in a box (x0, y0)-(x1, y1)
-    of the picture (fractions 0..1, top left 0, 0), found by role: the `tracking_target` command
-    (SkyDroid GOT) at the point or the box's centre, in the picture its catalog fields span
-    (1280x720); else the `tracking_box` command (TOPOTEK LOC) with the box (a point: a small box
-    around it). Raises VideoError for a model that does not track."""
-    if x1 is None or y1 is None:
-        x1, y1 = x0, y0
-    xa, xb, ya, yb = min(x0, x1), max(x0, x1), min(y0, y1), max(y0, y1)
-    if not all(0.0 <= v <= 1.0 for v in (xa, xb, ya, yb)):
-        raise VideoError("picture coordinates must be fractions from 0 to 1")
-    cx, cy = (xa + xb) / 2, (ya + yb) / 2
-    target, box_spec = dialect.by_role("tracking_target", model), dialect.by_role("tracking_box", model)
-    if target is not None:
-        w, h = _field_max(target, "x_px") or 1280.0, _field_max(target, "y_px") or 720.0
-        return [(target.ident, {"x_px": round(cx * w), "y_px": round(cy * h)})]
-    if box_spec is not None:
-        bw, bh = (xb - xa, yb - ya) if (xb > xa and yb > ya) else POINT_BOX
-        s = LOC_HALF_SPAN
-        box = {
-            "x_px": round((2 * cx - 1) * s),
-            "y_px": round((2 * cy - 1) * s),
-            "width_px": max(1, round(bw * 2 * s)),
-            "height_px": max(1, round(bh * 2 * s)),
-            "reserved": "0001",
-        }  # fmt: skip  (ArduPilot's last two bytes: 0, 1)
-        return [("LOC", box)]
-    raise VideoError(f"the {model.name} does not track targets")
-
-
-# -- file names on the simulated card (media.py says why): pure, so the MAVLink bridge can name a
-# photo's file_url without loading the renderer.
-
-MEDIA_NAME = re.compile(r"^(IMG_\d{4,}(_T)?\.jpg|snap_[01]_\d+\.jpeg|stream_0_\d+\.mp4|VID_\d{4,}\.mp4)$")
-
-
-def photo_names(dialect: str, index: int, lenses: list[str]) -> dict[str, str]:
-    if dialect == "topotek":
-        return {lens: f"snap_{int(lens == 'thermal')}_{index}.jpeg" for lens in lenses}
-    return {lens: f"IMG_{index:04d}{'_T' if lens == 'thermal' else ''}.jpg" for lens in lenses}
-
-
-def recording_name(dialect: str, index: int) -> str:
-    return f"stream_0_{index}.mp4" if dialect == "topotek" else f"VID_{index:04d}.mp4"
+__all__ = [
+    "ASSUMED_HFOV_DEG",
+    "DEFAULT_SIZE_PX",
+    "LENSES",
+    "LOC_HALF_SPAN",
+    "MEDIA_NAME",
+    "POINT_BOX",
+    "RTSP_DEFAULT_PORT",
+    "PixelView",
+    "StreamSpec",
+    "Vec",
+    "VideoError",
+    "View",
+    "basis",
+    "direction",
+    "focal_px",
+    "hfov_at",
+    "host_of",
+    "photo_names",
+    "plan_ports",
+    "recording_name",
+    "spec_of",
+    "stream_for",
+    "stream_urls",
+    "streams_for",
+    "tracking_requests",
+    "vfov_for",
+    "video_url",
+    "wrap180",
+]
