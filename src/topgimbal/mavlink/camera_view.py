@@ -21,7 +21,7 @@ from .camera_link import AttitudeSample, CameraLink
 from .commands import Command, rejected
 from .node import Component
 from .quaternion import from_euler_deg
-from .vehicle import Fix, Vehicles
+from .vehicle import VehicleFix, Vehicles
 
 if TYPE_CHECKING:
     from ._mav import MAVLinkMessage
@@ -33,7 +33,7 @@ INT32_MAX = 2**31 - 1
 class Pose(NamedTuple):
     """What placing the picture on the ground needs, all heard lately."""
 
-    fix: Fix  # the vehicle's
+    fix: VehicleFix  # the vehicle's
     attitude: AttitudeSample  # the gimbal's: pitch earth-frame (stabilised), yaw relative to the vehicle
     vehicle_yaw_deg: float
 
@@ -176,7 +176,7 @@ class CameraView:
                 self.comp.send(self.distance_message(d))
 
 
-def earth_view(fix: Fix, att: AttitudeSample, vehicle_yaw_deg: float, hfov_deg: float, vfov_deg: float) -> View:
+def earth_view(fix: VehicleFix, att: AttitudeSample, vehicle_yaw_deg: float, hfov_deg: float, vfov_deg: float) -> View:
     """The camera's view for topgimbal.geo: its yaw is relative to the vehicle's heading, its
     pitch and roll to the horizon (a stabilised gimbal), so the earth-frame pointing is exact
     whatever the vehicle's roll and pitch."""
@@ -191,7 +191,7 @@ def earth_view(fix: Fix, att: AttitudeSample, vehicle_yaw_deg: float, hfov_deg: 
 
 
 def st0601_values(
-    fix: Fix,
+    fix: VehicleFix,
     att: AttitudeSample | None,
     vehicle_attitude_deg: tuple[float, float, float] | None,
     heading_deg: float | None,

@@ -5,18 +5,14 @@ curvature (topgimbal.geo.earth, the one earth model)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 from ..geo.earth import metres_per_degree, wrap180
 from ..geo.frames import Geodetic, LocalFrame
 from ..geo.terrain import ellipsoid_intersect
 
-
-@dataclass(frozen=True)
-class Position:
-    lat_deg: float
-    lon_deg: float
-    alt_m: float  # above mean sea level
+# One position type (issue 44): geo's Geodetic (lat, lon degrees, alt m MSL); the name stays for the
+# bridge's code that says Position.
+Position = Geodetic
 
 
 def offset_m(a: Position, b: Position) -> tuple[float, float, float]:

@@ -38,7 +38,11 @@ Attitude = tuple[float, float, float]  # roll_deg, pitch_deg, yaw_deg
 
 
 @dataclass(frozen=True)
-class Fix:
+class VehicleFix:
+    """Our vehicle as its autopilot last said (GLOBAL_POSITION_INT): where it is, its height over
+    home, heading, velocity and when (by role: geo.Fix is a located ground point, client.feeds.Fix
+    what a user feeds the camera)."""
+
     position: Position
     relative_alt_m: float
     heading_deg: float | None
@@ -60,7 +64,7 @@ class Vehicles:
     def __init__(self, sysid: int, own_compids: set[int]) -> None:
         self.sysid = sysid
         self.own = own_compids
-        self._fixes: OrderedDict[int, Fix] = OrderedDict()
+        self._fixes: OrderedDict[int, VehicleFix] = OrderedDict()
         # Our vehicle's attitude: (roll, pitch, yaw degrees, t) per source message type.
         self._attitude: dict[str, tuple[Attitude, float]] = {}
         # Our vehicle's yaw rate (deg/s, earth frame) and the autopilot's boot time of the last
@@ -69,7 +73,7 @@ class Vehicles:
         self._last_state: tuple[int, float] | None = None  # (time_boot_ms, yaw_deg)
         self._stamp = SenderClock()  # the autopilot's boot clock mapped onto ours
         self._attitude_stamped = 0.0  # when (our clock) the last AUTOPILOT_STATE's attitude was measured
-        self._history: deque[Fix] = deque(maxlen=HISTORY_FIXES)  # our vehicle's, oldest first, none at 0, 0
+        self._history: deque[VehicleFix] = deque(maxlen=HISTORY_FIXES)  # our vehicle's, oldest first, none at 0, 0
 
     def on_message(self, m: MAVLinkMessage) -> None:
         kind = m.get_type()
@@ -77,7 +81,7 @@ class Vehicles:
         if kind == "GLOBAL_POSITION_INT":
             hdg = None if m.hdg == 65535 else m.hdg / 100.0
             velocity = (m.vx / 100.0, m.vy / 100.0, m.vz / 100.0)
-            fix = Fix(Position(m.lat / 1e7, m.lon / 1e7, m.alt / 1000.0), m.relative_alt / 1000.0, hdg, monotonic(),
+            fix = VehicleFix(Position(m.lat / 1e7, m.lon / 1e7, m.alt / 1000.0), m.relative_alt / 1000.0, hdg, monotonic(),
                       velocity)  # fmt: skip
             if src == self.sysid and m.get_srcComponent() not in self.own and not (m.lat == 0 and m.lon == 0):
                 self._history.append(fix)
@@ -131,13 +135,13 @@ class Vehicles:
         rate = wrap180(yaw_deg - last[1]) / (dt_ms / 1000.0)
         self.yaw_rate_deg_s += YAW_RATE_SMOOTHING * (rate - self.yaw_rate_deg_s)
 
-    def fix(self, sysid: int | None = None) -> Fix | None:
+    def fix(self, sysid: int | None = None) -> VehicleFix | None:
         f = self._fixes.get(self.sysid if sysid is None else sysid)
         if f is None or monotonic() - f.t > STALE_S:
             return None
         return f
 
-    def position_at(self, t: float) -> Fix | None:
+    def position_at(self, t: float) -> VehicleFix | None:
         """Where our vehicle was at `t` (this clock): interpolated between the two fixes around it,
         or carried forward from the last one at its velocity (POSITION_EXTRAPOLATE_S at most; a
         fix older than STALE_S is none). Never a 0, 0 fix (what an autopilot sends before a fix)."""
@@ -155,7 +159,7 @@ class Vehicles:
                 pos = Position(pa.lat_deg + w * (pb.lat_deg - pa.lat_deg), pa.lon_deg + w * (pb.lon_deg - pa.lon_deg),
                                pa.alt_m + w * (pb.alt_m - pa.alt_m))  # fmt: skip
                 rel = a.relative_alt_m + w * (b.relative_alt_m - a.relative_alt_m)
-                return Fix(pos, rel, b.heading_deg, t, b.velocity_ned_m_s)
+                return VehicleFix(pos, rel, b.heading_deg, t, b.velocity_ned_m_s)
         return h[-1]
 
     def attitude_deg(self) -> tuple[float, float, float] | None:
@@ -213,13 +217,16 @@ class SenderClock:
         return min(arrived, sent_s + min(self._mins))
 
 
-def _moved(f: Fix, dt_s: float, t: float) -> Fix:
+def _moved(f: VehicleFix, dt_s: float, t: float) -> VehicleFix:
     """`f` carried `dt_s` forward at its velocity (flat earth: metres over a second)."""
     vn, ve, vd = f.velocity_ned_m_s
     p = f.position
     m_lat, m_lon = metres_per_degree(p.lat_deg)
     lat = p.lat_deg + vn * dt_s / m_lat
     lon = wrap180(p.lon_deg + ve * dt_s / max(0.01 * m_lat, m_lon))
-    return Fix(
+    return VehicleFix(
         Position(lat, lon, p.alt_m - vd * dt_s), f.relative_alt_m - vd * dt_s, f.heading_deg, t, f.velocity_ned_m_s
     )
+
+
+Fix = VehicleFix  # the name it had
