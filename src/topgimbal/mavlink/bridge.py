@@ -17,10 +17,10 @@ from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..outputs.cot import CotSender
 from ..outputs.klv_record import Recorder
-from ..outputs.rtp_out import RtpPush, advertised, parse_targets
 from ..timeouts import stop_tasks, within
 from .advertise import Advertiser
 from .autopilot_streams import AutopilotStreams
+from .bridge_build import MAV_TYPE_CAMERA, MAV_TYPE_GIMBAL, NON_MAVLINK_GIMBAL_ID, build_cameras, build_gimbal  # noqa: F401
 from .bridge_config import (  # noqa: F401  # re-exported: the public names of topgimbal.mavlink.bridge
     CAMERA_COMPIDS,
     GIMBAL_COMPIDS,
@@ -30,7 +30,6 @@ from .bridge_config import (  # noqa: F401  # re-exported: the public names of t
 )
 from .camdef import file_name, render
 from .camdef_http import DefinitionServer
-from .camera import CameraComponent
 from .camera_feed import CameraFeed
 from .camera_link import CameraLink
 from .commands import Dispatcher
@@ -39,8 +38,6 @@ from .features import FEATURES, BridgeContext, Feature
 from .features.cot import CotFeature
 from .features.record import RecordFeature
 from .ftp import FtpServer
-from .gimbal_device import GimbalDevice
-from .gimbal_manager import GimbalManager
 from .node import Node
 from .pointing import Pointer
 from .reboots import RebootWatch
@@ -50,8 +47,6 @@ from .vehicle import Vehicles
 
 log = logging.getLogger("topgimbal.mavlink")
 
-MAV_TYPE_GIMBAL, MAV_TYPE_CAMERA = 26, 30
-NON_MAVLINK_GIMBAL_ID = 1
 GREETING_GAP_S = 0.1  # HEARTBEATs sent early for new peers come at most this often
 MAV_STATE_BOOT, MAV_STATE_ACTIVE, MAV_STATE_CRITICAL = 1, 4, 5
 
@@ -78,54 +73,11 @@ class Bridge:
         own = {c.compid} | ({c.camera_compid, c.camera_compid + 1} if c.camera_compid is not None else set())
         self.vehicles = Vehicles(c.sysid, own)
         self.pointer = Pointer(self.cam, self.vehicles)
-        self.services: list[Services] = []
-        gcomp = self.node.component(c.compid, "gimbal")
-        gsvc = Services(gcomp, self.dispatcher, MAV_TYPE_GIMBAL)
-        self.services.append(gsvc)
-        device_id = 0 if c.role in ("device", "both") else NON_MAVLINK_GIMBAL_ID
-        self.device = GimbalDevice(
-            gsvc, self.cam, self.pointer, attitude_hz=c.attitude_hz, gimbal_device_id=device_id,
-            accept_set_attitude=c.role != "manager", identity=self.identity,
-        )  # fmt: skip
-        self.manager: GimbalManager | None = None
-        if c.role in ("manager", "both"):
-            managed = c.compid if c.role == "both" else NON_MAVLINK_GIMBAL_ID
-            self.manager = GimbalManager(gsvc, self.cam, self.pointer, self.vehicles, gimbal_device_id=managed)
-        self.cameras: list[CameraComponent] = []
-        self.video_pushes: list[RtpPush] = []  # --video-out: started and stopped with the bridge
-        pushed = parse_targets(c.video_out)
-        if pushed and c.camera_compid is None:
-            raise BridgeConfigError(
-                "video_out needs the camera components (it is advertised by them): drop --no-camera"
-            )
-        if c.camera_compid is not None:
-            gimbal_ref = c.compid if c.role in ("device", "both") else NON_MAVLINK_GIMBAL_ID
-            lenses = ["visible"] + (["thermal"] if c.thermal and self.cam.profile.thermal else [])
-            by_lens = self.cam.profile.rtsp_urls(self.cam.camera_host, port=c.video_port)
-            for i, lens in enumerate(lenses):
-                comp = self.node.component(c.camera_compid + i, f"camera-{lens}")
-                svc = Services(comp, self.dispatcher, MAV_TYPE_CAMERA)
-                self.services.append(svc)
-                if c.video_urls is not None:  # given: the first to the visible camera, the second to the thermal one
-                    urls = c.video_urls
-                    mine = urls if len(lenses) == 1 else urls[i : i + 1] if i < len(urls) else []
-                else:
-                    mine = [by_lens[lens]] if lens in by_lens else []
-                if lens in pushed:
-                    if not mine:
-                        raise BridgeConfigError(
-                            f"video_out: the {lens} lens has no RTSP stream to push (give --video-url)"
-                        )
-                    self.video_pushes.append(RtpPush(mine[0], pushed.pop(lens), name=lens))
-                    mine = [*mine, advertised(self.video_pushes[-1].target_url)]
-                self.cameras.append(CameraComponent(
-                    svc, self.cam, self.vehicles, lens=lens, gimbal_device_id=gimbal_ref, video_urls=mine,
-                    identity=self.identity, range_hz=c.range_hz, media_url=c.media_url,
-                    companion_tracking=c.companion_tracking))  # fmt: skip
-        if pushed:
-            raise BridgeConfigError(
-                f"video_out: no {', '.join(pushed)} camera on this bridge ({self.cam.profile.model})"
-            )
+        gimbal = build_gimbal(c, self.node, self.dispatcher, self.cam, self.pointer, self.vehicles, self.identity)
+        gcomp, self.device, self.manager = gimbal.services.comp, gimbal.device, gimbal.manager
+        cams = build_cameras(c, self.node, self.dispatcher, self.cam, self.vehicles, self.identity)
+        self.cameras, self.video_pushes = cams.cameras, cams.pushes  # --video-out: started and stopped with us
+        self.services: list[Services] = [gimbal.services, *cams.services]
         self.survey = survey_for(self.dispatcher, self.cameras, self.pointer, self.vehicles)  # OBLIQUE_SURVEY
         # The attached features (features/: terrain, CoT, the KLV recorder), each asked for by its config
         self.features: list[Feature] = [f for f in (spec.make(c) for spec in FEATURES) if f is not None]
@@ -133,31 +85,12 @@ class Bridge:
         for feature in self.features:
             feature.attach(ctx)
         self.reboots = RebootWatch(self._peer_rebooted)
-        self.node.on(RebootWatch.MESSAGES, lambda m: self.reboots.on_message(m, monotonic()))
-
-        self.node.on_peer_gone(self.reboots.on_peer_gone)
-        self.node.on(self.vehicles.MESSAGES, self.vehicles.on_message)
         self.feed = CameraFeed(self.cam, self.vehicles, c.sysid, own)  # position, attitude, time to the camera
-        self.node.on(self.feed.MESSAGES, self.feed.on_message)
-        for cam in self.cameras:
-            cam.utc_at = self.feed.autopilot.utc_at
-            cam.before_photo = self.feed.before_photo
-            cam.after_photo = self.feed.photo_taken
         self.streams = AutopilotStreams(gcomp, c.sysid, own)  # what the photos need, asked on our link
-        self.node.on(self.streams.MESSAGES, self.streams.on_message)
-        self.node.on(self.dispatcher.MESSAGES, self.dispatcher.on_message)
-        self.node.on(self.device.MESSAGES, self.device.on_message)
-        if self.manager is not None:
-            self.node.on(self.manager.MESSAGES, self.manager.on_message)
-        self.definitions: DefinitionServer | None = None
         p = self.cam.profile
+        self.definitions: DefinitionServer | None = None
         self.definition_files = {file_name(p.model, c.lens): render(p.dialect, p.model, c.lens) for c in self.cameras}
-        for cam in self.cameras:
-            self.node.on(cam.params.MESSAGES, cam.params.on_message)
-            ftp = FtpServer(cam.comp, self.definition_files)
-            self.node.on(ftp.MESSAGES, ftp.on_message)
-            # over MAVLink FTP (QGC's form) unless served over HTTP (_serve_definitions)
-            cam.definition_uri = f"mftp://[;comp={cam.comp.compid}]/{file_name(p.model, cam.lens)}"
+        self._wire()
         self.cam.on_health(self._on_health)
         for svc in self.services:
             svc.system_status = MAV_STATE_BOOT  # until the camera has answered (or is declared down)
@@ -166,6 +99,25 @@ class Bridge:
         self._new_peer = asyncio.Event()
         self.node.on_new_peer(self._greet)
         self.started = False
+
+    def _wire(self) -> None:
+        """Each part on the messages it reads (node.on, by name), the feed's hooks on the cameras,
+        the definitions over MAVLink FTP (QGC's form) unless served over HTTP (_serve_definitions)."""
+        node, p = self.node, self.cam.profile
+        node.on(RebootWatch.MESSAGES, lambda m: self.reboots.on_message(m, monotonic()))
+        node.on_peer_gone(self.reboots.on_peer_gone)
+        parts: list[Any] = [self.vehicles, self.feed, self.streams, self.dispatcher, self.device]
+        parts += [self.manager] if self.manager is not None else []
+        for part in parts:
+            node.on(part.MESSAGES, part.on_message)
+        for cam in self.cameras:
+            cam.utc_at = self.feed.autopilot.utc_at
+            cam.before_photo = self.feed.before_photo
+            cam.after_photo = self.feed.photo_taken
+            ftp = FtpServer(cam.comp, self.definition_files)
+            for part in (cam.params, ftp):
+                node.on(part.MESSAGES, part.on_message)
+            cam.definition_uri = f"mftp://[;comp={cam.comp.compid}]/{file_name(p.model, cam.lens)}"
 
     @property
     def cot(self) -> CotSender | None:
