@@ -19,8 +19,7 @@ from waiting import until
 
 NAN = float("nan")
 # A rig's bridge and simulator close in well under a second; the bound is for a hang, never for
-# speed: beside two busy loops a virtual rig's close ran past 20 s once (its teardown on looptime's
-# loop, where a close that waits on anything real sees virtual time race ahead).
+# speed, and in real seconds (virtual.close_all says why virtual ones ran out beside busy loops).
 CLOSE_S = 60.0
 
 
