@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import io
 import itertools
 import os
 import random
@@ -136,8 +137,12 @@ async def close_all(things: list[Any]) -> None:
         deadline = time.monotonic() + CLOSE_S  # real time: the hang bound
         while not closing.done():
             if time.monotonic() > deadline:
+                where = io.StringIO()
+                closing.print_stack(file=where)  # the await chain it is stuck in
                 closing.cancel()
-                raise AssertionError(f"{thing!r} did not close within {CLOSE_S} real seconds")
+                raise AssertionError(
+                    f"{thing!r} did not close within {CLOSE_S} real seconds; it waited at:\n{where.getvalue()}"
+                )
             await asyncio.wait({closing}, timeout=1.0)
         closing.result()
 

@@ -40,7 +40,7 @@ from ..clock import monotonic
 from ..errors import LinkLostError, ModelMismatchError, RequestTimeoutError, TopGimbalError
 from ..geo.earth import wrap180
 from ..protocol import Message, get_model
-from ..timeouts import within
+from ..timeouts import stop_tasks, within
 from .profile import Profile, profile_of
 
 log = logging.getLogger("topgimbal.mavlink")
@@ -49,6 +49,7 @@ T = TypeVar("T")
 NAN = float("nan")
 REOPEN_MIN_S = 0.5
 REOPEN_MAX_S = 5.0
+CLIENT_CLOSE_S = 5.0  # the client's close (stopping the camera's streams) at most this long
 # Model check verdicts (client/identity.py) under which the camera is not reported healthy: not
 # known yet, or another model.
 SUSPENDED_VERDICTS = frozenset({identity.PENDING, identity.MISMATCH})
@@ -153,15 +154,16 @@ class CameraLink:
                 await within(self._opened.wait(), wait_s)
 
     async def close(self) -> None:
+        """Bounded, whatever the camera does: the keeper task through stop_tasks (cancelled again
+        if it swallows a cancellation, given up on and logged after its rounds), the client's close
+        within CLIENT_CLOSE_S (it stops the camera's streams first)."""
         self._closed = True
         if self._task is not None:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await self._task
+            await stop_tasks([self._task], "camera link")
         if self.client is not None:
-            with contextlib.suppress(Exception):
-                await self.client.close()
-            self.client = None
+            client, self.client = self.client, None
+            with contextlib.suppress(Exception, asyncio.TimeoutError):
+                await within(client.close(), CLIENT_CLOSE_S)
 
     @property
     def stream_rate_hz(self) -> float:

@@ -16,7 +16,6 @@ commands registered `local` (no camera traffic) are answered whatever the load."
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 import math
 from collections import OrderedDict
@@ -35,6 +34,7 @@ from ..errors import (
     UnsupportedError,
 )
 from ..logthrottle import ThrottledLog
+from ..timeouts import stop_tasks
 from ._mav import mavlink
 from .fairness import MAX_INFLIGHT, MAX_INFLIGHT_PER_PEER, RESERVED_FOR_IDLE_PEERS, InflightLimits
 from .node import Component, link_peer
@@ -397,11 +397,7 @@ class Dispatcher:
             cmd.command, result, progress, param2, cmd.src_system, cmd.src_component))  # fmt: skip
 
     async def close(self) -> None:
-        for t in list(self._inflight.values()):
-            t.cancel()
-        for t in list(self._inflight.values()):
-            with contextlib.suppress(BaseException):
-                await t
+        await stop_tasks(list(self._inflight.values()), "commands in flight")  # bounded
 
 
 def _peer_text(peer: Any) -> str:

@@ -9,12 +9,12 @@ model's limits and capability flags. Takes GIMBAL_DEVICE_SET_ATTITUDE in angle a
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import math
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 from ..clock import monotonic
+from ..timeouts import stop_tasks
 from ._mav import mavlink, msg_id
 from .camera_link import AttitudeSample, CameraLink
 from .commands import Command
@@ -114,10 +114,8 @@ class GimbalDevice:
         self._task = asyncio.ensure_future(self._fallback())
 
     async def close(self) -> None:
-        if self._task is not None:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await self._task
+        if self._task is not None:  # bounded, as every close
+            await stop_tasks([self._task], "gimbal device")
 
     # -- attitude status -----------------------------------------------------------------------
 

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..logthrottle import ThrottledLog
-from ..timeouts import within
+from ..timeouts import stop_tasks, within
 from .camera_link import CameraLink
 from .commands import rejected, unsupported
 from .quaternion import wrap180
@@ -97,10 +97,8 @@ class Pointer:
         self._task = asyncio.ensure_future(self._worker())
 
     async def close(self) -> None:
-        if self._task is not None:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await self._task
+        if self._task is not None:  # bounded: a worker that swallows a cancellation is given up on
+            await stop_tasks([self._task], "gimbal pointer")
 
     # -- commands (awaited, acked with the camera's answer) -------------------------------------
 

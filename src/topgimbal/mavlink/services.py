@@ -9,12 +9,12 @@ Several roles may share one component (gimbal device + gimbal manager)."""
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from ..timeouts import stop_tasks
 from ._mav import mav_id, mavlink, msg_id
 from .commands import Command, Dispatcher, Outcome, denied, unsupported
 from .node import Component
@@ -109,12 +109,9 @@ class Services:
 
     async def close(self) -> None:
         self._started = False
+        await stop_tasks([s.task for s in self.streams.values() if s.task is not None], "message streams")
         for s in self.streams.values():
-            if s.task is not None:
-                s.task.cancel()
-                with contextlib.suppress(asyncio.CancelledError, Exception):
-                    await s.task
-                s.task = None
+            s.task = None
 
     def _restart(self, s: Stream) -> None:
         if s.task is not None:
