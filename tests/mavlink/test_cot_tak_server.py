@@ -1,8 +1,9 @@
 """CoT stored by a real TAK server: OpenTAKServer's TCP streaming input, its `cot` table read back.
 
 OpenTAKServer needs PostgreSQL with PostGIS, RabbitMQ and Python >= 3.12: about 6 minutes to install
-on a fresh machine, too much for `make test`, so this test runs where one is up
-(`scripts/opentakserver-loopback start` brings one up on loopback and prints the two variables):
+on a fresh machine, too much for `make test`, which does not select this module (marker `service`).
+`make test-tak` runs it against a server that is up (`scripts/opentakserver-loopback start` brings
+one up on loopback and prints the variables); selected without them, it fails and names them:
 
     TOPGIMBAL_TAK_SERVER=tcp://127.0.0.1:8088          its TCP streaming input
     TOPGIMBAL_TAK_DB=postgresql://ots:...@127.0.0.1/ots  its database (read with psql)
@@ -13,8 +14,8 @@ its users (start prints them too; OpenTAKServer's certificate names `opentakserv
     TOPGIMBAL_TAK_TLS_SERVER=tls://127.0.0.1:8089
     TOPGIMBAL_TAK_TLS=CERT.pem,KEY.pem,CA.pem,opentakserver
 
-Without them it is skipped, saying so; `test_cot_stream.py` checks the stream on every run with
-pytak's framing and takproto as the reader."""
+`test_cot_stream.py` checks the stream on every run of `make test` with pytak's framing and takproto
+as the reader."""
 
 from __future__ import annotations
 
@@ -33,7 +34,7 @@ from topgimbal.outputs.cot import CotSender, CotTls, Sighting
 
 from .conftest import eventually
 
-pytestmark = pytest.mark.external
+pytestmark = [pytest.mark.external, pytest.mark.service]
 
 SERVER = os.environ.get("TOPGIMBAL_TAK_SERVER")
 DB = os.environ.get("TOPGIMBAL_TAK_DB")
@@ -55,8 +56,11 @@ TLS = CotTls(*os.environ["TOPGIMBAL_TAK_TLS"].split(",")) if os.environ.get("TOP
 async def test_opentakserver_stores_every_event_sent(transport: str) -> None:
     url, tls = (SERVER, None) if transport == "tcp" else (TLS_SERVER, TLS)
     if not (url and DB and shutil.which("psql") and (transport == "tcp" or tls)):
-        pytest.skip(f"no OpenTAKServer {transport} input: scripts/opentakserver-loopback start, then set the "
-                    "variables it prints")  # fmt: skip
+        names = (
+            "TOPGIMBAL_TAK_SERVER" if transport == "tcp" else "TOPGIMBAL_TAK_TLS_SERVER, TOPGIMBAL_TAK_TLS"
+        ) + ", TOPGIMBAL_TAK_DB"
+        pytest.fail(f"no OpenTAKServer {transport} input to test: set {names} (and have psql on PATH); "
+                    "scripts/opentakserver-loopback start brings one up on loopback and prints them")  # fmt: skip
     uid = f"topgimbal-ots-{uuid.uuid4().hex[:8]}"  # this run's rows only
     corners = [GeoFix(LAT + dy, LON + dx, 580.0, 300.0, "flat", 5.0, 0.0, -45.0)  # type: ignore[arg-type]
                for dy, dx in ((1e-3, -1e-3), (1e-3, 1e-3), (-1e-3, 1e-3), (-1e-3, -1e-3))]  # fmt: skip
