@@ -13,6 +13,7 @@ import pytest
 from topgimbal.errors import TopGimbalError
 from topgimbal.protocol import Frame, FrameParser, get_model
 from topgimbal.transport.memory import MemoryPort
+from virtual_time import Made
 
 Handler = Callable[[Frame], "list[bytes] | None"]
 _names = itertools.count(1)
@@ -162,15 +163,18 @@ async def memory_sim():
     from topgimbal.sim import Simulator
 
     started = []
+    clock = Made()  # tests/virtual_time.py: stopped on the clock they were made on
 
     async def make(model: str = "C12", **kw):
+        clock.note()
         sim = await Simulator(model=model, **kw).start(udp=[])
         started.append(sim)
         return sim, sim.listen_memory(f"sim-{next(_names)}")
 
     yield make
-    for sim in started:
-        await sim.stop()
+    with clock.clock():
+        for sim in started:
+            await sim.stop()
 
 
 class KinematicFake:
@@ -285,12 +289,15 @@ class KinematicFake:
 @pytest.fixture
 async def kinematic():
     made: list[KinematicFake] = []
+    clock = Made()  # tests/virtual_time.py: stopped on the clock they were made on
 
     def make(model: str, **kw) -> KinematicFake:
+        clock.note()
         dev = KinematicFake(model, **kw).start()
         made.append(dev)
         return dev
 
     yield make
-    for dev in made:
-        await dev.stop()
+    with clock.clock():
+        for dev in made:
+            await dev.stop()

@@ -32,6 +32,7 @@ from topgimbal.mavlink import bridge as bridge_mod
 from topgimbal.mavlink.memory_link import MemoryPeer, connect_memory
 from topgimbal.sim import FaultPlan, Simulator
 from topgimbal.sim.faults import FaultInjector
+from virtual_time import Made
 
 from .conftest import CLOSE_S, Peer
 
@@ -151,8 +152,10 @@ async def close_all(things: list[Any]) -> None:
 async def vrigs() -> AsyncIterator[Callable[..., Any]]:
     """`make(model, **bridge_config)` -> VRig; all closed at the end (conftest's `vrig_maker`)."""
     made: list[VRig] = []
+    clock = Made()  # tests/virtual_time.py: closed on the clock they were made on
 
     async def make(model: str = "C12", **config: Any) -> VRig:
+        clock.note()
         v = await start_vrig(model, **config)
         made.append(v)
         return v
@@ -160,8 +163,9 @@ async def vrigs() -> AsyncIterator[Callable[..., Any]]:
     try:
         yield make
     finally:
-        for v in made:
-            await close_all([v.peer, *v.extra, v.bridge, v.sim])
+        with clock.clock():
+            for v in made:
+                await close_all([v.peer, *v.extra, v.bridge, v.sim])
 
 
 class HealthLog:
