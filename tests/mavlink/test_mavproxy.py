@@ -44,6 +44,18 @@ class MAVProxy:
         await self.proc.stdin.drain()
         return await self.wait(expect, start, timeout)
 
+    async def ask_until(self, text: str, expect: str, bound_s: float = 60.0, every_s: float = 2.0) -> str:
+        """Type a command again every `every_s` until an answer to it matches `expect`: for what
+        MAVProxy shows of a state it learns from a message (a PARAM_EXT_ACK, a reloaded setting),
+        which a loaded machine may have it process after the command was answered once."""
+        deadline = asyncio.get_running_loop().time() + bound_s
+        while True:
+            try:
+                return await self.command(text, expect, timeout=every_s)
+            except AssertionError:
+                if asyncio.get_running_loop().time() >= deadline:
+                    raise
+
     async def wait(self, expect: str, start: int = 0, timeout: float = 20.0) -> str:
         pattern = re.compile(expect)
         found: list[str] = []
@@ -121,15 +133,16 @@ async def test_mavproxy_camera_module_drives_a_sip(rig_factory: Any, tmp_path: P
         assert "version" in info
         rig.sim.settings["IMG"]["palette"] = "arctic"  # changed behind MAVProxy's back
         await mp.command("camera definition", r"1:101\): loaded 2 settings")  # reloads and reads every setting
-        await asyncio.sleep(1.0)
-        await mp.command("camera params", r"IMG_PALETTE\s+5\b")  # the camera's value (arctic = 05)
+        await mp.ask_until("camera params", r"IMG_PALETTE\s+5\b")  # the camera's value (arctic = 05)
         start = len(mp.lines)
         mp.lines.append(">>> camera param IMG_PALETTE 4")
         assert mp.proc.stdin is not None
         mp.proc.stdin.write(b"camera param IMG_PALETTE 4\n")
         await eventually(lambda: rig.sim.settings["IMG"]["palette"] == "medical", 20, "the palette set")
         assert await rig.bridge.cam.call(lambda c: c.palette()) == "medical"  # read back over TOP
-        await mp.command("camera params", r"IMG_PALETTE\s+4\b")
+        # MAVProxy shows the new value once it has the bridge's PARAM_EXT_ACK ("[pending]" before):
+        # at load 11 that came after one `camera params` had printed the old value (a fresh-clone run)
+        await mp.ask_until("camera params", r"IMG_PALETTE\s+4\b(?!.*pending)")
         assert not any("error" in ln.lower() for ln in mp.lines[start:])
         await mp.command("camera source thermal", r"SET_CAMERA_SOURCE: ACCEPTED")
         assert rig.sim.settings["PIP"]["mode"] == "sub_only"
