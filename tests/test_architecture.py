@@ -36,12 +36,15 @@ ALLOWED = {
     },  # sim: `--sim`; wire: pcap, --proxy; geo: wraps
     "video": {"protocol", "sim", "geo"},  # renders the simulator's state; relays any camera's RTSP; geo: angle wraps
     "tools": {"protocol", "client", "sim", "console", "_speedups", "video"},
+    # MAVLink links: bytes to peers, signing, pymavlink's one import; they know no bridge
+    "links": set(),
     "mavlink": {
         "protocol",
         "client",
         "track",
         "geo",
         "outputs",
+        "links",
     },  # track: --companion-tracking; geo: CAMERA_FOV_STATUS, the optics; outputs: what it feeds (RTP out too)
     # CoT, KLV, the recorder, RTP out: fed a Sighting; never MAVLink (issue 44). video: rtp_push
     "outputs": {"geo", "video", "protocol"},  # protocol: the stream table's VideoError
@@ -64,6 +67,7 @@ ALLOWED = {
         "track",
         "geo",
         "outputs",
+        "links",
     },
 }
 

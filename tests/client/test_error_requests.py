@@ -95,7 +95,7 @@ def test_with_request_keeps_every_attribute_and_leaves_other_exceptions_alone():
 
 
 def test_the_cli_keeps_the_request_when_it_adds_a_hint():
-    from topgimbal.cli.device_cmds import _with_hint
+    from topgimbal.cli.model_check import with_hint as _with_hint
 
     dialect, _ = get_model("C12")
     frame = dialect.encode("GAC", read=True)

@@ -33,7 +33,8 @@ def test_named_tests_exist() -> None:
 
 def test_mavlink_recipe_names_real_helpers() -> None:
     """The "How to add a MAVLink command" section's API: the names it tells a reader to call."""
-    from topgimbal.mavlink import _mav, commands
+    from topgimbal.links import mav as _mav
+    from topgimbal.mavlink import commands
 
     section = DOC.read_text(encoding="utf-8").split("## How to add a MAVLink command", 1)[1].split("\n## ", 1)[0]
     for name in ("mav_id", "msg_id"):

@@ -23,8 +23,8 @@ from topgimbal.fleet import camera as camera_mod
 from topgimbal.fleet import server as server_mod
 from topgimbal.fleet.access import AccessConfigError, check_allowed, check_exposure, is_loopback
 from topgimbal.fleet.server import DuplicateCameraError
-from topgimbal.mavlink import json_shape
-from topgimbal.mavlink.zenoh_link import ZenohLink
+from topgimbal.links import json_shape
+from topgimbal.links.zenoh_link import ZenohLink
 from waiting import SETTLED_DEG, near, until
 
 from .conftest import eventually, free_port, raw_call, raw_session

@@ -184,7 +184,7 @@ async def rig_factory() -> AsyncIterator[Callable[..., Any]]:
         await bridge.start()
         peer = Peer()
         if config.get("signing_key") is not None:  # an unsigned sender is no peer: it would hear nothing
-            from topgimbal.mavlink.signing import sign_outgoing
+            from topgimbal.links.signing import sign_outgoing
 
             sign_outgoing(peer.mav, config["signing_key"])
         await peer.connect(bridge.addresses[0][1])  # type: ignore[index]

@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 
+from topgimbal.links.mav import mavlink
 from topgimbal.mavlink import (
     autopilot_streams,
     camera_feed,
@@ -24,7 +25,6 @@ from topgimbal.mavlink import (
     reboots,
     vehicle,
 )
-from topgimbal.mavlink._mav import mavlink
 from topgimbal.mavlink.node import Node
 
 from .virtual import MemPeer, fresh_name, in_virtual_time

@@ -12,9 +12,9 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as ml
 
-from topgimbal.mavlink import endpoints
+from topgimbal.links import base as link_base
+from topgimbal.links.endpoints import Link, make_link
 from topgimbal.mavlink.commands import Command, Dispatcher
-from topgimbal.mavlink.endpoints import Link, make_link
 from topgimbal.mavlink.fairness import InflightLimits
 from topgimbal.mavlink.node import Node
 from topgimbal.mavlink.services import Services
@@ -170,7 +170,7 @@ async def _command_until_answered(me: Peer, zoom: float) -> int:
 
 
 async def test_a_silent_tcpin_connection_gives_its_place_back(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(endpoints, "PEER_TIMEOUT_S", 0.3)
+    monkeypatch.setattr(link_base, "PEER_TIMEOUT_S", 0.3)
     got: list[tuple[Hashable, bytes]] = []
     gone: list[Hashable] = []
 
@@ -198,7 +198,7 @@ async def test_a_silent_tcpin_connection_gives_its_place_back(monkeypatch: pytes
 
 
 async def test_a_tcpin_connection_that_talks_keeps_its_place(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(endpoints, "PEER_TIMEOUT_S", 0.3)
+    monkeypatch.setattr(link_base, "PEER_TIMEOUT_S", 0.3)
     got: list[bytes] = []
     link = make_link("tcpin:127.0.0.1:0", lambda _l, _p, d: got.append(d), lambda _l, _p: None, max_peers=1)
     await link.start()

@@ -1,5 +1,5 @@
-"""The bridge writes MAVLink command and message ids by name, from pymavlink (`_mav.mav_id`,
-`_mav.msg_id`), never as integer literals: a literal can silently name the wrong command, and a
+"""The bridge writes MAVLink command and message ids by name, from pymavlink (`links.mav.mav_id`,
+`links.mav.msg_id`), never as integer literals: a literal can silently name the wrong command, and a
 name can be grepped in the spec."""
 
 from __future__ import annotations
@@ -11,11 +11,12 @@ from pathlib import Path
 import pytest
 from pymavlink.dialects.v20 import common as ml
 
-from topgimbal.mavlink import _mav
+from topgimbal.links import mav as _mav
 
 pytestmark = pytest.mark.virtual
 
-MAVLINK_SRC = Path(__file__).resolve().parents[2] / "src" / "topgimbal" / "mavlink"
+PKG = Path(__file__).resolve().parents[2] / "src" / "topgimbal"
+MAVLINK_SRC = [*(PKG / "mavlink").glob("*.py"), *(PKG / "links").glob("*.py")]  # the bridge and its links
 ID_PREFIXES = ("MSG_", "CMD_", "MAV_CMD_")
 ID_TABLES = ("LOCAL_MESSAGES", "LEGACY_REQUESTS", "WANTED")  # tables of ids
 
@@ -44,7 +45,7 @@ def _targets(node: ast.Assign | ast.AnnAssign) -> list[str]:
 
 def test_no_module_writes_a_command_or_message_id_as_a_number() -> None:
     bad = []
-    for path in sorted(MAVLINK_SRC.glob("*.py")):
+    for path in sorted(MAVLINK_SRC):
         tree = ast.parse(path.read_text(encoding="utf-8"))
         for node in tree.body:
             if isinstance(node, (ast.Assign, ast.AnnAssign)) and node.value is not None:
@@ -55,7 +56,7 @@ def test_no_module_writes_a_command_or_message_id_as_a_number() -> None:
             if (isinstance(node, ast.Compare) and "command" in ast.unparse(node.left).lower()
                     and any(_int_literals(c) for c in node.comparators)):  # fmt: skip
                 bad.append(f"{path.name}:{node.lineno} {ast.unparse(node)}")
-    assert not bad, "MAVLink ids written as numbers (use _mav.mav_id / msg_id):\n" + "\n".join(bad)
+    assert not bad, "MAVLink ids written as numbers (use links.mav's mav_id / msg_id):\n" + "\n".join(bad)
 
 
 def test_every_named_id_is_pymavlinks() -> None:
@@ -64,8 +65,8 @@ def test_every_named_id_is_pymavlinks() -> None:
     commands = set(ml.enums["MAV_CMD"])
     messages = set(ml.mavlink_map)
     seen = 0
-    for path in sorted(MAVLINK_SRC.glob("*.py")):
-        mod = importlib.import_module(f"topgimbal.mavlink.{path.stem}")
+    for path in sorted(MAVLINK_SRC):
+        mod = importlib.import_module(f"topgimbal.{path.parent.name}.{path.stem}")
         for name, value in vars(mod).items():
             if name.startswith(("CMD_", "MAV_CMD_")) and isinstance(value, int):
                 assert value in commands, f"{path.name}: {name} = {value} is no MAV_CMD"

@@ -1,4 +1,4 @@
-"""mavlink/json_shape.py: pymavlink messages <-> the JSON BlueOS's mavlink-server puts on Zenoh
+"""links/json_shape.py: pymavlink messages <-> the JSON BlueOS's mavlink-server puts on Zenoh
 (rust-mavlink 0.16's serde form), both ways, and what it refuses."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ from typing import Any
 
 import pytest
 
-from topgimbal.mavlink import json_shape as js
-from topgimbal.mavlink._mav import mavlink
+from topgimbal.links import json_shape as js
+from topgimbal.links.mav import mavlink
 
 pytestmark = pytest.mark.loopback
 

@@ -1,4 +1,4 @@
-"""`memory:NAME`, the in-process MAVLink link (mavlink/memory_link.py): parsed like the other
+"""`memory:NAME`, the in-process MAVLink link (links/memory_link.py): parsed like the other
 endpoint forms, bytes both ways through the event loop, peers by name, and bounded in names, peers
 and queued bytes. Virtual tier: no socket, the timers on looptime's clock."""
 
@@ -10,9 +10,10 @@ from typing import Any
 
 import pytest
 
-from topgimbal.mavlink import endpoints, memory_link
-from topgimbal.mavlink.endpoints import FORMS, EndpointError, Link, make_link, parse_endpoint
-from topgimbal.mavlink.memory_link import MAX_QUEUED_BYTES, MemoryLink, connect_memory
+from topgimbal.links import base as link_base
+from topgimbal.links import memory_link
+from topgimbal.links.endpoints import FORMS, EndpointError, Link, make_link, parse_endpoint
+from topgimbal.links.memory_link import MAX_QUEUED_BYTES, MemoryLink, connect_memory
 
 from .virtual import MemPeer, fresh_name
 
@@ -91,7 +92,7 @@ async def test_a_name_is_one_link_and_free_again_when_it_closes() -> None:
 
 
 async def test_peers_are_bounded_and_a_silent_one_gives_its_place(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(endpoints, "PEER_TIMEOUT_S", 30.0)
+    monkeypatch.setattr(link_base, "PEER_TIMEOUT_S", 30.0)
     rec, name = Recorder(), fresh_name("t")
     link = await started(name, rec, max_peers=2)
     quiet, talker = connect_memory(name), connect_memory(name)

@@ -14,7 +14,7 @@ import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.clock import monotonic
-from topgimbal.mavlink import camera as camera_module
+from topgimbal.mavlink import camera_photos
 from topgimbal.mavlink import commands as commands_module
 from topgimbal.mavlink.reboots import RebootWatch
 
@@ -97,7 +97,7 @@ async def test_the_first_photo_after_a_reboot_is_taken(rig_factory: Any, caplog:
 async def test_a_capture_sequence_is_deduplicated_only_within_the_window(
     rig_factory: Any, caplog: Any, monkeypatch: Any
 ) -> None:
-    monkeypatch.setattr(camera_module, "RETRANSMIT_WINDOW_S", 0.5)
+    monkeypatch.setattr(camera_photos, "RETRANSMIT_WINDOW_S", 0.5)
     monkeypatch.setattr(commands_module, "RETRANSMIT_WINDOW_S", 0.5)
     r = await rig_factory("C12")
     caplog.set_level(logging.INFO, logger="topgimbal.mavlink")

@@ -14,7 +14,7 @@ import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.cli.main import main
-from topgimbal.mavlink.signing import SigningKeyError, key_from_bytes, load_key, sign_outgoing
+from topgimbal.links.signing import SigningKeyError, key_from_bytes, load_key, sign_outgoing
 
 from .conftest import Peer, eventually
 

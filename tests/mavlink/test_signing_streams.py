@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as ml
 
-from topgimbal.mavlink.signing import SIGNING_EPOCH_S, SignedStreams, load_key, sign_outgoing
+from topgimbal.links.signing import SIGNING_EPOCH_S, SignedStreams, load_key, sign_outgoing
 
 from .conftest import Peer, eventually
 from .test_signing import KEY, _answer, keep_sent, signed_peer

@@ -1,4 +1,4 @@
-"""mavlink/zenoh_link.py on a fake Zenoh session: the keys a frame is published on, mavlink/in
+"""links/zenoh_link.py on a fake Zenoh session: the keys a frame is published on, mavlink/in
 handed to the node as a frame from the header's ids, bad input and floods dropped and counted."""
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ from typing import Any
 
 import pytest
 
-from topgimbal.mavlink import zenoh_link
-from topgimbal.mavlink._mav import mavlink
-from topgimbal.mavlink.endpoints import Link
+from topgimbal.links import zenoh_link
+from topgimbal.links.endpoints import Link
+from topgimbal.links.mav import mavlink
 
 pytestmark = pytest.mark.loopback
 

@@ -28,8 +28,8 @@ import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.clock import monotonic
+from topgimbal.links.memory_link import MemoryPeer, connect_memory
 from topgimbal.mavlink import bridge as bridge_mod
-from topgimbal.mavlink.memory_link import MemoryPeer, connect_memory
 from topgimbal.sim import FaultPlan, Simulator
 from topgimbal.sim.faults import FaultInjector
 from virtual_time import Made
@@ -116,7 +116,7 @@ async def start_vrig(model: str = "C12", *, sim_kw: dict[str, Any] | None = None
         raise
     peer = MemPeer()
     if config.get("signing_key") is not None:  # an unsigned sender is no peer: it would hear nothing
-        from topgimbal.mavlink.signing import sign_outgoing
+        from topgimbal.links.signing import sign_outgoing
 
         sign_outgoing(peer.mav, config["signing_key"])
     await peer.join(link)

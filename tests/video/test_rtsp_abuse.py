@@ -16,7 +16,7 @@ from typing import Any
 
 import pytest
 
-from topgimbal.video import rtsp
+from topgimbal.video import rtsp, rtsp_connection
 from topgimbal.video.encode import AccessUnit
 from topgimbal.video.rtsp import RtspServer, Stream, Transport, parse_transport
 from waiting import until
@@ -228,7 +228,7 @@ async def test_a_receiver_that_fails_is_dropped_and_the_others_get_the_picture(
 async def test_sessions_count_from_setup_so_one_client_cannot_hold_more(
     server: RtspServer, monkeypatch: Any, caplog: Any
 ) -> None:
-    monkeypatch.setattr(rtsp, "MAX_RECEIVERS", 3)
+    monkeypatch.setattr(rtsp_connection, "MAX_RECEIVERS", 3)
     stream = server.streams["/stream=1"]
     c = await Client.connect(server)
     other = await Client.connect(server)
@@ -332,7 +332,7 @@ async def test_a_setup_that_cannot_get_udp_sockets_fails_alone(server: RtspServe
 async def test_a_client_that_reads_no_answers_cannot_grow_the_servers_memory(
     server: RtspServer, monkeypatch: Any, caplog: Any
 ) -> None:
-    monkeypatch.setattr(rtsp, "MAX_BUFFERED_BYTES", 200_000)
+    monkeypatch.setattr(rtsp_connection, "MAX_BUFFERED_BYTES", 200_000)
     stream = server.streams["/stream=1"]
     stream.params["sps"] = SPS + bytes(6000)  # big answers (DESCRIBE's SDP carries it): quick to show
     loop = asyncio.get_running_loop()
@@ -364,7 +364,7 @@ async def test_a_client_that_reads_no_answers_cannot_grow_the_servers_memory(
                 most = max(most, conn.transport.get_write_buffer_size())
         # Before: the answers piled up in memory without bound.
         assert conn.transport.is_closing(), f"still answering into memory ({most} bytes unsent)"
-        assert most < rtsp.MAX_BUFFERED_BYTES + rtsp.MAX_PIPELINED * 10_000
+        assert most < rtsp_connection.MAX_BUFFERED_BYTES + rtsp_connection.MAX_PIPELINED * 10_000
         assert "requests waiting (answers unread" in caplog.text
     finally:
         client.close()

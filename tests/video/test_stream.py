@@ -244,7 +244,7 @@ def _rtsp(sock: Any, request: str) -> str:
 def test_rtsp_server_answers_bad_input_clearly_and_bounds_receivers(c12: LiveSim, monkeypatch: Any) -> None:
     import socket
 
-    from topgimbal.video import rtsp
+    from topgimbal.video import rtsp_connection
 
     url = c12.video.urls["visible"]
     port = int(url.rsplit(":", 1)[1].split("/")[0])
@@ -253,7 +253,7 @@ def test_rtsp_server_answers_bad_input_clearly_and_bounds_receivers(c12: LiveSim
     with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
         assert _rtsp(s, f"DESCRIBE rtsp://127.0.0.1:{port}/nope RTSP/1.0\r\nCSeq: 1\r\n\r\n").startswith("RTSP/1.0 404")
         assert "405" in _rtsp(s, f"RECORD {url} RTSP/1.0\r\nCSeq: 2\r\n\r\n").split("\r\n")[0]
-    monkeypatch.setattr(rtsp, "MAX_RECEIVERS", 1)
+    monkeypatch.setattr(rtsp_connection, "MAX_RECEIVERS", 1)
     setup = f"SETUP {url}/trackID=0 RTSP/1.0\r\nCSeq: 3\r\nTransport: RTP/AVP/TCP;unicast;interleaved=0-1\r\n\r\n"
     with (
         socket.create_connection(("127.0.0.1", port), timeout=10) as a,

@@ -14,14 +14,11 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import copy
-import logging
 import math
 import sys
-from collections.abc import Awaitable, Callable, Iterator, Mapping
+from collections.abc import Awaitable, Callable, Mapping
 from typing import TYPE_CHECKING
 
-from ..client.identity import Verdict
 from ..client.jsonable import dumps
 from ..client.roles import focus_actions, role_ident
 from ..client.state import SdCard
@@ -29,7 +26,6 @@ from ..clock import monotonic
 from ..errors import (
     FieldValueError,
     InputError,
-    ModelMismatchError,
     RequestTimeoutError,
     TopGimbalError,
 )
@@ -38,15 +34,13 @@ from ..protocol.fields import FieldValue
 from . import device_motion, device_session, locate_cmd
 from .args import COUNT, HZ, add_json_argument
 from .device_output import attitude_dict, ok, show
+from .model_check import AUTO_MODEL, detect, model_check_records_left_out, refuse_wrong_model, verdict_of, with_hint
 
 if TYPE_CHECKING:  # the client loads when a command runs, not for `topgimbal --help` (cli/main.py)
     from ..client import AsyncClient
 
 # A command's result is what `show` prints (an int is the exit status instead).
 Runner = Callable[["AsyncClient", argparse.Namespace], Awaitable[object]]
-MODEL_CHECK_WAIT_S = 2.0  # at most this long before / after a command for the device to say what it is
-NOTHING_HEARD_S = 0.6  # no frame at all by then: stop waiting for the model check (the port is empty)
-AUTO_MODEL = "auto"  # --model auto: ask the device what it is
 
 
 # -- plumbing ------------------------------------------------------------------------------------
@@ -101,21 +95,21 @@ def _run(args: argparse.Namespace, runner: Runner) -> int:
         model = args.model
         explicit = model is not None and model != AUTO_MODEL
         if not explicit:
-            model = await _detect(args)
+            model = await detect(args)
         async with connect(
             args.url, model=model, timeout_s=args.timeout, retries=args.retries, log_path=args.log
         ) as cam:
             diagnostic = runner in DIAGNOSTICS  # says what the device is: runs, and shows the check
             if explicit and not diagnostic:
-                await _refuse_wrong_model(cam)
+                await refuse_wrong_model(cam)
             try:
                 result = await runner(cam, args)
             except TopGimbalError as exc:
-                verdict = await _verdict(cam)
+                verdict = await verdict_of(cam)
                 if verdict is not None and verdict.message not in str(exc):
-                    raise _with_hint(exc, verdict.message, cam.model.name) from None
+                    raise with_hint(exc, verdict.message, cam.model.name) from None
                 raise
-            verdict = await _verdict(cam)
+            verdict = await verdict_of(cam)
             if verdict is not None and diagnostic:
                 print(f"topgimbal: warning: {verdict.message}", file=sys.stderr, flush=True)
             elif verdict is not None:  # the answer was read through the wrong model: not shown
@@ -138,82 +132,6 @@ def _run(args: argparse.Namespace, runner: Runner) -> int:
         return result
     show(args, result)
     return 0
-
-
-async def _refuse_wrong_model(cam: AsyncClient) -> None:
-    """Wait for the model check before the command (module docstring); raise ModelMismatchError when
-    the device says it is another model. Nothing heard within NOTHING_HEARD_S: go on, the command's
-    own error says there is nothing at the address."""
-    import asyncio
-
-    from ..clock import monotonic
-
-    start = monotonic()
-    while not cam.identity.done.is_set() and monotonic() - start < MODEL_CHECK_WAIT_S:
-        if monotonic() - start >= NOTHING_HEARD_S and not cam.stats.frames_in:
-            return
-        await asyncio.sleep(0.02)
-    verdict = cam.model_check
-    if verdict.status == "mismatch":
-        found = f" (found: {verdict.fits[0]})" if verdict.fits else ""
-        raise ModelMismatchError(f"{verdict.message}; nothing was sent{found}; --model auto uses what the device says",
-                                 fits=verdict.fits)  # fmt: skip
-
-
-async def _verdict(cam: AsyncClient) -> Verdict | None:
-    """The model check's verdict when the device says it is another model than --model (the check
-    runs in the background from connect; a command that finished first waits for it briefly)."""
-    if not cam.stats.frames_in:
-        return None  # nothing has come at all: the command's own error says so
-    verdict = await cam.wait_model_check(MODEL_CHECK_WAIT_S)
-    return verdict if verdict.status == "mismatch" else None
-
-
-def _with_hint(exc: TopGimbalError, hint: str, model: str) -> TopGimbalError:
-    from ..client.requesting import model_hint
-
-    new = copy.copy(exc)  # keeps `request` (the frame the error is about)
-    new.args = (f"{str(exc).replace(model_hint(model), '')}; {hint}",)
-    return new
-
-
-@contextlib.contextmanager
-def model_check_records_left_out() -> Iterator[None]:
-    """While the command runs, the client's log records of the model check (and of a link lost
-    before anything was heard) are left out: the command says the same in its own one line. Scoped,
-    not installed for good: `main()` called in a process that goes on (a test, a program embedding
-    the CLI) must keep the client's log as it was (a left-over filter hid a later client's lines)."""
-    client_log, quiet = logging.getLogger("topgimbal.client"), _NoModelCheckRecords()
-    client_log.addFilter(quiet)
-    try:
-        yield
-    finally:
-        client_log.removeFilter(quiet)
-
-
-class _NoModelCheckRecords(logging.Filter):
-    """The CLI says what the model check found in its own one line: the log record would repeat it;
-    so does a link lost before anything was heard (the command's error says nothing answered)."""
-
-    def filter(self, record: logging.LogRecord) -> bool:
-        if getattr(record, "link_lost", False) and not getattr(record, "heard", True):
-            return False
-        return not hasattr(record, "model_check")
-
-
-async def _detect(args: argparse.Namespace) -> str:
-    """No --model: ask the device what it is (version and model name, in every dialect)."""
-    from ..client import connect
-
-    async with connect(
-        args.url, model="C12", timeout_s=min(args.timeout, 0.5), retries=1, check_model=False, host_feeds=False
-    ) as cam:
-        found = await cam.detect_model()
-        heard = cam.stats.frames_in > 0
-    if found is None:
-        why = "it answered neither query" if heard else f"nothing at all came from {args.url}"
-        raise TopGimbalError(f"no --model given and the device did not identify itself ({why}); pass --model")
-    return found
 
 
 # -- commands ------------------------------------------------------------------------------------

@@ -94,7 +94,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 
 def _signing_key(path: str) -> bytes:
-    from ..mavlink.signing import SigningKeyError, load_key
+    from ..links.signing import SigningKeyError, load_key
 
     try:
         return load_key(path)
@@ -118,7 +118,7 @@ def build_config(args: argparse.Namespace) -> object:
 
 
 async def _detect(args: argparse.Namespace) -> str:
-    from .device_cmds import _detect as detect
+    from .model_check import detect
 
     return await detect(args)
 

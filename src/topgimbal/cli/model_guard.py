@@ -13,7 +13,10 @@ import contextlib
 from collections.abc import Iterator, Sequence
 from typing import Protocol
 
-AUTO_HINT = "; --model auto uses what the device says"  # device_cmds._refuse_wrong_model's last words
+from .model_check import detect, model_check_records_left_out
+from .model_check import refuse_wrong_model as refuse
+
+AUTO_HINT = "; --model auto uses what the device says"  # model_check.refuse_wrong_model's last words
 
 
 class DeclaredCamera(Protocol):
@@ -31,8 +34,6 @@ class DeclaredCamera(Protocol):
 def _one_line() -> Iterator[None]:
     """The refusal is the error's one line: the client's log record of the same verdict (and of a
     camera not there yet, which is served) is left out while the check runs, as device commands do."""
-    from .device_cmds import model_check_records_left_out
-
     with model_check_records_left_out():
         yield
 
@@ -41,7 +42,6 @@ async def refuse_wrong_model(url: str, model: str, timeout_s: float) -> None:
     """Raise ModelMismatchError when the camera at `url` answers as another model than `model`."""
     from ..client import connect
     from ..errors import TransportError
-    from .device_cmds import _refuse_wrong_model as refuse
 
     with _one_line():
         try:
@@ -60,10 +60,8 @@ async def check_cameras(cameras: Sequence[DeclaredCamera], timeout_s: float, *, 
 
     async def one(cam: DeclaredCamera) -> str:
         if auto and cam.model == "auto":
-            from .device_cmds import _detect
-
             try:
-                return await _detect(argparse.Namespace(url=cam.url, timeout=timeout_s))
+                return await detect(argparse.Namespace(url=cam.url, timeout=timeout_s))
             except TopGimbalError as exc:
                 raise TopGimbalError(f"camera {cam.name} ({cam.url}): {exc}") from None
         try:

@@ -71,9 +71,9 @@ def _check_mavlink(specs: list[Any], sysid: int, cameras_wanted: bool, thermal: 
 
 async def _start_mavlink(specs: list[Any], args: argparse.Namespace, session: Any) -> Any:
     """The MAVLink bridge of `topgimbal mavlink --camera ...` (same component ids), its only link
-    the Zenoh session in BlueOS mavlink-server's key shape (mavlink/zenoh_link.py)."""
+    the Zenoh session in BlueOS mavlink-server's key shape (links/zenoh_link.py)."""
+    from ..links.zenoh_link import zenoh_link_factory
     from ..mavlink.multi import MultiBridge
-    from ..mavlink.zenoh_link import zenoh_link_factory
 
     # --cot: each camera its own CoT uid/callsign (its name); the vehicle is the autopilot heard on mavlink/in
     own = [{"cot": args.cot, "cot_name": s.name, "cot_tls": cot_tls(args)} if args.cot else {} for s in specs]

@@ -18,7 +18,7 @@ from typing import Protocol, runtime_checkable
 from ..errors import FieldValueError
 from ..geo.earth import wrap180
 from .core import ClientCore
-from .feeds import Fix
+from .feeds import FedPosition
 from .methods import api_method
 
 log = logging.getLogger("topgimbal.client")
@@ -28,7 +28,7 @@ log = logging.getLogger("topgimbal.client")
 class FeedSample:
     """What a feed source knows now; None parts are left as they are (fix None: no fix)."""
 
-    fix: Fix | None
+    fix: FedPosition | None
     time_utc: datetime.datetime | None = None
     attitude_deg: tuple[float, float, float] | None = None  # vehicle roll, pitch, yaw
 
@@ -78,7 +78,7 @@ class FeedMethods(Protocol):
                 raise FieldValueError("lat_deg", lat_deg, "lat_deg, lon_deg and alt_m together")
             assert lat_deg is not None and lon_deg is not None and alt_m is not None
             try:
-                new = Fix(float(lat_deg), float(lon_deg), float(alt_m), heading_deg)
+                new = FedPosition(float(lat_deg), float(lon_deg), float(alt_m), heading_deg)
             except ValueError as exc:
                 raise FieldValueError("lat_deg", (lat_deg, lon_deg, alt_m), str(exc)) from None
             if not core.feeds.position(new):

@@ -15,7 +15,7 @@ from types import TracebackType
 
 from ..clock import monotonic
 from ..errors import FieldValueError, LinkLostError, TopGimbalError, TransportError
-from ..protocol import CommandSpec, DeviceModel, Dialect, Frame, FrameParser, Message, get_model
+from ..protocol import DeviceModel, Dialect, Frame, FrameParser, Message, get_model
 from ..protocol.frame import DEVICE_ADDRESSES
 from ..transport import Transport, TransportURL, open_transport, parse_url
 from . import identity, roles
@@ -110,20 +110,6 @@ class ClientCore(Requests):
         self._untraffic: Callable[[], None] = lambda: None
         self._tasks: set[asyncio.Task[object]] = set()
         self._builder = FrameBuilder(self.dialect, self.model, self.signs, self.host_address)
-
-    # -- options as attributes (stable API) -------------------------------------------------------
-
-    @property
-    def stop_repeats(self) -> int:
-        return self.behaviour.stop_repeats
-
-    @property
-    def combined_motion(self) -> bool:
-        return self.behaviour.combined
-
-    @property
-    def link_timeout_s(self) -> float:
-        return self.options.link_timeout_s
 
     # -- life cycle ------------------------------------------------------------------------------
 
@@ -230,33 +216,6 @@ class ClientCore(Requests):
         self, et: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
     ) -> None:
         await self.close()
-
-    @property
-    def connected(self) -> bool:
-        """True while the transport is open and the device has not gone quiet."""
-        return self.connected_transport and (self.link is None or self.link.up)
-
-    @property
-    def link_up(self) -> bool:
-        return self.connected
-
-    @property
-    def link_state(self) -> LinkState:
-        """`{"up", "reason", "silent_s"}`: why the link is down, how long nothing has come."""
-        link = self.link
-        silent = None if link is None or link.last_in is None else round(link.silent_for(), 3)
-        reason = "" if self.connected else (link.reason if link is not None and link.reason else "closed")
-        return {"up": self.connected, "reason": reason, "silent_s": silent}
-
-    @property
-    def datagram(self) -> bool:
-        """UDP (and memory://): no connection, so the device may forget this peer."""
-        return self._transport is not None and self._transport.is_datagram
-
-    @property
-    def busy(self) -> bool:
-        """A request the device should answer soon is in flight (slow queries do not count)."""
-        return self._engine is not None and any(not tx.slow for tx in self._engine.live.values())
 
     def on_link_change(self, callback: LinkCallback) -> Callable[[], None]:
         """`callback(up: bool, reason: str)` on every transition (sync or async); returns an
@@ -439,23 +398,3 @@ class ClientCore(Requests):
         """Call `callback(direction, frame, message)` for every frame in ("in") and out ("out"),
         decoded as on the wire (no sign mapping). Returns a remove function."""
         return self.notifier.on_traffic(callback)
-
-    def commands(self) -> list[CommandSpec]:
-        """The catalog commands this model supports."""
-        return self.dialect.supported(self.model)
-
-    # -- requests ---------------------------------------------------------------------------------
-
-    def spec(self, ident: str) -> CommandSpec:
-        """The catalog command `ident` (identifier or name), if this model supports it."""
-        return self._builder.spec(ident)
-
-    def build(self, ident: str, *, read: bool = False, dst: str | None = None, **values: object) -> Frame:
-        """The frame `request()` would send (values in API units and signs), validated."""
-        return self._builder.build(ident, values, read=read, dst=dst)
-
-    def build_from(
-        self, ident: str, values: Mapping[str, object], *, read: bool = False, dst: str | None = None
-    ) -> Frame:
-        """`build()` with the values in a mapping."""
-        return self._builder.build(ident, values, read=read, dst=dst)

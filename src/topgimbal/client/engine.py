@@ -26,24 +26,20 @@ import math
 from collections import deque
 from collections.abc import Mapping
 
-from ..errors import DeviceError, RequestTimeoutError, TopGimbalError
+from ..errors import RequestTimeoutError, TopGimbalError
 from ..protocol import DeviceModel, Dialect, Frame, Message
 from . import roles
-from .acks import EchoPolicy, is_report
+from .acks import EchoPolicy
+from .matching import Matching
 from .records import Attempt, Clock, EchoRule, Inbound, Key, Ledger, Pacer, RKey, Transaction, timeout_text
 from .stats import LinkStats
 
 __all__ = ["Attempt", "Engine", "Inbound", "Key", "Ledger", "RKey", "Transaction"]
 
-# A copy of an answer comes right behind the original: one arriving within this long after a query
-# went out (and sooner than half the fastest round trip seen) cannot be that query's answer. Capped
-# so that a slow first round trip cannot make later fast answers look like copies.
-COPY_FLOOR_CAP_S = 0.0002
-SETTLED_RTT_SAMPLES = 16  # round trips seen before half the fastest one bounds how fast an answer can be
 MAX_WAITING = 256  # requests queued behind one key (a runaway caller gets an error, not a leak)
 
 
-class Engine:
+class Engine(Matching):
     def __init__(
         self,
         *,
@@ -193,133 +189,7 @@ class Engine:
                     self.stats.timeouts += 1
                     self._finish(tx, now, error=RequestTimeoutError(timeout_text(tx, now)))
 
-    # -- incoming ---------------------------------------------------------------------------------
-
-    def on_message(self, message: Message) -> Inbound:
-        """Classify one decoded frame from the device; completes at most one request."""
-        frame = message.frame
-        now = self.clock()
-        if message.is_error:
-            return self._on_error(message, now)
-        rkey = (frame.ident, frame.src, frame.rw or "w")
-        if frame.declared_length is not None and frame.ident not in self.recovered_ok:
-            lenient = self.live.get((frame.ident, frame.src))
-            if lenient is None or not lenient.lenient:
-                self.stats.bad_frames += 1
-                return Inbound("ignored")
-        last = self._last_frame.get(rkey)
-        self._last_frame[rkey] = (now, frame.data)
-        if self._streams and frame.rw == "r" and self._streaming(frame.ident, now):
-            return self._on_sample(message, rkey, now)
-        # Right behind an identical frame: perhaps a network copy, so it proves no other attempt answered.
-        maybe_copy = last is not None and last[1] == frame.data and now - last[0] <= self.dup_window_s
-        ledger = self._ledger.get(rkey)
-        live = self.live.get((frame.ident, frame.src))
-        if live is not None and (live.state != "sent" or live.rkey != rkey):
-            live = None
-        if ledger is None:
-            return self._unowned(message, live, now, known=False)
-        window = now - self.late_window_s
-        ledger.prune(window)
-        if frame.rw == "r":
-            if is_report(message):
-                return Inbound("unsolicited")  # a stream frame on a query's key
-            fits = list(ledger.open)
-        else:
-            fits = [a for a in ledger.open if self.echo_matches(a.tx.frame, a.tx.fields, message)]
-        own = [a for a in fits if a.tx is live]
-        foreign = [a for a in fits if a.tx is not live]
-        if (
-            live is not None
-            and own
-            and frame.rw == "r"
-            and live.first_sent_at is not None
-            and maybe_copy
-            and now < live.first_sent_at + self._copy_floor_s()
-        ):
-            # An identical frame sooner than any answer can come: a copy of the previous one.
-            # The link is taken to copy frames only once another frame follows for this
-            # request: a real answer that was just unusually fast (loopback under load) costs
-            # this request a retry, not every later read the copy wait.
-            self.stats.duplicates += 1
-            live.suspected_copy = len(live.attempts)
-            return Inbound("duplicate")
-        if live is not None and own and (not foreign or frame.rw == "w" or live.slow):
-            # Reads never have foreign attempts here (deferred until there are none); a write's
-            # echo with the data sent proves the data were applied, whichever attempt it answers.
-            return self._answer(live, own, message, now, sole=not foreign)
-        if foreign:
-            if live is not None and own:
-                self.stats.ambiguous += 1
-                live.notes.append(f"{frame.text()} could answer this request or an earlier one: not taken")
-                return Inbound("ambiguous")
-            if not maybe_copy:
-                self._close_if_single_owner(foreign)
-            if all(not a.tx.expect_reply for a in foreign):
-                return Inbound("unawaited")  # the echo of a frame sent without waiting: not late
-            self.stats.late_replies += 1
-            return Inbound("late")
-        # Fits an attempt that was answered already: another copy of that answer.
-        known = any(
-            a.sent_at >= window and (frame.rw == "r" or self.echo_matches(a.tx.frame, a.tx.fields, message))
-            for a in ledger.answered.values()
-        )
-        return self._unowned(message, live, now, known=known)
-
     # -- internals ----------------------------------------------------------------------------------
-
-    def _on_sample(self, message: Message, rkey: RKey, now: float) -> Inbound:
-        """A frame on a streaming key: a sample, and the live read's answer once that read is
-        sent (any sample after the query carries a value the device held since; samples and
-        answers look alike, so every open attempt there is answered alike)."""
-        live = self.live.get((rkey[0], rkey[1]))
-        if live is None or live.state != "sent" or live.rkey != rkey:
-            return Inbound("unsolicited")
-        ledger = self._ledger.get(rkey)
-        if ledger is None or is_report(message) or not any(a.tx is live for a in ledger.open):
-            return Inbound("unsolicited")
-        for attempt in list(ledger.open):
-            ledger.close(attempt)
-        self.stats.replies += 1  # no round trip: a sample may have left before the query came
-        self._finish(live, now, reply=message)
-        return Inbound("answer", live)
-
-    def _unowned(self, message: Message, live: Transaction | None, now: float, *, known: bool) -> Inbound:
-        """A frame that fits no open attempt: a report, a copy of an answer already taken, a
-        mismatched echo, or a stray answer."""
-        if is_report(message):
-            return Inbound("unsolicited")
-        if known:
-            self._copy_seen()
-            return Inbound("late")
-        if live is not None and message.frame.rw == "w":
-            # An echo with other data than any attempt sent: the device did something else.
-            self.stats.errors += 1
-            err = DeviceError(
-                f"the device acknowledged {live.frame.ident} ({live.frame.text()}) with {message.frame.text()}, "
-                f"which does not carry the data sent; the setting may not be what was asked"
-            )
-            self._finish(live, now, error=err)
-            return Inbound("mismatch", live)
-        ledger = self._ledger.get((message.frame.ident, message.frame.src, message.frame.rw or "w"))
-        if ledger is not None and (ledger.open or ledger.answered):
-            self.stats.stray_replies += 1
-            return Inbound("late")
-        return Inbound("unsolicited")
-
-    def _copy_floor_s(self) -> float:
-        """How soon after a query an identical frame must be a copy: half the fastest round trip
-        seen (a quarter while fewer than SETTLED_RTT_SAMPLES were seen: the first ones are slow,
-        and a floor too high takes fast real answers for copies), at most COPY_FLOOR_CAP_S."""
-        rtt_min = self.stats.rtt_ms_min
-        if rtt_min is None:
-            return COPY_FLOOR_CAP_S
-        share = 0.5 if self._rtt_samples >= SETTLED_RTT_SAMPLES else 0.25
-        return min(share * rtt_min / 1000.0, COPY_FLOOR_CAP_S)
-
-    def _copy_seen(self) -> None:
-        self.stats.duplicates += 1
-        self.copies_seen = True
 
     def _close(self, attempt: Attempt) -> None:
         ledger = self._ledger.get(attempt.tx.rkey)
@@ -327,49 +197,6 @@ class Engine:
             ledger.close(attempt)
         else:
             attempt.closed = True
-
-    def _answer(self, tx: Transaction, own: list[Attempt], message: Message, now: float, *, sole: bool) -> Inbound:
-        oldest = own[0]
-        self._close(oldest)
-        if sole and len(own) == 1:
-            self.stats.add_rtt(now - oldest.sent_at)  # only when it is clear which attempt answered
-            self._rtt_samples += 1
-        if tx.suspected_copy and tx.suspected_copy == len(tx.attempts):
-            self.copies_seen = True  # another frame followed the suspected copy, before any retry
-        self.stats.replies += 1
-        self._finish(tx, now, reply=message)
-        return Inbound("answer", tx)
-
-    def _close_if_single_owner(self, attempts: list[Attempt]) -> None:
-        owner = attempts[0].tx
-        if all(a.tx is owner for a in attempts):
-            self._close(attempts[0])
-            self._recheck(attempts[0].tx.rkey)
-
-    def _on_error(self, message: Message, now: float) -> Inbound:
-        self.stats.errors += 1
-        src = message.frame.src
-        previous = self._last_error.get(src)
-        self._last_error[src] = now
-        window = now - self.late_window_s
-        owners = {
-            a.tx for rkey, ledger in self._ledger.items() if rkey[1] == src for a in ledger.open if a.sent_at >= window
-        }
-        live = [t for t in owners if t.state == "sent" and self.live.get(t.key) is t]
-        copy = previous is not None and now - previous <= self.dup_window_s  # may copy the last one
-        if len(owners) == 1 and len(live) == 1 and not copy:
-            tx = live[0]
-            self._close(next(a for a in tx.attempts if not a.closed))
-            err = DeviceError(
-                f"the device refused {tx.frame.ident} ({tx.frame.text()}): it answered {message.frame.text()}"
-            )
-            self._finish(tx, now, error=err)
-            return Inbound("error", tx)
-        for tx in live:
-            tx.notes.append(
-                f"the device sent an error frame {message.frame.text()} that may answer this request or another to {src}"
-            )
-        return Inbound("error")
 
     def _start(self, tx: Transaction, now: float) -> None:
         self.live[tx.key] = tx

@@ -76,8 +76,10 @@ class FeedTarget(Protocol):
 
 
 @dataclass(frozen=True)
-class Fix:
-    """A position fix of the vehicle: WGS84 degrees, altitude above mean sea level, heading true."""
+class FedPosition:
+    """Where the user says the vehicle is, fed to the camera (`feed_position`): WGS84 degrees,
+    altitude above mean sea level, heading true. (By role: `geo.Fix` is a located ground point,
+    `mavlink.vehicle.VehicleFix` what the autopilot says.)"""
 
     lat_deg: float
     lon_deg: float
@@ -94,6 +96,9 @@ class Fix:
             raise ValueError(f"heading_deg must be a finite number or None (got {self.heading_deg!r})")
 
 
+Fix = FedPosition  # the name it had (issue 44: one class named Fix, geo.Fix)
+
+
 class HostFeeds:
     def __init__(self, core: FeedTarget) -> None:
         self.core = core
@@ -102,7 +107,7 @@ class HostFeeds:
         self.active: set[str] = set()  # idents being fed
         self.values: dict[str, dict[str, object]] = {}  # ident -> what its feed carries now
         self.sent: dict[str, int] = {}  # frames sent per feed
-        self.fix: Fix | None = None
+        self.fix: FedPosition | None = None
         self.fix_at: float | None = None  # monotonic time of the fix
         self.utc_offset_s: float | None = None  # given UTC minus monotonic; None: the host clock
         self.time_source = "host clock"
@@ -150,7 +155,7 @@ class HostFeeds:
         self.values[spec.ident] = dict(values)
         self._activate([spec.ident])
 
-    def position(self, fix: Fix | None) -> list[str]:
+    def position(self, fix: FedPosition | None) -> list[str]:
         """A new position fix (None: no fix, the position feeds stop). Returns the idents fed."""
         if fix is None:
             self.fix = self.fix_at = None

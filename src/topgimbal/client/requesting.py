@@ -1,6 +1,8 @@
 """Requests: a built frame handed to the engine, the connection's policy for it (retries, echoes,
-acknowledgement rules, slow answers), and errors that say why (a silent device, a wrong model).
-A part of the client core (`ClientCore` inherits it); kept apart so each module has one job."""
+acknowledgement rules, slow answers; the options as attributes), and errors that say why (a silent
+device, a wrong model); the frames the catalog builds (`spec`, `build`) and the link's state as the
+API reports it (`connected`, `link_state`, `busy`). A part of the client core (`ClientCore`
+inherits it); kept apart so each module has one job."""
 
 from __future__ import annotations
 
@@ -9,13 +11,14 @@ import copy
 from collections.abc import Mapping
 
 from ..errors import DecodeError, DeviceError, LinkLostError, TopGimbalError, TransportError
-from ..protocol import DeviceModel, Dialect, Frame, Message
+from ..protocol import CommandSpec, DeviceModel, Dialect, Frame, Message
 from ..transport import Transport
 from . import identity
+from .builder import FrameBuilder
 from .engine import Engine, Transaction
 from .link import LinkMonitor
 from .model_check import ModelChecker
-from .options import Behaviour
+from .options import Behaviour, ClientOptions
 
 
 class Requests:
@@ -25,6 +28,7 @@ class Requests:
     dialect: Dialect
     model: DeviceModel
     behaviour: Behaviour
+    options: ClientOptions
     timeout_s: float
     retries: int
     closed: bool
@@ -33,9 +37,24 @@ class Requests:
     _engine: Engine | None
     _loop: asyncio.AbstractEventLoop | None
     _transport: Transport | None
+    _builder: FrameBuilder
 
     def _drive(self) -> None:
         raise NotImplementedError
+
+    # -- options as attributes (stable API) -------------------------------------------------------
+
+    @property
+    def stop_repeats(self) -> int:
+        return self.behaviour.stop_repeats
+
+    @property
+    def combined_motion(self) -> bool:
+        return self.behaviour.combined
+
+    @property
+    def link_timeout_s(self) -> float:
+        return self.options.link_timeout_s
 
     @property
     def event_loop(self) -> asyncio.AbstractEventLoop | None:
@@ -47,8 +66,31 @@ class Requests:
         return not self.closed and self._transport is not None and self._transport.connected
 
     @property
+    def connected(self) -> bool:
+        """True while the transport is open and the device has not gone quiet."""
+        return self.connected_transport and (self.link is None or self.link.up)
+
+    @property
+    def link_up(self) -> bool:
+        return self.connected
+
+    @property
     def link_state(self) -> dict[str, bool | str | float | None]:
-        raise NotImplementedError
+        """`{"up", "reason", "silent_s"}`: why the link is down, how long nothing has come."""
+        link = self.link
+        silent = None if link is None or link.last_in is None else round(link.silent_for(), 3)
+        reason = "" if self.connected else (link.reason if link is not None and link.reason else "closed")
+        return {"up": self.connected, "reason": reason, "silent_s": silent}
+
+    @property
+    def datagram(self) -> bool:
+        """UDP (and memory://): no connection, so the device may forget this peer."""
+        return self._transport is not None and self._transport.is_datagram
+
+    @property
+    def busy(self) -> bool:
+        """A request the device should answer soon is in flight (slow queries do not count)."""
+        return self._engine is not None and any(not tx.slow for tx in self._engine.live.values())
 
     def send_nowait(self, frame: Frame) -> None:
         """Send without waiting for an answer (in the engine's order and pacing)."""
@@ -160,6 +202,26 @@ class Requests:
         new = copy.copy(exc)  # keeps `request` (and a DecodeError's `answer`)
         new.args = (text,)
         return new
+
+    # -- frames from the catalog ----------------------------------------------------------------
+
+    def commands(self) -> list[CommandSpec]:
+        """The catalog commands this model supports."""
+        return self.dialect.supported(self.model)
+
+    def spec(self, ident: str) -> CommandSpec:
+        """The catalog command `ident` (identifier or name), if this model supports it."""
+        return self._builder.spec(ident)
+
+    def build(self, ident: str, *, read: bool = False, dst: str | None = None, **values: object) -> Frame:
+        """The frame `request()` would send (values in API units and signs), validated."""
+        return self._builder.build(ident, values, read=read, dst=dst)
+
+    def build_from(
+        self, ident: str, values: Mapping[str, object], *, read: bool = False, dst: str | None = None
+    ) -> Frame:
+        """`build()` with the values in a mapping."""
+        return self._builder.build(ident, values, read=read, dst=dst)
 
 
 def model_hint(model: str) -> str:

@@ -34,101 +34,36 @@ from typing import TYPE_CHECKING, TypedDict
 
 from ..client import checks
 from ..client.zenoh_session import check_endpoint
-from ..errors import AddressError, FieldValueError, TopGimbalError
-from ..transport import parse_url
+from ..errors import FieldValueError
 from .cameras import local_plan
+from .config_checks import (
+    DEFAULT_HOST,
+    DEFAULT_MODEL,
+    DEFAULT_PORT,
+    FAULTS_NEED_SIM,
+    FLEET_ALONE,
+    FLEET_EMPTY,
+    LINK_TIMEOUT_S,
+    NO_SOURCE,
+    PROXY_BOTH,
+    PROXY_MODEL,
+    PROXY_NOT_URL,
+    SIM_AND_URL,
+    VIDEO_NEED_URL,
+    VIDEO_SCHEMES,
+    ConsoleAddressError,
+    ConsoleConfigError,
+    check_video_options,
+    device_url,
+    known_model,
+    port_in_range,
+)
 from .guard import check_allow_host
 
 if TYPE_CHECKING:
     from typing import Unpack
 
     from ..sim import FaultPlan
-
-DEFAULT_HOST = "127.0.0.1"
-DEFAULT_PORT = 8080
-DEFAULT_MODEL = "C12"  # a camera given by URL without a model (the keyword API; the CLI insists on --model)
-LINK_TIMEOUT_S = 3.0  # the client declares the camera's link lost after this long without a frame
-VIDEO_SCHEMES = ("rtsp", "rtsps", "http", "https")  # what --video-url accepts (the relay opens them with FFmpeg)
-
-# The refusals of a mixture of forms (ConsoleConfig.from_keywords and the CLI say them alike).
-NO_SOURCE = "give the camera's --url (and --model), or --sim MODEL to run a simulator"
-SIM_AND_URL = "--sim runs its own simulator: give either --url or --sim, not both"
-PROXY_BOTH = "--proxy needs both --listen URL (where clients connect) and --to URL (the camera)"
-PROXY_NOT_URL = "--proxy watches the camera behind it: give --listen and --to, not --url or --sim"
-PROXY_MODEL = "give --model with --proxy: the page describes the camera's commands from its model"
-FAULTS_NEED_SIM = "--faults applies to the simulator: use it with --sim"
-VIDEO_NEED_URL = (
-    "--video-url and --video-port are for a camera given with --url (the simulator of --sim serves its "
-    "own video; a watched proxy has no video panel)"
-)
-FLEET_ALONE = (
-    "cannot be combined with --camera, several --sim or --zenoh: give every camera with --camera NAME=URL,MODEL "
-    "(or --sim MODEL, --zenoh ENDPOINT)"
-)
-FLEET_EMPTY = "a console of several cameras needs at least one --camera NAME=URL,MODEL, --sim MODEL or --zenoh ENDPOINT"
-
-
-class ConsoleConfigError(TopGimbalError, ValueError):
-    """A console configuration that cannot work: says what was wrong and what is allowed."""
-
-
-class ConsoleAddressError(ConsoleConfigError, AddressError):
-    """A device URL of the config that is not usable: an AddressError (the CLI exits 2, as it did
-    when the URL was refused at start) and a ValueError, like every refusal here."""
-
-
-def _known_model(flag: str, model: object) -> str:
-    """A model name the catalog knows (case as given), else ConsoleConfigError with the list."""
-    from ..protocol import get_model
-
-    if not isinstance(model, str) or not model:
-        raise ConsoleConfigError(f"{flag}: give a model name, e.g. {DEFAULT_MODEL}")
-    try:
-        get_model(model)
-    except TopGimbalError as exc:
-        raise ConsoleConfigError(f"{flag} {exc}") from None
-    return model
-
-
-def _device_url(flag: str, url: object) -> str:
-    """A device URL the transports can parse, else ConsoleAddressError naming the option."""
-    if not isinstance(url, str):
-        raise ConsoleAddressError(f"{flag}: give a device URL such as udp://HOST:PORT, not {url!r}")
-    try:
-        parse_url(url)
-    except AddressError as exc:
-        raise ConsoleAddressError(f"{flag}: {exc}") from None
-    return url
-
-
-def _port(flag: str, port: object, *, lowest: int) -> None:
-    if not isinstance(port, int) or isinstance(port, bool) or not lowest <= port <= 65535:
-        free = " (0: any free port)" if lowest == 0 else ""
-        raise ConsoleConfigError(f"{flag} {port}: give a port from {lowest} to 65535{free}")
-
-
-def check_video_options(model: str | None, urls: Mapping[str, str], port: int | None) -> dict[str, str]:
-    """The operator's video URLs, checked: lenses the model has, URLs a player can open (ValueError)."""
-    from urllib.parse import urlsplit
-
-    from ..video.lens import streams_for
-
-    if port is not None and not 0 < port <= 65535:
-        raise ConsoleConfigError(f"--video-port {port}: give a port from 1 to 65535")
-    if not urls:
-        return dict(urls)
-    lenses = [s.lens for s in streams_for(model or DEFAULT_MODEL)]
-    for lens, url in urls.items():
-        if lens not in lenses:
-            raise ConsoleConfigError(f"--video-url: the {model} has no lens {lens!r}; its lenses: {', '.join(lenses)}")
-        parts = urlsplit(url)
-        if parts.scheme not in VIDEO_SCHEMES or not parts.hostname:
-            raise ConsoleConfigError(
-                f"--video-url {lens}={url}: expected a stream URL such as rtsp://HOST:PORT/PATH "
-                f"(schemes: {', '.join(VIDEO_SCHEMES)})"
-            )
-    return dict(urls)
-
 
 # -- how the page is served, and how the console talks to a camera ---------------------------------
 
@@ -147,7 +82,7 @@ class ServeOptions:
     def __post_init__(self) -> None:
         if not isinstance(self.host, str):
             raise ConsoleConfigError(f"--host {self.host!r}: give an address to listen on, e.g. {DEFAULT_HOST}")
-        _port("--port", self.port, lowest=0)
+        port_in_range("--port", self.port, lowest=0)
         if self.token is not None and not isinstance(self.token, str):
             raise ConsoleConfigError("--token: give the token as text")
         if isinstance(self.allow_hosts, str):  # one name, not its letters
@@ -194,8 +129,8 @@ class CameraSource:
     def __post_init__(self) -> None:
         if not self.url:
             raise ConsoleConfigError(NO_SOURCE)
-        _device_url("--url", self.url)
-        _known_model("--model", self.model)
+        device_url("--url", self.url)
+        known_model("--model", self.model)
         if not isinstance(self.video_urls, Mapping):
             raise ConsoleConfigError("--video-url: give {lens: URL}, e.g. {'visible': 'rtsp://HOST:8554/main'}")
         urls = check_video_options(self.model, self.video_urls, self.video_port)
@@ -212,7 +147,7 @@ class SimSource:
     faults: FaultPlan | None = None
 
     def __post_init__(self) -> None:
-        _known_model("--sim", self.model)
+        known_model("--sim", self.model)
         if not isinstance(self.seed, int) or isinstance(self.seed, bool):
             raise ConsoleConfigError(f"--seed {self.seed!r}: give a whole number")
         if self.faults is not None:
@@ -238,9 +173,9 @@ class ProxySource:
             raise ConsoleConfigError(PROXY_BOTH)
         if not self.model:
             raise ConsoleConfigError(PROXY_MODEL)
-        _device_url("--listen", self.listen)
-        _device_url("--to", self.to)
-        _known_model("--model", self.model)
+        device_url("--listen", self.listen)
+        device_url("--to", self.to)
+        known_model("--model", self.model)
 
 
 @dataclass(frozen=True)
@@ -274,9 +209,9 @@ class FleetSource:
             raise ConsoleConfigError(f"--seed {self.seed!r}: give a whole number")
         for name, url, model in self.plan:  # CameraNameError / TooManyCamerasError first
             where = f"--camera {name}" if url is not None else "--sim"
-            _known_model(where, model)
+            known_model(where, model)
             if url is not None:
-                _device_url(where, url)
+                device_url(where, url)
 
     @property
     def plan(self) -> list[tuple[str, str | None, str]]:
@@ -416,6 +351,38 @@ __all__ = [
     "DEFAULT_MODEL",
     "DEFAULT_PORT",
     "LINK_TIMEOUT_S",
+    "CameraSource",
+    "ConsoleAddressError",
+    "ConsoleConfig",
+    "ConsoleConfigError",
+    "ConsoleKeywords",
+    "FleetSource",
+    "LinkOptions",
+    "ProxySource",
+    "ServeOptions",
+    "SimSource",
+    "Source",
+    "check_video_options",
+]
+
+
+# Names kept importable from here (config_checks.py has them).
+__all__ = [
+    "DEFAULT_HOST",
+    "DEFAULT_MODEL",
+    "DEFAULT_PORT",
+    "FAULTS_NEED_SIM",
+    "FLEET_ALONE",
+    "FLEET_EMPTY",
+    "LINK_TIMEOUT_S",
+    "NO_SOURCE",
+    "PROXY_BOTH",
+    "PROXY_MODEL",
+    "PROXY_NOT_URL",
+    "SIM_AND_URL",
+    "SOURCES",
+    "VIDEO_NEED_URL",
+    "VIDEO_SCHEMES",
     "CameraSource",
     "ConsoleAddressError",
     "ConsoleConfig",

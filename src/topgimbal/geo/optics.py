@@ -46,8 +46,9 @@ def direction(az_deg: float, el_deg: float) -> Vec:
 
 
 @dataclass(frozen=True)
-class View:
-    """Where a camera looks and how wide: enough to map pixels to bearings and back."""
+class PixelView:
+    """Where a camera looks and how wide: enough to map pixels to bearings and back (by its role:
+    a picture's pixels against bearings; `geo.View` is the locator's instant)."""
 
     yaw_deg: float
     pitch_deg: float
@@ -87,4 +88,4 @@ def _dot(a: Vec, b: Vec) -> float:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-PixelView = View  # by its role: a picture's pixels against bearings (geo.View is the locator's)
+View = PixelView  # the name video.lens and track had

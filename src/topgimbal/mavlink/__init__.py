@@ -14,19 +14,19 @@ from typing import TYPE_CHECKING
 from .._lazy import lazy_getattr
 
 if TYPE_CHECKING:
-    from ._mav import MavlinkUnavailableError
+    from ..links.endpoints import EndpointError, parse_endpoint
+    from ..links.mav import MavlinkUnavailableError
     from .bridge import ROLES, Bridge, BridgeConfig, BridgeConfigError
-    from .endpoints import EndpointError, parse_endpoint
 
 # Lazy (PEP 562): `topgimbal mavlink`'s flags come from features/ without loading the bridge
 _LAZY = {
-    "MavlinkUnavailableError": "_mav",
+    "MavlinkUnavailableError": "topgimbal.links.mav",
     "ROLES": "bridge",
     "Bridge": "bridge",
     "BridgeConfig": "bridge",
     "BridgeConfigError": "bridge",
-    "EndpointError": "endpoints",
-    "parse_endpoint": "endpoints",
+    "EndpointError": "topgimbal.links.endpoints",
+    "parse_endpoint": "topgimbal.links.endpoints",
 }
 
 __getattr__ = lazy_getattr(__name__, _LAZY, globals())

@@ -25,13 +25,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from ..clock import MonotonicFn, monotonic
-from ._mav import mav_id, mavlink, msg_id
+from ..links.mav import mav_id, mavlink, msg_id
 from .feed_sources import WATCHED, FeedSources
 from .periodic import Periodic
 from .stream_rates import Answers, Gaps
 
 if TYPE_CHECKING:
-    from ._mav import MAVLinkMessage
+    from ..links.mav import MAVLinkMessage
     from .node import Component
 
 log = logging.getLogger("topgimbal.mavlink")

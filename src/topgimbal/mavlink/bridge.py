@@ -15,6 +15,7 @@ from typing import Any
 
 from ..clock import monotonic
 from ..errors import TopGimbalError
+from ..links.endpoints import parse_endpoint
 from ..outputs.cot import CotSender
 from ..outputs.klv_record import Recorder
 from ..timeouts import stop_tasks, within
@@ -33,7 +34,6 @@ from .camdef_http import DefinitionServer
 from .camera_feed import CameraFeed
 from .camera_link import CameraLink
 from .commands import Dispatcher
-from .endpoints import parse_endpoint
 from .features import FEATURES, BridgeContext, Feature
 from .features.cot import CotFeature
 from .features.record import RecordFeature

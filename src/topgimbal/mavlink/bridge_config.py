@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import TopGimbalError
+from ..links.endpoints import MAX_PEERS, parse_endpoint
 from ..outputs.cot_stream import CotTls
 from ..outputs.rtp_out import VideoOutError, parse_targets
-from .endpoints import MAX_PEERS, parse_endpoint
 
 ROLES = ("device", "manager", "both")
 GIMBAL_COMPIDS = (154, 171, 172, 173, 174, 175)  # MAV_COMP_ID_GIMBAL, GIMBAL2..6

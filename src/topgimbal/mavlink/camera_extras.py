@@ -21,14 +21,14 @@ from typing import TYPE_CHECKING, Any
 
 from ..clock import monotonic
 from ..errors import RequestTimeoutError, TopGimbalError
+from ..links.mav import mav_id, mavlink, msg_id
 from ..outputs.rtp_out import stream_type
-from ._mav import mav_id, mavlink, msg_id
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, unsupported
 from .gimbal_device import _text
 
 if TYPE_CHECKING:
-    from ._mav import MAVLinkMessage
+    from ..links.mav import MAVLinkMessage
     from .node import Component
 
 MSG_THERMAL_RANGE = msg_id("CAMERA_THERMAL_RANGE")

@@ -21,7 +21,7 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 from ..client.api_feed import FeedSample, apply_sample
-from ..client.feeds import Fix
+from ..client.feeds import FedPosition
 from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..protocol import get_model
@@ -29,7 +29,7 @@ from ..protocol.streams import photo_names
 from .periodic import Periodic
 
 if TYPE_CHECKING:
-    from ._mav import MAVLinkMessage
+    from ..links.mav import MAVLinkMessage
     from .camera_link import CameraLink
     from .vehicle import Vehicles
 
@@ -91,7 +91,7 @@ class AutopilotState:
     def time_age_s(self) -> float | None:
         return None if self._utc is None else monotonic() - self._utc[1]
 
-    def fix_at(self, t: float) -> Fix | None:
+    def fix_at(self, t: float) -> FedPosition | None:
         """The vehicle's position at `t` (vehicle.Vehicles.position_at) as the camera's feeds take it:
         None without one, at 0, 0 (an autopilot before its first fix) or out of range (numbers from
         the network)."""
@@ -99,7 +99,7 @@ class AutopilotState:
         if f is None or (f.position.lat_deg == 0 and f.position.lon_deg == 0):
             return None
         try:
-            return Fix(f.position.lat_deg, f.position.lon_deg, f.position.alt_m, self.vehicles.yaw_deg)
+            return FedPosition(f.position.lat_deg, f.position.lon_deg, f.position.alt_m, self.vehicles.yaw_deg)
         except ValueError:
             return None
 

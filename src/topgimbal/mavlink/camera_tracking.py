@@ -32,9 +32,9 @@ from typing import TYPE_CHECKING, Any
 
 from ..clock import MonotonicFn, monotonic
 from ..geo.earth import wrap180
+from ..links.mav import mavlink
 from ..protocol.picture_tracking import tracking_requests
 from ..protocol.streams import VideoError
-from ._mav import mavlink
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, rejected, unsupported
 from .geo import ground_point

@@ -15,8 +15,8 @@ from ..geo import locate as geo_locate
 from ..geo.earth import wrap360
 from ..geo.optics import hfov_at, vfov_for
 from ..geo.st0601 import sensor_relative_deg
+from ..links.mav import mavlink
 from ..outputs.sighting import Sighting
-from ._mav import mavlink
 from .camera_link import AttitudeSample, CameraLink
 from .commands import Command, rejected
 from .node import Component
@@ -24,7 +24,7 @@ from .quaternion import from_euler_deg
 from .vehicle import VehicleFix, Vehicles
 
 if TYPE_CHECKING:
-    from ._mav import MAVLinkMessage
+    from ..links.mav import MAVLinkMessage
 
 log = logging.getLogger("topgimbal.mavlink")
 INT32_MAX = 2**31 - 1

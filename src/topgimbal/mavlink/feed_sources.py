@@ -24,7 +24,7 @@ from .quaternion import is_valid
 from .vehicle import STALE_S  # a fix or attitude older than this is not used
 
 if TYPE_CHECKING:
-    from ._mav import MAVLinkMessage
+    from ..links.mav import MAVLinkMessage
 
 RATE_SAMPLES = 16  # arrival times kept per message for its rate
 HDG_UNKNOWN = 65535

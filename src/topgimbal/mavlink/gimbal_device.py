@@ -14,8 +14,8 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 from ..clock import monotonic
+from ..links.mav import mavlink, msg_id
 from ..timeouts import stop_tasks
-from ._mav import mavlink, msg_id
 from .camera_link import AttitudeSample, CameraLink
 from .commands import Command
 from .gimbal_flags import (
@@ -33,7 +33,7 @@ from .quaternion import from_euler_deg, is_valid, to_euler_deg
 from .services import Services
 
 if TYPE_CHECKING:
-    from ._mav import MAVLinkMessage
+    from ..links.mav import MAVLinkMessage
 
 MSG_ATTITUDE_STATUS = msg_id("GIMBAL_DEVICE_ATTITUDE_STATUS")
 MSG_DEVICE_INFORMATION = msg_id("GIMBAL_DEVICE_INFORMATION")

@@ -13,7 +13,7 @@ import logging
 import math
 from typing import TYPE_CHECKING, Any
 
-from ._mav import mav_id, mavlink, msg_id
+from ..links.mav import mav_id, mavlink, msg_id
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, rejected, unsupported
 from .geo import Position, look_at
@@ -24,7 +24,7 @@ from .services import Services
 from .vehicle import Vehicles
 
 if TYPE_CHECKING:
-    from ._mav import MAVLinkMessage
+    from ..links.mav import MAVLinkMessage
 
 log = logging.getLogger("topgimbal.mavlink")
 

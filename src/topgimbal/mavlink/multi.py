@@ -22,9 +22,9 @@ import logging
 from collections.abc import Sequence
 from typing import Any
 
+from ..links.endpoints import MAX_PEERS
 from ..protocol import get_model
 from .bridge import CAMERA_COMPIDS, GIMBAL_COMPIDS, Bridge, BridgeConfig, BridgeConfigError
-from .endpoints import MAX_PEERS
 from .node import LinkFactory, Node
 
 log = logging.getLogger("topgimbal.mavlink")

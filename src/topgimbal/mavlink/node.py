@@ -19,13 +19,13 @@ from collections.abc import Callable, Hashable, Iterable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from ..clock import monotonic
-from . import memory_link  # noqa: F401  # registers the memory:NAME kind with make_link
-from ._mav import mavlink
-from .endpoints import MAX_PEERS, DataCallback, GoneCallback, Link, make_link
-from .signing import SignedStreams, sign_outgoing
+from ..links import memory_link  # noqa: F401  # registers the memory:NAME kind with make_link
+from ..links.endpoints import MAX_PEERS, DataCallback, GoneCallback, Link, make_link
+from ..links.mav import mavlink
+from ..links.signing import SignedStreams, sign_outgoing
 
 if TYPE_CHECKING:
-    from ._mav import MAVLinkCodec, MAVLinkMessage
+    from ..links.mav import MAVLinkCodec, MAVLinkMessage
 
 log = logging.getLogger("topgimbal.mavlink")
 

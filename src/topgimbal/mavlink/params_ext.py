@@ -26,15 +26,15 @@ import struct
 from typing import TYPE_CHECKING, Any
 
 from ..errors import TopGimbalError
+from ..links.mav import mavlink
 from ..logtext import untrusted
 from ..logthrottle import ThrottledLog
-from ._mav import mavlink
 from .camdef import Setting
 from .camera_link import CameraLink
 from .commands import statustext
 
 if TYPE_CHECKING:
-    from ._mav import MAVLinkMessage
+    from ..links.mav import MAVLinkMessage
     from .node import Component
 
 log = logging.getLogger("topgimbal.mavlink")

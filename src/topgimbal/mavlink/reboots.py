@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 from .node import link_peer
 
 if TYPE_CHECKING:
-    from ._mav import MAVLinkMessage
+    from ..links.mav import MAVLinkMessage
 
 log = logging.getLogger("topgimbal.mavlink")
 

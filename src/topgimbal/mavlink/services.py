@@ -14,13 +14,13 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from ..links.mav import mav_id, mavlink, msg_id
 from ..timeouts import stop_tasks
-from ._mav import mav_id, mavlink, msg_id
 from .commands import Command, Dispatcher, Outcome, denied, unsupported
 from .node import Component
 
 if TYPE_CHECKING:
-    from ._mav import MAVLinkMessage
+    from ..links.mav import MAVLinkMessage
 
 log = logging.getLogger("topgimbal.mavlink")
 

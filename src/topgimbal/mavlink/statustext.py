@@ -13,7 +13,7 @@ from __future__ import annotations
 import itertools
 from typing import TYPE_CHECKING
 
-from ._mav import mavlink
+from ..links.mav import mavlink
 
 if TYPE_CHECKING:
     from .node import Component

@@ -30,10 +30,10 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..clock import monotonic
+from ..links.mav import mav_id
 from ..timeouts import within
-from ._mav import mav_id
-from .camera import INT32_MAX
 from .camera_feed import SHUTTER_LATENCY_S
+from .camera_photos import INT32_MAX
 from .commands import Command, Outcome, denied
 from .geo import Position, offset_m
 

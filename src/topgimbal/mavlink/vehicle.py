@@ -20,7 +20,7 @@ from .geo import Position
 from .quaternion import is_valid, to_euler_deg, wrap180
 
 if TYPE_CHECKING:
-    from ._mav import MAVLinkMessage
+    from ..links.mav import MAVLinkMessage
 
 MAX_SYSTEMS = 32
 STALE_S = 3.0
@@ -40,7 +40,7 @@ Attitude = tuple[float, float, float]  # roll_deg, pitch_deg, yaw_deg
 @dataclass(frozen=True)
 class VehicleFix:
     """Our vehicle as its autopilot last said (GLOBAL_POSITION_INT): where it is, its height over
-    home, heading, velocity and when (by role: geo.Fix is a located ground point, client.feeds.Fix
+    home, heading, velocity and when (by role: geo.Fix is a located ground point, client.feeds.FedPosition
     what a user feeds the camera)."""
 
     position: Position

@@ -41,28 +41,22 @@ from .diagnostics import (
     ParserStats,
 )
 from .frame import Frame, checksum_text
+from .scanning import (
+    ADDR,
+    ASCII_HDR,
+    HDR,
+    HEADERS,
+    HEX2,
+    HEX2_LOWER,
+    HEXVAL,
+    RW,
+    SEPARATORS,
+    bad_prefix,
+    recover,
+    remember_header,
+)
 
-_HEXVAL = [-1] * 256
-for _i, _c in enumerate(b"0123456789ABCDEF"):
-    _HEXVAL[_c] = _i
-for _i, _c in enumerate(b"abcdef"):
-    _HEXVAL[_c] = 10 + _i
-_ADDR = frozenset(b"UMDEPG")
-_RW = frozenset(b"rw")
-# An identifier is three ASCII letters or digits (every command in both documents, and every one
-# real clients send); anything else after a header means the '#' did not start a frame.
-_IDENT = frozenset(b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789")
-_HDR = {b"TP": "#TP", b"tp": "#tp", b"tP": "#tP", b"Tp": "#Tp"}
-_ASCII_HDR = frozenset((b"TP", b"tp"))
-_SEPARATORS = frozenset(b"\r\n")
-_HEX2 = [b"%02X" % i for i in range(256)]
-# A frame's ten header bytes -> (declared data length, the Frame's first five items): headers repeat
-# (the same command, addresses and length), so a valid one is judged once. Bounded: cleared when full.
-_HEADERS: dict[bytes, tuple[int, tuple[str, str, str, str, str]]] = {}
-_HEADERS_MAX = 4096
 _new_tuple = tuple.__new__
-_HEX2_LOWER = [b"%02x" % i for i in range(256)]
-_ASCII_MAX_TOTAL = 12 + 15
 
 
 @dataclass
@@ -110,12 +104,12 @@ class FrameParser:
         if final and not self._buf and type(data) is bytes:
             # The commonest datagram is exactly one good frame (every UDP reply and report): judged
             # here in a few C calls, with the same result and statistics as the loop below.
-            head = _HEADERS.get(data[:10])
+            head = HEADERS.get(data[:10])
             n = len(data)
             if head is not None and n == 12 + head[0] and n <= 258 and head[0] <= self.max_data_length:
                 s = ((_adler32(data[:-2]) & 0xFFFF) - 1) & 0xFF
                 crc = data[-2:]
-                if (crc == _HEX2[s] or crc == _HEX2_LOWER[s]) and data.find(b"#", 1) < 0:
+                if (crc == HEX2[s] or crc == HEX2_LOWER[s]) and data.find(b"#", 1) < 0:
                     stats.bytes += n
                     stats.frames += 1
                     frame = _new_tuple(Frame, head[1] + (data[10:-2], None))
@@ -134,13 +128,13 @@ class FrameParser:
                 # line ends are skipped only before a '#' or the end (else they belong to the bytes
                 # the full scan discards, and its diagnostic shows them)
                 after = pos + 1
-                while after < n_buf and buf[after] in _SEPARATORS:
+                while after < n_buf and buf[after] in SEPARATORS:
                     after += 1
-                if buf[pos] in _SEPARATORS and (after == n_buf or buf[after] == 0x23):
+                if buf[pos] in SEPARATORS and (after == n_buf or buf[after] == 0x23):
                     pos = after
                     continue
                 break
-            head = _HEADERS.get(buf[pos : pos + 10])
+            head = HEADERS.get(buf[pos : pos + 10])
             if head is None or head[0] > max_data:
                 break
             end = pos + 12 + head[0]
@@ -150,7 +144,7 @@ class FrameParser:
             # adler32's low half is 1 + the byte sum while that sum stays below 65520 (at most 256
             # bytes before the checksum): the checksum in one C call
             s = ((_adler32(buf[pos : end - 2]) & 0xFFFF) - 1 if end - pos <= 258 else sum(buf[pos : end - 2])) & 0xFF
-            if not (crc == _HEX2[s] or crc == _HEX2_LOWER[s]) or buf.find(b"#", pos + 1, end) >= 0:
+            if not (crc == HEX2[s] or crc == HEX2_LOWER[s]) or buf.find(b"#", pos + 1, end) >= 0:
                 break
             append(_new_tuple(Frame, head[1] + (buf[pos + 10 : end - 2], None)))
             pos = end
@@ -208,18 +202,18 @@ class FrameParser:
         frame, -2 if more bytes are needed to tell, -3 if it claims more than the bound."""
         n_buf = len(buf)
         if n_buf < i + 10:
-            return -1 if _bad_prefix(buf, i, n_buf) else -2
+            return -1 if bad_prefix(buf, i, n_buf) else -2
         hdr = buf[i + 1 : i + 3]
         # bytes.isalnum() is ASCII-only: exactly the identifier rule, in one call
-        if hdr not in _HDR or buf[i + 3] not in _ADDR or buf[i + 4] not in _ADDR or not buf[i + 7 : i + 10].isalnum():
+        if hdr not in HDR or buf[i + 3] not in ADDR or buf[i + 4] not in ADDR or not buf[i + 7 : i + 10].isalnum():
             return -1
         if hdr == b"TP" or hdr == b"tp":
-            n = _HEXVAL[buf[i + 5]]
-            if n < 0 or buf[i + 6] not in _RW:
+            n = HEXVAL[buf[i + 5]]
+            if n < 0 or buf[i + 6] not in RW:
                 return -1
         elif hdr == b"tP":
             n = buf[i + 5]
-            if buf[i + 6] not in _RW:
+            if buf[i + 6] not in RW:
                 return -1
         else:
             n = (buf[i + 5] << 8) | buf[i + 6]
@@ -231,7 +225,7 @@ class FrameParser:
         end = self._frame_end(buf, j)
         if end < 0 or end > len(buf):
             return False
-        return buf[end - 2 : end].upper() == _HEX2[sum(buf[j : end - 2]) & 0xFF]
+        return buf[end - 2 : end].upper() == HEX2[sum(buf[j : end - 2]) & 0xFF]
 
     def _inner_frame(self, buf: bytes, i: int, end: int, final: bool) -> int | None:
         """For a frame at `i` whose checksum is right: the start of the first valid frame that begins
@@ -264,13 +258,13 @@ class FrameParser:
             if i > pos:
                 self._discard(buf[pos:i], out, WHY[OUTSIDE])
                 pos = i
-            head = _HEADERS.get(buf[i : i + 10])
+            head = HEADERS.get(buf[i : i + 10])
             if head is not None:
                 end = i + 12 + head[0] if head[0] <= self.max_data_length else -3
             else:
                 end = self._frame_end(buf, i)
                 if end >= 0:
-                    head = _remember_header(buf, i, end - i - 12)
+                    head = remember_header(buf, i, end - i - 12)
             if end == -2:
                 return i  # too few bytes to judge the header yet (flush() discards them)
             if end == -1:
@@ -290,8 +284,8 @@ class FrameParser:
                     j = buf.find(b"#", j + 1)
                 if j < 0:
                     return i  # wait for the rest (flush() discards it)
-                if self.recover_length and buf[i + 1 : i + 3] in _ASCII_HDR:
-                    rec = self._recover(buf, i, final=True)
+                if self.recover_length and buf[i + 1 : i + 3] in ASCII_HDR:
+                    rec = recover(buf, i, final=True)
                     if isinstance(rec, tuple):
                         pos = self._emit_recovered(rec, buf, i, out)
                         continue
@@ -300,7 +294,7 @@ class FrameParser:
                 continue
             crc = buf[end - 2 : end]
             s = sum(buf[i : end - 2]) & 0xFF
-            if crc == _HEX2[s] or crc == _HEX2_LOWER[s]:
+            if crc == HEX2[s] or crc == HEX2_LOWER[s]:
                 inner = -1 if buf.find(b"#", i + 1, end) < 0 else self._inner_frame(buf, i, end, final)
                 if inner is None:
                     return i  # a frame that starts inside this one is still arriving
@@ -314,8 +308,8 @@ class FrameParser:
                 pos = end
                 continue
             # Bad checksum at the declared length.
-            if self.recover_length and buf[i + 1 : i + 3] in _ASCII_HDR:
-                rec = self._recover(buf, i, final)
+            if self.recover_length and buf[i + 1 : i + 3] in ASCII_HDR:
+                rec = recover(buf, i, final)
                 if rec is None:
                     return i  # a longer candidate may still complete: wait for bytes
                 if isinstance(rec, tuple):
@@ -343,77 +337,6 @@ class FrameParser:
         )
         out.append(frame)
         return rec_end
-
-    def _recover(self, buf: bytes, i: int, final: bool) -> tuple[Frame, int] | bool | None:
-        """The frame at `i` at another length whose checksum is right and which ends exactly where
-        the next thing starts (`#`, CR, LF, or the end of a datagram when `final`). False if there
-        is none, None if bytes still to come decide it.
-
-        Requiring the exact fit is what makes recovery safe when bytes trickle in one at a time: a
-        shorter length whose checksum matches by chance (1 in 256 per length) is not taken just
-        because the buffer happens to end there."""
-        n_buf = len(buf)
-        limit = min(n_buf, i + _ASCII_MAX_TOTAL)
-        boundary = None
-        # A '#' even inside the header or identifier bounds the frame (then no length fits).
-        for k in range(i + 1, limit):
-            b = buf[k]
-            if b == 0x23 or b == 0x0D or b == 0x0A:
-                boundary = k
-                break
-        if boundary is None:
-            if not final and n_buf < i + _ASCII_MAX_TOTAL:
-                return None
-            boundary = limit
-        n = boundary - i - 12
-        declared = _HEXVAL[buf[i + 5]]
-        if n < 0 or n > 15 or n == declared:
-            return False
-        end = boundary
-        data = buf[i + 10 : end - 2]
-        if buf[end - 2 : end].upper() != _HEX2[sum(buf[i : end - 2]) & 0xFF]:
-            return False
-        if not all(0x20 <= b < 0x7F for b in data):
-            return False
-        frame = Frame(
-            _HDR[buf[i + 1 : i + 3]],
-            chr(buf[i + 3]),
-            chr(buf[i + 4]),
-            chr(buf[i + 6]),
-            buf[i + 7 : i + 10].decode("latin-1"),
-            data,
-            declared,
-        )
-        return frame, end
-
-
-def _remember_header(buf: bytes, i: int, n: int) -> tuple[int, tuple[str, str, str, str, str]]:
-    """The header at `i` (valid, declaring `n` data bytes) as _HEADERS keeps it."""
-    hdr = buf[i + 1 : i + 3]
-    rw = "" if hdr == b"Tp" else chr(buf[i + 6])
-    head = (n, (_HDR[hdr], chr(buf[i + 3]), chr(buf[i + 4]), rw, buf[i + 7 : i + 10].decode("ascii")))
-    if len(_HEADERS) >= _HEADERS_MAX:
-        _HEADERS.clear()
-    _HEADERS[buf[i : i + 10]] = head
-    return head
-
-
-def _bad_prefix(buf: bytes, i: int, n_buf: int) -> bool:
-    """True if the bytes already after the '#' at `i` rule out a frame (so garbage is dropped at
-    once instead of being held waiting for bytes that cannot make it a frame)."""
-    if n_buf <= i + 2:
-        return n_buf > i + 1 and buf[i + 1] not in b"Tt"
-    hdr = buf[i + 1 : i + 3]
-    if hdr not in _HDR:
-        return True
-    for k in (3, 4):
-        if n_buf > i + k and buf[i + k] not in _ADDR:
-            return True
-    if n_buf > i + 5 and (hdr == b"TP" or hdr == b"tp") and _HEXVAL[buf[i + 5]] < 0:
-        return True
-    if n_buf > i + 6 and hdr != b"Tp" and buf[i + 6] not in _RW:
-        return True
-    return any(n_buf > i + k and buf[i + k] not in _IDENT for k in (7, 8, 9))
 
 
 class PureFrameParser(FrameParser):

@@ -27,30 +27,12 @@ from . import persist
 from .clock import Clock, FakeClock, MonotonicClock
 from .device import TOPOTEK_STREAM_HZ, Device, Outgoing
 from .faults import FaultInjector, FaultPlan
+from .listen import Address, MemoryPeer, addresses, url_host
 from .physics import GimbalPhysics
 from .servers import LOOPBACK, Limits, SerialPeer, TcpServer, UdpServer
 from .state import CameraState, NetworkState
 from .targets import Target
 from .terrain import TerrainGround
-
-Address = tuple[str, int]
-
-
-def _addresses(items: Iterable[Any] | None) -> list[Address]:
-    out = []
-    for item in items or ():
-        if isinstance(item, str):
-            host, _, port = item.rpartition(":")
-            out.append((host or LOOPBACK, int(port)))
-        else:
-            host, port = item
-            out.append((str(host), int(port)))
-    return out
-
-
-def _url_host(host: str) -> str:
-    return f"[{host}]" if ":" in host else host
-
 
 # How far ahead of its due time a real-time stream frame may leave (see Device.tick).
 TIMER_EARLY_S = 0.001
@@ -181,20 +163,20 @@ class Simulator:
         self._fault_in = FaultInjector(self.faults, "in", random.Random(f"{self.seed}/in"), now)
         self._fault_out = FaultInjector(self.faults, "out", random.Random(f"{self.seed}/out"), now)
         try:
-            for host, port in _addresses(udp):
+            for host, port in addresses(udp):
                 proto = UdpServer(self._input, self._forget, self.limits, clock=self.clock.now)
                 await proto.start(host, port)
                 self._udp.append(proto)
                 h, p = proto.address
                 self.addresses["udp"].append((h, p))
-                self.endpoints.append(("udp", f"udp://{_url_host(h)}:{p}"))
-            for host, port in _addresses(tcp):
+                self.endpoints.append(("udp", f"udp://{url_host(h)}:{p}"))
+            for host, port in addresses(tcp):
                 server = TcpServer(self._input, self._forget, self.limits)
                 await server.start(host, port)
                 self._tcp.append(server)
                 h, p = server.address
                 self.addresses["tcp"].append((h, p))
-                self.endpoints.append(("tcp", f"tcp://{_url_host(h)}:{p}"))
+                self.endpoints.append(("tcp", f"tcp://{url_host(h)}:{p}"))
             for dev in serial or ():
                 line = SerialPeer(self._input, dev)
                 line.start()
@@ -212,7 +194,7 @@ class Simulator:
         if not self.started:
             raise RuntimeError("the simulator is not started: await sim.start() first (udp=[] for no sockets)")
         port = MemoryPort.listen(name)
-        peer = _MemoryPeer(port)
+        peer = MemoryPeer(port)
         port.on_bytes = lambda data: self._input(peer, data, True)
         self._memory.append(port)
         self.endpoints.append(("memory", port.url))
@@ -406,16 +388,3 @@ class Simulator:
         self._timer_at = None
         self.pump()
         self._schedule()
-
-
-class _MemoryPeer:
-    """The client of a `memory://` port, as the device sees a peer: something to send to."""
-
-    def __init__(self, port: MemoryPort) -> None:
-        self.port = port
-
-    def send(self, data: bytes) -> None:
-        self.port.send(data)
-
-    def __repr__(self) -> str:
-        return f"<{self.port.url} client>"

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 from ..clock import MonotonicFn, monotonic, wall_time
-from ..geo.optics import View, hfov_at
+from ..geo.optics import PixelView, hfov_at
 from ..protocol.streams import stream_for
 from .control import AngleController, AttitudeHistory, Gains, PixelPGains, pixel_p_rates
 from .vision import TrackerError, VisualTracker
@@ -151,7 +151,7 @@ class CompanionTracker:
         att = self.history.at(pic.t)
         if att is None:
             return  # no attitude yet: a detection could not be placed
-        view = View(att[0], att[1], 0.0, self.hfov_deg(), w, h)
+        view = PixelView(att[0], att[1], 0.0, self.hfov_deg(), w, h)
         box: tuple[int, int, int, int] | None
         if self.state == "starting":
             x, y, bw, bh = self.config.box

@@ -20,17 +20,15 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Any, Protocol
-from urllib.parse import urlsplit, urlunsplit
+from typing import TYPE_CHECKING, Any
 
 from ..timeouts import within
 from .lens import StreamSpec, VideoError, View, hfov_at, host_of, stream_urls, streams_for, tracking_requests, wrap180
+from .webconsole_io import OriginCheck, VideoHost, error_response, fraction_of, lens_of, shown_url
 
 if TYPE_CHECKING:  # named for the type checker only: aiohttp is imported by the routes when they run
     from aiohttp import web
 
-    from ..sim.simulator import Simulator
     from .relay import Relay
     from .simvideo import SimVideo
     from .webrtc import WhepServer
@@ -44,26 +42,6 @@ ZOOM_STEP_S = 0.3  # one wheel notch runs the zoom motor this long
 # docs/video.md) and still shows motion. `topgimbal sim --video` keeps the camera's 30 fps.
 CONSOLE_SIM_FPS = 15.0
 VIEWER_STALL_S = 10.0  # a viewer that takes no picture for this long is dropped (it holds a place)
-
-
-class VideoHost(Protocol):
-    """What video reads of the console that hosts it (console/server.py)."""
-
-    @property
-    def model(self) -> str | None: ...
-    @property
-    def url(self) -> str | None: ...
-    @property
-    def sim(self) -> Simulator | None: ...
-    @property  # a client.CameraAPI; video/ sits below client/, so it cannot name the type
-    def cam(self) -> Any: ...
-    @property  # {lens: URL} given by the operator (`console --video-url`), instead of the documented ones
-    def video_urls(self) -> Mapping[str, str]: ...
-    @property  # the port the camera's video is on, if not the documented one (`console --video-port`)
-    def video_port(self) -> int | None: ...
-
-
-OriginCheck = Callable[["web.Request"], bool]
 
 
 class ConsoleVideo:
@@ -135,7 +113,7 @@ class ConsoleVideo:
                 {
                     "lens": lens,
                     "hfov_deg": s.hfov_deg,
-                    "url": _shown(relay.url),
+                    "url": shown_url(relay.url),
                     **relay.status(),
                     "size": list(relay.size or s.size),
                     "webrtc": self.whep.status(lens) if self.whep is not None else None,
@@ -161,7 +139,7 @@ class ConsoleVideo:
 
         relay = self.relays.get(request.match_info["lens"])
         if relay is None:
-            return _error(404, f"no such lens; this camera has: {', '.join(self.relays)}")
+            return error_response(404, f"no such lens; this camera has: {', '.join(self.relays)}")
         # The console's own page (a same-origin request: the guard refused other sites' pages)
         # may take the places kept for the operator.
         own_page = request.headers.get("Sec-Fetch-Site", "").strip().lower() == "same-origin"
@@ -169,9 +147,9 @@ class ConsoleVideo:
         try:
             first = await pictures.__anext__()
         except RelayFullError as exc:
-            return _error(503, str(exc))
+            return error_response(503, str(exc))
         except StopAsyncIteration:
-            return _error(503, "the console is stopping")
+            return error_response(503, "the console is stopping")
         resp = web.StreamResponse(
             headers={
                 "Content-Type": f"multipart/x-mixed-replace; boundary={BOUNDARY}",
@@ -207,17 +185,19 @@ class ConsoleVideo:
         from .webrtc import MAX_OFFER_BYTES, WebRtcError
 
         if self.whep is None:
-            return _error(501, "WebRTC is off on this console (pip install 'topgimbal[webrtc]'): use the MJPEG stream")
+            return error_response(
+                501, "WebRTC is off on this console (pip install 'topgimbal[webrtc]'): use the MJPEG stream"
+            )
         if not self.origin_ok(request):
-            return _error(403, "cross-origin request refused")
+            return error_response(403, "cross-origin request refused")
         if request.content_type != "application/sdp":
-            return _error(415, "the body must be an SDP offer (Content-Type: application/sdp)")
+            return error_response(415, "the body must be an SDP offer (Content-Type: application/sdp)")
         if request.content_length is None or request.content_length > MAX_OFFER_BYTES:
-            return _error(413, f"an offer is at most {MAX_OFFER_BYTES} bytes, with a Content-Length")
+            return error_response(413, f"an offer is at most {MAX_OFFER_BYTES} bytes, with a Content-Length")
         try:
             offer = (await request.read()).decode("utf-8")
         except UnicodeDecodeError:
-            return _error(400, "the offer is not UTF-8 text")
+            return error_response(400, "the offer is not UTF-8 text")
         lens = request.match_info["lens"]
         sock = request.transport.get_extra_info("sockname") if request.transport is not None else None
         try:
@@ -225,7 +205,7 @@ class ConsoleVideo:
             page = "Origin" in request.headers
             sid, answer = await self.whep.answer(lens, offer, sock[0] if sock else None, page=page)
         except WebRtcError as exc:
-            return _error(exc.status, str(exc))
+            return error_response(exc.status, str(exc))
         return web.Response(status=201, text=answer, content_type="application/sdp",
                             headers={"Location": f"{request.path}/{sid}", "Cache-Control": "no-store"})  # fmt: skip
 
@@ -240,27 +220,27 @@ class ConsoleVideo:
         try:
             return web.json_response(await self.whep.ready(request.match_info["lens"]))
         except WebRtcError as exc:
-            return _error(exc.status, str(exc))
+            return error_response(exc.status, str(exc))
 
     async def whep_delete(self, request: web.Request) -> web.StreamResponse:
         from aiohttp import web
 
         if self.whep is None:
-            return _error(404, "WebRTC is off on this console")
+            return error_response(404, "WebRTC is off on this console")
         if not self.origin_ok(request):
-            return _error(403, "cross-origin request refused")
+            return error_response(403, "cross-origin request refused")
         ended = await self.whep.end(request.match_info["session"], why="ended by the client (DELETE)")
-        return web.Response(status=200) if ended else _error(404, "no such WebRTC session")
+        return web.Response(status=200) if ended else error_response(404, "no such WebRTC session")
 
     async def _body(self, request: web.Request) -> dict[str, object] | web.Response:
         if not self.origin_ok(request):
-            return _error(403, "cross-origin request refused")
+            return error_response(403, "cross-origin request refused")
         try:
             body = await request.json()
         except Exception:
-            return _error(400, "the body must be JSON")
+            return error_response(400, "the body must be JSON")
         if not isinstance(body, dict):
-            return _error(400, "the body must be a JSON object")
+            return error_response(400, "the body must be a JSON object")
         return body
 
     def _zoom_x(self) -> float:
@@ -280,18 +260,18 @@ class ConsoleVideo:
         if not isinstance(body, dict):
             return body
         try:
-            lens, x, y = _lens(body, self.specs), _fraction(body, "x"), _fraction(body, "y")
+            lens, x, y = lens_of(body, self.specs), fraction_of(body, "x"), fraction_of(body, "y")
         except VideoError as exc:
-            return _error(400, str(exc))
+            return error_response(400, str(exc))
         cam = self.console.cam
         if cam is None:
-            return _error(503, "no camera")
+            return error_response(503, "no camera")
         att = cam.state.attitude
         if att is None:
             with contextlib.suppress(Exception):
                 att = await cam.get_attitude()
         if att is None:
-            return _error(503, "the camera has not reported its attitude yet")
+            return error_response(503, "the camera has not reported its attitude yet")
         spec = self.specs[lens]
         w, h = self.relays[lens].size or spec.size
         view = View(att.yaw_deg, att.pitch_deg, att.roll_deg, hfov_at(spec.hfov_deg, self._zoom_x()), w, h)
@@ -303,7 +283,7 @@ class ConsoleVideo:
         try:
             await cam.set_angles(yaw, pitch)
         except Exception as exc:
-            return _error(502, f"the camera refused: {exc}")
+            return error_response(502, f"the camera refused: {exc}")
         return web.json_response({"yaw_deg": round(yaw, 3), "pitch_deg": round(pitch, 3)})
 
     async def track(self, request: web.Request) -> web.StreamResponse:
@@ -313,22 +293,22 @@ class ConsoleVideo:
         if not isinstance(body, dict):
             return body
         try:
-            _lens(body, self.specs)
-            x0, y0, x1, y1 = (_fraction(body, k) for k in ("x0", "y0", "x1", "y1"))
+            lens_of(body, self.specs)
+            x0, y0, x1, y1 = (fraction_of(body, k) for k in ("x0", "y0", "x1", "y1"))
         except VideoError as exc:
-            return _error(400, str(exc))
+            return error_response(400, str(exc))
         cam = self.console.cam
         if cam is None:
-            return _error(503, "no camera")
+            return error_response(503, "no camera")
         try:
             requests = tracking_requests(cam.dialect, cam.model, x0, y0, x1, y1)
         except VideoError as exc:
-            return _error(409, str(exc))
+            return error_response(409, str(exc))
         try:
             for ident, values in requests:
                 await cam.request(ident, **values)
         except Exception as exc:
-            return _error(502, f"the camera refused: {exc}")
+            return error_response(502, f"the camera refused: {exc}")
         return web.json_response({"requests": [{"id": i, **v} for i, v in requests]})
 
     async def zoom(self, request: web.Request) -> web.StreamResponse:
@@ -339,10 +319,10 @@ class ConsoleVideo:
             return body
         direction = body.get("direction")
         if direction not in ("in", "out"):
-            return _error(400, "direction must be 'in' or 'out'")
+            return error_response(400, "direction must be 'in' or 'out'")
         cam = self.console.cam
         if cam is None:
-            return _error(503, "no camera")
+            return error_response(503, "no camera")
         try:
             if cam.model.optical_zoom_max > 1.0:
                 await cam.zoom(direction)
@@ -353,42 +333,13 @@ class ConsoleVideo:
                 z = self._zoom_x()
                 await cam.zoom(max(1.0, min(cam.model.digital_zoom_max, round(z) + (1 if direction == "in" else -1))))
         except Exception as exc:
-            return _error(502, f"the camera refused: {exc}")
+            return error_response(502, f"the camera refused: {exc}")
         return web.json_response({"direction": direction})
 
     async def _zoom_stop(self, cam: Any) -> None:
         await asyncio.sleep(ZOOM_STEP_S)
         with contextlib.suppress(Exception):
             await cam.zoom("stop")
-
-
-def _shown(url: str) -> str:
-    """A stream URL as the page shows it: a password given in it is not repeated."""
-    parts = urlsplit(url)
-    if parts.password is None:
-        return url
-    host = parts.netloc.rsplit("@", 1)[1]
-    return urlunsplit(parts._replace(netloc=f"{parts.username}:***@{host}"))
-
-
-def _error(status: int, message: str) -> web.Response:
-    from aiohttp import web
-
-    return web.json_response({"error": "video", "message": message}, status=status)
-
-
-def _lens(body: Mapping[str, object], specs: dict[str, StreamSpec]) -> str:
-    lens = body.get("lens", "visible")
-    if not isinstance(lens, str) or lens not in specs:  # a list or an object is unhashable: not a 500
-        raise VideoError(f"lens must be one of {', '.join(specs)} (got {lens!r})")
-    return str(lens)
-
-
-def _fraction(body: Mapping[str, object], key: str) -> float:
-    v = body.get(key)
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
-        raise VideoError(f"{key} must be a number from 0 to 1 (a fraction of the picture), got {v!r}")
-    return float(v)
 
 
 async def attach(console: VideoHost, app: web.Application, origin_ok: OriginCheck | None = None) -> ConsoleVideo | None:

@@ -31,22 +31,20 @@ port, so Wireshark picks the right dialect). The traffic log is the client SDK's
 from __future__ import annotations
 
 import asyncio
-import ipaddress
 import logging
-import socket
 from collections.abc import Callable, Hashable
 from pathlib import Path
 from typing import Any
 
 from ..clock import wall_time
 from ..peers import EVICT, EVICTED, EXPIRED, REFUSE, Gone, PeerTable, Words
-from ..protocol import Dialect, get_dialect, get_model
+from ..protocol import Dialect
 from ..transport import Transport, TransportURL, open_transport, parse_url
 from ..transport.tcp import StreamTransport
 from .backlog import MAX_BACKLOG, Backlog
 from .offload import WatcherProcess
 from .packets import Endpoint
-from .ports import dialect_for_ports, documented_ports
+from .proxy_setup import choose_dialect, device_endpoint, listen_url, watcher_config
 from .sessions import MAX_QUEUED, Session, TcpClient, Throttle, ep_text
 from .udplink import UdpSocket
 from .watcher import (
@@ -96,17 +94,7 @@ class Proxy:
         if max_clients < 1:
             raise ProxyError(f"max_clients={max_clients}: at least 1")
         self.model = model
-        self.dialect: Dialect | None = None
-        if model:
-            self.dialect = get_model(model)[0]
-        elif dialect:
-            self.dialect = get_dialect(dialect)
-        else:
-            hint = None
-            for url in (self.to, self.listen):
-                if url.scheme in ("udp", "tcp") and url.port is not None:
-                    hint = hint or dialect_for_ports(url.scheme, url.port)
-            self.dialect = get_dialect(hint) if hint else None
+        self.dialect: Dialect | None = choose_dialect(model, dialect, (self.to, self.listen))
         self.max_clients = 1 if self.to.scheme == "serial" else max_clients
         self.idle_timeout_s = idle_timeout_s
         self.pcap_path = Path(pcap) if pcap else None
@@ -174,17 +162,13 @@ class Proxy:
     @property
     def url(self) -> str:
         """Where clients connect (the real port when the listen URL said 0)."""
-        if self.listen.scheme == "serial" or self.listen_address is None:
-            return self.listen.text
-        host, port = self.listen_address
-        host = f"[{host}]" if ":" in host else host
-        return f"{self.listen.scheme}://{host}:{port}"
+        return listen_url(self.listen, self.listen_address)
 
     async def start(self) -> None:
         loop = asyncio.get_running_loop()
-        self._device_ep = self.watcher.device = await self._device_endpoint()
+        self._device_ep = self.watcher.device = await device_endpoint(self.to, self.dialect)  # as the pcap shows it
         if self.offload is not None:
-            await self.offload.start(self._watcher_config())
+            await self.offload.start(watcher_config(self.watcher, self.model, self.dialect))
         else:
             self.watcher.open()
             if self.watcher.writes_files:
@@ -237,42 +221,12 @@ class Proxy:
                 setattr(self.stats, key, getattr(self.stats, key) + int(counted.get(key, 0)))
         self.watcher.close()  # writes what waits
 
-    def _watcher_config(self) -> dict[str, Any]:
-        """What a watcher process needs to do what `self.watcher` would do here."""
-        w = self.watcher
-        return {
-            "model": self.model,
-            "dialect": self.dialect.name if self.dialect else None,
-            "device": w.device,
-            "transport": w.transport,
-            "pcap": str(w.pcap_path) if w.pcap_path else None,
-            "log_path": str(w.log_path) if w.log_path else None,
-            "log_header": w.log_header,
-        }
-
     async def __aenter__(self) -> Proxy:
         await self.start()
         return self
 
     async def __aexit__(self, *exc: object) -> None:
         await self.stop()
-
-    async def _device_endpoint(self) -> Endpoint:
-        """The device's address as the pcap shows it."""
-        if self.to.scheme == "serial":
-            name = self.dialect.name if self.dialect else None
-            ports = sorted(p for (t, p), d in documented_ports().items() if d == name and t == "udp" and p != 9004)
-            return ("127.0.0.1", ports[0] if ports else 5000)
-        host, port = self.to.host, self.to.port or 0
-        try:
-            return (str(ipaddress.ip_address(host)), port)
-        except ValueError:
-            pass
-        try:
-            infos = await asyncio.get_running_loop().getaddrinfo(host, port, type=socket.SOCK_DGRAM)
-        except OSError as exc:
-            raise ProxyError(f"cannot resolve {host!r}: {exc}") from None
-        return (str(infos[0][4][0]), port)
 
     # -- clients ----------------------------------------------------------------------------------
 
