@@ -346,26 +346,6 @@ def _source_from_keywords(kw: ConsoleKeywords) -> Source:
     return CameraSource(url, model or DEFAULT_MODEL, dict(video_urls or {}), video_port)
 
 
-__all__ = [
-    "DEFAULT_HOST",
-    "DEFAULT_MODEL",
-    "DEFAULT_PORT",
-    "LINK_TIMEOUT_S",
-    "CameraSource",
-    "ConsoleAddressError",
-    "ConsoleConfig",
-    "ConsoleConfigError",
-    "ConsoleKeywords",
-    "FleetSource",
-    "LinkOptions",
-    "ProxySource",
-    "ServeOptions",
-    "SimSource",
-    "Source",
-    "check_video_options",
-]
-
-
 # Names kept importable from here (config_checks.py has them).
 __all__ = [
     "DEFAULT_HOST",
