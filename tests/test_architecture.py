@@ -15,7 +15,9 @@ PKG = Path(__file__).resolve().parents[1] / "src" / "topgimbal"
 
 # Leaf modules every layer may import: the exceptions, the throttled warning log, the one clock,
 # the escaping of a peer's text for the log, the JSON Lines writer and the servers' peer table.
-SHARED_LEAVES = ("errors", "logthrottle", "_lazy", "clock", "logtext", "jsonl", "peers", "timeouts", "inputfile")
+SHARED_LEAVES = (
+    "errors", "logthrottle", "_lazy", "_moved", "clock", "logtext", "jsonl", "peers", "timeouts", "inputfile", "periodic",
+)  # fmt: skip
 
 # What each layer may import from inside topgimbal (besides itself and SHARED_LEAVES).
 ALLOWED = {
@@ -33,11 +35,17 @@ ALLOWED = {
         "wire",
         "transport",
         "geo",
-    },  # sim: `--sim`; wire: pcap, --proxy; geo: wraps
+        "autopilot",
+    },  # sim: `--sim`; wire: pcap, --proxy; geo: wraps; autopilot: --autopilot reads GLOBAL_POSITION_INT as the bridge does
     "video": {"protocol", "sim", "geo"},  # renders the simulator's state; relays any camera's RTSP; geo: angle wraps
     "tools": {"protocol", "client", "sim", "console", "_speedups", "video"},
     # MAVLink links: bytes to peers, signing, pymavlink's one import; they know no bridge
     "links": set(),
+    # what the bridge hears from and asks of autopilots (vehicles, feeds, stream rates, reboots): it
+    # reads pymavlink's messages from links and sends through a Sender it is given; it knows no bridge
+    "autopilot": {"geo", "links"},
+    # MAVLink camera definitions from the catalog, and their read-only HTTP server: no pymavlink
+    "camdef": {"protocol"},
     "mavlink": {
         "protocol",
         "client",
@@ -45,6 +53,8 @@ ALLOWED = {
         "geo",
         "outputs",
         "links",
+        "autopilot",
+        "camdef",
     },  # track: --companion-tracking; geo: CAMERA_FOV_STATUS, the optics; outputs: what it feeds (RTP out too)
     # CoT, KLV, the recorder, RTP out: fed a Sighting; never MAVLink (issue 44). video: rtp_push
     "outputs": {"geo", "video", "protocol"},  # protocol: the stream table's VideoError

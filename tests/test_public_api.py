@@ -40,25 +40,28 @@ def test_exceptions_end_in_error_and_share_a_base() -> None:
 
 # Modules that moved out of mavlink/ (issue 44): the old import paths are the new modules, so code
 # written against them keeps working, and a name imported either way is one object.
-MOVED = {
-    "topgimbal.mavlink.cot": "topgimbal.outputs.cot",
-    "topgimbal.mavlink.cot_stream": "topgimbal.outputs.cot_stream",
-    "topgimbal.mavlink.klv": "topgimbal.outputs.klv",
-    "topgimbal.mavlink.klv_record": "topgimbal.outputs.klv_record",
-    "topgimbal.mavlink.rtp_out": "topgimbal.outputs.rtp_out",
-    "topgimbal.mavlink.endpoints": "topgimbal.links.endpoints",
-    "topgimbal.mavlink.memory_link": "topgimbal.links.memory_link",
-    "topgimbal.mavlink.zenoh_link": "topgimbal.links.zenoh_link",
-    "topgimbal.mavlink.json_shape": "topgimbal.links.json_shape",
-    "topgimbal.mavlink.signing": "topgimbal.links.signing",
-}
+from topgimbal._moved import MOVED  # noqa: E402  # one table: every old path is tested
 
 
 @pytest.mark.parametrize("old", sorted(MOVED))
 def test_a_moved_module_keeps_its_old_import_path(old: str) -> None:
     import importlib
 
-    assert importlib.import_module(old) is importlib.import_module(MOVED[old])
+    new = importlib.import_module(MOVED[old])
+    assert importlib.import_module(old) is new
+    assert new.__spec__ is not None and new.__spec__.name == MOVED[old]  # its own spec, not the alias's
+    parent, _, leaf = old.rpartition(".")
+    assert getattr(importlib.import_module(parent), leaf) is new  # `topgimbal.mavlink.cot` as an attribute
+
+
+def test_the_old_paths_are_only_those_of_the_table() -> None:
+    import importlib
+
+    import topgimbal
+
+    with pytest.raises(ModuleNotFoundError, match=r"topgimbal\.mavlink\.no_such_module"):
+        importlib.import_module("topgimbal.mavlink.no_such_module")
+    assert topgimbal.mavlink.bridge.Bridge.__module__ == "topgimbal.mavlink.bridge"  # real modules stay real
 
 
 def test_the_bridge_package_still_exports_what_moved_below_it() -> None:

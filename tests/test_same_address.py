@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from topgimbal.mavlink import camdef_http
-from topgimbal.mavlink.camdef_http import DefinitionServer
+from topgimbal.camdef import http as camdef_http
+from topgimbal.camdef.http import DefinitionServer
 from topgimbal.video import media_http
 from topgimbal.video.media_http import MediaServer
 

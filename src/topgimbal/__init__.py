@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from . import _moved
 from .errors import (
     CatalogError,
     ChecksumError,
@@ -39,6 +40,8 @@ if TYPE_CHECKING:
     )
 
 __version__ = "0.1.0"
+
+_moved.install()  # old import paths of modules that moved (_moved.MOVED)
 
 # The protocol core and the client load on first use (PEP 562): `import topgimbal.protocol` does not
 # load the client (asyncio, the typed methods), and `topgimbal --help` loads neither

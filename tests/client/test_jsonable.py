@@ -16,7 +16,7 @@ import pytest
 from topgimbal.cli.device_output import show
 from topgimbal.client.jsonable import dumps, jsonable
 from topgimbal.client.remote_keys import decode_result, encode_result
-from topgimbal.client.state import Attitude, SdCard, Stamped
+from topgimbal.client.state import GimbalAttitude, SdCard, Stamped
 from topgimbal.console.ops import jsonable as console_jsonable
 from topgimbal.console.peer import dumps as peer_dumps
 from topgimbal.protocol import get_model, parse_frame
@@ -84,7 +84,7 @@ def test_a_message_and_a_frame_are_not_encoded_as_tuples() -> None:
 
 
 def test_cli_json_prints_valid_json_for_nan(capsys: pytest.CaptureFixture[str]) -> None:
-    show(argparse.Namespace(json=True), {"attitude": Attitude(math.nan, 1.0, math.inf), "range_m": math.nan})
+    show(argparse.Namespace(json=True), {"attitude": GimbalAttitude(math.nan, 1.0, math.inf), "range_m": math.nan})
     out = strict_loads(capsys.readouterr().out)
     assert out == {
         "attitude": {"yaw_deg": None, "pitch_deg": 1.0, "roll_deg": None, "t": 0.0, "wall": 0.0, "source": "GAC"},
@@ -93,7 +93,7 @@ def test_cli_json_prints_valid_json_for_nan(capsys: pytest.CaptureFixture[str]) 
 
 
 def test_console_pushes_valid_json_for_nan() -> None:
-    text = peer_dumps({"type": "state", "state": Stamped(Attitude(math.nan, 2.0, 0.0), 1.0, 2.0)})
+    text = peer_dumps({"type": "state", "state": Stamped(GimbalAttitude(math.nan, 2.0, 0.0), 1.0, 2.0)})
     assert strict_loads(text) == {
         "type": "state",
         "state": {
@@ -107,7 +107,7 @@ def test_console_pushes_valid_json_for_nan() -> None:
 def test_cli_console_and_zenoh_agree() -> None:
     """The same results give the same JSON on all three (the Zenoh server keeps its own Message
     shape, which its client turns back into a Message)."""
-    results: list[object] = [Attitude(1.0, math.nan, 0.0), SdCard(True, 1, 2), {"x": math.inf}, 3.5, None, "s"]
+    results: list[object] = [GimbalAttitude(1.0, math.nan, 0.0), SdCard(True, 1, 2), {"x": math.inf}, 3.5, None, "s"]
     for r in results:
         assert console_jsonable(r) == jsonable(r) == encode_result(r)
     m = message()

@@ -149,6 +149,16 @@ def page_errors() -> list[str]:
     return []
 
 
+def wait_for_testid(page: Any, testid: str, condition: str = "true", timeout_s: float = 30.0) -> None:
+    """Wait until the page's element `[data-testid=testid]` exists and the JavaScript `condition` on
+    it (named `e`) holds. The page builds some elements after it loads (the video panel's, once its
+    fetch of api/video answers): a bare `document.querySelector(...).x` in a wait throws until then,
+    and Playwright ends the wait at the first throw (a fresh-clone run at load 8: "Cannot read
+    properties of null (reading 'naturalWidth')" a moment after the page was ready)."""
+    script = f"(() => {{ const e = document.querySelector('[data-testid={testid}]'); return e !== null && ({condition}); }})()"
+    page.wait_for_function(script, timeout=timeout_s * 1000)
+
+
 def open_console(browser: Any, bg: BackgroundConsole, errors: list[str], link: str = "up") -> Any:
     """A fresh page on the console, loaded, its WebSocket open and the link badge at `link`."""
     context = browser.new_context(viewport={"width": 1400, "height": 1100})
@@ -157,7 +167,7 @@ def open_console(browser: Any, bg: BackgroundConsole, errors: list[str], link: s
     page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
     page.goto(bg.url)
     page.wait_for_selector("body[data-ready='1']", timeout=30_000)
-    page.wait_for_function(f"document.querySelector('[data-testid=link]').dataset.state === '{link}'", timeout=30_000)
+    wait_for_testid(page, "link", f"e.dataset.state === '{link}'")
     return page
 
 

@@ -13,12 +13,12 @@ from typing import Any
 
 import pytest
 
-from .conftest import BackgroundConsole, open_console, wait_for
+from .conftest import BackgroundConsole, open_console, wait_for, wait_for_testid
 
 pytestmark = [pytest.mark.external, pytest.mark.browser, pytest.mark.integration]
 
-LOST = "document.querySelector('[data-testid=link]').dataset.state === 'lost'"
-UP = "document.querySelector('[data-testid=link]').dataset.state === 'up'"
+LOST = "e.dataset.state === 'lost'"  # of the link badge (wait_for_testid)
+UP = "e.dataset.state === 'up'"
 NEEDS_CAMERA = (
     "btn-photo",
     "btn-record",
@@ -56,7 +56,7 @@ def _lose_and_recover(page: Any, bg: BackgroundConsole, artifacts: Path) -> None
     assert page.get_by_test_id("link-banner").is_hidden()
     port = udp_port(bg)
     bg.run(bg.sim.stop())
-    page.wait_for_function(LOST, timeout=30_000)
+    wait_for_testid(page, "link", LOST)
 
     badge = page.get_by_test_id("link")
     assert badge.inner_text() == "LOST"
@@ -90,7 +90,7 @@ def _lose_and_recover(page: Any, bg: BackgroundConsole, artifacts: Path) -> None
     page.evaluate("document.getElementById('panel-video').hidden = false")
 
     bg.run(bg.sim.start(udp=[("127.0.0.1", port)]))
-    page.wait_for_function(UP, timeout=30_000)
+    wait_for_testid(page, "link", UP)
     assert banner.is_hidden()
     assert badge.inner_text() == "up"
     for tid in NEEDS_CAMERA:
@@ -99,7 +99,7 @@ def _lose_and_recover(page: Any, bg: BackgroundConsole, artifacts: Path) -> None
         assert node.get_attribute("title") == titles[tid], tid  # its own tooltip again
     page.get_by_test_id("btn-photo").click()
     wait_for(lambda: page.get_by_test_id("photo-status").get_attribute("data-count") == "1", what="a photo")
-    page.wait_for_function("document.querySelector('[data-testid=horizon]').dataset.state === 'live'")
+    wait_for_testid(page, "horizon", "e.dataset.state === 'live'")
 
 
 def test_unsupported_controls_keep_their_reason_through_a_loss(
@@ -122,11 +122,11 @@ def _unsupported_through_a_loss(page: Any, bg: BackgroundConsole) -> None:
     assert photo.is_disabled() and "C13 does not support CAP" in reason
     port = udp_port(bg)
     bg.run(bg.sim.stop())
-    page.wait_for_function(LOST, timeout=30_000)
+    wait_for_testid(page, "link", LOST)
     assert photo.is_disabled() and photo.get_attribute("title") == reason
     assert page.get_by_test_id("horizon").get_attribute("data-state") == "none"  # still "no attitude"
     assert page.get_by_test_id("set-TSM").is_disabled()
     bg.run(bg.sim.start(udp=[("127.0.0.1", port)]))
-    page.wait_for_function(UP, timeout=30_000)
+    wait_for_testid(page, "link", UP)
     assert photo.is_disabled() and photo.get_attribute("title") == reason
     assert page.get_by_test_id("set-TSM").is_enabled()

@@ -21,7 +21,7 @@ from topgimbal.console import ConsoleServer
 from topgimbal.console.remote_hub import NOT_CARRIED
 from topgimbal.sim import Simulator
 
-from .conftest import BackgroundConsole, wait_for
+from .conftest import BackgroundConsole, wait_for, wait_for_testid
 from .test_multi_zenoh import free_port
 
 pytestmark = [pytest.mark.external, pytest.mark.browser, pytest.mark.integration]
@@ -94,10 +94,7 @@ def test_grid_and_switcher(browser: Any, artifacts: Path, page_errors: list[str]
             sim1, sim2 = bg.sim_of("sim1"), bg.sim_of("sim2")
             wait_for(lambda: bg.call(lambda: abs(sim2.gimbal.yaw_deg - 30) < 1), 60, what="sim2 at yaw 30")
             assert bg.call(lambda: (sim1.gimbal.yaw_deg, sim1.gimbal.pitch_deg)) == (0.0, 0.0)
-            page.wait_for_function(
-                "Math.abs(Number(document.querySelector('[data-testid=cam-att-sim2]').dataset.yaw) - 30) < 1",
-                timeout=30_000,
-            )
+            wait_for_testid(page, "cam-att-sim2", "Math.abs(Number(e.dataset.yaw) - 30) < 1")
             assert grid.is_visible()
             grid_shot = artifacts / "issue25-console-grid.png"
             page.get_by_test_id("panel-cameras").screenshot(path=str(grid_shot))

@@ -23,7 +23,7 @@ import pytest
 
 from waiting import until_blocking
 
-from .conftest import BackgroundConsole, open_console, wait_for
+from .conftest import BackgroundConsole, open_console, wait_for, wait_for_testid
 
 # serial: drags and timed page checks in a real browser; make test runs them apart from the
 # parallel pass, where a loaded CPU (six workers on two cores) delays the page, not the console.
@@ -81,7 +81,7 @@ def c13() -> Iterator[BackgroundConsole]:
 
 def video_ready(page: Any, lens: str = "visible") -> None:
     page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=30_000)
-    page.wait_for_function(f"document.querySelector('[data-testid=video-{lens}]').naturalWidth > 0", timeout=30_000)
+    wait_for_testid(page, f"video-{lens}", "e.naturalWidth > 0")
     page.get_by_test_id(f"video-{lens}").wait_for(state="visible", timeout=30_000)
 
 

@@ -10,7 +10,7 @@ import pytest
 from topgimbal.sim.targets import parse_spec
 from topgimbal.sim.tracker import unproject
 
-from .conftest import BackgroundConsole, open_console, wait_for
+from .conftest import BackgroundConsole, open_console, wait_for, wait_for_testid
 
 pytestmark = pytest.mark.external
 
@@ -20,7 +20,7 @@ def test_a_lost_target_shows_as_lost_on_a_sip(browser: Any, sip: BackgroundConso
     page = open_console(browser, sip, errors)
     try:
         page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=30_000)
-        page.wait_for_function("document.querySelector('[data-testid=video-visible]').naturalWidth > 0", timeout=30_000)
+        wait_for_testid(page, "video-visible", "e.naturalWidth > 0")
         page.get_by_test_id("video-visible").wait_for(state="visible", timeout=30_000)
         state = page.get_by_test_id("video-tracking")
         img = page.get_by_test_id("video-visible").bounding_box()

@@ -12,7 +12,7 @@ import math
 import pytest
 
 import topgimbal
-from topgimbal.client.state import Attitude
+from topgimbal.client.state import GimbalAttitude
 from topgimbal.fleet.camera import attitude_json
 
 from .conftest import eventually
@@ -24,13 +24,13 @@ pytestmark = pytest.mark.virtual
     ("yaw", "pitch", "roll"), [(0.0, 0.0, 0.0), (-179.99, 89.5, 1e-7), (12.345678901234, -0.1, 3e21)]
 )
 def test_the_attitude_json_is_json_with_the_same_values(yaw: float, pitch: float, roll: float) -> None:
-    att = Attitude(yaw, pitch, roll, t=5.0, wall=1764201234.123456)
+    att = GimbalAttitude(yaw, pitch, roll, t=5.0, wall=1764201234.123456)
     d = json.loads(attitude_json(att, 42))
     assert d == {"yaw_deg": yaw, "pitch_deg": pitch, "roll_deg": roll, "t": 1764201234.123456, "seq": 42}
 
 
 def test_a_value_that_is_not_finite_is_null_not_invalid_json() -> None:
-    d = json.loads(attitude_json(Attitude(math.nan, math.inf, 1.0, wall=1.0), 1))
+    d = json.loads(attitude_json(GimbalAttitude(math.nan, math.inf, 1.0, wall=1.0), 1))
     assert d["yaw_deg"] is None and d["pitch_deg"] is None and d["roll_deg"] == 1.0
 
 
@@ -38,9 +38,9 @@ def test_a_value_that_is_not_finite_is_null_not_invalid_json() -> None:
 async def test_a_tap_sees_every_sample_and_a_failing_tap_hurts_nothing(sims, caplog) -> None:
     (sim,) = await sims(1)
     async with topgimbal.connect(sim.url, model="C12") as cam:
-        seen: list[Attitude] = []
+        seen: list[GimbalAttitude] = []
 
-        def broken(att: Attitude) -> None:
+        def broken(att: GimbalAttitude) -> None:
             raise ValueError("a bug in someone's tap")
 
         remove_broken = cam.streams.tap(broken)

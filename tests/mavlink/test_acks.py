@@ -10,8 +10,8 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as ml
 
+from topgimbal.autopilot.reboots import RebootWatch
 from topgimbal.clock import monotonic
-from topgimbal.mavlink.reboots import RebootWatch
 from topgimbal.sim.faults import FaultInjector, FaultPlan
 
 from .conftest import eventually

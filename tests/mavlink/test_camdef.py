@@ -10,10 +10,10 @@ from pathlib import Path
 import pytest
 from MAVProxy.modules.mavproxy_camera import definition  # installed by `make .venv/.installed`
 
-from topgimbal.mavlink.camdef import all_definitions, definition_version, render, settings_for
-from topgimbal.mavlink.camdef_files import main as camdef_main
-from topgimbal.mavlink.camdef_files import stale
-from topgimbal.mavlink.camdef_http import MAX_CONNECTIONS, MAX_HEAD_BYTES, DefinitionServer
+from topgimbal.camdef.definition import all_definitions, definition_version, render, settings_for
+from topgimbal.camdef.files import main as camdef_main
+from topgimbal.camdef.files import stale
+from topgimbal.camdef.http import MAX_CONNECTIONS, MAX_HEAD_BYTES, DefinitionServer
 from topgimbal.protocol import get_model
 
 from .conftest import eventually

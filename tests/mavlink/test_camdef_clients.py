@@ -7,7 +7,7 @@ import asyncio
 
 import pytest
 
-from topgimbal.mavlink.camdef_http import MAX_PER_CLIENT, DefinitionServer
+from topgimbal.camdef.http import MAX_PER_CLIENT, DefinitionServer
 
 from .conftest import eventually
 

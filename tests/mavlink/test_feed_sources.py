@@ -9,9 +9,9 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as ml
 
+from topgimbal.autopilot.streams import AutopilotStreams
 from topgimbal.clock import FakeClock
 from topgimbal.mavlink import feed_sources
-from topgimbal.mavlink.autopilot_streams import AutopilotStreams
 from topgimbal.mavlink.quaternion import from_euler_deg
 
 pytestmark = pytest.mark.virtual

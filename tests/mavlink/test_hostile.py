@@ -11,12 +11,12 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as ml
 
+from topgimbal.autopilot.vehicle import MAX_SYSTEMS, Vehicles
+from topgimbal.geo.aim import Geodetic
 from topgimbal.mavlink.commands import BUSY_LOG_EVERY_S, Command, Dispatcher
-from topgimbal.mavlink.geo import Position
 from topgimbal.mavlink.node import Node
 from topgimbal.mavlink.pointing import Setpoint
 from topgimbal.mavlink.quaternion import from_euler_deg
-from topgimbal.mavlink.vehicle import MAX_SYSTEMS, Vehicles
 
 from .conftest import NAN, Peer, eventually
 from .virtual import in_virtual_time
@@ -275,7 +275,7 @@ def test_many_vehicles_on_the_network_never_evict_our_own() -> None:
 
 async def test_a_burst_of_set_points_during_roi_stops_it_once(rig: Any) -> None:
     manager = rig.bridge.manager
-    manager.roi = Position(47.4, 8.5, 400.0)  # as after MAV_CMD_DO_SET_ROI_LOCATION
+    manager.roi = Geodetic(47.4, 8.5, 400.0)  # as after MAV_CMD_DO_SET_ROI_LOCATION
     enc = ml.MAVLink(None, srcSystem=255, srcComponent=190)
     parser = ml.MAVLink(None)
     data = ml.MAVLink_gimbal_manager_set_pitchyaw_message(1, GIMBAL, 0, 0, -0.2, NAN, NAN, NAN).pack(enc)

@@ -16,11 +16,11 @@ from pathlib import Path
 
 import pytest
 
+from topgimbal.autopilot.vehicle import Fix
 from topgimbal.geo import locate
+from topgimbal.geo.aim import Geodetic
 from topgimbal.mavlink.camera_link import AttitudeSample
 from topgimbal.mavlink.camera_view import earth_view, st0601_values
-from topgimbal.mavlink.geo import Position
-from topgimbal.mavlink.vehicle import Fix
 from topgimbal.outputs.klv import packet
 
 pytestmark = pytest.mark.external
@@ -62,7 +62,7 @@ def cases(n: int) -> list[bytes]:
         lat, lon = rng.uniform(-60, 60), rng.uniform(-180, 180)
         height = rng.uniform(150, 400)
         ground = rng.uniform(0, 1500)
-        fix = Fix(Position(lat, lon, ground + height), height, None, 0.0)
+        fix = Fix(Geodetic(lat, lon, ground + height), height, None, 0.0)
         heading = rng.uniform(0, 360)
         vatt = (rng.uniform(-20, 20), rng.uniform(-20, 20), heading)
         att = AttitudeSample(rng.uniform(-90, 90), rng.uniform(-60, -15), 0.0, 0.0)

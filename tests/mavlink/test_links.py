@@ -10,8 +10,8 @@ import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.cli.main import main
+from topgimbal.geo.aim import Geodetic, ground_point, look_at
 from topgimbal.mavlink import BridgeConfig, BridgeConfigError, EndpointError, parse_endpoint
-from topgimbal.mavlink.geo import Position, ground_point, look_at
 from topgimbal.mavlink.gimbal_device import firmware_code
 from topgimbal.mavlink.quaternion import from_euler_deg, to_euler_deg
 
@@ -54,8 +54,8 @@ def test_quaternion_round_trip() -> None:
 
 @pytest.mark.virtual
 def test_geometry() -> None:
-    cam = Position(47.0, 8.0, 600.0)
-    yaw, pitch = look_at(cam, 90.0, Position(47.0, 8.01, 500.0))  # due east, vehicle heading east
+    cam = Geodetic(47.0, 8.0, 600.0)
+    yaw, pitch = look_at(cam, 90.0, Geodetic(47.0, 8.01, 500.0))  # due east, vehicle heading east
     assert abs(yaw) < 0.01 and -10 < pitch < -7
     hit = ground_point(cam, 0.0, -45.0, 500.0)
     assert hit is not None and abs((hit.lat_deg - 47.0) * math.pi / 180 * 6371008.8 - 100.0) < 0.5

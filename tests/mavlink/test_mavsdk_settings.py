@@ -12,7 +12,7 @@ from mavsdk.asyncio import ComponentType, Configuration
 from mavsdk.asyncio.plugins.camera import CameraAsync
 from mavsdk.plugins.camera.camera import Option, Setting
 
-from topgimbal.mavlink.camdef import settings_for
+from topgimbal.camdef.definition import settings_for
 
 from .conftest import Rig, eventually, keep, mavsdk_session
 from .test_mavsdk import _until

@@ -9,7 +9,7 @@ import logging
 import pytest
 
 from topgimbal.clock import monotonic
-from topgimbal.mavlink.periodic import Periodic
+from topgimbal.periodic import Periodic
 
 pytestmark = pytest.mark.virtual
 

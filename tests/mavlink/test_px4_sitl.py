@@ -36,7 +36,7 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as ml
 
-from topgimbal.mavlink.geo import Position, offset_m
+from topgimbal.geo.aim import Geodetic, offset_m
 
 from .test_sitl import AUTOPILOT, Gcs, until
 
@@ -235,7 +235,7 @@ async def _steps(r: Any, g: Gcs, caplog: Any, rows: list[str]) -> None:
     errors_m, errors_s = [], []
     for (_, m), shutter in zip(sorted(ours.items()), shutters[-len(ours) :], strict=True):
         truth = g.position_at(shutter)
-        north_m, east_m, _ = offset_m(truth, Position(m.lat / 1e7, m.lon / 1e7, truth.alt_m))
+        north_m, east_m, _ = offset_m(truth, Geodetic(m.lat / 1e7, m.lon / 1e7, truth.alt_m))
         errors_m.append(math.hypot(north_m, east_m))
         errors_s.append(abs(m.time_utc / 1e6 - g.utc_at(shutter)))
     rows.append(f"photo position error (m) max {max(errors_m):.2f}; UTC error (s) max {max(errors_s):.3f}")
@@ -298,7 +298,7 @@ async def _roi_turn(g: Gcs, gim: Any, rows: list[str]) -> None:
     start = g.heading_deg
     r_earth = 6_371_008.8
     b = math.radians(start + TURN_DEG / 2)
-    roi = Position(home.lat_deg + math.degrees(80.0 * math.cos(b) / r_earth),
+    roi = Geodetic(home.lat_deg + math.degrees(80.0 * math.cos(b) / r_earth),
                    home.lon_deg + math.degrees(80.0 * math.sin(b) / (r_earth * math.cos(math.radians(home.lat_deg)))),
                    home.alt_m)  # fmt: skip
     ack = await g.command(ml.MAV_CMD_DO_SET_ROI_LOCATION, 0, 0, 0, 0, roi.lat_deg, roi.lon_deg, roi.alt_m)

@@ -22,7 +22,7 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as ml
 
-from topgimbal.mavlink.geo import Position, offset_m
+from topgimbal.geo.aim import Geodetic, offset_m
 
 from .test_px4_sitl import SITL, _free_instance, gcs_streams, payload_links, px4_sitl
 from .test_sitl import AUTOPILOT, Gcs, until
@@ -41,20 +41,20 @@ FLY_S = 240.0
 ON_LINE_M = 3.0  # a photo this far off its transect's line, or beyond its ends, is in a turn
 
 
-def _place(home: Position, north_m: float, east_m: float) -> Position:
+def _place(home: Geodetic, north_m: float, east_m: float) -> Geodetic:
     r = 6_371_008.8
     lat = home.lat_deg + math.degrees(north_m / r)
     lon = home.lon_deg + math.degrees(east_m / (r * math.cos(math.radians(home.lat_deg))))
-    return Position(lat, lon, home.alt_m)
+    return Geodetic(lat, lon, home.alt_m)
 
 
-def _position_at(track: list[tuple[float, Any]], t: float) -> Position:
+def _position_at(track: list[tuple[float, Any]], t: float) -> Geodetic:
     """PX4's position at `t` (our clock), interpolated between the fixes heard around it."""
     i = bisect.bisect_left([w for w, _ in track], t)
     assert 0 < i < len(track), "no GLOBAL_POSITION_INT around that time"
     (ta, a), (tb, b) = track[i - 1], track[i]
     w = (t - ta) / (tb - ta) if tb > ta else 1.0
-    return Position((a.lat + w * (b.lat - a.lat)) / 1e7, (a.lon + w * (b.lon - a.lon)) / 1e7, a.alt / 1000.0)
+    return Geodetic((a.lat + w * (b.lat - a.lat)) / 1e7, (a.lon + w * (b.lon - a.lon)) / 1e7, a.alt / 1000.0)
 
 
 def _speed_at(track: list[tuple[float, Any]], t: float) -> float:
@@ -63,7 +63,7 @@ def _speed_at(track: list[tuple[float, Any]], t: float) -> float:
     return math.hypot(m.vx, m.vy) / 100.0
 
 
-def transects(home: Position) -> list[tuple[Position, Position]]:
+def transects(home: Geodetic) -> list[tuple[Geodetic, Geodetic]]:
     """Lawnmower lines north-south, 20 m north of home, SPACING_M apart eastwards."""
     lines = []
     for j in range(TRANSECTS):
@@ -72,9 +72,9 @@ def transects(home: Position) -> list[tuple[Position, Position]]:
     return lines
 
 
-def mission(home: Position) -> list[Any]:
+def mission(home: Geodetic) -> list[Any]:
     rel, miss = ml.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, ml.MAV_FRAME_MISSION
-    items: list[tuple[int, int, list[float], Position | None]] = [(ml.MAV_CMD_NAV_TAKEOFF, rel, [0] * 4, home)]
+    items: list[tuple[int, int, list[float], Geodetic | None]] = [(ml.MAV_CMD_NAV_TAKEOFF, rel, [0] * 4, home)]
     for a, b in transects(home):
         items += [(ml.MAV_CMD_NAV_WAYPOINT, rel, [0] * 4, a),
                   (ml.MAV_CMD_DO_SET_CAM_TRIGG_DIST, miss, [DISTANCE_M, 0, 1, 0], None),
@@ -159,7 +159,7 @@ async def _fly(r: Any, g: Gcs, rows: list[str]) -> None:
     records = dict(r.bridge.cameras[0].images)  # the bridge's CAMERA_IMAGE_CAPTURED records
     rows.append(f"survey: PX4 triggers {len(triggers)}, photos taken {taken}, bridge records {len(records)}")
     photos = [records[i] for i in sorted(records)]
-    where = [Position(m.lat / 1e7, m.lon / 1e7, home.alt_m) for m in photos]
+    where = [Geodetic(m.lat / 1e7, m.lon / 1e7, home.alt_m) for m in photos]
     # geotags against PX4's position at each shutter
     errors_m = []
     for p, shutter in zip(where, shutters[-len(where) :], strict=True):

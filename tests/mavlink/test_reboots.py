@@ -13,10 +13,10 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as ml
 
+from topgimbal.autopilot.reboots import RebootWatch
 from topgimbal.clock import monotonic
 from topgimbal.mavlink import camera_photos
 from topgimbal.mavlink import commands as commands_module
-from topgimbal.mavlink.reboots import RebootWatch
 
 from .conftest import NAN, Peer, eventually
 from .virtual import in_virtual_time

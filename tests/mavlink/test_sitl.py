@@ -46,7 +46,7 @@ import pytest
 from pymavlink.dialects.v20 import common as ml
 
 import waiting
-from topgimbal.mavlink.geo import Position, look_at, offset_m
+from topgimbal.geo.aim import Geodetic, look_at, offset_m
 from topgimbal.protocol import get_model
 
 pytestmark = pytest.mark.external
@@ -100,13 +100,13 @@ def _wrap180(deg: float) -> float:
     return (deg + 180.0) % 360.0 - 180.0
 
 
-def _offset(p: Position, bearing_deg: float, distance_m: float, dalt_m: float) -> Position:
+def _offset(p: Geodetic, bearing_deg: float, distance_m: float, dalt_m: float) -> Geodetic:
     """A place `distance_m` away on `bearing_deg` (flat earth: fine over 150 m)."""
     r = 6_371_000.0
     b = math.radians(bearing_deg)
     lat = p.lat_deg + math.degrees(distance_m * math.cos(b) / r)
     lon = p.lon_deg + math.degrees(distance_m * math.sin(b) / (r * math.cos(math.radians(p.lat_deg))))
-    return Position(lat, lon, p.alt_m + dalt_m)
+    return Geodetic(lat, lon, p.alt_m + dalt_m)
 
 
 class Gcs:
@@ -178,16 +178,16 @@ class Gcs:
         return math.degrees(self.attitude.yaw)
 
     @property
-    def place(self) -> Position:
+    def place(self) -> Geodetic:
         p = self.position
         assert p is not None, "no GLOBAL_POSITION_INT from the autopilot"
-        return Position(p.lat / 1e7, p.lon / 1e7, p.alt / 1000.0)
+        return Geodetic(p.lat / 1e7, p.lon / 1e7, p.alt / 1000.0)
 
     @property
     def closed(self) -> bool:
         return self._tasks[0].done()
 
-    def position_at(self, t: float) -> Position:
+    def position_at(self, t: float) -> Geodetic:
         """The autopilot's position at `t` (this clock), interpolated between the fixes heard."""
         times = [w for w, _ in self.positions]
         i = bisect.bisect_left(times, t)
@@ -196,7 +196,7 @@ class Gcs:
         w = (t - ta) / (tb - ta) if tb > ta else 1.0
         lat = (a.lat + w * (b.lat - a.lat)) / 1e7
         lon = (a.lon + w * (b.lon - a.lon)) / 1e7
-        return Position(lat, lon, (a.alt + w * (b.alt - a.alt)) / 1000.0)
+        return Geodetic(lat, lon, (a.alt + w * (b.alt - a.alt)) / 1000.0)
 
     def utc_at(self, t: float) -> float:
         assert self.system_time is not None, "no SYSTEM_TIME from the autopilot"
@@ -584,10 +584,10 @@ async def steps(f: Flight) -> None:
         own_lat, own_lon = fed[max(fed)]
         await asyncio.sleep(0.3)  # the truth after the shutter is heard too
         truth = f.g.position_at(shutter)
-        north, east, _ = offset_m(truth, Position(msg.lat / 1e7, msg.lon / 1e7, msg.alt / 1000.0))
+        north, east, _ = offset_m(truth, Geodetic(msg.lat / 1e7, msg.lon / 1e7, msg.alt / 1000.0))
         error_m = math.hypot(north, east)
         assert own_lat is not None and own_lon is not None, "the camera was fed no position"
-        north, east, _ = offset_m(truth, Position(own_lat, own_lon, truth.alt_m))
+        north, east, _ = offset_m(truth, Geodetic(own_lat, own_lon, truth.alt_m))
         own_m = math.hypot(north, east)
         time_error_s = abs(msg.time_utc / 1e6 - f.g.utc_at(shutter))
         f.photo_rows.append(f"photo {n + 1} at {ground_speed():.1f} m/s | {error_m:.2f} | {time_error_s:.3f} | "

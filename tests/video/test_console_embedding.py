@@ -14,7 +14,7 @@ from typing import Any
 
 import pytest
 
-from console.conftest import BackgroundConsole, open_console, wait_for
+from console.conftest import BackgroundConsole, open_console, wait_for, wait_for_testid
 
 pytestmark = [pytest.mark.external, pytest.mark.browser, pytest.mark.integration]
 
@@ -96,9 +96,7 @@ fetch("{base}video/thermal.mjpg", {{mode: "no-cors"}}).then(() => window.noCors 
             errors: list[str] = []
             page = open_console(browser, console_c12, errors)
             try:
-                page.wait_for_function(
-                    "document.querySelector('[data-testid=video-visible]').naturalWidth === 1280", timeout=30_000
-                )
+                wait_for_testid(page, "video-visible", "e.naturalWidth === 1280")
                 assert _viewers(console_c12) + _webrtc_peers(console_c12) >= 1  # the path the page plays
             finally:
                 page.context.close()

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from console.conftest import BackgroundConsole, open_console, wait_for
+from console.conftest import BackgroundConsole, open_console, wait_for, wait_for_testid
 from topgimbal.video import world
 from topgimbal.video.lens import View, stream_for
 from topgimbal.video.simvideo import SimVideo, VideoOptions
@@ -50,10 +50,8 @@ def test_video_plays_and_a_click_on_a_landmark_points_there(
 
 def _play_and_point(page: Any, console_c12: BackgroundConsole, artifacts: Any, errors: list[str]) -> None:
     page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=30_000)
-    page.wait_for_function(
-        "document.querySelector('[data-testid=video-visible]').naturalWidth === 1280", timeout=30_000
-    )
-    page.wait_for_function("document.querySelector('[data-testid=video-thermal]').naturalWidth === 640", timeout=30_000)
+    wait_for_testid(page, "video-visible", "e.naturalWidth === 1280")
+    wait_for_testid(page, "video-thermal", "e.naturalWidth === 640")
     # The picture moves: two screenshots a moment apart differ (the burned-in clock runs).
     a, _ = _picture(page)
     page.wait_for_timeout(300)
@@ -101,23 +99,29 @@ def test_a_dropped_stream_shows_its_state_and_reconnects(browser: Any) -> None:
     with BackgroundConsole("C10") as bg:
         errors: list[str] = []
         page = open_console(browser, bg, errors)
-        page.wait_for_function("document.querySelector('[data-testid=video-visible]').naturalWidth > 0", timeout=30_000)
-        video = bg.server.video  # type: ignore[union-attr]
-        port = int(video.sim_video.urls["visible"].rsplit(":", 1)[1].split("/")[0])
-        bg.run(video.sim_video.stop())
-        state = page.get_by_test_id("video-state-visible")
-        wait_for(lambda: "reconnecting" in state.inner_text(), 15, what="the 'stream lost' state")
-        video.sim_video = bg.run(SimVideo(bg.sim, VideoOptions(port=port)).start())
-        wait_for(lambda: state.is_hidden(), 20, what="the picture back")
+        try:
+            _drop_and_reconnect(page, bg)
+        finally:
+            page.context.close()  # the console's stop waits for the page's WebSocket and picture streams
 
-        # pictures through whichever path the page plays (WebRTC, or the MJPEG relay)
-        def pictures() -> int:
-            webrtc = video.whep.sources["visible"].pictures if video.whep is not None else 0
-            return int(video.relays["visible"].pictures + webrtc)
 
-        before = bg.call(pictures)
-        wait_for(lambda: bg.call(pictures) > before + 5, 10, what="new pictures")
-        page.context.close()
+def _drop_and_reconnect(page: Any, bg: BackgroundConsole) -> None:
+    wait_for_testid(page, "video-visible", "e.naturalWidth > 0")
+    video = bg.server.video  # type: ignore[union-attr]
+    port = int(video.sim_video.urls["visible"].rsplit(":", 1)[1].split("/")[0])
+    bg.run(video.sim_video.stop())
+    state = page.get_by_test_id("video-state-visible")
+    wait_for(lambda: "reconnecting" in state.inner_text(), 15, what="the 'stream lost' state")
+    video.sim_video = bg.run(SimVideo(bg.sim, VideoOptions(port=port)).start())
+    wait_for(lambda: state.is_hidden(), 20, what="the picture back")
+
+    # pictures through whichever path the page plays (WebRTC, or the MJPEG relay)
+    def pictures() -> int:
+        webrtc = video.whep.sources["visible"].pictures if video.whep is not None else 0
+        return int(video.relays["visible"].pictures + webrtc)
+
+    before = bg.call(pictures)
+    wait_for(lambda: bg.call(pictures) > before + 5, 10, what="new pictures")
 
 
 def test_video_routes_refuse_bad_requests_with_the_reason() -> None:

@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 
-from console.conftest import BackgroundConsole, open_console
+from console.conftest import BackgroundConsole, open_console, wait_for_testid
 
 pytestmark = [pytest.mark.external, pytest.mark.browser, pytest.mark.integration]
 
@@ -65,11 +65,7 @@ def test_video_mjpeg_in_the_url_keeps_the_relay(browser: Any, console_c12: Backg
         url = console_c12.url
         page.goto(url + ("&" if "?" in url else "?") + "video=mjpeg")
         page.wait_for_selector("[data-testid=panel-video]:not([hidden])", timeout=30_000)
-        page.wait_for_function(
-            "document.querySelector('[data-testid=video-visible]').tagName === 'IMG' &&"
-            " document.querySelector('[data-testid=video-visible]').naturalWidth === 1280",
-            timeout=30_000,
-        )
+        wait_for_testid(page, "video-visible", "e.tagName === 'IMG' && e.naturalWidth === 1280")
         assert "visible MJPEG" in page.get_by_test_id("video-path").inner_text()
     finally:
         context.close()

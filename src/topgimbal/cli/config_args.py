@@ -36,7 +36,11 @@ def config_kwargs(cls: type, args: argparse.Namespace) -> dict[str, Any]:
 
 def flags_of(cls: type) -> dict[str, str]:
     """{field name: flag} for the fields of `cls` that have one."""
-    return {f.name: f.metadata["flag"] for f in dataclasses.fields(cls) if "flag" in f.metadata}
+    out = {f.name: f.metadata["flag"] for f in dataclasses.fields(cls) if f.metadata.get("flag")}
+    for f in dataclasses.fields(cls):  # a field holding several options by name (BridgeConfig.features)
+        if f.metadata.get("named_flags") is not None:
+            out.update(f.metadata["named_flags"]())
+    return out
 
 
 def with_flags(message: str, cls: type) -> str:

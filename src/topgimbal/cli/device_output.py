@@ -8,7 +8,7 @@ import datetime
 import json
 
 from ..client.jsonable import jsonable
-from ..client.state import Attitude
+from ..client.state import GimbalAttitude
 
 
 def plain(value: object) -> object:
@@ -56,7 +56,7 @@ def text(key: str, v: object) -> str:
     return str(v)
 
 
-def attitude_dict(att: Attitude) -> dict[str, object]:
+def attitude_dict(att: GimbalAttitude) -> dict[str, object]:
     return {"yaw_deg": att.yaw_deg, "pitch_deg": att.pitch_deg, "roll_deg": att.roll_deg, "t": att.wall}
 
 

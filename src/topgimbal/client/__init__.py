@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from .engine import Engine, Inbound, Transaction
     from .link import LinkEvent, LinkMonitor
     from .signs import resolve_signs
-    from .state import Attitude, SdCard, Stamped, StateCache
+    from .state import Attitude, GimbalAttitude, SdCard, Stamped, StateCache
     from .stats import LinkStats
     from .streams import AttitudeStream
     from .sync import ClientClosedError, Gimbal, LoopThreadError, SyncAttitudeStream
@@ -37,6 +37,7 @@ _LAZY = {
     "LinkMonitor": "link",
     "resolve_signs": "signs",
     "Attitude": "state",
+    "GimbalAttitude": "state",
     "SdCard": "state",
     "Stamped": "state",
     "StateCache": "state",
@@ -56,7 +57,7 @@ __getattr__ = lazy_getattr(__name__, _LAZY, globals())
 
 
 __all__ = [
-    "AsyncClient", "Attitude", "AttitudeStream", "CameraAPI", "CatalogCommand", "ClientClosedError", "Engine", "Gimbal", "Inbound",
+    "AsyncClient", "Attitude", "AttitudeStream", "CameraAPI", "CatalogCommand", "ClientClosedError", "Engine", "Gimbal", "GimbalAttitude", "Inbound",
     "LinkEvent", "LinkMonitor", "LinkStats", "LogRecord", "LoopThreadError", "RateKeepAlive", "SdCard", "Stamped",
     "StateCache", "SyncAttitudeStream", "TrafficLog", "Transaction", "connect", "read_log", "resolve_signs",
 ]  # fmt: skip

@@ -18,7 +18,7 @@ from . import checks, identity, model_check, roles
 from .core import ClientCore
 from .methods import api_method
 from .signs import map_message
-from .state import Attitude, StateCache, attitude_of
+from .state import GimbalAttitude, StateCache, attitude_of
 
 
 def fields_of(m: Message) -> dict[str, object]:
@@ -120,7 +120,7 @@ class CoreMethods(Protocol):
         await core.streams.set_manual(None)
 
     @api_method
-    async def get_attitude(core: ClientCore, *, earth: bool = False) -> Attitude:
+    async def get_attitude(core: ClientCore, *, earth: bool = False) -> GimbalAttitude:
         """Query the attitude once (`earth=True`: the gyro's earth-frame reading, where there is one).
         While a stream runs, the query is answered by the first frame that comes after it."""
         role = "earth_attitude" if earth else "attitude"
@@ -135,7 +135,9 @@ class CoreMethods(Protocol):
         return att
 
     @api_method
-    async def wait_attitude(core: ClientCore, *, newer_than: float = 0.0, timeout_s: float | None = None) -> Attitude:
+    async def wait_attitude(
+        core: ClientCore, *, newer_than: float = 0.0, timeout_s: float | None = None
+    ) -> GimbalAttitude:
         """The next sample of a running attitude stream (arrived after `newer_than`, monotonic).
         Starts no stream; RequestTimeoutError when none comes."""
         checks.positive_seconds("timeout_s", timeout_s)

@@ -19,7 +19,7 @@ from .api_core import get_attitude, request
 from .core import ClientCore
 from .methods import api_method
 from .pointing import AxisLimits, RateLoop, stalled, within
-from .state import Attitude, attitude_of
+from .state import GimbalAttitude, attitude_of
 from .streams import AttitudeStream
 
 log = logging.getLogger("topgimbal.client")
@@ -56,7 +56,7 @@ def _zero_rates(core: ClientCore) -> list[Frame]:
     return _frames(core, "rate", {a: 0.0 for a in axes}) if axes else []
 
 
-async def _sample(core: ClientCore, after: float, wait_s: float) -> Attitude | None:
+async def _sample(core: ClientCore, after: float, wait_s: float) -> GimbalAttitude | None:
     """The next attitude sample newer than `after`: from a running stream, else by asking (None
     when neither comes within about `wait_s`)."""
     rate = core.streams.device_rate
@@ -71,7 +71,7 @@ async def _sample(core: ClientCore, after: float, wait_s: float) -> Attitude | N
     return attitude_of(core.state.values_of(m), "attitude", m.ident)
 
 
-def _where(last: Attitude | None) -> str:
+def _where(last: GimbalAttitude | None) -> str:
     if last is None:
         return "; no attitude came from the device meanwhile"
     return (
@@ -85,8 +85,8 @@ def _rate_cap(core: ClientCore) -> float:
 
 
 async def _closed_loop(
-    core: ClientCore, targets: dict[str, float], tolerance_deg: float, deadline: float, last: Attitude | None
-) -> Attitude:
+    core: ClientCore, targets: dict[str, float], tolerance_deg: float, deadline: float, last: GimbalAttitude | None
+) -> GimbalAttitude:
     """Drive each axis by its rate command until the attitude is within the tolerance."""
     limits = {
         axis: AxisLimits(*roles.rate_limits(core.dialect, core.model, axis), core.model.max_accel_deg_s2)
@@ -229,7 +229,7 @@ class MotionMethods(Protocol):
         timeout_s: float | None = None,
         speed_deg_s: float | None = None,
         poll_s: float = 0.05,
-    ) -> Attitude:
+    ) -> GimbalAttitude:
         """Move to (yaw, pitch) and return once the attitude is within `tolerance_deg` on both axes.
 
         With angle commands where the model obeys them; by closing the loop over rate commands fed by
@@ -258,7 +258,7 @@ class MotionMethods(Protocol):
         if timeout_s is None:
             timeout_s = dist / max(speed, 0.5) * 1.5 + 3.0
         deadline = monotonic() + timeout_s
-        last: Attitude | None = now_att
+        last: GimbalAttitude | None = now_att
         if not closed:  # the axes were checked above: build and send, no second check
             await _send_angles(core, _frames(core, "angle", targets, speed_deg_s))
             stall_s = max(STALL_S, 0.6 / speed_deg_s) if speed_deg_s else STALL_S

@@ -17,7 +17,7 @@ from .api_core import CoreMethods
 from .api_feed import FeedMethods
 from .api_motion import MotionMethods
 from .identity import Verdict
-from .state import Attitude, StateCache
+from .state import GimbalAttitude, StateCache
 from .stats import LinkStats
 
 
@@ -46,4 +46,6 @@ class CameraAPI(CoreMethods, MotionMethods, CameraMethods, FeedMethods, Protocol
     def on_link_change(self, callback: Callable[[bool, str], Awaitable[None] | None]) -> Callable[[], None]: ...
 
     # -- telemetry: an iterator object, not a typed method --
-    def attitude(self, rate_hz: float = 50, *, abandon_after_s: float | None = None) -> AsyncIterator[Attitude]: ...
+    def attitude(
+        self, rate_hz: float = 50, *, abandon_after_s: float | None = None
+    ) -> AsyncIterator[GimbalAttitude]: ...

@@ -79,7 +79,7 @@ class FeedTarget(Protocol):
 class FedPosition:
     """Where the user says the vehicle is, fed to the camera (`feed_position`): WGS84 degrees,
     altitude above mean sea level, heading true. (By role: `geo.Fix` is a located ground point,
-    `mavlink.vehicle.VehicleFix` what the autopilot says.)"""
+    `autopilot.vehicle.VehicleFix` what the autopilot says.)"""
 
     lat_deg: float
     lon_deg: float

@@ -21,7 +21,7 @@ from ..protocol.streams import stream_for
 from . import roles
 from .api_core import request
 from .core import ClientCore
-from .state import Attitude as Attitude_
+from .state import GimbalAttitude
 
 # Terrain models read from files, by (path, modification time): at most this many are kept.
 MAX_CACHED_DEMS = 4
@@ -139,7 +139,7 @@ async def locate_now(
     return fix, inputs
 
 
-async def core_get_attitude(core: ClientCore, *, earth: bool) -> Attitude_:
+async def core_get_attitude(core: ClientCore, *, earth: bool) -> GimbalAttitude:
     from .api_core import CoreMethods
 
     return await CoreMethods.get_attitude.fn(core, earth=earth)

@@ -15,7 +15,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-from .state import Attitude
+from .state import GimbalAttitude
 
 GAIN_PER_S = 4.0  # deg/s of rate per degree of error: ~0.25 s to close the last degrees
 BRAKE_SHARE = 0.5  # of the gimbal's acceleration, kept for braking (latency, quantised rates)
@@ -56,13 +56,13 @@ class RateLoop:
     worst_overshoot_deg: float = 0.0
     _sign0: dict[str, float] = field(default_factory=dict)
 
-    def errors(self, att: Attitude) -> dict[str, float]:
+    def errors(self, att: GimbalAttitude) -> dict[str, float]:
         return errors(self.targets, att)
 
-    def reached(self, att: Attitude) -> bool:
+    def reached(self, att: GimbalAttitude) -> bool:
         return within(self.targets, att, self.tolerance_deg)
 
-    def step(self, att: Attitude, now: float) -> dict[str, float] | None:
+    def step(self, att: GimbalAttitude, now: float) -> dict[str, float] | None:
         self.samples += 1
         errors = self.errors(att)
         for axis, e in errors.items():
@@ -78,17 +78,17 @@ class RateLoop:
         return rates
 
 
-def errors(targets: Mapping[str, float], att: Attitude) -> dict[str, float]:
+def errors(targets: Mapping[str, float], att: GimbalAttitude) -> dict[str, float]:
     """{axis: target - attitude} (degrees)."""
     got = {"yaw": att.yaw_deg, "pitch": att.pitch_deg, "roll": att.roll_deg}
     return {axis: target - got[axis] for axis, target in targets.items()}
 
 
-def within(targets: Mapping[str, float], att: Attitude, tolerance_deg: float) -> bool:
+def within(targets: Mapping[str, float], att: GimbalAttitude, tolerance_deg: float) -> bool:
     return all(abs(e) <= tolerance_deg for e in errors(targets, att).values())
 
 
-def stalled(start: Attitude, now: Attitude, targets: Mapping[str, float], tolerance_deg: float) -> bool:
+def stalled(start: GimbalAttitude, now: GimbalAttitude, targets: Mapping[str, float], tolerance_deg: float) -> bool:
     """Whether an angle command was apparently ignored: some axis still outside the tolerance has
     moved less than a fifth of a degree towards its target."""
     before, after = errors(targets, start), errors(targets, now)

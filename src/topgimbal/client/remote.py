@@ -41,7 +41,7 @@ from .remote_keys import (
     key,
     parse_zenoh_url,
 )
-from .state import Attitude, StateCache
+from .state import GimbalAttitude, StateCache
 from .stats import LinkStats
 from .zenoh_session import open_session
 
@@ -205,20 +205,20 @@ class RemoteClient(CoreMethods, MotionMethods, CameraMethods):
 
     # -- telemetry ----------------------------------------------------------------------------------
 
-    def attitude(self, rate_hz: float = 50, *, abandon_after_s: float | None = None) -> AsyncIterator[Attitude]:
+    def attitude(self, rate_hz: float = 50, *, abandon_after_s: float | None = None) -> AsyncIterator[GimbalAttitude]:
         """Attitude samples as the server publishes them, at most `rate_hz` (`t`: arrival here,
         monotonic; `wall`: when the server received the camera's frame)."""
         from .api_core import _rate
 
         return self._attitude(_rate(rate_hz))
 
-    async def _attitude(self, rate_hz: float) -> AsyncIterator[Attitude]:
+    async def _attitude(self, rate_hz: float) -> AsyncIterator[GimbalAttitude]:
         if self.session is None:
             raise LinkLostError(f"{self.url}: not open")
         loop = asyncio.get_running_loop()
-        queue: asyncio.Queue[Attitude] = asyncio.Queue(QUEUE_SAMPLES)
+        queue: asyncio.Queue[GimbalAttitude] = asyncio.Queue(QUEUE_SAMPLES)
 
-        def put(att: Attitude) -> None:
+        def put(att: GimbalAttitude) -> None:
             if queue.full():
                 queue.get_nowait()
             queue.put_nowait(att)
@@ -228,7 +228,7 @@ class RemoteClient(CoreMethods, MotionMethods, CameraMethods):
             if not isinstance(d, dict):
                 return
             try:
-                att = Attitude(float(d["yaw_deg"]), float(d["pitch_deg"]), float(d["roll_deg"]), monotonic(),
+                att = GimbalAttitude(float(d["yaw_deg"]), float(d["pitch_deg"]), float(d["roll_deg"]), monotonic(),
                                float(d.get("t", 0.0)), "zenoh")  # fmt: skip
             except (KeyError, TypeError, ValueError):
                 return

@@ -34,7 +34,7 @@ from .api_core import CoreMethods
 from .api_motion import MotionMethods
 from .jsonable import jsonable
 from .methods import api_method
-from .state import Attitude, SdCard
+from .state import GimbalAttitude, SdCard
 
 ROOT = "topgimbal"
 NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,62}")
@@ -152,13 +152,13 @@ def encode_result(value: object) -> object:
 
 
 def decode_result(method: str, value: object, model: str) -> object:
-    """A reply's result as the local client returns it (Attitude, SdCard, Message, plain data)."""
+    """A reply's result as the local client returns it (GimbalAttitude, SdCard, Message, plain data)."""
     ret = typing.get_type_hints(METHODS[method].fn).get("return")
     kinds = set(typing.get_args(ret)) | {ret}
     if value is None:
         return None
-    if Attitude in kinds and isinstance(value, dict):
-        return Attitude(**{k: v for k, v in value.items() if k in Attitude.__dataclass_fields__})
+    if GimbalAttitude in kinds and isinstance(value, dict):
+        return GimbalAttitude(**{k: v for k, v in value.items() if k in GimbalAttitude.__dataclass_fields__})
     if SdCard in kinds and isinstance(value, dict):
         return SdCard(**{k: v for k, v in value.items() if k in SdCard.__dataclass_fields__})
     if Message in kinds and isinstance(value, dict):

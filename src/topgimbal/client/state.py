@@ -19,9 +19,10 @@ JSON = dict[str, object]
 
 
 @dataclass(frozen=True)
-class Attitude:
-    """Gimbal attitude in the API convention (degrees; yaw right-, pitch up-, roll right-positive).
-    `t` is the monotonic arrival time, `wall` the wall-clock time."""
+class GimbalAttitude:
+    """The gimbal's attitude as the camera reported it, in the API convention (degrees; yaw right-,
+    pitch up-, roll right-positive). `t` is the monotonic arrival time, `wall` the wall-clock time.
+    (By role: geo.Attitude is the vehicle's attitude, geo.Pointing the gimbal's angles in a view.)"""
 
     yaw_deg: float
     pitch_deg: float
@@ -32,6 +33,9 @@ class Attitude:
 
     def as_dict(self) -> JSON:
         return asdict(self)
+
+
+Attitude = GimbalAttitude  # its name before issue 44 (topgimbal.client.Attitude): the same class
 
 
 @dataclass(frozen=True)
@@ -65,8 +69,8 @@ TYPED = ("zoom", "recording", "sd", "range_m", "version", "model_name", "tempera
 class StateCache:
     """Last known device state. Each entry is None until the device has said something about it."""
 
-    attitude: Attitude | None = None
-    earth_attitude: Attitude | None = None  # the gyro's earth-frame reading (TOPOTEK GIC / GIA)
+    attitude: GimbalAttitude | None = None
+    earth_attitude: GimbalAttitude | None = None  # the gyro's earth-frame reading (TOPOTEK GIC / GIA)
     zoom: Stamped | None = None  # optical magnification (x) or digital zoom
     recording: Stamped | None = None  # bool
     sd: Stamped | None = None  # SdCard
@@ -136,7 +140,7 @@ _AXES = ("yaw_deg", "pitch_deg", "roll_deg")
 _AXIS_KEYS: dict[str, tuple[str, ...]] = {}  # prefix -> its three keys (per frame on the hot path)
 
 
-def attitude_of(keyed: Mapping[str, object], prefix: str, source: str) -> Attitude | None:
+def attitude_of(keyed: Mapping[str, object], prefix: str, source: str) -> GimbalAttitude | None:
     """An Attitude from `<prefix>.yaw_deg` / `pitch_deg` / `roll_deg` values, when all are there."""
     keys = _AXIS_KEYS.get(prefix)
     if keys is None:
@@ -144,7 +148,7 @@ def attitude_of(keyed: Mapping[str, object], prefix: str, source: str) -> Attitu
     nums = [float(v) for v in map(keyed.get, keys) if isinstance(v, (int, float))]
     if len(nums) != 3:
         return None
-    return Attitude(nums[0], nums[1], nums[2], monotonic(), wall_time(), source)
+    return GimbalAttitude(nums[0], nums[1], nums[2], monotonic(), wall_time(), source)
 
 
 _RECORDING = {"recording": True, "started": True, "start": True, "stopped": False, "stop": False}

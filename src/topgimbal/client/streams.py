@@ -37,7 +37,7 @@ from ..errors import ModelMismatchError, RequestTimeoutError, TopGimbalError
 from ..timeouts import within
 from . import roles
 from .ports import StreamPort
-from .state import Attitude
+from .state import GimbalAttitude
 
 QUEUE_SIZE = 64  # samples held per consumer; the oldest go first when a consumer falls behind
 MAX_TAPS = 64
@@ -52,8 +52,8 @@ class StreamControl:
         self.consumers: weakref.WeakSet[AttitudeStream] = weakref.WeakSet()
         self.manual_rate: float | None = None
         self.device_rate: float | None = None  # what the device was last told; None: off or unknown
-        self._listeners: list[tuple[float, asyncio.Future[Attitude]]] = []
-        self._taps: list[Callable[[Attitude], None]] = []
+        self._listeners: list[tuple[float, asyncio.Future[GimbalAttitude]]] = []
+        self._taps: list[Callable[[GimbalAttitude], None]] = []
         self._task: asyncio.Task[None] | None = None
         self._renewer: asyncio.Task[None] | None = None
         self._expected = False  # what the core was last told (expect_stream)
@@ -207,7 +207,7 @@ class StreamControl:
 
     # -- samples ---------------------------------------------------------------------------------
 
-    def tap(self, callback: Callable[[Attitude], None]) -> Callable[[], None]:
+    def tap(self, callback: Callable[[GimbalAttitude], None]) -> Callable[[], None]:
         """`callback(att)` (sync) for every attitude sample, whatever stream brings it, without a
         consumer's rate thinning or queue (a server republishing every sample: fleet/camera.py).
         Starts no stream; returns a remove function."""
@@ -221,7 +221,7 @@ class StreamControl:
 
         return remove
 
-    def publish(self, att: Attitude) -> None:
+    def publish(self, att: GimbalAttitude) -> None:
         for cb in self._taps:
             try:
                 cb(att)
@@ -257,10 +257,10 @@ class StreamControl:
                 fut.set_exception(error)
         self._listeners = []
 
-    async def next_sample(self, *, newer_than: float, timeout_s: float) -> Attitude:
+    async def next_sample(self, *, newer_than: float, timeout_s: float) -> GimbalAttitude:
         """The next sample from whatever stream runs (none is started here)."""
         loop = asyncio.get_running_loop()
-        fut: asyncio.Future[Attitude] = loop.create_future()
+        fut: asyncio.Future[GimbalAttitude] = loop.create_future()
         self._listeners.append((newer_than, fut))
         try:
             return await within(fut, timeout_s)
@@ -283,7 +283,7 @@ class AttitudeStream:
         self.rate_hz = rate_hz
         self.abandon_after_s = abandon_after_s if abandon_after_s is not None else max(5.0, 50.0 / rate_hz)
         self.dropped = 0  # samples lost because the consumer fell behind
-        self._queue: deque[Attitude | BaseException | None] = deque()
+        self._queue: deque[GimbalAttitude | BaseException | None] = deque()
         self._waiter: asyncio.Future[None] | None = None
         self._readers = 0  # tasks waiting in __anext__
         self._min_gap = 0.9 / rate_hz  # 10 % slack: device clocks drift
@@ -316,7 +316,7 @@ class AttitudeStream:
     def __aiter__(self) -> AttitudeStream:
         return self
 
-    async def __anext__(self) -> Attitude:
+    async def __anext__(self) -> GimbalAttitude:
         if self._closed:
             raise StopAsyncIteration
         if not self._started:
@@ -369,7 +369,7 @@ class AttitudeStream:
     def _abandoned(self, now: float) -> bool:
         return self._waiter is None and now - self._last_pull > self.abandon_after_s
 
-    def _push(self, att: Attitude) -> None:
+    def _push(self, att: GimbalAttitude) -> None:
         if att.t - self._last_t < self._min_gap:
             return
         self._last_t = att.t

@@ -28,7 +28,7 @@ from .identity import Verdict
 from .methods import SyncDriver
 from .notifier import LinkCallback, MessageCallback, TrafficCallback
 from .options import ConnectOptions
-from .state import Attitude, StateCache
+from .state import GimbalAttitude, StateCache
 from .stats import LinkStats
 from .streams import AttitudeStream
 
@@ -251,10 +251,10 @@ class SyncAttitudeStream:
         self._timeout_s = timeout_s
         self._open = True
 
-    def __iter__(self) -> Iterator[Attitude]:
+    def __iter__(self) -> Iterator[GimbalAttitude]:
         return self
 
-    def __next__(self) -> Attitude:
+    def __next__(self) -> GimbalAttitude:
         if not self._open:
             raise StopIteration
         try:
@@ -300,7 +300,7 @@ def _close_quietly(thread: ThreadLoop, aio: AsyncClient) -> None:
         _close(thread, aio, CLOSE_WAIT_S)
 
 
-async def _anext(stream: AttitudeStream) -> Attitude:
+async def _anext(stream: AttitudeStream) -> GimbalAttitude:
     return await stream.__anext__()
 
 
@@ -344,6 +344,6 @@ if TYPE_CHECKING:
     from .state import SdCard
 
     def _typed(g: Gimbal) -> None:  # mypy checks that the facade's methods carry real types
-        assert_type(g.point(1.0, 2.0), Attitude)
+        assert_type(g.point(1.0, 2.0), GimbalAttitude)
         assert_type(g.sd_card(), SdCard)
         assert_type(g.recording(), bool)

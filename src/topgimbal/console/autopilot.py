@@ -2,9 +2,9 @@
 
 The console listens on a UDP port for the autopilot's MAVLink stream (a MAVLink router's or the
 autopilot's own output to that port, as a ground station receives it) and keeps the newest
-GLOBAL_POSITION_INT: position, altitude above mean sea level, home altitude (altitude minus the
-height above home: the flat ground the target is placed on) and heading (`hdg`, else the newest
-ATTITUDE's yaw). It only reads: nothing is sent, to the autopilot or to the camera (a bridge
+GLOBAL_POSITION_INT, read as the bridge reads it (autopilot.vehicle.fix_of: one VehicleFix):
+position, altitude above mean sea level, home altitude (altitude minus the height above home: the
+flat ground the target is placed on) and heading (`hdg`, else the newest ATTITUDE's yaw). It only reads: nothing is sent, to the autopilot or to the camera (a bridge
 feeds the camera). A fix older than STALE_S is not shown; what is not MAVLink is dropped and
 counted. Shown by `api/where` and the page's Vehicle row (where.py)."""
 
@@ -13,9 +13,9 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
-from dataclasses import dataclass
 from typing import Any, cast
 
+from ..autopilot.vehicle import VehicleFix, fix_of
 from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..geo.earth import wrap360
@@ -23,7 +23,6 @@ from ..geo.earth import wrap360
 log = logging.getLogger(__name__)
 
 STALE_S = 3.0  # a fix older than this is not the vehicle's position any more
-NO_HEADING = 65535  # GLOBAL_POSITION_INT.hdg when the autopilot does not know it
 
 
 class AutopilotAddressError(TopGimbalError, ValueError):
@@ -39,16 +38,6 @@ def listen_address(text: str) -> tuple[str, int]:
     return host, int(port)
 
 
-@dataclass(frozen=True)
-class AutopilotFix:
-    lat_deg: float
-    lon_deg: float
-    alt_m: float  # MSL
-    home_alt_m: float
-    heading_deg: float | None
-    sysid: int
-
-
 class AutopilotListener(asyncio.DatagramProtocol):
     """The newest fix heard on one UDP port."""
 
@@ -57,7 +46,7 @@ class AutopilotListener(asyncio.DatagramProtocol):
 
         self._mav = common.MAVLink(None)
         self._mav.robust_parsing = True  # garbage is skipped, not raised
-        self._fix: tuple[float, AutopilotFix] | None = None
+        self._fix: VehicleFix | None = None
         self._yaw: tuple[float, int, float] | None = None  # (time, sysid, degrees) from ATTITUDE
         self.transport: asyncio.DatagramTransport | None = None
         self.dropped = 0
@@ -93,19 +82,15 @@ class AutopilotListener(asyncio.DatagramProtocol):
                 self._position(m)
 
     def _position(self, m: Any) -> None:
-        alt, rel = m.alt / 1000.0, m.relative_alt / 1000.0
-        heading: float | None = m.hdg / 100.0 if m.hdg != NO_HEADING else None
-        yaw = self._yaw
-        if heading is None and yaw is not None and yaw[1] == m.get_srcSystem() and monotonic() - yaw[0] <= STALE_S:
-            heading = yaw[2]
-        fix = AutopilotFix(m.lat / 1e7, m.lon / 1e7, alt, alt - rel, heading, m.get_srcSystem())
-        self._fix = (monotonic(), fix)
+        yaw, now = self._yaw, monotonic()
+        fresh_yaw = yaw is not None and yaw[1] == m.get_srcSystem() and now - yaw[0] <= STALE_S
+        self._fix = fix_of(m, now, yaw[2] if yaw is not None and fresh_yaw else None)
 
-    def fix(self) -> AutopilotFix | None:
+    def fix(self) -> VehicleFix | None:
         """The newest fix, None when there is none or it is stale."""
-        if self._fix is None or monotonic() - self._fix[0] > STALE_S:
+        if self._fix is None or monotonic() - self._fix.t > STALE_S:
             return None
-        return self._fix[1]
+        return self._fix
 
     def close(self) -> None:
         if self.transport is not None:

@@ -34,25 +34,29 @@ CACHE_S = 0.5
 
 
 @dataclass(frozen=True)
-class VehicleFix:
+class VehiclePlace:
+    """Where the console puts the vehicle, and who says so (by role: autopilot.vehicle.VehicleFix is
+    what an autopilot said, client.feeds.FedPosition what a user fed the camera)."""
+
     lat_deg: float
     lon_deg: float
     alt_m: float  # MSL (the simulator: above its flat ground)
     heading_deg: float | None  # true, 0..360
-    source: str  # "feeds" or "camera"
+    source: str  # "feeds", "autopilot" or "camera"
     ground_alt_m: float | None  # the flat ground the target is placed on (None: not known here)
 
 
-def vehicle_fix(cam: Any, sim: Simulator | None, autopilot: AutopilotListener | None = None) -> VehicleFix | None:
+def vehicle_fix(cam: Any, sim: Simulator | None, autopilot: AutopilotListener | None = None) -> VehiclePlace | None:
     """The vehicle's fix from the first source that has one (module docstring), or None."""
     feeds: Any = getattr(cam, "feeds", None)
     fix = getattr(feeds, "fix", None)
     if fix is not None and feeds.fix_fresh():
         heading = None if fix.heading_deg is None else wrap360(fix.heading_deg)
-        return VehicleFix(fix.lat_deg, fix.lon_deg, fix.alt_m, heading, "feeds", None)
+        return VehiclePlace(fix.lat_deg, fix.lon_deg, fix.alt_m, heading, "feeds", None)
     heard = autopilot.fix() if autopilot is not None else None
     if heard is not None:
-        return VehicleFix(heard.lat_deg, heard.lon_deg, heard.alt_m, heard.heading_deg, "autopilot", heard.home_alt_m)
+        p = heard.position
+        return VehiclePlace(p.lat_deg, p.lon_deg, p.alt_m, heard.heading_deg, "autopilot", heard.home_alt_m)
     if sim is None:
         return None
     from ..sim.world import pose_of
@@ -63,7 +67,7 @@ def vehicle_fix(cam: Any, sim: Simulator | None, autopilot: AutopilotListener | 
         return None
     heading = wrap360(pose_of(state.gimbal, pos).vehicle_yaw_deg)
     ground = 0.0 if state.terrain is None else None
-    return VehicleFix(pos.lat_deg, pos.lon_deg, pos.alt_m, heading, "camera", ground)
+    return VehiclePlace(pos.lat_deg, pos.lon_deg, pos.alt_m, heading, "camera", ground)
 
 
 async def where(cam: Any, sim: Simulator | None, autopilot: AutopilotListener | None = None) -> dict[str, Any]:

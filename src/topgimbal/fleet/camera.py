@@ -38,7 +38,7 @@ from ..client.remote_keys import (
     liveliness_key,
     split_call_key,
 )
-from ..client.state import Attitude
+from ..client.state import GimbalAttitude
 from ..clock import MonotonicFn, monotonic, wall_time
 from ..errors import RequestTimeoutError, TopGimbalError
 from ..logtext import untrusted
@@ -81,7 +81,7 @@ def querier_of(query: Any, transports: set[str]) -> str:
     return claim if claim is not None and claim in transports else ANONYMOUS
 
 
-def attitude_json(att: Attitude, seq: int) -> str:
+def attitude_json(att: GimbalAttitude, seq: int) -> str:
     """`{"yaw_deg", "pitch_deg", "roll_deg", "t", "seq"}`; a float's repr is JSON when finite."""
     y, p, r, t = att.yaw_deg, att.pitch_deg, att.roll_deg, att.wall
     if not (isfinite(y) and isfinite(p) and isfinite(r)):
@@ -178,7 +178,7 @@ class ServedCamera:
                 log.debug("%s: attitude stream not started: %s", self.name, exc)
             await asyncio.sleep(1.0)
 
-    def _on_attitude(self, att: Attitude) -> None:
+    def _on_attitude(self, att: GimbalAttitude) -> None:
         """Every sample the client decoded, published at once (a tap, not a consumer: no task, no
         queue, no rate thinning). The JSON is written by hand: json.dumps was a fifth of the cost."""
         if self._closing:

@@ -37,6 +37,23 @@ DataCallback = Callable[["Link", Hashable, bytes], "bool | None"]
 GoneCallback = Callable[["Link", Hashable], None]
 
 
+# Which link and peer a message came from, tagged on the message by the node that received it (the
+# message object is pymavlink's, so an attribute of ours): commands remember it for their fairness
+# bounds, FTP for its sessions, the reboot watch for connections that closed.
+_PEER_ATTR = "_topgimbal_link_peer"
+
+
+def tag_peer(m: Any, link: object, peer: Hashable) -> None:
+    setattr(m, _PEER_ATTR, (str(link), peer))
+
+
+def link_peer(m: Any) -> Hashable | None:
+    """Where a message came from: (link, peer address or connection) as the node saw it; None
+    for a message that did not come through a node (tests that feed a dispatcher directly)."""
+    peer: Hashable | None = getattr(m, _PEER_ATTR, None)
+    return peer
+
+
 class EndpointError(TopGimbalError, ValueError):
     """A MAVLink connection string that cannot be used."""
 

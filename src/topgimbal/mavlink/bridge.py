@@ -13,6 +13,11 @@ import contextlib
 import logging
 from typing import Any
 
+from ..autopilot.reboots import RebootWatch
+from ..autopilot.streams import AutopilotStreams
+from ..autopilot.vehicle import Vehicles
+from ..camdef.definition import file_name, render
+from ..camdef.http import DefinitionServer
 from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..links.endpoints import parse_endpoint
@@ -20,7 +25,6 @@ from ..outputs.cot import CotSender
 from ..outputs.klv_record import Recorder
 from ..timeouts import stop_tasks, within
 from .advertise import Advertiser
-from .autopilot_streams import AutopilotStreams
 from .bridge_build import MAV_TYPE_CAMERA, MAV_TYPE_GIMBAL, NON_MAVLINK_GIMBAL_ID, build_cameras, build_gimbal  # noqa: F401
 from .bridge_config import (  # noqa: F401  # re-exported: the public names of topgimbal.mavlink.bridge
     CAMERA_COMPIDS,
@@ -29,8 +33,6 @@ from .bridge_config import (  # noqa: F401  # re-exported: the public names of t
     BridgeConfig,
     BridgeConfigError,
 )
-from .camdef import file_name, render
-from .camdef_http import DefinitionServer
 from .camera_feed import CameraFeed
 from .camera_link import CameraLink
 from .commands import Dispatcher
@@ -40,10 +42,8 @@ from .features.record import RecordFeature
 from .ftp import FtpServer
 from .node import Node
 from .pointing import Pointer
-from .reboots import RebootWatch
 from .services import Services
 from .survey import survey_for
-from .vehicle import Vehicles
 
 log = logging.getLogger("topgimbal.mavlink")
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..autopilot.vehicle import Vehicles
 from ..outputs.rtp_out import RtpPush, advertised, parse_targets
 from .bridge_config import BridgeConfig, BridgeConfigError
 from .camera import CameraComponent
@@ -17,7 +18,6 @@ from .gimbal_manager import GimbalManager
 from .node import Node
 from .pointing import Pointer
 from .services import Services
-from .vehicle import Vehicles
 
 MAV_TYPE_GIMBAL, MAV_TYPE_CAMERA = 26, 30
 NON_MAVLINK_GIMBAL_ID = 1

@@ -3,7 +3,7 @@ cli/config_args.py copies them from each field's `flag`), its checks, and the id
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -47,6 +47,32 @@ def _camera_compid(args: Any) -> int | None:
         return None
     given = getattr(args, "camera_compid", None)
     return 100 if given is None else int(given)
+
+
+def _feature_options(args: Any) -> dict[str, Any]:
+    from .features import FEATURES
+
+    out = {}
+    for spec in FEATURES:
+        value = spec.from_args(args) if spec.from_args is not None else None
+        if value is not None:
+            out[spec.name] = value
+    return out
+
+
+def _feature_flags() -> dict[str, str]:
+    """{feature name: its first flag} for the features kept in `features` (errors name the flag)."""
+    import argparse
+
+    from .features import FEATURES
+
+    out = {}
+    for spec in FEATURES:
+        if spec.from_args is not None:
+            p = argparse.ArgumentParser(add_help=False)
+            spec.add_arguments(p)
+            out[spec.name] = next(a.option_strings[0] for a in p._actions if a.option_strings)
+    return out
 
 
 def _cot_tls(args: Any) -> CotTls | None:
@@ -99,6 +125,12 @@ class BridgeConfig:
     cot_name: str | None = None  # the camera's name in its CoT uid/callsign (several cameras on one system)
     # DIR: the camera's video as MPEG-TS with MISB ST 0601 KLV (klv_record.py)
     record: str | None = field(default=None, metadata=cli("--record"))
+    # the options of features without a field of their own, {name: value} (features/: each spec's
+    # `from_args` fills its entry from its flags)
+    features: Mapping[str, Any] = field(
+        default_factory=dict,
+        metadata={"flag": None, "convert": None, "from_args": _feature_options, "named_flags": _feature_flags},
+    )
 
     # the host written into the definition URI (advertise.py); None: found
     definition_host: str | None = field(default=None, metadata=cli("--definition-host"))
@@ -150,5 +182,9 @@ class BridgeConfig:
             raise BridgeConfigError(f"max_peers={self.max_peers}: expected 1..256")
         from .features import FEATURES  # each attached feature checks its own options
 
+        unknown = sorted(set(self.features) - {s.name for s in FEATURES if s.from_args is not None})
+        if unknown:
+            known = ", ".join(s.name for s in FEATURES if s.from_args is not None) or "none"
+            raise BridgeConfigError(f"features: unknown feature {unknown[0]!r} (these take options here: {known})")
         for spec in FEATURES:
             spec.check(self)

@@ -13,10 +13,11 @@ import logging
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from ..autopilot.vehicle import Vehicles
+from ..camdef.definition import definition_version, settings_for
 from ..clock import monotonic
 from ..links.mav import mav_id, mavlink, msg_id
 from ..timeouts import stop_tasks
-from .camdef import definition_version, settings_for
 from .camera_extras import CameraExtras
 from .camera_link import CameraLink
 from .camera_photos import CameraPhotos
@@ -27,7 +28,6 @@ from .commands import Command, Outcome, denied, unsupported
 from .gimbal_device import _text, firmware_code, flag_bits
 from .params_ext import ParamsExt
 from .services import Services
-from .vehicle import Vehicles
 
 if TYPE_CHECKING:
     from ..links.mav import MAVLinkMessage

@@ -20,25 +20,25 @@ import logging
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
+from ..autopilot.vehicle import TIME_STALE_S
 from ..client.api_feed import FeedSample, apply_sample
 from ..client.feeds import FedPosition
 from ..clock import monotonic
 from ..errors import TopGimbalError
+from ..periodic import Periodic
 from ..protocol import get_model
 from ..protocol.streams import photo_names
-from .periodic import Periodic
 
 if TYPE_CHECKING:
+    from ..autopilot.vehicle import Vehicles
     from ..links.mav import MAVLinkMessage
     from .camera_link import CameraLink
-    from .vehicle import Vehicles
 
 log = logging.getLogger("topgimbal.mavlink")
 
 PERIOD_S = 0.1
-TIME_STALE_S = 5.0
 SHUTTER_LATENCY_S = 0.005  # the camera's answer after a photo request on a LAN, besides the pacing
-MAX_SHUTTER_LEAD_S = 1.0  # the pushed position is held for a photo at most this long  # a SYSTEM_TIME older than this is not used (the offset is kept by the feeds)
+MAX_SHUTTER_LEAD_S = 1.0  # the pushed position is held for a photo at most this long
 
 
 def file_url(media_url: str | None, model: str, lens: str, answer: Mapping[str, object] | None) -> str:
@@ -119,7 +119,7 @@ class MavlinkSource:
     `max_messages` and returns what the autopilot says now."""
 
     def __init__(self, conn: Any, sysid: int = 1, *, max_messages: int = 500) -> None:
-        from .vehicle import Vehicles
+        from ..autopilot.vehicle import Vehicles
 
         self.conn = conn
         self.max_messages = max_messages

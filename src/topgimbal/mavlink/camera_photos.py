@@ -22,11 +22,11 @@ from .commands import RETRANSMIT_WINDOW_S, Command, Outcome, denied
 from .gimbal_device import _text
 
 if TYPE_CHECKING:
+    from ..autopilot.vehicle import Vehicles
     from ..links.mav import MAVLinkMessage
     from .camera_link import CameraLink
     from .camera_view import CameraView
     from .node import Component
-    from .vehicle import Vehicles
 
 log = logging.getLogger("topgimbal.mavlink")
 

@@ -31,20 +31,20 @@ from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from ..clock import MonotonicFn, monotonic
+from ..geo.aim import ground_point
 from ..geo.earth import wrap180
 from ..links.mav import mavlink
 from ..protocol.picture_tracking import tracking_requests
 from ..protocol.streams import VideoError
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, rejected, unsupported
-from .geo import ground_point
 
 if TYPE_CHECKING:
+    from ..autopilot.vehicle import Vehicles
     from ..client import AsyncClient
     from ..geo import Fix as GeoFix
     from ..protocol import Message
     from ..track import CompanionTracker
-    from .vehicle import Vehicles
 
 log = logging.getLogger("topgimbal.mavlink")
 

@@ -9,19 +9,19 @@ import logging
 import math
 from typing import TYPE_CHECKING, Any, NamedTuple
 
+from ..autopilot.vehicle import VehicleFix, Vehicles
 from ..geo import CORNERS, Attitude, Geodetic, Pointing, Terrain, View
 from ..geo import Fix as GeoFix
 from ..geo import locate as geo_locate
 from ..geo.earth import wrap360
 from ..geo.optics import hfov_at, vfov_for
+from ..geo.quaternion import from_euler_deg
 from ..geo.st0601 import sensor_relative_deg
 from ..links.mav import mavlink
 from ..outputs.sighting import Sighting
 from .camera_link import AttitudeSample, CameraLink
 from .commands import Command, rejected
 from .node import Component
-from .quaternion import from_euler_deg
-from .vehicle import VehicleFix, Vehicles
 
 if TYPE_CHECKING:
     from ..links.mav import MAVLinkMessage

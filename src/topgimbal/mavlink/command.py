@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from ..errors import TopGimbalError
-from .node import link_peer
+from ..links.base import link_peer
 
 if TYPE_CHECKING:
     from ..links.mav import MAVLinkMessage

@@ -20,8 +20,8 @@ from collections import OrderedDict
 from collections.abc import Hashable
 from typing import TYPE_CHECKING
 
+from ..links.base import link_peer
 from ..links.mav import mavlink
-from .node import link_peer
 
 if TYPE_CHECKING:
     from ..links.mav import MAVLinkMessage

@@ -14,6 +14,7 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 from ..clock import monotonic
+from ..geo.quaternion import from_euler_deg, is_valid, to_euler_deg
 from ..links.mav import mavlink, msg_id
 from ..timeouts import stop_tasks
 from .camera_link import AttitudeSample, CameraLink
@@ -29,7 +30,6 @@ from .gimbal_flags import (
     yaw_lock,
 )
 from .pointing import Pointer, Setpoint
-from .quaternion import from_euler_deg, is_valid, to_euler_deg
 from .services import Services
 
 if TYPE_CHECKING:

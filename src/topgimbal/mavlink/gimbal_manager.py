@@ -13,15 +13,15 @@ import logging
 import math
 from typing import TYPE_CHECKING, Any
 
+from ..autopilot.vehicle import Vehicles
+from ..geo.aim import Geodetic, look_at
 from ..links.mav import mav_id, mavlink, msg_id
 from .camera_link import CameraLink
 from .commands import Command, Outcome, denied, rejected, unsupported
-from .geo import Position, look_at
 from .gimbal_device import device_cap_flags, setpoint_from
 from .gimbal_flags import F_NEUTRAL, F_RETRACT, F_YAW_LOCK, yaw_frame, yaw_lock
 from .pointing import Pointer, Setpoint
 from .services import Services
-from .vehicle import Vehicles
 
 if TYPE_CHECKING:
     from ..links.mav import MAVLinkMessage
@@ -60,7 +60,7 @@ class GimbalManager:
         self.gimbal_device_id = gimbal_device_id
         self.primary: tuple[int, int] = (0, 0)
         self.secondary: tuple[int, int] = (0, 0)
-        self.roi: Position | int | None = None  # a place, or a system id to follow
+        self.roi: Geodetic | int | None = None  # a place, or a system id to follow
         # An earth-frame yaw commanded once (DO_GIMBAL_MANAGER_PITCHYAW with YAW_LOCK: what QGC's and
         # MAVSDK's yaw lock send), held while the vehicle turns until another set-point replaces it.
         self.held: Setpoint | None = None
@@ -212,7 +212,7 @@ class GimbalManager:
             sysid = cmd.whole(1, "system id", 1, 255)
             if self.vehicles.fix(sysid) is None:
                 raise rejected(f"no position heard from system {sysid}")
-            target: Position | int = sysid
+            target: Geodetic | int = sysid
         else:
             alt = cmd.finite(7, "altitude in metres")
             lat, lon = cmd.lat_deg, cmd.lon_deg
@@ -223,7 +223,7 @@ class GimbalManager:
                 if fix is None:
                     raise rejected("the vehicle's position is not known yet (no GLOBAL_POSITION_INT)")
                 alt += fix.home_alt_m
-            target = Position(lat, lon, alt)
+            target = Geodetic(lat, lon, alt)
         bearing, pitch = self._aim(target)
         await self._stop_roi()
         self.pointer.cancel_stream()
@@ -232,7 +232,7 @@ class GimbalManager:
         self._roi_task = asyncio.ensure_future(self._follow_roi())
         return Outcome()
 
-    def _aim(self, target: Position | int) -> tuple[float, float]:
+    def _aim(self, target: Geodetic | int) -> tuple[float, float]:
         """Earth-frame (bearing, pitch) in degrees from our vehicle to `target`. The pointer turns
         the bearing into a body angle with the heading when it sends it, and follows the bearing's
         own motion (an ROI passed or orbited) by rate while the vehicle turns."""

@@ -20,6 +20,8 @@ from typing import TYPE_CHECKING, Any
 
 from ..clock import monotonic
 from ..links import memory_link  # noqa: F401  # registers the memory:NAME kind with make_link
+from ..links.base import link_peer as link_peer  # where it was before links/ (issue 44)
+from ..links.base import tag_peer
 from ..links.endpoints import MAX_PEERS, DataCallback, GoneCallback, Link, make_link
 from ..links.mav import mavlink
 from ..links.signing import SignedStreams, sign_outgoing
@@ -31,15 +33,7 @@ log = logging.getLogger("topgimbal.mavlink")
 
 MessageCallback = Callable[[Any], None]
 LinkFactory = Callable[[DataCallback, GoneCallback], Link]  # a link made elsewhere (zenoh_link.py)
-_PEER_ATTR = "_topgimbal_link_peer"
 MAX_REFUSAL_LOGGED = 1024  # peers whose first refusal was logged (then forgotten all at once)
-
-
-def link_peer(m: Any) -> Hashable | None:
-    """Where a message came from: (link, peer address or connection) as the node saw it; None
-    for a message that did not come through a node (tests that feed a dispatcher directly)."""
-    peer: Hashable | None = getattr(m, _PEER_ATTR, None)
-    return peer
 
 
 class _Writer:
@@ -262,7 +256,7 @@ class Node:
             if m.get_srcSystem() == self.sysid and m.get_srcComponent() in self.components:
                 continue  # our own message, echoed by a router
             self.messages_in += 1
-            setattr(m, _PEER_ATTR, (str(link), peer))
+            tag_peer(m, link, peer)
             for cb in [*self._subscribers, *self._handlers.get(m.get_type(), ())]:
                 try:
                     cb(m)

@@ -25,11 +25,11 @@ import math
 import struct
 from typing import TYPE_CHECKING, Any
 
+from ..camdef.definition import Setting
 from ..errors import TopGimbalError
 from ..links.mav import mavlink
 from ..logtext import untrusted
 from ..logthrottle import ThrottledLog
-from .camdef import Setting
 from .camera_link import CameraLink
 from .commands import statustext
 

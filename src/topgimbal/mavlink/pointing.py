@@ -30,14 +30,14 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
+from ..autopilot.vehicle import Vehicles
 from ..clock import monotonic
 from ..errors import TopGimbalError
+from ..geo.earth import wrap180
 from ..logthrottle import ThrottledLog
 from ..timeouts import stop_tasks, within
 from .camera_link import CameraLink
 from .commands import rejected, unsupported
-from .quaternion import wrap180
-from .vehicle import Vehicles
 
 log = logging.getLogger("topgimbal.mavlink")
 

@@ -30,18 +30,18 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..clock import monotonic
+from ..geo.aim import Geodetic, offset_m
 from ..links.mav import mav_id
 from ..timeouts import within
 from .camera_feed import SHUTTER_LATENCY_S
 from .camera_photos import INT32_MAX
 from .commands import Command, Outcome, denied
-from .geo import Position, offset_m
 
 if TYPE_CHECKING:
+    from ..autopilot.vehicle import Vehicles
     from .camera import CameraComponent
     from .commands import Dispatcher
     from .pointing import Pointer
-    from .vehicle import Vehicles
 
 log = logging.getLogger("topgimbal.mavlink")
 
@@ -122,7 +122,7 @@ class ObliqueSurvey:
         record's position) to where the vehicle will be at the next shutter (now plus the time the
         last photo took from request to shutter, carried forward at the vehicle's velocity)."""
         k = 0
-        last: Position | None = None  # where the last photo was taken
+        last: Geodetic | None = None  # where the last photo was taken
         last_t = -math.inf
         lag_s = 0.0  # request to shutter, of the last photo
         await self._aim(rolls[0], pitch_deg)
@@ -150,7 +150,7 @@ class ObliqueSurvey:
             else:
                 lag_s = max(0.0, monotonic() - SHUTTER_LATENCY_S - last_t)
                 known = msg.lat != INT32_MAX
-                last = Position(msg.lat / 1e7, msg.lon / 1e7, ahead.position.alt_m) if known else ahead.position
+                last = Geodetic(msg.lat / 1e7, msg.lon / 1e7, ahead.position.alt_m) if known else ahead.position
                 att = self.camera.cam.attitude
                 shot = Shot(msg.image_index, roll, None if att is None else att.roll_deg, pitch_deg, gone_m)
                 self.shots.append(shot)

@@ -29,7 +29,7 @@ from ..protocol import DeviceModel, Dialect, Frame, Message
 from ..protocol.commands import factory_values, stored_form
 from ..protocol.signs import flip
 from .physics import GimbalPhysics
-from .state import CameraState, NetworkState, Position
+from .state import CameraState, HostFeed, NetworkState
 from .streams import Key, ReportFn, Stream, Streams
 from .targets import Target, TargetView, views
 from .terrain import TerrainGround
@@ -86,7 +86,7 @@ class SimState:
     gimbal: GimbalPhysics
     camera: CameraState
     network: NetworkState = field(default_factory=NetworkState)
-    position: Position = field(default_factory=Position)
+    position: HostFeed = field(default_factory=HostFeed)
     settings: dict[str, dict[str, Any]] = field(default_factory=dict)
     streams: Streams = field(default_factory=Streams)
     uid: int = 0
@@ -242,7 +242,7 @@ class StateView:
         return self.state.camera
 
     @property
-    def position(self) -> Position:
+    def position(self) -> HostFeed:
         return self.state.position
 
     @property

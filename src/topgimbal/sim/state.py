@@ -29,8 +29,10 @@ NO_CLOCK_EPOCH = datetime(1970, 1, 1)
 
 
 @dataclass
-class Position:
-    """What the host tells the camera about the vehicle (LAT/LON/ALT/AZI/GPS)."""
+class HostFeed:
+    """What the host tells the camera about the vehicle (LAT/LON/ALT/AZI/GPS), as the camera keeps
+    it: each value unset until told (by role: the one position type is geo.Geodetic; this is a
+    camera's memory of a feed, client.feeds.FedPosition the feed a user sends)."""
 
     lat_deg: float | None = None
     lon_deg: float | None = None

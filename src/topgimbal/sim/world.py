@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 from ..geo.earth import wrap360
 from .physics import GimbalPhysics, wrap180
-from .state import Position
+from .state import HostFeed
 
 
 @dataclass(frozen=True)
@@ -39,7 +39,7 @@ class WorldPose:
         return self.vehicle_yaw_deg, self.vehicle_pitch_deg, self.vehicle_roll_deg
 
 
-def pose_of(gimbal: GimbalPhysics, position: Position) -> WorldPose:
+def pose_of(gimbal: GimbalPhysics, position: HostFeed) -> WorldPose:
     """The world now (call after the physics was brought up to now)."""
     v = gimbal.vehicle
     yaw, pitch, roll = gimbal.earth()
@@ -48,7 +48,7 @@ def pose_of(gimbal: GimbalPhysics, position: Position) -> WorldPose:
     )
 
 
-def heading_fed(gimbal: GimbalPhysics, position: Position, heading_deg: float) -> None:
+def heading_fed(gimbal: GimbalPhysics, position: HostFeed, heading_deg: float) -> None:
     """The host's heading alone (AZI, GPS): the vehicle's yaw in the world, and what the laser's
     target solution counts from (`position.azimuth_deg`, 0..360 as the frames carry it)."""
     position.azimuth_deg = wrap360(heading_deg)

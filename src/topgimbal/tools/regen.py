@@ -59,7 +59,7 @@ REGISTRY: tuple[Target, ...] = (
         "request()'s typed signature per command (mypy)",
     ),
     Target(
-        "camera-definitions", "contrib/camera-definitions", "topgimbal.mavlink.camdef:all_definitions",
+        "camera-definitions", "contrib/camera-definitions", "topgimbal.camdef.definition:all_definitions",
         "the MAVLink camera definitions, one per model and lens",
     ),
     Target(

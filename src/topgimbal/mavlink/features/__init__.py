@@ -1,14 +1,17 @@
 """Features attached to the bridge core (issue 44): each lives in its own module with its frozen
 config, its CLI flags and an object the bridge attaches (`attach(ctx)`, `start()`, `stop()`).
-FEATURES lists them in the order they attach; a new feature is its module and one line here
+ORDER lists them in the order they attach; a new feature is its module and its name in ORDER
 (docs/architecture.md, "Add a bridge feature")."""
 
 from __future__ import annotations
 
-from . import cot, record, terrain
+import importlib
+
 from .base import BridgeContext, Feature, FeatureSpec
 
 __all__ = ["FEATURES", "BridgeContext", "Feature", "FeatureSpec"]
 
-# terrain first: the views it sets are what the CoT sender and the recorder read
-FEATURES: tuple[FeatureSpec, ...] = (terrain.SPEC, cot.SPEC, record.SPEC)
+# terrain first: the views it sets are what the CoT sender, the recorder and the log read
+ORDER = ("terrain", "cot", "record", "sightings")
+
+FEATURES: tuple[FeatureSpec, ...] = tuple(importlib.import_module(f".{n}", __name__).SPEC for n in ORDER)

@@ -8,19 +8,19 @@ before anything is sent), started after the components and stopped before them."
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from ...errors import TopGimbalError
 
 if TYPE_CHECKING:
+    from ...autopilot.vehicle import Vehicles
     from ...outputs.cot_stream import CotTls
     from ...outputs.sighting import Sighting
     from ..camera import CameraComponent
     from ..commands import Dispatcher
     from ..node import Node
-    from ..vehicle import Vehicles
 
 
 class FeatureConfigError(TopGimbalError, ValueError):
@@ -39,6 +39,9 @@ class BridgeOptions(Protocol):
     cot_tls: CotTls | None
     cot_name: str | None
     record: str | None
+    # the options of features without a field of their own: {feature name: its option value}, filled
+    # by each spec's `from_args` on the CLI (a new feature needs no BridgeConfig field)
+    features: Mapping[str, Any]
 
 
 @dataclass(frozen=True)
@@ -76,9 +79,17 @@ class Feature(Protocol):
 class FeatureSpec:
     """`make(config)`: the feature, None when the config does not ask for it; `check(config)`:
     raises a ValueError for options it cannot use (BridgeConfig.check calls it, nothing started);
-    `add_arguments(parser)`: its flags on `topgimbal mavlink`."""
+    `add_arguments(parser)`: its flags on `topgimbal mavlink`; `from_args(namespace)`: its option
+    value from those flags (None: not asked for), kept in `BridgeConfig.features[name]`, for a
+    feature that has no BridgeConfig field of its own."""
 
     name: str
     make: Callable[[BridgeOptions], Feature | None]
     check: Callable[[BridgeOptions], None]
     add_arguments: Callable[[argparse.ArgumentParser], None]
+    from_args: Callable[[Any], Any] | None = None
+
+
+def option(c: BridgeOptions, name: str) -> Any:
+    """A feature's option in `c.features` (None: not asked for)."""
+    return c.features.get(name)

@@ -19,9 +19,8 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from .camera_feed import TIME_STALE_S  # a SYSTEM_TIME older than this is not handed on
-from .quaternion import is_valid
-from .vehicle import STALE_S  # a fix or attitude older than this is not used
+from ..geo.quaternion import is_valid
+from .vehicle import STALE_S, TIME_STALE_S  # a fix, an attitude, a SYSTEM_TIME older than these is not used
 
 if TYPE_CHECKING:
     from ..links.mav import MAVLinkMessage

@@ -6,22 +6,18 @@ from __future__ import annotations
 
 import math
 
-from ..geo.earth import metres_per_degree, wrap180
-from ..geo.frames import Geodetic, LocalFrame
-from ..geo.terrain import ellipsoid_intersect
-
-# One position type (issue 44): geo's Geodetic (lat, lon degrees, alt m MSL); the name stays for the
-# bridge's code that says Position.
-Position = Geodetic
+from .earth import metres_per_degree, wrap180
+from .frames import Geodetic, LocalFrame
+from .terrain import ellipsoid_intersect
 
 
-def offset_m(a: Position, b: Position) -> tuple[float, float, float]:
+def offset_m(a: Geodetic, b: Geodetic) -> tuple[float, float, float]:
     """North, east, up metres from `a` to `b`."""
     m_lat, m_lon = metres_per_degree((a.lat_deg + b.lat_deg) / 2.0)
     return (b.lat_deg - a.lat_deg) * m_lat, wrap180(b.lon_deg - a.lon_deg) * m_lon, b.alt_m - a.alt_m
 
 
-def look_at(camera: Position, vehicle_yaw_deg: float, target: Position) -> tuple[float, float]:
+def look_at(camera: Geodetic, vehicle_yaw_deg: float, target: Geodetic) -> tuple[float, float]:
     """Body-frame (yaw, pitch) in degrees that point the camera at `target` (yaw relative to the
     vehicle's heading, right-positive, -180..180; pitch up-positive)."""
     north, east, up = offset_m(camera, target)
@@ -32,7 +28,7 @@ def look_at(camera: Position, vehicle_yaw_deg: float, target: Position) -> tuple
     return yaw, pitch
 
 
-def ground_point(camera: Position, bearing_deg: float, pitch_deg: float, ground_alt_m: float) -> Position | None:
+def ground_point(camera: Geodetic, bearing_deg: float, pitch_deg: float, ground_alt_m: float) -> Geodetic | None:
     """Where a ray from `camera` (earth-frame bearing, pitch up-positive) meets ground at
     `ground_alt_m` (a height above the WGS84 ellipsoid, as topgimbal.geo's flat ground); None when it
     looks at or above the horizon or the camera is not above ground."""
@@ -45,4 +41,4 @@ def ground_point(camera: Position, bearing_deg: float, pitch_deg: float, ground_
     if t is None:
         return None
     hit = frame.to_geodetic(d[0] * t, d[1] * t, d[2] * t)
-    return Position(hit.lat_deg, hit.lon_deg, ground_alt_m)
+    return Geodetic(hit.lat_deg, hit.lon_deg, ground_alt_m)

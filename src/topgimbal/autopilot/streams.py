@@ -22,17 +22,24 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from ..clock import MonotonicFn, monotonic
 from ..links.mav import mav_id, mavlink, msg_id
+from ..periodic import Periodic
 from .feed_sources import WATCHED, FeedSources
-from .periodic import Periodic
 from .stream_rates import Answers, Gaps
 
 if TYPE_CHECKING:
     from ..links.mav import MAVLinkMessage
-    from .node import Component
+
+
+class Sender(Protocol):
+    """Where the requests go: a component of the bridge (mavlink.node.Component), which sends as
+    itself on every link; this package asks, the bridge owns the links."""
+
+    def send(self, msg: MAVLinkMessage) -> None: ...
+
 
 log = logging.getLogger("topgimbal.mavlink")
 
@@ -80,7 +87,7 @@ class AutopilotStreams:
         sorted({"HEARTBEAT", "AUTOPILOT_STATE_FOR_GIMBAL_DEVICE", "COMMAND_ACK", *(w.name for w in WANTED), *WATCHED})
     )
 
-    def __init__(self, comp: Component, sysid: int, own_compids: set[int], *, clock: MonotonicFn = monotonic) -> None:
+    def __init__(self, comp: Sender, sysid: int, own_compids: set[int], *, clock: MonotonicFn = monotonic) -> None:
         self.comp = comp
         self.sysid = sysid
         self.own = own_compids

@@ -15,15 +15,16 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..clock import monotonic
-from ..geo.earth import metres_per_degree
-from .geo import Position
-from .quaternion import is_valid, to_euler_deg, wrap180
+from ..geo.earth import metres_per_degree, wrap180
+from ..geo.frames import Geodetic
+from ..geo.quaternion import is_valid, to_euler_deg
 
 if TYPE_CHECKING:
     from ..links.mav import MAVLinkMessage
 
 MAX_SYSTEMS = 32
 STALE_S = 3.0
+TIME_STALE_S = 5.0  # a SYSTEM_TIME older than this is not handed on (the offset is kept by the feeds)
 # A heading is carried forward at the vehicle's yaw rate for at most this long: between two
 # AUTOPILOT_STATE_FOR_GIMBAL_DEVICE (50 Hz) a turning vehicle moves on, and the camera must be
 # told where the heading is now, not where it was 20 ms ago. Beyond this, the rate is not trusted.
@@ -43,7 +44,7 @@ class VehicleFix:
     home, heading, velocity and when (by role: geo.Fix is a located ground point, client.feeds.FedPosition
     what a user feeds the camera)."""
 
-    position: Position
+    position: Geodetic
     relative_alt_m: float
     heading_deg: float | None
     t: float
@@ -52,6 +53,19 @@ class VehicleFix:
     @property
     def home_alt_m(self) -> float:
         return self.position.alt_m - self.relative_alt_m
+
+
+NO_HEADING = 65535  # GLOBAL_POSITION_INT.hdg when the autopilot does not know it
+
+
+def fix_of(m: MAVLinkMessage, t: float, heading_deg: float | None = None) -> VehicleFix:
+    """A GLOBAL_POSITION_INT as a VehicleFix heard at `t`; `heading_deg` stands in for an unknown
+    `hdg` (the console takes the newest ATTITUDE's yaw). The one reading of that message, for the
+    bridge and the console alike."""
+    hdg = heading_deg if m.hdg == NO_HEADING else m.hdg / 100.0
+    velocity = (m.vx / 100.0, m.vy / 100.0, m.vz / 100.0)
+    where = Geodetic(m.lat / 1e7, m.lon / 1e7, m.alt / 1000.0)
+    return VehicleFix(where, m.relative_alt / 1000.0, hdg, t, velocity)
 
 
 class Vehicles:
@@ -79,10 +93,7 @@ class Vehicles:
         kind = m.get_type()
         src = m.get_srcSystem()
         if kind == "GLOBAL_POSITION_INT":
-            hdg = None if m.hdg == 65535 else m.hdg / 100.0
-            velocity = (m.vx / 100.0, m.vy / 100.0, m.vz / 100.0)
-            fix = VehicleFix(Position(m.lat / 1e7, m.lon / 1e7, m.alt / 1000.0), m.relative_alt / 1000.0, hdg, monotonic(),
-                      velocity)  # fmt: skip
+            fix = fix_of(m, monotonic())
             if src == self.sysid and m.get_srcComponent() not in self.own and not (m.lat == 0 and m.lon == 0):
                 self._history.append(fix)
             self._fixes[src] = fix
@@ -156,7 +167,7 @@ class Vehicles:
             if a.t <= t <= b.t:
                 w = (t - a.t) / (b.t - a.t) if b.t > a.t else 1.0
                 pa, pb = a.position, b.position
-                pos = Position(pa.lat_deg + w * (pb.lat_deg - pa.lat_deg), pa.lon_deg + w * (pb.lon_deg - pa.lon_deg),
+                pos = Geodetic(pa.lat_deg + w * (pb.lat_deg - pa.lat_deg), pa.lon_deg + w * (pb.lon_deg - pa.lon_deg),
                                pa.alt_m + w * (pb.alt_m - pa.alt_m))  # fmt: skip
                 rel = a.relative_alt_m + w * (b.relative_alt_m - a.relative_alt_m)
                 return VehicleFix(pos, rel, b.heading_deg, t, b.velocity_ned_m_s)
@@ -225,7 +236,7 @@ def _moved(f: VehicleFix, dt_s: float, t: float) -> VehicleFix:
     lat = p.lat_deg + vn * dt_s / m_lat
     lon = wrap180(p.lon_deg + ve * dt_s / max(0.01 * m_lat, m_lon))
     return VehicleFix(
-        Position(lat, lon, p.alt_m - vd * dt_s), f.relative_alt_m - vd * dt_s, f.heading_deg, t, f.velocity_ned_m_s
+        Geodetic(lat, lon, p.alt_m - vd * dt_s), f.relative_alt_m - vd * dt_s, f.heading_deg, t, f.velocity_ned_m_s
     )
 
 

@@ -22,7 +22,7 @@ from collections import OrderedDict, deque
 from collections.abc import Callable, Hashable
 from typing import TYPE_CHECKING
 
-from .node import link_peer
+from ..links.base import link_peer
 
 if TYPE_CHECKING:
     from ..links.mav import MAVLinkMessage

@@ -1,8 +1,8 @@
 """Write (or check) the MAVLink camera definitions generated from the catalog, one file per model and
 lens, into a directory (the checked-in contrib/camera-definitions).
 
-    python -m topgimbal.mavlink.camdef_files contrib/camera-definitions
-    python -m topgimbal.mavlink.camdef_files --check contrib/camera-definitions   # exit 1 when stale
+    python -m topgimbal.camdef.files contrib/camera-definitions
+    python -m topgimbal.camdef.files --check contrib/camera-definitions   # exit 1 when stale
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .camdef import all_definitions
+from .definition import all_definitions
 
 
 def stale(directory: Path) -> list[str]:

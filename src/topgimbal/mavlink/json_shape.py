@@ -1,8 +1,0 @@
-"""Moved to `topgimbal.links.json_shape` (issue 44: the links are the layer under the bridge); the old
-import path stays an alias of the new module, so code that imports it keeps working."""
-
-import sys
-
-from ..links import json_shape as _moved
-
-sys.modules[__name__] = _moved
