@@ -122,3 +122,16 @@ async def test_the_bridge_logs_where_the_camera_looks_once_the_vehicle_is_known(
     # 100 m above home at -45 deg: the image centre is on flat ground ~100 m north
     assert last["target"] is not None and math.isclose(last["target"]["range_m"], 141.4, abs_tol=2.0)
     assert last["target"]["lat_deg"] > 47.0
+
+
+@pytest.mark.looptime
+async def test_the_log_closes_its_file_when_its_loop_is_stopped(tmp_path: Path) -> None:
+    log = SightingsLog(str(tmp_path / "s.jsonl"), sighting, period_s=1.0)
+    task = asyncio.ensure_future(log.run())
+    await asyncio.sleep(2.5)  # three lines: at 0, 1 and 2 s
+    assert log._file is not None and not log._file.closed
+    task.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await task
+    assert log._file is None and log.lines == 3
+    assert len((tmp_path / "s.jsonl").read_text().splitlines()) == 3

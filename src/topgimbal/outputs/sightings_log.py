@@ -123,13 +123,17 @@ class SightingsLog:
         return True
 
     async def run(self) -> None:
-        while True:
-            try:
-                self.write_once()
-            except OSError as exc:  # a full disk, a file removed under us: say it, stop this output only
-                log.warning("sightings %s: %s: no more lines are written", self.path, exc.strerror or exc)
-                return
-            await asyncio.sleep(self.period_s)
+        """Until cancelled; the file is closed when it ends."""
+        try:
+            while True:
+                try:
+                    self.write_once()
+                except OSError as exc:  # a full disk, a file removed under us: say it, stop this output only
+                    log.warning("sightings %s: %s: no more lines are written", self.path, exc.strerror or exc)
+                    return
+                await asyncio.sleep(self.period_s)
+        finally:
+            self.close()
 
     def close(self) -> None:
         if self._file is not None:

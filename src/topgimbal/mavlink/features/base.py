@@ -8,6 +8,7 @@ before anything is sent), started after the components and stopped before them."
 from __future__ import annotations
 
 import argparse
+import logging
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
@@ -21,6 +22,9 @@ if TYPE_CHECKING:
     from ..camera import CameraComponent
     from ..commands import Dispatcher
     from ..node import Node
+
+
+log = logging.getLogger("topgimbal.mavlink")
 
 
 class FeatureConfigError(TopGimbalError, ValueError):
@@ -73,6 +77,45 @@ class Feature(Protocol):
     async def start(self) -> None: ...
 
     async def stop(self) -> None: ...
+
+
+class Output(Protocol):
+    """An output fed the sighting port: it runs until cancelled and closes what it holds."""
+
+    async def run(self) -> None: ...
+
+
+class SightingOutput:
+    """A feature that feeds the first camera's sighting port to an output (CoT, the sightings log):
+    the output is built at attach (`build`, given the port), run as a task from start, and that task
+    is stopped at stop, bounded. A bridge with no camera has no port: said once, nothing built."""
+
+    name = "output"
+
+    def __init__(self) -> None:
+        self.output: Output | None = None
+        self._tasks: list[Any] = []  # the output's run(): one asyncio.Task
+
+    def build(self, ctx: BridgeContext, source: Callable[[], Sighting | None]) -> Output:
+        raise NotImplementedError
+
+    def attach(self, ctx: BridgeContext) -> None:
+        source = ctx.sighting()
+        if source is None:
+            log.warning("%s: no camera component on this bridge: nothing to send", self.name)
+            return
+        self.output = self.build(ctx, source)
+
+    async def start(self) -> None:
+        import asyncio
+
+        if self.output is not None:
+            self._tasks.append(asyncio.ensure_future(self.output.run()))
+
+    async def stop(self) -> None:
+        from ...timeouts import stop_tasks
+
+        await stop_tasks(self._tasks, self.name)
 
 
 @dataclass(frozen=True)

@@ -4,17 +4,16 @@
 from __future__ import annotations
 
 import argparse
-import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from .base import BridgeContext, BridgeOptions, FeatureSpec
+from .base import BridgeContext, BridgeOptions, FeatureSpec, SightingOutput
 
 if TYPE_CHECKING:  # loaded when a bridge is made: the flags alone keep `topgimbal --help` light
     from ...outputs.cot import CotSender
     from ...outputs.cot_stream import CotTls
-
-log = logging.getLogger("topgimbal.mavlink")
+    from ...outputs.sighting import Sighting
 
 
 @dataclass(frozen=True)
@@ -24,34 +23,20 @@ class CotConfig:
     name: str | None  # the camera's name in its uid / callsign (several cameras on one system)
 
 
-class CotFeature:
+class CotFeature(SightingOutput):
     name = "cot"
 
     def __init__(self, config: CotConfig) -> None:
+        super().__init__()
         self.config = config
         self.sender: CotSender | None = None
-        self._tasks: list[Any] = []  # the sender's run(): one asyncio.Task
 
-    def attach(self, ctx: BridgeContext) -> None:
-        source = ctx.sighting()
-        if source is None:
-            log.warning("cot: no camera component on this bridge: nothing to send")
-            return
+    def build(self, ctx: BridgeContext, source: Callable[[], Sighting | None]) -> CotSender:
         from ...outputs.cot import CotSender, cot_names
 
         uid, callsign = cot_names(ctx.sysid, ctx.model, self.config.name)
         self.sender = CotSender(self.config.url, source, uid=uid, callsign=callsign, tls=self.config.tls)
-
-    async def start(self) -> None:
-        import asyncio
-
-        if self.sender is not None:
-            self._tasks.append(asyncio.ensure_future(self.sender.run()))
-
-    async def stop(self) -> None:
-        from ...timeouts import stop_tasks
-
-        await stop_tasks(self._tasks, "cot")
+        return self.sender
 
 
 def make(c: BridgeOptions) -> CotFeature | None:

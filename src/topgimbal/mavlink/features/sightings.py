@@ -5,16 +5,15 @@ without a BridgeConfig field: its option lives in `BridgeConfig.features["sighti
 from __future__ import annotations
 
 import argparse
-import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from .base import BridgeContext, BridgeOptions, FeatureSpec, option
+from .base import BridgeContext, BridgeOptions, FeatureSpec, SightingOutput, option
 
 if TYPE_CHECKING:  # loaded when a bridge is made: the flags alone keep `topgimbal --help` light
+    from ...outputs.sighting import Sighting
     from ...outputs.sightings_log import SightingsLog
-
-log = logging.getLogger("topgimbal.mavlink")
 
 
 @dataclass(frozen=True)
@@ -22,35 +21,17 @@ class SightingsConfig:
     path: str
 
 
-class SightingsFeature:
+class SightingsFeature(SightingOutput):
     name = "sightings"
 
     def __init__(self, config: SightingsConfig) -> None:
+        super().__init__()
         self.config = config
-        self.log: SightingsLog | None = None
-        self._tasks: list[Any] = []  # the log's run(): one asyncio.Task
 
-    def attach(self, ctx: BridgeContext) -> None:
-        source = ctx.sighting()
-        if source is None:
-            log.warning("sightings: no camera component on this bridge: nothing to log")
-            return
+    def build(self, ctx: BridgeContext, source: Callable[[], Sighting | None]) -> SightingsLog:
         from ...outputs.sightings_log import SightingsLog
 
-        self.log = SightingsLog(self.config.path, source)
-
-    async def start(self) -> None:
-        import asyncio
-
-        if self.log is not None:
-            self._tasks.append(asyncio.ensure_future(self.log.run()))
-
-    async def stop(self) -> None:
-        from ...timeouts import stop_tasks
-
-        await stop_tasks(self._tasks, "sightings")
-        if self.log is not None:
-            self.log.close()
+        return SightingsLog(self.config.path, source)  # closes its file when its run() ends
 
 
 def make(c: BridgeOptions) -> SightingsFeature | None:
