@@ -1,5 +1,5 @@
 """One step every period, from `start()` until `close()`: the loop of the bridge's parts that act on
-a timer (autopilot_streams.py asks for what is missing, camera_feed.py feeds the camera). `close()`
+a timer (autopilot/streams.py asks for what is missing, mavlink/camera_feed.py feeds the camera). `close()`
 cancels it and waits until it has ended, so nothing of a closed bridge is left running; a step that
 raised is logged once (it ended the loop) rather than raised out of `close()`, which would leave the
 bridge's later parts open."""

@@ -1,6 +1,6 @@
 """Where each of the camera's feeds comes from, for the operator (`topgimbal mavlink --status`,
 `Bridge.info()["feeds"]`): the position, the vehicle attitude, the heading and the UTC time that the
-bridge takes from the autopilot (vehicle.py, camera_feed.py) and hands to the camera, its geotags,
+bridge takes from the autopilot (vehicle.py, mavlink/camera_feed.py) and hands to the camera, its geotags,
 earth-frame yaw and CAMERA_FOV_STATUS.
 
 For each feed: the MAVLink message in use, the system/component that sent it, its measured rate

@@ -134,7 +134,7 @@ class BridgeConfig:
 
     # the host written into the definition URI (advertise.py); None: found
     definition_host: str | None = field(default=None, metadata=cli("--definition-host"))
-    # ask the autopilot for GLOBAL_POSITION_INT and SYSTEM_TIME (autopilot_streams.py)
+    # ask the autopilot for GLOBAL_POSITION_INT and SYSTEM_TIME (autopilot/streams.py)
     request_streams: bool = field(default=True, metadata=cli("--no-request-streams", _not))
 
     def definition_address(self) -> tuple[str, int] | None:

@@ -74,7 +74,7 @@ class CameraPhotos:
         return [msg]
 
     def forget_sequences(self, sysid: int) -> None:
-        """A peer rebooted (mavlink/reboots.py): its capture sequence starts again at 1."""
+        """A peer rebooted (autopilot/reboots.py): its capture sequence starts again at 1."""
         for key in [k for k in self._last_sequence if k[0] == sysid]:
             del self._last_sequence[key]
         log.info("system %d rebooted: its next capture sequence numbers are new photos", sysid)

@@ -16,7 +16,7 @@ The status is honest (docs/mavlink.md, "Object tracking"):
   or "stopped" without a stop from us, "lens cannot track", or no "tracking" within START_GRACE_S.
   SkyDroid cameras have no such query: their status stays ACTIVE until a stop (docs/errata.md E41).
 CAMERA_TRACKING_GEO_STATUS gives where the estimated line of sight meets flat ground
-(mavlink/geo.py) when the vehicle's position and heading are known; it is sent only then.
+(geo/aim.py) when the vehicle's position and heading are known; it is sent only then.
 Both are streamed at the interval a ground station sets (SET_MESSAGE_INTERVAL; off by default).
 """
 
