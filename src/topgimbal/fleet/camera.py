@@ -123,6 +123,9 @@ class ServedCamera:
         self._seen: dict[str, float] = {}  # querier -> when it last asked (bounded: MAX_QUERIERS)
         self._call_querier: dict[asyncio.Task[None], tuple[str, bool]] = {}  # (querier, had a transport)
         self.gone = 0  # calls cancelled because their querier left
+        # cancelled and not yet ended: the transport event and the poll may both see such a call
+        # before it ends, and it is one call gone, counted once
+        self._cancelled: set[asyncio.Task[None]] = set()
         self._link_lost: str | None = None
         self._last_state: str | None = None
         self._throttle = ThrottledLog(log, BUSY_LOG_EVERY_S)
@@ -307,6 +310,7 @@ class ServedCamera:
 
     def _call_done(self, task: asyncio.Task[None]) -> None:
         self._calls.discard(task)
+        self._cancelled.discard(task)
         querier, _direct = self._call_querier.pop(task, (ANONYMOUS, False))
         left = self._by_querier.get(querier, 1) - 1
         if left > 0:
@@ -341,7 +345,10 @@ class ServedCamera:
         """Cancels the calls of queriers whose transport is not in `present`; with no transport
         left at all, every call (one naming no transport too: nobody is left to read it)."""
         for task, (querier, direct) in list(self._call_querier.items()):
-            if not task.done() and ((direct and querier not in present) or not present):
+            if task.done() or task in self._cancelled:
+                continue
+            if (direct and querier not in present) or not present:
+                self._cancelled.add(task)
                 self.gone += 1
                 log.info("%s: a call's querier %s has gone: cancelled (%d in all)", self.name, querier, self.gone)
                 task.cancel(msg="querier gone")
