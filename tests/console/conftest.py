@@ -167,6 +167,8 @@ def open_console(browser: Any, bg: BackgroundConsole, errors: list[str], link: s
     page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
     page.goto(bg.url)
     page.wait_for_selector("body[data-ready='1']", timeout=30_000)
+    # the video panel (above the controls) shown or not: nothing moves under a pointer after this
+    page.wait_for_selector("body[data-video]", state="attached", timeout=30_000)
     wait_for_testid(page, "link", f"e.dataset.state === '{link}'")
     return page
 

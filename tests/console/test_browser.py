@@ -133,18 +133,23 @@ def test_drag_pad_arrow_keys_and_stop(page: Any, c12: BackgroundConsole) -> None
     # yaw rate) or beside it (no rate at all), beside three busy loops 2 runs of 2
     pad.hover()
     box = pad.bounding_box()
-    cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
-    page.mouse.move(cx, cy)
+    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
     page.mouse.down()
-    wait_for(lambda: "active" in (pad.get_attribute("class") or "").split(), what="the pad pressed")
-    page.mouse.move(box["x"] + box["width"] - 4, cy, steps=5)  # full right: yaw rate only
-    # what a timeout shows: the yaw, what the page asked, what it was told (a run beside a busy CI
-    # once saw no turn within 10 s, and nothing more)
-    until_blocking("the gimbal turning right while the pad is held", lambda: _motion_seen(c12, page),
-                   lambda seen: seen[0] > 2.0, bound_s=30)  # fmt: skip
-    readout_text = page.get_by_test_id("rate-readout").inner_text()
-    assert re.fullmatch(r"rate [1-9][\d.]* / 0 °/s", readout_text), readout_text  # a level drag: no pitch rate
-    page.mouse.up()
+    try:
+        wait_for(lambda: "active" in (pad.get_attribute("class") or "").split(), what="the pad pressed")
+        # The pad's box read again now, for the level move: the page can still move it after hover()
+        # (a panel shown late above it); from a stale box the move was not level, and the page asked
+        # for a pitch rate too ("rate 12.1 / 2.1", a fresh-clone run at load 3.8).
+        box = pad.bounding_box()
+        page.mouse.move(box["x"] + box["width"] - 4, box["y"] + box["height"] / 2, steps=5)  # full right: yaw only
+        # what a timeout shows: the yaw, what the page asked, what it was told (a run beside a busy CI
+        # once saw no turn within 10 s, and nothing more)
+        until_blocking("the gimbal turning right while the pad is held", lambda: _motion_seen(c12, page),
+                       lambda seen: seen[0] > 2.0, bound_s=30)  # fmt: skip
+        readout_text = page.get_by_test_id("rate-readout").inner_text()
+        assert re.fullmatch(r"rate [1-9][\d.]* / 0 °/s", readout_text), readout_text  # a level drag: no pitch rate
+    finally:
+        page.mouse.up()  # released whatever happened: the shared camera must not go on turning
     wait_for(lambda: _settled(c12), 30, what="the gimbal stopping when the pad is released")
     assert abs(gimbal(c12)[1]) < 1.0  # the pitch did not move
     assert gimbal(c12)[0] < 60.0  # stopped by the release, not by the end of its travel
@@ -164,6 +169,7 @@ def test_drag_pad_arrow_keys_and_stop(page: Any, c12: BackgroundConsole) -> None
 
 
 def test_errors_are_shown(page: Any, c12: BackgroundConsole) -> None:
+    wait_for(lambda: _settled(c12), 30, what="the shared camera standing still")  # "nothing was sent" needs it
     before = gimbal(c12)
     page.get_by_test_id("angle-yaw").fill("200")
     page.get_by_test_id("btn-point").click()

@@ -92,7 +92,9 @@ function decodeStamp(ctx, w, h) {
 
 async function start() {
   let info;
-  try { info = await fetchJSON("api/video"); } catch { return; }   // no video extra: no panel
+  // body[data-video] says the panel is decided ("none" or "shown"): the page's layout above the
+  // controls is final from then on (the panel sits above them), which is what a test waits for
+  try { info = await fetchJSON("api/video"); } catch { document.body.dataset.video = "none"; return; }   // no video extra: no panel
   panel.hidden = false;
   const views = Object.fromEntries(info.lenses.map((l) => [l.lens, view(l.lens, l.size)]));
   const stage = el("div", { class: "vstage pip", "data-testid": "video-stage" });
@@ -121,6 +123,7 @@ async function start() {
   const hint = el("p", { class: "muted small", "data-testid": "video-hint" }, "click: point there · drag: track the box · wheel: zoom");
   panel.append(stage, tools, hint);
   layout();
+  document.body.dataset.video = "shown";
   const track = { views, tracking, trackStop, hint, plan: null };
   consoleReady.then((api) => setUpTracking(api, track));
   const pathLabel = el("span", { class: "vpath muted small", "data-testid": "video-path" }, "");
