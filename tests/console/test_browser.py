@@ -307,10 +307,14 @@ def test_laser_range_and_target_position(
         distance = page.get_by_test_id("range")
         wait_for(lambda: distance.inner_text().endswith(" m"), 8, what="a distance")
         assert float(distance.inner_text()[:-2]) == pytest.approx(100 * 2**0.5, abs=3.0)
-        lat = page.get_by_test_id("target-lat")
-        wait_for(lambda: lat.inner_text().endswith("°"), 8, what="the target latitude")
+        # the camera reports the target's latitude and longitude in two messages: the page shows
+        # each when it comes (a run read the longitude's "–" a moment after the latitude had come)
+        lat, lon = page.get_by_test_id("target-lat"), page.get_by_test_id("target-lon")
+        wait_for(
+            lambda: lat.inner_text().endswith("°") and lon.inner_text().endswith("°"), 8, what="the target position"
+        )
         assert float(lat.inner_text()[:-1]) == pytest.approx(47.5, abs=0.01)
-        assert float(page.get_by_test_id("target-lon").inner_text()[:-1]) == pytest.approx(8.25, abs=0.01)
+        assert float(lon.inner_text()[:-1]) == pytest.approx(8.25, abs=0.01)
         shot(page, artifacts, "range", "-sip")
     finally:
         page.context.close()
