@@ -274,13 +274,13 @@ async def test_px4_roi_while_the_vehicle_yaws(rig_factory: Any) -> None:
             await until(lambda: g.position is not None and g.position.lat != 0, BOOT_S, "a GPS fix from PX4")
             await gcs_streams(g)
             await until(lambda: r.bridge.vehicles.attitude_deg() is not None, 30, "AUTOPILOT_STATE_FOR_GIMBAL_DEVICE")
-            await _roi_turn(g, r.sim.gimbal, rows)
+            await _roi_turn(g, r.sim.gimbal, rows, r.bridge)
     finally:
         print("\n".join(rows))
         shutil.rmtree(work, ignore_errors=True)
 
 
-async def _roi_turn(g: Gcs, gim: Any, rows: list[str]) -> None:
+async def _roi_turn(g: Gcs, gim: Any, rows: list[str], bridge: Any) -> None:
     """Take off to 20 m, point at a place 80 m away (DO_SET_ROI_LOCATION to PX4), yaw TURN_DEG at
     MPC_YAWRAUTO_MAX (DO_REPOSITION with a yaw, radians in PX4); sample the camera's earth yaw
     error at each ATTITUDE more than 10 deg from the turn's start and end."""
@@ -314,6 +314,8 @@ async def _roi_turn(g: Gcs, gim: Any, rows: list[str]) -> None:
     when: list[float] = []
 
     offsets: list[float] = []
+    seen_rates: list[float] = []  # the vehicle's yaw rate as the bridge had it, at each sample
+    follow_before = bridge.pointer.rate_follow_sent
 
     def sample(att: Any) -> None:
         # the heading when we read the camera: ATTITUDE's, carried forward over its delay to us (the
@@ -325,6 +327,7 @@ async def _roi_turn(g: Gcs, gim: Any, rows: list[str]) -> None:
         if abs(_wrap180(heading - start)) > 10 and abs(_wrap180(heading - end)) > 10:
             errors.append(abs(_wrap180(heading + gim.yaw_deg - bearing())))
             when.append(time.monotonic())
+            seen_rates.append(bridge.vehicles.yaw_rate_deg_s)
 
     g.on_attitude = sample
     try:
@@ -340,4 +343,7 @@ async def _roi_turn(g: Gcs, gim: Any, rows: list[str]) -> None:
     p95 = _percentile(errors, 95)
     rows.append(f"ROI while yawing at {rate:.1f} deg/s: earth yaw error p50 {_percentile(errors, 50):.2f} p95 "
                 f"{p95:.2f} max {max(errors):.2f} deg ({len(errors)} samples)")  # fmt: skip
+    rows.append(f"  the bridge's vehicle yaw rate p5 / p50 / p95 {_percentile(seen_rates, 5):.2f} / "
+                f"{_percentile(seen_rates, 50):.2f} / {_percentile(seen_rates, 95):.2f} deg/s; "
+                f"{bridge.pointer.rate_follow_sent - follow_before} rate commands holding the bearing")  # fmt: skip
     assert p95 <= ROI_GOAL_P95_DEG
