@@ -168,6 +168,19 @@ def test_drag_pad_arrow_keys_and_stop(page: Any, c12: BackgroundConsole) -> None
     center(c12, page)
 
 
+def test_the_controls_stay_put_once_the_layout_is_final(page: Any) -> None:
+    """From body[data-video] on (what open_console waits for) nothing above the controls changes
+    its height: the video's late texts (which path plays it, its latency) filled a line of their own
+    after it, and moved the pad 14 px down under a pointer held on it (two fresh-clone runs: a level
+    drag read "rate 12.1 / 2.1 °/s")."""
+    assert page.evaluate("document.body.dataset.video") == "shown"  # the C12 console has a picture
+    top = page.get_by_test_id("pad").bounding_box()["y"]
+    path = page.get_by_test_id("video-path")
+    wait_for(lambda: path.inner_text().startswith("video: visible"), 30, what="the video's path said")
+    wait_for(lambda: page.get_by_test_id("video-latency").inner_text() != "", 30, what="the video's latency said")
+    assert page.get_by_test_id("pad").bounding_box()["y"] == top
+
+
 def test_errors_are_shown(page: Any, c12: BackgroundConsole) -> None:
     wait_for(lambda: _settled(c12), 30, what="the shared camera standing still")  # "nothing was sent" needs it
     before = gimbal(c12)

@@ -121,16 +121,20 @@ async function start() {
   const trackStop = el("button", { type: "button", "data-testid": "btn-track-stop", hidden: "" }, "Stop tracking");
   tools.append(tracking, trackStop, latency);
   const hint = el("p", { class: "muted small", "data-testid": "video-hint" }, "click: point there · drag: track the box · wheel: zoom");
+  // the path's line is there, one line high, before the panel counts as shown: its text came later
+  // and took a line of its own then, which moved every control below under a held pointer (a level
+  // drag on the pad became a pitch rate)
+  const pathLabel = el("span", { class: "vpath muted small", "data-testid": "video-path" }, "video: starting…");
+  tools.append(pathLabel);
   panel.append(stage, tools, hint);
   layout();
   document.body.dataset.video = "shown";
   const track = { views, tracking, trackStop, hint, plan: null };
   consoleReady.then((api) => setUpTracking(api, track));
-  const pathLabel = el("span", { class: "vpath muted small", "data-testid": "video-path" }, "");
-  tools.append(pathLabel);
   const showPaths = () => {
     pathLabel.textContent = "video: " + lensNames.map((n) => `${n} ${views[n].path === "webrtc"
       ? "WebRTC (H.264 as the camera sends it)" : "MJPEG (the server's relay)"}`).join(" · ");
+    pathLabel.title = pathLabel.textContent;   // the whole text where the line cuts it
   };
   const byLens = Object.fromEntries(info.lenses.map((l) => [l.lens, l]));
   for (const v of Object.values(views)) {
