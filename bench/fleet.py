@@ -14,6 +14,7 @@ assertions:
 - CPU seconds per wall second of the server process and of the simulator process, per camera.
 
     python bench/fleet.py --cameras 10,100 --rate-hz 50 --seconds 10
+    python bench/fleet.py --cameras 1000 --rate-hz 50 --batched     # the batch key, topgimbal/@attitude/*
 
 Loopback only (tcp/127.0.0.1, scouting off). On a shared, loaded machine the figures say what this
 machine could do at that moment: the script prints the load average next to them."""
@@ -100,25 +101,38 @@ class Subscriber:
         self.repeated = 0  # a seq not above the last one: a copy or a reordering
         self.last_seq: dict[str, int] = {}
         self.latency: list[float] = []
+        self.puts = 0  # batch puts heard (--batched)
 
     def __call__(self, sample: Any) -> None:
         now = time.time()
         d = json.loads(sample.payload.to_bytes())
-        k = str(sample.key_expr)
         with self.lock:
-            prev = self.last_seq.get(k)
-            self.last_seq[k] = d["seq"]
-            if not self.counting:
-                return
-            self.count += 1
-            if prev is not None and d["seq"] > prev + 1:
-                self.lost += d["seq"] - prev - 1
-            elif prev is not None and d["seq"] <= prev:
-                self.repeated += 1
-            self.latency.append(now - d["t"])
+            self._one(str(sample.key_expr), d, now)
+
+    def batch(self, sample: Any) -> None:
+        """A put on the batch key (`--batched`): a JSON array of samples, each with its camera's name."""
+        now = time.time()
+        rows = json.loads(sample.payload.to_bytes())
+        with self.lock:
+            self.puts += 1
+            for d in rows:
+                self._one(d["name"], d, now)
+
+    def _one(self, k: str, d: dict[str, Any], now: float) -> None:
+        prev = self.last_seq.get(k)
+        self.last_seq[k] = d["seq"]
+        if not self.counting:
+            return
+        self.count += 1
+        if prev is not None and d["seq"] > prev + 1:
+            self.lost += d["seq"] - prev - 1
+        elif prev is not None and d["seq"] <= prev:
+            self.repeated += 1
+        self.latency.append(now - d["t"])
 
 
-async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int = 0) -> dict[str, Any]:
+async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int = 0,
+              batched: bool = False) -> dict[str, Any]:  # fmt: skip
     import zenoh
 
     from topgimbal import connect
@@ -149,7 +163,10 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
             conf.insert_json5(k, json.dumps(v))
         session = zenoh.open(conf)
         sub = Subscriber()
-        zsub = session.declare_subscriber("topgimbal/*/attitude", sub)
+        if batched:  # every camera's samples together (docs/fleet.md, the batch key)
+            zsub = session.declare_subscriber("topgimbal/@attitude/*", sub.batch)
+        else:
+            zsub = session.declare_subscriber("topgimbal/*/attitude", sub)
         # warm up: every camera streaming
         for _ in range(600):
             if len(sub.last_seq) >= n:
@@ -163,7 +180,7 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
         await asyncio.sleep(seconds)
         with sub.lock:
             sub.counting = False
-            count, lost, repeated, lat = sub.count, sub.lost, sub.repeated, list(sub.latency)
+            count, lost, repeated, lat, puts = sub.count, sub.lost, sub.repeated, list(sub.latency), sub.puts
         wall = time.monotonic() - t0
         cpu1 = (tree_cpu_s(server.pid), cpu_s(sims.pid), main_thread_cpu_s(server.pid))
         streaming = len(sub.last_seq)
@@ -189,7 +206,8 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
                     drtt.append(time.perf_counter() - t)
         zsub.undeclare()
         return {
-            "cameras": n, "workers": workers or "auto", "rate_hz": rate_hz, "seconds": round(wall, 2), "streaming": streaming,
+            "cameras": n, "workers": workers or "auto", "subscribed": "batch key" if batched else "per-camera keys",
+            "batch_puts_per_s": round(puts / wall, 1), "rate_hz": rate_hz, "seconds": round(wall, 2), "streaming": streaming,
             "delivered_per_s": round(count / wall, 1), "nominal_per_s": n * rate_hz,
             "of_nominal_pct": round(100 * count / wall / (n * rate_hz), 1),
             "lost_server_to_subscriber_pct": round(100 * lost / max(1, count + lost), 3),
@@ -226,10 +244,12 @@ def main() -> None:
     ap.add_argument("--calls", type=int, default=200, help="command round trips per path")
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--workers", type=int, default=0, help="topgimbal zenoh --workers (default 0: automatic)")
+    ap.add_argument("--batched", action="store_true",
+                    help="subscribe to the batch key topgimbal/@attitude/* instead of topgimbal/*/attitude")  # fmt: skip
     args = ap.parse_args()
     print(f"cores {os.cpu_count()}, load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     for n in (int(x) for x in args.cameras.split(",")):
-        r = asyncio.run(run(n, args.rate_hz, args.seconds, args.calls, args.workers))
+        r = asyncio.run(run(n, args.rate_hz, args.seconds, args.calls, args.workers, args.batched))
         r["load_after"] = round(os.getloadavg()[0], 2)
         if args.json:
             print(json.dumps(r))

@@ -48,6 +48,16 @@ def _calls(text: str) -> int:
     return int(text)
 
 
+def _batch_ms(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not (v == 0 or 1 <= v <= 1000):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected 0 (no batch key) or 1..1000 ms")
+    return v
+
+
 def _workers(text: str) -> int:
     from .zenoh_workers import MAX_WORKERS
 
@@ -103,6 +113,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--mode", choices=("peer", "client"), default="peer", help="Zenoh session mode (default peer)")
     p.add_argument("--config", metavar="FILE", help="Zenoh configuration file (TLS, user/password, access control)")
     p.add_argument("--rate-hz", type=_rate, default=50.0, help="attitude stream rate asked of each camera (default 50)")
+    p.add_argument("--batch-ms", type=_batch_ms, default=5.0, metavar="MS",
+                   help="also put every camera's attitude samples together on topgimbal/@attitude/<server id>, "
+                   "one JSON array at most MS ms after its first sample (default 5; 0: no batch key)")  # fmt: skip
     p.add_argument("--max-calls", type=_calls, default=8, help="calls in progress per camera (default 8)")
     p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds (default 1)")
     p.add_argument("--mavlink-keys", action="store_true",
@@ -206,7 +219,8 @@ def run(args: argparse.Namespace) -> int:
         server = FleetServer(specs, listen=args.listen, connect=args.connect, mode=args.mode, config_file=args.config,
                              rate_hz=args.rate_hz, max_calls=args.max_calls,
                              client_options={"timeout_s": args.timeout}, allow_remote=allowed,
-                             insecure=args.insecure)  # fmt: skip
+                             insecure=args.insecure,
+                             batch_s=args.batch_ms / 1000 if args.batch_ms else None)  # fmt: skip
         await server.start()
         bridge = None
         watchers: list[asyncio.Task[None]] = []

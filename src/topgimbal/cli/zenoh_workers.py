@@ -106,7 +106,8 @@ def worker_config(path: str, out: Path) -> str:
 def worker_argv(args: argparse.Namespace, cameras_file: str, connect: Sequence[str], config: str | None) -> list[str]:
     argv = [sys.executable, "-m", "topgimbal.cli.main", "zenoh", "--cameras", cameras_file, "--mode", "client",
             "--workers", "1", "--rate-hz", repr(args.rate_hz), "--max-calls", str(args.max_calls),
-            "--timeout", repr(args.timeout), "--parent-pid", str(os.getpid())]  # fmt: skip
+            "--timeout", repr(args.timeout), "--batch-ms", repr(args.batch_ms),
+            "--parent-pid", str(os.getpid())]  # fmt: skip
     for e in connect:
         argv += ["--connect", e]
     if config:

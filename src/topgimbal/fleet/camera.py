@@ -45,6 +45,7 @@ from ..logtext import untrusted
 from ..logthrottle import ThrottledLog
 from ..timeouts import within
 from .access import KIND_FORBIDDEN, callable_methods, refusal
+from .batch import AttitudeBatch, named
 from .specs import CameraSpec
 
 log = logging.getLogger("topgimbal.fleet")
@@ -101,8 +102,10 @@ class ServedCamera:
         client_options: dict[str, Any] | None = None,
         allow_remote: frozenset[str] = frozenset(),
         clock: MonotonicFn = monotonic,
+        batch: AttitudeBatch | None = None,
     ) -> None:
         self.spec = spec
+        self.batch = batch  # the serving process's batch key (fleet/batch.py), if it has one
         self.allow_remote = allow_remote
         self.clock = clock
         self.name = spec.name
@@ -187,7 +190,10 @@ class ServedCamera:
         if self._closing:
             return
         self._seq += 1
-        self._att.put(attitude_json(att, self._seq))
+        text = attitude_json(att, self._seq)
+        self._att.put(text)
+        if self.batch is not None:
+            self.batch.add(named(self.name, text))
         self.published += 1
 
     def state(self) -> dict[str, Any]:

@@ -5,7 +5,8 @@
         await server.wait_closed()
 
 Each camera is a `ServedCamera` (camera.py) with its own SDK client; they share the session and
-the event loop. Cameras that do not answer yet are served all the same: their `link` key says
+the event loop, and one `AttitudeBatch` (batch.py) that puts all their samples together on
+`topgimbal/@attitude/<session id>`. Cameras that do not answer yet are served all the same: their `link` key says
 down, calls fail as the SDK's would, and they come up when the camera does.
 
 Before serving, the session's exposure is checked (fleet/access.py: beyond loopback only with
@@ -25,6 +26,7 @@ from ..client.remote_keys import ROOT
 from ..client.zenoh_session import make_config, open_session
 from ..errors import TopGimbalError
 from .access import INSECURE_LOG_EVERY_S, check_exposure
+from .batch import DEFAULT_BATCH_S, AttitudeBatch
 from .camera import MAX_CALLS, ServedCamera
 from .specs import CameraSpec, collect
 
@@ -53,8 +55,11 @@ class FleetServer:
         client_options: dict[str, Any] | None = None,
         allow_remote: frozenset[str] = frozenset(),
         insecure: bool = False,
+        batch_s: float | None = DEFAULT_BATCH_S,
     ) -> None:
         self.specs = collect(cameras)
+        self.batch_s = batch_s  # the batch key's wait (fleet/batch.py); None: no batch key
+        self.batch: AttitudeBatch | None = None
         self.allow_remote = allow_remote
         self.insecure = insecure
         self.protection = ""
@@ -77,10 +82,12 @@ class FleetServer:
         )
         try:
             await asyncio.to_thread(self._check_names)
+            if self.batch_s is not None:
+                self.batch = AttitudeBatch(self.session, str(self.session.zid()), self.batch_s)
             for spec in self.specs:
                 self.cameras[spec.name] = ServedCamera(spec, self.session, rate_hz=self.rate_hz,
                                                        max_calls=self.max_calls, client_options=self.client_options,
-                                                       allow_remote=self.allow_remote)  # fmt: skip
+                                                       allow_remote=self.allow_remote, batch=self.batch)  # fmt: skip
             # All at once: one after the other, 100 cameras took seconds to start and to close.
             await asyncio.gather(*(cam.start() for cam in self.cameras.values()))
         except BaseException:
@@ -112,6 +119,8 @@ class FleetServer:
         if task is not None:
             task.cancel()
         await asyncio.gather(*(cam.close() for cam in self.cameras.values()), return_exceptions=True)
+        if self.batch is not None:
+            self.batch.close()
         if self.session is not None:
             with contextlib.suppress(Exception):
                 await asyncio.to_thread(self.session.close)
