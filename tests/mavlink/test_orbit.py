@@ -21,6 +21,7 @@ from topgimbal.geo import Geodetic, LocalFrame
 from topgimbal.mavlink.quaternion import from_euler_deg
 
 from .conftest import NAN, eventually
+from .figures import percentile, wrap180
 from .virtual import MemPeer
 
 pytestmark = pytest.mark.virtual
@@ -33,15 +34,6 @@ RADIUS_M = 300.0
 HEIGHT_M = 100.0
 SETTLE_S = 6.0  # the camera turns to the first bearing (up to 60 deg at 12.7 deg/s) and settles
 ROI = Geodetic(-35.3632, 149.1652, 584.0)
-
-
-def wrap180(deg: float) -> float:
-    return (deg + 180.0) % 360.0 - 180.0
-
-
-def percentile(values: list[float], q: float) -> float:
-    s = sorted(values)
-    return s[min(len(s) - 1, round(q / 100.0 * (len(s) - 1)))]
 
 
 class Orbit:

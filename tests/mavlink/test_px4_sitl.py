@@ -38,6 +38,7 @@ from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.geo.aim import Geodetic, offset_m
 
+from .figures import percentile, wrap180
 from .test_sitl import AUTOPILOT, Gcs, until
 
 pytestmark = pytest.mark.external
@@ -252,15 +253,6 @@ async def _steps(r: Any, g: Gcs, caplog: Any, rows: list[str]) -> None:
     assert not any("answered none" in rec.getMessage() for rec in caplog.records)
 
 
-def _wrap180(deg: float) -> float:
-    return (deg + 180.0) % 360.0 - 180.0
-
-
-def _percentile(values: list[float], q: float) -> float:
-    v = sorted(values)
-    return v[min(len(v) - 1, round(q / 100.0 * (len(v) - 1)))]
-
-
 @pytest.mark.skipif(not SITL, reason="PX4_SITL is not set to PX4's px4 SITL binary: the PX4 test cannot run")
 async def test_px4_roi_while_the_vehicle_yaws(rig_factory: Any) -> None:
     """Step 4: its own PX4 boot, so that the steps above report apart from it."""
@@ -308,8 +300,8 @@ async def _roi_turn(g: Gcs, gim: Any, rows: list[str], bridge: Any) -> None:
         n, e, _ = offset_m(g.place, roi)
         return math.degrees(math.atan2(e, n))
 
-    await until(lambda: abs(_wrap180(g.heading_deg + gim.yaw_deg - bearing())) < 1.0, MOVE_S, "the camera on the ROI")
-    end = _wrap180(start + TURN_DEG)
+    await until(lambda: abs(wrap180(g.heading_deg + gim.yaw_deg - bearing())) < 1.0, MOVE_S, "the camera on the ROI")
+    end = wrap180(start + TURN_DEG)
     errors: list[float] = []
     when: list[float] = []
 
@@ -324,8 +316,8 @@ async def _roi_turn(g: Gcs, gim: Any, rows: list[str], bridge: Any) -> None:
         offsets.append(now - att.time_boot_ms / 1000.0)
         delay_s = min(0.5, offsets[-1] - min(offsets))
         heading = math.degrees(att.yaw) + math.degrees(att.yawspeed) * delay_s
-        if abs(_wrap180(heading - start)) > 10 and abs(_wrap180(heading - end)) > 10:
-            errors.append(abs(_wrap180(heading + gim.yaw_deg - bearing())))
+        if abs(wrap180(heading - start)) > 10 and abs(wrap180(heading - end)) > 10:
+            errors.append(abs(wrap180(heading + gim.yaw_deg - bearing())))
             when.append(time.monotonic())
             seen_rates.append(bridge.vehicles.yaw_rate_deg_s)
 
@@ -335,15 +327,15 @@ async def _roi_turn(g: Gcs, gim: Any, rows: list[str], bridge: Any) -> None:
         ack = await g.command(ml.MAV_CMD_DO_REPOSITION, -1, 1, 0, math.radians(end), here.lat_deg, here.lon_deg,
                               here.alt_m)  # fmt: skip
         assert ack.result == ml.MAV_RESULT_ACCEPTED, ack
-        await until(lambda: abs(_wrap180(g.heading_deg - end)) < 2, TURN_DEG / 6 + 60, "the turn")
+        await until(lambda: abs(wrap180(g.heading_deg - end)) < 2, TURN_DEG / 6 + 60, "the turn")
     finally:
         g.on_attitude = None
     assert len(errors) > 20, f"{len(errors)} samples during the turn"
     rate = (TURN_DEG - 20) / (when[-1] - when[0])
-    p95 = _percentile(errors, 95)
-    rows.append(f"ROI while yawing at {rate:.1f} deg/s: earth yaw error p50 {_percentile(errors, 50):.2f} p95 "
+    p95 = percentile(errors, 95)
+    rows.append(f"ROI while yawing at {rate:.1f} deg/s: earth yaw error p50 {percentile(errors, 50):.2f} p95 "
                 f"{p95:.2f} max {max(errors):.2f} deg ({len(errors)} samples)")  # fmt: skip
-    rows.append(f"  the bridge's vehicle yaw rate p5 / p50 / p95 {_percentile(seen_rates, 5):.2f} / "
-                f"{_percentile(seen_rates, 50):.2f} / {_percentile(seen_rates, 95):.2f} deg/s; "
+    rows.append(f"  the bridge's vehicle yaw rate p5 / p50 / p95 {percentile(seen_rates, 5):.2f} / "
+                f"{percentile(seen_rates, 50):.2f} / {percentile(seen_rates, 95):.2f} deg/s; "
                 f"{bridge.pointer.rate_follow_sent - follow_before} rate commands holding the bearing")  # fmt: skip
     assert p95 <= ROI_GOAL_P95_DEG

@@ -25,6 +25,7 @@ from topgimbal.clock import monotonic
 from topgimbal.mavlink.quaternion import from_euler_deg
 
 from .conftest import NAN, eventually
+from .figures import percentile, wrap180
 from .virtual import MemPeer
 
 pytestmark = pytest.mark.virtual
@@ -39,15 +40,6 @@ LAG_S = 0.3  # the vehicle's heading follows the set-point's as a first-order la
 BEARING_DEG = 0.0
 GOAL_P95_DEG = 0.5
 JITTER_S = 0.03  # each of PX4's messages arrives up to this late (a busy link): some out of order
-
-
-def wrap180(deg: float) -> float:
-    return (deg + 180.0) % 360.0 - 180.0
-
-
-def percentile(values: list[float], q: float) -> float:
-    s = sorted(values)
-    return s[min(len(s) - 1, round(q / 100.0 * (len(s) - 1)))]
 
 
 class Px4Yaw:

@@ -49,6 +49,8 @@ import waiting
 from topgimbal.geo.aim import Geodetic, look_at, offset_m
 from topgimbal.protocol import get_model
 
+from .figures import percentile, wrap180
+
 pytestmark = pytest.mark.external
 
 SITL = os.environ.get("ARDUPILOT_SITL")
@@ -94,10 +96,6 @@ def _free_instance() -> int:
                 continue
             return instance
     raise RuntimeError("no free SITL instance")
-
-
-def _wrap180(deg: float) -> float:
-    return (deg + 180.0) % 360.0 - 180.0
 
 
 def _offset(p: Geodetic, bearing_deg: float, distance_m: float, dalt_m: float) -> Geodetic:
@@ -371,11 +369,6 @@ class Flight:
         self.gcs = await _connect(self.proc, self.base)
 
 
-def _percentile(values: list[float], q: float) -> float:
-    s = sorted(values)
-    return s[min(len(s) - 1, round(q / 100.0 * (len(s) - 1)))]
-
-
 async def steps(f: Flight) -> None:
     r = f.r
     sim = r.sim
@@ -386,7 +379,7 @@ async def steps(f: Flight) -> None:
     def at(yaw_deg: Callable[[], float], pitch_deg: float) -> Callable[[], bool]:
         g = sim.gimbal
         return lambda: (
-            abs(_wrap180(g.yaw_deg - yaw_deg())) < TOLERANCE_DEG and abs(g.pitch_deg - pitch_deg) < TOLERANCE_DEG
+            abs(wrap180(g.yaw_deg - yaw_deg())) < TOLERANCE_DEG and abs(g.pitch_deg - pitch_deg) < TOLERANCE_DEG
         )
 
     async def move(what: str, ack: Any, check: Callable[[], bool]) -> None:
@@ -435,7 +428,7 @@ async def steps(f: Flight) -> None:
     await move(f"body DO_MOUNT_CONTROL pitch -80 (limit {low:g})",
                f.g.command(ml.MAV_CMD_DO_MOUNT_CONTROL, -80, 0, 0, 0, 0, 0, ml.MAV_MOUNT_MODE_MAVLINK_TARGETING),
                at(lambda: 0, max(-80.0, low)))  # fmt: skip
-    earth_yaw = _wrap180(round(f.g.heading_deg) + 40)
+    earth_yaw = wrap180(round(f.g.heading_deg) + 40)
     await move(f"earth YAW_LOCK PITCHYAW pitch -20 yaw {earth_yaw:g} (heading + 40)",
                f.g.command(ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, -20, earth_yaw, nan, nan,
                            ml.GIMBAL_MANAGER_FLAGS_YAW_LOCK, 0, 0),
@@ -501,7 +494,7 @@ async def steps(f: Flight) -> None:
         offsets: list[float] = []
         g = sim.gimbal
         start_heading = f.g.heading_deg
-        end_heading = _wrap180(start_heading + direction * TURN_DEG)
+        end_heading = wrap180(start_heading + direction * TURN_DEG)
 
         def sample(att: Any) -> None:
             # the heading when we read the camera: ATTITUDE's, carried forward over its delay to us
@@ -510,24 +503,24 @@ async def steps(f: Flight) -> None:
             offsets.append(now - att.time_boot_ms / 1000.0)
             delay_s = min(0.5, offsets[-1] - min(offsets))
             heading = math.degrees(att.yaw) + math.degrees(att.yawspeed) * delay_s
-            if abs(_wrap180(heading - start_heading)) > 10 and abs(_wrap180(heading - end_heading)) > 10:
-                errors.append(abs(_wrap180(heading + g.yaw_deg - target())))
+            if abs(wrap180(heading - start_heading)) > 10 and abs(wrap180(heading - end_heading)) > 10:
+                errors.append(abs(wrap180(heading + g.yaw_deg - target())))
                 when.append(time.monotonic())
 
         f.g.on_attitude = sample
         try:
             accepted(what, await f.g.command(ml.MAV_CMD_CONDITION_YAW, TURN_DEG, rate_deg_s, direction, 1))
-            await until(lambda: abs(_wrap180(f.g.heading_deg - end_heading)) < 2, TURN_DEG / rate_deg_s + 30, what)
+            await until(lambda: abs(wrap180(f.g.heading_deg - end_heading)) < 2, TURN_DEG / rate_deg_s + 30, what)
         finally:
             f.g.on_attitude = None
         assert len(errors) > 20, f"{what}: {len(errors)} samples during the turn"
         rate = (TURN_DEG - 20) / (when[-1] - when[0])
-        f.yaw_rows.append(f"{what} (turned at {rate:.1f} deg/s) | {_percentile(errors, 50):.2f} | "
-                          f"{_percentile(errors, 95):.2f} | {max(errors):.2f} | {len(errors)}")  # fmt: skip
+        f.yaw_rows.append(f"{what} (turned at {rate:.1f} deg/s) | {percentile(errors, 50):.2f} | "
+                          f"{percentile(errors, 95):.2f} | {max(errors):.2f} | {len(errors)}")  # fmt: skip
         return errors
 
     # A yaw lock 60 deg right of the heading: turning right 120 deg takes the camera from +60 to -60.
-    lock = _wrap180(f.g.heading_deg + TURN_DEG / 2)
+    lock = wrap180(f.g.heading_deg + TURN_DEG / 2)
     await move(f"earth YAW_LOCK yaw {lock:.0f}, airborne",
                f.g.command(ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, -20, lock, nan, nan,
                            ml.GIMBAL_MANAGER_FLAGS_YAW_LOCK, 0, 0),
@@ -548,10 +541,10 @@ async def steps(f: Flight) -> None:
                           look_at(f.g.place, f.g.heading_deg, roi)[1])())  # fmt: skip
     roi_errors = await turn("ROI, 6 deg/s", 6.0, 1, roi_bearing)
     for what, errors in (("yaw lock at 6 deg/s", slow), ("ROI at 6 deg/s", roi_errors)):
-        p95 = _percentile(errors, 95)
+        p95 = percentile(errors, 95)
         assert p95 <= GOAL_P95_DEG, f"{what}: earth yaw error p95 {p95:.2f} deg (goal {GOAL_P95_DEG:g})"
     if model.max_rate_deg_s >= 40.0:
-        p95 = _percentile(fast, 95)
+        p95 = percentile(fast, 95)
         assert p95 <= FAST_GOAL_P95_DEG, f"yaw lock at 20 deg/s: earth yaw error p95 {p95:.2f} deg"
 
     # 6. Photos flying at about 8 m/s, the geotags from the bridge's own requests only.

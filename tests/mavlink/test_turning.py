@@ -20,21 +20,13 @@ from topgimbal.clock import monotonic
 from topgimbal.mavlink.quaternion import from_euler_deg
 
 from .conftest import NAN, Peer, eventually
+from .figures import percentile, wrap180
 
 pytestmark = pytest.mark.external
 
 GIMBAL = 154
 EARTH = ml.GIMBAL_DEVICE_FLAGS_ROLL_LOCK | ml.GIMBAL_DEVICE_FLAGS_PITCH_LOCK | ml.GIMBAL_DEVICE_FLAGS_YAW_LOCK
 STREAM_HZ = 50.0
-
-
-def _wrap180(deg: float) -> float:
-    return (deg + 180.0) % 360.0 - 180.0
-
-
-def percentile(values: list[float], q: float) -> float:
-    s = sorted(values)
-    return s[min(len(s) - 1, round(q / 100.0 * (len(s) - 1)))]
 
 
 async def fly_turn(r: Any, rate_deg_s: float, target_deg: float, seconds: float) -> list[float]:
@@ -51,7 +43,7 @@ async def fly_turn(r: Any, rate_deg_s: float, target_deg: float, seconds: float)
         boot = monotonic()  # the autopilot's boot clock runs on, whatever it does
 
         def heading(t: float) -> float:
-            return _wrap180(start_deg - rate_deg_s * t)
+            return wrap180(start_deg - rate_deg_s * t)
 
         def send(t: float) -> None:
             q = list(from_euler_deg(0.0, 0.0, heading(t)))
@@ -62,7 +54,7 @@ async def fly_turn(r: Any, rate_deg_s: float, target_deg: float, seconds: float)
 
         # hold the start heading until the camera is there
         t0 = monotonic()
-        while abs(_wrap180(heading(0) + g.yaw_deg - target_deg)) > 0.5 or abs(g.pitch_deg + 20) > 0.5:
+        while abs(wrap180(heading(0) + g.yaw_deg - target_deg)) > 0.5 or abs(g.pitch_deg + 20) > 0.5:
             send(0.0)
             await asyncio.sleep(1 / STREAM_HZ)
             assert monotonic() - t0 < 30, f"the camera did not reach the start (yaw {g.yaw_deg:.1f})"
@@ -72,7 +64,7 @@ async def fly_turn(r: Any, rate_deg_s: float, target_deg: float, seconds: float)
             await asyncio.sleep(1 / STREAM_HZ)
             now = monotonic() - t0
             if now > 1.0:  # the first second: the camera catches the turn
-                errors.append(abs(_wrap180(heading(now) + g.yaw_deg - target_deg)))
+                errors.append(abs(wrap180(heading(now) + g.yaw_deg - target_deg)))
     finally:
         autopilot.close()
     return errors
