@@ -132,7 +132,7 @@ class Subscriber:
 
 
 async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int = 0,
-              batched: bool = False) -> dict[str, Any]:  # fmt: skip
+              batched: bool = False, own_sockets: bool = False) -> dict[str, Any]:  # fmt: skip
     import zenoh
 
     from topgimbal import connect
@@ -148,7 +148,8 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
         assert sims.stdout is not None
         urls = [(await asyncio.wait_for(sims.stdout.readline(), 300)).decode().strip() for _ in range(n)]
         cams = tmp / "cameras"
-        cams.write_text("\n".join(f"cam{i}={u},C12" for i, u in enumerate(urls)))
+        suffix = "?socket=own" if own_sockets else ""  # the server's default: one shared socket
+        cams.write_text("\n".join(f"cam{i}={u}{suffix},C12" for i, u in enumerate(urls)))
         port = free_port()
         server = await asyncio.create_subprocess_exec(
             sys.executable, "-m", "topgimbal.cli.main", "zenoh", "--cameras", str(cams),
@@ -207,6 +208,7 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
         zsub.undeclare()
         return {
             "cameras": n, "workers": workers or "auto", "subscribed": "batch key" if batched else "per-camera keys",
+            "udp_sockets": "one per camera" if own_sockets else "shared",
             "batch_puts_per_s": round(puts / wall, 1), "rate_hz": rate_hz, "seconds": round(wall, 2), "streaming": streaming,
             "delivered_per_s": round(count / wall, 1), "nominal_per_s": n * rate_hz,
             "of_nominal_pct": round(100 * count / wall / (n * rate_hz), 1),
@@ -246,10 +248,15 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=0, help="topgimbal zenoh --workers (default 0: automatic)")
     ap.add_argument("--batched", action="store_true",
                     help="subscribe to the batch key topgimbal/@attitude/* instead of topgimbal/*/attitude")  # fmt: skip
+    ap.add_argument(
+        "--own-sockets",
+        action="store_true",
+        help="one UDP socket per camera (?socket=own) instead of the server's shared socket",
+    )
     args = ap.parse_args()
     print(f"cores {os.cpu_count()}, load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     for n in (int(x) for x in args.cameras.split(",")):
-        r = asyncio.run(run(n, args.rate_hz, args.seconds, args.calls, args.workers, args.batched))
+        r = asyncio.run(run(n, args.rate_hz, args.seconds, args.calls, args.workers, args.batched, args.own_sockets))
         r["load_after"] = round(os.getloadavg()[0], 2)
         if args.json:
             print(json.dumps(r))

@@ -13,7 +13,7 @@ import logging
 from collections.abc import Callable, Coroutine, Mapping
 from types import TracebackType
 
-from ..clock import monotonic
+from ..clock import monotonic, wall_time
 from ..errors import FieldValueError, LinkLostError, TopGimbalError, TransportError
 from ..protocol import DeviceModel, Dialect, Frame, FrameParser, Message, get_model
 from ..protocol.frame import DEVICE_ADDRESSES
@@ -276,9 +276,10 @@ class ClientCore(Requests):
         # A datagram ends its frames; bytes to Messages in one pass (the parser's C fast path).
         final = transport is not None and transport.is_datagram
         engine_work = False
+        now = monotonic()  # one read for the link, the engine and the state: per datagram, not per step
         for item in self._parser.feed_messages(data, self.dialect.decode, final=final):
             if isinstance(item, Message):
-                engine_work = self._on_message(item) or engine_work
+                engine_work = self._on_message(item, now) or engine_work
             elif item.kind != "length_mismatch":
                 self.stats.bad_frames += 1
         # A stream sample (or a report) changes nothing the engine decides: no frames to send, no
@@ -286,8 +287,9 @@ class ClientCore(Requests):
         if engine_work:
             self._drive()
 
-    def _on_message(self, message: Message) -> bool:
-        """One decoded frame from the line; True when the engine took it for more than a sample."""
+    def _on_message(self, message: Message, now: float) -> bool:
+        """One decoded frame from the line (read at `now`); True when the engine took it for more
+        than a sample."""
         frame = message.frame
         self.stats.frames_in += 1
         if self.notifier.wants_traffic:
@@ -297,30 +299,31 @@ class ClientCore(Requests):
         assert self._engine is not None and self.link is not None
         if self.identity.recheck():  # before the link-up callbacks: the verdict is pending again
             self.background(self.identity.run())
-        self.keeper.event(self.link.on_frame())
+        self.keeper.event(self.link.on_frame(now))
         spec = message.spec
         if message.fields is None and not message.is_error:
             self.identity.on_foreign(frame)  # a frame of another dialect says the model is wrong
         # Signs are mapped once, here: the engine matches on the frame, never on field values,
         # so it holds (and a request returns) the message already in the API convention.
         api = map_message(message, self.signs) if spec is not None and spec.signed_fields else message
-        inbound = self._engine.on_message(api)
+        inbound = self._engine.on_message(api, now)
         if inbound.dispatch:
             if api.fields is not None and not api.is_error:
-                self._update_state(api)
+                self._update_state(api, now)
             self.notifier.message(api)
         return inbound.kind != "unsolicited"
 
-    def _update_state(self, m: Message) -> None:
-        keyed = self.state.apply(m)
+    def _update_state(self, m: Message, now: float) -> None:
+        wall = wall_time()
+        keyed = self.state.apply(m, now, wall)
         if not keyed:
             return
-        att = attitude_of(keyed, "attitude", m.ident)
+        att = attitude_of(keyed, "attitude", m.ident, now, wall)
         if att is not None:
             self.state.attitude = att
             self.streams.publish(att)
             return
-        earth = attitude_of(keyed, "earth_attitude", m.ident)
+        earth = attitude_of(keyed, "earth_attitude", m.ident, now, wall)
         if earth is not None:
             self.state.earth_attitude = earth
         if "model_name" in keyed:

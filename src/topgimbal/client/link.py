@@ -36,8 +36,9 @@ class LinkMonitor:
 
     # -- inputs ---------------------------------------------------------------------------------
 
-    def on_frame(self) -> LinkEvent | None:
-        now = self.clock()
+    def on_frame(self, now: float | None = None) -> LinkEvent | None:
+        if now is None:
+            now = self.clock()
         self.last_in = now
         self._quiet_since = now
         if not self.up:

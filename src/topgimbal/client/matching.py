@@ -50,10 +50,12 @@ class Matching:
 
     # -- incoming ---------------------------------------------------------------------------------
 
-    def on_message(self, message: Message) -> Inbound:
-        """Classify one decoded frame from the device; completes at most one request."""
+    def on_message(self, message: Message, now: float | None = None) -> Inbound:
+        """Classify one decoded frame from the device; completes at most one request. `now`: the
+        engine's clock read by the caller (one read per datagram on the per-sample path)."""
         frame = message.frame
-        now = self.clock()
+        if now is None:
+            now = self.clock()
         if message.is_error:
             return self._on_error(message, now)
         rkey = (frame.ident, frame.src, frame.rw or "w")

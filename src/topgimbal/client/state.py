@@ -94,16 +94,22 @@ class StateCache:
         s = self.values.get(key)
         return None if s is None else s.value
 
-    def apply(self, message: Message) -> dict[str, object]:
-        """Take what a decoded frame (API convention) tells; returns {state key: value} it set."""
+    def apply(self, message: Message, now: float | None = None, wall: float | None = None) -> dict[str, object]:
+        """Take what a decoded frame (API convention) tells; returns {state key: value} it set.
+        `now` / `wall`: the caller's clock reads (monotonic, UTC), one pair per datagram."""
         keyed = state_values(message)
         if not keyed:
             return keyed
-        now, wall = monotonic(), wall_time()
+        if now is None:
+            now = monotonic()
+        if wall is None:
+            wall = wall_time()
+        values = self.values
         for key, value in keyed.items():
-            self.values[key] = Stamped(value, now, wall)
-        for name, value in _typed(keyed, message).items():
-            setattr(self, name, Stamped(value, now, wall))
+            values[key] = Stamped(value, now, wall)
+        if _may_type(keyed):
+            for name, value in _typed(keyed, message).items():
+                setattr(self, name, Stamped(value, now, wall))
         return keyed
 
     @staticmethod
@@ -140,18 +146,37 @@ _AXES = ("yaw_deg", "pitch_deg", "roll_deg")
 _AXIS_KEYS: dict[str, tuple[str, ...]] = {}  # prefix -> its three keys (per frame on the hot path)
 
 
-def attitude_of(keyed: Mapping[str, object], prefix: str, source: str) -> GimbalAttitude | None:
-    """An Attitude from `<prefix>.yaw_deg` / `pitch_deg` / `roll_deg` values, when all are there."""
+def attitude_of(
+    keyed: Mapping[str, object], prefix: str, source: str, now: float | None = None, wall: float | None = None
+) -> GimbalAttitude | None:
+    """An Attitude from `<prefix>.yaw_deg` / `pitch_deg` / `roll_deg` values, when all are there
+    (stamped `now` / `wall` when the caller has read the clocks)."""
     keys = _AXIS_KEYS.get(prefix)
     if keys is None:
         keys = _AXIS_KEYS[prefix] = tuple(f"{prefix}.{a}" for a in _AXES)
     nums = [float(v) for v in map(keyed.get, keys) if isinstance(v, (int, float))]
     if len(nums) != 3:
         return None
-    return GimbalAttitude(nums[0], nums[1], nums[2], monotonic(), wall_time(), source)
+    return GimbalAttitude(
+        nums[0], nums[1], nums[2], monotonic() if now is None else now, wall_time() if wall is None else wall, source
+    )
 
 
 _RECORDING = {"recording": True, "started": True, "start": True, "stopped": False, "stop": False}
+# The heads of keys `_typed` reads: a frame with none of them (every attitude sample) skips it.
+_TYPED_HEADS = frozenset({"recording", "zoom", "range_m", "version", "model_name", "temperature", "sd"})
+_MAY_TYPE: dict[tuple[str, ...], bool] = {}  # bounded: one entry per key list (catalog forms repeat)
+
+
+def _may_type(keyed: Mapping[str, object]) -> bool:
+    """Whether `_typed` could find anything in `keyed` (cached per key list: forms repeat)."""
+    names = tuple(keyed)
+    hit = _MAY_TYPE.get(names)
+    if hit is None:
+        hit = any(k.split(".", 1)[0] in _TYPED_HEADS for k in names)
+        if len(_MAY_TYPE) < 4096:
+            _MAY_TYPE[names] = hit
+    return hit
 
 
 def _typed(keyed: Mapping[str, object], message: Message) -> dict[str, object]:

@@ -82,6 +82,18 @@ def querier_of(query: Any, transports: set[str]) -> str:
     return claim if claim is not None and claim in transports else ANONYMOUS
 
 
+def served_url(url: str) -> str:
+    """The URL the server opens: a UDP camera goes on the loop's shared socket
+    (transport/udp_shared.py), unless its URL chose a socket (`socket=own`) or a local port."""
+    if not url.lower().startswith("udp://"):
+        return url
+    query = url.partition("?")[2]
+    names = {part.partition("=")[0] for part in query.split("&") if part}
+    if names & {"socket", "local_port"}:
+        return url
+    return f"{url}{'&' if query else '?'}socket=shared"
+
+
 def attitude_json(att: GimbalAttitude, seq: int) -> str:
     """`{"yaw_deg", "pitch_deg", "roll_deg", "t", "seq"}`; a float's repr is JSON when finite."""
     y, p, r, t = att.yaw_deg, att.pitch_deg, att.roll_deg, att.wall
@@ -112,7 +124,7 @@ class ServedCamera:
         self.session = session
         self.rate_hz = rate_hz
         self.max_calls = max_calls
-        self.client = AsyncClient(spec.url, spec.model, **(client_options or {}))
+        self.client = AsyncClient(served_url(spec.url), spec.model, **(client_options or {}))
         self.loop: asyncio.AbstractEventLoop | None = None
         self.inflight = 0
         self.published = 0  # attitude samples

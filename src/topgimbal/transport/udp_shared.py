@@ -1,0 +1,140 @@
+"""Many UDP devices on one socket: `udp://HOST:PORT?socket=shared` (issue 45).
+
+A process that serves hundreds of cameras (`topgimbal zenoh`) with one connected socket each pays
+the event loop's per-socket price for every datagram: a readiness event, a Handle, a transport
+callback, a 64 KiB read buffer. At 1,000 cameras x 50 Hz that was more than half of the serving
+loop's CPU (bench/fleet.py under py-spy). Here the cameras of one event loop share one unconnected
+socket per address family: one readiness event drains up to READ_BATCH datagrams into one reused
+buffer, and each goes to the transport registered for its source address (ip, port).
+
+What a connected socket gives, this keeps: datagrams from any other address are dropped (counted
+in `strangers`), and a camera's replies must come from the address it was sent to. What it does
+not: ICMP "port unreachable" is not reported per camera (an unconnected socket hears none), which
+the client never needed (a UDP link is judged by what arrives, client/link.py). Two transports to
+the same device address cannot share (whose reply would it be?): the second gets a socket of its
+own. The socket's receive buffer asks for RCVBUF_BYTES (the kernel caps it at net.core.rmem_max)
+because it holds what a thousand per-camera buffers held; a datagram that does not fit is lost,
+as it would be on a full per-camera buffer.
+
+One SharedUdpSocket per (event loop, family); it closes with its last transport.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import socket
+import weakref
+from collections.abc import Callable
+
+from ..errors import TransportError
+from ..logthrottle import ThrottledLog
+
+log = logging.getLogger("topgimbal.transport")
+
+READ_BATCH = 256  # datagrams read per readiness event, then the loop runs its other callbacks
+MAX_DATAGRAM = 65536  # a UDP datagram holds at most 65,507 bytes (IPv4), 65,527 (IPv6)
+RCVBUF_BYTES = 4 * 1024 * 1024
+Route = Callable[[bytes], None]
+Addr = tuple[str, int]
+
+_SHARED: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, dict[int, SharedUdpSocket]] = weakref.WeakKeyDictionary()
+
+
+def shared_socket(family: int) -> SharedUdpSocket:
+    """The running loop's shared socket for `family` (AF_INET or AF_INET6), made on first use."""
+    loop = asyncio.get_running_loop()
+    per_loop = _SHARED.setdefault(loop, {})
+    shared = per_loop.get(family)
+    if shared is None or shared.closed:
+        shared = per_loop[family] = SharedUdpSocket(loop, family)
+    return shared
+
+
+class SharedUdpSocket:
+    def __init__(self, loop: asyncio.AbstractEventLoop, family: int) -> None:
+        self.loop = loop
+        self.family = family
+        self.routes: dict[Addr, Route] = {}
+        self.closed = False
+        self.received = 0
+        self.strangers = 0  # datagrams from an address no transport here sends to
+        self.send_dropped = 0  # sends the kernel refused (a full send buffer): UDP's own loss
+        self.read_errors = 0
+        self._buf = bytearray(MAX_DATAGRAM)
+        self._view = memoryview(self._buf)
+        self._throttle = ThrottledLog(log, 10.0)
+        sock = socket.socket(family, socket.SOCK_DGRAM)
+        try:
+            sock.setblocking(False)
+            sock.bind(("::" if family == socket.AF_INET6 else "0.0.0.0", 0))
+            try:
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RCVBUF_BYTES)
+            except OSError:
+                pass  # the system's default then
+            loop.add_reader(sock.fileno(), self._readable)
+        except OSError as exc:
+            sock.close()
+            raise TransportError(f"cannot open a shared UDP socket: {exc}") from exc
+        self.sock = sock
+
+    @property
+    def local_address(self) -> Addr:
+        host, port = self.sock.getsockname()[:2]
+        return str(host), int(port)
+
+    def register(self, addr: Addr, route: Route) -> bool:
+        """Deliver datagrams from `addr` to `route`; False when another transport has `addr`."""
+        if self.closed or addr in self.routes:
+            return False
+        self.routes[addr] = route
+        return True
+
+    def unregister(self, addr: Addr, route: Route) -> None:
+        if self.routes.get(addr) is route:
+            del self.routes[addr]
+        if not self.routes:
+            self.close()
+
+    def sendto(self, data: bytes, addr: Addr) -> bool:
+        """False when the datagram was not sent (a full send buffer, an unreachable network)."""
+        try:
+            self.sock.sendto(data, addr)
+            return True
+        except (BlockingIOError, InterruptedError):
+            why = "the socket's send buffer is full"
+        except OSError as exc:
+            why = exc.strerror or str(exc)
+        self.send_dropped += 1
+        self._throttle.warning("send", "shared UDP socket: a datagram to %s:%s was dropped: %s", addr[0], addr[1], why)
+        return False
+
+    def _readable(self) -> None:
+        sock, view, routes = self.sock, self._view, self.routes
+        for _ in range(READ_BATCH):
+            try:
+                n, addr = sock.recvfrom_into(self._buf)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as exc:  # nothing is expected here (no ICMP without IP_RECVERR): count, go on
+                self.read_errors += 1
+                self._throttle.warning("read", "shared UDP socket: read failed: %s", exc)
+                continue
+            route = routes.get(addr[:2])
+            if route is None:
+                self.strangers += 1
+                continue
+            self.received += 1
+            try:
+                route(bytes(view[:n]))
+            except Exception:  # one camera's bug is not the others'
+                log.exception("shared UDP socket: the handler for %s:%s failed", addr[0], addr[1])
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        self.routes.clear()
+        if not self.loop.is_closed():
+            self.loop.remove_reader(self.sock.fileno())
+        self.sock.close()

@@ -1,0 +1,106 @@
+"""`udp://HOST:PORT?socket=shared` (transport/udp_shared.py): many cameras on one socket of the
+event loop, each camera's datagrams to its own client only, strangers dropped and counted, and the
+same guarantees a connected socket gives; `topgimbal zenoh` serves its UDP cameras this way."""
+
+from __future__ import annotations
+
+import socket
+from collections.abc import AsyncIterator
+
+import pytest
+
+import topgimbal
+from topgimbal.errors import TransportError
+from topgimbal.fleet.camera import served_url
+from topgimbal.sim.simulator import Simulator
+from topgimbal.transport.udp import UdpTransport
+from topgimbal.transport.udp_shared import SharedUdpSocket
+
+pytestmark = pytest.mark.loopback
+
+
+@pytest.fixture
+async def sims() -> AsyncIterator[list[Simulator]]:
+    made = [await Simulator("C12", seed=i).start(udp=["127.0.0.1:0"]) for i in range(3)]
+    # three cameras that point three different ways: a reply handed to the wrong client shows
+    for sim, (yaw, pitch) in zip(made, [(30.0, -10.0), (-60.0, 5.0), (90.0, -45.0)], strict=True):
+        sim.gimbal.axis("yaw").pos = sim.gimbal.axis("yaw").target = yaw
+        sim.gimbal.axis("pitch").pos = sim.gimbal.axis("pitch").target = pitch
+    yield made
+    for sim in made:
+        await sim.stop()
+
+
+def _transport(cam: topgimbal.AsyncClient) -> UdpTransport:
+    t = cam._transport
+    assert isinstance(t, UdpTransport)
+    return t
+
+
+async def test_cameras_share_one_socket_and_each_gets_only_its_own_replies(sims: list[Simulator]) -> None:
+    cams = [await topgimbal.connect(f"{s.url}?socket=shared", model="C12") for s in sims]
+    try:
+        shared = {id(_transport(c)._shared) for c in cams}
+        assert len(shared) == 1 and None not in {_transport(c)._shared for c in cams}
+        sock = _transport(cams[0])._shared
+        assert isinstance(sock, SharedUdpSocket) and len(sock.routes) == 3
+        for _ in range(5):  # interleaved: every read must come back with its own camera's angles
+            for cam, (yaw, pitch) in zip(cams, [(30.0, -10.0), (-60.0, 5.0), (90.0, -45.0)], strict=True):
+                att = await cam.get_attitude()
+                assert (round(att.yaw_deg), round(att.pitch_deg)) == (yaw, pitch)
+        # each simulator heard one peer: the shared socket's port
+        port = sock.local_address[1]
+        for sim in sims:
+            assert [addr[1] for u in sim._udp for addr in u.peers] == [port]
+        assert sock.strangers == 0 and sock.received >= 15
+    finally:
+        for cam in cams:
+            await cam.close()
+    assert sock.closed  # closed with its last camera
+
+
+async def test_a_stranger_is_dropped_and_counted_and_the_camera_goes_on(sims: list[Simulator]) -> None:
+    cam = await topgimbal.connect(f"{sims[0].url}?socket=shared", model="C12")
+    try:
+        shared = _transport(cam)._shared
+        assert shared is not None
+        port = shared.local_address[1]
+        # a frame that would pass for the camera's answer, from another address
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as stranger:
+            stranger.sendto(b"#TPGUCrGAC00000000000023", ("127.0.0.1", port))
+        att = await cam.get_attitude()
+        assert round(att.yaw_deg) == 30
+        assert shared.strangers == 1
+    finally:
+        await cam.close()
+
+
+async def test_two_clients_of_one_camera_do_not_share_a_route(sims: list[Simulator]) -> None:
+    a = await topgimbal.connect(f"{sims[1].url}?socket=shared", model="C12")
+    b = await topgimbal.connect(f"{sims[1].url}?socket=shared", model="C12")
+    try:
+        assert _transport(a)._shared is not None
+        assert _transport(b)._shared is None  # whose reply would it be: the second has its own socket
+        for cam in (a, b):
+            assert round((await cam.get_attitude()).yaw_deg) == -60
+    finally:
+        await a.close()
+        await b.close()
+
+
+@pytest.mark.parametrize(
+    ("query", "said"),
+    [("socket=both", "socket='both': expected one of own, shared"),
+     ("socket=shared&local_port=0", "socket=shared and local_port exclude each other")],
+)  # fmt: skip
+async def test_a_bad_socket_choice_is_refused(sims: list[Simulator], query: str, said: str) -> None:
+    with pytest.raises(TransportError, match=said.replace("(", r"\(")):
+        await topgimbal.connect(f"{sims[0].url}?{query}", model="C12")
+
+
+def test_the_fleet_server_shares_unless_the_url_chose() -> None:
+    assert served_url("udp://127.0.0.1:5000") == "udp://127.0.0.1:5000?socket=shared"
+    assert served_url("udp://127.0.0.1:5000?x=1") == "udp://127.0.0.1:5000?x=1&socket=shared"
+    assert served_url("udp://127.0.0.1:5000?socket=own") == "udp://127.0.0.1:5000?socket=own"
+    assert served_url("udp://127.0.0.1:5000?local_port=9004") == "udp://127.0.0.1:5000?local_port=9004"
+    assert served_url("tcp://127.0.0.1:5000") == "tcp://127.0.0.1:5000"
