@@ -82,7 +82,14 @@ async def test_the_bridge_asks_the_autopilot_for_what_photos_need(
 @pytest.mark.virtual
 @in_virtual_time  # a closed loop on the clock (a vehicle at 10 m/s): on a loaded machine real time
 # put the camera's own tag 2.8 m off; in virtual time the product's timing is what is measured
-async def test_a_photo_carries_the_position_at_the_shutter_and_the_autopilots_time(vrig_maker: Any) -> None:
+@pytest.mark.parametrize(
+    ("boot_clock", "late_s"),
+    [(False, 0.0),  # time_boot_ms a message counter: the fixes are dated by their arrival
+     (True, 0.25)],  # a slow, queueing link (PX4's payload link): each fix 10-250 ms late, dated by its time_boot_ms
+)  # fmt: skip
+async def test_a_photo_carries_the_position_at_the_shutter_and_the_autopilots_time(
+    vrig_maker: Any, boot_clock: bool, late_s: float
+) -> None:
     r = await vrig_maker("C12", role="device")
     autopilot = await MemPeer(sysid=1, compid=1).join(r.link)
     shutters: list[float] = []
@@ -110,8 +117,13 @@ async def test_a_photo_carries_the_position_at_the_shutter_and_the_autopilots_ti
         while True:  # GLOBAL_POSITION_INT at 5 Hz, flying north at 10 m/s; SYSTEM_TIME at 1 Hz
             now = monotonic()
             lat = LAT0 + north_m(now) / METRES_PER_DEG
-            autopilot.send(ml.MAVLink_global_position_int_message(i, round(lat * 1e7), round(LON0 * 1e7), 500_000,
-                                                                  20_000, int(SPEED_M_S * 100), 0, 0, 0))  # fmt: skip
+            boot_ms = round((now - t0 + 100.0) * 1000) if boot_clock else i
+            fix = ml.MAVLink_global_position_int_message(boot_ms, round(lat * 1e7), round(LON0 * 1e7), 500_000,
+                                                         20_000, int(SPEED_M_S * 100), 0, 0, 0)  # fmt: skip
+            if late_s:  # a different delay each (the quickest 10 ms): what the bridge cannot tell by arrival
+                asyncio.get_running_loop().call_later(0.01 + (i * 7 % 10) / 9 * (late_s - 0.01), autopilot.send, fix)
+            else:
+                autopilot.send(fix)
             if i % 5 == 0:
                 autopilot.send(ml.MAVLink_system_time_message(int(autopilot_utc(now) * 1e6), i))
             i += 1
@@ -119,7 +131,8 @@ async def test_a_photo_carries_the_position_at_the_shutter_and_the_autopilots_ti
 
     task = asyncio.ensure_future(fly())
     try:
-        await asyncio.sleep(1.0)
+        # (the bridge trusts an autopilot's time_boot_ms once it has kept time for a second)
+        await asyncio.sleep(3.0 if boot_clock else 1.0)
         for n in range(3):
             await asyncio.sleep(0.13 * n)  # between fixes, not on them
             ack = await r.peer.ack(CAMERA, ml.MAV_CMD_IMAGE_START_CAPTURE, 0, 0, 1, n + 1)

@@ -38,7 +38,7 @@ from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.geo.aim import Geodetic, offset_m
 
-from .figures import percentile, wrap180
+from .figures import percentile, sender_delays, wrap180
 from .test_sitl import AUTOPILOT, Gcs, until
 
 pytestmark = pytest.mark.external
@@ -302,24 +302,15 @@ async def _roi_turn(g: Gcs, gim: Any, rows: list[str], bridge: Any) -> None:
 
     await until(lambda: abs(wrap180(g.heading_deg + gim.yaw_deg - bearing())) < 1.0, MOVE_S, "the camera on the ROI")
     end = wrap180(start + TURN_DEG)
-    errors: list[float] = []
-    when: list[float] = []
-
-    offsets: list[float] = []
-    seen_rates: list[float] = []  # the vehicle's yaw rate as the bridge had it, at each sample
+    # what each ATTITUDE said and what the camera did at that moment; judged after the turn, when
+    # PX4's clock rate against ours is known (figures.sender_delays)
+    got: list[tuple[float, float, float, float, float, float, float, float]] = []
     follow_before = bridge.pointer.rate_follow_sent
 
     def sample(att: Any) -> None:
-        # the heading when we read the camera: ATTITUDE's, carried forward over its delay to us (the
-        # time since PX4 stamped it less the smallest such delay seen), as test_sitl.py measures
         now = time.monotonic()
-        offsets.append(now - att.time_boot_ms / 1000.0)
-        delay_s = min(0.5, offsets[-1] - min(offsets))
-        heading = math.degrees(att.yaw) + math.degrees(att.yawspeed) * delay_s
-        if abs(wrap180(heading - start)) > 10 and abs(wrap180(heading - end)) > 10:
-            errors.append(abs(wrap180(heading + gim.yaw_deg - bearing())))
-            when.append(time.monotonic())
-            seen_rates.append(bridge.vehicles.yaw_rate_deg_s)
+        got.append((att.time_boot_ms / 1000.0, now, math.degrees(att.yaw), math.degrees(att.yawspeed),
+                    gim.yaw_deg, bearing(), bridge.vehicles.yaw_rate_deg_s, bridge.vehicles.heading_age_s() or 0.0))  # fmt: skip
 
     g.on_attitude = sample
     try:
@@ -330,6 +321,20 @@ async def _roi_turn(g: Gcs, gim: Any, rows: list[str], bridge: Any) -> None:
         await until(lambda: abs(wrap180(g.heading_deg - end)) < 2, TURN_DEG / 6 + 60, "the turn")
     finally:
         g.on_attitude = None
+    delays, clock_rate = sender_delays([(sent, arrived) for sent, arrived, *_ in got])
+    signed: list[float] = []  # the camera's earth yaw less the bearing: > 0 right of the ROI
+    when: list[float] = []
+    seen_rates: list[float] = []  # the vehicle's yaw rate as the bridge had it, at each sample
+    lags: list[float] = []  # how far the bridge carried its vehicle heading forward (s)
+    for (_, arrived, yaw, yawspeed, cam_yaw, to_roi, bridge_rate, lag), delay in zip(got, delays, strict=True):
+        # the heading when we read the camera: ATTITUDE's, carried forward over its delay to us
+        heading = yaw + yawspeed * min(0.5, delay)
+        if abs(wrap180(heading - start)) > 10 and abs(wrap180(heading - end)) > 10:
+            signed.append(wrap180(heading + cam_yaw - to_roi))
+            when.append(arrived)
+            seen_rates.append(bridge_rate)
+            lags.append(lag)
+    errors = [abs(e) for e in signed]
     assert len(errors) > 20, f"{len(errors)} samples during the turn"
     rate = (TURN_DEG - 20) / (when[-1] - when[0])
     p95 = percentile(errors, 95)
@@ -338,4 +343,9 @@ async def _roi_turn(g: Gcs, gim: Any, rows: list[str], bridge: Any) -> None:
     rows.append(f"  the bridge's vehicle yaw rate p5 / p50 / p95 {percentile(seen_rates, 5):.2f} / "
                 f"{percentile(seen_rates, 50):.2f} / {percentile(seen_rates, 95):.2f} deg/s; "
                 f"{bridge.pointer.rate_follow_sent - follow_before} rate commands holding the bearing")  # fmt: skip
+    rows.append(f"  signed error p5 / p50 / p95 {percentile(signed, 5):.2f} / {percentile(signed, 50):.2f} / "
+                f"{percentile(signed, 95):.2f} deg (> 0: right of the bearing); the bridge carried its heading "
+                f"forward p50 {percentile(lags, 50) * 1000:.0f} ms; ATTITUDE's delay to the test p50 / p95 "
+                f"{percentile(delays, 50) * 1000:.0f} / {percentile(delays, 95) * 1000:.0f} ms; PX4's clock ran at "
+                f"{clock_rate * 100:.2f} % of ours")  # fmt: skip
     assert p95 <= ROI_GOAL_P95_DEG
