@@ -37,6 +37,7 @@ import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.geo.aim import Geodetic, offset_m
+from topgimbal.geo.earth import ned_up_to_geodetic
 
 from .figures import percentile, sender_delays, wrap180
 from .test_sitl import AUTOPILOT, Gcs, until
@@ -288,11 +289,10 @@ async def _roi_turn(g: Gcs, gim: Any, rows: list[str], bridge: Any) -> None:
     # the place 80 m away, 60 deg right of the nose; the turn right by TURN_DEG takes it from the
     # camera's +60 to -60 deg (the C12 yaws +-90 deg)
     start = g.heading_deg
-    r_earth = 6_371_008.8
     b = math.radians(start + TURN_DEG / 2)
-    roi = Geodetic(home.lat_deg + math.degrees(80.0 * math.cos(b) / r_earth),
-                   home.lon_deg + math.degrees(80.0 * math.sin(b) / (r_earth * math.cos(math.radians(home.lat_deg)))),
-                   home.alt_m)  # fmt: skip
+    lat, lon, _ = ned_up_to_geodetic((home.lat_deg, home.lon_deg, home.alt_m), 80.0 * math.cos(b),
+                                     80.0 * math.sin(b), 0.0)  # fmt: skip
+    roi = Geodetic(lat, lon, home.alt_m)
     ack = await g.command(ml.MAV_CMD_DO_SET_ROI_LOCATION, 0, 0, 0, 0, roi.lat_deg, roi.lon_deg, roi.alt_m)
     assert ack.result == ml.MAV_RESULT_ACCEPTED, ack
 
