@@ -23,6 +23,7 @@ import pytest
 from pymavlink.dialects.v20 import common as ml
 
 from topgimbal.geo.aim import Geodetic, offset_m
+from topgimbal.geo.earth import ned_up_to_geodetic
 
 from .test_px4_sitl import SITL, _free_instance, gcs_streams, payload_links, px4_sitl
 from .test_sitl import AUTOPILOT, Gcs, until
@@ -42,9 +43,8 @@ ON_LINE_M = 3.0  # a photo this far off its transect's line, or beyond its ends,
 
 
 def _place(home: Geodetic, north_m: float, east_m: float) -> Geodetic:
-    r = 6_371_008.8
-    lat = home.lat_deg + math.degrees(north_m / r)
-    lon = home.lon_deg + math.degrees(east_m / (r * math.cos(math.radians(home.lat_deg))))
+    """`north_m`, `east_m` from `home` in its tangent plane on the WGS84 ellipsoid, at home's height."""
+    lat, lon, _ = ned_up_to_geodetic((home.lat_deg, home.lon_deg, home.alt_m), north_m, east_m, 0.0)
     return Geodetic(lat, lon, home.alt_m)
 
 
