@@ -75,6 +75,27 @@ def test_paced_requests_given_up_never_go_out_and_retries_are_paced_too():
     assert [x.ident for x in e.take_frames()] == ["REC"]
 
 
+def test_a_waiting_frame_passes_queued_background_feeds():
+    """Periodic feeds (position, time, the vehicle's attitude) queue behind the C12's 40 ms gap;
+    a photo or any other frame that comes meanwhile goes next, not after them (issue 42: a photo
+    behind a queue of feeds waited up to 0.2 s more, 1.8 m of a survey's spacing at 9 m/s)."""
+    d, e, clock = engine("C12")
+    first = e.submit(d.encode("GAC", read=True), timeout_s=1.0)
+    feed = d.encode("GAC", read=True)  # three of a feed, queued (identical: none supersedes another)
+    feeds = [e.submit(feed, timeout_s=1.0, expect_reply=False, background=True) for _ in range(3)]
+    photo = e.submit(d.encode("REC", read=True), timeout_s=1.0)
+    assert [x.ident for x in e.take_frames()] == ["GAC"] and first.state == "sent"
+    assert photo.state == "paced" and all(f.state == "paced" for f in feeds)
+    clock.t = 100.04
+    e.on_tick()
+    assert [x.ident for x in e.take_frames()] == ["REC"] and photo.state == "sent"
+    for k in range(3):  # then the feeds, in their order, 40 ms apart
+        clock.t = 100.08 + 0.04 * k
+        e.on_tick()
+        assert [x.ident for x in e.take_frames()] == ["GAC"] and feeds[k].done
+    assert all(f.done for f in feeds)
+
+
 def test_pacing_can_be_turned_off_and_other_models_have_none():
     d, e, _ = engine("C12", min_gap_s=0)
     for ident in ("GAC", "SDC", "REC"):

@@ -40,7 +40,7 @@ from topgimbal.geo.aim import Geodetic, offset_m
 from topgimbal.geo.earth import ned_up_to_geodetic
 
 from .figures import percentile, sender_delays, wrap180
-from .test_sitl import AUTOPILOT, Gcs, until
+from .test_sitl import AUTOPILOT, Gcs, stop_sitl, until
 
 pytestmark = pytest.mark.external
 
@@ -141,13 +141,7 @@ async def px4_sitl(work: Path, instance: int, params: dict[str, str]) -> AsyncIt
     finally:
         if gcs is not None:
             await gcs.close()
-        if proc.returncode is None:
-            proc.terminate()
-        with contextlib.suppress(Exception):
-            await asyncio.wait_for(proc.wait(), 10)
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
+        await stop_sitl(proc)
 
 
 async def gcs_streams(g: Gcs) -> None:

@@ -38,7 +38,7 @@ import shutil
 import socket
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import Any
 
@@ -83,6 +83,17 @@ def _free_port(kind: int = socket.SOCK_STREAM) -> int:
     with socket.socket(socket.AF_INET, kind) as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+async def stop_sitl(proc: asyncio.subprocess.Process) -> None:
+    """SIGTERM, 10 s to go, then SIGKILL: a SITL never outlives its test."""
+    if proc.returncode is None:
+        proc.terminate()
+    with contextlib.suppress(Exception):
+        await asyncio.wait_for(proc.wait(), 10)
+    if proc.returncode is None:
+        proc.kill()
+        await proc.wait()
 
 
 def _free_instance() -> int:
@@ -258,6 +269,38 @@ async def test_ardupilot_drives_the_gimbal_and_camera(rig_factory: Any) -> None:
     assert not work.exists()
 
 
+async def first_boot(start: Callable[..., Awaitable[asyncio.subprocess.Process]]) -> None:
+    """The short first run of a fresh SITL work directory: saves CAM1_TYPE and CAM2_TYPE (6, a
+    MAVLink camera v2) and calibrates the accelerometers. `start(base_port, *args)` starts SITL.
+
+    CAM1_TYPE from a defaults file does not stick: at boot ArduPilot converts its pre-4.4 camera
+    parameters unless CAM1_TYPE and CAM2_TYPE are *configured* (saved). So a first, short run
+    saves them (eeprom.bin in the work directory), then the real run boots with them. That run
+    also calibrates the accelerometers (the simple, level calibration), as every vehicle is once
+    before it flies: without it ArduPilot refuses to arm ("3D Accel calibration needed")."""
+    base = _free_port()
+    proc = await start(base)
+    try:
+        setup = await _connect(proc, base)
+        try:
+            for name in ("CAM1_TYPE", "CAM2_TYPE"):
+                setup.send(ml.MAVLink_param_set_message(*AUTOPILOT, name.encode(), 6, ml.MAV_PARAM_TYPE_INT8))
+                await until(lambda n=name: setup.params.get(n) == 6, 15, f"{name} saved")  # type: ignore[misc]
+            await until(lambda: setup.position is not None or bool(setup.texts), 60, "the autopilot up")
+            for _ in range(10):  # the sensors take a few seconds after boot
+                ack = await setup.command(ml.MAV_CMD_PREFLIGHT_CALIBRATION, 0, 0, 0, 0, 4)
+                if ack.result == ml.MAV_RESULT_ACCEPTED:
+                    break
+                await asyncio.sleep(2.0)
+            else:
+                raise AssertionError("the accelerometer calibration was refused 10 times")
+            await asyncio.sleep(4.0)  # the parameter store is written in the background
+        finally:
+            await setup.close()
+    finally:
+        await stop_sitl(proc)
+
+
 async def _run(rig_factory: Any, work: Path) -> None:
     (work / "gimbal.parm").write_text(PARAMS)
     log_path = work / "sitl.log"
@@ -282,30 +325,7 @@ async def _run(rig_factory: Any, work: Path) -> None:
                 cwd=work, stdout=out, stderr=asyncio.subprocess.STDOUT,
             )  # fmt: skip
 
-    # CAM1_TYPE from a defaults file does not stick: at boot ArduPilot converts its pre-4.4 camera
-    # parameters unless CAM1_TYPE and CAM2_TYPE are *configured* (saved). So a first, short run
-    # saves them (eeprom.bin in the work directory), then the real run boots with them. That run
-    # also calibrates the accelerometers (the simple, level calibration), as every vehicle is once
-    # before it flies: without it ArduPilot refuses to arm ("3D Accel calibration needed").
-    base = _free_port()
-    proc = await start(base)
-    try:
-        setup = await _connect(proc, base)
-        for name in ("CAM1_TYPE", "CAM2_TYPE"):
-            setup.send(ml.MAVLink_param_set_message(*AUTOPILOT, name.encode(), 6, ml.MAV_PARAM_TYPE_INT8))
-            await until(lambda n=name: setup.params.get(n) == 6, 15, f"{name} saved")  # type: ignore[misc]
-        await until(lambda: setup.position is not None or bool(setup.texts), 60, "the autopilot up")
-        for _ in range(10):  # the sensors take a few seconds after boot
-            if (await setup.command(ml.MAV_CMD_PREFLIGHT_CALIBRATION, 0, 0, 0, 0, 4)).result == ml.MAV_RESULT_ACCEPTED:
-                break
-            await asyncio.sleep(2.0)
-        else:
-            raise AssertionError("the accelerometer calibration was refused 10 times")
-        await asyncio.sleep(4.0)  # the parameter store is written in the background
-        await setup.close()
-    finally:
-        proc.terminate()
-        await proc.wait()
+    await first_boot(start)  # CAM1_TYPE / CAM2_TYPE saved, the accelerometers calibrated
     base = _free_port()
     proc = await start(base, "--serial2", f"tcpclient:127.0.0.1:{bridge_port}")
     flight = Flight(proc, base, r)
@@ -325,12 +345,7 @@ async def _run(rig_factory: Any, work: Path) -> None:
         flight.report()
         if flight.gcs is not None:
             await flight.gcs.close()
-        if proc.returncode is None:
-            proc.terminate()
-        with contextlib.suppress(Exception):
-            await asyncio.wait_for(proc.wait(), 10)
-        if proc.returncode is None:
-            proc.kill()
+        await stop_sitl(proc)
 
 
 class Flight:

@@ -86,17 +86,19 @@ class Engine(Matching):
         fields: Mapping[str, object] | None = None,
         slow: bool = False,
         lenient: bool = False,
+        background: bool = False,
     ) -> Transaction:
         """Register a request (arguments already validated). Its frames come out of
         `take_frames()`; it ends up in `take_finished()`. `slow`: a query of a constant that the
         device may answer very late or never (see the module docstring). `lenient`: its answer
-        may come with a wrong length character (an identity probe in another model's dialect)."""
+        may come with a wrong length character (an identity probe in another model's dialect).
+        `background`: a periodic feed frame, which a paced queue lets other frames pass (Pacer)."""
         now = self.clock()
         # Sent once, a non-idempotent request waits as long in all as a retried one would.
         wait_s = timeout_s * (retries + 1) if exclusive else timeout_s
         once = exclusive or not expect_reply or slow
         tx = Transaction(frame, wait_s, 0 if once else retries, expect_reply, exclusive)
-        tx.fields, tx.submitted_at, tx.slow, tx.lenient = fields, now, slow, lenient
+        tx.fields, tx.submitted_at, tx.slow, tx.lenient, tx.background = fields, now, slow, lenient, background
         self.stats.requests += 1
         if not expect_reply:
             self._send(tx, now)  # fire and forget: never live, so it queues behind nothing

@@ -71,7 +71,7 @@ class FeedTarget(Protocol):
     @property
     def connected(self) -> bool: ...
     def build_from(self, ident: str, values: Mapping[str, object]) -> Frame: ...
-    def send_nowait(self, frame: Frame) -> None: ...
+    def send_nowait(self, frame: Frame, *, background: bool = False) -> None: ...
     async def send_request(self, frame: Frame) -> object: ...
 
 
@@ -359,7 +359,8 @@ class HostFeeds:
                 values = None if spec is None else self._current(ident, spec)
                 if values is not None and self.core.connected:
                     try:
-                        self.core.send_nowait(self.core.build_from(ident, values))
+                        # periodic: a photo or a command waiting for its turn goes first (Pacer)
+                        self.core.send_nowait(self.core.build_from(ident, values), background=True)
                         self.sent[ident] = self.sent.get(ident, 0) + 1
                     except TopGimbalError as exc:
                         log.info("%s: %s feed not sent: %s", self.core.url, ident, exc)

@@ -92,11 +92,12 @@ class Requests:
         """A request the device should answer soon is in flight (slow queries do not count)."""
         return self._engine is not None and any(not tx.slow for tx in self._engine.live.values())
 
-    def send_nowait(self, frame: Frame) -> None:
-        """Send without waiting for an answer (in the engine's order and pacing)."""
+    def send_nowait(self, frame: Frame, *, background: bool = False) -> None:
+        """Send without waiting for an answer (in the engine's order and pacing; `background`: a
+        periodic feed, which other frames may pass while they wait for their turn)."""
         self._check_usable(frame)
         assert self._engine is not None
-        self._engine.submit(frame, timeout_s=self.timeout_s, expect_reply=False)
+        self._engine.submit(frame, timeout_s=self.timeout_s, expect_reply=False, background=background)
         self._drive()
 
     async def send_request(
