@@ -4,6 +4,7 @@ same guarantees a connected socket gives; `topgimbal zenoh` serves its UDP camer
 
 from __future__ import annotations
 
+import asyncio
 import socket
 from collections.abc import AsyncIterator
 
@@ -104,3 +105,22 @@ def test_the_fleet_server_shares_unless_the_url_chose() -> None:
     assert served_url("udp://127.0.0.1:5000?socket=own") == "udp://127.0.0.1:5000?socket=own"
     assert served_url("udp://127.0.0.1:5000?local_port=9004") == "udp://127.0.0.1:5000?local_port=9004"
     assert served_url("tcp://127.0.0.1:5000") == "tcp://127.0.0.1:5000"
+
+
+async def test_the_last_camera_closing_in_its_handler_ends_the_read_cleanly(sims: list[Simulator]) -> None:
+    cam = await topgimbal.connect(f"{sims[2].url}?socket=shared", model="C12")
+    t = _transport(cam)
+    shared, peer = t._shared, t._peer
+    assert shared is not None and peer is not None
+
+    def last_one(data: bytes) -> None:  # the handler of the socket's only camera lets it go
+        shared.unregister(peer, last_one)
+
+    shared.routes[peer] = last_one
+    t.send(b"#TPUG2rGAC0032")  # its answer runs the handler, which closes the socket mid-read
+    for _ in range(200):
+        if shared.closed:
+            break
+        await asyncio.sleep(0.01)
+    assert shared.closed and shared.read_errors == 0  # no read of a closed socket
+    await cam.close()

@@ -129,6 +129,8 @@ class SharedUdpSocket:
                 route(bytes(view[:n]))
             except Exception:  # one camera's bug is not the others'
                 log.exception("shared UDP socket: the handler for %s:%s failed", addr[0], addr[1])
+            if self.closed:  # that camera was the last one and closed in its handler
+                return
 
     def close(self) -> None:
         if self.closed:
