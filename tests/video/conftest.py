@@ -73,9 +73,14 @@ class LiveSim:
         return self.sim.url
 
 
-def grab(url: str, size: tuple[int, int], frames: int = 1, transport: str = "tcp") -> list[np.ndarray]:
-    """Decoded RGB pictures read from an RTSP URL by ffmpeg."""
+def grab(
+    url: str, size: tuple[int, int], frames: int = 1, transport: str = "tcp", *, every_picture: bool = False
+) -> list[np.ndarray]:
+    """Decoded RGB pictures read from an RTSP URL by ffmpeg. `every_picture`: each decoded picture
+    once (`-fps_mode passthrough`); by default ffmpeg's raw output keeps a constant rate and repeats
+    a picture to fill a gap in the stream (a loaded machine: 20 pictures held 6 distinct ones)."""
     w, h = size
+    mode = ["-fps_mode", "passthrough"] if every_picture else []
     out = subprocess.run(
         [
             FFMPEG,
@@ -85,6 +90,7 @@ def grab(url: str, size: tuple[int, int], frames: int = 1, transport: str = "tcp
             transport,
             "-i",
             url,
+            *mode,
             "-frames:v",
             str(frames),
             "-f",

@@ -113,7 +113,11 @@ def test_two_receivers_get_the_same_pictures(c12: LiveSim) -> None:
     results: dict[str, list] = {}
 
     def read(name: str, transport: str) -> None:
-        results[name] = grab(url, (640, 512), frames=20, transport=transport)
+        # 3 s of pictures each, every one once: the two sessions may start up to a second or two
+        # apart on a loaded machine (RTSP over TCP and over UDP set up differently), and at a
+        # constant output rate ffmpeg repeated pictures to fill gaps (a run beside two busy loops:
+        # 20 pictures, 6 distinct, one in common)
+        results[name] = grab(url, (640, 512), frames=45, transport=transport, every_picture=True)
 
     threads = [threading.Thread(target=read, args=(n, t)) for n, t in (("a", "tcp"), ("b", "udp"))]
     for t in threads:
