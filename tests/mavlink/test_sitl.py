@@ -49,7 +49,7 @@ import waiting
 from topgimbal.geo.aim import Geodetic, look_at, offset_m
 from topgimbal.protocol import get_model
 
-from .figures import percentile, wrap180
+from .figures import percentile, sender_delays, wrap180
 
 pytestmark = pytest.mark.external
 
@@ -504,23 +504,14 @@ async def steps(f: Flight) -> None:
         """Yaw the vehicle TURN_DEG at `rate_deg_s` (CONDITION_YAW, relative); the camera's earth
         yaw error against `target()` (an earth bearing) at each ATTITUDE while the turn is under way
         (more than 10 deg from its start and its end: not the vehicle's own acceleration)."""
-        errors: list[float] = []
-        when: list[float] = []
-        offsets: list[float] = []
+        got: list[tuple[float, float, float, float, float, float]] = []
         g = sim.gimbal
         start_heading = f.g.heading_deg
         end_heading = wrap180(start_heading + direction * TURN_DEG)
 
         def sample(att: Any) -> None:
-            # the heading when we read the camera: ATTITUDE's, carried forward over its delay to us
-            # (the time since SITL stamped it, less the smallest such delay seen: the clocks' offset)
-            now = time.monotonic()
-            offsets.append(now - att.time_boot_ms / 1000.0)
-            delay_s = min(0.5, offsets[-1] - min(offsets))
-            heading = math.degrees(att.yaw) + math.degrees(att.yawspeed) * delay_s
-            if abs(wrap180(heading - start_heading)) > 10 and abs(wrap180(heading - end_heading)) > 10:
-                errors.append(abs(wrap180(heading + g.yaw_deg - target())))
-                when.append(time.monotonic())
+            got.append((att.time_boot_ms / 1000.0, time.monotonic(), math.degrees(att.yaw),
+                        math.degrees(att.yawspeed), g.yaw_deg, target()))  # fmt: skip
 
         f.g.on_attitude = sample
         try:
@@ -528,6 +519,16 @@ async def steps(f: Flight) -> None:
             await until(lambda: abs(wrap180(f.g.heading_deg - end_heading)) < 2, TURN_DEG / rate_deg_s + 30, what)
         finally:
             f.g.on_attitude = None
+        # the heading when we read the camera: ATTITUDE's, carried forward over its delay to us,
+        # judged after the turn with SITL's clock rate against ours (figures.sender_delays)
+        delays, _ = sender_delays([(sent, arrived) for sent, arrived, *_ in got])
+        errors: list[float] = []
+        when: list[float] = []
+        for (_, arrived, yaw, yawspeed, cam_yaw, bearing), delay in zip(got, delays, strict=True):
+            heading = yaw + yawspeed * min(0.5, delay)
+            if abs(wrap180(heading - start_heading)) > 10 and abs(wrap180(heading - end_heading)) > 10:
+                errors.append(abs(wrap180(heading + cam_yaw - bearing)))
+                when.append(arrived)
         assert len(errors) > 20, f"{what}: {len(errors)} samples during the turn"
         rate = (TURN_DEG - 20) / (when[-1] - when[0])
         f.yaw_rows.append(f"{what} (turned at {rate:.1f} deg/s) | {percentile(errors, 50):.2f} | "
