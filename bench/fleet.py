@@ -15,6 +15,7 @@ assertions:
 
     python bench/fleet.py --cameras 10,100 --rate-hz 50 --seconds 10
     python bench/fleet.py --cameras 1000 --rate-hz 50 --batched     # the batch key, topgimbal/@attitude/*
+    python bench/fleet.py --cameras 250 --batched --own-sockets      # one UDP socket per camera, as before
 
 Loopback only (tcp/127.0.0.1, scouting off). On a shared, loaded machine the figures say what this
 machine could do at that moment: the script prints the load average next to them."""
