@@ -55,3 +55,58 @@ async def test_a_tap_sees_every_sample_and_a_failing_tap_hurts_nothing(sims, cap
         n = len(seen)
         await cam.get_attitude()  # an answer is a sample too, but no tap is left to see it
         assert len(seen) == n
+
+
+@pytest.mark.loopback
+async def test_the_camera_key_is_put_only_while_someone_subscribes_to_it(sims, zport) -> None:
+    """Zenoh's matching status drives the per-camera put (a subscriber on another session, through
+    the network): none while nobody listens, every sample once someone does, none again after."""
+    import asyncio
+
+    from topgimbal.fleet.camera import ServedCamera
+    from topgimbal.fleet.specs import CameraSpec
+
+    from .conftest import raw_session
+
+    (sim,) = await sims(1)
+    server = await asyncio.to_thread(raw_session, zport, "peer", [f"tcp/127.0.0.1:{zport}"])
+    other = await asyncio.to_thread(raw_session, zport)
+    cam = ServedCamera(CameraSpec("north", sim.url, "C12"), server, rate_hz=50)
+    puts: list[str] = []
+    try:
+        await cam.start()
+        cam._att = _CountingPublisher(cam._att, puts)  # closing undeclares the real one (cam._decls)
+        await eventually(lambda: cam.published >= 10, what="10 samples taken")
+        assert not cam.att_subscribed and puts == []  # nobody listens: nothing put
+        heard: list[dict[str, float]] = []
+        sub = other.declare_subscriber(
+            "topgimbal/north/attitude", lambda s: heard.append(json.loads(s.payload.to_string()))
+        )
+        await eventually(lambda: len(heard) >= 10, what="10 samples on the camera's key")
+        assert cam.att_subscribed
+        seqs = [int(d["seq"]) for d in heard]
+        assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))  # from then on, every sample
+        sub.undeclare()
+        await eventually(lambda: not cam.att_subscribed, what="the matching status back to none")
+        n = len(puts)
+        published = cam.published
+        await eventually(lambda: cam.published >= published + 10, what="10 more samples taken")
+        assert len(puts) <= n + 1  # at most one put raced the status change
+    finally:
+        await cam.close()
+        other.close()
+        server.close()
+
+
+class _CountingPublisher:
+    """A Zenoh publisher whose puts are also recorded (the rest goes to the real one)."""
+
+    def __init__(self, inner: object, puts: list[str]) -> None:
+        self.inner, self.puts = inner, puts
+
+    def put(self, payload: str) -> None:
+        self.puts.append(payload)
+        self.inner.put(payload)  # type: ignore[attr-defined]
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self.inner, name)

@@ -8,7 +8,23 @@ from __future__ import annotations
 from ..errors import DeviceError
 from ..protocol import Message
 from .acks import is_report
-from .records import Attempt, Clock, EchoRule, Inbound, Key, Ledger, RKey, Transaction
+from .records import (
+    AMBIGUOUS,
+    DUPLICATE,
+    IGNORED,
+    LATE,
+    NO_TX_ERROR,
+    UNAWAITED,
+    UNSOLICITED,
+    Attempt,
+    Clock,
+    EchoRule,
+    Inbound,
+    Key,
+    Ledger,
+    RKey,
+    Transaction,
+)
 from .stats import LinkStats
 
 # A copy of an answer comes right behind the original: one arriving within this long after a query
@@ -63,7 +79,7 @@ class Matching:
             lenient = self.live.get((frame.ident, frame.src))
             if lenient is None or not lenient.lenient:
                 self.stats.bad_frames += 1
-                return Inbound("ignored")
+                return IGNORED
         last = self._last_frame.get(rkey)
         self._last_frame[rkey] = (now, frame.data)
         if self._streams and frame.rw == "r" and self._streaming(frame.ident, now):
@@ -80,7 +96,7 @@ class Matching:
         ledger.prune(window)
         if frame.rw == "r":
             if is_report(message):
-                return Inbound("unsolicited")  # a stream frame on a query's key
+                return UNSOLICITED  # a stream frame on a query's key
             fits = list(ledger.open)
         else:
             fits = [a for a in ledger.open if self.echo_matches(a.tx.frame, a.tx.fields, message)]
@@ -100,7 +116,7 @@ class Matching:
             # this request a retry, not every later read the copy wait.
             self.stats.duplicates += 1
             live.suspected_copy = len(live.attempts)
-            return Inbound("duplicate")
+            return DUPLICATE
         if live is not None and own and (not foreign or frame.rw == "w" or live.slow):
             # Reads never have foreign attempts here (deferred until there are none); a write's
             # echo with the data sent proves the data were applied, whichever attempt it answers.
@@ -109,13 +125,13 @@ class Matching:
             if live is not None and own:
                 self.stats.ambiguous += 1
                 live.notes.append(f"{frame.text()} could answer this request or an earlier one: not taken")
-                return Inbound("ambiguous")
+                return AMBIGUOUS
             if not maybe_copy:
                 self._close_if_single_owner(foreign)
             if all(not a.tx.expect_reply for a in foreign):
-                return Inbound("unawaited")  # the echo of a frame sent without waiting: not late
+                return UNAWAITED  # the echo of a frame sent without waiting: not late
             self.stats.late_replies += 1
-            return Inbound("late")
+            return LATE
         # Fits an attempt that was answered already: another copy of that answer.
         known = any(
             a.sent_at >= window and (frame.rw == "r" or self.echo_matches(a.tx.frame, a.tx.fields, message))
@@ -129,10 +145,10 @@ class Matching:
         answers look alike, so every open attempt there is answered alike)."""
         live = self.live.get((rkey[0], rkey[1]))
         if live is None or live.state != "sent" or live.rkey != rkey:
-            return Inbound("unsolicited")
+            return UNSOLICITED
         ledger = self._ledger.get(rkey)
         if ledger is None or is_report(message) or not any(a.tx is live for a in ledger.open):
-            return Inbound("unsolicited")
+            return UNSOLICITED
         for attempt in list(ledger.open):
             ledger.close(attempt)
         self.stats.replies += 1  # no round trip: a sample may have left before the query came
@@ -143,10 +159,10 @@ class Matching:
         """A frame that fits no open attempt: a report, a copy of an answer already taken, a
         mismatched echo, or a stray answer."""
         if is_report(message):
-            return Inbound("unsolicited")
+            return UNSOLICITED
         if known:
             self._copy_seen()
-            return Inbound("late")
+            return LATE
         if live is not None and message.frame.rw == "w":
             # An echo with other data than any attempt sent: the device did something else.
             self.stats.errors += 1
@@ -159,8 +175,8 @@ class Matching:
         ledger = self._ledger.get((message.frame.ident, message.frame.src, message.frame.rw or "w"))
         if ledger is not None and (ledger.open or ledger.answered):
             self.stats.stray_replies += 1
-            return Inbound("late")
-        return Inbound("unsolicited")
+            return LATE
+        return UNSOLICITED
 
     def _copy_floor_s(self) -> float:
         """How soon after a query an identical frame must be a copy: half the fastest round trip
@@ -217,4 +233,4 @@ class Matching:
             tx.notes.append(
                 f"the device sent an error frame {message.frame.text()} that may answer this request or another to {src}"
             )
-        return Inbound("error")
+        return NO_TX_ERROR

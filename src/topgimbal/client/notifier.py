@@ -35,6 +35,11 @@ class Notifier:
     def wants_traffic(self) -> bool:
         return bool(self._traffic)
 
+    @property
+    def wants_messages(self) -> bool:
+        """Someone subscribed to messages (else `message` has nothing to do)."""
+        return bool(self._subs)
+
     def subscribe(self, callback: MessageCallback, ident: str | None = None) -> Callable[[], None]:
         if not callable(callback):
             raise FieldValueError("callback", callback, "a function taking a Message")

@@ -126,6 +126,13 @@ class Inbound:
         return self.kind not in ("duplicate", "ignored")
 
 
+# What a frame that finished no request is, made once: Inbound is frozen, so one object serves every
+# such frame (one allocation fewer per stream sample, the commonest frame of all).
+UNSOLICITED, LATE, IGNORED, DUPLICATE, AMBIGUOUS, UNAWAITED, NO_TX_ERROR = (
+    Inbound(k) for k in ("unsolicited", "late", "ignored", "duplicate", "ambiguous", "unawaited", "error")
+)
+
+
 PACE_SLACK_S = 1e-6  # timers may fire a hair early; a microsecond is no pacing error
 
 

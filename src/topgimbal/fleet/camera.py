@@ -47,6 +47,7 @@ from ..timeouts import within
 from .access import KIND_FORBIDDEN, callable_methods, refusal
 from .batch import AttitudeBatch, named
 from .specs import CameraSpec
+from .ticker import CameraTicker
 
 log = logging.getLogger("topgimbal.fleet")
 
@@ -115,9 +116,12 @@ class ServedCamera:
         allow_remote: frozenset[str] = frozenset(),
         clock: MonotonicFn = monotonic,
         batch: AttitudeBatch | None = None,
+        ticker: CameraTicker | None = None,
     ) -> None:
         self.spec = spec
         self.batch = batch  # the serving process's batch key (fleet/batch.py), if it has one
+        self.ticker = ticker  # the serving process's periodic checks (fleet/ticker.py), if it has one
+        self._mark: tuple[object, ...] | None = None  # what the last published state was made of
         self.allow_remote = allow_remote
         self.clock = clock
         self.name = spec.name
@@ -128,6 +132,9 @@ class ServedCamera:
         self.loop: asyncio.AbstractEventLoop | None = None
         self.inflight = 0
         self.published = 0  # attitude samples
+        # Whether a subscriber of this camera's attitude key exists (Zenoh's matching status): no
+        # put per sample when none does (_follow_att_subscribers). True until Zenoh says otherwise.
+        self.att_subscribed = True
         self.calls = 0
         self.refused = 0
         self._seq = 0
@@ -155,13 +162,18 @@ class ServedCamera:
         self._state = s.declare_publisher(key(self.name, "state"))
         self._link = s.declare_publisher(key(self.name, "link"))
         self._decls += [self._att, self._state, self._link]
+        self._follow_att_subscribers()
         self._decls.append(s.declare_queryable(key(self.name, "call/*"), self._on_query_thread))
         self._decls.append(s.declare_queryable(key(self.name, "info"), self._on_info_thread))
         self._decls.append(s.liveliness().declare_token(liveliness_key(self.name)))
         self._unsubscribe = [self.client.on_link_change(self._on_link), self.client.streams.tap(self._on_attitude)]
         self._tasks.append(asyncio.ensure_future(self._attitude_loop()))
-        self._tasks.append(asyncio.ensure_future(self._state_loop()))
-        self._tasks.append(asyncio.ensure_future(self._gone_loop()))
+        if self.ticker is None:
+            self._tasks.append(asyncio.ensure_future(self._state_loop()))
+            self._tasks.append(asyncio.ensure_future(self._gone_loop()))
+        else:
+            self.poll_state()  # the first state at once, as the camera's own task would
+            self._unsubscribe.append(self.ticker.add(self))
         self._listen_transports()
         return self
 
@@ -203,10 +215,32 @@ class ServedCamera:
             return
         self._seq += 1
         text = attitude_json(att, self._seq)
-        self._att.put(text)
+        if self.att_subscribed:
+            self._att.put(text)
         if self.batch is not None:
             self.batch.add(named(self.name, text))
         self.published += 1
+
+    def _follow_att_subscribers(self) -> None:
+        """Keep `att_subscribed` true while a subscriber anywhere matches this camera's attitude key
+        (Zenoh's matching status, which follows subscribers on peers and behind routers). With
+        none (every sample on the batch key only, 1,000 cameras), a put per sample was an eighth of
+        the server's CPU, for samples Zenoh then dropped. Zenoh without the matching API: always."""
+        declare = getattr(self._att, "declare_matching_listener", None)
+        if declare is None:
+            return
+
+        def matching(status: Any) -> None:  # on a Zenoh thread, not the loop: one attribute set
+            self.att_subscribed = bool(status.matching)
+
+        import zenoh  # the serving process has it (fleet/server.py)
+
+        try:  # direct: no Python thread per camera to wake for a flag
+            handler: Any = zenoh.handlers.Callback(matching, indirect=False)
+        except (AttributeError, TypeError):  # a Zenoh without indirect=
+            handler = matching
+        self._decls.append(declare(handler))
+        self.att_subscribed = bool(self._att.matching_status.matching)
 
     def state(self) -> dict[str, Any]:
         c = self.client
@@ -222,21 +256,29 @@ class ServedCamera:
         """What the published state is made of, by identity: the cache replaces an entry when the
         device says something, so an equal mark means nothing to encode (4 times a second x N)."""
         c = self.client
-        return (c.connected, c.link_state["reason"], c.model_check.status, *(getattr(c.state, k) for k in STATE_KEYS))
+        up = c.connected
+        reason = "" if up else c.link_state["reason"]  # link_state's reason is "" while up
+        state = c.state
+        return (up, reason, c.model_check.status, *[getattr(state, k) for k in STATE_KEYS])
+
+    def poll_state(self) -> None:
+        """Put the state if it changed: every STATE_POLL_S, by the serving process's ticker (or the
+        camera's own task when it has none)."""
+        now_mark = self._state_mark()
+        if now_mark == self._mark:
+            return
+        self._mark = now_mark
+        state = self.state()
+        text = json.dumps(state, sort_keys=True)
+        if text != self._last_state:
+            self._last_state = text
+            state["stats"] = self.client.stats.as_dict()
+            state["t"] = wall_time()
+            self._state.put(json.dumps(state))
 
     async def _state_loop(self) -> None:
-        mark: tuple[object, ...] | None = None
         while True:
-            now_mark = self._state_mark()
-            if now_mark != mark:
-                mark = now_mark
-                state = self.state()
-                text = json.dumps(state, sort_keys=True)
-                if text != self._last_state:
-                    self._last_state = text
-                    state["stats"] = self.client.stats.as_dict()
-                    state["t"] = wall_time()
-                    self._state.put(json.dumps(state))
+            self.poll_state()
             await asyncio.sleep(STATE_POLL_S)
 
     def _on_link(self, up: bool, reason: str) -> None:
@@ -377,8 +419,11 @@ class ServedCamera:
         leaving; they end at the latest after MAX_CALL_S, within the one share they have.)"""
         while True:
             await asyncio.sleep(GONE_CHECK_S)
-            if any(not t.done() for t in self._call_querier):
-                self._cancel_gone(self._transports())
+            self.poll_gone()
+
+    def poll_gone(self) -> None:
+        if any(not t.done() for t in self._call_querier):
+            self._cancel_gone(self._transports())
 
     async def _call(self, query: Any, reply_key: str, method: str) -> None:
         self.calls += 1

@@ -27,8 +27,9 @@ from ..client.zenoh_session import make_config, open_session
 from ..errors import TopGimbalError
 from .access import INSECURE_LOG_EVERY_S, check_exposure
 from .batch import DEFAULT_BATCH_S, AttitudeBatch
-from .camera import MAX_CALLS, ServedCamera
+from .camera import GONE_CHECK_S, MAX_CALLS, STATE_POLL_S, ServedCamera
 from .specs import CameraSpec, collect
+from .ticker import CameraTicker
 
 log = logging.getLogger("topgimbal.fleet")
 
@@ -60,6 +61,7 @@ class FleetServer:
         self.specs = collect(cameras)
         self.batch_s = batch_s  # the batch key's wait (fleet/batch.py); None: no batch key
         self.batch: AttitudeBatch | None = None
+        self.ticker: CameraTicker | None = None  # every camera's periodic checks (fleet/ticker.py)
         self.allow_remote = allow_remote
         self.insecure = insecure
         self.protection = ""
@@ -84,10 +86,12 @@ class FleetServer:
             await asyncio.to_thread(self._check_names)
             if self.batch_s is not None:
                 self.batch = AttitudeBatch(self.session, str(self.session.zid()), self.batch_s)
+            self.ticker = CameraTicker(STATE_POLL_S, GONE_CHECK_S)
             for spec in self.specs:
                 self.cameras[spec.name] = ServedCamera(spec, self.session, rate_hz=self.rate_hz,
                                                        max_calls=self.max_calls, client_options=self.client_options,
-                                                       allow_remote=self.allow_remote, batch=self.batch)  # fmt: skip
+                                                       allow_remote=self.allow_remote, batch=self.batch,
+                                                       ticker=self.ticker)  # fmt: skip
             # All at once: one after the other, 100 cameras took seconds to start and to close.
             await asyncio.gather(*(cam.start() for cam in self.cameras.values()))
         except BaseException:
@@ -119,6 +123,8 @@ class FleetServer:
         if task is not None:
             task.cancel()
         await asyncio.gather(*(cam.close() for cam in self.cameras.values()), return_exceptions=True)
+        if self.ticker is not None:
+            await self.ticker.close()
         if self.batch is not None:
             self.batch.close()
         if self.session is not None:

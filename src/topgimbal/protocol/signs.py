@@ -70,6 +70,16 @@ def flip(spec: CommandSpec, values: Mapping[str, Any], signs: Mapping[str, int])
     """API values <-> wire values for `spec` (the same operation both ways). `signs` is a table
     from `resolve_signs` (a plain `{"pitch": -1}` also works: axis entries cover every kind)."""
     out = dict(values)
+    for name in negated_fields(spec, signs):
+        v = out.get(name)
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            out[name] = -v + 0.0  # + 0.0: never "-0.0"
+    return out
+
+
+def negated_fields(spec: CommandSpec, signs: Mapping[str, int]) -> tuple[str, ...]:
+    """The fields of `spec` whose sign `flip` changes under `signs` (none: `flip` copies values)."""
+    out: list[str] = []
     for name, key, axis, fixed in spec.wire_sign_fields:
         if axis:
             sign = signs.get(key)
@@ -77,10 +87,9 @@ def flip(spec: CommandSpec, values: Mapping[str, Any], signs: Mapping[str, int])
                 sign = signs.get(axis, 1)
         else:
             sign = fixed
-        v = out.get(name)
-        if sign == -1 and isinstance(v, (int, float)) and not isinstance(v, bool):
-            out[name] = -v + 0.0  # + 0.0: never "-0.0"
-    return out
+        if sign == -1:
+            out.append(name)
+    return tuple(out)
 
 
-__all__ = ["AXES", "KINDS", "SIGN_KEYS", "flip", "resolve_signs", "sign_of"]
+__all__ = ["AXES", "KINDS", "SIGN_KEYS", "flip", "negated_fields", "resolve_signs", "sign_of"]

@@ -1,0 +1,74 @@
+"""The per-sample path's shortcuts give what the general code gives: a message whose command
+negates nothing under the client's signs passes as it is (the same object), one that does is
+mapped as `map_message` maps it; the state cache's Stamped and GimbalAttitude objects, made
+without their frozen __init__, equal the constructor's in every field and stay frozen."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from topgimbal.client.signs import MessageSigns, map_message
+from topgimbal.client.state import GimbalAttitude, Stamped, StateCache, attitude_of
+from topgimbal.protocol import Message, get_model
+from topgimbal.protocol.signs import negated_fields, resolve_signs
+
+pytestmark = pytest.mark.virtual
+
+
+def _sample(model: str, yaw: float, pitch: float, roll: float) -> Message:
+    """A GAC answer as the device sends it, decoded."""
+    dialect, _ = get_model(model)
+    request = dialect.encode("GAC", read=True)
+    return dialect.decode(dialect.response(request, yaw_deg=yaw, pitch_deg=pitch, roll_deg=roll))
+
+
+@pytest.mark.parametrize("model", ["C12", "C20"])
+def test_a_command_that_negates_nothing_passes_as_it_is(model: str) -> None:
+    _, m = get_model(model)
+    signs = resolve_signs(m, None)
+    message = _sample(model, 12.5, -30.25, 1.0)
+    mapper = MessageSigns(signs)
+    assert negated_fields(message.spec, signs) == ()  # SkyDroid's wire is the API's convention
+    assert mapper(message) is message
+    assert map_message(message, signs).fields == message.fields  # what the general mapping gives
+
+
+@pytest.mark.parametrize(
+    ("model", "override"),
+    [("SIP", None), ("C12", {"pitch": -1}), ("C12", {"yaw": -1, "roll": -1}), ("C12", {"attitude.pitch": -1})],
+)
+def test_a_command_that_negates_a_field_is_mapped_as_map_message_maps_it(
+    model: str, override: dict[str, int] | None
+) -> None:
+    _, m = get_model(model)  # SIP: TOPOTEK's pitch is down-positive on the wire
+    signs = resolve_signs(m, override)
+    message = _sample(model, 12.5, -30.25, 1.0)
+    mapper = MessageSigns(signs)
+    got = mapper(message)
+    assert got is not message and got == map_message(message, signs)
+    negated = negated_fields(message.spec, signs)
+    assert negated  # the override reaches GAC
+    for name, value in message.fields.items():
+        assert got.fields[name] == (-value + 0.0 if name in negated else value)
+    assert mapper(message) == got  # the cached decision gives the same again
+
+
+def test_the_state_cache_objects_equal_the_constructors() -> None:
+    message = _sample("C12", 12.5, -30.25, 1.0)
+    cache = StateCache()
+    keyed = cache.apply(message, 7.0, 1764465000.25)
+    for key, value in keyed.items():
+        got = cache.values[key]
+        assert got == Stamped(value, 7.0, 1764465000.25) and type(got) is Stamped
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            got.t = 0.0  # type: ignore[misc]
+    att = attitude_of(keyed, "attitude", "GAC", 7.0, 1764465000.25)
+    assert att == GimbalAttitude(12.5, -30.25, 1.0, 7.0, 1764465000.25, "GAC")
+    assert hash(att) == hash(GimbalAttitude(12.5, -30.25, 1.0, 7.0, 1764465000.25, "GAC"))
+    assert att is not None and att.as_dict() == dataclasses.asdict(
+        GimbalAttitude(12.5, -30.25, 1.0, 7.0, 1764465000.25)
+    )
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        att.yaw_deg = 0.0  # type: ignore[misc]
