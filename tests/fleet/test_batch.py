@@ -125,3 +125,22 @@ def test_the_batch_key_is_beyond_every_cameras_wildcard() -> None:
     assert batches.intersects(zenoh.KeyExpr(BATCH_KEYS))
     for wildcard in ("topgimbal/**", "topgimbal/*/attitude", "topgimbal/*"):
         assert not batches.intersects(zenoh.KeyExpr(wildcard)), wildcard
+
+
+async def test_a_sample_that_comes_after_batch_s_puts_the_batch_at_once() -> None:
+    """The loop busy reading a burst: the timer has not run, but a sample arriving batch_s after
+    the first one takes the batch out with it, not after the burst."""
+    session = Session()
+    batch = AttitudeBatch(session, "abc123", 0.005)
+    pub = session.publishers[0]
+    t0 = monotonic()
+    batch.add(sample("cam0", 1), t0)
+    batch.add(sample("cam1", 1), t0 + 0.004)  # still within the wait
+    assert pub.puts == []
+    batch.add(sample("cam2", 1), t0 + 0.005)  # arrived as the first one's wait ended
+    assert len(pub.puts) == 1 and [d["name"] for d in json.loads(pub.puts[0][1])] == ["cam0", "cam1", "cam2"]
+    batch.add(sample("cam0", 2), t0 + 0.006)  # the next batch's first: a wait of its own
+    assert len(pub.puts) == 1
+    await asyncio.sleep(0.006)
+    assert len(pub.puts) == 2 and json.loads(pub.puts[1][1])[0]["seq"] == 2
+    assert (batch.puts, batch.samples) == (2, 4)

@@ -53,6 +53,7 @@ class AttitudeBatch:
         self._loop = asyncio.get_running_loop()
         self._pub = session.declare_publisher(self.key)
         self._lines: list[str] = []
+        self._first_t: float | None = None  # when the first sample waiting arrived (add's `t`)
         self._timer: asyncio.TimerHandle | None = None
         self._closed = False
         self.puts = 0
@@ -60,12 +61,20 @@ class AttitudeBatch:
         self.failed = 0  # puts Zenoh refused (a closing session): their samples are not sent
         self._throttle = ThrottledLog(log, 10.0)
 
-    def add(self, line: str) -> None:
+    def add(self, line: str, t: float | None = None) -> None:
+        """`t`: when the sample arrived, on the loop's clock. A sample that comes when the batch's
+        first one has waited `batch_s` already puts the batch at once: while the loop reads a
+        burst of datagrams (256 at a time, several milliseconds in a busy worker) the timer cannot
+        run, and the batch would wait for the whole burst."""
         if self._closed:
             return
         lines = self._lines
         lines.append(line)
-        if len(lines) >= MAX_SAMPLES:
+        if len(lines) == 1:
+            self._first_t = t
+        if len(lines) >= MAX_SAMPLES or (
+            t is not None and self._first_t is not None and t - self._first_t >= self.batch_s
+        ):
             self.flush()
         elif self._timer is None:
             self._timer = self._loop.call_later(self.batch_s, self.flush)

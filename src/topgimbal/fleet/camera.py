@@ -218,7 +218,7 @@ class ServedCamera:
         if self.att_subscribed:
             self._att.put(text)
         if self.batch is not None:
-            self.batch.add(named(self.name, text))
+            self.batch.add(named(self.name, text), att.t)
         self.published += 1
 
     def _follow_att_subscribers(self) -> None:
