@@ -18,7 +18,6 @@ import asyncio
 import contextlib
 import itertools
 import math
-import shutil
 import tempfile
 import time
 from collections.abc import AsyncIterator
@@ -41,6 +40,7 @@ from .test_px4_survey_sitl import (
     TRANSECTS,
     _position_at,
     _speed_at,
+    fly_printing,
     upload,
 )
 from .test_sitl import (
@@ -158,13 +158,7 @@ async def test_ardupilot_flies_a_survey_one_photo_per_trigger(rig_factory: Any) 
     # the bridge as test_sitl.py has it: a tcpin link for the autopilot's SERIAL2 (SITL connects to it)
     r = await rig_factory(CAMERA, role="device", endpoints=["udpin:127.0.0.1:0", "tcpin:127.0.0.1:0"])
     _, bridge_port = r.bridge.addresses[1]
-    rows: list[str] = []
-    try:
-        async with ardupilot_sitl(work, bridge_port) as g:
-            await _fly(r, g, rows)
-    finally:
-        print("\n".join(rows))
-        shutil.rmtree(work, ignore_errors=True)
+    await fly_printing(ardupilot_sitl(work, bridge_port), lambda g, rows: _fly(r, g, rows), work)
 
 
 async def _fly(r: Any, g: Gcs, rows: list[str]) -> None:

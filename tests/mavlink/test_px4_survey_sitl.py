@@ -16,6 +16,8 @@ import math
 import shutil
 import tempfile
 import time
+from collections.abc import Awaitable, Callable
+from contextlib import AbstractAsyncContextManager
 from pathlib import Path
 from typing import Any
 
@@ -110,10 +112,18 @@ async def test_px4_flies_a_survey_one_photo_per_trigger(rig_factory: Any) -> Non
     work = Path(tempfile.mkdtemp(prefix="px4-survey-"))
     instance = _free_instance()
     r = await rig_factory("C12", role="device", endpoints=payload_links(instance))
+    await fly_printing(px4_sitl(work, instance, PARAMS), lambda g, rows: _fly(r, g, rows), work)
+
+
+async def fly_printing(
+    sitl: AbstractAsyncContextManager[Gcs], fly: Callable[[Gcs, list[str]], Awaitable[None]], work: Path
+) -> None:
+    """`fly` with the autopilot `sitl` starts; the figures it gathered are printed and the work
+    directory removed, whether it passed or not (both surveys, PX4's and ArduPilot's)."""
     rows: list[str] = []
     try:
-        async with px4_sitl(work, instance, PARAMS) as g:
-            await _fly(r, g, rows)
+        async with sitl as g:
+            await fly(g, rows)
     finally:
         print("\n".join(rows))
         shutil.rmtree(work, ignore_errors=True)

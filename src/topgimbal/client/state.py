@@ -133,7 +133,7 @@ class StateCache:
 # Frozen dataclasses set each field through object.__setattr__ in __init__: three Stamped and one
 # GimbalAttitude per attitude sample cost a third of what the state cache did per sample. Made here
 # by filling the instance's __dict__ (what __init__ ends with), the same objects at half the cost;
-# tests/client/test_state.py compares them with the constructor's.
+# tests/client/test_sample_path.py compares them with the constructor's.
 _new = object.__new__
 
 

@@ -121,6 +121,7 @@ class ServedCamera:
         self.spec = spec
         self.batch = batch  # the serving process's batch key (fleet/batch.py), if it has one
         self.ticker = ticker  # the serving process's periodic checks (fleet/ticker.py), if it has one
+        self._own_ticker: CameraTicker | None = None  # made by start() when none was given
         self._mark: tuple[object, ...] | None = None  # what the last published state was made of
         self.allow_remote = allow_remote
         self.clock = clock
@@ -168,12 +169,10 @@ class ServedCamera:
         self._decls.append(s.liveliness().declare_token(liveliness_key(self.name)))
         self._unsubscribe = [self.client.on_link_change(self._on_link), self.client.streams.tap(self._on_attitude)]
         self._tasks.append(asyncio.ensure_future(self._attitude_loop()))
-        if self.ticker is None:
-            self._tasks.append(asyncio.ensure_future(self._state_loop()))
-            self._tasks.append(asyncio.ensure_future(self._gone_loop()))
-        else:
-            self.poll_state()  # the first state at once, as the camera's own task would
-            self._unsubscribe.append(self.ticker.add(self))
+        if self.ticker is None:  # served alone: a ticker of its own
+            self.ticker = self._own_ticker = CameraTicker(STATE_POLL_S, GONE_CHECK_S)
+        self.poll_state()  # the first state at once; then every STATE_POLL_S
+        self._unsubscribe.append(self.ticker.add(self))
         self._listen_transports()
         return self
 
@@ -190,6 +189,8 @@ class ServedCamera:
             with contextlib.suppress(Exception):
                 d.undeclare()
         self._decls.clear()
+        if self._own_ticker is not None:
+            await self._own_ticker.close()
         await self.client.close()
 
     # -- what it publishes --------------------------------------------------------------------------
@@ -262,8 +263,7 @@ class ServedCamera:
         return (up, reason, c.model_check.status, *[getattr(state, k) for k in STATE_KEYS])
 
     def poll_state(self) -> None:
-        """Put the state if it changed: every STATE_POLL_S, by the serving process's ticker (or the
-        camera's own task when it has none)."""
+        """Put the state if it changed (every STATE_POLL_S, by the ticker)."""
         now_mark = self._state_mark()
         if now_mark == self._mark:
             return
@@ -275,11 +275,6 @@ class ServedCamera:
             state["stats"] = self.client.stats.as_dict()
             state["t"] = wall_time()
             self._state.put(json.dumps(state))
-
-    async def _state_loop(self) -> None:
-        while True:
-            self.poll_state()
-            await asyncio.sleep(STATE_POLL_S)
 
     def _on_link(self, up: bool, reason: str) -> None:
         if self._closing:
@@ -413,15 +408,11 @@ class ServedCamera:
                 log.info("%s: a call's querier %s has gone: cancelled (%d in all)", self.name, querier, self.gone)
                 task.cancel(msg="querier gone")
 
-    async def _gone_loop(self) -> None:
-        """Cancels the calls of a querier whose transport has closed: its place is free at once,
-        not at the end of a wait nobody reads. (Calls that name no open transport cannot be seen
-        leaving; they end at the latest after MAX_CALL_S, within the one share they have.)"""
-        while True:
-            await asyncio.sleep(GONE_CHECK_S)
-            self.poll_gone()
-
     def poll_gone(self) -> None:
+        """Cancels the calls of a querier whose transport has closed (every GONE_CHECK_S, by the
+        ticker): its place is free at once, not at the end of a wait nobody reads. (Calls that name
+        no open transport cannot be seen leaving; they end at the latest after MAX_CALL_S, within
+        the one share they have.)"""
         if any(not t.done() for t in self._call_querier):
             self._cancel_gone(self._transports())
 

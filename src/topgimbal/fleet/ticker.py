@@ -4,7 +4,8 @@ Each served camera compares its state with what it last published (every STATE_P
 for calls whose querier has left (every GONE_CHECK_S). As a task of its own per check, 1,000
 cameras woke 6,000 tasks a second, most of them to find nothing to do: the wake-up cost more than
 the check. Here one task runs them all, camera after camera; a camera whose check raises is
-logged (at most every LOG_EVERY_S) and the others still run.
+logged (at most every LOG_EVERY_S) and the others still run. A camera served alone (no
+FleetServer) makes a ticker of its own.
 """
 
 from __future__ import annotations
