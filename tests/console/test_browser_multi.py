@@ -120,3 +120,30 @@ def test_grid_and_switcher(browser: Any, artifacts: Path, page_errors: list[str]
         finally:
             context.close()
     assert page_errors == [], page_errors
+
+
+def test_a_press_held_while_its_tile_changes_is_still_a_click(browser: Any, page_errors: list[str]) -> None:
+    """The grid's tiles change with every attitude sample: a press on a tile's text, released after
+    the text changed, opens that camera's page (the parts are updated in place, not replaced)."""
+    with Several("C12") as bg:
+        context = browser.new_context(viewport={"width": 1400, "height": 1000})
+        page = context.new_page()
+        page.on("pageerror", lambda e: page_errors.append(str(e)))
+        try:
+            page.goto(bg.url)
+            page.wait_for_selector("body[data-ready='1']", timeout=30_000)
+            page.wait_for_selector("[data-testid=cam-tile-sim2][data-link=up]", timeout=30_000)
+            att = page.get_by_test_id("cam-att-sim2")
+            wait_for(lambda: "yaw" in att.inner_text(), 30, what="sim2's attitude on its tile")
+            box = att.bounding_box()
+            assert box is not None
+            page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+            page.mouse.down()
+            before = att.inner_text()
+            sim2 = bg.sim_of("sim2")
+            bg.call(lambda: setattr(sim2.gimbal.yaw_axis, "pos", 25.0))  # the camera turns meanwhile
+            wait_for(lambda: att.inner_text() != before, 30, what="the tile's text changed under the press")
+            page.mouse.up()
+            page.wait_for_url("**/cam/sim2/", timeout=30_000)
+        finally:
+            context.close()

@@ -54,8 +54,27 @@ function tile(c, selected) {
   for (const [what, why] of Object.entries(c.unavailable || {})) {
     parts.push(el("span", { class: "cnote", title: why, "data-testid": `cam-unavailable-${c.name}-${what}` }, `${what}: unavailable`));
   }
-  t.replaceChildren(...parts);
+  morph(t, parts);
   return t;
+}
+
+// The tile's parts updated in place when they are the same kinds of element: its text changes with
+// every attitude sample, and a press on a span that is replaced before the release is no click on
+// the tile (the press and the release then have no common target in the page; seen beside two busy
+// loops, where a click's press and release can straddle a poll).
+function morph(parent, parts) {
+  const old = [...parent.children];
+  const alike = old.length === parts.length && parts.every((p, i) => old[i].tagName === p.tagName && old[i].className === p.className);
+  if (!alike) {
+    parent.replaceChildren(...parts);
+    return;
+  }
+  parts.forEach((p, i) => {
+    const o = old[i];
+    if (o.textContent !== p.textContent) o.textContent = p.textContent;
+    for (const a of o.getAttributeNames()) if (!p.hasAttribute(a)) o.removeAttribute(a);
+    for (const a of p.getAttributeNames()) if (o.getAttribute(a) !== p.getAttribute(a)) o.setAttribute(a, p.getAttribute(a));
+  });
 }
 
 function render(body) {
