@@ -29,6 +29,12 @@ def monotonic() -> float:
         return time.monotonic()
 
 
+def loop_clock(loop: asyncio.AbstractEventLoop) -> MonotonicFn:
+    """`loop`'s own time as a MonotonicFn, bound once: what `monotonic` returns inside that loop,
+    without finding the running loop on every read (a per-datagram path reads it once a frame)."""
+    return loop.time
+
+
 def wall_time() -> float:
     """UTC seconds since the epoch: for dates written somewhere, never for intervals."""
     return time.time()

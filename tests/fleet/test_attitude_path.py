@@ -98,6 +98,39 @@ async def test_the_camera_key_is_put_only_while_someone_subscribes_to_it(sims, z
         server.close()
 
 
+@pytest.mark.loopback
+async def test_serving_cameras_starts_no_thread_per_camera(sims, zport) -> None:
+    """Zenoh's callbacks (the call and info queryables, matching status, transport events) run
+    where Zenoh calls them: zenoh-python's default gives each a Python thread, three per camera,
+    which once capped a process at 256 cameras. A call still gets its answer."""
+    import asyncio
+    import threading
+
+    from topgimbal.fleet.camera import ServedCamera
+    from topgimbal.fleet.specs import CameraSpec
+
+    from .conftest import raw_call, raw_session
+
+    made = await sims(12)
+    server = await asyncio.to_thread(raw_session, zport, "peer", [f"tcp/127.0.0.1:{zport}"])
+    other = await asyncio.to_thread(raw_session, zport)
+    before = threading.active_count()
+    cams = [ServedCamera(CameraSpec(f"c{i}", s.url, "C12"), server, rate_hz=10) for i, s in enumerate(made)]
+    try:
+        for cam in cams:
+            await cam.start()
+        assert threading.active_count() - before < len(cams)  # was 3 per camera: 36
+        info = await asyncio.to_thread(raw_call, other, "topgimbal/c7/info", None)
+        assert info and info[0]["name"] == "c7"
+        got = await asyncio.to_thread(raw_call, other, "topgimbal/c3/call/version", "{}")
+        assert got and "result" in got[0], got
+    finally:
+        for cam in cams:
+            await cam.close()
+        other.close()
+        server.close()
+
+
 class _CountingPublisher:
     """A Zenoh publisher whose puts are also recorded (the rest goes to the real one)."""
 

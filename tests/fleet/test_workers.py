@@ -35,6 +35,19 @@ def test_worker_count_holds_every_camera_and_refuses_too_few() -> None:
         worker_count(5000, 0, 256)
 
 
+def test_by_default_a_worker_takes_its_share_of_samples_and_no_more_workers_than_cores() -> None:
+    from topgimbal.cli.zenoh_workers import SAMPLES_PER_WORKER
+    from topgimbal.fleet.specs import MAX_CAMERAS
+
+    assert SAMPLES_PER_WORKER == 50_000 and MAX_CAMERAS == 1024
+    assert worker_count(1000, 0, MAX_CAMERAS, rate_hz=50, cpus=2) == 1  # 50,000 samples/s: one process
+    assert worker_count(1000, 0, MAX_CAMERAS, rate_hz=100, cpus=2) == 2
+    assert worker_count(1000, 0, MAX_CAMERAS, rate_hz=100, cpus=1) == 1  # one core: one process
+    assert worker_count(3000, 0, MAX_CAMERAS, rate_hz=1, cpus=1) == 3  # the per-process cap still holds
+    assert worker_count(4, 0, MAX_CAMERAS, rate_hz=1e9, cpus=64) == 4  # never a worker without cameras
+    assert worker_count(1000, 3, MAX_CAMERAS, rate_hz=50, cpus=2) == 3  # --workers K: K
+
+
 def test_shares_are_contiguous_and_even() -> None:
     got = shares(list(range(10)), 3)
     assert got == [[0, 1, 2, 3], [4, 5, 6], [7, 8, 9]]
@@ -140,7 +153,7 @@ async def test_with_access_control_the_operator_reaches_every_worker_and_a_stran
 
 async def test_options_of_one_process_and_too_few_workers_exit_2_before_serving(tmp_path: Path) -> None:
     path = tmp_path / "cameras.txt"
-    path.write_text("".join(f"c{i}=udp://127.0.0.1:{6000 + i},C12\n" for i in range(300)))
+    path.write_text("".join(f"c{i}=udp://127.0.0.1:{6000 + i},C12\n" for i in range(1100)))
     for extra, said in ((["--mavlink-keys"], b"--mavlink-keys"), (["--workers", "1"], b"at least 2")):
         proc = await asyncio.create_subprocess_exec(
             sys.executable, "-m", "topgimbal.cli.main", "zenoh", "--cameras", str(path),

@@ -25,6 +25,7 @@ from .sim_fleet import check_fleet_args, fleet_count, serve_fleet
 
 if TYPE_CHECKING:
     from ..sim import Simulator
+    from ..sim.shared_timer import SharedTimer
 
 # A stream faster than this is no camera's (the devices stream at most 100 Hz) and would only
 # spin the simulator's loop; nan, 0 or a negative rate stopped the stream without a word.
@@ -195,7 +196,7 @@ def run(args: argparse.Namespace) -> int:
         writable_output(args.truth, "truth file")
     fleet = check_fleet_args(args) if args.fleet else None
 
-    def make(i: int) -> Simulator:
+    def make(i: int, timer: SharedTimer | None = None) -> Simulator:
         return Simulator(
             model,
             seed=args.seed + i,
@@ -211,6 +212,7 @@ def run(args: argparse.Namespace) -> int:
                 tcp_buffer_bytes=args.tcp_buffer_kib * 1024,
             ),
             targets=targets,
+            timer=timer,
         )
 
     if fleet is not None:

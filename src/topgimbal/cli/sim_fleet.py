@@ -11,14 +11,17 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import gc
 import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from ..sim.shared_timer import SharedTimer
+
 if TYPE_CHECKING:
     from ..sim import Simulator
 
-MAX_FLEET = 4096  # cameras per process: each is a socket and a few timers on one loop
+MAX_FLEET = 4096  # cameras per process: each is a socket on one loop (their wake-ups share one timer)
 _SINGLE = ("state", "truth", "tcp", "serial", "video", "media")
 
 
@@ -49,21 +52,27 @@ def check_fleet_args(args: argparse.Namespace) -> list[tuple[str, int]]:
     return fleet_ports(args.udp, args.fleet)
 
 
-async def serve_fleet(make: Callable[[int], Simulator], where: list[tuple[str, int]]) -> int:
-    """Starts `make(i)` on `where[i]` for every i, prints the URLs, serves until a signal."""
+async def serve_fleet(make: Callable[[int, SharedTimer], Simulator], where: list[tuple[str, int]]) -> int:
+    """Starts `make(i, timer)` on `where[i]` for every i, prints the URLs, serves until a signal.
+    The cameras wake on one shared timer (sim/shared_timer.py): one loop timer, not one each."""
     from .runtime import stop_on_signals
 
     sims: list[Simulator] = []
     stop = stop_on_signals()
+    timer = SharedTimer()
     try:
         for i, hostport in enumerate(where):
-            sim = make(i)
+            sim = make(i, timer)
             await sim.start(udp=[hostport])  # a taken port stops the whole fleet, naming it
             sims.append(sim)
+        # N devices' objects live for the run: keep the collector from walking them again and again
+        # (a full collection over 1,000 simulators stalled every camera's stream and answers).
+        gc.freeze()
         print(f"topgimbal sim: {len(sims)} x {sims[0].model}, seeds {sims[0].seed}..{sims[-1].seed}", file=sys.stderr)
         for sim in sims:
             print(sim.url, flush=True)
         await stop.wait()
     finally:
         await asyncio.gather(*(s.stop() for s in sims), return_exceptions=True)
+        timer.close()
     return 0

@@ -18,6 +18,7 @@ import argparse
 import asyncio
 import contextlib
 import json
+import math
 import os
 import signal
 import socket
@@ -32,19 +33,25 @@ from ..timeouts import within
 
 MAX_TOTAL_CAMERAS = 4096  # per `topgimbal zenoh` with its workers
 MAX_WORKERS = 64
-WORKER_START_S = 300.0  # for a worker to print its serving line (256 cameras on a loaded host)
+# Attitude samples a second one worker takes by default: 1,000 cameras at 50 Hz in one process used
+# 85 % of a core on the 2-core reference machine (docs/fleet.md); more processes than that only
+# add wake-ups, each with cold caches, and a Zenoh hop (4 processes: 21 us a sample, p99 23 ms).
+SAMPLES_PER_WORKER = 50_000
+WORKER_START_S = 300.0  # for a worker to print its serving line (1,024 cameras on a loaded host)
 WORKER_STOP_S = 30.0  # after SIGINT, then SIGKILL
 PARENT_CHECK_S = 1.0
 
 
-def worker_count(cameras: int, asked: int, per_process: int) -> int:
-    """Worker processes for `cameras`: `asked` when given (0: as few as hold them, at most
-    `per_process` each); 1 means this process serves them itself."""
+def worker_count(cameras: int, asked: int, per_process: int, rate_hz: float = 0.0, cpus: int | None = None) -> int:
+    """Worker processes for `cameras`: `asked` when given; 0: as few as hold them (at most
+    `per_process` each) and take their samples (`rate_hz` each, SAMPLES_PER_WORKER a process, no
+    more processes than `cpus` for that). 1 means this process serves them itself."""
     if cameras > MAX_TOTAL_CAMERAS:
         raise FieldValueError("camera", cameras, f"at most {MAX_TOTAL_CAMERAS} cameras per topgimbal zenoh")
     least = -(-cameras // per_process)
     if asked == 0:
-        return least
+        by_load = max(1, math.ceil(cameras * max(0.0, rate_hz) / SAMPLES_PER_WORKER))
+        return max(least, min(by_load, cpus if cpus is not None else os.cpu_count() or 1, cameras))
     if asked < least:
         raise FieldValueError("--workers", asked, f"at least {least} for {cameras} cameras ({per_process} each)")
     return min(asked, cameras)

@@ -13,7 +13,7 @@ import logging
 from collections.abc import Callable, Coroutine, Mapping
 from types import TracebackType
 
-from ..clock import monotonic, wall_time
+from ..clock import MonotonicFn, loop_clock, monotonic, wall_time
 from ..errors import FieldValueError, LinkLostError, TopGimbalError, TransportError
 from ..protocol import DeviceModel, Dialect, Frame, FrameParser, Message, get_model
 from ..protocol.frame import DEVICE_ADDRESSES
@@ -102,6 +102,7 @@ class ClientCore(Requests):
         self.closed = False
         self.angles_ignored = False  # point() saw nothing move after an angle command: use rates
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._now: MonotonicFn = monotonic  # the loop's own time once open (clock.loop_clock)
         self._engine: Engine | None = None
         self._transport: Transport | None = None
         self._parser = FrameParser()
@@ -121,8 +122,9 @@ class ClientCore(Requests):
         if self._engine is not None:
             raise TransportError(f"{self.url}: the client is open already (or being opened)")
         self._loop = asyncio.get_running_loop()
+        self._now = loop_clock(self._loop)
         self._engine = Engine(
-            clock=monotonic,
+            clock=self._now,
             late_window_s=self.late_window_s,
             dup_window_s=self.options.dup_window_s,
             stats=self.stats,
@@ -131,7 +133,7 @@ class ClientCore(Requests):
             min_gap_s=self.behaviour.min_gap_s,
         )
         timeout = self.options.link_timeout_s
-        self.link = LinkMonitor(clock=monotonic, timeout_s=timeout, ping_after_s=max(0.5, timeout / 3))
+        self.link = LinkMonitor(clock=self._now, timeout_s=timeout, ping_after_s=max(0.5, timeout / 3))
         if self.options.log_path:
             self._traffic_log = TrafficLog(
                 self.options.log_path, url=self.url, model=self.model.name, dialect=self.dialect.name
@@ -277,7 +279,7 @@ class ClientCore(Requests):
         # A datagram ends its frames; bytes to Messages in one pass (the parser's C fast path).
         final = transport is not None and transport.is_datagram
         engine_work = False
-        now = monotonic()  # one read for the link, the engine and the state: per datagram, not per step
+        now = self._now()  # one read for the link, the engine and the state: per datagram, not per step
         for item in self._parser.feed_messages(data, self.dialect.decode, final=final):
             if isinstance(item, Message):
                 engine_work = self._on_message(item, now) or engine_work

@@ -104,9 +104,12 @@ class StateCache:
             now = monotonic()
         if wall is None:
             wall = wall_time()
-        values = self.values
-        for key, value in keyed.items():
-            values[key] = _stamped(value, now, wall)
+        values, new = self.values, _new
+        for key, value in keyed.items():  # _stamped, inlined: three a sample
+            s = new(Stamped)
+            d = s.__dict__
+            d["value"], d["t"], d["wall"] = value, now, wall
+            values[key] = s
         if _may_type(keyed):
             for name, value in _typed(keyed, message).items():
                 setattr(self, name, Stamped(value, now, wall))

@@ -95,6 +95,22 @@ def served_url(url: str) -> str:
     return f"{url}{'&' if query else '?'}socket=shared"
 
 
+def direct(callback: Callable[[Any], None]) -> Any:
+    """`callback` for Zenoh to call on its own thread. By default zenoh-python gives each Python
+    callback a thread of its own to run on (`indirect`): three per camera here (the two queryables
+    and the transport events), 3,000 threads in a process serving 1,000 cameras, which is why a
+    process once stopped at 256. Every callback here only hands its work to the event loop
+    (`call_soon_threadsafe`), sets a flag or answers `info` from data already made, so it may run
+    where Zenoh calls it: it holds that Zenoh thread only while it waits for the GIL. A Zenoh
+    without `indirect=`: the callback as it is."""
+    try:
+        import zenoh  # the serving process has it (fleet/server.py); a test double may not
+
+        return zenoh.handlers.Callback(callback, indirect=False)
+    except (ImportError, AttributeError, TypeError):
+        return callback
+
+
 def attitude_json(att: GimbalAttitude, seq: int) -> str:
     """`{"yaw_deg", "pitch_deg", "roll_deg", "t", "seq"}`; a float's repr is JSON when finite."""
     y, p, r, t = att.yaw_deg, att.pitch_deg, att.roll_deg, att.wall
@@ -164,8 +180,8 @@ class ServedCamera:
         self._link = s.declare_publisher(key(self.name, "link"))
         self._decls += [self._att, self._state, self._link]
         self._follow_att_subscribers()
-        self._decls.append(s.declare_queryable(key(self.name, "call/*"), self._on_query_thread))
-        self._decls.append(s.declare_queryable(key(self.name, "info"), self._on_info_thread))
+        self._decls.append(s.declare_queryable(key(self.name, "call/*"), direct(self._on_query_thread)))
+        self._decls.append(s.declare_queryable(key(self.name, "info"), direct(self._on_info_thread)))
         self._decls.append(s.liveliness().declare_token(liveliness_key(self.name)))
         self._unsubscribe = [self.client.on_link_change(self._on_link), self.client.streams.tap(self._on_attitude)]
         self._tasks.append(asyncio.ensure_future(self._attitude_loop()))
@@ -234,13 +250,7 @@ class ServedCamera:
         def matching(status: Any) -> None:  # on a Zenoh thread, not the loop: one attribute set
             self.att_subscribed = bool(status.matching)
 
-        import zenoh  # the serving process has it (fleet/server.py)
-
-        try:  # direct: no Python thread per camera to wake for a flag
-            handler: Any = zenoh.handlers.Callback(matching, indirect=False)
-        except (AttributeError, TypeError):  # a Zenoh without indirect=
-            handler = matching
-        self._decls.append(declare(handler))
+        self._decls.append(declare(direct(matching)))
         self.att_subscribed = bool(self._att.matching_status.matching)
 
     def state(self) -> dict[str, Any]:
@@ -392,7 +402,7 @@ class ServedCamera:
                     loop.call_soon_threadsafe(self._cancel_gone, present)
 
         try:
-            self._decls.append(self.session.info.declare_transport_events_listener(on_event))
+            self._decls.append(self.session.info.declare_transport_events_listener(direct(on_event)))
         except Exception as exc:  # an eclipse-zenoh without it, or a test double: the poll does it
             log.debug("%s: no transport events (%s): polling every %g s", self.name, exc, GONE_CHECK_S)
 

@@ -13,7 +13,7 @@ from ..errors import FieldValueError
 from ..inputfile import InputFileError, loads, read_text
 from ..protocol import get_model
 
-MAX_CAMERAS = 256  # per server process (each is a client, a socket and a stream)
+MAX_CAMERAS = 1024  # per server process (each is a client, a route on the shared socket and a stream)
 MAX_FILE_BYTES = 1 << 20
 FORM = "NAME=URL,MODEL (e.g. cam1=udp://127.0.0.1:5000,C12)"
 

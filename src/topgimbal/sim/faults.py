@@ -176,6 +176,8 @@ class FaultInjector:
 
     def __init__(self, plan: FaultPlan, direction: str, rng: random.Random, start: float) -> None:
         self.plan = plan
+        # Fixed for the injector's life: a disabled one passes every packet through and never holds
+        # one, so the simulator skips asking it what is due (per stream frame, in a fleet).
         self.enabled = plan.applies_to(direction) and plan.active
         self.rng = rng
         self.start = start

@@ -30,6 +30,7 @@ from .faults import FaultInjector, FaultPlan
 from .listen import Address, MemoryPeer, addresses, url_host
 from .physics import GimbalPhysics
 from .servers import LOOPBACK, Limits, SerialPeer, TcpServer, UdpServer
+from .shared_timer import Entry, SharedTimer
 from .state import CameraState, NetworkState
 from .targets import Target
 from .terrain import TerrainGround
@@ -53,7 +54,10 @@ class Simulator:
         limits: Limits | None = None,
         targets: Sequence[Target] = (),
         terrain: str | Path | TerrainGround | None = None,
+        timer: SharedTimer | None = None,
     ) -> None:
+        """`timer`: a SharedTimer for the simulators of one process to wake up on (`sim --fleet`:
+        one loop timer for all of them); none: this simulator's own asyncio timer."""
         self.clock: Clock = clock if clock is not None else MonotonicClock()
         self.device = Device(
             model, seed=seed, clock=self.clock, quirk_overrides=quirks, topotek_stream_hz=topotek_stream_hz
@@ -73,7 +77,8 @@ class Simulator:
         self._serial: list[SerialPeer] = []
         self._memory: list[MemoryPort] = []
         self._loop: asyncio.AbstractEventLoop | None = None
-        self._timer: asyncio.TimerHandle | None = None
+        self._shared_timer = timer
+        self._timer: asyncio.TimerHandle | Entry | None = None
         self._timer_at: float | None = None
         self._fault_in: FaultInjector | None = None
         self._fault_out: FaultInjector | None = None
@@ -154,6 +159,8 @@ class Simulator:
         if self.started:
             raise RuntimeError("the simulator is already started")
         self._loop = asyncio.get_running_loop()
+        if isinstance(self.clock, MonotonicClock):
+            self.clock.bind(self._loop)
         if udp is None and tcp is None and serial is None:
             documented = self.documented_listen()
             udp, tcp, serial = documented["udp"], documented["tcp"], documented["serial"]
@@ -228,6 +235,8 @@ class Simulator:
             self._commit.close()
         self.flush(force=True)
         self.started = False
+        if isinstance(self.clock, MonotonicClock):
+            self.clock.bind(None)
 
     async def __aenter__(self) -> Simulator:
         if not self.started:
@@ -268,9 +277,13 @@ class Simulator:
     # -- traffic -----------------------------------------------------------------------------------
 
     def _input(self, peer: Hashable, data: bytes, datagram: bool) -> None:
-        assert self._fault_in is not None
-        for p, d in self._fault_in.submit((peer, datagram), data, self.clock.now()):
-            self._deliver(p, d)
+        fi = self._fault_in
+        assert fi is not None
+        if not fi.enabled:
+            self._deliver((peer, datagram), data)
+        else:
+            for p, d in fi.submit((peer, datagram), data, self.clock.now()):
+                self._deliver(p, d)
         self._schedule()
 
     def _forget(self, peer: Hashable) -> None:
@@ -330,12 +343,13 @@ class Simulator:
         # packets as the device's streams do (on a virtual-time loop, where the clock stands still
         # until nothing is ready, waking again for the last millisecond would never end).
         now = self.clock.now() + (TIMER_EARLY_S if real_time else 0.0)
-        if self._fault_in is not None:
-            for p, d in self._fault_in.due(now):
+        fi, fo = self._fault_in, self._fault_out
+        if fi is not None and fi.enabled:  # a disabled injector holds nothing (faults.py)
+            for p, d in fi.due(now):
                 self._deliver(p, d)
         self._send(self.device.tick(early_s=TIMER_EARLY_S if real_time else 0.0))
-        if self._fault_out is not None:
-            for peer, data in self._fault_out.due(now):
+        if fo is not None and fo.enabled:
+            for peer, data in fo.due(now):
                 peer.send(data)  # type: ignore[attr-defined]
         if self.device.dirty and self._commit is not None:
             self.device.dirty = False
@@ -356,16 +370,13 @@ class Simulator:
         self.pump()
 
     def _next_due(self) -> float | None:
-        times = [
-            t
-            for t in (
-                self.device.next_due(),
-                self._fault_in.next_due() if self._fault_in else None,
-                self._fault_out.next_due() if self._fault_out else None,
-            )
-            if t is not None
-        ]
-        return min(times) if times else None
+        due = self.device.next_due()
+        for inj in (self._fault_in, self._fault_out):
+            if inj is not None and inj.enabled:  # a disabled injector holds nothing (faults.py)
+                t = inj.next_due()
+                if t is not None and (due is None or t < due):
+                    due = t
+        return due
 
     def _schedule(self) -> None:
         """Real time: one timer for the earliest thing due (re-armed only when that changes)."""
@@ -381,7 +392,11 @@ class Simulator:
         self._timer_at = due
         # Wake TIMER_EARLY_S ahead: the selector rounds timeouts up to whole milliseconds.
         delay = max(0.0, due - self.clock.now() - TIMER_EARLY_S)
-        self._timer = self._loop.call_later(delay, self._on_timer)
+        shared = self._shared_timer
+        if shared is None:
+            self._timer = self._loop.call_later(delay, self._on_timer)
+        else:  # the delay on the loop's scale: this simulator's clock need not be the loop's
+            self._timer = shared.call_at(shared.time() + delay, self._on_timer)
 
     def _on_timer(self) -> None:
         self._timer = None
