@@ -104,12 +104,9 @@ class StateCache:
             now = monotonic()
         if wall is None:
             wall = wall_time()
-        values, new = self.values, _new
-        for key, value in keyed.items():  # _stamped, inlined: three a sample
-            s = new(Stamped)
-            d = s.__dict__
-            d["value"], d["t"], d["wall"] = value, now, wall
-            values[key] = s
+        values = self.values
+        for key, value in keyed.items():
+            values[key] = _stamped(value, now, wall)
         if _may_type(keyed):
             for name, value in _typed(keyed, message).items():
                 setattr(self, name, Stamped(value, now, wall))

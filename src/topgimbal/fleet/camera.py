@@ -100,7 +100,8 @@ def direct(callback: Callable[[Any], None]) -> Any:
     callback a thread of its own to run on (`indirect`): three per camera here (the two queryables
     and the transport events), 3,000 threads in a process serving 1,000 cameras, which is why a
     process once stopped at 256. Every callback here only hands its work to the event loop
-    (`call_soon_threadsafe`), sets a flag or answers `info` from data already made, so it may run
+    (`call_soon_threadsafe`: a call, a closed transport), sets a flag or answers `info` from data
+    already made, so it may run
     where Zenoh calls it: it holds that Zenoh thread only while it waits for the GIL. A Zenoh
     without `indirect=`: the callback as it is."""
     try:
@@ -395,16 +396,21 @@ class ServedCamera:
         poll of `_gone_loop` is the backstop)."""
         loop = self.loop
 
-        def on_event(event: Any) -> None:  # a Zenoh thread
+        def on_event(event: Any) -> None:  # a Zenoh thread: hands the closed transport to the loop
             if loop is not None and not loop.is_closed() and str(event.kind).endswith("DELETE"):
-                present = self._transports() - {str(event.transport.zid)}
                 with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
-                    loop.call_soon_threadsafe(self._cancel_gone, present)
+                    loop.call_soon_threadsafe(self._transport_closed, str(event.transport.zid))
 
         try:
             self._decls.append(self.session.info.declare_transport_events_listener(direct(on_event)))
         except Exception as exc:  # an eclipse-zenoh without it, or a test double: the poll does it
             log.debug("%s: no transport events (%s): polling every %g s", self.name, exc, GONE_CHECK_S)
+
+    def _transport_closed(self, zid: str) -> None:
+        """On the loop: a transport closed; the calls of its querier end (the session may still
+        list it while the event is delivered). No call running: nothing to ask Zenoh."""
+        if any(not t.done() for t in self._call_querier):
+            self._cancel_gone(self._transports() - {zid})
 
     def _cancel_gone(self, present: set[str]) -> None:
         """Cancels the calls of queriers whose transport is not in `present`; with no transport
