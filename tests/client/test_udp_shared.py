@@ -124,3 +124,31 @@ async def test_the_last_camera_closing_in_its_handler_ends_the_read_cleanly(sims
         await asyncio.sleep(0.01)
     assert shared.closed and shared.read_errors == 0  # no read of a closed socket
     await cam.close()
+
+
+async def test_datagrams_the_kernel_dropped_are_counted_and_said(caplog: pytest.LogCaptureFixture) -> None:
+    """A loop that fell behind by more than the receive buffer loses datagrams in the kernel, where
+    no Python code sees them: the socket reads the kernel's count and says it (issue 45)."""
+    import logging
+
+    from topgimbal.transport.udp_shared import shared_socket
+
+    camera = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # a camera sending faster than we read
+    camera.bind(("127.0.0.1", 0))
+    got: list[bytes] = []
+    shared = shared_socket(socket.AF_INET)
+    try:
+        assert shared.register(camera.getsockname(), got.append)
+        shared.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # the smallest the kernel allows
+        rcvbuf = shared.sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        with caplog.at_level(logging.WARNING, "topgimbal.transport"):
+            for _ in range(500):  # no await: the loop is busy elsewhere meanwhile
+                camera.sendto(b"#tpUG2wGAC0C00000000000000XX", shared.local_address)
+            await asyncio.sleep(0.2)  # now it reads what the buffer kept
+        assert 0 < len(got) < 500
+        assert shared.kernel_dropped == 500 - len(got)  # every datagram is either read or counted
+        assert f"the kernel dropped {shared.kernel_dropped} datagrams from the cameras" in caplog.text
+        assert f"its receive buffer ({rcvbuf} bytes) was full" in caplog.text
+    finally:
+        shared.close()
+        camera.close()

@@ -5,7 +5,9 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
+import os
 import subprocess
+import tempfile
 from collections.abc import AsyncIterator, Callable
 from pathlib import Path
 from typing import Any
@@ -50,6 +52,11 @@ async def mavsdk_session(cfg: Any) -> AsyncIterator[Any]:
 
     if not in_child():
         raise AssertionError("a MAVSDK test runs in the cage: mark it `pytest.mark.cage(BOUND_S)` (tests/cage.py)")
+    # MAVSDK caches the camera definitions it downloads under ~/.cache/mavsdk. A cache left by an
+    # earlier run let every later one skip the download, the path each ground station's first
+    # connection takes, and hid MAVSDK 4.1's deadlock on it (camdef/pacing.py) from all but a
+    # fresh machine. Every session here starts cold (the caged child ends with the test).
+    os.environ["HOME"] = tempfile.mkdtemp(prefix="mavsdk-home-")
     mavsdk = Mavsdk(cfg)
     _KEPT.append(mavsdk)
     yield mavsdk

@@ -12,6 +12,7 @@ import asyncio
 import contextlib
 import logging
 
+from ..clock import monotonic
 from ..logthrottle import ThrottledLog
 from ..timeouts import within
 
@@ -35,6 +36,10 @@ class DefinitionServer:
         self.served = 0
         self._refusal_log = ThrottledLog(log, LOG_EVERY_S)
         self._per_client: dict[str, int] = {}
+        # What the pacer (pacing.py) reads: when the last connection closed, when each file was last
+        # sent (on the loop's clock)
+        self.last_closed_at = float("-inf")
+        self.served_at: dict[str, float] = {}
 
     async def start(self) -> None:
         self.server = await asyncio.start_server(self._client, self.host, self.port, limit=MAX_HEAD_BYTES)
@@ -85,6 +90,7 @@ class DefinitionServer:
             pass
         finally:
             self.active -= 1
+            self.last_closed_at = monotonic()
             left = self._per_client.get(client, 1) - 1
             if left > 0:
                 self._per_client[client] = left
@@ -104,4 +110,5 @@ class DefinitionServer:
         if body is None:
             return "404 Not Found", b"no such definition\n", "text/plain"
         self.served += 1
+        self.served_at[path.lstrip("/")] = monotonic()
         return "200 OK", body, "application/xml"

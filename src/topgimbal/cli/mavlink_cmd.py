@@ -81,6 +81,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--definition-http", default="127.0.0.1:0", metavar="HOST:PORT",
         help="serve the camera definitions here (default 127.0.0.1:0, any free port; 'off': not served)",
     )  # fmt: skip
+    p.add_argument("--definition-all-at-once", action="store_true",
+                   help="answer CAMERA_INFORMATION at once even while a ground station downloads another "
+                   "camera's definition (default: one download at a time, which MAVSDK 4.1 needs; "
+                   "docs/errata.md)")  # fmt: skip
     p.add_argument("--definition-host", metavar="HOST",
                    help="the address written into the definition URI (default: the bind address; bound to all "
                    "interfaces, the address of the interface that reaches the ground station asking)")  # fmt: skip

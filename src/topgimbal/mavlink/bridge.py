@@ -18,6 +18,7 @@ from ..autopilot.streams import AutopilotStreams
 from ..autopilot.vehicle import Vehicles
 from ..camdef.definition import file_name, render
 from ..camdef.http import DefinitionServer
+from ..camdef.pacing import FetchPacer
 from ..clock import monotonic
 from ..errors import TopGimbalError
 from ..links.endpoints import parse_endpoint
@@ -222,7 +223,15 @@ class Bridge:
         link_hosts = [parse_endpoint(e).host for e in self.config.endpoints]
         advertiser = Advertiser(address[0], self.config.definition_host, link_hosts)
         server = self.definitions
+        # one download at a time: MAVSDK 4.1 deadlocks on a CAMERA_INFORMATION during one (pacing.py)
+        pacer = None
+        if self.config.definition_one_at_a_time:
+            if self.node.definition_pacer is None:
+                self.node.definition_pacer = FetchPacer()
+            pacer = self.node.definition_pacer
+            pacer.add(server)
         for c in self.cameras:
+            c.definition_pacer = pacer
             name = file_name(p.model, c.lens)
             c.definition_uri = server.uri(name, advertiser.fixed)
             # bound to all interfaces: the address that reaches whoever asks

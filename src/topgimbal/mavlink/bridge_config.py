@@ -132,6 +132,9 @@ class BridgeConfig:
         metadata={"flag": None, "convert": None, "from_args": _feature_options, "named_flags": _feature_flags},
     )
 
+    # a CAMERA_INFORMATION naming the HTTP definition waits while another definition downloads
+    # (camdef/pacing.py: MAVSDK 4.1 deadlocks otherwise); False: answered at once
+    definition_one_at_a_time: bool = field(default=True, metadata=cli("--definition-all-at-once", _not))
     # the host written into the definition URI (advertise.py); None: found
     definition_host: str | None = field(default=None, metadata=cli("--definition-host"))
     # ask the autopilot for GLOBAL_POSITION_INT and SYSTEM_TIME (autopilot/streams.py)

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..autopilot.vehicle import Vehicles
 from ..camdef.definition import definition_version, settings_for
+from ..camdef.pacing import FetchPacer
 from ..clock import monotonic
 from ..links.mav import mav_id, mavlink, msg_id
 from ..timeouts import stop_tasks
@@ -24,7 +25,7 @@ from .camera_photos import CameraPhotos
 from .camera_tracking import MAX_STATUS_HZ as MAX_TRACKING_HZ
 from .camera_tracking import Tracker
 from .camera_view import CameraView
-from .commands import Command, Outcome, denied, unsupported
+from .commands import Command, Outcome, denied, rejected, unsupported
 from .gimbal_device import _text, firmware_code, flag_bits
 from .params_ext import ParamsExt
 from .services import Services
@@ -34,6 +35,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("topgimbal.mavlink")
 
+MAX_PACED_INFO = 8  # CAMERA_INFORMATION answers waiting for the definition pacer, per camera
 MSG_DISTANCE_SENSOR = msg_id("DISTANCE_SENSOR")
 MSG_INFO = msg_id("CAMERA_INFORMATION")
 MSG_SETTINGS = msg_id("CAMERA_SETTINGS")
@@ -99,6 +101,10 @@ class CameraComponent(CameraPhotos):
         self.definition_uri = ""  # set by the bridge once its definition server listens
         # the URI for a request from (link, peer): the address that reaches that peer (advertise.py)
         self.definition_uri_for: Callable[[Any], str] | None = None
+        # set with an HTTP definition server unless --definition-all-at-once (camdef/pacing.py):
+        # a CAMERA_INFORMATION naming an HTTP URI then follows its ack when no download runs
+        self.definition_pacer: FetchPacer | None = None
+        self._info_tasks: set[asyncio.Task[None]] = set()  # CAMERA_INFORMATION waiting for the pacer
         self.params = ParamsExt(self.comp, cam, settings_for(p.dialect, p.model, lens))
         self.extras = CameraExtras(self.comp, cam, lens)
         self.extras.register(services)
@@ -194,7 +200,8 @@ class CameraComponent(CameraPhotos):
         await self.tracker.close()
         await self.params.close()
         await self.extras.close()
-        await stop_tasks([t for t in (self._interval_task, self._range_task) if t is not None], "camera")
+        tasks = [self._interval_task, self._range_task, *self._info_tasks]
+        await stop_tasks([t for t in tasks if t is not None], "camera")
 
     # -- information ----------------------------------------------------------------------------
 
@@ -209,11 +216,26 @@ class CameraComponent(CameraPhotos):
         w, h = lens.size if lens is not None and lens.size_documented else (0, 0)
         uri = self.definition_uri_for(cmd.peer) if self.definition_uri_for is not None else self.definition_uri
         version = definition_version(self.profile.dialect, m, self.lens) if uri else 0
-        return [mavlink().MAVLink_camera_information_message(
+        msg = mavlink().MAVLink_camera_information_message(
             self.comp.node.time_boot_ms(), list(_text(self.profile.vendor, 32).ljust(32, b"\0")),
             list(_text(name, 32).ljust(32, b"\0")), firmware_code(self.identity.get("version")),
             0.0, 0.0, 0.0, w, h, 0 if self.lens == "visible" else 1, self.cap_flags(), version,
-            _text(uri, 140), self.gimbal_device_id, 0)]  # fmt: skip
+            _text(uri, 140), self.gimbal_device_id, 0)  # fmt: skip
+        pacer = self.definition_pacer
+        if pacer is None or not uri.startswith(("http://", "https://")):
+            return [msg]
+        # after the ack, once no definition download runs (pacing.py); each request its own answer,
+        # and at most MAX_PACED_INFO waiting (more: TEMPORARILY_REJECTED, the requester asks again)
+        if len(self._info_tasks) >= MAX_PACED_INFO:
+            raise rejected(f"{MAX_PACED_INFO} CAMERA_INFORMATION answers already wait for a definition download")
+        task = asyncio.ensure_future(self._paced(pacer, uri.rsplit("/", 1)[-1], msg))
+        self._info_tasks.add(task)
+        task.add_done_callback(self._info_tasks.discard)
+        return []
+
+    async def _paced(self, pacer: FetchPacer, name: str, msg: MAVLinkMessage) -> None:
+        await pacer.turn(name)
+        self.comp.send(msg)
 
     async def _settings(self, cmd: Command) -> list[Any]:
         return [self._settings_message()]

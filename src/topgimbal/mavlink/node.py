@@ -18,6 +18,7 @@ import logging
 from collections.abc import Callable, Hashable, Iterable, Sequence
 from typing import TYPE_CHECKING, Any
 
+from ..camdef.pacing import FetchPacer
 from ..clock import monotonic
 from ..links import memory_link  # noqa: F401  # registers the memory:NAME kind with make_link
 from ..links.base import link_peer as link_peer  # where it was before links/ (issue 44)
@@ -118,6 +119,8 @@ class Node:
         self.messages_in = 0
         self.bad_in = 0
         self.started = monotonic()
+        # the cameras' definition downloads, one at a time for every bridge on this node (camdef/pacing.py)
+        self.definition_pacer: FetchPacer | None = None
 
     def component(self, compid: int, name: str) -> Component:
         if compid in self.components:

@@ -12,9 +12,12 @@ in `strangers`), and a camera's replies must come from the address it was sent t
 not: ICMP "port unreachable" is not reported per camera (an unconnected socket hears none), which
 the client never needed (a UDP link is judged by what arrives, client/link.py). Two transports to
 the same device address cannot share (whose reply would it be?): the second gets a socket of its
-own. The socket's receive buffer asks for RCVBUF_BYTES (the kernel caps it at net.core.rmem_max)
-because it holds what a thousand per-camera buffers held; a datagram that does not fit is lost,
-as it would be on a full per-camera buffer.
+own. The socket's receive buffer asks for RCVBUF_BYTES because it holds what a thousand
+per-camera buffers held: with CAP_NET_ADMIN (SO_RCVBUFFORCE) it gets them, else the kernel caps
+it at net.core.rmem_max. A datagram that does not fit is lost, as on a full per-camera buffer, and
+the kernel counts it: that count (SO_MEMINFO, Linux) is read at most once a second while datagrams
+arrive, added to `kernel_dropped` and said in a throttled warning, since a loop that fell behind
+by that much is what a user must hear about (bench/fleet.py saw it under a full 2-core machine).
 
 One SharedUdpSocket per (event loop, family); it closes with its last transport.
 """
@@ -24,9 +27,12 @@ from __future__ import annotations
 import asyncio
 import logging
 import socket
+import struct
+import sys
 import weakref
 from collections.abc import Callable
 
+from ..clock import loop_clock
 from ..errors import TransportError
 from ..logthrottle import ThrottledLog
 
@@ -34,7 +40,10 @@ log = logging.getLogger("topgimbal.transport")
 
 READ_BATCH = 256  # datagrams read per readiness event, then the loop runs its other callbacks
 MAX_DATAGRAM = 65536  # a UDP datagram holds at most 65,507 bytes (IPv4), 65,527 (IPv6)
-RCVBUF_BYTES = 4 * 1024 * 1024
+RCVBUF_BYTES = 16 * 1024 * 1024  # about 0.4 s of 1,000 cameras at 50 Hz (the kernel counts ~1 KiB a datagram)
+SO_MEMINFO = 55  # Linux: u32 sk_meminfo[]; Python has no constant for it
+SK_MEMINFO_DROPS = 8  # the receive queue's drops, in that array
+DROP_CHECK_S = 1.0
 Route = Callable[[bytes], None]
 Addr = tuple[str, int]
 
@@ -61,6 +70,10 @@ class SharedUdpSocket:
         self.strangers = 0  # datagrams from an address no transport here sends to
         self.send_dropped = 0  # sends the kernel refused (a full send buffer): UDP's own loss
         self.read_errors = 0
+        self.kernel_dropped = 0  # datagrams the kernel dropped: a full receive buffer (SO_MEMINFO)
+        self._drops_seen: int | None = None  # the kernel's count at the last look (None: cannot read it)
+        self._now = loop_clock(loop)
+        self._next_drop_check = 0.0
         self._buf = bytearray(MAX_DATAGRAM)
         self._view = memoryview(self._buf)
         self._throttle = ThrottledLog(log, 10.0)
@@ -68,10 +81,8 @@ class SharedUdpSocket:
         try:
             sock.setblocking(False)
             sock.bind(("::" if family == socket.AF_INET6 else "0.0.0.0", 0))
-            try:
-                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RCVBUF_BYTES)
-            except OSError:
-                pass  # the system's default then
+            _ask_rcvbuf(sock, RCVBUF_BYTES)
+            self._drops_seen = _kernel_drops(sock)
             loop.add_reader(sock.fileno(), self._readable)
         except OSError as exc:
             sock.close()
@@ -110,6 +121,8 @@ class SharedUdpSocket:
         return False
 
     def _readable(self) -> None:
+        if self._drops_seen is not None and self._now() >= self._next_drop_check:
+            self._check_drops()
         sock, view, routes = self.sock, self._view, self.routes
         for _ in range(READ_BATCH):
             try:
@@ -132,6 +145,20 @@ class SharedUdpSocket:
             if self.closed:  # that camera was the last one and closed in its handler
                 return
 
+    def _check_drops(self) -> None:
+        self._next_drop_check = self._now() + DROP_CHECK_S
+        now = _kernel_drops(self.sock)
+        if now is None or self._drops_seen is None:
+            return
+        new, self._drops_seen = (now - self._drops_seen) % 2**32, now  # the kernel's u32 wraps
+        if new:
+            self.kernel_dropped += new
+            rcvbuf = self.sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+            self._throttle.warning("kernel", "shared UDP socket: the kernel dropped %d datagrams from the cameras "
+                                   "(%d in all): its receive buffer (%d bytes) was full while this process was busy; "
+                                   "give it more (net.core.rmem_max, or run with CAP_NET_ADMIN) or fewer cameras per "
+                                   "process (topgimbal zenoh --workers)", new, self.kernel_dropped, rcvbuf)  # fmt: skip
+
     def close(self) -> None:
         if self.closed:
             return
@@ -140,3 +167,30 @@ class SharedUdpSocket:
         if not self.loop.is_closed():
             self.loop.remove_reader(self.sock.fileno())
         self.sock.close()
+
+
+def _ask_rcvbuf(sock: socket.socket, size: int) -> None:
+    """`size` bytes of receive buffer: forced past net.core.rmem_max where allowed (CAP_NET_ADMIN),
+    else as much as that limit lets."""
+    force = getattr(socket, "SO_RCVBUFFORCE", None)
+    for opt in (force, socket.SO_RCVBUF):
+        if opt is None:
+            continue
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, opt, size)
+            return
+        except OSError:
+            continue  # not allowed (no CAP_NET_ADMIN): the capped request, else the system's default
+
+
+def _kernel_drops(sock: socket.socket) -> int | None:
+    """The kernel's count of datagrams dropped on `sock`'s receive queue (Linux), else None."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        raw = sock.getsockopt(socket.SOL_SOCKET, SO_MEMINFO, 4 * (SK_MEMINFO_DROPS + 1))
+    except OSError:
+        return None
+    if len(raw) < 4 * (SK_MEMINFO_DROPS + 1):
+        return None
+    return int(struct.unpack_from("I", raw, 4 * SK_MEMINFO_DROPS)[0])
