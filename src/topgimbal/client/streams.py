@@ -50,6 +50,9 @@ class StreamControl:
         self.core = core
         # Weak: a consumer dropped without aclose() must be collectable (its __del__ releases it).
         self.consumers: weakref.WeakSet[AttitudeStream] = weakref.WeakSet()
+        # whether `consumers` may hold one: tested per sample instead of the WeakSet's own len(),
+        # a Python-level call that was 5 % of a 1,000-camera server (issue 45); cleared once seen empty
+        self._any_consumer = False
         self.manual_rate: float | None = None
         self.device_rate: float | None = None  # what the device was last told; None: off or unknown
         self._listeners: list[tuple[float, asyncio.Future[GimbalAttitude]]] = []
@@ -103,6 +106,7 @@ class StreamControl:
 
     async def acquire(self, consumer: AttitudeStream) -> None:
         self.consumers.add(consumer)
+        self._any_consumer = True
         try:
             await self.reconcile()
         except BaseException:
@@ -227,7 +231,9 @@ class StreamControl:
                 cb(att)
             except Exception:  # one tap's bug is not the link's
                 log.exception("attitude tap %r failed", cb)
-        for c in list(self.consumers) if self.consumers else ():
+        live = list(self.consumers) if self._any_consumer else []
+        self._any_consumer = bool(live)
+        for c in live:
             if c._abandoned(att.t):
                 c._started = False  # it starts again if it ever asks for a sample
                 c._queue.clear()

@@ -42,6 +42,7 @@ READ_BATCH = 256  # datagrams read per readiness event, then the loop runs its o
 MAX_DATAGRAM = 65536  # a UDP datagram holds at most 65,507 bytes (IPv4), 65,527 (IPv6)
 RCVBUF_BYTES = 16 * 1024 * 1024  # about 0.4 s of 1,000 cameras at 50 Hz (the kernel counts ~1 KiB a datagram)
 SO_MEMINFO = 55  # Linux: u32 sk_meminfo[]; Python has no constant for it
+SO_RCVBUFFORCE = 33  # Linux; Python names it from 3.12 on
 SK_MEMINFO_DROPS = 8  # the receive queue's drops, in that array
 DROP_CHECK_S = 1.0
 Route = Callable[[bytes], None]
@@ -172,7 +173,7 @@ class SharedUdpSocket:
 def _ask_rcvbuf(sock: socket.socket, size: int) -> None:
     """`size` bytes of receive buffer: forced past net.core.rmem_max where allowed (CAP_NET_ADMIN),
     else as much as that limit lets."""
-    force = getattr(socket, "SO_RCVBUFFORCE", None)
+    force = getattr(socket, "SO_RCVBUFFORCE", SO_RCVBUFFORCE if sys.platform.startswith("linux") else None)
     for opt in (force, socket.SO_RCVBUF):
         if opt is None:
             continue
