@@ -510,6 +510,7 @@ async def steps(f: Flight) -> None:
         end_heading = wrap180(start_heading + direction * TURN_DEG)
 
         def sample(att: Any) -> None:
+            sim.sync()  # where the camera points now, not at the simulator's last step
             got.append((att.time_boot_ms / 1000.0, time.monotonic(), math.degrees(att.yaw),
                         math.degrees(att.yawspeed), g.yaw_deg, target()))  # fmt: skip
 

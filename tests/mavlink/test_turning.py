@@ -64,6 +64,7 @@ async def fly_turn(r: Any, rate_deg_s: float, target_deg: float, seconds: float)
             await asyncio.sleep(1 / STREAM_HZ)
             now = monotonic() - t0
             if now > 1.0:  # the first second: the camera catches the turn
+                r.sim.sync()  # where the camera points now, not at the simulator's last step
                 errors.append(abs(wrap180(heading(now) + g.yaw_deg - target_deg)))
     finally:
         autopilot.close()

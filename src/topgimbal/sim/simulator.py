@@ -252,6 +252,13 @@ class Simulator:
             persist.save(self.state_file, self.device.snapshot())
             self.device.dirty = False
 
+    def sync(self) -> None:
+        """Bring the physics up to now. `gimbal` holds the attitude of the last step the device
+        took (a stream's tick, a command), which while it turns is up to a stream period old: a
+        test scoring where the camera points at a given instant calls this first (on the
+        simulator's loop thread), as `sim --truth` does."""
+        self.device.sync()
+
     @property
     def peers(self) -> dict[str, int]:
         """How many remote ends each kind of server holds now (UDP peers, TCP clients)."""
