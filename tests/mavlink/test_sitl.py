@@ -368,7 +368,9 @@ class Flight:
     def report(self) -> None:
         print("times (s):", ", ".join(f"{k} {v:.1f}" for k, v in self.times.items()))
         print("acks:", "; ".join(f"{k}: {v}" for k, v in self.acks))
-        print("earth yaw error (deg) | p50 | p95 | max | samples\n" + "\n".join(self.yaw_rows))
+        print(
+            "earth yaw error (deg) | p50 | p95 | max | samples | signed p50 (> 0: right)\n" + "\n".join(self.yaw_rows)
+        )
         print("photos after a reboot:\n" + "\n".join(self.reboot_rows))
         print("tagged photos | position error (m) | time error (s)\n" + "\n".join(self.photo_rows))
 
@@ -524,16 +526,19 @@ async def steps(f: Flight) -> None:
         # judged after the turn with SITL's clock rate against ours (figures.sender_delays)
         delays, _ = sender_delays([(sent, arrived) for sent, arrived, *_ in got])
         errors: list[float] = []
+        signed: list[float] = []  # > 0: the camera right of the bearing
         when: list[float] = []
         for (_, arrived, yaw, yawspeed, cam_yaw, bearing), delay in zip(got, delays, strict=True):
             heading = yaw + yawspeed * min(0.5, delay)
             if abs(wrap180(heading - start_heading)) > 10 and abs(wrap180(heading - end_heading)) > 10:
-                errors.append(abs(wrap180(heading + cam_yaw - bearing)))
+                signed.append(wrap180(heading + cam_yaw - bearing))
+                errors.append(abs(signed[-1]))
                 when.append(arrived)
         assert len(errors) > 20, f"{what}: {len(errors)} samples during the turn"
         rate = (TURN_DEG - 20) / (when[-1] - when[0])
         f.yaw_rows.append(f"{what} (turned at {rate:.1f} deg/s) | {percentile(errors, 50):.2f} | "
-                          f"{percentile(errors, 95):.2f} | {max(errors):.2f} | {len(errors)}")  # fmt: skip
+                          f"{percentile(errors, 95):.2f} | {max(errors):.2f} | {len(errors)} | "
+                          f"{percentile(signed, 50):+.2f}")  # fmt: skip
         return errors
 
     # A yaw lock 60 deg right of the heading: turning right 120 deg takes the camera from +60 to -60.

@@ -12,7 +12,9 @@ sent at the rate the heading arrives (paced by the camera link, one request at a
 
 While the vehicle turns (faster than FOLLOW_MIN_DEG_S), an earth-frame yaw is held with the
 camera's rate commands instead: the vehicle's yaw rate fed forward (the camera counter-turns at the
-speed the vehicle turns) plus FOLLOW_GAIN_PER_S times the error the camera reports. Angle commands
+speed the vehicle turns) plus FOLLOW_GAIN_PER_S times the error the camera reports, plus its
+integral (FOLLOW_INTEGRAL_PER_S2, bounded): a fed-forward rate a little off would otherwise leave
+the camera behind by what it is off / FOLLOW_GAIN_PER_S. Angle commands
 alone lag a turning vehicle by a command period and, on models whose angle commands carry a slow
 slew speed (TOPOTEK: 9.9 deg/s at most), cannot keep up at all. A bearing that moves on its own
 (an ROI passed or orbited: successive set-points turn) is fed forward too, at the rate estimated
@@ -47,6 +49,17 @@ ANGLE_REFRESH_S = 1.0
 RATE_REFRESH_S = 0.5  # some firmware stops a rate command after a silence
 FOLLOW_MIN_DEG_S = 1.0  # the vehicle turns: hold an earth-frame yaw with rate commands
 FOLLOW_GAIN_PER_S = 3.0  # deg/s of correction per degree of error (a 0.33 s time constant)
+# ... plus the error's integral: a fed-forward rate that is a little off (ArduPilot SITL's
+# angular_velocity_z read 6.78 deg/s in a 6.0 deg/s turn; a SITL clock 1 % slow is 1 % off too)
+# left the camera rate_error / FOLLOW_GAIN_PER_S off for good (0.24 deg under ArduPilot). The
+# integral settles in about 2.6 s (s^2 + 3 s + 1); it is bounded, grown only on small errors and
+# not while the command is at the motors' limit, and starts from zero each time following by rate
+# starts. (Critical damping, 2.25, amplified the 10 Hz ripple of a camera holding lock itself:
+# tests/mavlink/test_orbit.py's p95 went from 0.02 to 0.36 deg.)
+FOLLOW_INTEGRAL_PER_S2 = 1.0  # deg/s of correction per degree-second of error
+FOLLOW_INTEGRAL_MAX_DEG_S = 1.5  # a quarter of a 6 deg/s turn: more is not a rate slightly off
+FOLLOW_INTEGRAL_BAND_DEG = 0.5  # grown only on errors this small: a catch-up or a ripple is the P term's
+FOLLOW_INTEGRAL_MAX_DT_S = 0.2  # a longer gap between two set-points is not integrated over
 FOLLOW_HOLD_S = 0.3  # no set-point for this long while following by rate: stop on the last angle
 ATTITUDE_FRESH_S = 0.3  # the camera's attitude must be this recent to close the loop on it
 BEARING_WINDOW_S = 0.5  # the set-points' own turning rate is measured over this long
@@ -91,6 +104,8 @@ class Pointer:
         self._error_log = ThrottledLog(log, 5.0)  # a set-point stream is 50 Hz: one line per 5 s
         self.yaw_dropped = 0  # streamed earth-frame yaws left out for want of a heading
         self._bearings: deque[tuple[float, float]] = deque()  # (arrival, unwrapped earth yaw) of set-points
+        self.follow_integral_deg_s = 0.0  # the yaw rate the integral adds while following by rate
+        self._integral_t: float | None = None  # when it was last grown (None: not following)
         self._no_heading_logged = False
 
     def start(self) -> None:
@@ -229,12 +244,29 @@ class Pointer:
         # where the camera is now: its last report carried forward at the rate it was turning
         age_s = min(max(0.0, monotonic() - att.t), ATTITUDE_FRESH_S)
         camera_yaw = att.yaw_deg + (att.yaw_rate_deg_s * age_s if math.isfinite(att.yaw_rate_deg_s) else 0.0)
-        yaw_rate = bearing_rate - rate + FOLLOW_GAIN_PER_S * wrap180(body - camera_yaw)
+        error = wrap180(body - camera_yaw)
+        yaw_rate = bearing_rate - rate + FOLLOW_GAIN_PER_S * error + self._grow_integral(error, bearing_rate - rate)
         pitch_rate = 0.0
         pitch = self._angle("pitch", sp.pitch_deg, True)
         if pitch is not None and "pitch" in self.profile.rate_axes:
             pitch_rate = FOLLOW_GAIN_PER_S * (pitch - att.pitch_deg)
         return Setpoint(yaw_rate_deg_s=yaw_rate, pitch_rate_deg_s=pitch_rate, lock=sp.lock)
+
+    def _grow_integral(self, error_deg: float, fed_forward_deg_s: float) -> float:
+        """The integral term (deg/s) with `error_deg` added over the time since the last call;
+        not grown while the command would be past the motors' limit (it would only wind up)."""
+        now = monotonic()
+        dt = 0.0 if self._integral_t is None else min(max(0.0, now - self._integral_t), FOLLOW_INTEGRAL_MAX_DT_S)
+        self._integral_t = now
+        top = self.profile.model.max_rate_deg_s
+        grown = self.follow_integral_deg_s + FOLLOW_INTEGRAL_PER_S2 * error_deg * dt
+        grown = max(-FOLLOW_INTEGRAL_MAX_DEG_S, min(FOLLOW_INTEGRAL_MAX_DEG_S, grown))
+        if (
+            abs(error_deg) < FOLLOW_INTEGRAL_BAND_DEG
+            and abs(fed_forward_deg_s + FOLLOW_GAIN_PER_S * error_deg + grown) < top
+        ):
+            self.follow_integral_deg_s = grown
+        return self.follow_integral_deg_s
 
     def cancel_stream(self) -> None:
         self._latest = None
@@ -294,6 +326,8 @@ class Pointer:
             # the stream stopped: never leave the camera turning on a rate
             stopped = monotonic() - self._latest_t >= FOLLOW_HOLD_S
             rates = None if stopped else self._follow_rates(sp)
+            if rates is None:
+                self.follow_integral_deg_s, self._integral_t = 0.0, None  # angles again: it starts afresh
             send = sp if rates is None else rates
             if rates is None and self.following_by_rate:
                 self._last_sent = None  # the angle goes now, whatever was sent before
