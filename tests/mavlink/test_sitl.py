@@ -562,6 +562,20 @@ async def steps(f: Flight) -> None:
                lambda: at(lambda: look_at(f.g.place, f.g.heading_deg, roi)[0],
                           look_at(f.g.place, f.g.heading_deg, roi)[1])())  # fmt: skip
     roi_errors = await turn("ROI, 6 deg/s", 6.0, 1, roi_bearing)
+
+    def ardupilot_bearing() -> float:
+        """The bearing as ArduPilot works it out (AP_Mount_Backend::get_angle_target_to_location):
+        degrees x 1e7 scaled to metres by one constant (a sphere), longitude by the mean latitude's
+        cosine."""
+        here = f.g.place
+        scale = 0.01113195  # metres per 1e-7 degree
+        east = (roi.lon_deg - here.lon_deg) * 1e7 * math.cos(math.radians((here.lat_deg + roi.lat_deg) / 2)) * scale
+        north = (roi.lat_deg - here.lat_deg) * 1e7 * scale
+        return math.degrees(math.atan2(east, north))
+
+    f.yaw_rows.append(
+        f"(ArduPilot's own bearing to the ROI less WGS84's: {wrap180(ardupilot_bearing() - roi_bearing()):+.3f} deg)"
+    )
     for what, errors in (("yaw lock at 6 deg/s", slow), ("ROI at 6 deg/s", roi_errors)):
         p95 = percentile(errors, 95)
         assert p95 <= GOAL_P95_DEG, f"{what}: earth yaw error p95 {p95:.2f} deg (goal {GOAL_P95_DEG:g})"
