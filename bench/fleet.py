@@ -2,11 +2,18 @@
 process to a subscriber in a third process (this one, eclipse-zenoh directly). Figures, no
 assertions:
 
-- attitude messages delivered per second (all cameras) against the nominal N x rate, and the loss
-  between server and subscriber (gaps in each camera's `seq`);
+- attitude messages delivered per second (all cameras) against the nominal N x rate, what the
+  cameras sent in the same window (the machine's UDP OutDatagrams: a simulator process that falls
+  behind shows here, not as the server's loss), and the loss between server and subscriber (gaps
+  in each camera's `seq`). A window's count also moves with the queue before the server (a queue
+  200 ms deeper at the end than at the start is 1 % fewer samples counted in 20 s);
 - latency p50 / p99 from the camera's frame reaching the server's client (the `t` stamped on
-  arrival there; the simulator is on the same loopback, so the UDP hop adds tens of microseconds)
-  to the subscriber's callback;
+  arrival there) to the subscriber's callback. That clock starts when the server READS a datagram:
+  the time it waited before, in the server's UDP receive queue, is not in it. So the queue is
+  sampled too (/proc/net/udp, the server's own sockets, every 0.2 s): its bytes, the datagrams
+  they hold (bytes / the kernel's per-datagram charge, measured here on a socket of this process)
+  and the milliseconds that is at the nominal rate, and the datagrams the kernel dropped from it.
+  An overloaded server shows a full queue, a few hundred ms long, while its latency p99 stays low;
 - a command's round trip p50 / p99 to camera 0 (`version()`, a VER query, which the attitude
   stream does not answer): through Zenoh (query on
   topgimbal/cam0/call/version -> the server's client -> camera -> reply) and direct (an SDK
@@ -77,6 +84,74 @@ def main_thread_cpu_s(pid: int) -> float:
         with contextlib.suppress(OSError):
             total += cpu_s(p, p)
     return total
+
+
+def socket_inodes(pids: list[int]) -> set[int]:
+    """The socket inodes of these processes' open files."""
+    out: set[int] = set()
+    for pid in pids:
+        with contextlib.suppress(OSError):
+            for fd in Path(f"/proc/{pid}/fd").iterdir():
+                with contextlib.suppress(OSError):
+                    link = os.readlink(fd)
+                    if link.startswith("socket:["):
+                        out.add(int(link[8:-1]))
+    return out
+
+
+def udp_queues(inodes: set[int]) -> tuple[int, int]:
+    """(bytes waiting in the receive queues, datagrams dropped from them) of these UDP sockets,
+    as /proc/net/udp and udp6 say (rx_queue is the kernel's charge: the skbs' truesize)."""
+    queued = drops = 0
+    for table in ("/proc/net/udp", "/proc/net/udp6"):
+        with contextlib.suppress(OSError):
+            for line in Path(table).read_text().splitlines()[1:]:
+                f = line.split()
+                if len(f) >= 13 and int(f[9]) in inodes:
+                    queued += int(f[4].split(":")[1], 16)
+                    drops += int(f[12])
+    return queued, drops
+
+
+def udp_out_datagrams() -> int:
+    """UDP datagrams this machine has sent (/proc/net/snmp, every process): over the window, what
+    the simulators sent (the server's few commands aside), so a shortfall of the cameras shows
+    apart from one of the server. Linux only; -1 elsewhere."""
+    with contextlib.suppress(OSError, ValueError, IndexError):
+        head, values = [
+            line.split() for line in Path("/proc/net/snmp").read_text().splitlines() if line.startswith("Udp:")
+        ][:2]
+        return int(values[head.index("OutDatagrams")])
+    return -1
+
+
+def datagram_charge(size: int = 24, count: int = 64) -> float:
+    """The bytes a receive queue is charged per small datagram on this kernel (measured: send
+    `count` datagrams of `size` bytes, a C12 GAC sample's, to an unread socket, read its rx_queue)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as rx, socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
+        rx.bind(("127.0.0.1", 0))
+        for _ in range(count):
+            tx.sendto(b"x" * size, rx.getsockname())
+        time.sleep(0.05)
+        queued, _ = udp_queues({os.fstat(rx.fileno()).st_ino})
+    return queued / count if queued else float("nan")
+
+
+class QueueSampler(threading.Thread):
+    """The server's UDP receive queues every `every_s`, until stopped."""
+
+    def __init__(self, pid: int, every_s: float = 0.2) -> None:
+        super().__init__(daemon=True)
+        self.pid, self.every_s = pid, every_s
+        self.inodes = socket_inodes([pid, *children(pid)])
+        self.samples: list[int] = []
+        self.drops0 = self.drops1 = udp_queues(self.inodes)[1]
+        self.halt = threading.Event()
+
+    def run(self) -> None:
+        while not self.halt.wait(self.every_s):
+            queued, self.drops1 = udp_queues(self.inodes)
+            self.samples.append(queued)
 
 
 def free_port() -> int:
@@ -176,14 +251,19 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
             await asyncio.sleep(0.1)
         await asyncio.sleep(2.0)
         cpu0 = (tree_cpu_s(server.pid), cpu_s(sims.pid), main_thread_cpu_s(server.pid))
+        queues = QueueSampler(server.pid)
+        out0 = udp_out_datagrams()
         t0 = time.monotonic()
         with sub.lock:
             sub.counting = True
+        queues.start()
         await asyncio.sleep(seconds)
         with sub.lock:
             sub.counting = False
             count, lost, repeated, lat, puts = sub.count, sub.lost, sub.repeated, list(sub.latency), sub.puts
+        queues.halt.set()
         wall = time.monotonic() - t0
+        sent = udp_out_datagrams() - out0 if out0 >= 0 else -1
         cpu1 = (tree_cpu_s(server.pid), cpu_s(sims.pid), main_thread_cpu_s(server.pid))
         streaming = len(sub.last_seq)
 
@@ -207,15 +287,23 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
                     await cam.version()
                     drtt.append(time.perf_counter() - t)
         zsub.undeclare()
+        charge = datagram_charge()
+        qms = [1000 * q / charge / (n * rate_hz) for q in queues.samples]  # a datagram's wait, at the nominal rate
+        kernel_drops = (queues.drops1 - queues.drops0) % 2**32
         return {
             "cameras": n, "workers": workers or "auto", "subscribed": "batch key" if batched else "per-camera keys",
             "udp_sockets": "one per camera" if own_sockets else "shared",
             "batch_puts_per_s": round(puts / wall, 1), "rate_hz": rate_hz, "seconds": round(wall, 2), "streaming": streaming,
             "delivered_per_s": round(count / wall, 1), "nominal_per_s": n * rate_hz,
             "of_nominal_pct": round(100 * count / wall / (n * rate_hz), 1),
+            "cameras_sent_of_nominal_pct": round(100 * sent / wall / (n * rate_hz), 1) if sent >= 0 else "n/a",
             "lost_server_to_subscriber_pct": round(100 * lost / max(1, count + lost), 3),
             "repeated_or_reordered": repeated,
             "latency_ms_p50": round(pct(lat, 50) * 1000, 2), "latency_ms_p99": round(pct(lat, 99) * 1000, 2),
+            "server_udp_queue_kib_p50": round(pct(queues.samples, 50) / 1024), "server_udp_queue_kib_max": round(max(queues.samples, default=0) / 1024),
+            "server_udp_queue_ms_p50": round(pct(qms, 50), 1), "server_udp_queue_ms_max": round(max(qms, default=0.0), 1),
+            "kernel_bytes_per_datagram": round(charge),
+            "kernel_dropped_in_window": kernel_drops, "kernel_dropped_pct": round(100 * kernel_drops / (n * rate_hz * wall), 2),
             "cmd_rtt_ms_zenoh_p50": round(pct(zrtt, 50) * 1000, 2), "cmd_rtt_ms_zenoh_p99": round(pct(zrtt, 99) * 1000, 2),
             "cmd_rtt_ms_direct_p50": round(pct(drtt, 50) * 1000, 2), "cmd_rtt_ms_direct_p99": round(pct(drtt, 99) * 1000, 2),
             "calls_ok": f"{len(zrtt)}/{calls} zenoh, {len(drtt)}/{calls} direct",

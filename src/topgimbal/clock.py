@@ -35,6 +35,14 @@ def loop_clock(loop: asyncio.AbstractEventLoop) -> MonotonicFn:
     return loop.time
 
 
+def reads_system_monotonic(loop: asyncio.AbstractEventLoop) -> bool:
+    """Whether `loop.time()` reads CLOCK_MONOTONIC (asyncio's own loops, and a test loop whose
+    virtual time is off), not a time of its own (a virtual-time loop starts at 0 and jumps): what a
+    kernel timer set on CLOCK_MONOTONIC (sim/precise_timer.py) needs. Judged by the reading, since a
+    test loop's class is patched whether its time is virtual or not."""
+    return abs(loop.time() - time.monotonic()) < 0.005
+
+
 def wall_time() -> float:
     """UTC seconds since the epoch: for dates written somewhere, never for intervals."""
     return time.time()

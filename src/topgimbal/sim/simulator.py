@@ -23,7 +23,7 @@ from typing import Any, cast
 
 from ..protocol import Dialect, Frame
 from ..transport.memory import MemoryPort
-from . import persist
+from . import persist, precise_timer
 from .clock import Clock, FakeClock, MonotonicClock
 from .device import TOPOTEK_STREAM_HZ, Device, Outgoing
 from .faults import FaultInjector, FaultPlan
@@ -35,7 +35,8 @@ from .state import CameraState, NetworkState
 from .targets import Target
 from .terrain import TerrainGround
 
-# How far ahead of its due time a real-time stream frame may leave (see Device.tick).
+# How far ahead of its due time a real-time stream frame may leave (see Device.tick), on the
+# loop's millisecond timers; with a timerfd (precise_timer.py) PRECISE_EARLY_S instead.
 TIMER_EARLY_S = 0.001
 
 
@@ -78,8 +79,10 @@ class Simulator:
         self._memory: list[MemoryPort] = []
         self._loop: asyncio.AbstractEventLoop | None = None
         self._shared_timer = timer
-        self._timer: asyncio.TimerHandle | Entry | None = None
+        self._timer: asyncio.TimerHandle | Entry | precise_timer.PreciseTimer | None = None
         self._timer_at: float | None = None
+        self._precise: precise_timer.PreciseTimer | None = None  # a timerfd, where it can be (start)
+        self._early_s = TIMER_EARLY_S
         self._fault_in: FaultInjector | None = None
         self._fault_out: FaultInjector | None = None
         self.started = False
@@ -161,6 +164,10 @@ class Simulator:
         self._loop = asyncio.get_running_loop()
         if isinstance(self.clock, MonotonicClock):
             self.clock.bind(self._loop)
+        if self._shared_timer is None and not isinstance(self.clock, FakeClock):
+            # Stream frames at their time, not within the millisecond before it (precise_timer.py).
+            self._precise = precise_timer.make(self._loop, self._on_timer)
+        self._early_s = TIMER_EARLY_S if self._precise is None else precise_timer.PRECISE_EARLY_S
         if udp is None and tcp is None and serial is None:
             documented = self.documented_listen()
             udp, tcp, serial = documented["udp"], documented["tcp"], documented["serial"]
@@ -220,6 +227,10 @@ class Simulator:
         if self._timer is not None:
             self._timer.cancel()
             self._timer = None
+        self._timer_at = None
+        if self._precise is not None:
+            self._precise.close()
+            self._precise = None
         for u in self._udp:
             u.close()
         for t in self._tcp:
@@ -346,15 +357,16 @@ class Simulator:
     def pump(self) -> None:
         """Send everything due by now: delayed inbound packets, streams, delayed outbound packets."""
         real_time = not isinstance(self.clock, FakeClock)
-        # The timer wakes TIMER_EARLY_S early: what falls due within that margin goes now, delayed
+        # The timer wakes `_early_s` early: what falls due within that margin goes now, delayed
         # packets as the device's streams do (on a virtual-time loop, where the clock stands still
         # until nothing is ready, waking again for the last millisecond would never end).
-        now = self.clock.now() + (TIMER_EARLY_S if real_time else 0.0)
+        early_s = self._early_s if real_time else 0.0
+        now = self.clock.now() + early_s
         fi, fo = self._fault_in, self._fault_out
         if fi is not None and fi.enabled:  # a disabled injector holds nothing (faults.py)
             for p, d in fi.due(now):
                 self._deliver(p, d)
-        self._send(self.device.tick(early_s=TIMER_EARLY_S if real_time else 0.0))
+        self._send(self.device.tick(early_s=early_s))
         if fo is not None and fo.enabled:
             for peer, data in fo.due(now):
                 peer.send(data)  # type: ignore[attr-defined]
@@ -397,6 +409,11 @@ class Simulator:
         if self._timer is not None:
             self._timer.cancel()
         self._timer_at = due
+        precise = self._precise
+        if precise is not None:  # the loop's time is CLOCK_MONOTONIC's (precise_timer.make)
+            precise.arm(precise.now() + (due - self.clock.now()))
+            self._timer = precise
+            return
         # Wake TIMER_EARLY_S ahead: the selector rounds timeouts up to whole milliseconds.
         delay = max(0.0, due - self.clock.now() - TIMER_EARLY_S)
         shared = self._shared_timer
