@@ -143,3 +143,36 @@ async def server() -> AsyncIterator[RtspServer]:
         yield srv
     finally:
         await srv.close()
+
+
+async def test_a_setup_after_the_codec_changed_since_describe_is_refused_until_described_again() -> None:
+    """ffprobe asked DESCRIBE (the SDP said H.264), the encoder then restarted in H.265, and its SETUP
+    and PLAY got H.265 under an H.264 SDP: nothing decodable, and ffprobe read until killed (the
+    flake harness, tests/video/test_stream.py). A SETUP now answers 503 when the stream's codec
+    changed since this connection's DESCRIBE; describing again gives the new SDP and a session."""
+    stream = Stream("/stream=1", "h264")
+    stream.publish(_picture(0))
+    srv = await RtspServer("127.0.0.1", 0, [stream]).start()
+    client = await Client.connect(srv)
+    try:
+        assert (await client.ask("DESCRIBE"))[0] == 200  # told: H.264
+        stream.restart("h265")  # the encoder restarts (the poll of the codec setting)
+        code, _ = await client.ask("SETUP", Transport="RTP/AVP/TCP;unicast;interleaved=0-1")
+        assert code == 503
+        assert not stream.sessions  # nothing set up under the stale SDP
+        stream.publish(_picture(1))  # an H.264 picture after the change: not this stream's any more
+        assert not stream.ready.is_set()
+        # A client that never described is not refused (it reads the codec from the RTP it gets).
+        other = await Client.connect(srv)
+        try:
+            assert (await other.ask("SETUP", Transport="RTP/AVP/TCP;unicast;interleaved=0-1"))[0] == 200
+        finally:
+            other.close()
+        # Describing again, once the stream is ready, tells the codec of now: SETUP then goes on.
+        stream.restart("h264")  # back (a third generation), so that a hand-made picture makes it ready
+        stream.publish(_picture(2))
+        assert (await client.ask("DESCRIBE"))[0] == 200
+        assert (await client.ask("SETUP", Transport="RTP/AVP/TCP;unicast;interleaved=0-1"))[0] == 200
+    finally:
+        client.close()
+        await srv.close()

@@ -65,6 +65,10 @@ class RtspConnection(asyncio.Protocol):
         self.peer: str = "?"
         self.buf = b""
         self.sessions: dict[str, Session] = {}
+        # Stream path -> the codec generation its last DESCRIBE on this connection told (bounded
+        # by the server's streams): a SETUP after the encoder restarted would play another codec
+        # than the client's SDP says (a player then decodes nothing, ffprobe waited for ever).
+        self.described: dict[str, int] = {}
         self.queue: asyncio.Queue[Request] = asyncio.Queue()
         self.task: asyncio.Task[None] | None = None
         # Set while the transport's unsent bytes are under its high-water mark (MAX_BUFFERED_BYTES):
@@ -264,6 +268,7 @@ class RtspConnection(asyncio.Protocol):
             self.reply(req, 503, "Service Unavailable")
             return
         host = self.server.host
+        self.described[stream.path] = stream.generation
         body = sdp(stream.codec, stream.params, host=host, session_id=random.getrandbits(31))
         base = req.url if req.url.endswith("/") else req.url + "/"
         self.reply(req, 200, "OK", {"Content-Base": base, "Content-Type": "application/sdp"}, body)
@@ -280,6 +285,14 @@ class RtspConnection(asyncio.Protocol):
                 self.reply(req, 455, "Method Not Valid in This State")
             else:
                 self.reply(req, 454, "Session Not Found")
+            return
+        told = self.described.get(stream.path)
+        if told is not None and told != stream.generation:
+            # The codec changed between this client's DESCRIBE and its SETUP: its SDP is stale.
+            # 503: describe again (what a player does on a failed SETUP, and the new SDP is right).
+            log.info("RTSP %s: %s set up after the codec changed to %s since its DESCRIBE: 503 (describe again)",
+                     stream.path, self.peer, stream.codec)  # fmt: skip
+            self.reply(req, 503, "Service Unavailable")
             return
         if len(stream.sessions) >= MAX_RECEIVERS:
             # Sessions count from SETUP, not PLAY: set-up sessions hold sockets, and counting only

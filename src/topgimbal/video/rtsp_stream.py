@@ -50,6 +50,7 @@ class Stream:
     ) -> None:
         self.path = path
         self.codec = codec
+        self.generation = 0  # encoder restarts so far: an SDP describes one generation's codec
         self.params: dict[str, bytes] = {}
         self.ready = asyncio.Event()
         self.receivers: set[Session] = set()  # playing
@@ -111,6 +112,7 @@ class Stream:
         for the new ones) and disconnect every player (an RTP session cannot change its payload
         format; players that reconnect get the new SDP)."""
         self.codec = codec
+        self.generation += 1
         self.params = {}
         self.ready.clear()
         self._last_key_t = None  # the new encoder starts with a keyframe of its own
