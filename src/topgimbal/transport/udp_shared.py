@@ -40,7 +40,9 @@ log = logging.getLogger("topgimbal.transport")
 
 READ_BATCH = 256  # datagrams read per readiness event, then the loop runs its other callbacks
 MAX_DATAGRAM = 65536  # a UDP datagram holds at most 65,507 bytes (IPv4), 65,527 (IPv6)
-RCVBUF_BYTES = 16 * 1024 * 1024  # about 0.4 s of 1,000 cameras at 50 Hz (the kernel counts ~1 KiB a datagram)
+# The kernel doubles what is asked and charges 832 bytes per small datagram (bench/fleet.py measures
+# it): 32 MiB counted is about 0.8 s of 1,000 cameras at 50 Hz queued before the server reads them.
+RCVBUF_BYTES = 16 * 1024 * 1024
 SO_MEMINFO = 55  # Linux: u32 sk_meminfo[]; Python has no constant for it
 SO_RCVBUFFORCE = 33  # Linux; Python names it from 3.12 on
 SK_MEMINFO_DROPS = 8  # the receive queue's drops, in that array
