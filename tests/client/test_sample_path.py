@@ -72,3 +72,37 @@ def test_the_state_cache_objects_equal_the_constructors() -> None:
     )
     with pytest.raises(dataclasses.FrozenInstanceError):
         att.yaw_deg = 0.0  # type: ignore[misc]
+
+
+def test_the_per_frame_objects_have_no_dict_and_still_pickle_copy_and_compare() -> None:
+    """A fleet server replaces a client's Stamped and GimbalAttitude objects, and writes its link
+    monitor, engine, stream control, state cache and counters, on every sample of each of 1,000
+    cameras: slots, not a __dict__ (one block each instead of two, fewer cache misses per sample).
+    They behave as before."""
+    import copy
+    import pickle
+
+    from topgimbal.client.engine import Engine
+    from topgimbal.client.link import LinkMonitor
+    from topgimbal.client.notifier import Notifier
+    from topgimbal.client.stats import LinkStats
+    from topgimbal.client.streams import StreamControl
+
+    message = _sample("C12", 12.5, -30.25, 1.0)
+    cache = StateCache()
+    keyed = cache.apply(message, 7.0, 1764465000.25)
+    att = attitude_of(keyed, "attitude", "GAC", 7.0, 1764465000.25)
+    stamped = cache.values["attitude.yaw_deg"]
+    per_frame = [att, stamped, LinkStats(), LinkMonitor(clock=lambda: 0.0), Notifier(), MessageSigns({}),
+                 Engine(clock=lambda: 0.0), cache, StreamControl(None)]  # type: ignore[arg-type]  # fmt: skip
+    for obj in per_frame:
+        assert not hasattr(obj, "__dict__"), type(obj).__name__
+    for obj in (att, stamped):
+        assert pickle.loads(pickle.dumps(obj)) == obj
+        assert copy.copy(obj) == obj
+    assert dataclasses.replace(att, yaw_deg=1.0) == GimbalAttitude(1.0, -30.25, 1.0, 7.0, 1764465000.25, "GAC")
+    stats = LinkStats()
+    stats.frames_in, stats.rtt_ms_last = 3, 1.23456
+    d = stats.as_dict()
+    assert list(d) == list(LinkStats.describe())  # every counter, in the documented order
+    assert d["frames_in"] == 3 and d["rtt_ms_last"] == 1.235  # rounded as before

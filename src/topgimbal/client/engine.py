@@ -40,6 +40,8 @@ MAX_WAITING = 256  # requests queued behind one key (a runaway caller gets an er
 
 
 class Engine(Matching):
+    __slots__ = ("_finished", "_out", "_waiting", "echo_rules", "pacer")  # with Matching's
+
     def __init__(
         self,
         *,

@@ -22,6 +22,19 @@ class LinkEvent:
 
 
 class LinkMonitor:
+    # Slots: one per client, written per frame (a fleet server's 1,000 should stay in cache).
+    __slots__ = (
+        "_expecting",
+        "_last_ping",
+        "_quiet_since",
+        "clock",
+        "last_in",
+        "ping_after_s",
+        "reason",
+        "timeout_s",
+        "up",
+    )  # fmt: skip
+
     def __init__(self, *, clock: Clock, timeout_s: float = 3.0, ping_after_s: float = 1.0) -> None:
         self.clock = clock
         self.timeout_s = timeout_s

@@ -25,6 +25,9 @@ MAX_CALLBACKS = 1024  # per kind: a leak in the caller shows up as an error, not
 
 
 class Notifier:
+    # Slots: each client has one, read per frame; 1,000 clients' worth must stay in cache (fleet).
+    __slots__ = ("_link", "_subs", "_tasks", "_traffic")
+
     def __init__(self) -> None:
         self._subs: dict[str | None, list[MessageCallback]] = {}
         self._traffic: list[TrafficCallback] = []

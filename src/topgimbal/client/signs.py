@@ -33,6 +33,8 @@ class MessageSigns:
     commands on most models negate nothing (every C12 attitude sample), and their messages pass as
     they are, without a copy of their fields."""
 
+    __slots__ = ("_negates", "signs")  # one per client, read per frame
+
     def __init__(self, signs: Mapping[str, int]) -> None:
         self.signs = signs
         self._negates: dict[str, tuple[CommandSpec, bool]] = {}  # ident -> (its spec, negates a field)

@@ -18,7 +18,7 @@ from .roles import sd_card_figures
 JSON = dict[str, object]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class GimbalAttitude:
     """The gimbal's attitude as the camera reported it, in the API convention (degrees; yaw right-,
     pitch up-, roll right-positive). `t` is the monotonic arrival time, `wall` the wall-clock time.
@@ -48,7 +48,7 @@ class SdCard:
         return asdict(self)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Stamped:
     """A value and when it arrived (monotonic `t`, wall-clock `wall`)."""
 
@@ -65,7 +65,7 @@ class Stamped:
 TYPED = ("zoom", "recording", "sd", "range_m", "version", "model_name", "temperature", "mode")
 
 
-@dataclass
+@dataclass(slots=True)  # one per client, written per sample: no __dict__ (fleet servers, issue 45)
 class StateCache:
     """Last known device state. Each entry is None until the device has said something about it."""
 
@@ -132,15 +132,22 @@ class StateCache:
 
 # Frozen dataclasses set each field through object.__setattr__ in __init__: three Stamped and one
 # GimbalAttitude per attitude sample cost a third of what the state cache did per sample. Made here
-# by filling the instance's __dict__ (what __init__ ends with), the same objects at half the cost;
-# tests/client/test_sample_path.py compares them with the constructor's.
+# by setting each slot through its descriptor (what __init__ ends with), the same objects at half
+# the cost; tests/client/test_sample_path.py compares them with the constructor's. Slots, not a
+# __dict__: a fleet server replaces these four objects per sample for each of 1,000 cameras, and
+# its per-sample cost is mostly memory (cache misses), so one block per object, not two, matters.
 _new = object.__new__
+_S_VALUE, _S_T, _S_WALL = (Stamped.__dict__[n].__set__ for n in ("value", "t", "wall"))
+_A_YAW, _A_PITCH, _A_ROLL, _A_T, _A_WALL, _A_SOURCE = (
+    GimbalAttitude.__dict__[n].__set__ for n in ("yaw_deg", "pitch_deg", "roll_deg", "t", "wall", "source")
+)
 
 
 def _stamped(value: object, t: float, wall: float) -> Stamped:
     s = _new(Stamped)
-    d = s.__dict__
-    d["value"], d["t"], d["wall"] = value, t, wall
+    _S_VALUE(s, value)
+    _S_T(s, t)
+    _S_WALL(s, wall)
     return s
 
 
@@ -172,10 +179,12 @@ def attitude_of(
     if len(nums) != 3:
         return None
     att = _new(GimbalAttitude)
-    att.__dict__.update(
-        yaw_deg=nums[0], pitch_deg=nums[1], roll_deg=nums[2], t=monotonic() if now is None else now,
-        wall=wall_time() if wall is None else wall, source=source,
-    )  # fmt: skip
+    _A_YAW(att, nums[0])
+    _A_PITCH(att, nums[1])
+    _A_ROLL(att, nums[2])
+    _A_T(att, monotonic() if now is None else now)
+    _A_WALL(att, wall_time() if wall is None else wall)
+    _A_SOURCE(att, source)
     return att
 
 

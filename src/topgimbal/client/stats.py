@@ -14,7 +14,7 @@ def _doc(default: T, text: str) -> T:
     return field(default=default, metadata={"doc": text})
 
 
-@dataclass
+@dataclass(slots=True)  # one per client, written per frame: no __dict__ to miss in cache
 class LinkStats:
     frames_in: int = _doc(0, "frames received, answers or not (a datagram may hold several)")
     frames_out: int = _doc(0, "frames sent, retries included")
@@ -52,7 +52,7 @@ class LinkStats:
         self.rtt_ms_min = ms if self.rtt_ms_min is None else min(self.rtt_ms_min, ms)
 
     def as_dict(self) -> dict[str, float | int | bool | None]:
-        d = dict(self.__dict__)
+        d = {f.name: getattr(self, f.name) for f in fields(self)}
         for k in ("rtt_ms_last", "rtt_ms_avg", "rtt_ms_min"):
             if d[k] is not None:
                 d[k] = round(d[k], 3)

@@ -46,6 +46,10 @@ log = logging.getLogger("topgimbal.client")
 
 
 class StreamControl:
+    # Slots: one per client, read per sample (a fleet server's 1,000 should stay in cache).
+    __slots__ = ("_any_consumer", "_expected", "_listeners", "_renewer", "_taps", "_task", "consumers", "core",
+                 "device_rate", "halted", "manual_rate", "renewals")  # fmt: skip
+
     def __init__(self, core: StreamPort) -> None:
         self.core = core
         # Weak: a consumer dropped without aclose() must be collectable (its __del__ releases it).
