@@ -7,6 +7,11 @@ assertions:
   behind shows here, not as the server's loss), and the loss between server and subscriber (gaps
   in each camera's `seq`). A window's count also moves with the queue before the server (a queue
   200 ms deeper at the end than at the start is 1 % fewer samples counted in 20 s);
+- latency from the camera's send to the subscriber (p50 / p99), the wait in the server's receive
+  queue included: one of the N cameras, `probe`, is simulated in a process of its own,
+  turning at 7 deg/s so that each of its samples has its own yaw; each GAC datagram it sends is
+  stamped (wall clock) as it leaves, and its sample is found again at the subscriber by that yaw.
+  The probe's samples are not in the delivery figures (nominal: the other N-1 cameras');
 - latency p50 / p99 from the camera's frame reaching the server's client (the `t` stamped on
   arrival there) to the subscriber's callback. That clock starts when the server READS a datagram:
   the time it waited before, in the server's UDP receive queue, is not in it. So the queue is
@@ -166,6 +171,80 @@ def free_port() -> int:
 # -- the run ---------------------------------------------------------------------------------------
 
 
+PROBE = "probe"  # the camera whose every send is stamped (module docstring)
+PROBE_YAW_DPS = 7.0  # 0.14 deg between samples at 50 Hz, 0.01 deg on the wire: each yaw its own
+
+
+class Probe:
+    """A C12 simulated in this process whose GAC datagrams are stamped as they leave: the wall times
+    of the sends of each yaw (rounded to 0.01 deg, the wire's resolution)."""
+
+    def __init__(self) -> None:
+        self.sent: list[tuple[float, bytes]] = []
+        self.sim: Any = None
+
+    async def start(self) -> str:
+        from topgimbal.sim import Simulator
+
+        self.sim = sim = await Simulator(model="C12", seed=4242).start(udp=[("127.0.0.1", 0)])
+        (server,) = sim._udp  # the one UDP endpoint just opened
+        send = server.sendto
+
+        def stamped(data: bytes, peer: Any) -> None:
+            if b"GAC" in data:
+                self.sent.append((time.time(), data))
+            send(data, peer)
+
+        server.sendto = stamped
+        return str(sim.endpoints[0][1])
+
+    def sent_at(self) -> dict[float, list[float]]:
+        from topgimbal.protocol import FrameParser, get_model
+
+        dialect, _ = get_model("C12")
+        out: dict[float, list[float]] = {}
+        parser = FrameParser()
+        for t, data in self.sent:
+            for item in parser.feed_datagram(data):
+                fields = getattr(dialect.decode(item), "fields", None) if hasattr(item, "ident") else None
+                if fields and "yaw_deg" in fields:
+                    out.setdefault(round(fields["yaw_deg"], 2), []).append(t)
+        return out
+
+    async def stop(self) -> None:
+        if self.sim is not None:
+            await self.sim.stop()
+
+
+async def probe_child(out: str) -> None:
+    """`--probe-child FILE`: the probe camera in its own process (not beside the subscriber, whose
+    thread it would slow): prints its URL, turns, and at a line on stdin writes its sends' times by
+    yaw to FILE."""
+    from topgimbal import connect
+
+    probe = Probe()
+    url = await probe.start()
+    try:
+        async with connect(url, model="C12") as turning:  # its own client: the stream is the server's
+            await turning.rates(yaw_deg_s=PROBE_YAW_DPS)
+            print(url, flush=True)
+            await asyncio.get_running_loop().run_in_executor(None, sys.stdin.readline)
+        Path(out).write_text(json.dumps(sorted(probe.sent_at().items())))
+    finally:
+        await probe.stop()
+
+
+def probe_latencies(sent: dict[float, list[float]], heard: list[tuple[float, float]]) -> tuple[list[float], int]:
+    """Send-to-subscriber seconds of the probe's samples heard (each matched with the latest send of
+    its yaw before it was heard: the probe turns once in 51 s), and how many were not found."""
+    lat: list[float] = []
+    for yaw, now in heard:
+        before = [t for t in sent.get(round(yaw, 2), ()) if t <= now]
+        if before:
+            lat.append(now - max(before))
+    return lat, len(heard) - len(lat)
+
+
 class Subscriber:
     """Counts attitude samples per camera, seq gaps and latency, in Zenoh's callback thread."""
 
@@ -178,6 +257,7 @@ class Subscriber:
         self.last_seq: dict[str, int] = {}
         self.latency: list[float] = []
         self.puts = 0  # batch puts heard (--batched)
+        self.probe: list[tuple[float, float]] = []  # (yaw_deg, when heard) of the probe camera's samples
 
     def __call__(self, sample: Any) -> None:
         now = time.time()
@@ -195,6 +275,10 @@ class Subscriber:
                 self._one(d["name"], d, now)
 
     def _one(self, k: str, d: dict[str, Any], now: float) -> None:
+        if k in (PROBE, f"topgimbal/{PROBE}/attitude"):
+            if self.counting:
+                self.probe.append((d["yaw_deg"], now))
+            return
         prev = self.last_seq.get(k)
         self.last_seq[k] = d["seq"]
         if not self.counting:
@@ -214,18 +298,27 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
     from topgimbal import connect
 
     tmp = Path(tempfile.mkdtemp(prefix="fleet-bench-"))
+    m = max(1, n - 1)  # the simulator process's cameras; the n-th is the probe (n cameras served in all)
     sims = await asyncio.create_subprocess_exec(
-        sys.executable, "-m", "topgimbal.cli.main", "sim", "--model", "C12", "--fleet", str(n), "--udp", "127.0.0.1:0",
+        sys.executable, "-m", "topgimbal.cli.main", "sim", "--model", "C12", "--fleet", str(m), "--udp", "127.0.0.1:0",
         stdout=asyncio.subprocess.PIPE,
     )  # fmt: skip
     server: asyncio.subprocess.Process | None = None
     session: Any = None
+    probe: asyncio.subprocess.Process | None = None
     try:
         assert sims.stdout is not None
-        urls = [(await asyncio.wait_for(sims.stdout.readline(), 300)).decode().strip() for _ in range(n)]
+        urls = [(await asyncio.wait_for(sims.stdout.readline(), 300)).decode().strip() for _ in range(m)]
         cams = tmp / "cameras"
         suffix = "?socket=own" if own_sockets else ""  # the server's default: one shared socket
-        cams.write_text("\n".join(f"cam{i}={u}{suffix},C12" for i, u in enumerate(urls)))
+        probe = await asyncio.create_subprocess_exec(
+            sys.executable, __file__, "--probe-child", str(tmp / "probe.json"),
+            stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE,
+        )  # fmt: skip
+        assert probe.stdout is not None
+        probe_url = (await asyncio.wait_for(probe.stdout.readline(), 60)).decode().strip()
+        lines = [f"cam{i}={u}{suffix},C12" for i, u in enumerate(urls)] + [f"{PROBE}={probe_url}{suffix},C12"]
+        cams.write_text("\n".join(lines))
         port = free_port()
         server = await asyncio.create_subprocess_exec(
             sys.executable, "-m", "topgimbal.cli.main", "zenoh", "--cameras", str(cams),
@@ -246,7 +339,7 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
             zsub = session.declare_subscriber("topgimbal/*/attitude", sub)
         # warm up: every camera streaming
         for _ in range(600):
-            if len(sub.last_seq) >= n:
+            if len(sub.last_seq) >= m:
                 break
             await asyncio.sleep(0.1)
         await asyncio.sleep(2.0)
@@ -261,9 +354,11 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
         with sub.lock:
             sub.counting = False
             count, lost, repeated, lat, puts = sub.count, sub.lost, sub.repeated, list(sub.latency), sub.puts
+            heard = list(sub.probe)
         queues.halt.set()
         wall = time.monotonic() - t0
-        sent = udp_out_datagrams() - out0 if out0 >= 0 else -1
+        # less the probe's 50 a second (a small excess when it also answered its turning client)
+        sent = udp_out_datagrams() - out0 - int(rate_hz * wall) if out0 >= 0 else -1
         cpu1 = (tree_cpu_s(server.pid), cpu_s(sims.pid), main_thread_cpu_s(server.pid))
         streaming = len(sub.last_seq)
 
@@ -287,6 +382,12 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
                     await cam.version()
                     drtt.append(time.perf_counter() - t)
         zsub.undeclare()
+        assert probe.stdin is not None
+        probe.stdin.write(b"stop\n")
+        await probe.stdin.drain()
+        await asyncio.wait_for(probe.wait(), 60)
+        sent_at = {yaw: ts for yaw, ts in json.loads((tmp / "probe.json").read_text())}
+        e2e, unmatched = probe_latencies(sent_at, heard)
         charge = datagram_charge()
         qms = [1000 * q / charge / (n * rate_hz) for q in queues.samples]  # a datagram's wait, at the nominal rate
         kernel_drops = (queues.drops1 - queues.drops0) % 2**32
@@ -294,11 +395,14 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
             "cameras": n, "workers": workers or "auto", "subscribed": "batch key" if batched else "per-camera keys",
             "udp_sockets": "one per camera" if own_sockets else "shared",
             "batch_puts_per_s": round(puts / wall, 1), "rate_hz": rate_hz, "seconds": round(wall, 2), "streaming": streaming,
-            "delivered_per_s": round(count / wall, 1), "nominal_per_s": n * rate_hz,
-            "of_nominal_pct": round(100 * count / wall / (n * rate_hz), 1),
-            "cameras_sent_of_nominal_pct": round(100 * sent / wall / (n * rate_hz), 1) if sent >= 0 else "n/a",
+            "delivered_per_s": round(count / wall, 1), "nominal_per_s": m * rate_hz,
+            "of_nominal_pct": round(100 * count / wall / (m * rate_hz), 1),
+            "cameras_sent_of_nominal_pct": round(100 * sent / wall / (m * rate_hz), 1) if sent >= 0 else "n/a",
             "lost_server_to_subscriber_pct": round(100 * lost / max(1, count + lost), 3),
             "repeated_or_reordered": repeated,
+            "camera_to_subscriber_ms_p50": round(pct(e2e, 50) * 1000, 2), "camera_to_subscriber_ms_p99": round(pct(e2e, 99) * 1000, 2),
+            "camera_to_subscriber_ms_max": round(max(e2e, default=float("nan")) * 1000, 2),
+            "probe_samples": f"{len(e2e)} matched, {unmatched} not",
             "latency_ms_p50": round(pct(lat, 50) * 1000, 2), "latency_ms_p99": round(pct(lat, 99) * 1000, 2),
             "server_udp_queue_kib_p50": round(pct(queues.samples, 50) / 1024), "server_udp_queue_kib_max": round(max(queues.samples, default=0) / 1024),
             "server_udp_queue_ms_p50": round(pct(qms, 50), 1), "server_udp_queue_ms_max": round(max(qms, default=0.0), 1),
@@ -311,13 +415,13 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
             "server_cpu_pct": round(100 * (cpu1[0] - cpu0[0]) / wall, 1),
             "server_cpu_pct_per_camera": round(100 * (cpu1[0] - cpu0[0]) / wall / n, 2),
             "server_event_loop_cpu_pct": round(100 * (cpu1[2] - cpu0[2]) / wall, 1),
-            "server_cpu_us_per_sample": round(1e6 * (cpu1[0] - cpu0[0]) / max(1, count), 1),
+            "server_cpu_us_per_sample": round(1e6 * (cpu1[0] - cpu0[0]) / max(1, count + len(heard)), 1),
             "sim_cpu_pct": round(100 * (cpu1[1] - cpu0[1]) / wall, 1),
         }  # fmt: skip
     finally:
         if session is not None:
             session.close()
-        for p in (server, sims):
+        for p in (server, sims, probe):
             if p is not None and p.returncode is None:
                 p.send_signal(signal.SIGINT if p is server else signal.SIGTERM)
                 try:
@@ -342,7 +446,11 @@ def main() -> None:
         action="store_true",
         help="one UDP socket per camera (?socket=own) instead of the server's shared socket",
     )
+    ap.add_argument("--probe-child", metavar="FILE", help=argparse.SUPPRESS)  # the probe's own process
     args = ap.parse_args()
+    if args.probe_child:
+        asyncio.run(probe_child(args.probe_child))
+        return
     print(f"cores {os.cpu_count()}, load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     for n in (int(x) for x in args.cameras.split(",")):
         r = asyncio.run(run(n, args.rate_hz, args.seconds, args.calls, args.workers, args.batched, args.own_sockets))
