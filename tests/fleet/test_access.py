@@ -217,9 +217,54 @@ async def test_a_gone_querier_frees_its_places_and_waits_are_capped(
         # plus the 0.5 s poll; a fresh-clone run at load 8 saw more than 15 s (before `calls` said
         # what the server had then)
         await until("the gone querier's places freed", calls, lambda seen: seen[0] == 0, bound_s=30)
-        assert cam.gone == 4
+        # its 4 calls in progress; and any of its other 4 that Zenoh delivered after its transport
+        # closed, taken as places freed and cancelled at once (a run under load saw 7)
+        assert 4 <= cam.gone <= 8
         async with topgimbal.connect(f"zenoh/a?connect=tcp/127.0.0.1:{zport}") as op:
             assert await op.version()
+
+
+class _Query:
+    """What ServedCamera._on_query reads of a Zenoh query, and the replies it gets."""
+
+    def __init__(self, key: str) -> None:
+        self.key_expr = key
+        self.payload = None
+        self.attachment = None
+        self.replies: list[tuple[str, str]] = []
+
+    def __enter__(self) -> _Query:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def reply(self, key: str, body: str) -> None:
+        self.replies.append((key, body))
+
+
+async def test_a_call_cancelled_before_it_ran_frees_its_place() -> None:
+    """A call whose querier is seen gone in the same loop turn as it was accepted is cancelled
+    before its coroutine first runs (so before any `finally` of it): its place is freed all the
+    same, and it counts as gone once (it once stayed taken for good)."""
+    session = type("Session", (), {"info": None})()  # no transports to list: nobody is present
+    cam = camera_mod.ServedCamera(CameraSpec("a", "udp://127.0.0.1:9", "C12"), session)
+    try:
+        for _ in range(3):
+            cam._on_query(_Query("topgimbal/a/call/wait_attitude"))
+        assert cam.inflight == 3 and len(cam._call_querier) == 3
+        cam._cancel_gone(set())  # before any of them ran
+        assert cam.gone == 3
+        await eventually(lambda: not cam._call_querier, what="the cancelled calls ended")
+        assert cam.inflight == 0 and cam._by_querier == {}
+        assert cam.gone == 3  # counted once each
+        cam._on_query(q := _Query("topgimbal/a/call/version"))  # the places are free again
+        assert cam.inflight == 1 and cam.refused == 0 and q.replies == []
+    finally:
+        for t in list(cam._calls):
+            t.cancel()
+        await asyncio.gather(*cam._calls, return_exceptions=True)
+        await cam.client.close()
 
 
 async def test_each_querier_gets_a_fair_share(sims: Any, zport: int) -> None:

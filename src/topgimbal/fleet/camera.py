@@ -148,7 +148,11 @@ class ServedCamera:
         self.max_calls = max_calls
         self.client = AsyncClient(served_url(spec.url), spec.model, **(client_options or {}))
         self.loop: asyncio.AbstractEventLoop | None = None
-        self.inflight = 0
+        # Calls accepted and not yet ended. A set, not a counter: a call cancelled before its
+        # coroutine first ran (its querier gone in the same loop turn) never runs its `finally`,
+        # and a counter decremented there kept that place taken for good (a run under load
+        # ended with 3 of 8 places held by nobody).
+        self._holding: set[asyncio.Task[None]] = set()
         self.published = 0  # attitude samples
         # Whether a subscriber of this camera's attitude key exists (Zenoh's matching status): no
         # put per sample when none does (_follow_att_subscribers). True until Zenoh says otherwise.
@@ -348,12 +352,17 @@ class ServedCamera:
                 f"{self.name}: {self.inflight} calls are in progress ({held} of yours, your share {share} of "
                 f"{self.max_calls}); try again", KIND_BUSY)))  # fmt: skip
             return
-        self.inflight += 1
         self._by_querier[querier] = held + 1
         task = asyncio.ensure_future(self._call(query, reply_key, where[1]))
+        self._holding.add(task)
         self._calls.add(task)
         self._call_querier[task] = (querier, querier in live)
         task.add_done_callback(self._call_done)
+
+    @property
+    def inflight(self) -> int:
+        """Calls in progress on this camera (accepted, not yet ended)."""
+        return len(self._holding)
 
     def _full(self, held: int, share: int) -> bool:
         """No place for a querier holding `held` calls: the camera's places are taken, its share
@@ -375,6 +384,7 @@ class ServedCamera:
         return max(1, self.max_calls // max(1, active))
 
     def _call_done(self, task: asyncio.Task[None]) -> None:
+        self._holding.discard(task)  # one cancelled before it ran: its place is free now
         self._calls.discard(task)
         self._cancelled.discard(task)
         querier, _direct = self._call_querier.pop(task, (ANONYMOUS, False))
@@ -464,7 +474,11 @@ class ServedCamera:
                 log.warning("%s: %s failed unexpectedly: %r", self.name, untrusted(method), exc)
             out = error_reply(exc)
         finally:
-            self.inflight -= 1
+            # Free the place before the reply: a querier that asks again as soon as it hears must
+            # find it free (the done callback runs a loop turn later).
+            task = asyncio.current_task()
+            if task is not None:
+                self._holding.discard(task)
         self._reply(query, reply_key, out)
 
     @staticmethod
