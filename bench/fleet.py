@@ -9,7 +9,9 @@ assertions:
   200 ms deeper at the end than at the start is 1 % fewer samples counted in 20 s);
 - latency from the camera's send to the subscriber (p50 / p99), the wait in the server's receive
   queue included: one of the N cameras, `probe`, is simulated in a process of its own,
-  turning at 7 deg/s so that each of its samples has its own yaw; each GAC datagram it sends is
+  sweeping its yaw at 7 deg/s between -80 and +80 deg (its range is +-90: turning one way it would
+  sit at the stop after 13 s, every sample the same yaw) so that each of its samples has its own
+  yaw; a yaw sent twice within AMBIGUOUS_S (the turns) is not used; each GAC datagram it sends is
   stamped (wall clock) as it leaves, and its sample is found again at the subscriber by that yaw.
   The probe's samples are not in the delivery figures (nominal: the other N-1 cameras');
 - latency p50 / p99 from the camera's frame reaching the server's client (the `t` stamped on
@@ -25,9 +27,21 @@ assertions:
   client on the camera's UDP port from this process);
 - CPU seconds per wall second of the server process and of the simulator process, per camera.
 
+The window opens on a steady state, not on the start: after every camera is heard, it waits until
+the server's receive queue has stayed under WARM_QUEUE_MS (at the nominal rate) in every sample for
+WARM_STEADY_S (at most WARM_MAX_S; `warmup_s` says how long from the server's start, `steady`
+whether it got there). The start (1,000 clients connecting, their first collection) leaves a queue
+that one run measured at 138 ms on its first half-second, and it is not what a fleet does.
+
+`--pin` puts the server (and its Zenoh threads) on half of the cores, and everything else (the
+simulators, the probe, this process and its subscriber) on the other half, as when the cameras are
+other machines: the server is not preempted by its own load generator. Unpinned, the scheduler
+decides; both are worth printing (`placement` says which ran).
+
     python bench/fleet.py --cameras 10,100 --rate-hz 50 --seconds 10
     python bench/fleet.py --cameras 1000 --rate-hz 50 --batched     # the batch key, topgimbal/@attitude/*
     python bench/fleet.py --cameras 250 --batched --own-sockets      # one UDP socket per camera, as before
+    python bench/fleet.py --cameras 1000 --batched --pin             # the server on its own core(s)
 
 Loopback only (tcp/127.0.0.1, scouting off). On a shared, loaded machine the figures say what this
 machine could do at that moment: the script prints the load average next to them."""
@@ -47,6 +61,8 @@ import threading
 import time
 from pathlib import Path
 from typing import Any
+
+from topgimbal.fleet.batch import DEFAULT_BATCH_S
 
 CLK_TCK = os.sysconf("SC_CLK_TCK")
 
@@ -171,8 +187,49 @@ def free_port() -> int:
 # -- the run ---------------------------------------------------------------------------------------
 
 
+WARM_QUEUE_MS = 2.0  # the server's receive queue counts as drained under this (at the nominal rate)
+WARM_STEADY_S = 2.0  # ... in every sample (every 0.1 s) for this long
+WARM_MAX_S = 60.0  # then the window opens anyway, with steady: no
+
+
+def placement(pin: bool) -> tuple[set[int] | None, set[int] | None, str]:
+    """(the server's cores, the load generator's cores, a description); None: the scheduler's."""
+    if not pin:
+        return None, None, "unpinned (the scheduler places every process)"
+    cpus = sorted(os.sched_getaffinity(0))
+    if len(cpus) < 2:
+        raise SystemExit("--pin needs two cores")
+    half = len(cpus) // 2
+    server, rest = set(cpus[:half]), set(cpus[half:])
+    return (
+        server,
+        rest,
+        f"pinned: server on cpu {','.join(map(str, sorted(server)))}, cameras and subscriber on {','.join(map(str, sorted(rest)))}",
+    )
+
+
+async def steady(server_pid: int, nominal_per_s: float) -> tuple[float, bool]:
+    """Wait until the server's receive queue has been drained for WARM_STEADY_S (see the module
+    docstring); (seconds waited, whether it got there)."""
+    inodes = socket_inodes([server_pid, *children(server_pid)])
+    limit = WARM_QUEUE_MS / 1000 * nominal_per_s * datagram_charge()
+    t0 = time.monotonic()
+    calm_since: float | None = None
+    while (now := time.monotonic()) - t0 < WARM_MAX_S:
+        if udp_queues(inodes)[0] > limit:
+            calm_since = None
+        elif calm_since is None:
+            calm_since = now
+        elif now - calm_since >= WARM_STEADY_S:
+            return now - t0, True
+        await asyncio.sleep(0.1)
+    return time.monotonic() - t0, False
+
+
 PROBE = "probe"  # the camera whose every send is stamped (module docstring)
 PROBE_YAW_DPS = 7.0  # 0.14 deg between samples at 50 Hz, 0.01 deg on the wire: each yaw its own
+PROBE_TURN_DEG = 80.0  # it sweeps -80..+80 (a C12's yaw stops at +-90): 23 s each way
+AMBIGUOUS_S = 5.0  # a yaw sent twice within this long (at the turns) matches no send
 
 
 class Probe:
@@ -228,21 +285,39 @@ async def probe_child(out: str) -> None:
         async with connect(url, model="C12") as turning:  # its own client: the stream is the server's
             await turning.rates(yaw_deg_s=PROBE_YAW_DPS)
             print(url, flush=True)
+            sweep = asyncio.ensure_future(probe_sweep(turning, probe.sim.gimbal.yaw_axis))
             await asyncio.get_running_loop().run_in_executor(None, sys.stdin.readline)
+            sweep.cancel()
         Path(out).write_text(json.dumps(sorted(probe.sent_at().items())))
     finally:
         await probe.stop()
 
 
-def probe_latencies(sent: dict[float, list[float]], heard: list[tuple[float, float]]) -> tuple[list[float], int]:
-    """Send-to-subscriber seconds of the probe's samples heard (each matched with the latest send of
-    its yaw before it was heard: the probe turns once in 51 s), and how many were not found."""
+async def probe_sweep(turning: Any, yaw: Any) -> None:
+    """Turn back at +-PROBE_TURN_DEG (read from the probe's own simulated gimbal, `yaw`)."""
+    direction = 1.0
+    while True:
+        await asyncio.sleep(0.05)
+        if yaw.pos * direction >= PROBE_TURN_DEG:
+            direction = -direction
+            await turning.rates(yaw_deg_s=direction * PROBE_YAW_DPS)
+
+
+def probe_latencies(sent: dict[float, list[float]], heard: list[tuple[float, float]]) -> tuple[list[float], int, int]:
+    """Send-to-subscriber seconds of the probe's samples heard, each matched with the latest send
+    of its yaw before it was heard; how many were not found; how many were ambiguous (another send
+    of that yaw within AMBIGUOUS_S before the latest: at the sweep's turns, or a probe that stopped)."""
     lat: list[float] = []
+    missing = ambiguous = 0
     for yaw, now in heard:
-        before = [t for t in sent.get(round(yaw, 2), ()) if t <= now]
-        if before:
-            lat.append(now - max(before))
-    return lat, len(heard) - len(lat)
+        before = sorted(t for t in sent.get(round(yaw, 2), ()) if t <= now)
+        if not before:
+            missing += 1
+        elif len(before) > 1 and before[-1] - before[-2] < AMBIGUOUS_S:
+            ambiguous += 1
+        else:
+            lat.append(now - before[-1])
+    return lat, missing, ambiguous
 
 
 class Subscriber:
@@ -292,11 +367,16 @@ class Subscriber:
 
 
 async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int = 0,
-              batched: bool = False, own_sockets: bool = False) -> dict[str, Any]:  # fmt: skip
+              batched: bool = False, own_sockets: bool = False, pin: bool = False,
+              batch_ms: float | None = None) -> dict[str, Any]:  # fmt: skip
     import zenoh
 
     from topgimbal import connect
 
+    server_cpus, load_cpus, where = placement(pin)
+    if load_cpus is not None:  # this process, and what it starts from now on (but the server)
+        os.sched_setaffinity(0, load_cpus)
+    started = time.monotonic()
     tmp = Path(tempfile.mkdtemp(prefix="fleet-bench-"))
     m = max(1, n - 1)  # the simulator process's cameras; the n-th is the probe (n cameras served in all)
     sims = await asyncio.create_subprocess_exec(
@@ -323,7 +403,9 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
         server = await asyncio.create_subprocess_exec(
             sys.executable, "-m", "topgimbal.cli.main", "zenoh", "--cameras", str(cams),
             "--listen", f"tcp/127.0.0.1:{port}", "--rate-hz", str(rate_hz), "--workers", str(workers),
+            *([] if batch_ms is None else ["--batch-ms", str(batch_ms)]),
             stdout=asyncio.subprocess.PIPE,
+            preexec_fn=None if server_cpus is None else (lambda: os.sched_setaffinity(0, server_cpus)),
         )  # fmt: skip
         assert server.stdout is not None
         await asyncio.wait_for(server.stdout.readline(), 600)
@@ -342,7 +424,8 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
             if len(sub.last_seq) >= m:
                 break
             await asyncio.sleep(0.1)
-        await asyncio.sleep(2.0)
+        _, settled = await steady(server.pid, n * rate_hz)
+        warmup_s = time.monotonic() - started
         cpu0 = (tree_cpu_s(server.pid), cpu_s(sims.pid), main_thread_cpu_s(server.pid))
         queues = QueueSampler(server.pid)
         out0 = udp_out_datagrams()
@@ -387,12 +470,14 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
         await probe.stdin.drain()
         await asyncio.wait_for(probe.wait(), 60)
         sent_at = {yaw: ts for yaw, ts in json.loads((tmp / "probe.json").read_text())}
-        e2e, unmatched = probe_latencies(sent_at, heard)
+        e2e, unmatched, ambiguous = probe_latencies(sent_at, heard)
         charge = datagram_charge()
         qms = [1000 * q / charge / (n * rate_hz) for q in queues.samples]  # a datagram's wait, at the nominal rate
         kernel_drops = (queues.drops1 - queues.drops0) % 2**32
         return {
-            "cameras": n, "workers": workers or "auto", "subscribed": "batch key" if batched else "per-camera keys",
+            "cameras": n, "workers": workers or "auto", "placement": where,
+            "batch_ms": batch_ms if batch_ms is not None else f"{DEFAULT_BATCH_S * 1000:g} (the server's default)",
+            "warmup_s": round(warmup_s, 1), "steady": "yes" if settled else f"no (queue above {WARM_QUEUE_MS:g} ms after {WARM_MAX_S:g} s)", "subscribed": "batch key" if batched else "per-camera keys",
             "udp_sockets": "one per camera" if own_sockets else "shared",
             "batch_puts_per_s": round(puts / wall, 1), "rate_hz": rate_hz, "seconds": round(wall, 2), "streaming": streaming,
             "delivered_per_s": round(count / wall, 1), "nominal_per_s": m * rate_hz,
@@ -402,7 +487,7 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
             "repeated_or_reordered": repeated,
             "camera_to_subscriber_ms_p50": round(pct(e2e, 50) * 1000, 2), "camera_to_subscriber_ms_p99": round(pct(e2e, 99) * 1000, 2),
             "camera_to_subscriber_ms_max": round(max(e2e, default=float("nan")) * 1000, 2),
-            "probe_samples": f"{len(e2e)} matched, {unmatched} not",
+            "probe_samples": f"{len(e2e)} matched, {unmatched} not, {ambiguous} ambiguous",
             "latency_ms_p50": round(pct(lat, 50) * 1000, 2), "latency_ms_p99": round(pct(lat, 99) * 1000, 2),
             "server_udp_queue_kib_p50": round(pct(queues.samples, 50) / 1024), "server_udp_queue_kib_max": round(max(queues.samples, default=0) / 1024),
             "server_udp_queue_ms_p50": round(pct(qms, 50), 1), "server_udp_queue_ms_max": round(max(qms, default=0.0), 1),
@@ -446,6 +531,10 @@ def main() -> None:
         action="store_true",
         help="one UDP socket per camera (?socket=own) instead of the server's shared socket",
     )
+    ap.add_argument("--batch-ms", type=float, default=None,
+                    help="topgimbal zenoh --batch-ms (default: the server's, DEFAULT_BATCH_S)")  # fmt: skip
+    ap.add_argument("--pin", action="store_true",
+                    help="the server on half of the cores, the simulators, probe and subscriber on the rest")  # fmt: skip
     ap.add_argument("--probe-child", metavar="FILE", help=argparse.SUPPRESS)  # the probe's own process
     args = ap.parse_args()
     if args.probe_child:
@@ -453,7 +542,19 @@ def main() -> None:
         return
     print(f"cores {os.cpu_count()}, load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     for n in (int(x) for x in args.cameras.split(",")):
-        r = asyncio.run(run(n, args.rate_hz, args.seconds, args.calls, args.workers, args.batched, args.own_sockets))
+        r = asyncio.run(
+            run(
+                n,
+                args.rate_hz,
+                args.seconds,
+                args.calls,
+                args.workers,
+                args.batched,
+                args.own_sockets,
+                args.pin,
+                args.batch_ms,
+            )
+        )
         r["load_after"] = round(os.getloadavg()[0], 2)
         if args.json:
             print(json.dumps(r))

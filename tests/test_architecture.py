@@ -23,7 +23,7 @@ SHARED_LEAVES = (
 ALLOWED = {
     "_speedups": set(),  # the optional C fast path: a leaf the protocol core may use
     "protocol": {"_speedups"},  # the fast path, used only where it is built (stdlib-only without it)
-    "transport": {"protocol"},
+    "transport": {"protocol", "_speedups"},  # _speedups: recvmmsg for the fleet server's shared UDP socket
     "client": {"protocol", "transport", "geo"},  # geo: cam.locate() and the optics; the stream table: protocol
     "geo": set(),  # pure geolocation (terrain, laser, flat ground); dem.py imports rasterio on use
     "sim": {"protocol", "geo", "transport"},  # geo: the laser's truth (--terrain); transport.memory: listen_memory

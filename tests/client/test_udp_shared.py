@@ -152,3 +152,44 @@ async def test_datagrams_the_kernel_dropped_are_counted_and_said(caplog: pytest.
     finally:
         shared.close()
         camera.close()
+
+
+@pytest.mark.parametrize("path", ["recvmmsg", "recvfrom_into"])
+async def test_both_read_paths_deliver_the_same_datagrams_in_order_and_a_bounded_batch(path: str) -> None:
+    """The C path (`_speedups.recv_many`, Linux IPv4) and the pure one read the same queue the same
+    way: each camera's datagrams to its route in the order sent, strangers counted, and one readiness
+    event reads at most READ_BATCH, so the loop's other callbacks (timers, the batch's puts) run."""
+    from topgimbal import _speedups
+    from topgimbal.transport.udp_shared import READ_BATCH, shared_socket
+
+    cameras = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(3)]
+    for c in cameras:
+        c.bind(("127.0.0.1", 0))
+    got: dict[int, list[bytes]] = {0: [], 1: []}
+    shared = shared_socket(socket.AF_INET)
+    try:
+        shared.loop.remove_reader(shared.sock.fileno())  # read here, by hand, one event at a time
+        shared._recv_many = _speedups.recv_many(ext=_speedups.load_extension()) if path == "recvmmsg" else None
+        assert (shared._recv_many is None) == (path == "recvfrom_into")
+        for i in (0, 1):  # cameras[2] is a stranger
+            assert shared.register(cameras[i].getsockname(), got[i].append)
+        sent: dict[int, list[bytes]] = {0: [], 1: []}
+        for n in range(READ_BATCH + 100):
+            i = n % 3
+            data = f"#{n:05d}".encode()
+            cameras[i].sendto(data, shared.local_address)
+            if i < 2:
+                sent[i].append(data)
+        shared._readable()
+        first = len(got[0]) + len(got[1]) + shared.strangers
+        assert first == READ_BATCH  # one event: READ_BATCH datagrams (all were queued by then)
+        for _ in range(50):
+            shared._readable()
+            await asyncio.sleep(0.001)
+        assert got == sent
+        assert shared.strangers == (READ_BATCH + 100) // 3
+        assert shared.received == len(sent[0]) + len(sent[1]) and shared.read_errors == 0
+    finally:
+        shared.close()
+        for c in cameras:
+            c.close()

@@ -104,3 +104,18 @@ async def test_a_bad_batch_ms_is_a_usage_error(sims: Any, zport: int, bad: str) 
     _out, err = await asyncio.wait_for(proc.communicate(), 60)
     assert proc.returncode == 2, err
     assert f"--batch-ms: {bad!r}: expected 0 (no batch key) or 1..1000 ms".encode() in err, err
+
+
+def test_the_cli_default_batch_wait_is_the_servers() -> None:
+    """`topgimbal zenoh` without --batch-ms waits what FleetServer does (fleet/batch.py), and says so."""
+    import argparse
+
+    from topgimbal.cli import zenoh_cmd
+    from topgimbal.fleet.batch import DEFAULT_BATCH_S
+
+    top = argparse.ArgumentParser()
+    zenoh_cmd.register(top.add_subparsers())
+    args = top.parse_args(["zenoh", "--camera", "a=udp://127.0.0.1:5000,C12"])
+    assert args.batch_ms == DEFAULT_BATCH_S * 1000
+    sub = next(a for a in top._actions if isinstance(a, argparse._SubParsersAction)).choices["zenoh"]
+    assert f"(default {DEFAULT_BATCH_S * 1000:g}; 0: no batch key)" in " ".join(sub.format_help().split())

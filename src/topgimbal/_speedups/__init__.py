@@ -8,6 +8,7 @@ pure Python path. Both paths give identical results (tests/speedups/).
     parser_methods(Frame, pure)            -> C versions of FrameParser's feed methods, or None
     make_decoder(dialect, Message, pure)   -> a drop-in for Dialect.decode, or None
     make_any_decoder(prefer, dialects, pure) -> a drop-in for decode_any(frame, prefer), or None
+    recv_many()                            -> recvmmsg for an IPv4 UDP socket (Linux), or None
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from typing import Any
 # (which turns a catalog into the C tables) is imported when a decoder is first made: a
 # one-frame `topgimbal decode` makes none.
 
-ABI_VERSION = 2  # must match _ctop.c
+ABI_VERSION = 3  # must match _ctop.c
 PARSER_METHODS = ("feed", "feed_datagram", "flush", "feed_messages")  # _ctop.c: M_FEED ... M_MESSAGES
 
 
@@ -106,3 +107,14 @@ def make_any_decoder(
     if not all(isinstance(d, ext.Decoder) for d in decoders):
         return None
     return ext.AnyDecoder(prefer, tuple(candidates), pure)
+
+
+def recv_many(
+    *, ext: ModuleType | None = None
+) -> Callable[[int, int], list[tuple[bytes, tuple[str, int] | None]]] | None:
+    """`recv_many(fd, max)`: up to `max` (1..64) datagrams waiting on a non-blocking IPv4 UDP socket,
+    read in one recvmmsg call, as `[(data, (host, port)), ...]` (`[]` when none waits; an address of
+    another family is None); OSError as `recvfrom` raises it. None when the extension is not in use
+    or was built where recvmmsg does not exist (not Linux)."""
+    ext = ext or _ext
+    return None if ext is None else getattr(ext, "recv_many", None)

@@ -12,13 +12,15 @@
  *            decoder whole, so results are identical to the pure path.
  * AnyDecoder: decode_any (the preferred dialect, then the others in guess_dialects' order), with
  *            the pure decode_any for every frame no dialect decodes natively.
+ * recv_many: (Linux) up to RECV_MANY_MAX datagrams of a non-blocking IPv4 UDP socket in one
+ *            recvmmsg call, for the shared socket of a fleet server (transport/udp_shared.py).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
 #include "topgimbal.h"
 
-#define ABI_VERSION 2
+#define ABI_VERSION 3
 
 static PyObject *headers[5]; /* "#TP" ... by tg_header code */
 static PyObject *s_buf, *s_stats, *s_bytes, *s_frames, *s_max_data, *s_recover, *s_c_event, *s_final, *s_decode;
@@ -1142,7 +1144,103 @@ static struct {
     PyTypeObject *type;
 } module_types[] = {{"Decoder", &DecoderType}, {"AnyDecoder", &AnyDecoderType}, {"ParserMethod", &ParserMethodType}};
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_ctop", "libtopgimbal fast path", -1, NULL,
+/* ---- many datagrams in one system call ---------------------------------------------------- */
+
+#if defined(__linux__)
+#include <arpa/inet.h>
+#include <errno.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+
+#define RECV_MANY_MAX 64
+#define RECV_MANY_SLOT 65536 /* a whole UDP datagram, as the pure loop's buffer: nothing truncated */
+
+/* One buffer for the process, used under the GIL (the call never releases it: MSG_DONTWAIT never
+ * waits). Only the bytes the datagrams fill are ever touched. */
+static char *recv_slots;
+
+static PyObject *ipv4_address(const struct sockaddr_in *sin) {
+    char host[INET_ADDRSTRLEN];
+    PyObject *h, *port, *out;
+    if (!inet_ntop(AF_INET, &sin->sin_addr, host, sizeof host)) return PyErr_SetFromErrno(PyExc_OSError);
+    if (!(h = PyUnicode_FromString(host))) return NULL;
+    if (!(port = PyLong_FromLong(ntohs(sin->sin_port)))) {
+        Py_DECREF(h);
+        return NULL;
+    }
+    out = PyTuple_Pack(2, h, port);
+    Py_DECREF(h);
+    Py_DECREF(port);
+    return out;
+}
+
+static PyObject *recv_many(PyObject *mod, PyObject *args) {
+    int fd, max, n, k;
+    struct mmsghdr msgs[RECV_MANY_MAX];
+    struct iovec iov[RECV_MANY_MAX];
+    struct sockaddr_storage addrs[RECV_MANY_MAX];
+    PyObject *out;
+    (void)mod;
+    if (!PyArg_ParseTuple(args, "ii:recv_many", &fd, &max)) return NULL;
+    if (fd < 0) {
+        PyErr_Format(PyExc_ValueError, "recv_many: file descriptor %d: expected an open socket's (>= 0)", fd);
+        return NULL;
+    }
+    if (max < 1 || max > RECV_MANY_MAX) {
+        PyErr_Format(PyExc_ValueError, "recv_many: max %d: expected 1..%d datagrams", max, RECV_MANY_MAX);
+        return NULL;
+    }
+    if (!recv_slots && !(recv_slots = PyMem_RawMalloc((size_t)RECV_MANY_MAX * RECV_MANY_SLOT))) return PyErr_NoMemory();
+    memset(msgs, 0, sizeof msgs);
+    for (k = 0; k < max; k++) {
+        iov[k].iov_base = recv_slots + (size_t)k * RECV_MANY_SLOT;
+        iov[k].iov_len = RECV_MANY_SLOT;
+        msgs[k].msg_hdr.msg_iov = &iov[k];
+        msgs[k].msg_hdr.msg_iovlen = 1;
+        msgs[k].msg_hdr.msg_name = &addrs[k];
+        msgs[k].msg_hdr.msg_namelen = sizeof addrs[k];
+    }
+    n = recvmmsg(fd, msgs, (unsigned int)max, MSG_DONTWAIT, NULL);
+    if (n < 0) {
+        if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) return PyList_New(0);
+        return PyErr_SetFromErrno(PyExc_OSError);
+    }
+    if (!(out = PyList_New(n))) return NULL;
+    for (k = 0; k < n; k++) {
+        PyObject *data, *addr, *item;
+        if (!(data = PyBytes_FromStringAndSize(iov[k].iov_base, (Py_ssize_t)msgs[k].msg_len))) goto fail;
+        if (msgs[k].msg_hdr.msg_namelen >= sizeof(struct sockaddr_in) && addrs[k].ss_family == AF_INET) {
+            addr = ipv4_address((const struct sockaddr_in *)&addrs[k]);
+        } else { /* not IPv4: no route has such an address (the caller counts a stranger) */
+            addr = Py_None;
+            Py_INCREF(addr);
+        }
+        if (!addr) {
+            Py_DECREF(data);
+            goto fail;
+        }
+        item = PyTuple_Pack(2, data, addr);
+        Py_DECREF(data);
+        Py_DECREF(addr);
+        if (!item) goto fail;
+        PyList_SET_ITEM(out, k, item);
+    }
+    return out;
+fail:
+    Py_DECREF(out);
+    return NULL;
+}
+#endif
+
+static PyMethodDef module_functions[] = {
+#if defined(__linux__)
+    {"recv_many", recv_many, METH_VARARGS,
+     "recv_many(fd, max) -> [(data, (host, port) | None), ...]: up to `max` (1..64) datagrams of a non-blocking "
+     "IPv4 UDP socket in one recvmmsg call; [] when none is waiting. The address is None for any other family."},
+#endif
+    {NULL, NULL, 0, NULL}};
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_ctop", "libtopgimbal fast path", -1, module_functions,
                                     NULL, NULL, NULL, NULL};
 
 PyMODINIT_FUNC PyInit__ctop(void) {

@@ -114,9 +114,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument("--mode", choices=("peer", "client"), default="peer", help="Zenoh session mode (default peer)")
     p.add_argument("--config", metavar="FILE", help="Zenoh configuration file (TLS, user/password, access control)")
     p.add_argument("--rate-hz", type=_rate, default=50.0, help="attitude stream rate asked of each camera (default 50)")
-    p.add_argument("--batch-ms", type=_batch_ms, default=5.0, metavar="MS",
+    # the default is fleet/batch.py's DEFAULT_BATCH_S (not imported here: `topgimbal --help` stays light)
+    p.add_argument("--batch-ms", type=_batch_ms, default=2.0, metavar="MS",
                    help="also put every camera's attitude samples together on topgimbal/@attitude/<server id>, "
-                   "one JSON array at most MS ms after its first sample (default 5; 0: no batch key)")  # fmt: skip
+                   "one JSON array at most MS ms after its first sample (default 2; 0: no batch key)")  # fmt: skip
     p.add_argument("--max-calls", type=_calls, default=8, help="calls in progress per camera (default 8)")
     p.add_argument("--timeout", type=float, default=1.0, help="camera request timeout, seconds (default 1)")
     p.add_argument("--mavlink-keys", action="store_true",

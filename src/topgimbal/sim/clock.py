@@ -24,6 +24,8 @@ class MonotonicClock:
     """Real time: `topgimbal.clock.monotonic`, the running loop's own time, so deadlines computed
     from this clock can be handed to `loop.call_at` unchanged (and a virtual-time loop moves them)."""
 
+    __slots__ = ("_read",)
+
     def __init__(self) -> None:
         self._read: MonotonicFn = monotonic
 

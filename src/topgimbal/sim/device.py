@@ -307,15 +307,20 @@ class Device(StateView):
         self.state.streams.forget(peer)
 
     def next_due(self) -> float | None:
+        # Once a stream frame (a thousand times a frame period in a fleet): tests, no tuple.
         state = self.state
         t = state.streams.next_due()
-        for other in (
-            self._last + MOTOR_STEP_S if state.camera.moving or state.gimbal.moving else None,
-            state.coast_until,
-            self._late[0][0] if self._late else None,
-        ):
-            if other is not None and (t is None or other < t):
-                t = other
+        if state.camera.moving or state.gimbal.moving:
+            motors = self._last + MOTOR_STEP_S
+            if t is None or motors < t:
+                t = motors
+        coast = state.coast_until
+        if coast is not None and (t is None or coast < t):
+            t = coast
+        if self._late:
+            late = self._late[0][0]
+            if t is None or late < t:
+                t = late
         return t
 
     def tick(self, early_s: float = 0.0) -> list[Outgoing]:

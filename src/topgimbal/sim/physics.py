@@ -35,7 +35,7 @@ class AxisLimits:
         return min(self.hi, max(self.lo, a))
 
 
-@dataclass
+@dataclass(slots=True)
 class Axis:
     """One motor axis. `frame` says how `target` is read: "body" or "earth"."""
 
@@ -109,7 +109,7 @@ class Axis:
             self.pos = lim.clamp(new)
 
 
-@dataclass
+@dataclass(slots=True)
 class Vehicle:
     """The vehicle attitude the host reports (UAV / FAI), API convention, degrees."""
 
@@ -121,7 +121,7 @@ class Vehicle:
         return float(getattr(self, axis))
 
 
-@dataclass
+@dataclass(slots=True)
 class GimbalPhysics:
     """Three axes plus the modes the PTZ codes switch."""
 

@@ -390,7 +390,10 @@ class Simulator:
 
     def _next_due(self) -> float | None:
         due = self.device.next_due()
-        for inj in (self._fault_in, self._fault_out):
+        fi, fo = self._fault_in, self._fault_out
+        if fi is None and fo is None:  # no fault plan: the common case, once a stream frame
+            return due
+        for inj in (fi, fo):
             if inj is not None and inj.enabled:  # a disabled injector holds nothing (faults.py)
                 t = inj.next_due()
                 if t is not None and (due is None or t < due):

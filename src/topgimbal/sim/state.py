@@ -75,7 +75,7 @@ class NetworkState:
                 setattr(self, k, d[k])
 
 
-@dataclass
+@dataclass(slots=True)
 class CameraState:
     model: DeviceModel  # the lens limits are the profile's, not a copy
     recording: bool = False

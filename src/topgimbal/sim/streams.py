@@ -20,7 +20,7 @@ Key = tuple[Hashable, str]
 ReportFn = Callable[[Any, "Stream"], list[Frame]]
 
 
-@dataclass(eq=False)
+@dataclass(eq=False, slots=True)
 class Stream:
     """One host's subscription. `memo_*` let a report reuse its frames while the values it would
     send are unchanged (an attitude stream of a gimbal at rest); `last_*` let the device reuse the
