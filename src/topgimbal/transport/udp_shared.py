@@ -82,8 +82,9 @@ class SharedUdpSocket:
         self._next_drop_check = 0.0
         self._buf = bytearray(MAX_DATAGRAM)
         self._view = memoryview(self._buf)
-        # recvmmsg where the C extension has it (Linux, IPv4): the same datagrams, in the same order,
-        # a quarter of the system calls' cost at 1,000 cameras (docs/fleet.md); else recvfrom_into.
+        # recvmmsg where the C extension has it (Linux, IPv4): the same datagrams in the same order,
+        # read and routed in 0.88 us each instead of 1.51 (one process, docs/fleet.md); else
+        # recvfrom_into, one system call a datagram.
         self._recv_many = speedups.recv_many() if family == socket.AF_INET else None
         self._throttle = ThrottledLog(log, 10.0)
         sock = socket.socket(family, socket.SOCK_DGRAM)
