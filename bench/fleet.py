@@ -227,6 +227,7 @@ async def steady(server_pid: int, nominal_per_s: float) -> tuple[float, bool]:
 
 
 PROBE = "probe"  # the camera whose every send is stamped (module docstring)
+PROBE_KEYS = frozenset({PROBE, f"topgimbal/{PROBE}/attitude"})  # its name in a batch, its own key
 PROBE_YAW_DPS = 7.0  # 0.14 deg between samples at 50 Hz, 0.01 deg on the wire: each yaw its own
 PROBE_TURN_DEG = 80.0  # it sweeps -80..+80 (a C12's yaw stops at +-90): 23 s each way
 AMBIGUOUS_S = 5.0  # a yaw sent twice within this long (at the turns) matches no send
@@ -341,16 +342,39 @@ class Subscriber:
             self._one(str(sample.key_expr), d, now)
 
     def batch(self, sample: Any) -> None:
-        """A put on the batch key (`--batched`): a JSON array of samples, each with its camera's name."""
+        """A put on the batch key (`--batched`): a JSON array of samples, each with its camera's name.
+        `_one`'s work written out over the array: this thread shares a core with the simulators
+        under --pin, and what it takes from them comes back as bursts at the server."""
         now = time.time()
         rows = json.loads(sample.payload.to_bytes())
         with self.lock:
             self.puts += 1
+            counting, last, lat, probe = self.counting, self.last_seq, self.latency, self.probe
+            count = lost = repeated = 0
             for d in rows:
-                self._one(d["name"], d, now)
+                k = d["name"]
+                if k in PROBE_KEYS:
+                    if counting:
+                        probe.append((d["yaw_deg"], now))
+                    continue
+                seq = d["seq"]
+                prev = last.get(k)
+                last[k] = seq
+                if not counting:
+                    continue
+                count += 1
+                if prev is not None:
+                    if seq > prev + 1:
+                        lost += seq - prev - 1
+                    elif seq <= prev:
+                        repeated += 1
+                lat.append(now - d["t"])
+            self.count += count
+            self.lost += lost
+            self.repeated += repeated
 
     def _one(self, k: str, d: dict[str, Any], now: float) -> None:
-        if k in (PROBE, f"topgimbal/{PROBE}/attitude"):
+        if k in PROBE_KEYS:
             if self.counting:
                 self.probe.append((d["yaw_deg"], now))
             return
