@@ -25,7 +25,13 @@ assertions:
   stream does not answer): through Zenoh (query on
   topgimbal/cam0/call/version -> the server's client -> camera -> reply) and direct (an SDK
   client on the camera's UDP port from this process);
-- CPU seconds per wall second of the server process and of the simulator process, per camera.
+- CPU seconds per wall second of the server process and of the simulator process, per camera;
+- why a queue stood: `server_off_core_while_queued_ms`, the time the serving loop did not run while
+  more than 10 ms of traffic waited for it (in each 0.2 s sample that began and ended that deep,
+  the wall time less the loop thread's CPU; with worker processes, their loops summed), and each
+  core's `steal_ms`, the time the hypervisor ran someone else. A queue that grows while the loop
+  runs flat out is the server's cost; one that grows while the loop is off its core is the
+  machine's (or a lock the loop waits on).
 
 The window opens on a steady state, not on the start: after every camera is heard, it waits until
 the server's receive queue has stayed under WARM_QUEUE_MS (at the nominal rate) in every sample for
@@ -52,6 +58,7 @@ import argparse
 import asyncio
 import contextlib
 import json
+import math
 import os
 import signal
 import socket
@@ -158,21 +165,43 @@ def datagram_charge(size: int = 24, count: int = 64) -> float:
     return queued / count if queued else float("nan")
 
 
-class QueueSampler(threading.Thread):
-    """The server's UDP receive queues every `every_s`, until stopped."""
+def steal_s() -> dict[str, float]:
+    """Each core's time the hypervisor gave to someone else (/proc/stat's steal), in seconds."""
+    out: dict[str, float] = {}
+    for line in Path("/proc/stat").read_text().splitlines():
+        f = line.split()
+        if f and f[0].startswith("cpu") and f[0] != "cpu" and len(f) > 8:
+            out[f[0]] = int(f[8]) / CLK_TCK
+    return out
 
-    def __init__(self, pid: int, every_s: float = 0.2) -> None:
+
+class QueueSampler(threading.Thread):
+    """The server's UDP receive queues every `every_s`, until stopped; and how long the serving loop
+    did not run while datagrams waited: an interval that began and ended with more than
+    `waiting_bytes` queued, less the main thread's CPU in it (a loop that is neither running nor
+    draining is blocked or descheduled: a lock, the GIL, another process, the hypervisor)."""
+
+    def __init__(self, pid: int, every_s: float = 0.2, waiting_bytes: int = 0) -> None:
         super().__init__(daemon=True)
-        self.pid, self.every_s = pid, every_s
+        self.pid, self.every_s, self.waiting_bytes = pid, every_s, waiting_bytes
         self.inodes = socket_inodes([pid, *children(pid)])
         self.samples: list[int] = []
         self.drops0 = self.drops1 = udp_queues(self.inodes)[1]
         self.halt = threading.Event()
+        self.not_running_s = 0.0  # waiting, and the loop off its core
+        self.worst_not_running_s = 0.0  # the same, in the worst interval
 
     def run(self) -> None:
+        prev = (time.monotonic(), main_thread_cpu_s(self.pid), udp_queues(self.inodes)[0])
         while not self.halt.wait(self.every_s):
             queued, self.drops1 = udp_queues(self.inodes)
             self.samples.append(queued)
+            now = (time.monotonic(), main_thread_cpu_s(self.pid), queued)
+            if prev[2] > self.waiting_bytes and queued > self.waiting_bytes:
+                off = max(0.0, (now[0] - prev[0]) - (now[1] - prev[1]))
+                self.not_running_s += off
+                self.worst_not_running_s = max(self.worst_not_running_s, off)
+            prev = now
 
 
 def free_port() -> int:
@@ -451,7 +480,11 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
         _, settled = await steady(server.pid, n * rate_hz)
         warmup_s = time.monotonic() - started
         cpu0 = (tree_cpu_s(server.pid), cpu_s(sims.pid), main_thread_cpu_s(server.pid))
-        queues = QueueSampler(server.pid)
+        # "waiting": more than 10 ms of the cameras' traffic queued (a loop that keeps up has less)
+        charge0 = datagram_charge()
+        waiting = int(0.010 * n * rate_hz * charge0) if math.isfinite(charge0) else 0
+        queues = QueueSampler(server.pid, waiting_bytes=waiting)
+        steal0 = steal_s()
         out0 = udp_out_datagrams()
         t0 = time.monotonic()
         with sub.lock:
@@ -463,6 +496,7 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
             count, lost, repeated, lat, puts = sub.count, sub.lost, sub.repeated, list(sub.latency), sub.puts
             heard = list(sub.probe)
         queues.halt.set()
+        steal1 = steal_s()
         wall = time.monotonic() - t0
         # less the probe's 50 a second (a small excess when it also answered its turning client)
         sent = udp_out_datagrams() - out0 - int(rate_hz * wall) if out0 >= 0 else -1
@@ -526,6 +560,8 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
             "server_event_loop_cpu_pct": round(100 * (cpu1[2] - cpu0[2]) / wall, 1),
             "server_cpu_us_per_sample": round(1e6 * (cpu1[0] - cpu0[0]) / max(1, count + len(heard)), 1),
             "sim_cpu_pct": round(100 * (cpu1[1] - cpu0[1]) / wall, 1),
+            "server_off_core_while_queued_ms": f"{1000 * queues.not_running_s:.0f} (worst 0.2 s: {1000 * queues.worst_not_running_s:.0f})",
+            "steal_ms": ", ".join(f"{c} {1000 * (steal1.get(c, 0.0) - v):.0f}" for c, v in steal0.items()),
         }  # fmt: skip
     finally:
         if session is not None:

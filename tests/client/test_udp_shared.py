@@ -193,3 +193,92 @@ async def test_both_read_paths_deliver_the_same_datagrams_in_order_and_a_bounded
         shared.close()
         for c in cameras:
             c.close()
+
+
+def _senders(n: int) -> list[socket.socket]:
+    out = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(n)]
+    for s in out:
+        s.bind(("127.0.0.1", 0))
+    return out
+
+
+async def _until(cond: object, what: str, timeout_s: float = 10.0) -> None:
+    assert callable(cond)
+    for _ in range(int(timeout_s / 0.002)):
+        if cond():
+            return
+        await asyncio.sleep(0.002)
+    raise AssertionError(f"not within {timeout_s} s: {what}")
+
+
+@pytest.mark.parametrize("path", ["recvmmsg", "recvfrom_into"])
+async def test_a_loaded_socket_is_read_on_a_timer_and_by_readiness_again_once_quiet(path: str) -> None:
+    """NAPI's idea: a readiness event that finds POLL_ENTER datagrams waiting turns the socket to
+    timed reads (no wake-up per datagram); a timed read that finds fewer than POLL_STAY turns it
+    back. Nothing is lost or reordered either way, and one datagram alone never starts the timer."""
+    from topgimbal import _speedups
+    from topgimbal.transport.udp_shared import POLL_ENTER, shared_socket
+
+    cameras = _senders(2)
+    got: dict[int, list[bytes]] = {0: [], 1: []}
+    shared = shared_socket(socket.AF_INET)
+    try:
+        shared._recv_many = _speedups.recv_many(ext=_speedups.load_extension()) if path == "recvmmsg" else None
+        for i in (0, 1):
+            assert shared.register(cameras[i].getsockname(), got[i].append)
+        sent: dict[int, list[bytes]] = {0: [], 1: []}
+
+        def send(first: int, count: int) -> None:
+            for n in range(first, first + count):  # no await: all queued before the loop reads
+                data = f"#{n:05d}".encode()
+                cameras[n % 2].sendto(data, shared.local_address)
+                sent[n % 2].append(data)
+
+        send(0, 1)
+        await _until(lambda: len(got[0]) == 1, "the first datagram")
+        assert shared.polls_started == 0 and not shared.polling  # one datagram: readiness events
+        send(1, 4 * POLL_ENTER)
+        await _until(lambda: shared.polls_started == 1, "timed reads to start")
+        await _until(lambda: got == sent, "every datagram of the burst")
+        await _until(lambda: not shared.polling, "readiness events again once traffic stopped")
+        send(100, 1)  # the reader is back: a lone datagram is read (and starts no timer)
+        await _until(lambda: got == sent, "a datagram after the timed reads ended")
+        assert shared.polls_started == 1 and not shared.polling
+        assert shared.received == 4 * POLL_ENTER + 2 and shared.read_errors == 0
+    finally:
+        shared.close()
+        for c in cameras:
+            c.close()
+
+
+async def test_a_backlog_is_read_on_at_once_and_closing_stops_the_timed_reads() -> None:
+    """A timed read that stops at READ_BATCH leaves a backlog: the next read is the loop's next
+    callback, not a timer away. Closing the socket mid-way cancels the next read."""
+    from topgimbal.transport.udp_shared import READ_BATCH, shared_socket
+
+    (camera,) = _senders(1)
+    got: list[bytes] = []
+    shared = shared_socket(socket.AF_INET)
+    try:
+        assert shared.register(camera.getsockname(), got.append)
+        shared.loop.remove_reader(shared.sock.fileno())  # queue a backlog before anything reads
+        sent = [f"#{n:05d}".encode() for n in range(3 * READ_BATCH)]
+        for data in sent:
+            camera.sendto(data, shared.local_address)
+        shared._readable()  # READ_BATCH read: the socket turns to timed reads
+        assert len(got) == READ_BATCH and shared.polling
+        timed = shared._poll_handle
+        assert isinstance(timed, asyncio.TimerHandle)
+        timed.cancel()
+        shared._poll()  # a timed read that finds a full READ_BATCH: the next one at once
+        assert len(got) == 2 * READ_BATCH
+        assert shared.polling and not isinstance(shared._poll_handle, asyncio.TimerHandle)
+        await _until(lambda: got == sent, "the whole backlog")
+        camera.sendto(b"#late", shared.local_address)
+        shared.close()  # with a read pending or the reader back: nothing runs after this
+        assert not shared.polling
+        await asyncio.sleep(0.05)
+        assert got == sent and shared.read_errors == 0
+    finally:
+        shared.close()
+        camera.close()
