@@ -282,3 +282,38 @@ async def test_a_backlog_is_read_on_at_once_and_closing_stops_the_timed_reads() 
     finally:
         shared.close()
         camera.close()
+
+
+async def test_a_timed_read_that_fails_unexpectedly_does_not_stop_the_socket() -> None:
+    """A read that raises something unexpected while the socket is on timed reads puts it back on
+    readiness events (the loop logs the error): the cameras are read on, not dropped for good."""
+    from topgimbal.transport.udp_shared import READ_BATCH, shared_socket
+
+    (camera,) = _senders(1)
+    got: list[bytes] = []
+    shared = shared_socket(socket.AF_INET)
+    try:
+        assert shared.register(camera.getsockname(), got.append)
+        shared.loop.remove_reader(shared.sock.fileno())
+        for n in range(READ_BATCH):
+            camera.sendto(f"#{n:05d}".encode(), shared.local_address)
+        shared._readable()
+        assert shared.polling and len(got) == READ_BATCH
+        timed = shared._poll_handle
+        assert timed is not None
+        timed.cancel()
+        real = shared._read
+
+        def broken() -> int:
+            raise RuntimeError("a bug in a read")
+
+        shared._read = broken  # type: ignore[method-assign]
+        with pytest.raises(RuntimeError, match="a bug in a read"):
+            shared._poll()
+        shared._read = real  # type: ignore[method-assign]
+        assert not shared.polling  # back on readiness events
+        camera.sendto(b"#after", shared.local_address)
+        await _until(lambda: got[-1:] == [b"#after"], "a datagram after the failed read")
+    finally:
+        shared.close()
+        camera.close()

@@ -165,9 +165,14 @@ class SharedUdpSocket:
         if self.closed:
             return
         started = self._now()
-        n = self._read()
-        if self.closed:
-            return
+        n = 0  # a read that raised: readiness events again (then the loop logs the error)
+        try:
+            n = self._read()
+        finally:
+            if not self.closed:
+                self._next_read(started, n)
+
+    def _next_read(self, started: float, n: int) -> None:
         if n >= READ_BATCH:  # a backlog: on at once, after the loop's other callbacks
             self._poll_handle = self.loop.call_soon(self._poll)
         elif n >= POLL_STAY:
