@@ -21,7 +21,7 @@ by that much is what a user must hear about (bench/fleet.py saw it under a full 
 
 A loaded socket is read on a timer, not per datagram (NAPI's idea). At 1,000 cameras x 50 Hz a
 readiness event found 3 datagrams on average: 16,000 wake-ups of the loop a second, each an
-epoll_wait, a loop turn and a read, about 2.5 us of the server's 17.5 us a sample. When one event
+epoll_wait, a loop turn and a read, each sample paying a third of one. When one event
 finds POLL_ENTER or more waiting, the reader is removed and the socket is read every POLL_S
 (about a millisecond: the loop's selector waits whole milliseconds) while each read finds at least
 POLL_STAY, at once again when a read stops at READ_BATCH (a backlog), and by readiness events again
