@@ -13,7 +13,10 @@ assertions:
   sit at the stop after 13 s, every sample the same yaw) so that each of its samples has its own
   yaw; a yaw sent twice within AMBIGUOUS_S (the turns) is not used; each GAC datagram it sends is
   stamped (wall clock) as it leaves, and its sample is found again at the subscriber by that yaw.
-  The probe's samples are not in the delivery figures (nominal: the other N-1 cameras');
+  The probe's samples are not in the delivery figures (nominal: the other N-1 cameras'). The same
+  samples are split at the server's stamp `t` (below): `camera_to_server_ms` (the kernel's queue,
+  the server's read and its client) and `probe_server_to_subscriber_ms_p99` (the batch's wait,
+  Zenoh, and this process's subscriber thread, which shares its cores with the simulators);
 - latency p50 / p99 from the camera's frame reaching the server's client (the `t` stamped on
   arrival there) to the subscriber's callback. That clock starts when the server READS a datagram:
   the time it waited before, in the server's UDP receive queue, is not in it. So the queue is
@@ -333,13 +336,18 @@ async def probe_sweep(turning: Any, yaw: Any) -> None:
             await turning.rates(yaw_deg_s=direction * PROBE_YAW_DPS)
 
 
-def probe_latencies(sent: dict[float, list[float]], heard: list[tuple[float, float]]) -> tuple[list[float], int, int]:
+def probe_latencies(
+    sent: dict[float, list[float]], heard: list[tuple[float, float, float]]
+) -> tuple[list[float], list[float], int, int]:
     """Send-to-subscriber seconds of the probe's samples heard, each matched with the latest send
-    of its yaw before it was heard; how many were not found; how many were ambiguous (another send
-    of that yaw within AMBIGUOUS_S before the latest: at the sweep's turns, or a probe that stopped)."""
+    of its yaw before it was heard; the send-to-server part of each (the server stamps `t` when it
+    reads the datagram, so the rest is its batch, Zenoh and this subscriber's thread); how many were
+    not found; how many were ambiguous (another send of that yaw within AMBIGUOUS_S before the
+    latest: at the sweep's turns, or a probe that stopped)."""
     lat: list[float] = []
+    to_server: list[float] = []
     missing = ambiguous = 0
-    for yaw, now in heard:
+    for yaw, now, stamp in heard:
         before = sorted(t for t in sent.get(round(yaw, 2), ()) if t <= now)
         if not before:
             missing += 1
@@ -347,7 +355,8 @@ def probe_latencies(sent: dict[float, list[float]], heard: list[tuple[float, flo
             ambiguous += 1
         else:
             lat.append(now - before[-1])
-    return lat, missing, ambiguous
+            to_server.append(stamp - before[-1])
+    return lat, to_server, missing, ambiguous
 
 
 class Subscriber:
@@ -362,7 +371,8 @@ class Subscriber:
         self.last_seq: dict[str, int] = {}
         self.latency: list[float] = []
         self.puts = 0  # batch puts heard (--batched)
-        self.probe: list[tuple[float, float]] = []  # (yaw_deg, when heard) of the probe camera's samples
+        # (yaw_deg, when heard, the server's stamp `t`) of the probe camera's samples
+        self.probe: list[tuple[float, float, float]] = []
 
     def __call__(self, sample: Any) -> None:
         now = time.time()
@@ -384,7 +394,7 @@ class Subscriber:
                 k = d["name"]
                 if k in PROBE_KEYS:
                     if counting:
-                        probe.append((d["yaw_deg"], now))
+                        probe.append((d["yaw_deg"], now, d["t"]))
                     continue
                 seq = d["seq"]
                 prev = last.get(k)
@@ -405,7 +415,7 @@ class Subscriber:
     def _one(self, k: str, d: dict[str, Any], now: float) -> None:
         if k in PROBE_KEYS:
             if self.counting:
-                self.probe.append((d["yaw_deg"], now))
+                self.probe.append((d["yaw_deg"], now, d["t"]))
             return
         prev = self.last_seq.get(k)
         self.last_seq[k] = d["seq"]
@@ -528,7 +538,7 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
         await probe.stdin.drain()
         await asyncio.wait_for(probe.wait(), 60)
         sent_at = {yaw: ts for yaw, ts in json.loads((tmp / "probe.json").read_text())}
-        e2e, unmatched, ambiguous = probe_latencies(sent_at, heard)
+        e2e, to_server, unmatched, ambiguous = probe_latencies(sent_at, heard)
         charge = datagram_charge()
         qms = [1000 * q / charge / (n * rate_hz) for q in queues.samples]  # a datagram's wait, at the nominal rate
         kernel_drops = (queues.drops1 - queues.drops0) % 2**32
@@ -545,6 +555,9 @@ async def run(n: int, rate_hz: float, seconds: float, calls: int, workers: int =
             "repeated_or_reordered": repeated,
             "camera_to_subscriber_ms_p50": round(pct(e2e, 50) * 1000, 2), "camera_to_subscriber_ms_p99": round(pct(e2e, 99) * 1000, 2),
             "camera_to_subscriber_ms_max": round(max(e2e, default=float("nan")) * 1000, 2),
+            # the same samples split at the server's stamp: where the tail is
+            "camera_to_server_ms_p50": round(pct(to_server, 50) * 1000, 2), "camera_to_server_ms_p99": round(pct(to_server, 99) * 1000, 2),
+            "probe_server_to_subscriber_ms_p99": round(pct([a - b for a, b in zip(e2e, to_server, strict=True)], 99) * 1000, 2),
             "probe_samples": f"{len(e2e)} matched, {unmatched} not, {ambiguous} ambiguous",
             "latency_ms_p50": round(pct(lat, 50) * 1000, 2), "latency_ms_p99": round(pct(lat, 99) * 1000, 2),
             "server_udp_queue_kib_p50": round(pct(queues.samples, 50) / 1024), "server_udp_queue_kib_max": round(max(queues.samples, default=0) / 1024),

@@ -1,19 +1,33 @@
 """The batch key's timing and bounds (fleet/batch.py, issue 45), on a publisher double in virtual
 time: a sample waits at most `batch_s`, a full batch goes at once, close sends what waits, and a put
-Zenoh refuses is counted and logged, never raised into a camera's tap."""
+Zenoh refuses is counted and logged, never raised into a camera's tap. The timing tests put on the
+loop (`threaded=False`); the put thread a slow put hands the next ones to is tested below: it keeps
+the order, never makes the loop wait for a put, past MAX_PENDING_PUTS drops the oldest batch, and
+gives the puts back to the loop once none has been slow for THREAD_HOLD_S."""
 
 from __future__ import annotations
 
 import asyncio
 import json
 import logging
+import threading
 from typing import Any
 
 import pytest
 
 from topgimbal.client.state import GimbalAttitude
 from topgimbal.clock import monotonic
-from topgimbal.fleet.batch import BATCH_KEYS, MAX_SAMPLES, AttitudeBatch, batch_key, named
+from topgimbal.fleet.batch import (
+    BATCH_KEYS,
+    MAX_SAMPLES,
+    SLOW_PUT_S,
+    SOON_SAMPLES,
+    THREAD_HOLD_S,
+    AttitudeBatch,
+    PutThread,
+    batch_key,
+    named,
+)
 from topgimbal.fleet.camera import attitude_json
 
 pytestmark = pytest.mark.virtual
@@ -50,7 +64,7 @@ def sample(name: str, seq: int, yaw: float = 1.5) -> str:
 
 async def test_samples_wait_at_most_batch_s_and_go_as_one_array() -> None:
     session = Session()
-    batch = AttitudeBatch(session, "abc123", 0.005)
+    batch = AttitudeBatch(session, "abc123", 0.005, threaded=False)
     pub = session.publishers[0]
     assert pub.key == batch_key("abc123") == "topgimbal/@attitude/abc123"
     t0 = monotonic()
@@ -76,7 +90,7 @@ async def test_samples_wait_at_most_batch_s_and_go_as_one_array() -> None:
 
 async def test_a_full_batch_goes_at_once_and_close_sends_what_waits() -> None:
     session = Session()
-    batch = AttitudeBatch(session, "s", 1.0)
+    batch = AttitudeBatch(session, "s", 1.0, threaded=False)
     pub = session.publishers[0]
     for i in range(MAX_SAMPLES + 3):
         batch.add(sample(f"cam{i % 1000}", i))
@@ -95,7 +109,7 @@ async def test_a_full_batch_goes_at_once_and_close_sends_what_waits() -> None:
 
 async def test_a_refused_put_is_counted_and_logged_not_raised(caplog: Any) -> None:
     session = Session()
-    batch = AttitudeBatch(session, "s", 0.01)
+    batch = AttitudeBatch(session, "s", 0.01, threaded=False)
     pub = session.publishers[0]
     pub.refuse = RuntimeError("session closed")
     with caplog.at_level(logging.WARNING, logger="topgimbal.fleet"):
@@ -131,7 +145,7 @@ async def test_a_sample_that_comes_after_batch_s_puts_the_batch_at_once() -> Non
     """The loop busy reading a burst: the timer has not run, but a sample arriving batch_s after
     the first one takes the batch out with it, not after the burst."""
     session = Session()
-    batch = AttitudeBatch(session, "abc123", 0.005)
+    batch = AttitudeBatch(session, "abc123", 0.005, threaded=False)
     pub = session.publishers[0]
     t0 = monotonic()
     batch.add(sample("cam0", 1), t0)
@@ -144,3 +158,147 @@ async def test_a_sample_that_comes_after_batch_s_puts_the_batch_at_once() -> Non
     await asyncio.sleep(0.006)
     assert len(pub.puts) == 2 and json.loads(pub.puts[1][1])[0]["seq"] == 2
     assert (batch.puts, batch.samples) == (2, 4)
+
+
+async def test_a_batch_of_soon_samples_goes_when_the_current_callback_ends() -> None:
+    """A read that brings SOON_SAMPLES samples or more (a loaded server): they are put once that
+    read is over, in virtual time before any of them has waited; fewer wait for the timer."""
+    session = Session()
+    batch = AttitudeBatch(session, "abc123", 0.005, threaded=False)
+    pub = session.publishers[0]
+    t0 = monotonic()
+    for i in range(SOON_SAMPLES - 1):  # one callback's worth, under the mark
+        batch.add(sample(f"cam{i}", 1), t0)
+    await asyncio.sleep(0)
+    await asyncio.sleep(0.004)
+    assert pub.puts == []  # the timer's wait, as before
+    batch.add(sample("cam99", 1), t0 + 0.004)  # the mark reached: not put inside this callback
+    assert pub.puts == []
+    await asyncio.sleep(0)
+    assert len(pub.puts) == 1 and pub.puts[0][0] - t0 == pytest.approx(0.004)
+    assert len(json.loads(pub.puts[0][1])) == SOON_SAMPLES
+    # the put cancelled the timer: nothing more at 5 ms, and the next batch waits afresh
+    await asyncio.sleep(0.01)
+    assert len(pub.puts) == 1
+    for i in range(SOON_SAMPLES + 5):  # a longer read: one put after it, all of them
+        batch.add(sample(f"cam{i}", 2), t0 + 0.014)
+    await asyncio.sleep(0)
+    assert len(pub.puts) == 2 and len(json.loads(pub.puts[1][1])) == SOON_SAMPLES + 5
+    assert (batch.puts, batch.samples) == (2, 2 * SOON_SAMPLES + 5)
+
+
+class Stuck(Publisher):
+    """A publisher whose puts wait until `go` is set (Zenoh's queue to a subscriber that does not
+    read), and say when one has started."""
+
+    def __init__(self, key: str) -> None:
+        super().__init__(key)
+        self.go = threading.Event()
+        self.started = threading.Event()
+
+    def put(self, payload: str) -> None:
+        self.started.set()
+        assert self.go.wait(10.0), "the test never let the put go"
+        super().put(payload)
+
+
+def test_the_put_thread_keeps_the_order_and_never_makes_its_caller_wait(caplog: Any) -> None:
+    pub = Stuck("k")
+    sender = PutThread(pub, "k", max_pending=4)
+    sender.submit("[0]", 1)
+    assert pub.started.wait(10.0)  # the first put is under way, and stuck
+    with caplog.at_level(logging.WARNING, logger="topgimbal.fleet"):
+        for i in range(1, 8):  # submitted while it is stuck: none of these waits for it
+            sender.submit(f"[{i}]", 10 * i)
+    assert not pub.go.is_set() and pub.puts == []
+    # 4 wait at most: [1], [2] and [3] were dropped unput, the oldest first
+    assert sender.dropped == 10 + 20 + 30
+    assert caplog.text.count("puts are behind") == 1  # then at most every 10 s
+    assert "a batch of 10 samples was dropped unput (10 samples so far; at most 4 batches wait)" in caplog.text
+    pub.go.set()
+    assert sender.close()
+    assert [p for _, p in pub.puts] == ["[0]", "[4]", "[5]", "[6]", "[7]"]
+    assert (sender.puts, sender.samples, sender.failed) == (5, 1 + 40 + 50 + 60 + 70, 0)
+    sender.submit("[8]", 1)  # after close: nothing
+    assert len(pub.puts) == 5
+
+
+def test_a_put_that_raises_on_the_thread_is_counted_and_the_next_one_goes(caplog: Any) -> None:
+    pub = Publisher("k")
+    pub.refuse = RuntimeError("session closed")
+    sender = PutThread(pub, "k")
+    with caplog.at_level(logging.WARNING, logger="topgimbal.fleet"):
+        sender.submit("[1]", 3)
+        assert sender.close()
+    assert (sender.failed, sender.puts) == (1, 0)
+    assert "a batch of 3 samples was not put (session closed; 1 batches so far)" in caplog.text
+    pub.refuse = None
+    again = PutThread(pub, "k")
+    again.submit("[2]", 1)
+    assert again.close() and [p for _, p in pub.puts] == ["[2]"]
+
+
+def test_close_does_not_wait_for_a_put_stuck_beyond_its_bound() -> None:
+    pub = Stuck("k")
+    sender = PutThread(pub, "k")
+    sender.submit("[1]", 1)
+    assert pub.started.wait(10.0)
+    assert sender.close(timeout_s=0.05) is False  # still stuck: close says so and returns
+    pub.go.set()
+    assert sender.close(timeout_s=10.0) and sender.puts == 1
+
+
+class Clock:
+    """The batch's put timer, moved by hand and by a put that takes `delay`."""
+
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+class Timed(Publisher):
+    def __init__(self, key: str, clock: Clock) -> None:
+        super().__init__(key)
+        self.clock = clock
+        self.delay = 0.0
+        self.threads: list[str] = []  # where each put ran
+        self.done = threading.Semaphore(0)
+
+    def put(self, payload: str) -> None:
+        self.threads.append(threading.current_thread().name)
+        self.clock.t += self.delay
+        super().put(payload)
+        self.done.release()
+
+
+async def test_a_slow_put_hands_the_next_ones_to_the_thread_until_none_has_been_slow(caplog: Any) -> None:
+    clock = Clock()
+    pub = Timed("k", clock)
+    session = Session()
+    session.declare_publisher = lambda key: pub  # type: ignore[method-assign]
+    batch = AttitudeBatch(session, "abc123", 0.005, clock=clock)  # threaded, as FleetServer makes it
+
+    async def one_batch() -> None:
+        for i in range(SOON_SAMPLES):
+            batch.add(sample(f"cam{i}", 1))
+        await asyncio.sleep(0)  # handed over once this callback ends
+        assert pub.done.acquire(timeout=10.0), "the batch was never put"
+
+    await one_batch()  # fast: on the loop
+    pub.delay = SLOW_PUT_S  # a subscriber that does not read
+    with caplog.at_level(logging.WARNING, logger="topgimbal.fleet"):
+        await one_batch()  # on the loop still, and slow
+    assert batch.slow_puts == 1 and batch.threaded_now
+    assert "a put took 2.0 ms on the serving loop" in caplog.text
+    pub.delay = 0.0
+    await one_batch()  # on the thread
+    clock.t += THREAD_HOLD_S  # none slow since: back on the loop
+    assert not batch.threaded_now
+    await one_batch()
+    batch.close()
+    main = threading.current_thread().name
+    assert pub.threads[:2] == [main, main] and pub.threads[2].startswith("topgimbal-put") and pub.threads[3] == main
+    assert (batch.puts, batch.samples, batch.failed, batch.dropped) == (4, 4 * SOON_SAMPLES, 0, 0)
+    assert [len(json.loads(p)) for _, p in pub.puts] == [SOON_SAMPLES] * 4

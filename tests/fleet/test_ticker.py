@@ -9,7 +9,7 @@ import logging
 
 import pytest
 
-from topgimbal.fleet.ticker import CameraTicker
+from topgimbal.fleet.ticker import SLICE, CameraTicker
 
 from .conftest import eventually
 
@@ -61,3 +61,33 @@ def test_periods_out_of_order_are_refused() -> None:
         CameraTicker(0.5, 0.25)
     with pytest.raises(ValueError, match="state_s"):
         CameraTicker(0.0, 0.5)
+
+
+async def test_a_tick_lets_the_loop_run_between_slices_and_skips_a_camera_removed_meanwhile() -> None:
+    """1,000 cameras' checks in one callback held the serving loop for milliseconds: a tick runs
+    SLICE of them at a time, and what else is ready (a socket read) runs in between. Here the
+    first camera's check makes such work ready; that work closes the last camera."""
+    ticker = CameraTicker(0.01, 0.02)
+    order: list[str] = []
+
+    def other_work() -> None:
+        order.append("other")
+        removes[-1]()
+
+    class Logged(Cam):
+        def poll_state(self) -> None:
+            super().poll_state()
+            order.append(self.name)
+            if self is cams[0] and self.states == 1:
+                asyncio.get_running_loop().call_soon(other_work)
+
+    cams = [Logged(f"cam{i}") for i in range(2 * SLICE + 10)]
+    removes = [ticker.add(c) for c in cams]
+    try:
+        await eventually(lambda: cams[-2].states >= 1, 10, "the first tick's end")
+    finally:
+        await ticker.close()
+    first_tick = order[: order.index(cams[-2].name) + 1]
+    assert first_tick.index("other") == SLICE  # after the first slice, before the second
+    assert [n for n in first_tick if n != "other"] == [c.name for c in cams[:-1]]  # each once, in order
+    assert cams[-1].states == 0  # removed while a slice waited: not checked

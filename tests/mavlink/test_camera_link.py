@@ -227,8 +227,9 @@ async def test_virtual_a_camera_that_is_not_up_yet_is_opened_at_the_next_try(cap
 @pytest.mark.parametrize("stream", [False, True])
 @in_virtual_time
 async def test_virtual_the_cameras_attitude_stream_is_renewed_on_a_datagram_link(stream: bool) -> None:
-    """The client asks a camera on a datagram link for its stream again every stream_renew_s
-    (20 s: a camera that keeps a UDP peer's stream only for a while keeps it); on a byte stream
+    """The client asks a camera on a datagram link for its stream again at most stream_renew_s
+    apart (20 s: a camera that keeps a UDP peer's stream only for a while keeps it; each wait in
+    its last quarter, client/streams.py RENEW_SPREAD, so clients started together spread out); on a byte stream
     (TCP, serial: the device knows its peer) it never does. Proven over 65 s of the product's
     timers, with no real waiting."""
     sim, url = await start_camera("C12")
@@ -242,8 +243,9 @@ async def test_virtual_the_cameras_attitude_stream_is_renewed_on_a_datagram_link
         assert gaa and gaa[0] < 0.1  # asked for at once
         if stream:
             assert len(gaa) == 1, gaa
-        else:  # and again at 20, 40 and 60 s
-            assert [b - a for a, b in itertools.pairwise(gaa)] == pytest.approx([20.0] * 3, abs=0.01), gaa
+        else:  # and again every 15-20 s: 3 or 4 times in 65 s
+            gaps = [b - a for a, b in itertools.pairwise(gaa)]
+            assert len(gaps) in (3, 4) and all(15.0 - 0.01 <= g <= 20.0 + 0.01 for g in gaps), gaa
         assert made.cam.answering and made.cam.client is not None
     finally:
         await made.close()

@@ -40,7 +40,7 @@ import tempfile
 import time
 from collections.abc import Awaitable, Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import pytest
 from pymavlink.dialects.v20 import common as ml
@@ -59,6 +59,7 @@ BOOT_S = 90.0  # SITL's boot plus its 10 s wait before it looks for a MAVLink gi
 MOVE_S = 30.0  # a target reached by the simulated camera (12.7 deg/s on the C12), under load
 CAMERA = os.environ.get("SITL_CAMERA", "C12")  # the simulated camera model behind the bridge
 TOLERANCE_DEG = 1.0
+SLOW_MOVE_S = 8.0  # a move that took this long prints its way (a C12 turns 90 deg in 7 s)
 # Only what the setup needs (the quad frame is SITL's model, not a setting users make): no stream
 # rates on SERIAL2, as a user who followed the documented setup has.
 PARAMS = """\
@@ -67,6 +68,27 @@ FRAME_TYPE 1
 MNT1_TYPE 6
 SERIAL2_PROTOCOL 2
 """
+
+
+class Pose(NamedTuple):
+    """The simulated camera against a target, as a wait reads it: true when both axes are within
+    TOLERANCE_DEG, and a failed wait lists the last ones (tests/waiting.py), so it says where the
+    camera was and where it was asked to be, not only "False"."""
+
+    yaw_deg: float
+    pitch_deg: float
+    target_yaw_deg: float
+    target_pitch_deg: float
+
+    def __bool__(self) -> bool:
+        return (abs(wrap180(self.yaw_deg - self.target_yaw_deg)) < TOLERANCE_DEG
+                and abs(self.pitch_deg - self.target_pitch_deg) < TOLERANCE_DEG)  # fmt: skip
+
+    def __repr__(self) -> str:
+        return (f"camera {self.yaw_deg:.2f}/{self.pitch_deg:.2f} target {self.target_yaw_deg:.2f}/"
+                f"{self.target_pitch_deg:.2f} (yaw/pitch deg)")  # fmt: skip
+
+
 TURN_DEG = 120.0  # a turn that keeps a locked target inside a +-90 deg yaw range (C12; the SIP has +-150)
 FAST_GOAL_P95_DEG = 3.0  # at 20 deg/s, for a camera whose motors turn at 40 deg/s or more
 GOAL_P95_DEG = 1.0  # at 6 deg/s
@@ -249,7 +271,7 @@ async def _connect(proc: asyncio.subprocess.Process, base: int) -> Gcs:
             await asyncio.sleep(0.5)
 
 
-async def until(check: Callable[[], bool], deadline_s: float, what: str) -> float:
+async def until(check: Callable[[], object], deadline_s: float, what: str) -> float:
     """Wait (by the clock, not by a number of reads) until `check()` holds; the seconds it took."""
     start = time.monotonic()
     await waiting.until(what, check, bound_s=deadline_s, every_s=0.05)  # tests/waiting.py
@@ -359,6 +381,7 @@ class Flight:
         self.yaw_rows: list[str] = []
         self.reboot_rows: list[str] = []
         self.photo_rows: list[str] = []
+        self.slow_moves: list[str] = []  # the camera's way to a target that took SLOW_MOVE_S or more
 
     @property
     def g(self) -> Gcs:
@@ -373,6 +396,8 @@ class Flight:
         )
         print("photos after a reboot:\n" + "\n".join(self.reboot_rows))
         print("tagged photos | position error (m) | time error (s)\n" + "\n".join(self.photo_rows))
+        if self.slow_moves:
+            print("slow moves, the camera against its target once a second:\n" + "\n".join(self.slow_moves))
 
     def accepted(self, what: str, ack: Any) -> None:
         name = ml.enums["MAV_RESULT"][ack.result].name
@@ -393,19 +418,32 @@ async def steps(f: Flight) -> None:
     started = time.monotonic()
     times, accepted = f.times, f.accepted
 
-    def at(yaw_deg: Callable[[], float], pitch_deg: float) -> Callable[[], bool]:
+    def at(yaw_deg: Callable[[], float], pitch_deg: float) -> Callable[[], Pose]:
         g = sim.gimbal
-        return lambda: (
-            abs(wrap180(g.yaw_deg - yaw_deg())) < TOLERANCE_DEG and abs(g.pitch_deg - pitch_deg) < TOLERANCE_DEG
-        )
+        return lambda: Pose(g.yaw_deg, g.pitch_deg, yaw_deg(), pitch_deg)
 
-    async def move(what: str, ack: Any, check: Callable[[], bool]) -> None:
+    async def move(what: str, ack: Any, check: Callable[[], Pose]) -> None:
         """Send a command (the coroutine `ack`), expect ACCEPTED, then the camera at the target:
         the time from sending to reaching it is recorded."""
         t0 = time.monotonic()
         accepted(what, await ack)
-        await until(check, MOVE_S, what)
-        times[what] = time.monotonic() - t0
+        trace: list[tuple[float, Pose]] = []
+
+        def traced() -> Pose:
+            pose = check()
+            if not trace or time.monotonic() - t0 >= trace[-1][0] + 1.0:
+                trace.append((time.monotonic() - t0, pose))
+            return pose
+
+        try:
+            await until(traced, MOVE_S, what)
+        finally:
+            took = time.monotonic() - t0
+            if took >= SLOW_MOVE_S:  # what it did on the way (a failure lists only the last values)
+                heading = f"vehicle heading {f.g.heading_deg:.1f} deg at the end"
+                f.slow_moves.append(f"{what} ({took:.1f} s; {heading}): "
+                                    + "; ".join(f"{t:.0f} s {p!r}" for t, p in trace))  # fmt: skip
+        times[what] = took
 
     async def booted(since: float) -> float:
         """The autopilot found the gimbal (its "Mount:" text) and our ground station's streams."""

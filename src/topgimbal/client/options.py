@@ -36,7 +36,7 @@ class ClientOptions:
     min_command_gap_s: float | None = None  # None: the profile's pacing
     check_model: bool = True  # ask the device what it is on connect; warn on a mismatch
     host_feeds: bool = True  # keep sending what the profile's `host_feeds` names (C11: TIM, FAI)
-    stream_renew_s: float | None = 20.0  # UDP: re-send a running stream's request this often
+    stream_renew_s: float | None = 20.0  # UDP: re-send a running stream's request at most this long apart
 
     def __post_init__(self) -> None:
         checks.positive_seconds("timeout_s", self.timeout_s, allow_none=False)

@@ -14,7 +14,10 @@ One reconciler task brings the device to the wanted state (the highest rate any 
 Over UDP a device (and every NAT or firewall between) forgets a peer it has not heard from for a
 while (the simulator after 60 s), and a stream to a forgotten peer stops. While a stream runs and
 the client would otherwise say nothing, it sends the stream's request again every
-`stream_renew_s` (default 20 s; harmless on devices that do not need it).
+`stream_renew_s` at most (default 20 s; harmless on devices that do not need it): each wait is
+drawn from the last RENEW_SPREAD of that period, so clients started together (a fleet server's
+1,000) do not all ask in the same loop turn, which held a fleet server's loop for tens of
+milliseconds every 20 s (docs/fleet.md, "ninth round").
 
 Once the model check says the device is another model (`halt()`), nothing is sent for the stream
 on the client's own initiative: no renewal, no request again when the device answers a ping or
@@ -28,6 +31,7 @@ import asyncio
 import contextlib
 import logging
 import math
+import random
 import weakref
 from collections import deque
 from collections.abc import Callable
@@ -41,8 +45,16 @@ from .state import GimbalAttitude
 
 QUEUE_SIZE = 64  # samples held per consumer; the oldest go first when a consumer falls behind
 MAX_TAPS = 64
+RENEW_SPREAD = 0.25  # a renewal waits between (1 - this) and 1 times stream_renew_s
+_spread = random.Random()  # its own: a program's seeded `random` neither moves it nor is moved by it
 
 log = logging.getLogger("topgimbal.client")
+
+
+def renew_wait_s(every_s: float, u: float | None = None) -> float:
+    """The wait before a stream's next renewal: within the last RENEW_SPREAD of `every_s` (`u` in
+    [0, 1), drawn when not given), never longer than `every_s`, so a lease is kept as before."""
+    return every_s * (1.0 - RENEW_SPREAD * (_spread.random() if u is None else u))
 
 
 class StreamControl:
@@ -177,7 +189,7 @@ class StreamControl:
         ident = roles.require_role(core.dialect, core.model, "attitude_stream", "attitude stream")
         spec = core.dialect.command(ident)
         while self.device_rate is not None and not core.closed:
-            await asyncio.sleep(every_s)
+            await asyncio.sleep(renew_wait_s(every_s))
             rate = self.device_rate
             if self.halted or rate is None or self.wanted() != rate or core.closed or not core.connected:
                 continue

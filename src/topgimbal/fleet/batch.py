@@ -5,7 +5,18 @@ callback, per camera per frame: 50,000 a second for 1,000 cameras at 50 Hz, more
 program keeps up with beside its server, and each one costs the server a put to that subscriber.
 The batch key carries the same samples, each the per-camera JSON with the camera's `name` first,
 as one JSON array per put: every `batch_s` (the first sample of a batch starts the wait, so a
-sample waits at most that long) or at once when MAX_SAMPLES are waiting.
+sample waits at most that long), when the loop's current callback ends once SOON_SAMPLES are
+waiting (a loaded server's read), or at once when MAX_SAMPLES are waiting.
+
+A put waits while Zenoh's queue to a subscriber is full (a subscriber that does not read): on the
+serving loop that stops every camera's reads and calls (in one run the loop stood still for a
+second and the kernel dropped 17,262 camera datagrams). So a put that took SLOW_PUT_S hands the
+puts to a thread of their own (`PutThread`) until none has been slow for THREAD_HOLD_S: the loop
+hands each batch over and goes on; at most MAX_PENDING_PUTS batches wait for the thread, then the
+oldest is dropped, counted and logged. One slow subscriber loses samples; the cameras' reads and
+calls do not stop. (Zenoh's put lets other threads run while it waits.) Puts are on the loop
+otherwise: a handover to a thread waits for the interpreter lock, which the busy loop holds, and
+added 0.5-0.9 ms to a sample's median when every put went through it.
 
 The key's second chunk starts with '@': a verbatim chunk in Zenoh, which no wildcard matches, so
 a subscriber of `topgimbal/**` (a console, a recorder) never gets batches it did not ask for.
@@ -17,9 +28,13 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import math
+import threading
+from collections import deque
 from typing import Any
 
 from ..client.remote_keys import ROOT
+from ..clock import MonotonicFn, monotonic
 from ..logthrottle import ThrottledLog
 
 log = logging.getLogger("topgimbal.fleet")
@@ -32,6 +47,18 @@ BATCH_KEYS = f"{ROOT}/{BATCH_CHUNK}/*"  # what a subscriber of every server's ba
 DEFAULT_BATCH_S = 0.002
 MIN_BATCH_S, MAX_BATCH_S = 0.001, 1.0
 MAX_SAMPLES = 4096  # samples in one put at most (about 450 KiB): more are put at once
+# A batch that holds this many goes when the loop's current callback (a read of the shared socket)
+# ends, not when its first sample has waited batch_s: under load a read brings dozens of samples,
+# each put is then as full as a put needs to be, and the wait was most of a sample's time in the
+# server (docs/fleet.md, "ninth round"). Under it (a light load) the timer gathers them as before.
+SOON_SAMPLES = 32
+# Batches handed to the put thread and not yet put: 64 is about 0.1 s of puts at 1,000 cameras
+# (600 a second), a few MiB at most; past it the oldest batch waiting is dropped (a subscriber
+# that slow loses samples either way: Zenoh itself drops a put it cannot queue within 1 ms).
+MAX_PENDING_PUTS = 64
+PUT_THREAD_JOIN_S = 2.0  # at close, for the puts still waiting
+SLOW_PUT_S = 0.002  # a put on the loop that took this long: the next ones go through the put thread
+THREAD_HOLD_S = 5.0  # ... until none has taken that long for this long
 
 
 def batch_key(server_id: str) -> str:
@@ -44,11 +71,98 @@ def named(name: str, sample_json: str) -> str:
     return f'{{"name":"{name}",{sample_json[1:]}'
 
 
+class PutThread:
+    """Puts payloads on a publisher from a thread of its own, in the order given. `submit` (any
+    thread) never waits: past MAX_PENDING_PUTS waiting, the oldest is dropped and counted.
+    Counters: `puts`, `samples` (in batches put), `failed` (puts Zenoh refused), `dropped`
+    (samples in batches dropped unput), `slow_puts` (puts that took SLOW_PUT_S or more, by `clock`)."""
+
+    def __init__(self, pub: Any, key: str, max_pending: int = MAX_PENDING_PUTS, clock: MonotonicFn = monotonic) -> None:
+        self._pub = pub
+        self.key = key
+        self.max_pending = max_pending
+        self.clock = clock
+        self._pending: deque[tuple[str, int]] = deque()
+        self._cv = threading.Condition()
+        self._stopping = False
+        self._putting = False
+        self.puts = 0
+        self.samples = 0
+        self.failed = 0
+        self.dropped = 0
+        self.slow_puts = 0
+        self._throttle = ThrottledLog(log, 10.0)
+        self._thread = threading.Thread(target=self._run, name=f"topgimbal-put {key}", daemon=True)
+        self._thread.start()
+
+    def submit(self, payload: str, samples: int) -> None:
+        with self._cv:
+            if self._stopping:
+                return
+            if len(self._pending) >= self.max_pending:
+                _, lost = self._pending.popleft()
+                self.dropped += lost
+                if self._throttle.allow("behind") is not None:
+                    log.warning("%s: puts are behind (a subscriber that does not read?): a batch of %d samples "
+                                "was dropped unput (%d samples so far; at most %d batches wait)", self.key, lost,
+                                self.dropped, self.max_pending)  # fmt: skip
+            self._pending.append((payload, samples))
+            self._cv.notify()
+
+    @property
+    def busy(self) -> bool:
+        """A batch waits or is being put: a put made elsewhere now would overtake it."""
+        return self._putting or bool(self._pending)
+
+    def _run(self) -> None:
+        while True:
+            with self._cv:
+                while not self._pending and not self._stopping:
+                    self._cv.wait()
+                if not self._pending:
+                    return
+                payload, samples = self._pending.popleft()
+                self._putting = True
+            t0 = self.clock()
+            try:
+                self._pub.put(payload)
+            except Exception as exc:  # never an unexpected error: counted and logged
+                self.failed += 1
+                if self._throttle.allow("put") is not None:
+                    log.warning("%s: a batch of %d samples was not put (%s; %d batches so far)", self.key, samples,
+                                exc, self.failed)  # fmt: skip
+                continue
+            else:
+                self.puts += 1
+                self.samples += samples
+            finally:
+                if self.clock() - t0 >= SLOW_PUT_S:
+                    self.slow_puts += 1
+                self._putting = False
+
+    def close(self, timeout_s: float = PUT_THREAD_JOIN_S) -> bool:
+        """Put what waits (within `timeout_s`), then end the thread; False if it had not ended."""
+        with self._cv:
+            self._stopping = True
+            self._cv.notify()
+        self._thread.join(timeout_s)
+        return not self._thread.is_alive()
+
+
 class AttitudeBatch:
     """Collects samples on the serving loop and puts them as one JSON array. Sync, loop-bound: `add`
-    is called from the cameras' attitude taps, on the loop the batch was made on."""
+    is called from the cameras' attitude taps, on the loop the batch was made on. `threaded=False`:
+    no put thread to hand slow puts to (every put on the loop). `clock` times the puts."""
 
-    def __init__(self, session: Any, server_id: str, batch_s: float = DEFAULT_BATCH_S) -> None:
+    def __init__(
+        self,
+        session: Any,
+        server_id: str,
+        batch_s: float = DEFAULT_BATCH_S,
+        *,
+        threaded: bool = True,
+        clock: MonotonicFn = monotonic,
+    ) -> None:
         if not MIN_BATCH_S <= batch_s <= MAX_BATCH_S:
             raise ValueError(f"batch_s {batch_s!r}: expected {MIN_BATCH_S}..{MAX_BATCH_S} s")
         self.key = batch_key(server_id)
@@ -58,11 +172,40 @@ class AttitudeBatch:
         self._lines: list[str] = []
         self._first_t: float | None = None  # when the first sample waiting arrived (add's `t`)
         self._timer: asyncio.TimerHandle | None = None
+        self._soon: asyncio.Handle | None = None  # the put after the current callback (SOON_SAMPLES)
         self._closed = False
-        self.puts = 0
-        self.samples = 0
-        self.failed = 0  # puts Zenoh refused (a closing session): their samples are not sent
+        self._clock = clock
+        self._sender: PutThread | None = PutThread(self._pub, self.key, clock=clock) if threaded else None
+        self._thread_until = -math.inf  # puts go through the thread until then (self._clock)
+        self._seen_slow = 0  # the thread's slow puts already seen
+        self._puts = 0  # on the loop
+        self._samples = 0
+        self._failed = 0  # puts Zenoh refused (a closing session): their samples are not sent
+        self.slow_puts = 0  # puts on the loop that took SLOW_PUT_S or more
         self._throttle = ThrottledLog(log, 10.0)
+
+    # Counters: on the loop and on the put thread together (read them after close() for final figures).
+    @property
+    def puts(self) -> int:
+        return self._puts + (self._sender.puts if self._sender is not None else 0)
+
+    @property
+    def samples(self) -> int:
+        return self._samples + (self._sender.samples if self._sender is not None else 0)
+
+    @property
+    def failed(self) -> int:
+        return self._failed + (self._sender.failed if self._sender is not None else 0)
+
+    @property
+    def threaded_now(self) -> bool:
+        """Whether the next put goes through the put thread (a recent put was slow)."""
+        return self._sender is not None and (self._sender.busy or self._clock() < self._thread_until)
+
+    @property
+    def dropped(self) -> int:
+        """Samples in batches dropped because the put thread was MAX_PENDING_PUTS behind."""
+        return self._sender.dropped if self._sender is not None else 0
 
     def add(self, line: str, t: float | None = None) -> None:
         """`t`: when the sample arrived, on the loop's clock. A sample that comes when the batch's
@@ -75,31 +218,56 @@ class AttitudeBatch:
         lines.append(line)
         if len(lines) == 1:
             self._first_t = t
-        if len(lines) >= MAX_SAMPLES or (
-            t is not None and self._first_t is not None and t - self._first_t >= self.batch_s
-        ):
+        n = len(lines)
+        if n >= MAX_SAMPLES or (t is not None and self._first_t is not None and t - self._first_t >= self.batch_s):
             self.flush()
-        elif self._timer is None:
+            return
+        if self._timer is None:
             self._timer = self._loop.call_later(self.batch_s, self.flush)
+        if n >= SOON_SAMPLES and self._soon is None:
+            self._soon = self._loop.call_soon(self.flush)
 
     def flush(self) -> None:
         if self._timer is not None:
             self._timer.cancel()
             self._timer = None
+        if self._soon is not None:
+            self._soon.cancel()
+            self._soon = None
         lines = self._lines
         if not lines:
             return
         self._lines = []
+        payload = "[" + ",".join(lines) + "]"
+        sender = self._sender
+        t0 = self._clock()
+        if sender is not None:
+            if sender.slow_puts != self._seen_slow:  # slow on the thread too: stay there
+                self._seen_slow = sender.slow_puts
+                self._thread_until = t0 + THREAD_HOLD_S
+            if sender.busy or t0 < self._thread_until:
+                sender.submit(payload, len(lines))
+                return
         try:
-            self._pub.put("[" + ",".join(lines) + "]")
+            self._pub.put(payload)
         except Exception as exc:  # from a timer or a camera's tap: never an unexpected error
-            self.failed += 1
+            self._failed += 1
             if self._throttle.allow("put") is not None:
                 log.warning("%s: a batch of %d samples was not put (%s; %d batches so far)", self.key, len(lines),
-                            exc, self.failed)  # fmt: skip
+                            exc, self._failed)  # fmt: skip
             return
-        self.puts += 1
-        self.samples += len(lines)
+        finally:
+            took = self._clock() - t0
+            if took >= SLOW_PUT_S:
+                self.slow_puts += 1
+                if sender is not None:
+                    self._thread_until = t0 + took + THREAD_HOLD_S
+                    if self._throttle.allow("slow") is not None:
+                        log.warning("%s: a put took %.1f ms on the serving loop (a subscriber that does not read?); "
+                                    "puts go through a thread of their own until none has been that slow for %g s",
+                                    self.key, took * 1000, THREAD_HOLD_S)  # fmt: skip
+        self._puts += 1
+        self._samples += len(lines)
 
     def close(self) -> None:
         """What is waiting goes out; then the publisher is undeclared (a closed session: nothing)."""
@@ -109,6 +277,8 @@ class AttitudeBatch:
             self.flush()
         finally:
             self._closed = True
+            if self._sender is not None and not self._sender.close():
+                log.warning("%s: puts still waiting after %g s at close", self.key, PUT_THREAD_JOIN_S)
             try:
                 self._pub.undeclare()
             except Exception:  # the session closed first: its declarations went with it
