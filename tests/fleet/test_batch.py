@@ -19,8 +19,10 @@ from topgimbal.client.state import GimbalAttitude
 from topgimbal.clock import monotonic
 from topgimbal.fleet.batch import (
     BATCH_KEYS,
+    MAX_PUT_S,
     MAX_SAMPLES,
-    SLOW_PUT_S,
+    PUT_SHARE,
+    PUT_WINDOW_S,
     SOON_SAMPLES,
     THREAD_HOLD_S,
     AttitudeBatch,
@@ -273,32 +275,44 @@ class Timed(Publisher):
         self.done.release()
 
 
-async def test_a_slow_put_hands_the_next_ones_to_the_thread_until_none_has_been_slow(caplog: Any) -> None:
+async def test_puts_go_to_the_thread_when_the_loop_spends_too_long_in_them(caplog: Any) -> None:
+    """A put of a few ms now and then (a busy host) keeps them on the loop; PUT_SHARE of a window
+    spent in puts, or one put of MAX_PUT_S, hands them to the thread for THREAD_HOLD_S."""
     clock = Clock()
     pub = Timed("k", clock)
     session = Session()
     session.declare_publisher = lambda key: pub  # type: ignore[method-assign]
     batch = AttitudeBatch(session, "abc123", 0.005, clock=clock)  # threaded, as FleetServer makes it
+    main = threading.current_thread().name
 
-    async def one_batch() -> None:
+    async def one_batch() -> str:
         for i in range(SOON_SAMPLES):
             batch.add(sample(f"cam{i}", 1))
         await asyncio.sleep(0)  # handed over once this callback ends
         assert pub.done.acquire(timeout=10.0), "the batch was never put"
+        return pub.threads[-1]
 
-    await one_batch()  # fast: on the loop
-    pub.delay = SLOW_PUT_S  # a subscriber that does not read
+    pub.delay = 0.005  # a preempted put, once a window: stays on the loop
+    for _ in range(5):
+        assert await one_batch() == main
+        clock.t += PUT_WINDOW_S
+    assert batch.handovers == 0 and not batch.threaded_now
+    # a subscriber that does not read: every put waits 4 ms
+    pub.delay = 0.004
+    needed = round(PUT_SHARE * PUT_WINDOW_S / pub.delay)
     with caplog.at_level(logging.WARNING, logger="topgimbal.fleet"):
-        await one_batch()  # on the loop still, and slow
-    assert batch.slow_puts == 1 and batch.threaded_now
-    assert "a put took 2.0 ms on the serving loop" in caplog.text
+        for _ in range(needed):
+            assert await one_batch() == main
+    assert batch.handovers == 1 and batch.threaded_now
+    assert "the serving loop spent 200 ms in puts within 0.5 s" in caplog.text
     pub.delay = 0.0
-    await one_batch()  # on the thread
-    clock.t += THREAD_HOLD_S  # none slow since: back on the loop
-    assert not batch.threaded_now
-    await one_batch()
+    assert (await one_batch()).startswith("topgimbal-put")  # on the thread now
+    clock.t += THREAD_HOLD_S  # its hold is over: back on the loop, which measures again
+    assert not batch.threaded_now and await one_batch() == main
+    pub.delay = MAX_PUT_S + 0.001  # one long put is enough
+    assert await one_batch() == main
+    assert batch.handovers == 2 and batch.threaded_now
     batch.close()
-    main = threading.current_thread().name
-    assert pub.threads[:2] == [main, main] and pub.threads[2].startswith("topgimbal-put") and pub.threads[3] == main
-    assert (batch.puts, batch.samples, batch.failed, batch.dropped) == (4, 4 * SOON_SAMPLES, 0, 0)
-    assert [len(json.loads(p)) for _, p in pub.puts] == [SOON_SAMPLES] * 4
+    n = 5 + needed + 3
+    assert (batch.puts, batch.samples, batch.failed, batch.dropped) == (n, n * SOON_SAMPLES, 0, 0)
+    assert [len(json.loads(p)) for _, p in pub.puts] == [SOON_SAMPLES] * n

@@ -10,13 +10,16 @@ waiting (a loaded server's read), or at once when MAX_SAMPLES are waiting.
 
 A put waits while Zenoh's queue to a subscriber is full (a subscriber that does not read): on the
 serving loop that stops every camera's reads and calls (in one run the loop stood still for a
-second and the kernel dropped 17,262 camera datagrams). So a put that took SLOW_PUT_S hands the
-puts to a thread of their own (`PutThread`) until none has been slow for THREAD_HOLD_S: the loop
+second and the kernel dropped 17,262 camera datagrams). So once the loop has spent PUT_SHARE of a
+PUT_WINDOW_S in puts (or one put took MAX_PUT_S), the puts go to a thread of their own
+(`PutThread`) for THREAD_HOLD_S, then back to the loop, which measures again: the loop
 hands each batch over and goes on; at most MAX_PENDING_PUTS batches wait for the thread, then the
 oldest is dropped, counted and logged. One slow subscriber loses samples; the cameras' reads and
 calls do not stop. (Zenoh's put lets other threads run while it waits.) Puts are on the loop
 otherwise: a handover to a thread waits for the interpreter lock, which the busy loop holds, and
-added 0.5-0.9 ms to a sample's median when every put went through it.
+added 0.5-0.9 ms to a sample's median when every put went through it. One slow put is not enough:
+on a busy host a put now and then takes 2-5 ms (preempted), and the thread, whose puts wait for
+that lock too, would never look fast again.
 
 The key's second chunk starts with '@': a verbatim chunk in Zenoh, which no wildcard matches, so
 a subscriber of `topgimbal/**` (a console, a recorder) never gets batches it did not ask for.
@@ -57,8 +60,13 @@ SOON_SAMPLES = 32
 # that slow loses samples either way: Zenoh itself drops a put it cannot queue within 1 ms).
 MAX_PENDING_PUTS = 64
 PUT_THREAD_JOIN_S = 2.0  # at close, for the puts still waiting
-SLOW_PUT_S = 0.002  # a put on the loop that took this long: the next ones go through the put thread
-THREAD_HOLD_S = 5.0  # ... until none has taken that long for this long
+# The loop's share of time in puts that hands them to the thread: 500-600 puts a second at 1,000
+# cameras took 4-15 % of it (unpinned, beside the simulators); a subscriber that does not read made
+# each wait 4 ms on average, up to 11 ms, in a test of Zenoh alone.
+PUT_WINDOW_S = 0.5
+PUT_SHARE = 0.4
+MAX_PUT_S = 0.05  # one put that long does too (a large batch, fragmented, waits up to 50 ms in Zenoh)
+THREAD_HOLD_S = 5.0  # how long the thread then keeps the puts
 
 
 def batch_key(server_id: str) -> str:
@@ -75,13 +83,12 @@ class PutThread:
     """Puts payloads on a publisher from a thread of its own, in the order given. `submit` (any
     thread) never waits: past MAX_PENDING_PUTS waiting, the oldest is dropped and counted.
     Counters: `puts`, `samples` (in batches put), `failed` (puts Zenoh refused), `dropped`
-    (samples in batches dropped unput), `slow_puts` (puts that took SLOW_PUT_S or more, by `clock`)."""
+    (samples in batches dropped unput)."""
 
-    def __init__(self, pub: Any, key: str, max_pending: int = MAX_PENDING_PUTS, clock: MonotonicFn = monotonic) -> None:
+    def __init__(self, pub: Any, key: str, max_pending: int = MAX_PENDING_PUTS) -> None:
         self._pub = pub
         self.key = key
         self.max_pending = max_pending
-        self.clock = clock
         self._pending: deque[tuple[str, int]] = deque()
         self._cv = threading.Condition()
         self._stopping = False
@@ -90,7 +97,6 @@ class PutThread:
         self.samples = 0
         self.failed = 0
         self.dropped = 0
-        self.slow_puts = 0
         self._throttle = ThrottledLog(log, 10.0)
         self._thread = threading.Thread(target=self._run, name=f"topgimbal-put {key}", daemon=True)
         self._thread.start()
@@ -123,7 +129,6 @@ class PutThread:
                     return
                 payload, samples = self._pending.popleft()
                 self._putting = True
-            t0 = self.clock()
             try:
                 self._pub.put(payload)
             except Exception as exc:  # never an unexpected error: counted and logged
@@ -136,8 +141,6 @@ class PutThread:
                 self.puts += 1
                 self.samples += samples
             finally:
-                if self.clock() - t0 >= SLOW_PUT_S:
-                    self.slow_puts += 1
                 self._putting = False
 
     def close(self, timeout_s: float = PUT_THREAD_JOIN_S) -> bool:
@@ -175,13 +178,14 @@ class AttitudeBatch:
         self._soon: asyncio.Handle | None = None  # the put after the current callback (SOON_SAMPLES)
         self._closed = False
         self._clock = clock
-        self._sender: PutThread | None = PutThread(self._pub, self.key, clock=clock) if threaded else None
+        self._sender: PutThread | None = PutThread(self._pub, self.key) if threaded else None
         self._thread_until = -math.inf  # puts go through the thread until then (self._clock)
-        self._seen_slow = 0  # the thread's slow puts already seen
+        self._window_at = -math.inf  # the current PUT_WINDOW_S began then
+        self._window_put_s = 0.0  # time in puts on the loop in it
+        self.handovers = 0  # times the puts went to the thread
         self._puts = 0  # on the loop
         self._samples = 0
         self._failed = 0  # puts Zenoh refused (a closing session): their samples are not sent
-        self.slow_puts = 0  # puts on the loop that took SLOW_PUT_S or more
         self._throttle = ThrottledLog(log, 10.0)
 
     # Counters: on the loop and on the put thread together (read them after close() for final figures).
@@ -199,7 +203,7 @@ class AttitudeBatch:
 
     @property
     def threaded_now(self) -> bool:
-        """Whether the next put goes through the put thread (a recent put was slow)."""
+        """Whether the next put goes through the put thread (the loop's puts were slow lately)."""
         return self._sender is not None and (self._sender.busy or self._clock() < self._thread_until)
 
     @property
@@ -241,13 +245,9 @@ class AttitudeBatch:
         payload = "[" + ",".join(lines) + "]"
         sender = self._sender
         t0 = self._clock()
-        if sender is not None:
-            if sender.slow_puts != self._seen_slow:  # slow on the thread too: stay there
-                self._seen_slow = sender.slow_puts
-                self._thread_until = t0 + THREAD_HOLD_S
-            if sender.busy or t0 < self._thread_until:
-                sender.submit(payload, len(lines))
-                return
+        if sender is not None and (sender.busy or t0 < self._thread_until):
+            sender.submit(payload, len(lines))
+            return
         try:
             self._pub.put(payload)
         except Exception as exc:  # from a timer or a camera's tap: never an unexpected error
@@ -257,17 +257,27 @@ class AttitudeBatch:
                             exc, self._failed)  # fmt: skip
             return
         finally:
-            took = self._clock() - t0
-            if took >= SLOW_PUT_S:
-                self.slow_puts += 1
-                if sender is not None:
-                    self._thread_until = t0 + took + THREAD_HOLD_S
-                    if self._throttle.allow("slow") is not None:
-                        log.warning("%s: a put took %.1f ms on the serving loop (a subscriber that does not read?); "
-                                    "puts go through a thread of their own until none has been that slow for %g s",
-                                    self.key, took * 1000, THREAD_HOLD_S)  # fmt: skip
+            if sender is not None:
+                self._measure(t0, self._clock() - t0)
         self._puts += 1
         self._samples += len(lines)
+
+    def _measure(self, t0: float, took: float) -> None:
+        """Count a put on the loop that began at `t0` and took `took`; past PUT_SHARE of the
+        window (or one put of MAX_PUT_S), the next puts go to the thread for THREAD_HOLD_S."""
+        if t0 - self._window_at >= PUT_WINDOW_S:
+            self._window_at, self._window_put_s = t0, 0.0
+        self._window_put_s += took
+        spent = self._window_put_s
+        if spent < PUT_SHARE * PUT_WINDOW_S and took < MAX_PUT_S:
+            return
+        self._thread_until = t0 + took + THREAD_HOLD_S
+        self._window_at, self._window_put_s = -math.inf, 0.0
+        self.handovers += 1
+        if self._throttle.allow("slow") is not None:
+            log.warning("%s: the serving loop spent %.0f ms in puts within %g s (a subscriber that does not read?); "
+                        "puts go through a thread of their own for %g s (%d times so far)", self.key, spent * 1000,
+                        PUT_WINDOW_S, THREAD_HOLD_S, self.handovers)  # fmt: skip
 
     def close(self) -> None:
         """What is waiting goes out; then the publisher is undeclared (a closed session: nothing)."""
