@@ -17,7 +17,7 @@ hands each batch over and goes on; at most MAX_PENDING_PUTS batches wait for the
 oldest is dropped, counted and logged. One slow subscriber loses samples; the cameras' reads and
 calls do not stop. (Zenoh's put lets other threads run while it waits.) Puts are on the loop
 otherwise: a handover to a thread waits for the interpreter lock, which the busy loop holds, and
-added 0.5-0.9 ms to a sample's median when every put went through it. One slow put is not enough:
+added 0.2-1.0 ms to a sample's median when every put went through it. One slow put is not enough:
 on a busy host a put now and then takes 2-5 ms (preempted), and the thread, whose puts wait for
 that lock too, would never look fast again.
 
