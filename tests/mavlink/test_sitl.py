@@ -427,12 +427,18 @@ async def steps(f: Flight) -> None:
         the time from sending to reaching it is recorded."""
         t0 = time.monotonic()
         accepted(what, await ack)
-        trace: list[tuple[float, Pose]] = []
+        trace: list[tuple[float, Pose, str]] = []
 
         def traced() -> Pose:
             pose = check()
             if not trace or time.monotonic() - t0 >= trace[-1][0] + 1.0:
-                trace.append((time.monotonic() - t0, pose))
+                att = f.g.attitude  # the vehicle's own pitch and roll: a camera off in pitch may follow them
+                tilt = (
+                    ""
+                    if att is None
+                    else f", vehicle pitch/roll {math.degrees(att.pitch):.2f}/{math.degrees(att.roll):.2f}"
+                )
+                trace.append((time.monotonic() - t0, pose, tilt))
             return pose
 
         try:
@@ -442,7 +448,7 @@ async def steps(f: Flight) -> None:
             if took >= SLOW_MOVE_S:  # what it did on the way (a failure lists only the last values)
                 heading = f"vehicle heading {f.g.heading_deg:.1f} deg at the end"
                 f.slow_moves.append(f"{what} ({took:.1f} s; {heading}): "
-                                    + "; ".join(f"{t:.0f} s {p!r}" for t, p in trace))  # fmt: skip
+                                    + "; ".join(f"{t:.0f} s {p!r}{tilt}" for t, p, tilt in trace))  # fmt: skip
         times[what] = took
 
     async def booted(since: float) -> float:
