@@ -57,12 +57,12 @@ MAX_SAMPLES = 4096  # samples in one put at most (about 450 KiB): more are put a
 SOON_SAMPLES = 32
 # Batches handed to the put thread and not yet put: 64 is about 0.1 s of puts at 1,000 cameras
 # (600 a second), a few MiB at most; past it the oldest batch waiting is dropped (a subscriber
-# that slow loses samples either way: Zenoh itself drops a put it cannot queue within 1 ms).
+# that slow loses samples either way: Zenoh drops a put it cannot queue in time).
 MAX_PENDING_PUTS = 64
 PUT_THREAD_JOIN_S = 2.0  # at close, for the puts still waiting
 # The loop's share of time in puts that hands them to the thread: 500-600 puts a second at 1,000
 # cameras took 4-15 % of it (unpinned, beside the simulators); a subscriber that does not read made
-# each wait 4 ms on average, up to 11 ms, in a test of Zenoh alone.
+# each wait 3.8-5.1 ms on average, up to 11.7 ms, in a test of Zenoh alone.
 PUT_WINDOW_S = 0.5
 PUT_SHARE = 0.4
 MAX_PUT_S = 0.05  # one put that long does too (a large batch, fragmented, waits up to 50 ms in Zenoh)
@@ -127,8 +127,10 @@ class PutThread:
                     self._cv.wait()
                 if not self._pending:
                     return
-                payload, samples = self._pending.popleft()
+                # busy before the queue looks empty: the loop reads `busy` without the lock, and a
+                # put of its own between the two would overtake this one
                 self._putting = True
+                payload, samples = self._pending.popleft()
             try:
                 self._pub.put(payload)
             except Exception as exc:  # never an unexpected error: counted and logged
