@@ -4,9 +4,12 @@ right after an identical one timed out."""
 
 from __future__ import annotations
 
+import itertools
+
 import pytest
 
 from topgimbal.client.engine import Engine
+from topgimbal.client.records import BACKGROUND_MAX_WAIT_S
 from topgimbal.errors import RequestTimeoutError
 from topgimbal.protocol import get_model
 
@@ -94,6 +97,42 @@ def test_a_waiting_frame_passes_queued_background_feeds():
         e.on_tick()
         assert [x.ident for x in e.take_frames()] == ["GAC"] and feeds[k].done
     assert all(f.done for f in feeds)
+
+
+def test_a_feed_is_let_pass_for_a_bounded_time_by_a_loop_that_always_has_a_frame_waiting():
+    """A pointing loop that queues its next set-point before every turn took every turn: the
+    vehicle attitude feed (FAI, 10 Hz) never went, and under ArduPilot SITL the C12 held a
+    vehicle attitude 10 s old. A feed now waits BACKGROUND_MAX_WAIT_S at most, then goes; never
+    two such in a row, so the loop keeps most turns; and what goes is the newest feed value."""
+    d, e, clock = engine("C12")
+    gap = e.pacer.gap_s
+    sent: list[tuple[float, str, bytes]] = []
+    fed: list[tuple[float, bytes]] = []  # every FAI submitted (the feed's values at that time)
+    step = 0
+    while clock.t < 103.0:
+        if step % 10 == 0:  # the feed: 10 Hz, a new value each time (it supersedes the one waiting)
+            fai = d.encode("FAI", yaw_deg=0.0, pitch_deg=0.01 * step, roll_deg=0.0)
+            fed.append((clock.t, fai.data))
+            e.submit(fai, timeout_s=1.0, expect_reply=False, background=True)
+        if not any(tx.frame.ident == "GSM" and tx.state == "paced" for tx in e.pacer.queue):
+            # the loop: a new rate set-point whenever none waits (a distinct one each time)
+            e.submit(d.encode("GSM", yaw_rate_deg_s=(step % 50) / 10, pitch_rate_deg_s=0), timeout_s=1.0,
+                     expect_reply=False)  # fmt: skip
+        e.on_tick()
+        sent += [(clock.t, f.ident, f.data) for f in e.take_frames()]
+        clock.t = round(clock.t + 0.01, 6)
+        step += 1
+    idents = [i for _, i, _ in sent]
+    fai_at = [t for t, i, _ in sent if i == "FAI"]
+    assert len(fai_at) >= 8, idents  # 3 s: one at least every BACKGROUND_MAX_WAIT_S + two turns
+    assert max(b - a for a, b in itertools.pairwise(fai_at)) <= BACKGROUND_MAX_WAIT_S + 0.1 + 2 * gap + 1e-9
+    assert all(not (a == b == "FAI") for a, b in itertools.pairwise(idents))  # never two in a row
+    assert idents.count("GSM") >= 3 * idents.count("FAI")  # the loop keeps most turns
+    for t, ident, data in sent:  # each FAI that went carries the newest value fed before it went
+        if ident == "FAI":
+            assert data == [v for at, v in fed if at <= t][-1]
+    times = [t for t, _, _ in sent]
+    assert all(b - a >= gap - 1e-9 for a, b in itertools.pairwise(times))  # and still 40 ms apart
 
 
 def test_pacing_can_be_turned_off_and_other_models_have_none():

@@ -203,11 +203,11 @@ async def _steps(r: Any, g: Gcs, caplog: Any, rows: list[str]) -> None:
     t0 = time.monotonic()
     ack = await g.command(ml.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, -30, 20, math.nan, math.nan, 0, 0, 0)
     assert ack.result == ml.MAV_RESULT_ACCEPTED, ack
-    gim = sim.gimbal
-    await until(lambda: abs(gim.pitch_deg + 30) < TOLERANCE_DEG and abs(gim.yaw_deg - 20) < TOLERANCE_DEG,
+    gim = sim.gimbal  # pitch from the horizon, as MAVLink means it (the encoder's is less the vehicle's tilt)
+    await until(lambda: abs(gim.horizon()[1] + 30) < TOLERANCE_DEG and abs(gim.yaw_deg - 20) < TOLERANCE_DEG,
                 MOVE_S, "the camera at -30/20")  # fmt: skip
     await asyncio.sleep(2.0)
-    rows.append(f"PITCHYAW -30/20 through PX4: camera at {gim.pitch_deg:.2f}/{gim.yaw_deg:.2f} "
+    rows.append(f"PITCHYAW -30/20 through PX4: camera at {gim.horizon()[1]:.2f}/{gim.yaw_deg:.2f} "
                 f"after {time.monotonic() - t0:.1f} s")  # fmt: skip
 
     # 3. PX4's 1 s triggers: one photo each, tagged with PX4's position and UTC.

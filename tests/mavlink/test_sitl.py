@@ -59,7 +59,8 @@ BOOT_S = 90.0  # SITL's boot plus its 10 s wait before it looks for a MAVLink gi
 MOVE_S = 30.0  # a target reached by the simulated camera (12.7 deg/s on the C12), under load
 CAMERA = os.environ.get("SITL_CAMERA", "C12")  # the simulated camera model behind the bridge
 TOLERANCE_DEG = 1.0
-SLOW_MOVE_S = 8.0  # a move that took this long prints its way (a C12 turns 90 deg in 7 s)
+# A move that took this long prints its way (a C12 turns 90 deg in 7 s; SITL_TRACE_S=0: every move)
+SLOW_MOVE_S = float(os.environ.get("SITL_TRACE_S", "8"))
 # Only what the setup needs (the quad frame is SITL's model, not a setting users make): no stream
 # rates on SERIAL2, as a user who followed the documented setup has.
 PARAMS = """\
@@ -99,6 +100,7 @@ POSITION_GOAL_M = 1.0
 OWN_TAG_LIMIT_M = 2.0
 TIME_GOAL_S = 1.0
 REBOOTS = 2
+FED_STILL_LIMIT_S = 2.0  # the fed vehicle attitude may stay unchanged this long in flight (10 Hz feed)
 
 
 def _free_port(kind: int = socket.SOCK_STREAM) -> int:
@@ -340,6 +342,7 @@ async def _run(rig_factory: Any, work: Path) -> None:
     instance = _free_instance()
 
     async def start(base: int, *extra: str) -> asyncio.subprocess.Process:
+        assert SITL is not None  # (the test is skipped without it)
         with open(log_path, "ab") as out:
             return await asyncio.create_subprocess_exec(
                 SITL, "--model", "quad", "--speedup", "1", "--defaults", str(work / "gimbal.parm"),
@@ -382,6 +385,10 @@ class Flight:
         self.reboot_rows: list[str] = []
         self.photo_rows: list[str] = []
         self.slow_moves: list[str] = []  # the camera's way to a target that took SLOW_MOVE_S or more
+        # every 0.1 s in flight (deg): the vehicle pitch and roll last fed to the camera, the
+        # autopilot's (our ground station's ATTITUDE) and the bridge's (what it would feed now)
+        self.fed_series: list[tuple[float, float, float, float, float, float]] = []
+        self.fed_still_s = 0.0  # the longest the fed vehicle attitude stayed the same in flight
 
     @property
     def g(self) -> Gcs:
@@ -396,6 +403,25 @@ class Flight:
         )
         print("photos after a reboot:\n" + "\n".join(self.reboot_rows))
         print("tagged photos | position error (m) | time error (s)\n" + "\n".join(self.photo_rows))
+        if len(self.fed_series) > 20:
+            print(f"the vehicle attitude fed to the camera against the autopilot's ATTITUDE in flight, "
+                  f"{len(self.fed_series)} samples 0.1 s apart; longest unchanged {self.fed_still_s:.2f} s")  # fmt: skip
+            for axis, i in (("pitch", 0), ("roll", 1)):
+                fed, true, bridge = ([e[i + k] for e in self.fed_series] for k in (0, 2, 4))
+                now = [abs(a - b) for a, b in zip(fed, true, strict=True)]
+                seen = [abs(a - b) for a, b in zip(bridge, true, strict=True)]
+                mean = sum(true) / len(true)
+                motion = math.sqrt(sum((x - mean) ** 2 for x in true) / len(true))
+
+                def rms(lag: int, fed: list[float] = fed, true: list[float] = true) -> float:
+                    d = [a - b for a, b in zip(fed[lag:], true, strict=False)]  # fed now against true `lag` earlier
+                    return math.sqrt(sum(x * x for x in d) / len(d))
+
+                best = min(range(11), key=rms)
+                print(f"  {axis}: the autopilot's own moves by {motion:.2f} deg rms; |the bridge's - autopilot's| "
+                      f"p50 {percentile(seen, 50):.2f} p95 {percentile(seen, 95):.2f}; |fed - autopilot's| p50 "
+                      f"{percentile(now, 50):.2f} p95 {percentile(now, 95):.2f} max {max(now):.2f} deg, rms "
+                      f"{rms(0):.2f}, least ({rms(best):.2f}) against the autopilot's {best / 10:.1f} s earlier")  # fmt: skip
         if self.slow_moves:
             print("slow moves, the camera against its target once a second:\n" + "\n".join(self.slow_moves))
 
@@ -411,6 +437,24 @@ class Flight:
         self.gcs = await _connect(self.proc, self.base)
 
 
+async def watch_fed_attitude(f: Flight) -> None:
+    """In flight, every 0.1 s: the vehicle attitude the camera was last fed against the
+    autopilot's own (our ground station's ATTITUDE), and how long the fed one stays unchanged
+    (a flying vehicle's attitude changes within a feed period, at the feed's 0.01 deg steps)."""
+    fed = f.r.sim.gimbal.vehicle
+    last, since = (fed.pitch, fed.roll), time.monotonic()
+    while True:
+        await asyncio.sleep(0.1)
+        now, att, seen = time.monotonic(), f.g.attitude, f.r.bridge.vehicles.attitude_deg()
+        if att is not None and seen is not None:
+            f.fed_series.append(
+                (fed.pitch, fed.roll, math.degrees(att.pitch), math.degrees(att.roll), seen[1], seen[0])
+            )
+        if (fed.pitch, fed.roll) != last:
+            last, since = (fed.pitch, fed.roll), now
+        f.fed_still_s = max(f.fed_still_s, now - since)
+
+
 async def steps(f: Flight) -> None:
     r = f.r
     sim = r.sim
@@ -419,8 +463,12 @@ async def steps(f: Flight) -> None:
     times, accepted = f.times, f.accepted
 
     def at(yaw_deg: Callable[[], float], pitch_deg: float) -> Callable[[], Pose]:
+        # Yaw from the vehicle's nose (the encoder) against the bearing less the heading; pitch from
+        # the horizon, as MAVLink means it and a stabilised gimbal holds and reports it. (The
+        # encoder's pitch is that less the vehicle's tilt: compared with the target, it failed the
+        # test whenever the vehicle flew tilted.)
         g = sim.gimbal
-        return lambda: Pose(g.yaw_deg, g.pitch_deg, yaw_deg(), pitch_deg)
+        return lambda: Pose(g.yaw_deg, g.horizon()[1], yaw_deg(), pitch_deg)
 
     async def move(what: str, ack: Any, check: Callable[[], Pose]) -> None:
         """Send a command (the coroutine `ack`), expect ACCEPTED, then the camera at the target:
@@ -437,6 +485,18 @@ async def steps(f: Flight) -> None:
                     ""
                     if att is None
                     else f", vehicle pitch/roll {math.degrees(att.pitch):.2f}/{math.degrees(att.roll):.2f}"
+                )
+                # what the autopilot asked for, how the bridge sent it, and what the camera reported
+                pointer = r.bridge.pointer
+                sp, cam_att = pointer._latest, pointer.cam.attitude
+                if sp is not None and sp.pitch_deg is not None:
+                    tilt += f", set-point {sp.yaw_deg or 0.0:.2f}/{sp.pitch_deg:.2f}{' earth' if sp.earth_yaw else ''}"
+                tilt += " by rate" if pointer.following_by_rate else " by angle"
+                if cam_att is not None:
+                    tilt += f", camera reports {cam_att.yaw_deg:.2f}/{cam_att.pitch_deg:.2f}"
+                fed = sim.gimbal.vehicle  # the vehicle attitude the bridge fed the camera
+                tilt += (
+                    f", fed vehicle pitch/roll {fed.pitch:.2f}/{fed.roll:.2f}, encoder pitch {sim.gimbal.pitch_deg:.2f}"
                 )
                 trace.append((time.monotonic() - t0, pose, tilt))
             return pose
@@ -545,6 +605,7 @@ async def steps(f: Flight) -> None:
     t_takeoff = time.monotonic()
     await until(lambda: f.g.position is not None and f.g.position.relative_alt > 13_000, 60, "15 m up")
     times["takeoff"] = time.monotonic() - t_takeoff
+    watch = asyncio.ensure_future(watch_fed_attitude(f))
 
     async def turn(what: str, rate_deg_s: float, direction: int, target: Callable[[], float]) -> list[float]:
         """Yaw the vehicle TURN_DEG at `rate_deg_s` (CONDITION_YAW, relative); the camera's earth
@@ -671,6 +732,12 @@ async def steps(f: Flight) -> None:
         await asyncio.sleep(1.0)
     status = r.bridge.streams.status()
     assert not status["GLOBAL_POSITION_INT"]["stale"] and not status["SYSTEM_TIME"]["stale"], status
+
+    watch.cancel()
+    await asyncio.gather(watch, return_exceptions=True)
+    # The vehicle attitude the camera is fed (C12: FAI, 10 Hz) kept coming while the pointing loop
+    # sent its set-points: it once waited behind them for 10 s and more (client/records.py, Pacer).
+    assert f.fed_still_s <= FED_STILL_LIMIT_S, f"the camera's vehicle attitude held still {f.fed_still_s:.1f} s"
 
     # 7. The camera dies: the bridge reports COMMS_ERROR, the autopilot calls the mount unhealthy
     #    (pre-arm checks run disarmed: a forced disarm, SITL's vehicle falls 15 m, nobody is hurt).

@@ -250,7 +250,7 @@ class Engine(Matching):
     def _send(self, tx: Transaction, now: float) -> None:
         if not self.pacer.ready(now):
             tx.state, tx.deadline = "paced", None
-            self.pacer.hold(tx)
+            self.pacer.hold(tx, now)
             return
         self._emit(tx, now)
 

@@ -76,6 +76,7 @@ class Transaction:
     slow: bool = False  # a constant the device may answer very late: never deferred or retried
     lenient: bool = False  # taken even with a recovered length character (known firmware errors)
     background: bool = False  # a periodic feed frame: a paced queue lets every other frame pass it
+    held_at: float = 0.0  # when it (or the frame it replaced) took its place in the paced queue
     # a frame came too soon after it to be its answer: how many attempts it had then (0: none)
     suspected_copy: int = 0
     id: int = field(default_factory=lambda: next(_ids))
@@ -134,6 +135,9 @@ UNSOLICITED, LATE, IGNORED, DUPLICATE, AMBIGUOUS, UNAWAITED, NO_TX_ERROR = (
 
 
 PACE_SLACK_S = 1e-6  # timers may fire a hair early; a microsecond is no pacing error
+# A background frame lets others pass for this long at most (Pacer): two periods of the C12's
+# 10 Hz vehicle attitude feed, five of its 40 ms turns.
+BACKGROUND_MAX_WAIT_S = 0.2
 
 
 class Pacer:
@@ -143,25 +147,35 @@ class Pacer:
     0.2 s more on the C12's 40 ms pacing, 1.8 m of a survey's spacing at 9 m/s (issue 42). With no
     gap, everything goes at once. A frame sent without waiting for an answer replaces one still
     waiting on its key with other data (a newer set-point supersedes it: a joystick or a pointing
-    loop never builds a backlog); identical ones are kept (repeats)."""
+    loop never builds a backlog); identical ones are kept (repeats), and a replacement keeps the
+    place's waiting time.
 
-    __slots__ = ("gap_s", "next_at", "queue")
+    Letting others pass is bounded: a background frame that has waited BACKGROUND_MAX_WAIT_S goes
+    next, but never two such in a row (a frame that waits goes between them). A pointing loop
+    that sends its next set-point as soon as the last is confirmed keeps a frame waiting at every
+    turn; the feeds then never went: under ArduPilot SITL the C12 was told a vehicle attitude 10 s
+    old or more, and its stabilised pitch was off by the vehicle's tilt since (1.1-1.7 deg)."""
+
+    __slots__ = ("aged_last", "gap_s", "next_at", "queue")
 
     def __init__(self, gap_s: float = 0.0) -> None:
         self.gap_s = gap_s
         self.next_at = -math.inf
         self.queue: deque[Transaction] = deque()
+        self.aged_last = False  # the last frame out was a background frame that had waited its most
 
     def ready(self, now: float) -> bool:
         return not self.gap_s or (not self.queue and now >= self.next_at - PACE_SLACK_S)
 
-    def hold(self, tx: Transaction) -> None:
+    def hold(self, tx: Transaction, now: float) -> None:
+        tx.held_at = now
         if not tx.expect_reply:
             for i in range(len(self.queue) - 1, -1, -1):  # the latest one on its key
                 old = self.queue[i]
                 if old.key == tx.key:
                     if not old.expect_reply and old.frame.data != tx.frame.data:
                         old.state = "done"  # superseded: never sent
+                        tx.held_at = old.held_at  # its place, and how long that place has waited
                         self.queue[i] = tx
                         return
                     break
@@ -173,23 +187,29 @@ class Pacer:
 
     def due(self, now: float) -> Transaction | None:
         """The next held request whose turn has come (requests given up meanwhile are dropped):
-        the first that is not a background frame, else the first background one."""
+        the first that is not a background frame, else the first background one; but the first
+        background frame once it has waited BACKGROUND_MAX_WAIT_S, unless the last one out went
+        for that reason too (the class docstring)."""
         queue = self.queue
         while queue and now >= self.next_at - PACE_SLACK_S:
-            if queue[0].background:
+            head = queue[0]  # background frames keep their order: the first is the longest waiting
+            if head.background and (self.aged_last or now - head.held_at < BACKGROUND_MAX_WAIT_S):
                 for i, tx in enumerate(queue):
                     if not tx.background:
                         del queue[i]
                         if tx.state == "paced":
+                            self.aged_last = False
                             return tx
                         break
                 else:
                     tx = queue.popleft()
                     if tx.state == "paced":
+                        self.aged_last = False  # nothing else waited: it was not let pass
                         return tx
                 continue
             tx = queue.popleft()
             if tx.state == "paced":
+                self.aged_last = tx.background
                 return tx
         return None
 
