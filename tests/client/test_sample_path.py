@@ -106,3 +106,36 @@ def test_the_per_frame_objects_have_no_dict_and_still_pickle_copy_and_compare() 
     d = stats.as_dict()
     assert list(d) == list(LinkStats.describe())  # every counter, in the documented order
     assert d["frames_in"] == 3 and d["rtt_ms_last"] == 1.235  # rounded as before
+
+
+@pytest.mark.parametrize(("model", "override"), [("C12", None), ("SIP", None), ("C12", {"yaw": -1})])
+def test_the_attitude_step_stores_and_returns_what_the_general_path_does(
+    model: str, override: dict[str, int] | None
+) -> None:
+    """`apply_attitude` (apply + attitude_of in one step, per sample) leaves the same entries in the
+    state cache and returns the same GimbalAttitude as the general path, on the frames it takes."""
+    _, m = get_model(model)
+    mapper = MessageSigns(resolve_signs(m, override))
+    for yaw, pitch, roll in ((12.5, -30.25, 1.0), (-179.99, 90.0, 0.0), (0.0, -0.01, -45.5)):
+        message = mapper(_sample(model, yaw, pitch, roll))
+        fast, general = StateCache(), StateCache()
+        fast.values["zoom.optical_x"] = general.values["zoom.optical_x"] = Stamped(2.0, 1.0, 2.0)  # kept
+        att = fast.apply_attitude(message, 7.0, 1764465000.25)
+        keyed = general.apply(message, 7.0, 1764465000.25)
+        assert att == attitude_of(keyed, "attitude", "GAC", 7.0, 1764465000.25)
+        assert att is not None and type(att.yaw_deg) is float and att.source == "GAC"
+        assert fast.values == general.values and list(fast.values) == list(general.values)
+        assert fast == general  # nothing else in the cache changed (the attitude is the caller's to set)
+
+
+def test_the_attitude_step_leaves_every_other_frame_to_the_general_path() -> None:
+    dialect, _ = get_model("C12")
+    cache = StateCache()
+    sdc = dialect.decode(dialect.response(dialect.encode("SDC", read=True), remaining_mb=100, total_mb=200))
+    gac = _sample("C12", 1.0, 2.0, 3.0)
+    partial = Message._make((*gac[:3], {"yaw_deg": 1.0, "pitch_deg": 2.0}, *gac[4:]))  # a field missing
+    as_ints = Message._make((*gac[:3], {"yaw_deg": 1, "pitch_deg": 2, "roll_deg": 3}, *gac[4:]))
+    request = dialect.decode(dialect.encode("GAC", read=True))  # the query: no values
+    for other in (sdc, partial, as_ints, request):
+        assert cache.apply_attitude(other, 7.0, 1.0) is None
+    assert cache.values == {} and cache.attitude is None

@@ -13,6 +13,7 @@ import pytest
 
 import topgimbal
 from topgimbal.client.state import GimbalAttitude
+from topgimbal.fleet.batch import batch_head, named
 from topgimbal.fleet.camera import attitude_json
 
 from .conftest import eventually
@@ -32,6 +33,19 @@ def test_the_attitude_json_is_json_with_the_same_values(yaw: float, pitch: float
 def test_a_value_that_is_not_finite_is_null_not_invalid_json() -> None:
     d = json.loads(attitude_json(GimbalAttitude(math.nan, math.inf, 1.0, wall=1.0), 1))
     assert d["yaw_deg"] is None and d["pitch_deg"] is None and d["roll_deg"] == 1.0
+
+
+@pytest.mark.parametrize(
+    "att",
+    [GimbalAttitude(12.5, -30.25, 0.0, t=5.0, wall=1764201234.123456), GimbalAttitude(math.nan, 1.0, -math.inf)],
+)
+def test_a_batch_sample_made_in_one_step_is_the_named_sample(att: GimbalAttitude) -> None:
+    """The batch key's sample is made in one step per sample (the camera's name opens it): the same
+    text as the camera's own sample with the name put first, finite or not."""
+    one_step = attitude_json(att, 7, batch_head("left-1"))
+    assert one_step == named("left-1", attitude_json(att, 7))
+    d = json.loads(one_step)
+    assert list(d)[:2] == ["name", "yaw_deg"] and d["name"] == "left-1" and d["seq"] == 7
 
 
 @pytest.mark.loopback

@@ -326,6 +326,11 @@ class ClientCore(Requests):
 
     def _update_state(self, m: Message, now: float) -> None:
         wall = wall_time()
+        att = self.state.apply_attitude(m, now, wall)  # an attitude sample, the one frame per datagram
+        if att is not None:
+            self.state.attitude = att
+            self.streams.publish(att)
+            return
         keyed = self.state.apply(m, now, wall)
         if not keyed:
             return

@@ -112,6 +112,36 @@ class StateCache:
                 setattr(self, name, Stamped(value, now, wall))
         return keyed
 
+    def apply_attitude(self, message: Message, now: float, wall: float) -> GimbalAttitude | None:
+        """`apply` and `attitude_of(..., "attitude", ...)` in one step for a frame whose form keys
+        exactly the three attitude axes and nothing else (every attitude sample): the same
+        entries stored, the same GimbalAttitude returned (tests/client/test_sample_path.py). None
+        for any other frame, or one whose values are not all numbers: the general path takes it.
+        Per sample on a fleet server: no dict of keyed values, no per-key loop, no list."""
+        form = message.form
+        plan = _ATTITUDE_PLANS.get(id(form))
+        if plan is None or plan[0] is not form:
+            plan = _attitude_plan(form)
+        names = plan[1]
+        fields = message.fields
+        if names is None or fields is None or message.is_error:
+            return None
+        y, p, r = fields.get(names[0]), fields.get(names[1]), fields.get(names[2])
+        if not (type(y) is float and type(p) is float and type(r) is float):
+            return None  # (ints, None, a missing field: as the general path does)
+        values = self.values
+        values[_KEY_YAW] = _stamped(y, now, wall)
+        values[_KEY_PITCH] = _stamped(p, now, wall)
+        values[_KEY_ROLL] = _stamped(r, now, wall)
+        att = _new(GimbalAttitude)
+        _A_YAW(att, y)
+        _A_PITCH(att, p)
+        _A_ROLL(att, r)
+        _A_T(att, now)
+        _A_WALL(att, wall)
+        _A_SOURCE(att, message.frame.ident)
+        return att
+
     @staticmethod
     def values_of(message: Message) -> dict[str, object]:
         """{state key: value} a decoded frame tells (nothing is stored)."""
@@ -165,6 +195,23 @@ def state_values(message: Message) -> dict[str, object]:
 
 _AXES = ("yaw_deg", "pitch_deg", "roll_deg")
 _AXIS_KEYS: dict[str, tuple[str, ...]] = {}  # prefix -> its three keys (per frame on the hot path)
+_KEY_YAW, _KEY_PITCH, _KEY_ROLL = (f"attitude.{a}" for a in _AXES)
+# id(form) -> (form, its field names for yaw, pitch, roll when it keys those and nothing else, else
+# None). The form is kept with its id (an id is reused only once its object is gone); bounded.
+_ATTITUDE_PLANS: dict[int, tuple[object, tuple[str, str, str] | None]] = {}
+
+
+def _attitude_plan(form: object) -> tuple[object, tuple[str, str, str] | None]:
+    keyed = dict(getattr(form, "keyed_fields", ()) or ())  # field name -> state key
+    by_key = {key: name for name, key in keyed.items()}
+    names = None
+    if len(keyed) == 3 and set(by_key) == {_KEY_YAW, _KEY_PITCH, _KEY_ROLL}:
+        names = (by_key[_KEY_YAW], by_key[_KEY_PITCH], by_key[_KEY_ROLL])
+    plan = (form, names)
+    if len(_ATTITUDE_PLANS) >= 4096:
+        _ATTITUDE_PLANS.clear()
+    _ATTITUDE_PLANS[id(form)] = plan
+    return plan
 
 
 def attitude_of(

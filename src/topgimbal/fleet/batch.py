@@ -73,10 +73,15 @@ def batch_key(server_id: str) -> str:
     return f"{ROOT}/{BATCH_CHUNK}/{server_id}"
 
 
-def named(name: str, sample_json: str) -> str:
-    """A camera's attitude JSON (`{"yaw_deg":...}`) with `"name"` first. Camera names are checked
+def batch_head(name: str) -> str:
+    """How a camera's sample opens on the batch key: `{"name":"NAME",`. Camera names are checked
     on the way in (remote_keys.NAME_RE: letters, digits, '_', '-', '.'), so nothing needs escaping."""
-    return f'{{"name":"{name}",{sample_json[1:]}'
+    return f'{{"name":"{name}",'
+
+
+def named(name: str, sample_json: str) -> str:
+    """A camera's attitude JSON (`{"yaw_deg":...}`) with `"name"` first (`batch_head`)."""
+    return batch_head(name) + sample_json[1:]
 
 
 class PutThread:
