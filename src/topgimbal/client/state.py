@@ -116,7 +116,8 @@ class StateCache:
         """`apply` and `attitude_of(..., "attitude", ...)` in one step for a frame whose form keys
         exactly the three attitude axes and nothing else (every attitude sample): the same
         entries stored, the same GimbalAttitude returned (tests/client/test_sample_path.py). None
-        for any other frame, or one whose values are not all numbers: the general path takes it.
+        for any other frame, or one whose three values are not all floats (what the decoder makes
+        of them): the general path takes it.
         Per sample on a fleet server: no dict of keyed values, no per-key loop, no list."""
         form = message.form
         plan = _ATTITUDE_PLANS.get(id(form))
