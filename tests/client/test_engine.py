@@ -120,6 +120,47 @@ def test_a_write_needs_an_echo_carrying_its_data(sky):
     assert r.kind == "mismatch" and isinstance(tx.error, DeviceError) and "GAY" in str(tx.error)
 
 
+@pytest.mark.parametrize("write", [True, False])
+def test_an_answer_read_after_the_process_stood_still_answers_its_request(sky, write):
+    """A process that stood still longer than the late window (a loaded host: 2 s without the
+    CPU) reads the answer before its overdue timers run. The request's own attempt is still its
+    own: the answer is taken. (Forgotten as too old, a write's echo that carried the data sent
+    was reported as "does not carry the data sent", a DeviceError the device never earned.)"""
+    d, e, clock = sky
+    req = d.encode("GAY", yaw_deg=10.0) if write else d.encode("REC", read=True)
+    tx = e.submit(req, timeout_s=0.5, retries=2)
+    assert sent(e) == [req]
+    clock.t += 2.5  # no timer ran meanwhile: the answer is read first
+    r = e.on_message(echo(d, req) if write else answer(d, req, state="stopped"))
+    assert r.kind == "answer" and r.tx is tx and tx.error is None and tx.reply is not None
+    assert e.stats.errors == 0 and e.take_finished() == [tx]
+
+
+def test_an_echo_with_other_data_after_a_stall_is_still_a_mismatch(sky):
+    d, e, clock = sky
+    tx = e.submit(d.encode("GAY", yaw_deg=10.0), timeout_s=0.5, retries=2)
+    sent(e)
+    clock.t += 2.5
+    r = e.on_message(echo(d, d.encode("GAY", yaw_deg=20.0)))
+    assert r.kind == "mismatch" and isinstance(tx.error, DeviceError)
+
+
+def test_a_finished_request_s_attempts_are_forgotten_after_the_late_window(sky):
+    """Only a request still waiting keeps its attempts past the window: once it timed out they go,
+    and a read on the key is no longer deferred for them."""
+    d, e, clock = sky
+    req = d.encode("REC", read=True)
+    a = e.submit(req, timeout_s=0.5, retries=0)
+    clock.t += 0.6
+    e.on_tick()
+    assert isinstance(a.error, RequestTimeoutError)
+    clock.t += 2.0
+    b = e.submit(req, timeout_s=0.5, retries=0)
+    assert b.state == "sent"
+    clock.t += 0.01
+    assert e.on_message(answer(d, req, state="stopped")).tx is b
+
+
 def test_an_echo_cut_short_is_no_acknowledgement(sky):
     d, e, _clock = sky
     req = d.encode("IPV", address="192.168.144.108")

@@ -45,8 +45,12 @@ class Ledger:
         self.answered: dict[bytes, Attempt] = {}
 
     def prune(self, window: float) -> None:
+        """Forget the open attempts sent before `window`, except those of a request still waiting
+        for its answer: a process that stood still past the late window (a loaded host) reads the
+        answer before its timers run, and with its own attempt forgotten, a write's echo that
+        carried the data sent was reported as carrying other data."""
         if self.open and self.open[0].sent_at < window:
-            self.open = [a for a in self.open if a.sent_at >= window]
+            self.open = [a for a in self.open if a.sent_at >= window or a.tx.state == "sent"]
         if len(self.answered) > 32:
             self.answered = {k: a for k, a in self.answered.items() if a.sent_at >= window}
 
