@@ -67,13 +67,19 @@ def test_requests_on_one_key_wait_their_turn(sky):
     assert a.done and b.state == "sent" and sent(e) == [b.frame]
 
 
-def test_a_late_answer_never_completes_the_next_read(sky):
-    d, e, clock = sky
+def timed_out_read(d, e, clock) -> Frame:
+    """A REC query sent and timed out (no retry) 0.6 s ago: the query, for the next one."""
     req = d.encode("REC", read=True)
     a = e.submit(req, timeout_s=0.5, retries=0)
     clock.t += 0.6
     e.on_tick()
     assert isinstance(a.error, RequestTimeoutError)
+    return req
+
+
+def test_a_late_answer_never_completes_the_next_read(sky):
+    d, e, clock = sky
+    req = timed_out_read(d, e, clock)
     b = e.submit(req, timeout_s=0.5, retries=0)
     assert b.state == "deferred" and sent(e) == [req]  # only `a` went out: `a` may still be answered
     clock.t += 0.1
@@ -149,11 +155,7 @@ def test_a_finished_request_s_attempts_are_forgotten_after_the_late_window(sky):
     """Only a request still waiting keeps its attempts past the window: once it timed out they go,
     and a read on the key is no longer deferred for them."""
     d, e, clock = sky
-    req = d.encode("REC", read=True)
-    a = e.submit(req, timeout_s=0.5, retries=0)
-    clock.t += 0.6
-    e.on_tick()
-    assert isinstance(a.error, RequestTimeoutError)
+    req = timed_out_read(d, e, clock)
     clock.t += 2.0
     b = e.submit(req, timeout_s=0.5, retries=0)
     assert b.state == "sent"
